@@ -1,0 +1,61 @@
+"""The vehicle-centred grid shared by both detectors and the environments.
+
+Cells are ``cell_m`` squares (paper N §3.4: 20 cm). Rows run along vehicle +Y (row 0 is the rear
+edge, ``-back_m``), columns along vehicle +X (column 0 is the left edge, ``-side_m``). Arrays are
+``(rows, cols)``; plot them with ``origin="lower"`` to see the vehicle driving up the image.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from negobs_gym.errors import require
+
+
+@dataclass(frozen=True, kw_only=True)
+class GridSpec:
+    """Extent and resolution of a vehicle-centred grid (vehicle frame: Y forward, X right)."""
+
+    cell_m: float = 0.20  # paper N §3.4: 20 cm x 20 cm cells
+    ahead_m: float = 30.0  # SPEC §4.4: at least 25 m ahead
+    back_m: float = 5.0
+    side_m: float = 10.0  # SPEC §4.4: 10 m each side
+
+    def __post_init__(self) -> None:
+        for name in ("cell_m", "ahead_m", "side_m"):
+            value = getattr(self, name)
+            require(math.isfinite(value) and value > 0, name, f"must be > 0, got {value}")
+        require(math.isfinite(self.back_m) and self.back_m >= 0, "back_m", f"must be >= 0, got {self.back_m}")
+
+    @property
+    def rows(self) -> int:
+        """Number of cells along Y."""
+        return int(round((self.ahead_m + self.back_m) / self.cell_m))
+
+    @property
+    def cols(self) -> int:
+        """Number of cells along X."""
+        return int(round(2 * self.side_m / self.cell_m))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.rows, self.cols
+
+    def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cell (row, col) of vehicle-frame points (..., 2) and a mask of those inside the grid."""
+        xy = np.asarray(xy, dtype=np.float64)
+        col = np.floor((xy[..., 0] + self.side_m) / self.cell_m).astype(np.int64)
+        row = np.floor((xy[..., 1] + self.back_m) / self.cell_m).astype(np.int64)
+        inside = (row >= 0) & (row < self.rows) & (col >= 0) & (col < self.cols)
+        return row, col, inside
+
+    def cell_centres(self) -> np.ndarray:
+        """Vehicle-frame (x, y) of every cell centre, shape (rows, cols, 2)."""
+        x = -self.side_m + (np.arange(self.cols) + 0.5) * self.cell_m
+        y = -self.back_m + (np.arange(self.rows) + 0.5) * self.cell_m
+        xx, yy = np.meshgrid(x, y)
+        return np.stack([xx, yy], axis=-1)

@@ -1,0 +1,134 @@
+"""The structured LiDAR scan: the one input format of both detectors.
+
+A scan is a ``lasers x columns`` range image. Row ``n`` is one laser (fixed elevation in the
+sensor frame), column ``k`` one firing azimuth. Lasers are ordered as in paper N §3.1: for an
+upright spinning sensor, lower index = lower elevation = nearer ground hit. ``NaN`` in ``ranges``
+means "no return" (absorbed, out of range, dropped).
+
+Sensor frame: the sensor's spin axis is its +Z; azimuth 0 points along its +Y and increases
+clockwise seen from above (towards +X), elevation is measured from the XY plane, up positive.
+The ray of laser ``n`` at column ``k`` is therefore
+``(cos e_n sin a_k, cos e_n cos a_k, sin e_n)``. Extrinsics map sensor to vehicle frame:
+``P_V = R P_L + T`` (paper N Eq. 9). For a sensor mounted upright and facing forward, ``R = I``.
+
+Documented handling of bad input (raised at construction, so every consumer sees valid scans):
+``+/-inf`` or negative ranges, a shape that does not match the angle arrays, non-finite or
+non-increasing azimuths, a non-orthonormal ``R`` -> :class:`~negobs_gym.errors.ScanError`.
+An empty scan (zero columns) is valid and yields no detections.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.errors import ScanError
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=np.float64, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+def ray_directions(elevation_rad: np.ndarray, azimuth_rad: np.ndarray) -> np.ndarray:
+    """Unit ray directions in the sensor frame, shape (lasers, columns, 3)."""
+    e = np.asarray(elevation_rad, dtype=np.float64)[:, None]
+    a = np.asarray(azimuth_rad, dtype=np.float64)[None, :]
+    ce = np.cos(e)
+    return np.stack(np.broadcast_arrays(ce * np.sin(a), ce * np.cos(a), np.sin(e)), axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class StructuredScan:
+    """One revolution (or one frame) of one LiDAR, as a range image with its geometry.
+
+    Attributes:
+        sensor: Sensor name (the key the detectors use, e.g. ``"hdl64"``, ``"hdl32_left"``).
+        ranges_m: (lasers, columns) ranges [m]; NaN = no return.
+        azimuth_rad: (columns,) strictly increasing firing azimuths [rad].
+        elevation_rad: (lasers,) laser elevations [rad], in detector order.
+        rotation: (3, 3) sensor-to-vehicle rotation ``R``.
+        translation_m: (3,) sensor origin in the vehicle frame ``T`` [m].
+        pose: INS pose of the vehicle at scan time (world frame).
+        timestamp_s: Scan time [s].
+        intensity: Optional (lasers, columns) return intensity.
+    """
+
+    sensor: str
+    ranges_m: np.ndarray
+    azimuth_rad: np.ndarray
+    elevation_rad: np.ndarray
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    translation_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    pose: Pose = field(default_factory=Pose)
+    timestamp_s: float = 0.0
+    intensity: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        ranges = np.asarray(self.ranges_m, dtype=np.float64)
+        az = np.asarray(self.azimuth_rad, dtype=np.float64).reshape(-1)
+        el = np.asarray(self.elevation_rad, dtype=np.float64).reshape(-1)
+        rot = np.asarray(self.rotation, dtype=np.float64)
+        trans = np.asarray(self.translation_m, dtype=np.float64).reshape(-1)
+        name = self.sensor
+        if ranges.ndim != 2:
+            raise ScanError(f"{name}: ranges must be 2-D (lasers, columns), got shape {ranges.shape}")
+        if ranges.shape != (el.size, az.size):
+            raise ScanError(
+                f"{name}: ranges shape {ranges.shape} does not match "
+                f"{el.size} elevations x {az.size} azimuths"
+            )
+        if np.isinf(ranges).any():
+            raise ScanError(f"{name}: ranges contain inf; use NaN for 'no return'")
+        if (ranges < 0).any():
+            raise ScanError(f"{name}: ranges contain negative values")
+        if not (np.isfinite(az).all() and np.isfinite(el).all()):
+            raise ScanError(f"{name}: azimuths and elevations must be finite")
+        if az.size > 1 and not (np.diff(az) > 0).all():
+            raise ScanError(f"{name}: azimuths must be strictly increasing (sort the columns)")
+        if rot.shape != (3, 3) or not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6):
+            raise ScanError(f"{name}: rotation must be a 3x3 orthonormal matrix")
+        if trans.shape != (3,) or not np.isfinite(trans).all():
+            raise ScanError(f"{name}: translation must be 3 finite values")
+        if not isinstance(self.pose, Pose):
+            raise ScanError(f"{name}: pose must be a negobs_gym.core.Pose")
+        intensity = None
+        if self.intensity is not None:
+            intensity = np.asarray(self.intensity, dtype=np.float64)
+            if intensity.shape != ranges.shape:
+                raise ScanError(f"{name}: intensity shape {intensity.shape} != ranges {ranges.shape}")
+            intensity = _readonly(intensity)
+        object.__setattr__(self, "ranges_m", _readonly(ranges))
+        object.__setattr__(self, "azimuth_rad", _readonly(az))
+        object.__setattr__(self, "elevation_rad", _readonly(el))
+        object.__setattr__(self, "rotation", _readonly(rot))
+        object.__setattr__(self, "translation_m", _readonly(trans))
+        object.__setattr__(self, "intensity", intensity)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(lasers, columns)."""
+        return self.ranges_m.shape  # type: ignore[return-value]
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Boolean mask of returns, shape (lasers, columns)."""
+        return ~np.isnan(self.ranges_m)
+
+    @cached_property
+    def points_sensor(self) -> np.ndarray:
+        """Points in the sensor frame, (lasers, columns, 3); NaN where there is no return."""
+        return ray_directions(self.elevation_rad, self.azimuth_rad) * self.ranges_m[..., None]
+
+    @cached_property
+    def points_vehicle(self) -> np.ndarray:
+        """Points in the vehicle frame (paper N Eq. 9), (lasers, columns, 3); NaN = no return."""
+        return self.points_sensor @ self.rotation.T + self.translation_m
+
+    def points_world(self) -> np.ndarray:
+        """Points in the world frame through the INS pose, (lasers, columns, 3)."""
+        return self.pose.to_world(self.points_vehicle)

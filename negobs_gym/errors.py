@@ -1,0 +1,47 @@
+"""Exception hierarchy of negobs_gym.
+
+Every error the package raises on purpose derives from :class:`NegobsError`, so callers can catch
+the package's own failures in one place. The concrete classes also derive from the built-in
+exception a Python user would expect (``ValueError`` for bad values, ``ImportError`` for a missing
+optional dependency).
+"""
+
+from __future__ import annotations
+
+
+class NegobsError(Exception):
+    """Base class of every error raised on purpose by negobs_gym."""
+
+
+class ConfigError(NegobsError, ValueError):
+    """A configuration value is invalid. ``field`` names the offending config field."""
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+class ScanError(NegobsError, ValueError):
+    """A LiDAR scan (or the pose that comes with it) cannot be used as given."""
+
+
+class ActionError(NegobsError, ValueError):
+    """An action passed to an environment or driver is malformed (wrong shape, NaN, inf)."""
+
+
+class SimulationError(NegobsError, RuntimeError):
+    """The physics simulation is in a state it cannot continue from (e.g. closed world)."""
+
+
+class MissingDependencyError(NegobsError, ImportError):
+    """An optional dependency is needed for this feature; the message says what to install."""
+
+    def __init__(self, package: str, feature: str) -> None:
+        self.package = package
+        super().__init__(f"{feature} needs the optional package {package!r}: pip install {package}")
+
+
+def require(condition: bool, field: str, message: str) -> None:
+    """Raise :class:`ConfigError` for ``field`` unless ``condition`` holds (config validation)."""
+    if not condition:
+        raise ConfigError(field, message)
