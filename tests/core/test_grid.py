@@ -1,0 +1,31 @@
+import numpy as np
+import pytest
+
+from negobs_gym.core import GridSpec
+from negobs_gym.errors import ConfigError
+
+
+def test_default_grid_is_20cm_and_covers_25m_ahead_10m_each_side():
+    g = GridSpec()
+    assert g.cell_m == 0.2 and g.ahead_m >= 25 and g.side_m >= 10
+    assert g.shape == (round((g.ahead_m + g.back_m) / 0.2), round(2 * g.side_m / 0.2))
+
+
+def test_cell_of_and_cell_centres_agree():
+    g = GridSpec(ahead_m=4.0, back_m=1.0, side_m=2.0)
+    centres = g.cell_centres()
+    row, col, inside = g.cell_of(centres.reshape(-1, 2))
+    assert inside.all()
+    rr, cc = np.meshgrid(np.arange(g.rows), np.arange(g.cols), indexing="ij")
+    assert (row == rr.ravel()).all() and (col == cc.ravel()).all()
+    # origin cell: row counts from the rear edge, col from the left edge
+    r0, c0, _ = g.cell_of(np.array([0.01, 0.01]))
+    assert (r0, c0) == (5, 10)
+    _, _, out = g.cell_of(np.array([[0.0, 4.01], [-2.01, 0.0], [0.0, -1.01]]))
+    assert not out.any()
+
+
+@pytest.mark.parametrize("field", ["cell_m", "ahead_m", "side_m", "back_m"])
+def test_invalid_grid_raises_config_error_naming_field(field):
+    with pytest.raises(ConfigError, match=field):
+        GridSpec(**{field: -1.0})

@@ -1,0 +1,68 @@
+import math
+
+import numpy as np
+import pytest
+
+from negobs_gym.core import Pose, StructuredScan
+from negobs_gym.errors import ScanError
+
+
+def _scan(ranges=None, **kw):
+    el = np.radians([-10.0, -5.0])
+    az = np.radians([-10.0, 0.0, 10.0])
+    if ranges is None:
+        ranges = np.full((2, 3), 5.0)
+    return StructuredScan("s", ranges, az, el, **kw)
+
+
+def test_points_follow_the_documented_ray_convention():
+    scan = _scan()
+    p = scan.points_sensor
+    # azimuth 0 points along +Y, positive azimuth towards +X, negative elevation points down
+    assert np.allclose(p[0, 1], 5.0 * np.array([0.0, math.cos(math.radians(-10)), math.sin(math.radians(-10))]))
+    assert p[0, 2, 0] > 0 and p[0, 0, 0] < 0
+    assert np.allclose(np.linalg.norm(p, axis=-1), 5.0)
+
+
+def test_extrinsics_map_sensor_to_vehicle_and_pose_to_world():
+    scan = _scan(translation_m=[0.0, 0.0, 2.2], pose=Pose(x=10.0, yaw=math.pi))
+    assert np.allclose(scan.points_vehicle[..., 2], scan.points_sensor[..., 2] + 2.2)
+    world = scan.points_world()
+    assert np.allclose(world[..., 1], -scan.points_vehicle[..., 1])
+    assert np.allclose(world[..., 0], 10.0 - scan.points_vehicle[..., 0])
+
+
+def test_nan_is_no_return_and_arrays_are_read_only():
+    r = np.full((2, 3), 5.0)
+    r[1, 2] = np.nan
+    scan = _scan(r)
+    assert not scan.valid[1, 2] and scan.valid.sum() == 5
+    assert np.isnan(scan.points_vehicle[1, 2]).all()
+    with pytest.raises(ValueError):
+        scan.ranges_m[0, 0] = 1.0
+    r[0, 0] = 99.0  # the scan keeps its own copy
+    assert scan.ranges_m[0, 0] == 5.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"ranges": np.full((2, 3), np.inf)}, "inf"),
+        ({"ranges": np.full((2, 3), -1.0)}, "negative"),
+        ({"ranges": np.full((3, 3), 1.0)}, "does not match"),
+        ({"ranges": np.ones(6)}, "2-D"),
+        ({"rotation": np.ones((3, 3))}, "orthonormal"),
+        ({"translation_m": [0.0, np.nan, 0.0]}, "translation"),
+        ({"intensity": np.ones((1, 3))}, "intensity"),
+    ],
+)
+def test_bad_scans_raise_scan_error_naming_the_problem(kwargs, match):
+    with pytest.raises(ScanError, match=match):
+        _scan(**kwargs)
+
+
+def test_unsorted_azimuths_and_empty_scans():
+    with pytest.raises(ScanError, match="strictly increasing"):
+        StructuredScan("s", np.ones((1, 3)), [0.0, 0.2, 0.1], [0.0])
+    empty = StructuredScan("s", np.empty((4, 0)), [], [0.0, 0.1, 0.2, 0.3])
+    assert empty.shape == (4, 0) and empty.points_vehicle.shape == (4, 0, 3)
