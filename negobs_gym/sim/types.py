@@ -88,14 +88,59 @@ class PositiveObstacle:
     centre_m: np.ndarray  # (3,) world position of the primitive's centre
     half_extents_m: np.ndarray  # box: (hx, hy, hz); cylinder: (radius, radius, half_height)
     yaw_rad: float = 0.0
+    # True when the obstacle is already part of the heightfield (e.g. a mound): the world must not
+    # build a body for it; the record is ground truth only.
+    in_heightfield: bool = False
 
 
 @dataclass(frozen=True, eq=False)
 class Track:
-    """The drivable track: a centre line and a width, plus its borders (SPEC §3.1)."""
+    """The drivable track: a centre line and a width, plus its borders (SPEC §3.1).
+
+    Track coordinates: ``station_m`` is the distance along the centre line from its first vertex
+    (the start), ``lateral_m`` the signed offset from it, positive to the RIGHT of the driving
+    direction (the vehicle's +X when it drives along the track). Beyond either end the first/last
+    segment is extended in a straight line.
+    """
 
     centreline_xy_m: np.ndarray  # (N, 2) world polyline, in driving order
     width_m: float
+    border_kinds: tuple[str, str] = ("verge", "verge")  # (left, right) border of the track
+
+    @property
+    def stations_m(self) -> np.ndarray:
+        """Cumulative distance along the centre line at each vertex, (N,) starting at 0."""
+        seg = np.linalg.norm(np.diff(np.asarray(self.centreline_xy_m, dtype=np.float64), axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(seg)])
+
+    @property
+    def length_m(self) -> float:
+        """Length of the centre line [m]."""
+        return float(self.stations_m[-1])
+
+    def pose_at(
+        self, station_m: np.ndarray | float, lateral_m: np.ndarray | float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """World xy (..., 2) and yaw [rad] (...) of track coordinates.
+
+        The yaw follows :mod:`negobs_gym.core.pose`: yaw 0 faces world +Y, forward direction is
+        ``(-sin yaw, cos yaw)``.
+        """
+        pts = np.asarray(self.centreline_xy_m, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[0] < 2 or pts.shape[1] != 2:
+            raise ValueError(f"centreline_xy_m must be (N>=2, 2), got {pts.shape}")
+        st = self.stations_m
+        s = np.asarray(station_m, dtype=np.float64)
+        lat = np.asarray(lateral_m, dtype=np.float64)
+        k = np.clip(np.searchsorted(st, s, side="right") - 1, 0, len(st) - 2)
+        d = pts[k + 1] - pts[k]
+        seg_len = np.linalg.norm(d, axis=-1)
+        t = d / np.maximum(seg_len, 1e-12)[..., None]
+        xy = pts[k] + t * (s - st[k])[..., None]
+        right = np.stack([t[..., 1], -t[..., 0]], axis=-1)
+        xy = xy + right * lat[..., None]
+        yaw = np.arctan2(-t[..., 0], t[..., 1])
+        return xy, yaw
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,264 @@
+"""Scenario presets: ready-made terrains for braking tests, navigation and paper T's scenes.
+
+Every preset starts the vehicle at the origin facing world +Y (``start_xy_yaw = (0, 0, 0)``) on the
+track centre line and puts the goal ``goal_margin_m`` before the end of the track. Distances
+"ahead" are measured along the track from the start pose (the vehicle frame origin, SPEC §2).
+Each preset takes ``seed`` (roughness noise and, for the winding course, the layout) and
+``resolution_m``; ``PRESETS`` maps a name to each preset function.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from negobs_gym.errors import require
+from negobs_gym.sim.carving import NegativeObstacleSpec, PositiveObstacleSpec
+from negobs_gym.sim.terrain import (
+    BendSpec,
+    BorderConfig,
+    RoughnessConfig,
+    TerrainConfig,
+    generate_terrain,
+)
+from negobs_gym.sim.types import Terrain
+
+# Room left on the track beyond the last obstacle of a straight preset [m].
+_RUN_OUT_AFTER_OBSTACLE_M = 30.0
+
+
+def _roughness(rough: bool) -> RoughnessConfig:
+    return RoughnessConfig() if rough else RoughnessConfig.flat()
+
+
+def braking_track(
+    ditch_distance_m: float = 30.0,
+    ditch_length_m: float = 1.0,
+    ditch_width_m: float = 3.0,
+    ditch_depth_m: float = 0.8,
+    lateral_offset_m: float = 0.0,
+    seed: int = 0,
+    rough: bool = True,
+    *,
+    length_m: float | None = None,
+    resolution_m: float = 0.10,
+    wall_slope_deg: float = 90.0,
+) -> Terrain:
+    """Straight track along +Y with one ditch (obstacle id ``"ditch-0"``).
+
+    The ditch's near edge is ``ditch_distance_m`` ahead of the start; ``ditch_length_m`` is along
+    the track, ``ditch_width_m`` across it, its centre ``lateral_offset_m`` to the right of the
+    centre line. ``rough=False`` gives flat ground around the ditch.
+    """
+    require(ditch_distance_m > 0, "ditch_distance_m", f"must be > 0, got {ditch_distance_m!r}")
+    total = ditch_distance_m + ditch_length_m + _RUN_OUT_AFTER_OBSTACLE_M
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=length_m if length_m is not None else total,
+        roughness=_roughness(rough),
+        negative_obstacles=(
+            NegativeObstacleSpec(
+                kind="ditch",
+                length_m=ditch_length_m,
+                width_m=ditch_width_m,
+                depth_m=ditch_depth_m,
+                wall_slope_deg=wall_slope_deg,
+                station_m=ditch_distance_m + 0.5 * ditch_length_m,
+                lateral_m=lateral_offset_m,
+            ),
+        ),
+    )
+    return generate_terrain(config, seed)
+
+
+def trench_crossing(
+    seed: int = 0,
+    trench_distance_m: float = 30.0,
+    trench_length_m: float = 3.0,
+    trench_depth_m: float = 1.0,
+    *,
+    rough: bool = True,
+    resolution_m: float = 0.10,
+) -> Terrain:
+    """Straight track with a trench across its full width (id ``"trench-0"``).
+
+    A ~3 m long trench (along the track) traps a full-size vehicle (issue 2). It spans the track
+    and both verges so the vehicle cannot pass beside it.
+    """
+    require(trench_distance_m > 0, "trench_distance_m", f"must be > 0, got {trench_distance_m!r}")
+    track_width_m = 6.0
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=trench_distance_m + trench_length_m + _RUN_OUT_AFTER_OBSTACLE_M,
+        track_width_m=track_width_m,
+        roughness=_roughness(rough),
+        negative_obstacles=(
+            NegativeObstacleSpec(
+                kind="trench",
+                length_m=trench_length_m,
+                width_m=track_width_m + 4.0,
+                depth_m=trench_depth_m,
+                station_m=trench_distance_m + 0.5 * trench_length_m,
+            ),
+        ),
+    )
+    return generate_terrain(config, seed)
+
+
+def rough_track(length_m: float = 200.0, seed: int = 0, *, resolution_m: float = 0.10) -> Terrain:
+    """Straight rough track with verges and no obstacles at all (false-alarm tests)."""
+    config = TerrainConfig(resolution_m=resolution_m, length_m=length_m)
+    return generate_terrain(config, seed)
+
+
+def straight_banked_track(seed: int = 0, length_m: float = 80.0, *, resolution_m: float = 0.10) -> Terrain:
+    """Paper T's straight track between two earth banks."""
+    bank = BorderConfig(kind="bank")
+    config = TerrainConfig(resolution_m=resolution_m, length_m=length_m, left_border=bank, right_border=bank)
+    return generate_terrain(config, seed)
+
+
+def bend(
+    seed: int = 0,
+    angle_deg: float = 60.0,
+    radius_m: float = 30.0,
+    *,
+    resolution_m: float = 0.10,
+) -> Terrain:
+    """Paper T's bend: 20 m straight, a circular bend (+ = left), 30 m straight, banked sides."""
+    require(radius_m > 0, "radius_m", f"must be > 0, got {radius_m!r}")
+    arc = radius_m * np.radians(abs(angle_deg))
+    bank = BorderConfig(kind="bank")
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=20.0 + arc + 30.0,
+        bends=(BendSpec(start_m=20.0, length_m=arc, angle_deg=angle_deg),),
+        left_border=bank,
+        right_border=bank,
+    )
+    return generate_terrain(config, seed)
+
+
+def oncoming_car(seed: int = 0, car_distance_m: float = 35.0, *, resolution_m: float = 0.10) -> Terrain:
+    """Paper T's scene: a car (as a static box) facing us in the left half of the track."""
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=car_distance_m + _RUN_OUT_AFTER_OBSTACLE_M,
+        positive_obstacles=(
+            PositiveObstacleSpec(kind="vehicle", station_m=car_distance_m, lateral_m=-1.5, yaw_deg=180.0),
+        ),
+    )
+    return generate_terrain(config, seed)
+
+
+def parked_motorbike(seed: int = 0, bike_distance_m: float = 25.0, *, resolution_m: float = 0.10) -> Terrain:
+    """Paper T's scene: a motorbike parked at the right edge of the track."""
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=bike_distance_m + _RUN_OUT_AFTER_OBSTACLE_M,
+        positive_obstacles=(
+            PositiveObstacleSpec(kind="motorbike", station_m=bike_distance_m, lateral_m=2.5),
+        ),
+    )
+    return generate_terrain(config, seed)
+
+
+def pedestrian_near_dropoff(
+    seed: int = 0, pedestrian_distance_m: float = 25.0, *, resolution_m: float = 0.10
+) -> Terrain:
+    """Paper T's scene: a pedestrian on the right verge, just before a drop-off."""
+    right = BorderConfig(kind="dropoff")
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=pedestrian_distance_m + _RUN_OUT_AFTER_OBSTACLE_M,
+        right_border=right,
+        positive_obstacles=(
+            PositiveObstacleSpec(
+                kind="pedestrian",
+                station_m=pedestrian_distance_m,
+                lateral_m=0.5 * 6.0 + 0.5 * right.verge_width_m,
+            ),
+        ),
+    )
+    return generate_terrain(config, seed)
+
+
+def winding_course(
+    seed: int = 0,
+    length_m: float = 200.0,
+    *,
+    n_negative: int = 6,
+    n_positive: int = 4,
+    resolution_m: float = 0.10,
+) -> Terrain:
+    """Winding track with mixed obstacles placed from ``seed``; the goal is near its end.
+
+    Bends of 30-60 deg alternate left and right; pits of paper N's sizes, ditches, a crater, rocks
+    and mounds are spread along the track from 20 m on, alternating sides of the centre line.
+    """
+    require(length_m >= 60.0, "length_m", f"must be >= 60 m for a winding course, got {length_m!r}")
+    require(n_negative >= 0, "n_negative", "must be >= 0")
+    require(n_positive >= 0, "n_positive", "must be >= 0")
+    layout = np.random.default_rng([int(seed), 1])  # separate stream from the terrain noise
+    bends = []
+    s, sign = 20.0, 1.0
+    while s + 25.0 <= length_m - 20.0:
+        arc = float(layout.uniform(20.0, 25.0))
+        angle = sign * float(layout.uniform(30.0, 60.0))
+        bends.append(BendSpec(start_m=s, length_m=arc, angle_deg=angle))
+        s += arc + float(layout.uniform(10.0, 25.0))
+        sign = -sign
+    # Paper N §4 pit sizes (length x width, m) plus a ditch and a crater.
+    sizes = [(1.0, 0.5), (1.0, 0.8), (1.5, 0.6), (1.0, 1.0)]
+    n_total = n_negative + n_positive
+    stations = np.linspace(20.0, length_m - 15.0, n_total + 2)[1:-1] if n_total else []
+    negatives, positives = [], []
+    for k, station in enumerate(stations):
+        lateral = float(layout.uniform(-2.0, 2.0))
+        if (k % 2 == 0 and len(negatives) < n_negative) or len(positives) >= n_positive:
+            pick = int(layout.integers(0, 6))
+            if pick < 4:
+                length, width = sizes[pick]
+                kind = "pit"
+            elif pick == 4:
+                length, width, kind = 1.0, 3.0, "ditch"
+            else:
+                length = width = float(layout.uniform(1.0, 2.0))
+                kind = "crater"
+            negatives.append(
+                NegativeObstacleSpec(
+                    kind=kind,
+                    length_m=length,
+                    width_m=width,
+                    depth_m=float(layout.uniform(0.3, 1.5)),
+                    station_m=float(station),
+                    lateral_m=lateral,
+                )
+            )
+        else:
+            kind = ("rock", "box", "mound")[int(layout.integers(0, 3))]
+            positives.append(PositiveObstacleSpec(kind=kind, station_m=float(station), lateral_m=lateral))
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=length_m,
+        bends=tuple(bends),
+        left_border=BorderConfig(kind="bank"),
+        right_border=BorderConfig(kind="verge"),
+        negative_obstacles=tuple(negatives),
+        positive_obstacles=tuple(positives),
+    )
+    return generate_terrain(config, seed)
+
+
+PRESETS: dict[str, Callable[..., Terrain]] = {
+    "braking_track": braking_track,
+    "trench_crossing": trench_crossing,
+    "rough_track": rough_track,
+    "straight_banked_track": straight_banked_track,
+    "bend": bend,
+    "oncoming_car": oncoming_car,
+    "parked_motorbike": parked_motorbike,
+    "pedestrian_near_dropoff": pedestrian_near_dropoff,
+    "winding_course": winding_course,
+}

@@ -1,0 +1,187 @@
+"""Top-down render of a terrain: hillshade, ground-truth obstacles, the vehicle's path.
+
+Uses matplotlib's Agg canvas (no display needed). The axes fill the whole figure with the terrain
+extent as limits, so pixel (row, col) maps linearly to world (x, y): ``col = (x - x_min) / (x_max -
+x_min) * width``, ``row = (y_max - y) / (y_max - y_min) * height``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from negobs_gym.sim.types import Terrain
+
+NEGATIVE_COLOUR = "red"
+POSITIVE_COLOUR = "blue"
+PATH_COLOUR = "yellow"
+VEHICLE_COLOUR = "orange"
+TRACK_EDGE_COLOUR = "white"
+
+
+def _patches():
+    from matplotlib import patches
+
+    return patches
+
+
+def draw_terrain(
+    ax,  # matplotlib.axes.Axes
+    terrain: Terrain,
+    *,
+    vertical_exaggeration: float = 3.0,
+    show_track_edges: bool = True,
+) -> None:
+    """Draw the hillshaded heightfield and the ground-truth obstacles onto ``ax`` (world metres).
+
+    Negative obstacles are filled and outlined in red, positive ones outlined in blue. Other
+    layers (LiDAR points, grid cells) can be drawn on the same axes afterwards.
+    """
+    from matplotlib.colors import LightSource
+
+    patches = _patches()
+    hf = terrain.heightfield
+    x0, x1, y0, y1 = hf.extent_m
+    heights = np.asarray(hf.heights_m, dtype=np.float64)
+    light = LightSource(azdeg=315, altdeg=45)
+    shade = light.hillshade(heights, vert_exag=vertical_exaggeration, dx=hf.resolution_m, dy=hf.resolution_m)
+    # Row 0 of the heightfield is the lowest y: draw with origin="lower".
+    half = 0.5 * hf.resolution_m
+    ax.imshow(
+        shade,
+        cmap="gray",
+        vmin=0.0,
+        vmax=1.0,
+        origin="lower",
+        extent=(x0 - half, x1 + half, y0 - half, y1 + half),
+        interpolation="bilinear",
+        aspect="auto",
+    )
+    if show_track_edges:
+        track = terrain.track
+        s = np.linspace(0.0, track.length_m, max(len(track.centreline_xy_m), 2))
+        for side in (-0.5, 0.5):
+            edge, _ = track.pose_at(s, side * track.width_m)
+            ax.plot(edge[:, 0], edge[:, 1], color=TRACK_EDGE_COLOUR, lw=0.6, alpha=0.6)
+    for neg in terrain.negative_obstacles:
+        ax.add_patch(
+            patches.Polygon(
+                np.asarray(neg.outline_xy_m),
+                closed=True,
+                facecolor=NEGATIVE_COLOUR,
+                edgecolor=NEGATIVE_COLOUR,
+                alpha=0.8,
+                lw=1.5,
+            )
+        )
+    for pos in terrain.positive_obstacles:
+        ax.add_patch(_footprint(pos.shape, pos.centre_m[:2], pos.half_extents_m, pos.yaw_rad))
+    ax.set_xlim(x0 - half, x1 + half)
+    ax.set_ylim(y0 - half, y1 + half)
+
+
+def _footprint(shape: str, centre_xy: np.ndarray, half_extents: np.ndarray, yaw_rad: float):
+    patches = _patches()
+    if shape == "cylinder":
+        return patches.Circle(
+            tuple(centre_xy), float(half_extents[0]), fill=False, edgecolor=POSITIVE_COLOUR, lw=1.5
+        )
+    return patches.Polygon(
+        _box_corners(centre_xy, half_extents[0], half_extents[1], yaw_rad),
+        closed=True,
+        fill=False,
+        edgecolor=POSITIVE_COLOUR,
+        lw=1.5,
+    )
+
+
+def _box_corners(centre_xy: np.ndarray, half_x: float, half_y: float, yaw_rad: float) -> np.ndarray:
+    """Corners of a box with body X right, Y forward, yawed by ``yaw_rad`` (core/pose.py)."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    local = np.array([[-half_x, -half_y], [half_x, -half_y], [half_x, half_y], [-half_x, half_y]])
+    rot = np.array([[c, -s], [s, c]])
+    return np.asarray(centre_xy, dtype=np.float64)[:2] + local @ rot.T
+
+
+def render_top_down(
+    terrain: Terrain,
+    path_xy_m: np.ndarray | None = None,
+    vehicle_pose: object | None = None,
+    out_path: str | os.PathLike | None = None,
+    *,
+    height_px: int = 1000,
+    width_px: int | None = None,
+    vehicle_size_m: tuple[float, float] = (2.0, 4.5),
+    rear_overhang_m: float = 0.85,
+) -> np.ndarray:
+    """Render the terrain from above; returns an (H, W, 3) uint8 image, writes a PNG if asked.
+
+    Args:
+        terrain: the terrain to draw.
+        path_xy_m: (N, 2) world path of the vehicle, drawn as a line.
+        vehicle_pose: a :class:`negobs_gym.core.Pose` (or anything with x, y, yaw) whose
+            footprint (``vehicle_size_m`` = width, length; origin at the rear axle) is drawn.
+        out_path: PNG file to write atomically (temp file + ``os.replace``).
+        height_px: image height; ``width_px`` defaults to the terrain's aspect ratio (>= 64 px).
+        vehicle_size_m: (width, length) of the footprint [m].
+        rear_overhang_m: distance from the rear axle (pose origin) back to the rear bumper [m].
+
+    Raises:
+        ValueError: a malformed path or image size.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    x0, x1, y0, y1 = terrain.heightfield.extent_m
+    if width_px is None:
+        width_px = max(64, round(height_px * (x1 - x0) / max(y1 - y0, 1e-9)))
+    if height_px < 16 or width_px < 16:
+        raise ValueError(f"image size must be at least 16x16 px, got {width_px}x{height_px}")
+    dpi = 100
+    fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_axis_off()
+    draw_terrain(ax, terrain)
+    if path_xy_m is not None:
+        path = np.asarray(path_xy_m, dtype=np.float64)
+        if path.ndim != 2 or path.shape[1] != 2:
+            raise ValueError(f"path_xy_m must have shape (N, 2), got {path.shape}")
+        finite = np.all(np.isfinite(path), axis=1)
+        ax.plot(path[finite, 0], path[finite, 1], color=PATH_COLOUR, lw=1.5)
+    if vehicle_pose is not None:
+        width, length = vehicle_size_m
+        x, y, yaw = float(vehicle_pose.x), float(vehicle_pose.y), float(vehicle_pose.yaw)
+        fwd = np.array([-math.sin(yaw), math.cos(yaw)])
+        # The pose origin is the rear axle: the footprint centre lies length/2 - overhang ahead.
+        centre = np.array([x, y]) + fwd * (0.5 * length - rear_overhang_m)
+        corners = _box_corners(centre, 0.5 * width, 0.5 * length, yaw)
+        ax.add_patch(_patches().Polygon(corners, closed=True, fill=False, edgecolor=VEHICLE_COLOUR, lw=2))
+    canvas.draw()
+    image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    if out_path is not None:
+        _write_png_atomic(image, Path(out_path))
+    return image
+
+
+def _write_png_atomic(image: np.ndarray, out_path: Path) -> None:
+    """Write ``image`` as PNG via a temp file in the same folder and ``os.replace``."""
+    import matplotlib.image as mpimg
+
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".png", dir=out_path.parent)
+    os.close(fd)
+    try:
+        mpimg.imsave(tmp, image, format="png")
+        os.replace(tmp, out_path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
