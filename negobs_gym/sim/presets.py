@@ -26,6 +26,8 @@ from negobs_gym.sim.types import Terrain
 
 # Room left on the track beyond the last obstacle of a straight preset [m].
 _RUN_OUT_AFTER_OBSTACLE_M = 30.0
+# Tightest bend of the winding course [m]; must stay >= half the 30 m corridor.
+_MIN_BEND_RADIUS_M = 18.0
 
 
 def _roughness(rough: bool) -> RoughnessConfig:
@@ -194,21 +196,27 @@ def winding_course(
 ) -> Terrain:
     """Winding track with mixed obstacles placed from ``seed``; the goal is near its end.
 
-    Bends of 30-60 deg alternate left and right; pits of paper N's sizes, ditches, a crater, rocks
-    and mounds are spread along the track from 20 m on, alternating sides of the centre line.
+    Bends alternate left and right, swinging the heading 20-40 deg either side of +Y. Pits of
+    paper N's sizes, ditches, craters, rocks, boxes and mounds are spread along the track from
+    20 m on, at random lateral offsets within 2 m of the centre line.
     """
     require(length_m >= 60.0, "length_m", f"must be >= 60 m for a winding course, got {length_m!r}")
     require(n_negative >= 0, "n_negative", "must be >= 0")
     require(n_positive >= 0, "n_positive", "must be >= 0")
     layout = np.random.default_rng([int(seed), 1])  # separate stream from the terrain noise
     bends = []
-    s, sign = 20.0, 1.0
-    while s + 25.0 <= length_m - 20.0:
-        arc = float(layout.uniform(20.0, 25.0))
-        angle = sign * float(layout.uniform(30.0, 60.0))
+    s, sign, heading_deg = 20.0, 1.0, 0.0
+    while True:
+        # Swing the heading to alternately +-20..40 deg off +Y so the course zig-zags forward
+        # instead of drifting sideways (a narrower heightfield for the physics world).
+        target = sign * float(layout.uniform(20.0, 40.0))
+        angle = target - heading_deg
+        arc = max(float(layout.uniform(20.0, 30.0)), np.radians(abs(angle)) * _MIN_BEND_RADIUS_M)
+        if s + arc > length_m - 20.0:
+            break
         bends.append(BendSpec(start_m=s, length_m=arc, angle_deg=angle))
         s += arc + float(layout.uniform(10.0, 25.0))
-        sign = -sign
+        heading_deg, sign = target, -sign
     # Paper N §4 pit sizes (length x width, m) plus a ditch and a crater.
     sizes = [(1.0, 0.5), (1.0, 0.8), (1.5, 0.6), (1.0, 1.0)]
     n_total = n_negative + n_positive

@@ -403,8 +403,28 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
         start_xy_yaw=(float(config.start_xy_m[0]), float(config.start_xy_m[1]), start_yaw),
         goal_xy_m=(float(goal[0]), float(goal[1])),
         seed=int(seed),
-        metadata={"config": config, "corridor_width_m": config.corridor_width_m},
+        metadata={
+            "config": config,
+            "corridor_width_m": config.corridor_width_m,
+            "border_faces_xy_m": _border_faces(config, track),
+        },
     )
+
+
+def _border_faces(config: TerrainConfig, track: Track) -> dict[str, np.ndarray]:
+    """Polyline (N, 2) where each bank or drop-off face begins, keyed "left"/"right".
+
+    Drop-offs are track borders, not carved obstacles, so they have no
+    :class:`NegativeObstacle` record; these lines let an evaluation tell a detection of a
+    drop-off edge from a false alarm. Verge-only sides are absent.
+    """
+    s = np.arange(-config.lead_in_m, track.length_m + config.run_out_m + 1e-9, 1.0)
+    faces = {}
+    for side, sign, border in (("left", -1.0, config.left_border), ("right", 1.0, config.right_border)):
+        if border.kind != "verge":
+            offset = sign * (0.5 * config.track_width_m + border.verge_width_m)
+            faces[side], _ = track.pose_at(s, offset)
+    return faces
 
 
 def _place(

@@ -86,6 +86,10 @@ def test_bank_and_dropoff_profiles() -> None:
     # Left of +Y is -X. Track half-width 3 m, verge 1.5 m, bank run 2 m, drop run 0.5 m.
     z = terrain.heightfield.height_at(np.array([[-4.0, 10.0], [-7.0, 10.0], [4.0, 10.0], [6.0, 10.0]]))
     np.testing.assert_allclose(z, [0.0, 0.8, 0.0, -1.5], atol=1e-5)
+    faces = terrain.metadata["border_faces_xy_m"]
+    assert set(faces) == {"left", "right"}
+    np.testing.assert_allclose(faces["left"][:, 0], -4.5)
+    np.testing.assert_allclose(faces["right"][:, 0], 4.5)
 
 
 def test_centreline_bend_heading_and_length() -> None:
