@@ -40,6 +40,11 @@ POSITIVE_DEFAULT_SIZES_M: dict[str, tuple[float, float, float]] = {
     "pedestrian": (0.6, 0.6, 1.7),  # cylinder r 0.3 m, h 1.7 m (issue 2)
 }
 
+# Paper N §4: sizes (length x width) [m] of the pits in its test scenes.
+PAPER_N_PIT_SIZES_M: tuple[tuple[float, float], ...] = ((1.0, 0.5), (1.0, 0.8), (1.5, 0.6), (1.0, 1.0))
+MIN_NEGATIVE_WIDTH_M = 0.3  # paper N §3.1 (Eq. 14): minimum negative-obstacle width w_min
+DEPTH_RANGE_M = (0.3, 1.5)  # SPEC §3.1
+
 _CRATER_VERTICES = 48
 
 
@@ -139,6 +144,42 @@ class PositiveObstacleSpec:
     def resolved_size_m(self) -> tuple[float, float, float]:
         """The size used: ``size_m`` or the kind's default."""
         return self.size_m if self.size_m is not None else POSITIVE_DEFAULT_SIZES_M[self.kind]
+
+
+def sample_pit_spec(
+    rng: np.random.Generator,
+    *,
+    station_m: float,
+    lateral_m: float = 0.0,
+    size_jitter: float = 0.2,
+    depth_range_m: tuple[float, float] = DEPTH_RANGE_M,
+) -> NegativeObstacleSpec:
+    """A pit of one of paper N's sizes, each side scaled by a factor in ``1 +- size_jitter``.
+
+    Widths never go below :data:`MIN_NEGATIVE_WIDTH_M`; the depth is uniform in
+    ``depth_range_m``. Draws exactly four numbers from ``rng``.
+    """
+    require(
+        _finite(size_jitter) and 0 <= size_jitter < 1,
+        "size_jitter",
+        f"must be in [0, 1), got {size_jitter!r}",
+    )
+    lo, hi = depth_range_m
+    require(
+        _finite(lo) and _finite(hi) and 0 < lo <= hi,
+        "depth_range_m",
+        f"must be (low, high) with 0 < low <= high, got {depth_range_m!r}",
+    )
+    length, width = PAPER_N_PIT_SIZES_M[int(rng.integers(len(PAPER_N_PIT_SIZES_M)))]
+    scale = rng.uniform(1.0 - size_jitter, 1.0 + size_jitter, size=2)
+    return NegativeObstacleSpec(
+        kind="pit",
+        length_m=float(length * scale[0]),
+        width_m=float(max(width * scale[1], MIN_NEGATIVE_WIDTH_M)),
+        depth_m=float(rng.uniform(lo, hi)),
+        station_m=station_m,
+        lateral_m=lateral_m,
+    )
 
 
 def _axes(yaw_rad: float) -> tuple[np.ndarray, np.ndarray]:

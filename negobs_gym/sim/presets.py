@@ -14,7 +14,12 @@ from collections.abc import Callable
 import numpy as np
 
 from negobs_gym.errors import require
-from negobs_gym.sim.carving import NegativeObstacleSpec, PositiveObstacleSpec
+from negobs_gym.sim.carving import (
+    DEPTH_RANGE_M,
+    NegativeObstacleSpec,
+    PositiveObstacleSpec,
+    sample_pit_spec,
+)
 from negobs_gym.sim.terrain import (
     BendSpec,
     BorderConfig,
@@ -197,8 +202,8 @@ def winding_course(
     """Winding track with mixed obstacles placed from ``seed``; the goal is near its end.
 
     Bends alternate left and right, swinging the heading 20-40 deg either side of +Y. Pits of
-    paper N's sizes, ditches, craters, rocks, boxes and mounds are spread along the track from
-    20 m on, at random lateral offsets within 2 m of the centre line.
+    paper N's sizes +-20 %, 1-2 m long ditches, craters, rocks, boxes and mounds are spread along
+    the track from 20 m on, at random lateral offsets within 2 m of the centre line.
     """
     require(length_m >= 60.0, "length_m", f"must be >= 60 m for a winding course, got {length_m!r}")
     require(n_negative >= 0, "n_negative", "must be >= 0")
@@ -217,33 +222,27 @@ def winding_course(
         bends.append(BendSpec(start_m=s, length_m=arc, angle_deg=angle))
         s += arc + float(layout.uniform(10.0, 25.0))
         heading_deg, sign = target, -sign
-    # Paper N §4 pit sizes (length x width, m) plus a ditch and a crater.
-    sizes = [(1.0, 0.5), (1.0, 0.8), (1.5, 0.6), (1.0, 1.0)]
     n_total = n_negative + n_positive
     stations = np.linspace(20.0, length_m - 15.0, n_total + 2)[1:-1] if n_total else []
     negatives, positives = [], []
     for k, station in enumerate(stations):
         lateral = float(layout.uniform(-2.0, 2.0))
         if (k % 2 == 0 and len(negatives) < n_negative) or len(positives) >= n_positive:
-            pick = int(layout.integers(0, 6))
-            if pick < 4:
-                length, width = sizes[pick]
-                kind = "pit"
-            elif pick == 4:
-                length, width, kind = 1.0, 3.0, "ditch"
+            pick = int(layout.integers(0, 3))
+            if pick == 0:
+                spec = sample_pit_spec(layout, station_m=float(station), lateral_m=lateral)
             else:
-                length = width = float(layout.uniform(1.0, 2.0))
-                kind = "crater"
-            negatives.append(
-                NegativeObstacleSpec(
-                    kind=kind,
+                length = float(layout.uniform(1.0, 2.0))
+                width = 3.0 if pick == 1 else length
+                spec = NegativeObstacleSpec(
+                    kind="ditch" if pick == 1 else "crater",
                     length_m=length,
                     width_m=width,
-                    depth_m=float(layout.uniform(0.3, 1.5)),
+                    depth_m=float(layout.uniform(*DEPTH_RANGE_M)),
                     station_m=float(station),
                     lateral_m=lateral,
                 )
-            )
+            negatives.append(spec)
         else:
             kind = ("rock", "box", "mound")[int(layout.integers(0, 3))]
             positives.append(PositiveObstacleSpec(kind=kind, station_m=float(station), lateral_m=lateral))

@@ -11,10 +11,15 @@ import math
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from negobs_gym.core import Pose
 from negobs_gym.sim.types import Terrain
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 NEGATIVE_COLOUR = "red"
 POSITIVE_COLOUR = "blue"
@@ -30,7 +35,7 @@ def _patches():
 
 
 def draw_terrain(
-    ax,  # matplotlib.axes.Axes
+    ax: Axes,
     terrain: Terrain,
     *,
     vertical_exaggeration: float = 3.0,
@@ -110,7 +115,7 @@ def _box_corners(centre_xy: np.ndarray, half_x: float, half_y: float, yaw_rad: f
 def render_top_down(
     terrain: Terrain,
     path_xy_m: np.ndarray | None = None,
-    vehicle_pose: object | None = None,
+    vehicle_pose: Pose | None = None,
     out_path: str | os.PathLike | None = None,
     *,
     height_px: int = 1000,
@@ -123,8 +128,8 @@ def render_top_down(
     Args:
         terrain: the terrain to draw.
         path_xy_m: (N, 2) world path of the vehicle, drawn as a line.
-        vehicle_pose: a :class:`negobs_gym.core.Pose` (or anything with x, y, yaw) whose
-            footprint (``vehicle_size_m`` = width, length; origin at the rear axle) is drawn.
+        vehicle_pose: the vehicle's pose (origin at the rear axle, yaw 0 facing +Y); its
+            footprint of ``vehicle_size_m`` is drawn.
         out_path: PNG file to write atomically (temp file + ``os.replace``).
         height_px: image height; ``width_px`` defaults to the terrain's aspect ratio (>= 64 px).
         vehicle_size_m: (width, length) of the footprint [m].

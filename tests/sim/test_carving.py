@@ -9,11 +9,15 @@ import pytest
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import (
+    DEPTH_RANGE_M,
+    MIN_NEGATIVE_WIDTH_M,
+    PAPER_N_PIT_SIZES_M,
     NegativeObstacleSpec,
     PositiveObstacleSpec,
     carve_negative_obstacle,
     obstacle_outline,
     place_positive_obstacle,
+    sample_pit_spec,
 )
 from negobs_gym.sim.terrain import RoughnessConfig, TerrainConfig, generate_terrain
 from negobs_gym.sim.types import HeightField
@@ -197,3 +201,25 @@ def test_positive_spec_errors_name_the_field(kwargs: dict, field: str) -> None:
     with pytest.raises(ConfigError) as info:
         PositiveObstacleSpec(**({"station_m": 3.0} | kwargs))
     assert info.value.field == field
+
+
+def test_sample_pit_spec_sizes_around_paper_sizes() -> None:
+    rng = np.random.default_rng(0)
+    specs = [sample_pit_spec(rng, station_m=10.0, size_jitter=0.2) for _ in range(200)]
+    for spec in specs:
+        ok = [
+            0.8 * length <= spec.length_m <= 1.2 * length
+            and max(0.8 * width, MIN_NEGATIVE_WIDTH_M) <= spec.width_m <= 1.2 * width
+            for length, width in PAPER_N_PIT_SIZES_M
+        ]
+        assert any(ok)
+        assert DEPTH_RANGE_M[0] <= spec.depth_m <= DEPTH_RANGE_M[1]
+    assert len({round(s.length_m, 6) for s in specs}) > 100
+    exact = sample_pit_spec(np.random.default_rng(1), station_m=0.0, size_jitter=0.0)
+    assert (exact.length_m, exact.width_m) in PAPER_N_PIT_SIZES_M
+    again = sample_pit_spec(np.random.default_rng(1), station_m=0.0, size_jitter=0.0)
+    assert again == exact
+    with pytest.raises(ConfigError, match="size_jitter"):
+        sample_pit_spec(rng, station_m=0.0, size_jitter=1.0)
+    with pytest.raises(ConfigError, match="depth_range_m"):
+        sample_pit_spec(rng, station_m=0.0, depth_range_m=(0.5, 0.2))
