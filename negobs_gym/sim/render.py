@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
+import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -181,8 +181,8 @@ def _write_png_atomic(image: np.ndarray, out_path: Path) -> None:
     import matplotlib.image as mpimg
 
     out_path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=out_path.parent)
-    os.close(fd)
+    # A plain new file (not mkstemp) so the PNG gets the usual umask permissions, not 0600.
+    tmp = out_path.with_name(f".{out_path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
         mpimg.imsave(tmp, image, format="png")
         os.replace(tmp, out_path)

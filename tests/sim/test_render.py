@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
@@ -43,6 +45,9 @@ def test_png_written_with_size_and_red_pit(tmp_path) -> None:
     )
     assert image.shape == (400, 200, 3) and image.dtype == np.uint8
     assert list(out.parent.iterdir()) == [out]  # no temp file left behind
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask  # usual permissions, not mkstemp's 0600
     on_disk = mpimg.imread(out)
     assert on_disk.shape[:2] == (400, 200)
     row, col = _pixel(terrain, terrain.negative_obstacles[0].centre_xy_m, image.shape)
