@@ -211,6 +211,27 @@ def obstacle_outline(
     return _ccw(poly)
 
 
+def points_in_polygon(xy_m: np.ndarray, polygon_xy_m: np.ndarray) -> np.ndarray:
+    """Boolean mask (...) of points (..., 2) inside a simple polygon (N, 2) (even-odd rule).
+
+    Vectorised over points and edges (memory ~ points x edges); for outlines of a few dozen
+    vertices, as the obstacle records have.
+    """
+    pts = np.asarray(xy_m, dtype=np.float64)
+    poly = np.asarray(polygon_xy_m, dtype=np.float64)
+    if pts.shape[-1:] != (2,) or poly.ndim != 2 or poly.shape[1] != 2 or len(poly) < 3:
+        raise ValueError(f"need points (..., 2) and a polygon (N>=3, 2), got {pts.shape} and {poly.shape}")
+    x = pts[..., 0, None]
+    y = pts[..., 1, None]
+    x1, y1 = poly[:, 0], poly[:, 1]
+    x2, y2 = np.roll(x1, -1), np.roll(y1, -1)
+    straddles = (y1 > y) != (y2 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
+    crossings = np.count_nonzero(straddles & (x < x_cross), axis=-1)
+    return crossings % 2 == 1
+
+
 def _window(hf: HeightField, outline: np.ndarray, field: str) -> tuple[slice, slice, np.ndarray, np.ndarray]:
     """Index window of the samples under ``outline`` and their world x, y; errors if outside."""
     x0, x1, y0, y1 = hf.extent_m
@@ -287,8 +308,9 @@ def carve_negative_obstacle(
     half_l, half_w = 0.5 * spec.length_m, 0.5 * spec.width_m
     eps = 1e-9
     if spec.kind == "crater":
+        # Inside the recorded (inscribed) polygon, so carving and ground truth agree exactly.
+        inside = points_in_polygon(np.stack([gx, gy], axis=-1), outline)
         rho = np.sqrt((a / half_l) ** 2 + (b / half_w) ** 2)
-        inside = rho <= 1.0 + eps
         dist_in = (1.0 - rho) * min(half_l, half_w)
     else:
         inside = (np.abs(a) <= half_l + eps) & (np.abs(b) <= half_w + eps)

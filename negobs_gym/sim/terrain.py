@@ -334,6 +334,11 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
             (the field is named like ``"negative_obstacles[0].station_m"``).
     """
     require(
+        isinstance(config, TerrainConfig),
+        "config",
+        f"must be a TerrainConfig, got {type(config).__name__}",
+    )
+    require(
         isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0,
         "seed",
         f"must be an int >= 0, got {seed!r}",

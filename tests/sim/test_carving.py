@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import (
@@ -17,6 +19,7 @@ from negobs_gym.sim.carving import (
     carve_negative_obstacle,
     obstacle_outline,
     place_positive_obstacle,
+    points_in_polygon,
     sample_pit_spec,
 )
 from negobs_gym.sim.terrain import RoughnessConfig, TerrainConfig, generate_terrain
@@ -223,3 +226,55 @@ def test_sample_pit_spec_sizes_around_paper_sizes() -> None:
         sample_pit_spec(rng, station_m=0.0, size_jitter=1.0)
     with pytest.raises(ConfigError, match="depth_range_m"):
         sample_pit_spec(rng, station_m=0.0, depth_range_m=(0.5, 0.2))
+
+
+_FLAT_SMALL = generate_terrain(
+    TerrainConfig(length_m=10.0, corridor_width_m=12.0, roughness=RoughnessConfig.flat()), 0
+).heightfield
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    kind=st.sampled_from(["pit", "ditch", "trench", "crater"]),
+    length_m=st.floats(0.3, 4.0),
+    width_m=st.floats(0.3, 4.0),
+    depth_m=st.floats(0.3, 1.5),
+    x_m=st.floats(-2.0, 2.0),
+    y_m=st.floats(2.0, 8.0),
+    yaw_deg=st.floats(-180.0, 180.0),
+)
+def test_any_carve_floor_inside_untouched_outside(kind, length_m, width_m, depth_m, x_m, y_m, yaw_deg):
+    hf = _FLAT_SMALL
+    spec = NegativeObstacleSpec(
+        kind=kind, length_m=length_m, width_m=width_m, depth_m=depth_m, xy_m=(x_m, y_m)
+    )
+    new, rec = carve_negative_obstacle(
+        hf, spec, centre_xy_m=np.array([x_m, y_m]), yaw_rad=math.radians(yaw_deg), obstacle_id="o"
+    )
+    assert rec.floor_z_m == pytest.approx(-depth_m, abs=1e-6)
+    assert _signed_area(rec.outline_xy_m) > 0
+    changed = new.heights_m != hf.heights_m
+    assert np.all(new.heights_m[changed] == np.float32(rec.floor_z_m))
+    # Every changed sample lies inside the outline's bounding box (nothing carved outside).
+    xy = _sample_xy(hf)[changed]
+    lo, hi = rec.outline_xy_m.min(axis=0), rec.outline_xy_m.max(axis=0)
+    assert np.all((xy >= lo - 1e-6) & (xy <= hi + 1e-6))
+    # ... and the samples strictly inside the outline (away from the edges) are all carved.
+    strictly_inside = points_in_polygon(_sample_xy(hf), rec.outline_xy_m)
+    assert np.all(changed[strictly_inside] | (hf.heights_m[strictly_inside] == rec.floor_z_m))
+    # The carved area is the outline's area to within a one-sample rim.
+    perimeter = np.sum(
+        np.linalg.norm(np.diff(np.vstack([rec.outline_xy_m, rec.outline_xy_m[:1]]), axis=0), axis=1)
+    )
+    area = _signed_area(rec.outline_xy_m)
+    assert abs(changed.sum() * RES * RES - area) <= perimeter * RES + 1e-9
+    assert float(new.height_at(np.array([[x_m, y_m]]))[0]) == pytest.approx(rec.floor_z_m, abs=0.02)
+
+
+def test_points_in_polygon() -> None:
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+    pts = np.array([[1.0, 1.0], [3.0, 1.0], [1.0, -0.5], [0.5, 1.9]])
+    assert points_in_polygon(pts, square).tolist() == [True, False, False, True]
+    assert points_in_polygon(pts.reshape(2, 2, 2), square).shape == (2, 2)
+    with pytest.raises(ValueError, match="polygon"):
+        points_in_polygon(pts, square[:2])

@@ -174,3 +174,8 @@ def test_configs_are_frozen() -> None:
     config = TerrainConfig()
     with pytest.raises(AttributeError):
         config.length_m = 5.0  # type: ignore[misc]
+
+
+def test_config_must_be_a_terrain_config() -> None:
+    with pytest.raises(ConfigError, match="config"):
+        generate_terrain({"length_m": 10.0}, 0)  # type: ignore[arg-type]
