@@ -16,6 +16,7 @@ from negobs_gym.sim.terrain import (
     generate_terrain,
     track_coordinates,
 )
+from negobs_gym.sim.types import Track
 
 SMALL = dict(length_m=30.0, corridor_width_m=20.0, lead_in_m=5.0, run_out_m=5.0)
 
@@ -179,3 +180,13 @@ def test_configs_are_frozen() -> None:
 def test_config_must_be_a_terrain_config() -> None:
     with pytest.raises(ConfigError, match="config"):
         generate_terrain({"length_m": 10.0}, 0)  # type: ignore[arg-type]
+
+
+def test_track_pose_extrapolates_straight_and_rejects_bad_centreline() -> None:
+    track = Track(centreline_xy_m=np.array([[0.0, 0.0], [0.0, 10.0], [10.0, 10.0]]), width_m=4.0)
+    assert track.length_m == pytest.approx(20.0)
+    xy, yaw = track.pose_at(np.array([-5.0, 25.0]))
+    np.testing.assert_allclose(xy, [[0.0, -5.0], [15.0, 10.0]])
+    np.testing.assert_allclose(yaw, [0.0, -np.pi / 2])  # yaw -90 deg faces world +X
+    with pytest.raises(ValueError, match="centreline_xy_m"):
+        Track(centreline_xy_m=np.zeros((1, 2)), width_m=4.0).pose_at(0.0)
