@@ -1,10 +1,11 @@
 """The PyBullet world: one physics client holding the terrain, static obstacles and the vehicle.
 
 The physics heightfield is the terrain's fine (ray-cast) heightfield resampled to
-``WorldConfig.physics_resolution_m`` (0.2 m by default). PyBullet builds a render mesh for every
-heightfield even in DIRECT mode, so a 200 m course at the terrain's 0.1 m takes 10–19 s and over 2 GB;
-at 0.2 m it takes about 1.5 s and a quarter of the memory (numbers in ``docs/physics.md``). Ground
-truth and physics share the world frame of :class:`~negobs_gym.sim.types.Terrain`.
+``WorldConfig.physics_resolution_m`` (0.25 m by default). PyBullet builds a render mesh for every
+heightfield even in DIRECT mode, so a 200 m course at the terrain's 0.1 m takes 5–19 s and 1.3–2.8 GB;
+at 0.25 m a new 200 m winding course is generated and built in about 1.5 s (numbers in
+``docs/physics.md``). Ground truth and physics share the world frame of
+:class:`~negobs_gym.sim.types.Terrain`.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ class WorldConfig:
 
     time_step_s: float = 1.0 / 240.0
     gui: bool = False
-    physics_resolution_m: float = 0.2
+    physics_resolution_m: float = 0.25
     terrain_friction: float = 1.0
     gravity_mps2: float = 9.81  # paper N Eq. 18
     solver_iterations: int = 50

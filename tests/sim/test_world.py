@@ -34,7 +34,7 @@ def test_heightfield_sample_points_match_terrain_exactly():
     np.testing.assert_allclose(hit, expected, atol=2e-3)
 
 
-@pytest.mark.parametrize("physics_resolution_m", [0.1, 0.2])
+@pytest.mark.parametrize("physics_resolution_m", [0.1, 0.2, 0.25, 0.3])
 def test_ray_at_obstacle_centre_hits_recorded_floor(physics_resolution_m):
     terrain = presets.braking_track(
         ditch_distance_m=10.0, ditch_length_m=1.0, ditch_width_m=1.0, ditch_depth_m=0.8, seed=3
