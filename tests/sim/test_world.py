@@ -128,3 +128,19 @@ def test_bad_world_config_names_the_field(field, value):
 def test_world_rejects_non_terrain():
     with pytest.raises(ConfigError, match="terrain"):
         World("not a terrain")  # type: ignore[arg-type]
+
+
+def test_vehicle_and_monitor_on_a_closed_world_raise():
+    from negobs_gym.sim.events import EventMonitor
+    from negobs_gym.sim.vehicle import Vehicle
+
+    world = World(flat_terrain(10, 6))
+    vehicle = Vehicle(world)
+    monitor = EventMonitor(world, vehicle)
+    assert world.dynamic_body_ids() == (vehicle.body_id,)
+    world.close()
+    for call in (vehicle.pose, vehicle.speed_mps, monitor.poll, world.dynamic_body_ids):
+        with pytest.raises(SimulationError):
+            call()
+    with pytest.raises(SimulationError):
+        vehicle.apply(0.0, 0.0, 0.0)
