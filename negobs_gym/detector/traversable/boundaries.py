@@ -1,0 +1,48 @@
+"""Paper T §3.2: least-squares left and right boundary lines from filtered boundary points.
+
+Paper T writes the line as ``y = b x + k``; the road boundaries of a forward-looking LUX are close
+to the vehicle Y axis, where that form is ill-conditioned, so we fit the equivalent lateral form
+``x = slope * y + offset`` (same least squares, well-conditioned for near-vertical boundaries).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class BoundaryLine:
+    """A boundary ``x = slope * y + offset`` in the vehicle frame [m]; slope > 0 leans right."""
+
+    slope: float
+    offset_m: float
+
+    def x_at(self, y_m: np.ndarray | float) -> np.ndarray:
+        """Lateral position of the boundary at forward distance ``y_m``."""
+        return self.slope * np.asarray(y_m, dtype=np.float64) + self.offset_m
+
+    def distance(self, xy_m: np.ndarray) -> np.ndarray:
+        """Perpendicular distance of points (..., 2) to the line [m]."""
+        xy = np.asarray(xy_m, dtype=np.float64)
+        return np.abs(xy[..., 0] - self.slope * xy[..., 1] - self.offset_m) / np.hypot(1.0, self.slope)
+
+
+def fit_boundary(points_xy_m: np.ndarray) -> BoundaryLine | None:
+    """Least-squares line through the finite rows of ``points_xy_m`` (k, 2).
+
+    One point gives a line parallel to the vehicle Y axis through it; none gives ``None``; points
+    that share one y (a degenerate fit) also give the parallel line through their mean.
+    """
+    pts = np.asarray(points_xy_m, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if pts.shape[0] == 0:
+        return None
+    mean = pts.mean(axis=0)
+    dy = pts[:, 1] - mean[1]
+    syy = float(dy @ dy)
+    if pts.shape[0] == 1 or syy < 1e-9:
+        return BoundaryLine(0.0, float(mean[0]))
+    slope = float(dy @ (pts[:, 0] - mean[0])) / syy
+    return BoundaryLine(slope, float(mean[0] - slope * mean[1]))

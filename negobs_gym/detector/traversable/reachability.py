@@ -1,0 +1,132 @@
+"""Paper T §3.5: spatial feasibility (Eq. 12) and reachability under the turning limit (Eq. 13).
+
+Eq. 12: a position p is feasible when it keeps ``d_c / 2 + epsilon`` from both boundary lines and
+``(d_c + d_oj) / 2 + epsilon`` from every obstacle centre (d_c: vehicle width, d_oj: obstacle
+width). Eq. 13: with wheelbase l and steering angle phi the rear axle turns on radius
+``rho_r = l / tan(phi)`` and the front axle on ``rho_f = l / sin(phi)``.
+
+Reachability samples a fixed family of forward paths from the rear axle (origin, heading +Y): arcs
+of curvature |k| <= 1 / rho_r(phi_max) (a turn, or a turn and its counter-turn), then straight.
+A path is followed until either its rear-axle point or its front-axle point (the rho_f circle)
+leaves the feasible set; the cells its rear axle visits until then are reachable. The family is
+built once per grid (it does not depend on the scan), so each frame costs one gather and one
+cumulative AND.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.detector.traversable.boundaries import BoundaryLine
+from negobs_gym.detector.traversable.config import TraversableConfig
+from negobs_gym.detector.traversable.obstacles import ObstacleCluster
+
+
+def feasible_mask(
+    centres_xy_m: np.ndarray,
+    traversable: np.ndarray,
+    left: BoundaryLine | None,
+    right: BoundaryLine | None,
+    clusters: list[ObstacleCluster],
+    config: TraversableConfig,
+) -> np.ndarray:
+    """Eq. 12 on every cell: traversable and far enough from boundaries and obstacle centres."""
+    half = config.vehicle_width_m / 2.0 + config.safety_margin_m
+    ok = traversable.copy()
+    for line in (left, right):
+        if line is not None:
+            ok &= line.distance(centres_xy_m) >= half
+    for c in clusters:  # a handful of obstacles, each a vectorized test over all cells
+        d = np.hypot(centres_xy_m[..., 0] - c.centre_xy_m[0], centres_xy_m[..., 1] - c.centre_xy_m[1])
+        ok &= d >= (config.vehicle_width_m + c.width_m) / 2.0 + config.safety_margin_m
+    return ok
+
+
+@dataclass(frozen=True, eq=False)
+class PathFamily:
+    """Sampled forward paths: flat cell indices of rear- and front-axle samples, (paths, samples)."""
+
+    rear_flat: np.ndarray  # int64, -1 outside the grid
+    front_flat: np.ndarray
+    rear_y_m: np.ndarray
+    front_y_m: np.ndarray
+
+
+def _arc(kappa: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Displacement (right, forward) after ``length`` on an arc of curvature ``kappa`` (> 0 right)."""
+    small = np.abs(kappa) < 1e-9
+    k = np.where(small, 1.0, kappa)
+    h = kappa * length
+    right = np.where(small, 0.0, (1.0 - np.cos(h)) / k)
+    forward = np.where(small, length, np.sin(h) / k)
+    return right, forward
+
+
+def _rotate(right: np.ndarray, forward: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vehicle-frame (x, y) of a (right, forward) displacement made at ``heading`` (cw from +Y)."""
+    c, s = np.cos(heading), np.sin(heading)
+    return forward * s + right * c, forward * c - right * s
+
+
+def build_path_family(grid: GridSpec, config: TraversableConfig) -> PathFamily:
+    """Forward paths from the rear axle with |curvature| <= 1 / rho_r (Eq. 13), sampled on the grid.
+
+    Two families, each over ``reach_curvatures`` curvatures and ``reach_switch_points`` arc
+    lengths (up to a quarter turn at the tightest radius): a turn then straight on (a change of
+    heading), and a turn followed by the opposite turn then straight on (a lane change, the manoeuvre
+    of paper T Fig. 8).
+    """
+    k_max = 1.0 / config.rear_turn_radius_m
+    n_k = 2 * (config.reach_curvatures // 2) + 1
+    kappa = np.linspace(-k_max, k_max, n_k)
+    s_max = (np.pi / 2.0) / k_max
+    switch = np.linspace(0.0, s_max, config.reach_switch_points + 1)[1:]
+    u = np.arange(0.0, config.reach_length_m + 1e-9, config.reach_step_m)
+    k1 = np.concatenate([np.repeat(kappa, switch.size)] * 2)[:, None]
+    s1 = np.concatenate([np.tile(switch, n_k)] * 2)[:, None]
+    k2 = np.concatenate([np.zeros(n_k * switch.size), -np.repeat(kappa, switch.size)])[:, None]
+    s2 = np.concatenate([np.zeros(n_k * switch.size), np.tile(switch, n_k)])[:, None]
+    uu = u[None, :]
+    # Segment 1: arc k1 for s1.
+    u1 = np.minimum(uu, s1)
+    x, y = _arc(k1, u1)
+    h1 = k1 * s1
+    # Segment 2: arc k2 for s2, starting at the end of segment 1 with heading h1.
+    u2 = np.clip(uu - s1, 0.0, s2)
+    r2, f2 = _arc(k2, u2)
+    dx, dy = _rotate(r2, f2, h1)
+    x, y = x + dx, y + dy
+    # Segment 3: straight on.
+    h2 = h1 + k2 * s2
+    u3 = np.maximum(uu - s1 - s2, 0.0)
+    x, y = x + u3 * np.sin(h2), y + u3 * np.cos(h2)
+    heading = np.where(uu <= s1, k1 * u1, h1 + k2 * u2)
+    fx = x + config.wheelbase_m * np.sin(heading)
+    fy = y + config.wheelbase_m * np.cos(heading)
+
+    def flat(px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        row, col, inside = grid.cell_of(np.stack([px, py], axis=-1))
+        return np.where(inside, row * grid.cols + col, -1)
+
+    return PathFamily(rear_flat=flat(x, y), front_flat=flat(fx, fy), rear_y_m=y, front_y_m=fy)
+
+
+def reachable_mask(feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: float) -> np.ndarray:
+    """Cells reached by the rear axle along path prefixes that stay feasible.
+
+    Args:
+        feasible: (rows, cols) Eq. 12 mask.
+        paths: The sampled path family of the same grid.
+        exempt_below_y_m: Samples nearer than this (the area the vehicle occupies, in front of the
+            LiDAR's blind zone) count as feasible.
+    """
+    flat_ok = np.append(feasible.ravel(), False)  # index -1 (outside the grid) -> infeasible
+    ok_rear = flat_ok[paths.rear_flat] | ((paths.rear_y_m < exempt_below_y_m) & (paths.rear_flat >= 0))
+    ok_front = flat_ok[paths.front_flat] | ((paths.front_y_m < exempt_below_y_m) & (paths.front_flat >= 0))
+    prefix = np.logical_and.accumulate(ok_rear & ok_front, axis=1)
+    reach = np.zeros(feasible.size, dtype=bool)
+    reach[paths.rear_flat[prefix]] = True
+    return reach.reshape(feasible.shape) & feasible

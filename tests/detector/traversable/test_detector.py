@@ -1,0 +1,226 @@
+"""Acceptance tests of the paper T detector on analytic 4-layer scans."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from negobs_gym.core import GridSpec, Pose, StructuredScan
+from negobs_gym.detector.traversable import (
+    Box,
+    LuxRig,
+    TrackScene,
+    TraversableConfig,
+    TraversableRegionDetector,
+    synthetic_scan,
+)
+from negobs_gym.errors import ScanError
+
+CAR = Box(x_m=0.0, y_m=10.0 + 2.25, size_x_m=1.8, size_y_m=4.5, height_m=1.5)  # near face at 10 m
+
+
+@pytest.fixture(scope="module")
+def detector() -> TraversableRegionDetector:
+    return TraversableRegionDetector()
+
+
+def run(detector: TraversableRegionDetector, scan: StructuredScan):
+    detector.reset()
+    return detector.update(scan, Pose())
+
+
+def grid_cell(detector: TraversableRegionDetector, x: float, y: float) -> tuple[int, int]:
+    row, col, inside = detector.grid.cell_of(np.array([x, y]))
+    assert inside
+    return int(row), int(col)
+
+
+@pytest.mark.parametrize("border", ["bank", "drop"])
+@pytest.mark.parametrize(("left_w", "right_w"), [(4.0, 4.0), (3.0, 5.0)])
+def test_straight_track_boundaries_within_20cm(detector, border, left_w, right_w) -> None:
+    scene = TrackScene(left_half_width_m=left_w, right_half_width_m=right_w, border=border)
+    res = run(detector, synthetic_scan(scene))
+    ys = np.linspace(res.polygon_m[:, 1].min(), res.polygon_m[:, 1].max(), 20)
+    assert np.abs(res.left_line.x_at(ys) - scene.left_edge_x(ys)).max() <= 0.2
+    assert np.abs(res.right_line.x_at(ys) - scene.right_edge_x(ys)).max() <= 0.2
+    assert res.obstacles == []
+    # Region starts on the LiDAR's X axis (A1) and is traversable in the middle of the road.
+    assert res.polygon_m[:, 1].min() == pytest.approx(LuxRig().forward_m)
+    assert res.traversable[grid_cell(detector, 0.0, 8.0)]
+    assert not res.traversable[grid_cell(detector, -left_w - 1.0, 8.0)]
+    assert res.reachable[grid_cell(detector, 0.0, 8.0)]
+
+
+@pytest.mark.parametrize("radius", [25.0, -25.0])
+def test_bend_lines_lean_the_right_way(detector, radius) -> None:
+    res = run(detector, synthetic_scan(TrackScene(bend_radius_m=radius)))
+    sign = math.copysign(1.0, radius)
+    assert sign * res.left_line.slope > 0.15
+    assert sign * res.right_line.slope > 0.15
+
+
+def test_car_at_10m_is_one_cluster_and_its_shadow_is_cut(detector) -> None:
+    res = run(detector, synthetic_scan(TrackScene(boxes=(CAR,))))
+    assert len(res.obstacles) == 1
+    c = res.obstacles[0]
+    assert abs(c.centre_xy_m[0]) < 0.3 and 9.8 < c.centre_xy_m[1] < 10.6
+    assert 1.4 < c.width_m < 2.6
+    assert len(res.shadow_polygons_m) == 1
+    # Behind the car (its shadow) is cut; beside it and in front of it the road stays traversable.
+    assert not res.traversable[grid_cell(detector, 0.0, 11.5)]
+    assert not res.traversable[grid_cell(detector, 0.5, 10.3)]
+    assert res.traversable[grid_cell(detector, 0.0, 8.0)]
+    assert res.traversable[grid_cell(detector, -3.0, 11.0)]
+    assert res.traversable[grid_cell(detector, 3.0, 11.0)]
+    assert res.positive_obstacles[grid_cell(detector, 0.0, 10.0)]
+    # Boundaries are still the road edges (outer segment ends of the interrupted layers).
+    assert abs(res.left_line.x_at(10.0) + 4.0) < 0.2 and abs(res.right_line.x_at(10.0) - 4.0) < 0.2
+    # Reachability (Eq. 12): the vehicle cannot pass through the car.
+    assert not res.reachable[grid_cell(detector, 0.0, 10.0)]
+
+
+def test_two_separated_obstacles_are_two_clusters(detector) -> None:
+    boxes = (
+        Box(x_m=-2.2, y_m=10.5, size_x_m=0.6, size_y_m=0.6, height_m=1.7),
+        Box(x_m=2.2, y_m=10.5, size_x_m=0.6, size_y_m=0.6, height_m=1.7),
+    )
+    res = run(detector, synthetic_scan(TrackScene(boxes=boxes)))
+    xs = sorted(float(c.centre_xy_m[0]) for c in res.obstacles)
+    assert len(xs) == 2 and xs[0] < -1.5 and xs[1] > 1.5
+
+
+def test_kalman_halves_boundary_jitter_under_pitch_bouncing() -> None:
+    rng = np.random.default_rng(7)
+    scene = TrackScene(bend_radius_m=40.0)
+    det = TraversableRegionDetector()
+    raw, filt = [], []
+    for _ in range(40):
+        pitch = rng.normal(0.0, math.radians(0.4))
+        scan = synthetic_scan(scene, vehicle_pitch_rad=pitch, range_noise_m=0.02, rng=rng)
+        res = det.update(scan, Pose())
+        raw.append(np.concatenate([res.raw_left_m, res.raw_right_m]))
+        filt.append(np.concatenate([res.left_points_m, res.right_points_m]))
+    raw_a, filt_a = np.array(raw)[10:], np.array(filt)[10:]  # after the filters settle
+    assert np.isfinite(raw_a).all()
+    raw_var = raw_a.var(axis=0).sum()
+    filt_var = filt_a.var(axis=0).sum()
+    assert raw_var > 0.05  # the bouncing really moves the boundary points
+    assert filt_var / raw_var <= 0.5
+
+
+def test_deterministic_and_reset(detector) -> None:
+    scan = synthetic_scan(TrackScene(boxes=(CAR,)), range_noise_m=0.02, rng=np.random.default_rng(3))
+    a = run(detector, scan)
+    b = run(detector, scan)
+    assert np.array_equal(a.left_points_m, b.left_points_m)
+    assert np.array_equal(a.traversable, b.traversable) and np.array_equal(a.reachable, b.reachable)
+    ch = a.channels()
+    assert ch.shape == (2, *detector.grid.shape) and ch.dtype == np.float32
+
+
+def test_channels_match_grid_of_other_detector() -> None:
+    grid = GridSpec(ahead_m=20.0, side_m=8.0)
+    det = TraversableRegionDetector(grid=grid)
+    res = det.update(synthetic_scan(TrackScene()), Pose())
+    assert res.traversable.shape == grid.shape == res.reachable.shape == res.positive_obstacles.shape
+
+
+# --- bad input -------------------------------------------------------------------------------
+
+
+def make_scan(ranges: np.ndarray, elev_deg=(-1.2, -0.4, 0.4, 1.2)) -> StructuredScan:
+    rig = LuxRig()
+    az = np.radians(np.linspace(-55.0, 55.0, ranges.shape[1])) if ranges.shape[1] else np.zeros(0)
+    return StructuredScan(
+        sensor="lux",
+        ranges_m=ranges,
+        azimuth_rad=az,
+        elevation_rad=np.radians(elev_deg),
+        rotation=rig.rotation,
+        translation_m=rig.translation_m,
+    )
+
+
+def test_empty_scan_gives_empty_result(detector) -> None:
+    res = run(detector, make_scan(np.zeros((4, 0))))
+    assert res.left_line is None and res.right_line is None and res.obstacles == []
+    assert res.polygon_m.shape == (0, 2)
+    assert not res.traversable.any() and not res.reachable.any()
+
+
+def test_all_nan_scan_is_no_return(detector) -> None:
+    res = run(detector, make_scan(np.full((4, 441), np.nan)))
+    assert res.left_line is None and not res.traversable.any()
+
+
+def test_nan_returns_are_skipped(detector) -> None:
+    scan = synthetic_scan(TrackScene())
+    ranges = scan.ranges_m.copy()
+    ranges[:, ::7] = np.nan  # dropouts
+    res = run(detector, make_scan(ranges))
+    assert abs(res.left_line.x_at(10.0) + 4.0) < 0.2
+
+
+def test_filters_keep_estimate_through_an_empty_frame() -> None:
+    det = TraversableRegionDetector()
+    first = det.update(synthetic_scan(TrackScene()), Pose())
+    second = det.update(make_scan(np.full((4, 441), np.nan)), Pose())
+    assert np.array_equal(first.left_points_m, second.left_points_m)
+    assert second.left_line is not None
+
+
+def test_wrong_layer_count_raises(detector) -> None:
+    scan = StructuredScan(
+        sensor="x", ranges_m=np.ones((3, 5)), azimuth_rad=np.arange(5.0), elevation_rad=np.zeros(3)
+    )
+    with pytest.raises(ValueError, match="4-layer"):
+        detector.update(scan, Pose())
+
+
+def test_descending_elevations_raise(detector) -> None:
+    with pytest.raises(ValueError, match="ascending elevation"):
+        detector.update(make_scan(np.ones((4, 5)), elev_deg=(1.2, 0.4, -0.4, -1.2)), Pose())
+
+
+def test_nan_pose_raises_naming_pose(detector) -> None:
+    with pytest.raises(ValueError, match="pose"):
+        detector.update(synthetic_scan(TrackScene()), Pose(x=float("nan")))
+    bad = Pose()
+    object.__setattr__(bad, "yaw", float("nan"))  # bypassing Pose's own check
+    with pytest.raises(ScanError, match="pose"):
+        detector.update(synthetic_scan(TrackScene()), bad)
+    with pytest.raises(ScanError, match="pose"):
+        detector.update(synthetic_scan(TrackScene()), (0, 0, 0, 0, 0, 0))
+
+
+def test_not_a_scan_raises(detector) -> None:
+    with pytest.raises(ScanError, match="StructuredScan"):
+        detector.update(np.zeros((4, 10)), Pose())
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    cols=st.integers(min_value=0, max_value=60),
+    data=st.data(),
+)
+def test_random_structured_scans_never_crash(detector, cols, data) -> None:
+    values = data.draw(
+        st.lists(
+            st.one_of(st.just(float("nan")), st.floats(min_value=0.0, max_value=80.0)),
+            min_size=4 * cols,
+            max_size=4 * cols,
+        )
+    )
+    ranges = np.array(values, dtype=np.float64).reshape(4, cols)
+    res = run(detector, make_scan(ranges))
+    g = detector.grid.shape
+    assert res.traversable.shape == g and res.traversable.dtype == bool
+    assert not (res.reachable & ~res.traversable).any()
+    for c in res.obstacles:
+        assert np.isfinite(c.points_m).all() and c.points_m.shape[0] >= detector.config.min_cluster_points
+    for side in (res.left_points_m, res.right_points_m):
+        assert side.shape == (len(TraversableConfig().boundary_layers), 2)
