@@ -29,9 +29,9 @@ class TraversableConfig:
     obstacle_layers: tuple[int, ...] = (1, 2)
 
     # --- §3.1 tear points (Hough line + adjacent-distance threshold) ---
-    # Not in paper T: Hough normal angles within +-45 deg of vehicle +Y (scan lines on the road
+    # Not in paper T: Hough normal angles within +-30 deg of vehicle +Y (scan lines on the road
     # are "approximately parallel to the X axis", §3), 1 deg and 0.2 m bins.
-    hough_max_tilt_deg: float = 45.0
+    hough_max_tilt_deg: float = 30.0
     hough_angle_step_deg: float = 1.0
     hough_rho_step_m: float = 0.20
     # Not in paper T: a point within 0.4 m of the Hough line lies on it (a road crown of ~5 cm

@@ -1,0 +1,57 @@
+"""Scalar Kalman filters with F = H = I, u = 0 (paper T §3.2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from negobs_gym.detector.traversable.kalman import BoundaryKalman
+
+
+def test_first_measurement_initialises_then_converges() -> None:
+    kf = BoundaryKalman((2,), measurement_var=1.0, process_var=0.01)
+    assert np.isnan(kf.update(np.array([np.nan, np.nan]))).all()
+    assert kf.update(np.array([5.0, np.nan])) == pytest.approx([5.0, np.nan], nan_ok=True)
+    for _ in range(200):
+        est = kf.update(np.array([7.0, 1.0]))
+    assert est == pytest.approx([7.0, 1.0], abs=1e-3)
+
+
+def test_gain_matches_scalar_recursion() -> None:
+    r, q = 0.5, 0.1
+    kf = BoundaryKalman((1,), r, q)
+    kf.update(np.array([0.0]))
+    p = r
+    x = 0.0
+    for z in (1.0, -0.5, 2.0):
+        p += q
+        k = p / (p + r)
+        x += k * (z - x)
+        p *= 1 - k
+        assert kf.update(np.array([z]))[0] == pytest.approx(x, rel=1e-12)
+    assert kf.variance[0] == pytest.approx(p)
+
+
+def test_missing_measurement_only_predicts() -> None:
+    kf = BoundaryKalman((1,), 1.0, 0.2)
+    kf.update(np.array([3.0]))
+    before = kf.variance.copy()
+    assert kf.update(np.array([np.nan]))[0] == 3.0
+    assert kf.variance[0] == pytest.approx(before[0] + 0.2)
+
+
+def test_white_noise_variance_reduced() -> None:
+    rng = np.random.default_rng(1)
+    kf = BoundaryKalman((1,), 0.09, 0.01)
+    z = rng.normal(0.0, 0.3, size=2000)
+    est = np.array([kf.update(np.array([v]))[0] for v in z])
+    assert est[100:].var() / z[100:].var() < 0.3
+
+
+def test_shape_mismatch_and_reset() -> None:
+    kf = BoundaryKalman((2, 3), 1.0, 1.0)
+    with pytest.raises(ValueError, match="shape"):
+        kf.update(np.zeros(3))
+    kf.update(np.ones((2, 3)))
+    kf.reset()
+    assert np.isnan(kf.state).all()
