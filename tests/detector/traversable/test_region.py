@@ -11,7 +11,7 @@ from negobs_gym.detector.traversable.region import region_mask, region_polygon, 
 
 GRID = GridSpec()
 CENTRES = GRID.cell_centres()
-O = np.array([0.0, 3.7])
+ORIGIN = np.array([0.0, 3.7])
 
 
 def test_region_mask_matches_polygon() -> None:
@@ -32,10 +32,10 @@ def test_region_needs_both_lines() -> None:
 def test_shadow_is_the_sector_behind_the_near_face() -> None:
     face = np.column_stack([np.linspace(1.0, 3.0, 20), np.full(20, 10.0), np.zeros(20)])
     cluster = ObstacleCluster(points_m=face, centre_xy_m=np.array([2.0, 10.0]), width_m=2.0)
-    d = CENTRES - O
+    d = CENTRES - ORIGIN
     bearing, rng = np.arctan2(d[..., 0], d[..., 1]), np.hypot(d[..., 0], d[..., 1])
-    mask = shadow_mask(bearing, rng, cluster, O, GRID.cell_m / np.sqrt(2))
-    poly = shadow_polygon(cluster, O, 60.0)
+    mask = shadow_mask(bearing, rng, cluster, ORIGIN, GRID.cell_m / np.sqrt(2))
+    poly = shadow_polygon(cluster, ORIGIN, 60.0)
     ref = Path(poly).contains_points(CENTRES.reshape(-1, 2)).reshape(mask.shape)
     assert ref.sum() > 100 and not (ref & ~mask).any()  # every cell of the polygon is cut
 
