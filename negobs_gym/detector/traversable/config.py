@@ -34,14 +34,18 @@ class TraversableConfig:
     hough_max_tilt_deg: float = 30.0
     hough_angle_step_deg: float = 1.0
     hough_rho_step_m: float = 0.20
-    # Not in paper T: a point within 0.4 m of the Hough line lies on it (a road crown of ~5 cm
-    # moves a LUX ground hit by ~0.5 m along the ray; 0.4 m keeps gentle crowns, drops banks).
-    line_tolerance_m: float = 0.40
+    # Not in paper T: a point within 0.6 m of its layer's line lies on it. At this mount a ground
+    # hit moves ~10 m along the ray per metre of height, so 0.6 m keeps a ~8 cm road crown
+    # (Fig. 10) on the line and drops bank points higher than ~6 cm.
+    line_tolerance_m: float = 0.60
     # Not in paper T: adjacent on-line points farther apart than this are a tear (0.25 deg
     # columns are < 0.1 m apart on the road within 12 m; 0.5 m tolerates a few dropouts).
     tear_distance_m: float = 0.50
     # Not in paper T ("n consecutive points without a tear"): 5.
     clean_run_points: int = 5
+    # Not in paper T: a segment end whose next return outwards is 0.5 m nearer is an occlusion
+    # edge (an obstacle hides the road edge, Fig. 12), not a boundary point.
+    occlusion_jump_m: float = 0.5
 
     # --- §3.2 Kalman filter per boundary-point coordinate (F = H = I, u = 0) ---
     # Not in paper T (R "from repeated scans of one object", Q "empirical"): R = (0.3 m)^2 for
@@ -95,6 +99,7 @@ class TraversableConfig:
             "hough_rho_step_m",
             "line_tolerance_m",
             "tear_distance_m",
+            "occlusion_jump_m",
             "kalman_measurement_var_m2",
             "kalman_process_var_m2",
             "d_t1_m",

@@ -153,7 +153,7 @@ class TraversableRegionDetector:
         pose = _check_pose(pose)
         cfg = self.config
         pts = scan.points_vehicle
-        raw_left, raw_right = boundary_points(pts, cfg)
+        raw_left, raw_right = boundary_points(pts, scan.ranges_m, cfg)
         filtered = self._kalman.update(np.stack([raw_left, raw_right]))
         left_pts, right_pts = filtered[0], filtered[1]
         left = fit_boundary(left_pts)

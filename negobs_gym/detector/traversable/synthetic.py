@@ -78,6 +78,8 @@ class TrackScene:
     drop_depth_m: float = 3.0
     # Signed bend radius of the centre line [m]: > 0 bends right, < 0 left, None straight.
     bend_radius_m: float | None = None
+    # Road crown: the centre line this much higher than the road edges (paper T Fig. 10) [m].
+    crown_m: float = 0.0
     boxes: tuple[Box, ...] = ()
 
     def __post_init__(self) -> None:
@@ -116,9 +118,13 @@ class TrackScene:
         """Ground height (boxes excluded) at (x, y) [m]."""
         e = np.asarray(x_m) - self.centre_x(y_m)
         outside = np.maximum(np.maximum(e - self.right_half_width_m, -self.left_half_width_m - e), 0.0)
+        half = np.where(e < 0, self.left_half_width_m, self.right_half_width_m)
+        crown = self.crown_m * np.clip(1.0 - (e / half) ** 2, 0.0, 1.0)
         if self.border == "bank":
-            return np.minimum(outside * math.tan(math.radians(self.bank_slope_deg)), self.bank_height_m)
-        return np.where(outside > 0, -self.drop_depth_m, 0.0)
+            return crown + np.minimum(
+                outside * math.tan(math.radians(self.bank_slope_deg)), self.bank_height_m
+            )
+        return np.where(outside > 0, -self.drop_depth_m, crown)
 
 
 def _march_terrain(scene: TrackScene, origin: np.ndarray, dirs: np.ndarray, max_range_m: float) -> np.ndarray:

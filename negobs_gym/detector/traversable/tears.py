@@ -53,6 +53,33 @@ def hough_lines(
     return phi_out, rho_out
 
 
+def refine_lines(xy_m: np.ndarray, inliers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Total-least-squares refit of each layer's line to its Hough inliers (NaN if < 2).
+
+    The Hough peak sits on the densest stretch of a sagging scan line (a road crown, paper T
+    Fig. 10); the refit centres the line on all of its points so both ends stay within tolerance.
+    """
+    layers = xy_m.shape[0]
+    phi = np.full(layers, np.nan)
+    rho = np.full(layers, np.nan)
+    w = inliers.astype(np.float64)
+    count = w.sum(axis=1)
+    ok = count >= 2
+    if not ok.any():
+        return phi, rho
+    pts = np.where(inliers[..., None], xy_m, 0.0)
+    mean = pts.sum(axis=1) / np.maximum(count, 1)[:, None]
+    d = np.where(inliers[..., None], xy_m - mean[:, None, :], 0.0)
+    sxx = (d[..., 0] ** 2).sum(axis=1)
+    syy = (d[..., 1] ** 2).sum(axis=1)
+    sxy = (d[..., 0] * d[..., 1]).sum(axis=1)
+    # Normal of the best-fit line: direction of least spread.
+    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy) + np.pi / 2
+    phi[ok] = angle[ok]
+    rho[ok] = mean[ok, 0] * np.cos(angle[ok]) + mean[ok, 1] * np.sin(angle[ok])
+    return phi, rho
+
+
 def line_inliers(
     xy_m: np.ndarray, valid: np.ndarray, phi_rad: np.ndarray, rho_m: np.ndarray, config: TraversableConfig
 ) -> np.ndarray:
@@ -64,34 +91,56 @@ def line_inliers(
         return valid & np.isfinite(rho_m)[:, None] & (dist <= config.line_tolerance_m)
 
 
-def segment_ends(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Left and right segment ends of one layer's on-line points (in column order).
+def segment_end_indices(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[int, int] | None:
+    """Indices of the left and right segment ends of one layer's on-line points (column order).
 
-    Args:
-        points_xy_m: (m, 2) on-line points of one layer, ordered by azimuth (left to right).
-        config: Supplies ``tear_distance_m`` and ``clean_run_points`` (n).
-
-    Returns:
-        ``(left, right)`` (2,) points; NaN when no run of n tear-free links exists.
+    Walking in from each end, the end is the first point followed by ``clean_run_points`` (n)
+    links no longer than ``tear_distance_m``. ``None`` when no such run exists.
     """
     n = config.clean_run_points
-    nan = np.full(2, np.nan)
-    m = points_xy_m.shape[0]
-    if m < n + 1:
-        return nan, nan.copy()
+    if points_xy_m.shape[0] < n + 1:
+        return None
     gaps = np.linalg.norm(np.diff(points_xy_m, axis=0), axis=1)
     tears = np.concatenate([[0], np.cumsum(gaps > config.tear_distance_m)])
     starts = np.flatnonzero(tears[n:] - tears[:-n] == 0)  # links i..i+n-1 tear-free
     if starts.size == 0:
-        return nan, nan.copy()
-    return points_xy_m[starts[0]].copy(), points_xy_m[starts[-1] + n].copy()
+        return None
+    return int(starts[0]), int(starts[-1] + n)
 
 
-def boundary_points(points_vehicle_m: np.ndarray, config: TraversableConfig) -> tuple[np.ndarray, np.ndarray]:
+def segment_ends(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Left and right segment ends (2,) of one layer's on-line points; NaN when there are none."""
+    ends = segment_end_indices(points_xy_m, config)
+    if ends is None:
+        return np.full(2, np.nan), np.full(2, np.nan)
+    return points_xy_m[ends[0]].copy(), points_xy_m[ends[1]].copy()
+
+
+def _occluded(ranges_m: np.ndarray, column: int, step: int, jump_m: float) -> bool:
+    """True when the nearest return beyond ``column`` (direction ``step``) is ``jump_m`` nearer."""
+    beyond = (
+        ranges_m[column + step :: step]
+        if step > 0
+        else ranges_m[column - 1 :: -1]
+        if column > 0
+        else ranges_m[:0]
+    )
+    finite = beyond[np.isfinite(beyond)]
+    return bool(finite.size and finite[0] < ranges_m[column] - jump_m)
+
+
+def boundary_points(
+    points_vehicle_m: np.ndarray, ranges_m: np.ndarray, config: TraversableConfig
+) -> tuple[np.ndarray, np.ndarray]:
     """Raw left/right boundary points of the boundary layers (paper T §3.1).
+
+    A segment end whose next return outwards is much nearer (``occlusion_jump_m``) ends at an
+    occluding obstacle, not at the road edge (paper T Fig. 12 discusses this error); it is
+    reported as missing so that the Kalman filter keeps its previous estimate instead.
 
     Args:
         points_vehicle_m: (lasers, columns, 3) vehicle-frame points, NaN = no return.
+        ranges_m: (lasers, columns) ranges of the same scan, NaN = no return.
         config: Detector configuration.
 
     Returns:
@@ -102,8 +151,18 @@ def boundary_points(points_vehicle_m: np.ndarray, config: TraversableConfig) -> 
     valid = np.isfinite(xy).all(axis=-1)
     phi, rho = hough_lines(xy, valid, config)
     inl = line_inliers(xy, valid, phi, rho, config)
+    phi, rho = refine_lines(xy, inl)
+    inl = line_inliers(xy, valid, phi, rho, config)
     left = np.full((len(layers), 2), np.nan)
     right = np.full((len(layers), 2), np.nan)
-    for i in range(len(layers)):  # 3 layers; each layer's work is vectorized
-        left[i], right[i] = segment_ends(xy[i][inl[i]], config)
+    for i, layer in enumerate(layers):  # 3 layers; each layer's work is vectorized
+        cols = np.flatnonzero(inl[i])
+        ends = segment_end_indices(xy[i, cols], config)
+        if ends is None:
+            continue
+        lc, rc = cols[ends[0]], cols[ends[1]]
+        if not _occluded(ranges_m[layer], lc, -1, config.occlusion_jump_m):
+            left[i] = xy[i, lc]
+        if not _occluded(ranges_m[layer], rc, +1, config.occlusion_jump_m):
+            right[i] = xy[i, rc]
     return left, right

@@ -55,6 +55,39 @@ def test_straight_track_boundaries_within_20cm(detector, border, left_w, right_w
     assert res.reachable[grid_cell(detector, 0.0, 8.0)]
 
 
+@pytest.mark.parametrize("crown", [0.03, 0.06])
+def test_road_crown_does_not_move_boundaries(detector, crown) -> None:
+    # Paper T Fig. 10: road centre slightly higher than its sides; the sag of the scan lines must
+    # not disturb the line detection.
+    scene = TrackScene(crown_m=crown)
+    res = run(detector, synthetic_scan(scene))
+    ys = np.linspace(res.polygon_m[:, 1].min(), res.polygon_m[:, 1].max(), 20)
+    assert np.abs(res.left_line.x_at(ys) - scene.left_edge_x(ys)).max() <= 0.2
+    assert np.abs(res.right_line.x_at(ys) - scene.right_edge_x(ys)).max() <= 0.2
+    assert res.obstacles == []
+
+
+@pytest.mark.parametrize("ped_y", [9.5, 10.5, 12.0])
+def test_pedestrian_beside_drop_off(detector, ped_y) -> None:
+    # Paper T Fig. 14: drop-offs on both sides, a pedestrian near the right edge.
+    ped = Box(x_m=3.0, y_m=ped_y, size_x_m=0.5, size_y_m=0.4, height_m=1.7)
+    scene = TrackScene(border="drop", boxes=(ped,))
+    res = run(detector, synthetic_scan(scene))
+    assert len(res.obstacles) == 1
+    assert abs(res.obstacles[0].centre_xy_m[0] - 3.0) < 0.3
+    assert abs(res.left_line.x_at(10.0) + 4.0) < 0.2 and abs(res.right_line.x_at(10.0) - 4.0) < 0.3
+    assert not res.traversable[grid_cell(detector, 3.0, ped_y + 1.0)]  # its shadow
+
+
+def test_parked_motorbike_on_crowned_road(detector) -> None:
+    # Paper T Fig. 13: a motorbike parked at the road side on uneven ground.
+    bike = Box(x_m=-2.8, y_m=11.0, size_x_m=0.7, size_y_m=2.0, height_m=1.1)
+    res = run(detector, synthetic_scan(TrackScene(crown_m=0.05, boxes=(bike,))))
+    assert len(res.obstacles) == 1 and abs(res.obstacles[0].centre_xy_m[0] + 2.8) < 0.4
+    assert res.traversable[grid_cell(detector, 1.0, 9.0)]
+    assert not res.feasible[grid_cell(detector, -2.8, 11.0)]
+
+
 @pytest.mark.parametrize("radius", [25.0, -25.0])
 def test_bend_lines_lean_the_right_way(detector, radius) -> None:
     res = run(detector, synthetic_scan(TrackScene(bend_radius_m=radius)))

@@ -55,8 +55,25 @@ def test_boundary_points_of_flat_lines_between_walls() -> None:
     for layer, y in enumerate((9.0, 10.0, 11.5, 13.0)):
         pts[layer, :, 0] = np.clip(x, -3.0, 3.0)
         pts[layer, :, 1] = np.where(np.abs(x) <= 3.0, y, y - 2.0 * (np.abs(x) - 3.0))
-    left, right = boundary_points(pts, CFG)
+    ranges = np.linalg.norm(pts - np.array([0.0, 3.7, 0.65]), axis=-1)
+    left, right = boundary_points(pts, ranges, CFG)
     assert left.shape == (3, 2)
     assert np.allclose(left[:, 0], -3.0, atol=0.11) and np.allclose(right[:, 0], 3.0, atol=0.11)
     # Wall points within the line tolerance still count as on the line: y within that tolerance.
     assert np.allclose(left[:, 1], [9.0, 10.0, 11.5], atol=CFG.line_tolerance_m)
+
+
+def test_segment_end_at_an_occluder_is_not_a_boundary_point() -> None:
+    # One layer: ground from x = -3 to 3 at y = 10, but columns right of x = 1 hit a pole at y = 8.
+    cols = 61
+    x = np.linspace(-3, 3, cols)
+    pts = np.zeros((4, cols, 3))
+    pts[..., 0] = x
+    pts[..., 1] = 10.0 + np.arange(4)[:, None]
+    pole = x > 1.0
+    pts[0, pole, 1] = 8.0
+    ranges = np.linalg.norm(pts - np.array([0.0, 3.7, 0.65]), axis=-1)
+    left, right = boundary_points(pts, ranges, CFG)
+    assert np.isnan(right[0]).all()  # ends at the occluder: missing, not a road edge
+    assert right[1] == pytest.approx([3.0, 11.0])
+    assert left[0] == pytest.approx([-3.0, 10.0])
