@@ -166,11 +166,10 @@ class TraversableRegionDetector:
         far_y = float(np.nanmax(ys)) if np.isfinite(ys).any() else -math.inf
         polygon = region_polygon(left, right, near_y, far_y)
         traversable = region_mask(self._centres, left, right, near_y, far_y)
-        positive = (
-            points_mask(self.grid, np.concatenate([c.points_m[:, :2] for c in obstacles]))
-            if obstacles
-            else (np.zeros(self.grid.shape, dtype=bool))
+        obstacle_xy = (
+            np.concatenate([c.points_m[:, :2] for c in obstacles]) if obstacles else np.zeros((0, 2))
         )
+        positive = points_mask(self.grid, obstacle_xy)
         shadows: list[np.ndarray] = []
         if obstacles:
             bearing, rng = self._polar(origin)

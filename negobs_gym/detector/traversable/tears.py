@@ -116,15 +116,10 @@ def segment_ends(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[np
     return points_xy_m[ends[0]].copy(), points_xy_m[ends[1]].copy()
 
 
-def _occluded(ranges_m: np.ndarray, column: int, step: int, jump_m: float) -> bool:
-    """True when the nearest return beyond ``column`` (direction ``step``) is ``jump_m`` nearer."""
-    beyond = (
-        ranges_m[column + step :: step]
-        if step > 0
-        else ranges_m[column - 1 :: -1]
-        if column > 0
-        else ranges_m[:0]
-    )
+def _occluded(ranges_m: np.ndarray, column: int, outward: int, jump_m: float) -> bool:
+    """True when the first return outwards of ``column`` (``outward`` = -1 left, +1 right) is
+    at least ``jump_m`` nearer than the return at ``column``."""
+    beyond = ranges_m[column + 1 :] if outward > 0 else ranges_m[:column][::-1]
     finite = beyond[np.isfinite(beyond)]
     return bool(finite.size and finite[0] < ranges_m[column] - jump_m)
 
