@@ -7,11 +7,19 @@ from negobs_gym.detector.traversable.boundaries import BoundaryLine, fit_boundar
 from negobs_gym.detector.traversable.config import TraversableConfig
 from negobs_gym.detector.traversable.detector import TraversableRegion, TraversableRegionDetector
 from negobs_gym.detector.traversable.obstacles import ObstacleCluster
-from negobs_gym.detector.traversable.synthetic import Box, LuxRig, TrackScene, synthetic_scan
+from negobs_gym.detector.traversable.synthetic import (
+    Box,
+    Bump,
+    LuxRig,
+    TrackScene,
+    random_bumps,
+    synthetic_scan,
+)
 
 __all__ = [
     "BoundaryLine",
     "Box",
+    "Bump",
     "LuxRig",
     "ObstacleCluster",
     "TrackScene",
@@ -19,5 +27,6 @@ __all__ = [
     "TraversableRegion",
     "TraversableRegionDetector",
     "fit_boundary",
+    "random_bumps",
     "synthetic_scan",
 ]

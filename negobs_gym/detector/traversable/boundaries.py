@@ -46,3 +46,20 @@ def fit_boundary(points_xy_m: np.ndarray) -> BoundaryLine | None:
         return BoundaryLine(0.0, float(mean[0]))
     slope = float(dy @ (pts[:, 0] - mean[0])) / syy
     return BoundaryLine(slope, float(mean[0] - slope * mean[1]))
+
+
+def drop_inconsistent(points_xy_m: np.ndarray, max_deviation_m: float) -> np.ndarray:
+    """NaN out boundary points (k, 2) whose x is > ``max_deviation_m`` from the median x.
+
+    Not in paper T: the layers' ends of one side lie on one road edge, so with three or more
+    points a lone end far from the others was cut short (a bump's shadow, an occluder). With fewer
+    than three points no majority exists and nothing is dropped.
+    """
+    pts = np.array(points_xy_m, dtype=np.float64)
+    x = pts[:, 0]
+    finite = np.isfinite(x)
+    if finite.sum() < 3:
+        return pts
+    bad = finite & (np.abs(x - np.median(x[finite])) > max_deviation_m)
+    pts[bad] = np.nan
+    return pts

@@ -52,11 +52,19 @@ class TraversableConfig:
     # the bounce-driven jitter of a LUX boundary point, Q = (0.1 m)^2 per frame.
     kalman_measurement_var_m2: float = 0.09
     kalman_process_var_m2: float = 0.01
+    # Not in paper T: a layer's boundary point more than 1 m (x) from the median of its side's
+    # layers is dropped for the frame (a bend leans the layers' ends < 0.7 m apart).
+    layer_consistency_m: float = 1.0
+    # Not in paper T: a boundary point whose x jumps more than 1 m from the estimate is held back
+    # (bumps or an occluder cut a segment short); 3 such frames in a row restart the filter.
+    kalman_gate_x_m: float = 1.0
+    kalman_gate_reset_frames: int = 3
 
     # --- §3.3 obstacle clustering ---
-    # Not in paper T: d_T1 = 0.4 m. Adjacent layers on an obstacle are 0.8 deg apart (0.14 m at
-    # 10 m, 0.28 m at 20 m); on flat ground they are > 0.9 m apart for this mount (d_o << d_g).
-    d_t1_m: float = 0.40
+    # Not in paper T: d_T1 = 0.2 m. On an upright face adjacent layers are 0.8 deg apart (< 0.14 m
+    # within the 9.7 m the top layer reaches on the ground); on flat ground > 0.9 m (d_o << d_g).
+    # 0.2 m also rejects bump faces facing the sensor up to ~20 deg of slope.
+    d_t1_m: float = 0.20
     # Not in paper T: neighbours on the adjacent layer are searched within +-2 columns.
     neighbour_columns: int = 2
     # Not in paper T: d_T2 = 1.5 m, about a car's half length (greedy centroid clustering).
@@ -102,6 +110,8 @@ class TraversableConfig:
             "occlusion_jump_m",
             "kalman_measurement_var_m2",
             "kalman_process_var_m2",
+            "kalman_gate_x_m",
+            "layer_consistency_m",
             "d_t1_m",
             "d_t2_m",
             "vehicle_width_m",
@@ -125,7 +135,13 @@ class TraversableConfig:
             "max_steering_deg",
             f"must be in (0, 90), got {self.max_steering_deg}",
         )
-        for name in ("clean_run_points", "min_cluster_points", "reach_curvatures", "reach_switch_points"):
+        for name in (
+            "clean_run_points",
+            "min_cluster_points",
+            "kalman_gate_reset_frames",
+            "reach_curvatures",
+            "reach_switch_points",
+        ):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value}")
         require(

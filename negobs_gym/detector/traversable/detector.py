@@ -22,7 +22,7 @@ import numpy as np
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
-from negobs_gym.detector.traversable.boundaries import BoundaryLine, fit_boundary
+from negobs_gym.detector.traversable.boundaries import BoundaryLine, drop_inconsistent, fit_boundary
 from negobs_gym.detector.traversable.config import TraversableConfig
 from negobs_gym.detector.traversable.kalman import BoundaryKalman
 from negobs_gym.detector.traversable.obstacles import ObstacleCluster, detect_obstacles
@@ -154,7 +154,11 @@ class TraversableRegionDetector:
         cfg = self.config
         pts = scan.points_vehicle
         raw_left, raw_right = boundary_points(pts, scan.ranges_m, cfg)
-        filtered = self._kalman.update(np.stack([raw_left, raw_right]))
+        consistent = np.stack(
+            [drop_inconsistent(side, cfg.layer_consistency_m) for side in (raw_left, raw_right)]
+        )
+        measured = self._kalman.gate_points(consistent, cfg.kalman_gate_x_m, cfg.kalman_gate_reset_frames)
+        filtered = self._kalman.update(measured)
         left_pts, right_pts = filtered[0], filtered[1]
         left = fit_boundary(left_pts)
         right = fit_boundary(right_pts)

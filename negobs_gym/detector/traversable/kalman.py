@@ -25,6 +25,31 @@ class BoundaryKalman:
         """Forget every estimate (all filters uninitialised)."""
         self.state = np.full(self.shape, np.nan)
         self.variance = np.full(self.shape, np.inf)
+        self.rejections = np.zeros(self.shape[:-1], dtype=np.int64)
+
+    def gate_points(self, measurement: np.ndarray, gate_x_m: float, reset_after: int) -> np.ndarray:
+        """Drop point measurements (..., 2) whose x innovation exceeds ``gate_x_m``.
+
+        Not in paper T: a single frame's segment end can jump inwards (bumps, occlusion); in the
+        vehicle frame a boundary's lateral position changes slowly, so such a jump is held back.
+        After ``reset_after`` consecutive rejections the filter restarts from the measurement
+        (the boundary really moved). y is never gated: pitch bouncing legitimately moves it.
+
+        Returns:
+            The measurement with gated points set to NaN (filters to reset are re-initialised).
+        """
+        z = np.array(measurement, dtype=np.float64)
+        innovation = np.abs(z[..., 0] - self.state[..., 0])
+        far = np.isfinite(innovation) & (innovation > gate_x_m)
+        self.rejections = np.where(
+            far, self.rejections + 1, np.where(np.isfinite(z[..., 0]), 0, self.rejections)
+        )
+        restart = far & (self.rejections >= reset_after)
+        self.state[restart] = np.nan
+        self.variance[restart] = np.inf
+        self.rejections[restart] = 0
+        z[far & ~restart] = np.nan
+        return z
 
     def update(self, measurement: np.ndarray) -> np.ndarray:
         """One predict + update step; returns a copy of the estimates (NaN = never measured).

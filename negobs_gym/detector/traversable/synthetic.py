@@ -67,6 +67,30 @@ class Box:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Bump:
+    """One sinusoidal ground undulation ``amplitude * sin(kx x + ky y + phase)`` [m, rad/m]."""
+
+    kx_rad_m: float
+    ky_rad_m: float
+    phase_rad: float
+    amplitude_m: float
+
+
+def random_bumps(
+    rng: np.random.Generator, amplitude_m: float, wavelength_m: float, count: int = 8
+) -> tuple[Bump, ...]:
+    """``count`` random undulations of about ``wavelength_m`` whose sum has RMS ``amplitude_m``."""
+    k = 2 * np.pi / wavelength_m
+    kx, ky = rng.uniform(-k, k, size=(2, count))
+    phase = rng.uniform(0, 2 * np.pi, size=count)
+    amp = amplitude_m * math.sqrt(2.0 / count)
+    return tuple(
+        Bump(kx_rad_m=a, ky_rad_m=b, phase_rad=c, amplitude_m=amp)
+        for a, b, c in zip(kx, ky, phase, strict=True)
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class TrackScene:
     """A track along +Y: road half-widths, border kind, optional bend, boxes (vehicle frame)."""
 
@@ -80,6 +104,12 @@ class TrackScene:
     bend_radius_m: float | None = None
     # Road crown: the centre line this much higher than the road edges (paper T Fig. 10) [m].
     crown_m: float = 0.0
+    # Two wheel ruts along the track (SPEC §3.1): depth [m], centres at +-rut_spacing_m / 2.
+    rut_depth_m: float = 0.0
+    rut_spacing_m: float = 1.7
+    bumps: tuple[Bump, ...] = ()
+    # Distance driven: ruts/bumps are evaluated at y + travelled_m (the ground moves past the car).
+    travelled_m: float = 0.0
     boxes: tuple[Box, ...] = ()
 
     def __post_init__(self) -> None:
@@ -120,6 +150,16 @@ class TrackScene:
         outside = np.maximum(np.maximum(e - self.right_half_width_m, -self.left_half_width_m - e), 0.0)
         half = np.where(e < 0, self.left_half_width_m, self.right_half_width_m)
         crown = self.crown_m * np.clip(1.0 - (e / half) ** 2, 0.0, 1.0)
+        if self.rut_depth_m > 0:
+            crown = crown - self.rut_depth_m * np.exp(
+                -0.5 * ((np.abs(e) - self.rut_spacing_m / 2) / 0.17) ** 2
+            )
+        if self.bumps:
+            yy = np.asarray(y_m) + self.travelled_m
+            for b in self.bumps:  # a few sinusoids, each vectorized over all samples
+                crown = crown + b.amplitude_m * np.sin(
+                    b.kx_rad_m * np.asarray(x_m) + b.ky_rad_m * yy + b.phase_rad
+                )
         if self.border == "bank":
             return crown + np.minimum(
                 outside * math.tan(math.radians(self.bank_slope_deg)), self.bank_height_m

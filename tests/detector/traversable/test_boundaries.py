@@ -28,3 +28,13 @@ def test_fit_degenerate_cases() -> None:
 def test_distance_is_perpendicular() -> None:
     line = BoundaryLine(1.0, 0.0)  # x = y
     assert line.distance(np.array([1.0, 0.0])) == pytest.approx(np.sqrt(0.5))
+
+
+def test_drop_inconsistent_needs_a_majority() -> None:
+    from negobs_gym.detector.traversable.boundaries import drop_inconsistent
+
+    pts = np.array([[-4.0, 9.0], [-1.2, 10.0], [-4.1, 11.0]])
+    out = drop_inconsistent(pts, 1.0)
+    assert np.isnan(out[1]).all() and np.array_equal(out[[0, 2]], pts[[0, 2]])
+    two = np.array([[-4.0, 9.0], [-1.2, 10.0], [np.nan, np.nan]])
+    assert np.array_equal(drop_inconsistent(two, 1.0), two, equal_nan=True)

@@ -55,3 +55,19 @@ def test_shape_mismatch_and_reset() -> None:
     kf.update(np.ones((2, 3)))
     kf.reset()
     assert np.isnan(kf.state).all()
+
+
+def test_gate_holds_back_a_lateral_jump_then_restarts() -> None:
+    kf = BoundaryKalman((1, 2), 0.09, 0.01)
+    kf.update(np.array([[-4.0, 9.0]]))
+    z = kf.gate_points(np.array([[-1.0, 9.5]]), gate_x_m=1.0, reset_after=3)
+    assert np.isnan(z).all()  # x jumped 3 m: dropped (x and y together)
+    kf.update(z)
+    assert kf.state[0, 0] == -4.0
+    z = kf.gate_points(np.array([[-4.2, 10.5]]), gate_x_m=1.0, reset_after=3)
+    assert np.array_equal(z, [[-4.2, 10.5]])  # y is never gated; small x change passes
+    for _ in range(2):
+        kf.update(kf.gate_points(np.array([[-1.0, 9.0]]), 1.0, 3))
+        assert kf.state[0, 0] < -3.5
+    kf.update(kf.gate_points(np.array([[-1.0, 9.0]]), 1.0, 3))  # third in a row: restart
+    assert kf.state[0, 0] == -1.0

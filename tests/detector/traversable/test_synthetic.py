@@ -45,3 +45,16 @@ def test_invalid_scene_names_field() -> None:
         TrackScene(bend_radius_m=0.5)
     with pytest.raises(ConfigError, match="border"):
         TrackScene(border="cliff")  # type: ignore[arg-type]
+
+
+def test_bumps_are_seeded_and_move_with_travel() -> None:
+    from negobs_gym.detector.traversable import random_bumps
+
+    a = random_bumps(np.random.default_rng(1), amplitude_m=0.02, wavelength_m=1.5)
+    assert a == random_bumps(np.random.default_rng(1), amplitude_m=0.02, wavelength_m=1.5)
+    scene = TrackScene(bumps=a)
+    x, y = np.meshgrid(np.linspace(-3, 3, 61), np.linspace(5, 15, 101))
+    h = scene.height(x, y)
+    assert 0.01 < h.std() < 0.04
+    moved = TrackScene(bumps=a, travelled_m=2.0)
+    assert np.allclose(moved.height(x, y), scene.height(x, y + 2.0))
