@@ -34,6 +34,8 @@ class TraversableConfig:
     hough_max_tilt_deg: float = 30.0
     hough_angle_step_deg: float = 1.0
     hough_rho_step_m: float = 0.20
+    # Not in paper T: every 2nd column votes (the least-squares refit then uses every point).
+    hough_column_stride: int = 2
     # Not in paper T: a point within 0.6 m of its layer's line lies on it. At this mount a ground
     # hit moves ~10 m along the ray per metre of height, so 0.6 m keeps a ~8 cm road crown
     # (Fig. 10) on the line and drops bank points higher than ~6 cm.
@@ -139,6 +141,7 @@ class TraversableConfig:
             "clean_run_points",
             "min_cluster_points",
             "kalman_gate_reset_frames",
+            "hough_column_stride",
             "reach_curvatures",
             "reach_switch_points",
         ):

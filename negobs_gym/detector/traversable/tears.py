@@ -144,7 +144,8 @@ def boundary_points(
     layers = list(config.boundary_layers)
     xy = points_vehicle_m[layers, :, :2]
     valid = np.isfinite(xy).all(axis=-1)
-    phi, rho = hough_lines(xy, valid, config)
+    stride = config.hough_column_stride
+    phi, rho = hough_lines(xy[:, ::stride], valid[:, ::stride], config)
     inl = line_inliers(xy, valid, phi, rho, config)
     phi, rho = refine_lines(xy, inl)
     inl = line_inliers(xy, valid, phi, rho, config)
