@@ -14,7 +14,12 @@ import sys
 from types import ModuleType
 
 #: (id, entry point, max_episode_steps); entry points are strings, so nothing heavy is imported.
-ENV_SPECS: tuple[tuple[str, str, int | None], ...] = ()
+ENV_SPECS: tuple[tuple[str, str, int | None], ...] = (
+    ("negobs_gym/OffroadNav-v0", "negobs_gym.envs.scenarios:OffroadNavEnv", 600),
+    ("negobs_gym/Braking-v0", "negobs_gym.envs.scenarios:BrakingEnv", 150),
+    ("negobs_gym/TrenchCrossing-v0", "negobs_gym.envs.scenarios:TrenchCrossingEnv", 300),
+    ("negobs_gym/PaperTStraight-v0", "negobs_gym.envs.scenarios:PaperTStraightEnv", 300),
+)
 
 
 def register_envs() -> None:
@@ -29,7 +34,7 @@ def register_envs() -> None:
 class _RegisterAfterGymnasiumImport(importlib.abc.MetaPathFinder):
     """Meta-path finder that wraps gymnasium's loader to call :func:`register_envs` afterwards."""
 
-    def find_spec(self, fullname, path, target=None):  # noqa: ANN001, ANN201 - importlib protocol
+    def find_spec(self, fullname, path, target=None):
         if fullname != "gymnasium":
             return None
         sys.meta_path.remove(self)

@@ -1,0 +1,239 @@
+"""The abstract negobs env: physics world + vehicle + events, a grid observation, named rewards.
+
+Scenarios subclass :class:`NegObsEnv` and implement :meth:`NegObsEnv._make_terrain`.
+"""
+
+from __future__ import annotations
+
+import abc
+import logging
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.envs.config import EnvConfig
+from negobs_gym.envs.observation import OracleGrid, grid_space, state_space, state_vector
+from negobs_gym.envs.rewards import reward_terms
+from negobs_gym.errors import ActionError, ConfigError
+from negobs_gym.sim.events import EventMonitor, StepEvents
+from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World, WorldConfig
+
+log = logging.getLogger(__name__)
+
+__all__ = ["NegObsEnv"]
+
+
+class NegObsEnv(gym.Env, abc.ABC):
+    """Drive an off-road vehicle past negative obstacles (abstract base of all negobs envs).
+
+    ## Action Space
+    ``Box(-1, 1, (2,), float32)``: ``action[0]`` longitudinal (> 0 throttle, < 0 brake),
+    ``action[1]`` steering (+1 = full left). NaN/inf raise :class:`~negobs_gym.errors.ActionError`.
+    Control runs at ``config.control_hz`` (10 Hz) with physics sub-steps in between.
+
+    ## Observation Space
+    ``Dict(grid, state)``: ``grid`` uint8 (channels, rows, cols) in {0, 1}, vehicle-centred
+    (rows along +Y from the rear, cols along +X from the left), channels from
+    ``ObservationConfig.channels``; ``state`` float32 (speed, yaw rate, steering angle, goal x, goal
+    y in the vehicle frame).
+
+    ## Rewards
+    Weighted terms by name in ``info["rewards"]``: progress along the track, negative-obstacle
+    entry, collision/rollover, time, goal.
+
+    ## Episode End
+    Terminates on entering a negative obstacle, trapped, collision, rollover or reaching the goal;
+    truncated by the time limit (``TimeLimit`` wrapper from the registry).
+
+    ## Info
+    ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth, inf if none), ``speed_mps``,
+    ``pose`` (``Pose``), ``rewards``, ``station_m``, ``goal_reached``.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012 - gymnasium API
+
+    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None) -> None:
+        self.config = config if config is not None else self.default_config()
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']}, got {render_mode!r}"
+            )
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
+        obs_cfg = self.config.observation
+        if obs_cfg.source == "detector":
+            raise ConfigError(
+                "observation.source",
+                "'detector' needs negobs_gym.sensors and the negative-obstacle detector, which are not "
+                "available in this build; use 'oracle'",
+            )
+        self.observation_space = spaces.Dict({"grid": grid_space(obs_cfg), "state": state_space(obs_cfg)})
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self._world_config = WorldConfig()
+        self._substeps = max(1, round(1.0 / (self.config.control_hz * self._world_config.time_step_s)))
+        self._world: World | None = None
+        self._vehicle: Vehicle | None = None
+        self._monitor: EventMonitor | None = None
+        self.terrain: Terrain | None = None
+        self._path: list[tuple[float, float]] = []
+        self._renderer = None
+
+    # -- hooks ---------------------------------------------------------------------------------
+    @classmethod
+    def default_config(cls) -> EnvConfig:
+        """Config used when none is given; scenarios override."""
+        return EnvConfig()
+
+    @abc.abstractmethod
+    def _make_terrain(self, rng: np.random.Generator) -> Terrain:
+        """Build this episode's terrain from the env's generator."""
+
+    # -- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self._close_world()
+        self.terrain = self._make_terrain(self.np_random)
+        self._world = World(self.terrain, self._world_config)
+        self._vehicle = Vehicle(self._world)
+        sx, sy, syaw = self.terrain.start_xy_yaw
+        self._vehicle.reset(Pose(x=sx, y=sy, yaw=syaw))
+        self._monitor = EventMonitor(self._world, self._vehicle)
+        self._world.step(max(0, round(self.config.settle_time_s / self._world_config.time_step_s)))
+        if self.config.start_speed_mps > 0:
+            self._vehicle.set_speed(self.config.start_speed_mps)
+        self._monitor.reset()
+        self._oracle = OracleGrid(self.config.observation, self.terrain)
+        self._station = self._station_of(self._vehicle.true_pose())
+        pose = self._vehicle.true_pose()
+        self._path = [(pose.x, pose.y)]
+        self._last_grid = None
+        info = self._info(StepEvents(), {}, False)
+        return self._observe(), info
+
+    def step(self, action):
+        if self._vehicle is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ActionError(f"action must have shape (2,), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ActionError(f"action must be finite, got {a.tolist()}")
+        a = np.clip(a, -1.0, 1.0)
+        self._vehicle.apply(max(a[0], 0.0), max(-a[0], 0.0), a[1])
+        self._world.step(self._substeps)
+        events = self._monitor.poll()
+        pose = self._vehicle.true_pose()
+        self._path.append((pose.x, pose.y))
+        station = self._station_of(pose)
+        progress = station - self._station
+        self._station = station
+        goal = math.dist((pose.x, pose.y), self.terrain.goal_xy_m) <= self.config.goal_radius_m
+        rewards = reward_terms(self.config.reward, progress, events, goal)
+        terminated = bool(
+            events.entered_negative_obstacle or events.trapped or events.collision or events.rollover or goal
+        )
+        obs = self._observe()
+        info = self._info(events, rewards, goal)
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(sum(rewards.values())), terminated, False, info
+
+    def render(self):
+        if self.render_mode is None or self._vehicle is None:
+            return None
+        from negobs_gym.envs.rendering import render_frame
+
+        frame = render_frame(
+            self.terrain,
+            self._vehicle.true_pose(),
+            np.asarray(self._path),
+            self._last_grid,
+            self.config.observation,
+        )
+        if self.render_mode == "human":
+            from negobs_gym.envs.rendering import show_frame
+
+            self._renderer = show_frame(frame, self._renderer)
+            return None
+        return frame
+
+    def close(self) -> None:
+        self._close_world()
+        if self._renderer is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._renderer[0])
+            self._renderer = None
+
+    # -- internals -----------------------------------------------------------------------------
+    def _close_world(self) -> None:
+        if self._monitor is not None:
+            self._monitor.detach()
+        if self._world is not None:
+            self._world.close()
+        self._world = self._vehicle = self._monitor = None
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        pose = self._vehicle.true_pose()
+        grid = self._oracle.observe(pose)
+        self._last_grid = grid
+        state = state_vector(
+            self.config.observation,
+            pose,
+            self._vehicle.speed_mps(),
+            self._vehicle.yaw_rate(),
+            self._vehicle.steering_angle_rad(),
+            np.asarray(self.terrain.goal_xy_m),
+        )
+        return {"grid": grid, "state": state}
+
+    def _station_of(self, pose: Pose) -> float:
+        """Distance along the track centre line of the nearest centre-line point [m]."""
+        pts = np.asarray(self.terrain.track.centreline_xy_m, dtype=np.float64)
+        a, b = pts[:-1], pts[1:]
+        ab = b - a
+        p = np.array([pose.x, pose.y])
+        t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-12), 0.0, 1.0)
+        d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
+        k = int(np.argmin(d))
+        return float(self.terrain.track.stations_m[k] + t[k] * np.linalg.norm(ab[k]))
+
+    def _distance_to_negative_ahead(self, pose: Pose) -> float:
+        """Ground-truth distance from the front bumper to the nearest negative-obstacle vertex ahead."""
+        if not self.terrain.negative_obstacles:
+            return math.inf
+        cfg = self._vehicle.config
+        fwd = np.array([-math.sin(pose.yaw), math.cos(pose.yaw)])
+        right = np.array([fwd[1], -fwd[0]])
+        best = math.inf
+        for ob in self.terrain.negative_obstacles:
+            rel = np.asarray(ob.outline_xy_m) - np.array([pose.x, pose.y])
+            along, across = rel @ fwd, rel @ right
+            ahead = along[np.abs(across) <= 0.5 * cfg.track_width_m + 1.0]
+            ahead = ahead[ahead > 0]
+            if ahead.size:
+                best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
+        return best
+
+    def _info(self, events: StepEvents, rewards: dict[str, float], goal: bool) -> dict[str, Any]:
+        pose = self._vehicle.true_pose()
+        return {
+            "events": {
+                "entered_negative_obstacle": events.entered_negative_obstacle,
+                "trapped": events.trapped,
+                "collision": events.collision,
+                "rollover": events.rollover,
+            },
+            "distance_to_negative_ahead_m": self._distance_to_negative_ahead(pose),
+            "speed_mps": self._vehicle.speed_mps(),
+            "pose": pose,
+            "station_m": self._station,
+            "goal_reached": goal,
+            "rewards": rewards,
+        }

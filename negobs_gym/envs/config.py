@@ -1,0 +1,145 @@
+"""Frozen configs of the negobs_gym environments (observation, reward, episode)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.errors import require
+
+__all__ = ["CHANNELS", "EnvConfig", "ObservationConfig", "RewardConfig"]
+
+#: Grid channels an observation can carry, in this fixed order.
+CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObservationConfig:
+    """What the ``grid`` observation holds.
+
+    Attributes:
+        source: ``"oracle"`` rasterises the ground truth (for ablations); ``"detector"`` reads the
+            detector grid (needs the sensors and detector packages).
+        channels: Subset of :data:`CHANNELS`, in that order.
+        grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
+        downsample: Integer block size for max-pooling the grid (1 = full resolution).
+        max_speed_mps: Speed that maps to the top of the ``state`` range [m/s].
+        max_goal_distance_m: Goal vector components are clipped to +- this [m].
+    """
+
+    source: str = "oracle"
+    channels: tuple[str, ...] = CHANNELS
+    grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
+    downsample: int = 4
+    max_speed_mps: float = 15.0
+    max_goal_distance_m: float = 300.0
+
+    def __post_init__(self) -> None:
+        require(
+            self.source in ("oracle", "detector"),
+            "source",
+            f"must be 'oracle' or 'detector', got {self.source!r}",
+        )
+        require(len(self.channels) > 0, "channels", "must name at least one channel")
+        require(
+            all(c in CHANNELS for c in self.channels) and len(set(self.channels)) == len(self.channels),
+            "channels",
+            f"must be distinct names from {CHANNELS}, got {self.channels}",
+        )
+        require(
+            tuple(c for c in CHANNELS if c in self.channels) == tuple(self.channels),
+            "channels",
+            f"must follow the order {CHANNELS}",
+        )
+        require(
+            isinstance(self.downsample, int) and self.downsample >= 1, "downsample", "must be an int >= 1"
+        )
+        rows, cols = self.grid.shape
+        require(
+            rows % self.downsample == 0 and cols % self.downsample == 0,
+            "downsample",
+            f"must divide the grid shape {rows}x{cols}",
+        )
+        for name in ("max_speed_mps", "max_goal_distance_m"):
+            v = getattr(self, name)
+            require(math.isfinite(v) and v > 0, name, f"must be > 0, got {v}")
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """(channels, rows, cols) of the observed grid after down-sampling."""
+        rows, cols = self.grid.shape
+        return (len(self.channels), rows // self.downsample, cols // self.downsample)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RewardConfig:
+    """Weights of the named reward terms (summed into the scalar reward).
+
+    Attributes:
+        progress: Per metre of progress along the track.
+        negative_entry: Once, when a wheel enters a negative obstacle.
+        collision: Once, on contact with a positive obstacle or a rollover.
+        time: Per control step (a small cost of time).
+        goal: Once, on reaching the goal.
+    """
+
+    progress: float = 1.0
+    negative_entry: float = -100.0
+    collision: float = -100.0
+    time: float = -0.01
+    goal: float = 50.0
+
+    def __post_init__(self) -> None:
+        for name in ("progress", "negative_entry", "collision", "time", "goal"):
+            v = getattr(self, name)
+            require(isinstance(v, (int, float)) and math.isfinite(v), name, f"must be finite, got {v!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EnvConfig:
+    """Episode settings shared by all negobs envs.
+
+    Attributes:
+        control_hz: Control rate [Hz]; physics runs ``1 / (control_hz * time_step_s)`` sub-steps.
+        time_limit_s: Episode length before truncation [s].
+        start_speed_mps: Initial forward speed [m/s] (paper N §4: 25 km/h for braking).
+        goal_radius_m: Reaching within this distance of the goal ends the episode [m].
+        settle_time_s: Physics time to let the suspension settle at reset [s].
+        observation: See :class:`ObservationConfig`.
+        reward: See :class:`RewardConfig`.
+    """
+
+    control_hz: float = 10.0  # SPEC §6: 10 Hz control
+    time_limit_s: float = 30.0
+    start_speed_mps: float = 0.0
+    goal_radius_m: float = 3.0
+    settle_time_s: float = 0.25
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+
+    def __post_init__(self) -> None:
+        require(
+            math.isfinite(self.control_hz) and 1.0 <= self.control_hz <= 60.0,
+            "control_hz",
+            "must be in [1, 60] Hz",
+        )
+        require(math.isfinite(self.time_limit_s) and self.time_limit_s > 0, "time_limit_s", "must be > 0")
+        require(
+            math.isfinite(self.start_speed_mps) and self.start_speed_mps >= 0,
+            "start_speed_mps",
+            "must be >= 0",
+        )
+        require(math.isfinite(self.goal_radius_m) and self.goal_radius_m > 0, "goal_radius_m", "must be > 0")
+        require(
+            math.isfinite(self.settle_time_s) and self.settle_time_s >= 0, "settle_time_s", "must be >= 0"
+        )
+        require(
+            isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"
+        )
+        require(isinstance(self.reward, RewardConfig), "reward", "must be a RewardConfig")
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Control steps before truncation."""
+        return max(1, round(self.time_limit_s * self.control_hz))

@@ -1,0 +1,129 @@
+"""Observation builders: the vehicle-centred grid channels and the vehicle state vector."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.errors import ConfigError
+from negobs_gym.sim.events import pad_polygons, points_in_polygons
+from negobs_gym.sim.types import Terrain
+
+__all__ = ["STATE_FIELDS", "OracleGrid", "grid_space", "state_space", "state_vector"]
+
+#: Order of the ``state`` observation: speed, yaw rate, steering angle, goal vector (vehicle frame).
+STATE_FIELDS: tuple[str, ...] = ("speed_mps", "yaw_rate_rps", "steering_rad", "goal_x_m", "goal_y_m")
+
+
+def grid_space(config: ObservationConfig) -> spaces.Box:
+    """uint8 grid, 0 = no / 1 = yes per channel, shape (channels, rows, cols)."""
+    return spaces.Box(0, 1, config.shape, dtype=np.uint8)
+
+
+def state_space(config: ObservationConfig) -> spaces.Box:
+    """float32 state in physical units, clipped to the declared bounds."""
+    hi = np.array(
+        [config.max_speed_mps, 3.0, 1.0, config.max_goal_distance_m, config.max_goal_distance_m], np.float32
+    )
+    lo = np.array(
+        [-config.max_speed_mps, -3.0, -1.0, -config.max_goal_distance_m, -config.max_goal_distance_m],
+        np.float32,
+    )
+    return spaces.Box(lo, hi, dtype=np.float32)
+
+
+def state_vector(
+    config: ObservationConfig,
+    pose: Pose,
+    speed_mps: float,
+    yaw_rate_rps: float,
+    steering_rad: float,
+    goal_xy_m: np.ndarray,
+) -> np.ndarray:
+    """The ``state`` observation (see :data:`STATE_FIELDS`); goal vector in the vehicle frame."""
+    d = np.asarray(goal_xy_m, dtype=np.float64) - np.array([pose.x, pose.y])
+    c, s = np.cos(pose.yaw), np.sin(pose.yaw)
+    goal_v = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])  # world -> vehicle (Rz(-yaw))
+    space = state_space(config)
+    raw = np.array([speed_mps, yaw_rate_rps, steering_rad, goal_v[0], goal_v[1]], dtype=np.float64)
+    return np.clip(raw, space.low, space.high).astype(np.float32)
+
+
+def _max_pool(grid: np.ndarray, k: int) -> np.ndarray:
+    """Max-pool (C, R, W) by k x k blocks, so a one-cell obstacle survives down-sampling."""
+    if k == 1:
+        return grid
+    c, r, w = grid.shape
+    return grid.reshape(c, r // k, k, w // k, k).max(axis=(2, 4))
+
+
+class OracleGrid:
+    """Ground-truth grid for ablations: rasterises the terrain's obstacle records around a pose.
+
+    ``negative`` = cell centre inside a negative obstacle outline; ``positive`` = inside a positive
+    obstacle footprint; ``traversable`` = on the track and in neither; ``observed`` = inside the
+    heightfield (the oracle sees everything).
+    """
+
+    def __init__(self, config: ObservationConfig, terrain: Terrain) -> None:
+        if config.source != "oracle":
+            raise ConfigError("source", f"OracleGrid needs source='oracle', got {config.source!r}")
+        self.config = config
+        self.terrain = terrain
+        self._neg = pad_polygons([np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles])
+        self._pos = (
+            pad_polygons([_footprint(o) for o in terrain.positive_obstacles])
+            if terrain.positive_obstacles
+            else np.zeros((0, 3, 2))
+        )
+        self._centres_v = config.grid.cell_centres().reshape(-1, 2)
+
+    def observe(self, pose: Pose) -> np.ndarray:
+        """uint8 (channels, rows, cols) grid around ``pose``."""
+        cfg = self.config
+        c, s = np.cos(pose.yaw), np.sin(pose.yaw)
+        rot = np.array([[c, -s], [s, c]])
+        pts = self._centres_v @ rot.T + np.array([pose.x, pose.y])
+        neg = points_in_polygons(pts, self._neg).any(axis=1)
+        pos = points_in_polygons(pts, self._pos).any(axis=1)
+        hf = self.terrain.heightfield
+        observed = np.isfinite(hf.height_at(pts))
+        track = self.terrain.track
+        lateral = _lateral_distance(pts, np.asarray(track.centreline_xy_m, dtype=np.float64))
+        on_track = lateral <= 0.5 * track.width_m
+        layers = {
+            "negative": neg,
+            "positive": pos,
+            "traversable": on_track & ~neg & ~pos & observed,
+            "observed": observed,
+        }
+        rows, cols = cfg.grid.shape
+        grid = np.stack([layers[name].reshape(rows, cols) for name in cfg.channels]).astype(np.uint8)
+        return _max_pool(grid, cfg.downsample)
+
+
+def _footprint(obstacle) -> np.ndarray:
+    """Footprint polygon (4 corners, or a 16-gon for cylinders) of a positive obstacle."""
+    cx, cy = float(obstacle.centre_m[0]), float(obstacle.centre_m[1])
+    hx, hy = float(obstacle.half_extents_m[0]), float(obstacle.half_extents_m[1])
+    if obstacle.shape == "box":
+        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    else:
+        t = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+        local = np.stack([hx * np.cos(t), hx * np.sin(t)], axis=1)
+    c, s = np.cos(obstacle.yaw_rad), np.sin(obstacle.yaw_rad)
+    return local @ np.array([[c, -s], [s, c]]).T + np.array([cx, cy])
+
+
+def _lateral_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Distance of each point to the nearest segment of a polyline."""
+    a, b = polyline[:-1], polyline[1:]
+    ab = b - a
+    t = np.einsum("pmk,mk->pm", points[:, None, :] - a[None], ab) / np.maximum(
+        np.einsum("mk,mk->m", ab, ab), 1e-12
+    )
+    t = np.clip(t, 0.0, 1.0)
+    closest = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
