@@ -26,7 +26,7 @@ def test_lateral_resolution_and_subtended_angle():
     assert g.lateral_resolution(2.2, b, np.radians(2.0)) == pytest.approx(2 * 16 * np.sin(np.radians(1)))
     exact = g.subtended_angle(2.2, 20.0, 1.0)
     approx = g.subtended_angle_approx(2.2, 20.0, 1.0)
-    assert exact == pytest.approx(np.arctan2(22.0, 2.2) - np.arctan2(20.0, 2.2))
+    assert exact == pytest.approx(np.arctan2(21.0, 2.2) - np.arctan2(20.0, 2.2))
     assert approx == pytest.approx(exact, rel=0.02)
 
 
