@@ -53,7 +53,8 @@ class NegObsEnv(gym.Env, abc.ABC):
 
     ## Info
     ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth, inf if none), ``speed_mps``,
-    ``pose`` (``Pose``), ``rewards``, ``station_m``, ``goal_reached``.
+    ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array`` restores it),
+    ``rewards``, ``station_m``, ``goal_reached``.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012 - gymnasium API
@@ -232,7 +233,7 @@ class NegObsEnv(gym.Env, abc.ABC):
             },
             "distance_to_negative_ahead_m": self._distance_to_negative_ahead(pose),
             "speed_mps": self._vehicle.speed_mps(),
-            "pose": pose,
+            "pose": pose.as_array(),
             "station_m": self._station,
             "goal_reached": goal,
             "rewards": rewards,
