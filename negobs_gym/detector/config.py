@@ -1,0 +1,110 @@
+"""Per-sensor feature-extraction configs of paper N §3.1/§3.2 (defaults = the paper's values)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from negobs_gym.errors import require
+
+
+def _finite(value: float) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PairTestConfig:
+    """Eq. 14 thresholds of the feature-pair test."""
+
+    w_min_m: float = 0.30  # Eq. 14, minimum negative-obstacle width (paper N: 30 cm)
+    gamma1: float = 1.5  # Eq. 14, d_AB >= gamma1 * d_BC (1.5 for HDL-64, 5 for HDL-32)
+    gamma2: float = 0.15  # Eq. 14, dz_BC >= gamma2 * h * d_AB / y_A (0.15 HDL-64, 0.4 HDL-32)
+
+    def __post_init__(self) -> None:
+        require(_finite(self.w_min_m) and self.w_min_m > 0, "w_min_m", "must be finite and > 0")
+        require(_finite(self.gamma1) and self.gamma1 >= 0, "gamma1", "must be finite and >= 0")
+        require(_finite(self.gamma2) and self.gamma2 >= 0, "gamma2", "must be finite and >= 0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hdl64FeatureConfig:
+    """Top HDL-64 feature pairs: amplitude-direction convexity + back-wall density (paper N §3.1).
+
+    Attributes beyond the paper (documented choices): ``side_window`` (points left/right of a bump
+    averaged for the mean-range test; the paper says "a certain range"), the density search window
+    (``density_laser_window`` lasers up and down, ``density_column_window`` columns either side)
+    and ``sensor_height_m`` (None = the scan's mounting height ``translation_m[2]``).
+    """
+
+    max_filter_radius: int = 3  # §3.1 step 2, max filter of radius 3
+    density_factor: float = 0.55  # Eq. 10, T_d64 = 0.55 * max(dr_n, dr_n+1)
+    edge_rise_m: float = 0.20  # §3.1 step 4, T+ = 20 cm
+    edge_fall_m: float = -0.20  # §3.1 step 4, T- = -20 cm
+    edge_half_window: int = 2  # §3.1 step 4, 5-neighbourhood = i-2..i+2
+    density_threshold: float = 1.75  # §3.1 step 4, D_th64
+    side_window: int = 5
+    density_laser_window: int = 6
+    density_column_window: int = 2
+    epsilon_deg: float = 0.09  # §3.1 step 5, Tab. 2 azimuth tolerance
+    sensor_height_m: float | None = None
+    pair_test: PairTestConfig = PairTestConfig()  # Eq. 14: 0.30 m, 1.5, 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("max_filter_radius", "edge_half_window", "side_window"):
+            v = getattr(self, name)
+            require(isinstance(v, int) and v >= 1, name, "must be an integer >= 1")
+        for name in ("density_laser_window", "density_column_window"):
+            v = getattr(self, name)
+            require(isinstance(v, int) and v >= 0, name, "must be an integer >= 0")
+        require(_finite(self.density_factor) and self.density_factor > 0, "density_factor", "must be > 0")
+        require(_finite(self.edge_rise_m) and self.edge_rise_m > 0, "edge_rise_m", "must be > 0")
+        require(_finite(self.edge_fall_m) and self.edge_fall_m < 0, "edge_fall_m", "must be < 0")
+        require(_finite(self.density_threshold), "density_threshold", "must be finite")
+        require(_finite(self.epsilon_deg) and self.epsilon_deg >= 0, "epsilon_deg", "must be >= 0")
+        require(
+            self.sensor_height_m is None or (_finite(self.sensor_height_m) and self.sensor_height_m > 0),
+            "sensor_height_m",
+            "must be None or finite and > 0",
+        )
+        require(isinstance(self.pair_test, PairTestConfig), "pair_test", "must be a PairTestConfig")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hdl32FeatureConfig:
+    """Side HDL-32 feature pairs: radial range jump + back-wall density (paper N §3.2).
+
+    ``compensate_missing`` switches the missing-return compensation of §3.2 step 2;
+    ``sensor_height_m`` None = the scan's mounting height ``translation_m[2]``.
+    """
+
+    density_radius_m: float = 0.15  # §3.2 step 3, T_d32 = 0.15 m
+    density_half_window: int = 8  # columns either side searched for same-laser neighbours
+    jump_threshold_m: float = 0.30  # §3.2 step 4, T32 = 0.30 m
+    density_threshold: float = 4.0  # §3.2 step 4, D_th32 = 4
+    compensate_missing: bool = True
+    sensor_height_m: float | None = None
+    pair_test: PairTestConfig = PairTestConfig(gamma1=5.0, gamma2=0.4)  # §3.2 step 5
+
+    def __post_init__(self) -> None:
+        require(
+            _finite(self.density_radius_m) and self.density_radius_m > 0,
+            "density_radius_m",
+            "must be finite and > 0",
+        )
+        require(
+            isinstance(self.density_half_window, int) and self.density_half_window >= 1,
+            "density_half_window",
+            "must be an integer >= 1",
+        )
+        require(
+            _finite(self.jump_threshold_m) and self.jump_threshold_m > 0,
+            "jump_threshold_m",
+            "must be finite and > 0",
+        )
+        require(_finite(self.density_threshold), "density_threshold", "must be finite")
+        require(
+            self.sensor_height_m is None or (_finite(self.sensor_height_m) and self.sensor_height_m > 0),
+            "sensor_height_m",
+            "must be None or finite and > 0",
+        )
+        require(isinstance(self.pair_test, PairTestConfig), "pair_test", "must be a PairTestConfig")

@@ -1,0 +1,183 @@
+"""Analytic structured scans for tests and benchmarks: a flat plane z = 0 (vehicle frame) with
+axis-aligned rectangular holes of given depth, seen by a sensor at a known mounting.
+
+Rays are intersected with the plane and, where the plane hit falls inside a hole's opening,
+with the inside of the hole (walls and floor, slab method) - fully vectorized. Two rig shapes:
+an upright HDL-64-like sensor and a side HDL-32-like sensor rolled 90 deg about the vehicle Y
+axis so that each laser (row) sweeps a vertical plane: its columns run from the nadir forward
+(and backward), i.e. along one laser the ground hits go near -> far in the front half of the
+spin (see :func:`hdl32_side_rotation`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.errors import require
+
+HDL64_ELEVATION_DEG = np.linspace(-24.8, 2.0, 64)  # HDL-64E-like, ~0.43 deg spacing
+HDL32_ELEVATION_DEG = np.linspace(-30.67, 10.67, 32)  # HDL-32E, 1.33 deg spacing
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hole:
+    """Axis-aligned rectangular hole in the vehicle frame: opening [x0, x1] x [y0, y1], depth."""
+
+    x0_m: float
+    x1_m: float
+    y0_m: float
+    y1_m: float
+    depth_m: float
+
+    def __post_init__(self) -> None:
+        for name in ("x0_m", "x1_m", "y0_m", "y1_m", "depth_m"):
+            require(np.isfinite(getattr(self, name)), name, "must be finite")
+        require(self.x1_m > self.x0_m, "x1_m", "must exceed x0_m")
+        require(self.y1_m > self.y0_m, "y1_m", "must exceed y0_m")
+        require(self.depth_m > 0, "depth_m", "must be > 0")
+
+    @classmethod
+    def ahead(cls, distance_m: float, width_m: float, length_m: float, depth_m: float) -> Hole:
+        """Hole centred on x = 0 whose near rim is ``distance_m`` ahead (+Y) of the origin."""
+        return cls(
+            x0_m=-width_m / 2,
+            x1_m=width_m / 2,
+            y0_m=distance_m,
+            y1_m=distance_m + length_m,
+            depth_m=depth_m,
+        )
+
+
+def hdl32_side_rotation(side: str) -> np.ndarray:
+    """Sensor-to-vehicle rotation of a side HDL-32 rolled 90 deg about the vehicle Y axis.
+
+    ``"left"``: spin axis (sensor +Z) = vehicle -X, sensor +Y = vehicle +Y, sensor +X = up, so the
+    nadir is at azimuth -90 deg and azimuths -90 -> 0 deg sweep the ground near -> far ahead.
+    ``"right"``: sensor +Z = vehicle +X, sensor +X = down (nadir at azimuth +90 deg).
+    """
+    if side == "left":
+        return np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    if side == "right":
+        return np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+
+
+def cast_ranges(
+    origin_m: np.ndarray,
+    directions: np.ndarray,
+    holes: Sequence[Hole] = (),
+    max_range_m: float = 120.0,
+) -> np.ndarray:
+    """Ranges of unit rays from ``origin_m`` (vehicle frame) to the holed plane; NaN = no hit."""
+    o = np.asarray(origin_m, dtype=np.float64).reshape(3)
+    d = np.asarray(directions, dtype=np.float64)
+    require(o[2] > 0, "origin_m", "sensor must be above the plane z = 0")
+    dz = d[..., 2]
+    down = dz < -1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(down, -o[2] / np.where(down, dz, -1.0), np.nan)
+        px = o[0] + t * d[..., 0]
+        py = o[1] + t * d[..., 1]
+        for hole in holes:
+            inside = down & (px > hole.x0_m) & (px < hole.x1_m) & (py > hole.y0_m) & (py < hole.y1_m)
+            if not inside.any():
+                continue
+            dx, dy = d[..., 0], d[..., 1]
+            tx = np.where(dx > 0, (hole.x1_m - o[0]) / dx, (hole.x0_m - o[0]) / dx)
+            ty = np.where(dy > 0, (hole.y1_m - o[1]) / dy, (hole.y0_m - o[1]) / dy)
+            tz = (-hole.depth_m - o[2]) / dz
+            tx = np.where(dx == 0, np.inf, tx)
+            ty = np.where(dy == 0, np.inf, ty)
+            t_exit = np.minimum(np.minimum(tx, ty), tz)
+            t = np.where(inside, t_exit, t)
+    return np.where(t <= max_range_m, t, np.nan)
+
+
+def synthetic_scan(
+    sensor: str,
+    elevation_rad: np.ndarray,
+    azimuth_rad: np.ndarray,
+    rotation: np.ndarray,
+    translation_m: np.ndarray,
+    holes: Sequence[Hole] = (),
+    *,
+    max_range_m: float = 120.0,
+    noise_sigma_m: float = 0.0,
+    rng: np.random.Generator | None = None,
+    pose: Pose | None = None,
+) -> StructuredScan:
+    """Structured scan of the holed plane; optional Gaussian range noise from ``rng``."""
+    require(noise_sigma_m >= 0 and np.isfinite(noise_sigma_m), "noise_sigma_m", "must be >= 0")
+    rot = np.asarray(rotation, dtype=np.float64)
+    dirs = ray_directions(elevation_rad, azimuth_rad) @ rot.T
+    ranges = cast_ranges(translation_m, dirs, holes, max_range_m)
+    if noise_sigma_m > 0:
+        require(rng is not None, "rng", "a np.random.Generator is needed when noise_sigma_m > 0")
+        ranges = np.abs(ranges + rng.normal(0.0, noise_sigma_m, ranges.shape))
+    return StructuredScan(
+        sensor=sensor,
+        ranges_m=ranges,
+        azimuth_rad=azimuth_rad,
+        elevation_rad=elevation_rad,
+        rotation=rot,
+        translation_m=np.asarray(translation_m, dtype=np.float64),
+        pose=pose if pose is not None else Pose(),
+    )
+
+
+def hdl64_scan(
+    holes: Sequence[Hole] = (),
+    *,
+    height_m: float = 2.2,
+    n_columns: int = 4000,
+    elevation_deg: np.ndarray = HDL64_ELEVATION_DEG,
+    noise_sigma_m: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> StructuredScan:
+    """Upright HDL-64-like scan (sensor at (0, 0, height_m), R = I, full revolution)."""
+    az = np.linspace(-np.pi, np.pi, n_columns, endpoint=False)
+    return synthetic_scan(
+        "hdl64",
+        np.radians(np.sort(np.asarray(elevation_deg, dtype=np.float64))),
+        az,
+        np.eye(3),
+        np.array([0.0, 0.0, height_m]),
+        holes,
+        noise_sigma_m=noise_sigma_m,
+        rng=rng,
+    )
+
+
+def hdl32_side_scan(
+    holes: Sequence[Hole] = (),
+    *,
+    side: str = "left",
+    height_m: float = 2.0,
+    lateral_offset_m: float = 0.8,
+    n_columns: int = 2250,
+    elevation_deg: np.ndarray = HDL32_ELEVATION_DEG,
+    noise_sigma_m: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> StructuredScan:
+    """Side HDL-32-like scan, rolled 90 deg (see :func:`hdl32_side_rotation`).
+
+    The sensor sits ``lateral_offset_m`` to the ``side`` of the vehicle centre line at
+    ``height_m``; ``n_columns`` = 2250 gives the HDL-32E's 0.16 deg firing resolution.
+    """
+    x = -lateral_offset_m if side == "left" else lateral_offset_m
+    az = np.linspace(-np.pi, np.pi, n_columns, endpoint=False)
+    return synthetic_scan(
+        f"hdl32_{side}",
+        np.radians(np.sort(np.asarray(elevation_deg, dtype=np.float64))),
+        az,
+        hdl32_side_rotation(side),
+        np.array([x, 0.0, height_m]),
+        holes,
+        noise_sigma_m=noise_sigma_m,
+        rng=rng,
+    )
