@@ -59,15 +59,25 @@ def _as_polygon(outline: np.ndarray, name: str) -> np.ndarray:
     return poly
 
 
-def world_outline_to_vehicle(outline_xy_m: np.ndarray, pose: Pose) -> np.ndarray:
+def world_outline_to_vehicle(
+    outline_xy_m: np.ndarray, pose: Pose, ground_z_m: float | np.ndarray | None = None
+) -> np.ndarray:
     """Map a world-frame ground outline (N, 2) to vehicle-frame (x, y).
 
-    The outline lies on the ground, so its points are lifted to the pose height before the full
-    rotation is applied; for a level vehicle this is the plain yaw rotation.
+    Args:
+        outline_xy_m: world-frame polygon (N, 2), e.g. ``NegativeObstacle.outline_xy_m``.
+        pose: vehicle pose at the frame (true pose for ground truth).
+        ground_z_m: world Z of the outline (scalar or (N,)), e.g. the rim height ``floor_z_m +
+            depth_m``; None uses the pose height. It only matters when the vehicle is pitched or
+            rolled (1 cm per 0.3 m of height at 2 deg).
     """
     poly = _as_polygon(outline_xy_m, "outline_xy_m")
-    pts = np.column_stack([poly, np.full(len(poly), pose.z)])
-    return pose.to_vehicle(pts)[:, :2]
+    z = np.broadcast_to(
+        np.asarray(pose.z if ground_z_m is None else ground_z_m, dtype=np.float64), (len(poly),)
+    )
+    if not np.all(np.isfinite(z)):
+        raise ValueError("ground_z_m: contains NaN or inf")
+    return pose.to_vehicle(np.column_stack([poly, z]))[:, :2]
 
 
 def rasterize_outline(outline_xy_m: np.ndarray, grid: GridSpec) -> np.ndarray:

@@ -74,6 +74,17 @@ def test_world_outline_to_vehicle_rotates_with_yaw() -> None:
     np.testing.assert_allclose(veh, [[0.0, 10.0], [2.0, 0.0]], atol=1e-12)
 
 
+def test_world_outline_to_vehicle_uses_ground_height_when_pitched() -> None:
+    # nose up by 0.1 rad, origin 1 m above the ground: a ground point straight ahead at world y = 10
+    # sits below the tilted +Y axis, so its vehicle-frame y is y cos(p) - dz sin(p)
+    pitch = 0.1
+    pose = Pose(x=0.0, y=0.0, z=1.0, roll=0.0, pitch=pitch, yaw=0.0)
+    veh = world_outline_to_vehicle(np.array([[0.0, 10.0]]), pose, ground_z_m=0.0)
+    assert veh[0, 1] == pytest.approx(10.0 * math.cos(pitch) - 1.0 * math.sin(pitch))
+    with pytest.raises(ValueError, match="ground_z_m"):
+        world_outline_to_vehicle(np.array([[0.0, 10.0]]), pose, ground_z_m=np.nan)
+
+
 def test_match_recall_and_false_alarm() -> None:
     truth = [square(0.5, 8.5, 1.0), square(-3.0, 12.0, 1.0)]
     detected = [
