@@ -82,6 +82,10 @@ class Hdl32FeatureConfig:
     jump_threshold_m: float = 0.30  # §3.2 step 4, T32 = 0.30 m
     density_threshold: float = 4.0  # §3.2 step 4, D_th32 = 4
     compensate_missing: bool = True
+    # C = first point after B on the same laser at least this far from B (documented deviation:
+    # the paper's literal "next point" is 0.0; at the HDL-32E's 0.16 deg firing step the next
+    # point lies ~3 cm up the same back wall and can never meet Eq. 14's dz_BC test)
+    c_min_separation_m: float = 0.15
     sensor_height_m: float | None = None
     pair_test: PairTestConfig = PairTestConfig(gamma1=5.0, gamma2=0.4)  # §3.2 step 5
 
@@ -102,6 +106,11 @@ class Hdl32FeatureConfig:
             "must be finite and > 0",
         )
         require(_finite(self.density_threshold), "density_threshold", "must be finite")
+        require(
+            _finite(self.c_min_separation_m) and self.c_min_separation_m >= 0,
+            "c_min_separation_m",
+            "must be finite and >= 0",
+        )
         require(
             self.sensor_height_m is None or (_finite(self.sensor_height_m) and self.sensor_height_m > 0),
             "sensor_height_m",

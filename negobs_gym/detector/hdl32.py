@@ -1,0 +1,138 @@
+"""Side HDL-32 negative-obstacle feature pairs (paper N §3.2).
+
+Scan layout assumed (the side rig of :mod:`negobs_gym.detector.synthetic` and the sensors
+package): the sensor is rolled 90 deg, so one row (laser) of the range image sweeps a vertical
+plane and its columns cross the ground radially. "Along each laser near to far" is taken in
+both column directions: at column ``k`` the sequence ``k-2, k-1, k`` (or ``k+2, k+1, k``) is
+used where the flat-ground hit distances of those rays increase (a property of the ray
+geometry alone, so it holds for any mounting). Pipeline: missing-return compensation ->
+same-laser density -> range jump (second difference) -> pair (A = previous point,
+B = jump point, C = next point beyond B's back-wall neighbourhood, see
+``Hdl32FeatureConfig.c_min_separation_m``) -> Eq. 14.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.detector.config import Hdl32FeatureConfig
+from negobs_gym.detector.hdl64 import sensor_height
+from negobs_gym.detector.pair_test import pair_test
+from negobs_gym.detector.pairs import FeaturePairs
+
+
+def ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
+    """Horizontal distance from the sensor at which each ray would hit flat ground (inf = never)."""
+    d = ray_directions(scan.elevation_rad, scan.azimuth_rad) @ scan.rotation.T
+    down = d[..., 2] < -1e-9
+    horiz = np.hypot(d[..., 0], d[..., 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(down, height_m * horiz / np.where(down, -d[..., 2], 1.0), np.inf)
+
+
+def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
+    """Fill a missing return from the neighbouring laser(s) at the same column (same emission
+    angle of the sweep), only where the estimate lies between the row's neighbours (the range
+    sequence is ordered there). Used only to judge range jumps, never as a detection."""
+    r = np.asarray(ranges_m, dtype=np.float64)
+    n_l, n_c = r.shape
+    if n_c < 3 or n_l < 2:
+        return r.copy()
+    up = np.concatenate([r[1:], np.full((1, n_c), np.nan)])
+    dn = np.concatenate([np.full((1, n_c), np.nan), r[:-1]])
+    est = np.where(np.isnan(up), dn, np.where(np.isnan(dn), up, 0.5 * (up + dn)))
+    left = np.concatenate([np.full((n_l, 1), np.nan), r[:, :-1]], axis=1)
+    right = np.concatenate([r[:, 1:], np.full((n_l, 1), np.nan)], axis=1)
+    lo, hi = np.fmin(left, right), np.fmax(left, right)
+    with np.errstate(invalid="ignore"):
+        ordered = (est >= lo) & (est <= hi)
+    return np.where(np.isnan(r) & ordered, est, r)
+
+
+def same_laser_density(points_m: np.ndarray, radius_m: float, half_window: int) -> np.ndarray:
+    """Number of points of the same laser (own included) within ``radius_m`` of each point,
+    searched over ``+-half_window`` columns; 0 for missing points."""
+    n_l, n_c, _ = points_m.shape
+    dens = np.zeros((n_l, n_c))
+    valid = ~np.isnan(points_m[..., 0])
+    for off in range(1, min(half_window, n_c - 1) + 1):  # loop over offsets, not points
+        dist = np.linalg.norm(points_m[:, off:] - points_m[:, :-off], axis=-1)
+        with np.errstate(invalid="ignore"):
+            near = dist <= radius_m
+        dens[:, off:] += near
+        dens[:, :-off] += near
+    return np.where(valid, dens + 1.0, 0.0)
+
+
+def range_jumps(ranges_m: np.ndarray, ground_m: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
+    """Mask of ``r_diff = (r_i - r_i-1) - (r_i-1 - r_i-2) > threshold_m`` walking the columns
+    with ``step`` (+1 or -1), where the rays' ground distances increase (near to far)."""
+    r = ranges_m if step == 1 else ranges_m[:, ::-1]
+    g = ground_m if step == 1 else ground_m[:, ::-1]
+    out = np.zeros(r.shape, dtype=bool)
+    if r.shape[1] >= 3:
+        rd = (r[:, 2:] - r[:, 1:-1]) - (r[:, 1:-1] - r[:, :-2])
+        far = (g[:, 2:] > g[:, 1:-1]) & (g[:, 1:-1] > g[:, :-2])
+        with np.errstate(invalid="ignore"):
+            out[:, 2:] = (rd > threshold_m) & far
+    return out if step == 1 else out[:, ::-1]
+
+
+def next_point(
+    points_m: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    step: int,
+    min_separation_m: float,
+    max_steps: int,
+) -> np.ndarray:
+    """Point C: the first return after B (walking ``step``) that is more than
+    ``min_separation_m`` from B, within ``max_steps`` columns; NaN rows where there is none.
+    With ``min_separation_m = 0`` this is the paper's "next point" (the adjacent return)."""
+    n_c = points_m.shape[1]
+    if rows.size == 0:
+        return np.empty((0, 3))
+    offs = np.arange(1, max(max_steps, 1) + 1)
+    cc = cols[:, None] + step * offs[None, :]
+    inside = (cc >= 0) & (cc < n_c)
+    p = points_m[rows[:, None], np.clip(cc, 0, n_c - 1)]
+    dist = np.linalg.norm(p - points_m[rows, cols][:, None, :], axis=-1)
+    with np.errstate(invalid="ignore"):
+        ok = inside & (dist > min_separation_m)
+    first = ok.argmax(axis=1)
+    found = ok.any(axis=1)
+    c = p[np.arange(rows.size), first]
+    return np.where(found[:, None], c, np.nan)
+
+
+def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> FeaturePairs:
+    """Negative-obstacle feature pairs (A, B, C) of one side HDL-32 scan (paper N §3.2).
+
+    Empty scans (no columns or no returns) give empty pairs; a non-positive sensor height
+    raises ``ValueError``.
+    """
+    h = sensor_height(scan, config.sensor_height_m)
+    ranges = scan.ranges_m
+    n_l, n_c = ranges.shape
+    if n_c == 0 or n_l == 0 or np.isnan(ranges).all():
+        return FeaturePairs.empty(scan.sensor)
+    pts = scan.points_vehicle
+    valid = ~np.isnan(ranges)
+    r_c = compensate_missing(ranges) if config.compensate_missing else ranges
+    ground = ground_hit_distance(scan, h)
+    dens = same_laser_density(pts, config.density_radius_m, config.density_half_window)
+    dense = dens > config.density_threshold
+    a_all, b_all, c_all = [], [], []
+    for step in (1, -1):
+        cand = range_jumps(r_c, ground, config.jump_threshold_m, step) & dense & valid
+        rows, cols = np.nonzero(cand)
+        prev = cols - step
+        ok_idx = (prev >= 0) & (prev < n_c)
+        rows, cols, prev = rows[ok_idx], cols[ok_idx], prev[ok_idx]
+        a_all.append(pts[rows, prev])
+        b_all.append(pts[rows, cols])
+        c_all.append(next_point(pts, rows, cols, step, config.c_min_separation_m, config.density_half_window))
+    a_m, b_m, c_m = (np.concatenate(x) for x in (a_all, b_all, c_all))
+    ok = pair_test(a_m, b_m, c_m, scan.translation_m, h, config.pair_test)
+    return FeaturePairs(scan.sensor, a_m[ok], b_m[ok], c_m[ok])
