@@ -152,7 +152,7 @@ class FrameMatch:
             centre (NaN when outside the grid).
         truth_recalled: whether each ground truth overlaps a detected obstacle.
         false_alarms: detected obstacles overlapping neither ground truth nor a track border.
-        detections: number of detected obstacles.
+        detections: number of detected obstacles with at least one cell in the grid.
     """
 
     truth_cells: np.ndarray
@@ -173,7 +173,8 @@ def match_frame(
 
     Args:
         detected: per detected obstacle, either a vehicle-frame outline (N, 2) or a boolean cell
-            mask of shape ``grid.shape`` (e.g. from :func:`components_from_grid`).
+            mask of shape ``grid.shape`` (e.g. from :func:`components_from_grid`). A detection
+            with no cell inside the grid is not judged (neither a hit nor a false alarm).
         truth_outlines_vehicle: ground-truth rim outlines in the vehicle frame (see
             :func:`world_outline_to_vehicle`).
         grid: the evaluation grid.
@@ -195,6 +196,7 @@ def match_frame(
         else:
             det_masks.append(rasterize_outline(arr, grid))
     truth_masks = [rasterize_outline(o, grid) for o in truth_outlines_vehicle]
+    det_masks = [m for m in det_masks if m.any()]  # wholly outside the grid: not judged
     n_t, n_d = len(truth_masks), len(det_masks)
     n_cells = grid.rows * grid.cols
     flat_t = np.array([m.ravel() for m in truth_masks], dtype=np.int32).reshape(n_t, n_cells)

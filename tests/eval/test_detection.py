@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
@@ -139,6 +141,27 @@ def test_border_detections_are_not_false_alarms() -> None:
     assert match_frame(on_border, [], GRID, border_mask=border).false_alarms == 0
     with pytest.raises(ValueError, match="border_mask"):
         match_frame(on_border, [], GRID, border_mask=np.zeros((2, 2), dtype=bool))
+
+
+def test_detection_outside_grid_is_not_judged() -> None:
+    m = match_frame([square(0.0, 100.0, 1.0), square(5.0, 15.0, 0.6)], [], GRID)
+    assert m.detections == 1 and m.false_alarms == 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(-9.0, 9.0), st.floats(-4.0, 29.0), st.floats(0.05, 3.0), st.floats(0.05, 3.0)),
+        max_size=6,
+    )
+)
+def test_truth_matched_against_itself(rects: list[tuple[float, float, float, float]]) -> None:
+    # a perfect detector recalls every ground truth that has a cell and raises no false alarm
+    outlines = [np.array([[x, y], [x + w, y], [x + w, y + h], [x, y + h]]) for x, y, w, h in rects]
+    m = match_frame(outlines, outlines, GRID)
+    np.testing.assert_array_equal(m.truth_recalled, m.truth_cells > 0)
+    assert m.false_alarms == 0
+    assert m.detections == int(np.count_nonzero(m.truth_cells))
 
 
 def test_empty_frame() -> None:
