@@ -1,0 +1,90 @@
+import numpy as np
+import pytest
+
+from negobs_gym.detector.config import Hdl64FeatureConfig
+from negobs_gym.detector.hdl64 import extract_hdl64_pairs
+from negobs_gym.detector.loaders import (
+    cloud_to_scan,
+    load_kitti_bin,
+    recover_rings,
+    ring_cloud_to_scan,
+)
+from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_scan
+from negobs_gym.errors import ScanError
+
+
+@pytest.fixture(scope="module")
+def analytic():
+    # azimuths at the loader's bin centres (0.09 deg bins) so the round trip is exact
+    az = -np.pi + (np.arange(4000) + 0.5) * 2 * np.pi / 4000
+    return synthetic_scan(
+        "hdl64",
+        np.radians(HDL64_ELEVATION_DEG),
+        az,
+        np.eye(3),
+        np.array([0.0, 0.0, 2.2]),
+        [Hole.ahead(8.0, 1.0, 1.0, 0.8)],
+    )
+
+
+def _cloud(scan):
+    p = scan.points_sensor
+    ok = scan.valid
+    ring = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[ok]
+    return p[ok], ring
+
+
+def test_ring_cloud_round_trip(analytic):
+    xyz, ring = _cloud(analytic)
+    cloud = np.column_stack([xyz, np.ones(len(xyz)), ring])
+    rng = np.random.default_rng(0)
+    scan = ring_cloud_to_scan(
+        rng.permutation(cloud), analytic.elevation_rad, sensor="hdl64", translation_m=[0, 0, 2.2]
+    )
+    assert scan.shape == analytic.shape
+    np.testing.assert_allclose(scan.ranges_m, analytic.ranges_m, equal_nan=True)
+    assert np.nanmax(scan.intensity) == 1.0
+
+
+def test_kitti_bin_round_trip_recovers_rings_and_pairs(analytic, tmp_path):
+    xyz, _ring = _cloud(analytic)
+    kitti = np.column_stack([xyz[:, 1], -xyz[:, 0], xyz[:, 2], np.zeros(len(xyz))])
+    path = tmp_path / "000000.bin"
+    kitti.astype(np.float32).tofile(path)
+    scan = load_kitti_bin(path, analytic.elevation_rad, translation_m=[0, 0, 2.2])
+    valid = ~np.isnan(scan.ranges_m)
+    assert valid.sum() == (~np.isnan(analytic.ranges_m)).sum()
+    np.testing.assert_allclose(scan.ranges_m[valid], analytic.ranges_m[valid], rtol=1e-6)
+    fp = extract_hdl64_pairs(scan, Hdl64FeatureConfig())
+    ref = extract_hdl64_pairs(analytic, Hdl64FeatureConfig())
+    assert len(fp) == len(ref) > 0
+
+
+def test_recover_rings_nearest_entry():
+    el = np.radians([-10.0, -5.0, 0.0])
+    pts = np.array([[0, 10, 10 * np.tan(np.radians(-6.0))], [0, 10, 10 * np.tan(np.radians(-8.0))]])
+    assert recover_rings(pts, el).tolist() == [1, 0]
+
+
+def test_duplicates_keep_nearest_deterministically():
+    xyz = np.array([[0, 10.0, 0], [0, 5.0, 0], [0, 7.0, 0]])
+    scan = cloud_to_scan(xyz, np.zeros(3, int), np.array([0.0]), sensor="s", azimuth_resolution_deg=1)
+    assert np.nanmin(scan.ranges_m) == 5.0 and (~np.isnan(scan.ranges_m)).sum() == 1
+
+
+def test_bad_clouds_rejected(tmp_path):
+    with pytest.raises(ScanError, match="NaN or inf"):
+        ring_cloud_to_scan(np.array([[np.nan, 0, 0, 0, 0]]), np.zeros(1), sensor="s")
+    with pytest.raises(ScanError, match="ring indices"):
+        ring_cloud_to_scan(np.array([[1.0, 0, 0, 0, 3]]), np.zeros(2), sensor="s")
+    with pytest.raises(ScanError, match="shape"):
+        ring_cloud_to_scan(np.zeros((3, 2)), np.zeros(2), sensor="s")
+    bad = tmp_path / "bad.bin"
+    np.zeros(5, np.float32).tofile(bad)
+    with pytest.raises(ScanError, match="multiple of 4"):
+        load_kitti_bin(bad, np.zeros(2))
+
+
+def test_empty_cloud_gives_scan_without_returns():
+    scan = ring_cloud_to_scan(np.empty((0, 5)), np.array([-0.1, 0.0]), sensor="s")
+    assert np.isnan(scan.ranges_m).all()
