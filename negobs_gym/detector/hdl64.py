@@ -47,28 +47,47 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     n_l, n_c = r.shape
     pad = np.full((n_l, half_window), np.nan)
     rp = np.concatenate([pad, r, pad], axis=1)
-    diffs = []
-    for j in range(1, half_window + 1):
-        diffs.append(rp[:, half_window + j : half_window + j + n_c] - r)
-        diffs.append(r - rp[:, half_window - j : half_window - j + n_c])
-    d = np.stack(diffs)
-    mag = np.where(np.isnan(d), -1.0, np.abs(d))
-    best = np.take_along_axis(d, mag.argmax(axis=0)[None], axis=0)[0]
+    best = np.zeros(r.shape)
+    best_mag = np.zeros(r.shape)
+    for j in range(1, half_window + 1):  # 2 * half_window whole-array passes, no point loop
+        for d in (
+            rp[:, half_window + j : half_window + j + n_c] - r,
+            r - rp[:, half_window - j : half_window - j + n_c],
+        ):
+            d = np.nan_to_num(d, nan=0.0)
+            mag = np.abs(d)
+            upd = mag > best_mag
+            best = np.where(upd, d, best)
+            best_mag = np.where(upd, mag, best_mag)
     labels = np.zeros(r.shape, dtype=np.int8)
     labels[best > rise_m] = RISE
     labels[best < fall_m] = FALL
     return labels
 
 
-def _window_mean(cs: np.ndarray, cnt: np.ndarray, row: np.ndarray, lo: np.ndarray, hi: np.ndarray):
-    """Mean over columns [lo, hi) of rows ``row`` from prefix sums (NaN for empty windows)."""
-    n_c = cs.shape[1] - 1
+def _segment_sums(
+    values: np.ndarray, row: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sum of the non-NaN ``values[row, lo:hi]`` and their count for each segment (vectorized)."""
+    n_c = values.shape[1]
     lo = np.clip(lo, 0, n_c)
-    hi = np.clip(hi, 0, n_c)
-    s = cs[row, hi] - cs[row, lo]
-    c = cnt[row, hi] - cnt[row, lo]
+    hi = np.clip(hi, lo, n_c)
+    lengths = hi - lo
+    seg = np.repeat(np.arange(row.size), lengths)
+    starts = np.cumsum(lengths) - lengths
+    cols = lo[seg] + np.arange(seg.size) - starts[seg]
+    v = values[row[seg], cols]
+    ok = ~np.isnan(v)
+    total = np.bincount(seg, weights=np.where(ok, v, 0.0), minlength=row.size)
+    count = np.bincount(seg, weights=ok.astype(np.float64), minlength=row.size)
+    return total, count
+
+
+def _segment_mean(values: np.ndarray, row: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """Mean of the non-NaN ``values[row, lo:hi]`` per segment (NaN for empty segments)."""
+    total, count = _segment_sums(values, row, lo, hi)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(c > 0, s / np.maximum(c, 1), np.nan)
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
 def find_bumps(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -204,36 +223,31 @@ def extract_hdl64_pairs(scan: StructuredScan, config: Hdl64FeatureConfig) -> Fea
     b_row, b_start, b_end = find_bumps(labels)
     if b_row.size == 0:
         return FeaturePairs.empty(scan.sensor)
-    zero = np.zeros((n_l, 1))
-    cs = np.concatenate([zero, np.cumsum(np.nan_to_num(r_f), axis=1)], axis=1)
-    cnt = np.concatenate([zero, np.cumsum(valid, axis=1)], axis=1)
     w = config.side_window
-    mean_in = _window_mean(cs, cnt, b_row, b_start, b_end + 1)
-    mean_left = _window_mean(cs, cnt, b_row, b_start - w, b_start)
-    mean_right = _window_mean(cs, cnt, b_row, b_end + 1, b_end + 1 + w)
+    mean_in = _segment_mean(r_f, b_row, b_start, b_end + 1)
+    mean_left = _segment_mean(r_f, b_row, b_start - w, b_start)
+    mean_right = _segment_mean(r_f, b_row, b_end + 1, b_end + 1 + w)
     with np.errstate(invalid="ignore"):
         keep = (mean_in > mean_left) & (mean_in > mean_right)
     b_row, b_start, b_end = b_row[keep], b_start[keep], b_end[keep]
-    # bump membership mask, then density on bump points only
-    mark = np.zeros((n_l, n_c + 1), dtype=np.int32)
-    np.add.at(mark, (b_row, b_start), 1)
-    np.add.at(mark, (b_row, b_end + 1), -1)
-    member = (np.cumsum(mark, axis=1)[:, :n_c] > 0) & valid
-    rows, cols = np.nonzero(member)
+    # density on the bump points only (the only place it is used)
+    lengths = b_end + 1 - b_start
+    seg = np.repeat(np.arange(b_row.size), lengths)
+    cols = b_start[seg] + np.arange(seg.size) - (np.cumsum(lengths) - lengths)[seg]
+    rows = b_row[seg]
+    member = valid[rows, cols]
+    seg, rows, cols = seg[member], rows[member], cols[member]
     t_d = ring_gap_threshold(scan.elevation_rad[order], h, config.density_factor)
-    dens = np.zeros((n_l, n_c))
-    dens[rows, cols] = point_density(
+    dens = point_density(
         pts, rows, cols, t_d[rows], config.density_laser_window, config.density_column_window
     )
-    ds = np.concatenate([zero, np.cumsum(dens, axis=1)], axis=1)
-    mean_d = _window_mean(ds, cnt, b_row, b_start, b_end + 1)
-    with np.errstate(invalid="ignore"):
+    total = np.bincount(seg, weights=dens, minlength=b_row.size)
+    count = np.bincount(seg, minlength=b_row.size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_d = np.where(count > 0, total / np.maximum(count, 1), np.nan)
         dense = mean_d > config.density_threshold
-    bump_id = np.full((n_l, n_c + 1), 0, dtype=np.int32)
-    np.add.at(bump_id, (b_row[dense], b_start[dense]), 1)
-    np.add.at(bump_id, (b_row[dense], b_end[dense] + 1), -1)
-    cand = (np.cumsum(bump_id, axis=1)[:, :n_c] > 0) & valid
-    rows, cols = np.nonzero(cand)
+    cand = dense[seg]
+    rows, cols = rows[cand], cols[cand]
     a_m, c_m = trace_pairs(pts, valid, scan.azimuth_rad, rows, cols, np.radians(config.epsilon_deg))
     b_m = pts[rows, cols]
     ok = pair_test(a_m, b_m, c_m, scan.translation_m, h, config.pair_test)
