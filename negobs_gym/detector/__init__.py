@@ -1,0 +1,32 @@
+"""Detectors that turn structured LiDAR scans into vehicle-centred obstacle grids.
+
+numpy / scipy / scikit-learn only: nothing here imports a simulator or gymnasium, so the detectors
+run on recorded scans from a real vehicle (see :mod:`negobs_gym.detector.loaders`).
+
+- Paper N, negative obstacles: per-sensor feature point pairs (:mod:`~negobs_gym.detector.hdl64`,
+  :mod:`~negobs_gym.detector.hdl32`, Eq. 11–14 in :mod:`~negobs_gym.detector.pair_test`) and the
+  geometry of paper N §2 (:mod:`~negobs_gym.detector.geometry`).
+- Paper T, traversable region from a 4-layer LiDAR: :mod:`negobs_gym.detector.traversable`.
+"""
+
+from negobs_gym.detector.config import Hdl32FeatureConfig, Hdl64FeatureConfig, PairTestConfig
+from negobs_gym.detector.hdl32 import extract_hdl32_pairs
+from negobs_gym.detector.hdl64 import extract_hdl64_pairs
+from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.detector.traversable import (
+    TraversableConfig,
+    TraversableRegion,
+    TraversableRegionDetector,
+)
+
+__all__ = [
+    "FeaturePairs",
+    "Hdl32FeatureConfig",
+    "Hdl64FeatureConfig",
+    "PairTestConfig",
+    "TraversableConfig",
+    "TraversableRegion",
+    "TraversableRegionDetector",
+    "extract_hdl32_pairs",
+    "extract_hdl64_pairs",
+]
