@@ -14,7 +14,6 @@ from negobs_gym.registration import ENV_SPECS
 IDS = [spec[0] for spec in ENV_SPECS]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("env_id", IDS)
 def test_env_checkers_pass_on_every_registered_id(env_id: str) -> None:
     from gymnasium.utils.env_checker import check_env as gym_check
