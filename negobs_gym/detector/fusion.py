@@ -1,0 +1,165 @@
+"""Bayesian multi-sensor, multi-frame fusion of feature point pairs (paper N §3.3, Eq. 15-16).
+
+History pairs are stored in the world frame (INS pose) and moved into the current vehicle frame each
+frame. Pair-to-pair distance: Euclidean distance between pair midpoints (A + B) / 2. A history pair
+matched (within ``match_distance_m``) by a sensor gets that sensor's Bayes hit update (Eq. 15); one
+matched by no sensor gets the miss update (Eq. 16). Unmatched current pairs enter with ``prior``
+followed by their sensor's hit update.
+
+Default arithmetic (odds form, odds = p / (1 - p)): prior 0.5 -> odds 1; hit likelihood ratio
+0.6 / 0.2 = 3; confirm 0.95 -> odds 19. Two hits: 9 < 19 (not confirmed); three hits (three frames of
+one sensor, or three sensors in one frame): 27 >= 19 (confirmed) — paper N §4.2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from negobs_gym.core import Pose
+from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.errors import ConfigError, require
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorLikelihood:
+    """p(z | obstacle) and p(z | no obstacle) of one sensor (paper N Eq. 15)."""
+
+    p_hit_given_obstacle: float = 0.6
+    p_hit_given_free: float = 0.2
+
+    def __post_init__(self) -> None:
+        require(0.0 < self.p_hit_given_obstacle < 1.0, "p_hit_given_obstacle", "must be in (0, 1)")
+        require(0.0 < self.p_hit_given_free < 1.0, "p_hit_given_free", "must be in (0, 1)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FusionConfig:
+    """Fusion thresholds (paper N §3.3)."""
+
+    match_distance_m: float = 0.10  # d_min, paper N §3.3
+    prior: float = 0.5  # prior of a newly seen pair
+    confirm_posterior: float = 0.95  # confirmed at >= this (3 hits, §4.2)
+    prune_posterior: float = 0.1  # dropped below this
+    max_pairs: int = 20000  # history bound
+    max_age_frames: int = 50  # history bound
+    likelihoods: Mapping[str, SensorLikelihood] | None = None  # per sensor; None -> default
+
+    def __post_init__(self) -> None:
+        require(
+            np.isfinite(self.match_distance_m) and self.match_distance_m > 0,
+            "match_distance_m",
+            "must be finite and > 0",
+        )
+        require(0.0 < self.prior < 1.0, "prior", "must be in (0, 1)")
+        require(0.0 < self.confirm_posterior < 1.0, "confirm_posterior", "must be in (0, 1)")
+        require(0.0 <= self.prune_posterior < self.prior, "prune_posterior", "must be in [0, prior)")
+        require(self.max_pairs > 0, "max_pairs", "must be > 0")
+        require(self.max_age_frames > 0, "max_age_frames", "must be > 0")
+
+    def likelihood(self, sensor: str) -> SensorLikelihood:
+        """Likelihood of ``sensor`` (default when not configured)."""
+        if self.likelihoods is not None and sensor in self.likelihoods:
+            return self.likelihoods[sensor]
+        return SensorLikelihood()
+
+
+def bayes_hit(p: np.ndarray, lik: SensorLikelihood) -> np.ndarray:
+    """Eq. 15: posterior after a detection."""
+    num = lik.p_hit_given_obstacle * p
+    return num / (num + lik.p_hit_given_free * (1.0 - p))
+
+
+def bayes_miss(p: np.ndarray, lik: SensorLikelihood) -> np.ndarray:
+    """Eq. 16: posterior after no sensor detected the pair."""
+    num = (1.0 - lik.p_hit_given_obstacle) * p
+    return num / (num + (1.0 - lik.p_hit_given_free) * (1.0 - p))
+
+
+@dataclass(frozen=True)
+class FusedPairs:
+    """Fused pairs in the current vehicle frame with their posteriors."""
+
+    a_m: np.ndarray
+    b_m: np.ndarray
+    posterior: np.ndarray
+    confirmed: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.a_m.shape[0])
+
+
+class PairFusion:
+    """Keeps the pair history in the world frame and applies Eq. 15/16 each frame."""
+
+    def __init__(self, config: FusionConfig | None = None) -> None:
+        if config is not None and not isinstance(config, FusionConfig):
+            raise ConfigError("config", "must be a FusionConfig")
+        self.config = config or FusionConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history."""
+        self._a_w = np.empty((0, 3))
+        self._b_w = np.empty((0, 3))
+        self._p = np.empty(0)
+        self._age = np.empty(0, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return int(self._p.shape[0])
+
+    def update(self, pairs: Mapping[str, FeaturePairs], pose: Pose) -> FusedPairs:
+        """Fuse this frame's pairs (vehicle frame) at INS ``pose``.
+
+        Raises:
+            ValueError: ``pose`` has a non-finite value, or a pair has a non-finite A/B.
+        """
+        if not np.all(np.isfinite(pose.as_array())):
+            raise ValueError("pose: contains NaN/inf")
+        cfg = self.config
+        n_hist = len(self)
+        a_v = pose.to_vehicle(self._a_w) if n_hist else np.empty((0, 3))
+        b_v = pose.to_vehicle(self._b_w) if n_hist else np.empty((0, 3))
+        mid_h = 0.5 * (a_v + b_v)
+        p = self._p.copy()
+        matched_any = np.zeros(n_hist, dtype=bool)
+        new_a, new_b, new_p = [], [], []
+        for sensor, fp in pairs.items():
+            if len(fp) == 0:
+                continue
+            if not (np.all(np.isfinite(fp.a_m)) and np.all(np.isfinite(fp.b_m))):
+                raise ValueError(f"pairs[{sensor!r}]: A/B contain NaN/inf")
+            lik = cfg.likelihood(sensor)
+            mid_c = 0.5 * (fp.a_m + fp.b_m)
+            cur_matched = np.zeros(len(fp), dtype=bool)
+            if n_hist:
+                dist, idx = cKDTree(mid_c).query(mid_h, distance_upper_bound=cfg.match_distance_m)
+                hit = np.isfinite(dist)
+                p[hit] = bayes_hit(p[hit], lik)
+                matched_any |= hit
+                cur_matched[idx[hit]] = True
+            fresh = ~cur_matched
+            new_a.append(fp.a_m[fresh])
+            new_b.append(fp.b_m[fresh])
+            new_p.append(bayes_hit(np.full(int(fresh.sum()), cfg.prior), lik))
+        miss = ~matched_any
+        if np.any(miss):
+            p[miss] = bayes_miss(p[miss], cfg.likelihood("default"))
+        age = self._age + 1
+        age[matched_any] = 0
+        a_all = np.concatenate([a_v, *new_a]) if new_a else a_v
+        b_all = np.concatenate([b_v, *new_b]) if new_b else b_v
+        p_all = np.concatenate([p, *new_p]) if new_p else p
+        age_all = np.concatenate([age, np.zeros(p_all.shape[0] - n_hist, dtype=np.int64)])
+        keep = (p_all >= cfg.prune_posterior) & (age_all <= cfg.max_age_frames)
+        a_all, b_all, p_all, age_all = a_all[keep], b_all[keep], p_all[keep], age_all[keep]
+        if p_all.shape[0] > cfg.max_pairs:
+            order = np.argsort(-p_all, kind="stable")[: cfg.max_pairs]
+            a_all, b_all, p_all, age_all = a_all[order], b_all[order], p_all[order], age_all[order]
+        self._a_w = pose.to_world(a_all) if len(a_all) else np.empty((0, 3))
+        self._b_w = pose.to_world(b_all) if len(b_all) else np.empty((0, 3))
+        self._p, self._age = p_all, age_all
+        return FusedPairs(a_all, b_all, p_all, p_all >= cfg.confirm_posterior)

@@ -1,0 +1,81 @@
+import numpy as np
+import pytest
+
+from negobs_gym.core import Pose
+from negobs_gym.detector.fusion import (
+    FusionConfig,
+    PairFusion,
+    SensorLikelihood,
+    bayes_hit,
+    bayes_miss,
+)
+from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.errors import ConfigError
+
+
+def _pair(sensor, a, b):
+    a = np.atleast_2d(np.asarray(a, float))
+    b = np.atleast_2d(np.asarray(b, float))
+    return FeaturePairs(sensor, a, b, np.full_like(a, np.nan))
+
+
+POSE0 = Pose(x=0.0, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
+
+
+def test_eq15_eq16_by_hand():
+    lik = SensorLikelihood(p_hit_given_obstacle=0.6, p_hit_given_free=0.2)
+    # Eq. 15: 0.6*0.5 / (0.6*0.5 + 0.2*0.5) = 0.75
+    assert bayes_hit(np.array([0.5]), lik)[0] == pytest.approx(0.75)
+    # Eq. 16: 0.4*0.5 / (0.4*0.5 + 0.8*0.5) = 1/3
+    assert bayes_miss(np.array([0.5]), lik)[0] == pytest.approx(1 / 3)
+
+
+def test_single_sensor_needs_three_frames():
+    f = PairFusion()
+    fp = {"hdl64": _pair("hdl64", [0, 8, 0], [0, 9, -0.5])}
+    r1 = f.update(fp, POSE0)
+    r2 = f.update(fp, POSE0)
+    assert r1.posterior[0] == pytest.approx(0.75)  # odds 3
+    assert r2.posterior[0] == pytest.approx(0.9)  # odds 9 < 19
+    assert not r2.confirmed.any()
+    r3 = f.update(fp, POSE0)
+    assert r3.posterior[0] == pytest.approx(27 / 28)  # odds 27 >= 19
+    assert r3.confirmed.all()
+
+
+def test_three_sensors_confirm_in_one_frame():
+    # A pair first seen by one sensor (odds 1 * 3 = 3) that all three sensors detect in the next
+    # frame gets odds 3 * 3^3 = 81 >= 19. Three sensors seeing a new pair in the same frame:
+    # hdl64 creates it (odds 3); the HDL-32 pairs match the new pair next frame.
+    p = [0, 8, 0], [0, 9, -0.5]
+    f = PairFusion()
+    f.update({"hdl64": _pair("hdl64", *p)}, POSE0)
+    r = f.update({s: _pair(s, *p) for s in ("hdl64", "hdl32_left", "hdl32_right")}, POSE0)
+    assert len(r) == 1 and r.posterior[0] == pytest.approx(81 / 82) and r.confirmed.all()
+
+
+def test_pose_alignment_keeps_match():
+    f = PairFusion()
+    f.update({"hdl64": _pair("hdl64", [0, 8, 0], [0, 9, -0.5])}, POSE0)
+    moved = Pose(x=0.0, y=1.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
+    r = f.update({"hdl64": _pair("hdl64", [0, 7, 0], [0, 8, -0.5])}, moved)
+    assert len(r) == 1 and r.posterior[0] == pytest.approx(0.9)
+
+
+def test_history_bounded_1000_frames():
+    rng = np.random.default_rng(0)
+    f = PairFusion(FusionConfig(max_pairs=500))
+    for k in range(1000):
+        a = rng.uniform(-20, 20, (30, 3))
+        pose = Pose(x=0.0, y=0.5 * k, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
+        f.update({"hdl64": _pair("hdl64", a, a + 0.5)}, pose)
+        assert len(f) <= 500
+
+
+def test_bad_inputs():
+    with pytest.raises(ConfigError):
+        FusionConfig(prior=1.5)
+    f = PairFusion()
+    with pytest.raises(ValueError):
+        f.update({"hdl64": _pair("hdl64", [np.nan, 0, 0], [0, 0, 0])}, POSE0)
+    assert len(f.update({}, POSE0)) == 0
