@@ -81,7 +81,8 @@ def test_rough_track_has_no_negative_obstacles_and_border_band_is_off_centre() -
 # what the scene tests need from the parts being written (issue 3 sensors, issue 4 fusion)
 NEEDED = {
     "negobs_gym.sensors.rigs": ("paper_n_rig", "paper_n_rig_reduced"),
-    "negobs_gym.sensors": ("scan_rig",),
+    "negobs_gym.sensors.lidar": ("scan_rig",),
+    "negobs_gym.sensors.raycast.pybullet_backend": ("PyBulletCaster",),
     "negobs_gym.detector": ("NegativeObstacleDetector",),
 }
 
@@ -107,19 +108,19 @@ def _require(module: str, names: tuple[str, ...]) -> list:
 def _make_scanner(world, vehicle, rng: np.random.Generator, native: bool) -> Callable[[], dict]:
     """Return ``scan() -> {sensor name: StructuredScan}`` for paper N's rig on the vehicle (noise on).
 
-    Uses ``negobs_gym.sensors.rigs.paper_n_rig()`` / ``paper_n_rig_reduced()`` (landed) and expects
-    from ``negobs_gym.sensors`` (issue 3, not landed yet) ``scan_rig(rig, world, pose, rng,
-    exclude_body_ids=...)`` returning the structured scans keyed by mount name (``hdl64``,
-    ``hdl32_left``, ``hdl32_right``). Adjust this one function if the landed name differs.
+    Paper N rig (native or reduced), PyBullet ray caster that ignores the vehicle's own body,
+    default sensor noise drawn from ``rng``.
     """
     paper_n_rig, paper_n_rig_reduced = _require(
         "negobs_gym.sensors.rigs", ("paper_n_rig", "paper_n_rig_reduced")
     )
-    (scan_rig,) = _require("negobs_gym.sensors", ("scan_rig",))
+    (scan_rig,) = _require("negobs_gym.sensors.lidar", ("scan_rig",))
+    (caster_cls,) = _require("negobs_gym.sensors.raycast.pybullet_backend", ("PyBulletCaster",))
     rig = paper_n_rig() if native else paper_n_rig_reduced()
+    caster = caster_cls(world.client_id, exclude_body_ids=(vehicle.body_id,))
 
     def scan() -> dict:
-        return scan_rig(rig, world, vehicle.true_pose(), rng, exclude_body_ids=(vehicle.body_id,))
+        return scan_rig(rig, caster, vehicle.true_pose(), rng=rng)
 
     return scan
 
