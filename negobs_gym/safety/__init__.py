@@ -1,0 +1,17 @@
+"""Eq. 18 braking safety filter and the hazard protocol any env can implement to use it."""
+
+from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
+from negobs_gym.safety.corridor import hazard_distance_m
+from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.safety.protocol import HazardSource, HazardState
+
+__all__ = [
+    "BrakingConfig",
+    "BrakingSafetyFilter",
+    "HazardSource",
+    "HazardState",
+    "SafetyFilterConfig",
+    "braking_distance_m",
+    "hazard_distance_m",
+    "max_safe_speed_mps",
+]

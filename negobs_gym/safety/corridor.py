@@ -1,0 +1,38 @@
+"""Nearest hazard along the circular arc swept by the vehicle at a given steering angle."""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Below this curvature [1/m] the path is treated as straight (radius > 1e9 m).
+STRAIGHT_CURVATURE_PER_M = 1e-9
+
+
+def hazard_distance_m(
+    points_xy_m: np.ndarray, steer_rad: float, wheelbase_m: float, half_width_m: float
+) -> float:
+    """Arc length from the origin to the nearest point inside the swept corridor (inf when clear).
+
+    The rear-axle centre follows a circle of radius ``wheelbase / tan(steer)`` (kinematic
+    bicycle; steer > 0 turns left, towards -X); the corridor is the band of half-width
+    ``half_width_m`` around it. A point inside the band is reached at the arc length of its radial
+    projection. Assumes radius > half-width (true for road vehicles). Straight path: points with
+    ``|x| <= half_width`` and ``y >= 0``, at distance ``y``.
+    """
+    pts = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
+    if pts.shape[0] == 0:
+        return float("inf")
+    x, y = pts[:, 0], pts[:, 1]
+    kappa = np.tan(steer_rad) / wheelbase_m
+    if abs(kappa) < STRAIGHT_CURVATURE_PER_M:
+        inside = (np.abs(x) <= half_width_m) & (y >= 0.0)
+        return float(np.min(y[inside])) if np.any(inside) else float("inf")
+    radius = 1.0 / abs(kappa)
+    xm = x if kappa > 0 else -x  # mirror right turns onto left turns
+    cx = xm + radius  # vector from the turn centre (-radius, 0) to the point
+    r = np.hypot(cx, y)
+    inside = np.abs(r - radius) <= half_width_m
+    if not np.any(inside):
+        return float("inf")
+    theta = np.mod(np.arctan2(y[inside], cx[inside]), 2.0 * np.pi)
+    return float(radius * np.min(theta))

@@ -1,0 +1,91 @@
+"""The hazard protocol: what an env must expose so the braking safety filter can guard it.
+
+Conventions every negobs env follows (and any other env must follow to be filtered):
+
+* Action ``Box(-1, 1, (2,))``: ``action[0]`` longitudinal (throttle > 0, brake < 0, -1 = full
+  brake), ``action[1]`` steering (+1 = full LEFT = ``+max_steer_rad``, positive yaw rate).
+* Vehicle frame (see ``negobs_gym.core.pose``): Y forward, X right, Z up; origin at the rear-axle
+  centre (the INS point). Steering left turns towards -X. Hazard distances are measured from the
+  origin along the path.
+* Longitudinal model over one control period ``dt_s``: ``v' = max(0, v + dt_s * accel(a0))`` with
+  ``accel(a0) = a0 * max_accel_mps2`` for ``a0 >= 0`` and ``a0 * max_brake_decel_mps2`` for
+  ``a0 < 0``.
+* ``negative_obstacles_xy_m`` holds the vehicle-frame xy of the DETECTED negative-obstacle cells
+  (negobs envs fill it from the detector grid, never from ground truth).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from negobs_gym.errors import require
+
+
+@dataclass(frozen=True, kw_only=True)
+class HazardState:
+    """What the safety filter knows at one control step (SI units, vehicle frame)."""
+
+    speed_mps: float  # current forward speed [m/s], >= 0
+    negative_obstacles_xy_m: np.ndarray  # (N, 2) detected negative-obstacle points [m]
+    vehicle_width_m: float  # [m]
+    wheelbase_m: float  # [m]
+    max_steer_rad: float  # steering angle at action[1] = +1 [rad]
+    dt_s: float  # control period [s]
+    max_accel_mps2: float  # acceleration at action[0] = +1 [m/s^2]
+    max_brake_decel_mps2: float  # deceleration at action[0] = -1 [m/s^2], > 0
+
+    def __post_init__(self) -> None:
+        require(
+            np.isfinite(self.speed_mps) and self.speed_mps >= 0,
+            "speed_mps",
+            f"must be finite and >= 0, got {self.speed_mps!r}",
+        )
+        pts = np.asarray(self.negative_obstacles_xy_m, dtype=float)
+        if pts.size == 0:
+            pts = np.zeros((0, 2))
+        require(
+            pts.ndim == 2 and pts.shape[1] == 2,
+            "negative_obstacles_xy_m",
+            f"must have shape (N, 2), got {pts.shape}",
+        )
+        require(
+            bool(np.all(np.isfinite(pts))), "negative_obstacles_xy_m", "must be finite (drop unknown cells)"
+        )
+        object.__setattr__(self, "negative_obstacles_xy_m", pts)
+        for name in (
+            "vehicle_width_m",
+            "wheelbase_m",
+            "max_steer_rad",
+            "dt_s",
+            "max_accel_mps2",
+            "max_brake_decel_mps2",
+        ):
+            value = getattr(self, name)
+            require(np.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value!r}")
+        require(self.max_steer_rad < np.pi / 2, "max_steer_rad", "must be < pi/2")
+
+    def predicted_speed_mps(self, longitudinal: float) -> float:
+        """Speed left after one control period under longitudinal command ``longitudinal``."""
+        a0 = float(np.clip(longitudinal, -1.0, 1.0))
+        accel = a0 * self.max_accel_mps2 if a0 >= 0 else a0 * self.max_brake_decel_mps2
+        return max(0.0, self.speed_mps + self.dt_s * accel)
+
+    def travelled_m(self, v_next_mps: float) -> float:
+        """Distance covered during one control period going from ``speed_mps`` to ``v_next_mps``.
+
+        Exact for constant acceleration; when the car stops inside the period it is the stopping
+        distance, which the trapezoid over-estimates (conservative).
+        """
+        return 0.5 * self.dt_s * (self.speed_mps + v_next_mps)
+
+
+@runtime_checkable
+class HazardSource(Protocol):
+    """An env (or its ``unwrapped``) the braking safety filter can read hazards from."""
+
+    def hazard_state(self) -> HazardState:
+        """The current :class:`HazardState` (after ``reset`` or the last ``step``)."""
+        ...
