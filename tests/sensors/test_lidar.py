@@ -1,0 +1,91 @@
+import numpy as np
+import pybullet as p
+import pytest
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.sensors import NoiseConfig, paper_n_rig
+from negobs_gym.sensors.lidar import scan
+from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
+
+OFF = NoiseConfig(enabled=False)
+
+
+@pytest.fixture
+def client():
+    c = p.connect(p.DIRECT)
+    yield c
+    p.disconnect(c)
+
+
+def _box(c, half, pos):
+    s = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
+    return p.createMultiBody(0, s, basePosition=pos, physicsClientId=c)
+
+
+def test_flat_ring_radii(client):
+    _box(client, [100, 100, 1], [0, 0, -1])
+    mount = paper_n_rig().mount("hdl64")
+    s = scan(mount, PyBulletCaster(client), Pose(), noise=OFF)
+    pts = s.points_vehicle
+    radius = np.hypot(pts[..., 0], pts[..., 1])
+    beta = np.pi / 2 + s.elevation_rad  # nadir angle
+    down = s.elevation_rad < -0.01
+    expected = 2.2 * np.tan(beta[down])
+    med = np.nanmedian(radius[down], axis=1)
+    ok = expected < 100
+    assert np.all(np.abs(med[ok] - expected[ok]) < 0.01)
+
+
+def test_side_spacing_and_pit(client):
+    # ground with a 1 x 1 x 0.8 m pit centred 8 m ahead: four slabs around it plus the floor.
+    _box(client, [100, 100, 1], [0, 0, -1.8])
+    _box(client, [100, 46, 0.4], [0, 8.5 + 46, -0.4])
+    _box(client, [100, 46, 0.4], [0, 7.5 - 46, -0.4])
+    _box(client, [49.5, 0.5, 0.4], [-0.5 - 49.5, 8, -0.4])
+    _box(client, [49.5, 0.5, 0.4], [0.5 + 49.5, 8, -0.4])
+    rig = paper_n_rig()
+    caster = PyBulletCaster(client)
+    s64 = scan(rig.mount("hdl64"), caster, Pose(), noise=OFF)
+    p64 = s64.points_vehicle
+    in_pit = (np.abs(p64[..., 0]) < 0.45) & (np.abs(p64[..., 1] - 8) < 0.45)
+    # rings pass through the pit footprint (radius 7.55-8.45 m) but leave no ground-level return there
+    ring_r = 2.2 * np.tan(np.pi / 2 + s64.elevation_rad)
+    assert np.any((ring_r > 7.55) & (ring_r < 8.45))
+    assert not np.any(in_pit & (p64[..., 2] > -0.05))
+    # side HDL-32: radial spacing at 10 m along one laser line vs HDL-64 ring spacing there
+    sl = scan(rig.mount("hdl32_left"), caster, Pose(), noise=OFF)
+    pl = sl.points_vehicle
+    ground = np.abs(pl[..., 2]) < 0.05
+    spacings = []
+    for k in range(pl.shape[0]):
+        y = np.sort(pl[k][ground[k] & (np.abs(pl[k][:, 1] - 10) < 1)][:, 1])
+        if y.size > 2:
+            spacings.append(np.median(np.diff(y)))
+    behind = np.abs(p64[..., 0]) < 0.3  # columns looking straight ahead or behind
+    rows = np.nanmedian(np.where(behind < 0.3, np.hypot(p64[..., 0], p64[..., 1]), np.nan), axis=1)
+    r64 = np.sort(rows[np.isfinite(rows)])
+    gap64 = np.diff(r64)[np.argmin(np.abs(r64[:-1] - 10))]
+    assert 0.3 < gap64 < 2.0  # measured HDL-64 ring gap near 10 m
+    assert spacings and max(spacings) <= gap64 / 2
+    # range jump along a left HDL-32 laser line crossing the pit
+    rng_jumps = np.abs(np.diff(sl.ranges_m, axis=1))
+    crosses = (np.abs(pl[..., 0]) < 0.5) & (np.abs(pl[..., 1] - 8) < 0.6) & (pl[..., 2] < -0.05)
+    assert crosses.any() and np.nanmax(rng_jumps[crosses.any(axis=1)]) > 0.3
+
+
+def test_noise_deterministic(client):
+    _box(client, [100, 100, 1], [0, 0, -1])
+    mount = paper_n_rig().mount("hdl64")
+    a = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
+    b = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(a.ranges_m, b.ranges_m)
+
+
+def test_exclude_own_body(client):
+    _box(client, [100, 100, 1], [0, 0, -1])
+    car = _box(client, [1.5, 3, 0.8], [0, 0, 0.8])
+    mount = paper_n_rig().mount("hdl64")
+    with_car = scan(mount, PyBulletCaster(client), Pose(), noise=OFF)
+    without = scan(mount, PyBulletCaster(client, exclude_body_ids=[car]), Pose(), noise=OFF)
+    assert np.nanmin(with_car.ranges_m) < 2.0
+    assert np.nanmin(without.ranges_m) > 2.0

@@ -1,0 +1,35 @@
+import numpy as np
+import pytest
+
+from negobs_gym.errors import ConfigError
+from negobs_gym.sensors import LidarModel, SensorMount, hdl32e, hdl64e_s2_nominal, ibeo_lux
+
+
+def test_tables():
+    assert hdl64e_s2_nominal().n_lasers * hdl64e_s2_nominal().n_columns == 256000
+    el = hdl32e().elevation_deg
+    assert el[0] == pytest.approx(-30.67) and el[-1] == pytest.approx(10.67, abs=1e-6)
+    assert ibeo_lux().elevation_deg == (-1.2, -0.4, 0.4, 1.2)
+    assert np.all(np.diff(ibeo_lux().azimuth_rad) > 0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"elevation_deg": ()}, "elevation_deg"),
+        ({"azimuth_resolution_deg": 0.0}, "azimuth_resolution_deg"),
+        ({"azimuth_resolution_deg": -1.0}, "azimuth_resolution_deg"),
+        ({"hfov_deg": 400.0}, "hfov_deg"),
+        ({"hfov_deg": 0.0}, "hfov_deg"),
+        ({"max_range_m": float("nan")}, "max_range_m"),
+    ],
+)
+def test_bad_model(kwargs, field):
+    base = {"name": "x", "elevation_deg": (0.0, 1.0), "azimuth_resolution_deg": 1.0}
+    with pytest.raises(ConfigError, match=field):
+        LidarModel(**{**base, **kwargs})
+
+
+def test_bad_rotation():
+    with pytest.raises(ConfigError, match="rotation"):
+        SensorMount(name="s", model=hdl32e(), rotation=(1.0, 0.1, 0, 0, 1, 0, 0, 0, 1))
