@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal, SupportsFloat
 
 import gymnasium as gym
@@ -21,7 +21,7 @@ logger = logging.getLogger(__name__)
 class SafetyFilterConfig:
     """Settings of :class:`BrakingSafetyFilter` (Eq. 18 constants plus the corridor margin)."""
 
-    braking: BrakingConfig = BrakingConfig()
+    braking: BrakingConfig = field(default_factory=BrakingConfig)
     margin_m: float = 0.4  # added to the vehicle width for the corridor (engineering choice) [m]
     mode: Literal["brake", "cap_speed"] = "brake"
 
