@@ -123,10 +123,9 @@ class PairFusion:
         n_hist = len(self)
         a_v = pose.to_vehicle(self._a_w) if n_hist else np.empty((0, 3))
         b_v = pose.to_vehicle(self._b_w) if n_hist else np.empty((0, 3))
-        mid_h = 0.5 * (a_v + b_v)
         p = self._p.copy()
+        age = self._age + 1
         matched_any = np.zeros(n_hist, dtype=bool)
-        new_a, new_b, new_p = [], [], []
         for sensor, fp in pairs.items():
             if len(fp) == 0:
                 continue
@@ -135,25 +134,26 @@ class PairFusion:
             lik = cfg.likelihood(sensor)
             mid_c = 0.5 * (fp.a_m + fp.b_m)
             cur_matched = np.zeros(len(fp), dtype=bool)
-            if n_hist:
-                dist, idx = cKDTree(mid_c).query(mid_h, distance_upper_bound=cfg.match_distance_m)
+            if p.shape[0]:
+                # Pairs created earlier in this frame by another sensor are matched too, so three
+                # sensors seeing a new pair in one frame confirm it at once (paper N §4.2).
+                dist, idx = cKDTree(mid_c).query(0.5 * (a_v + b_v), distance_upper_bound=cfg.match_distance_m)
                 hit = np.isfinite(dist)
                 p[hit] = bayes_hit(p[hit], lik)
                 matched_any |= hit
+                age[hit] = 0
                 cur_matched[idx[hit]] = True
             fresh = ~cur_matched
-            new_a.append(fp.a_m[fresh])
-            new_b.append(fp.b_m[fresh])
-            new_p.append(bayes_hit(np.full(int(fresh.sum()), cfg.prior), lik))
+            n_new = int(fresh.sum())
+            a_v = np.concatenate([a_v, fp.a_m[fresh]])
+            b_v = np.concatenate([b_v, fp.b_m[fresh]])
+            p = np.concatenate([p, bayes_hit(np.full(n_new, cfg.prior), lik)])
+            age = np.concatenate([age, np.zeros(n_new, dtype=np.int64)])
+            matched_any = np.concatenate([matched_any, np.ones(n_new, dtype=bool)])
         miss = ~matched_any
         if np.any(miss):
             p[miss] = bayes_miss(p[miss], cfg.likelihood("default"))
-        age = self._age + 1
-        age[matched_any] = 0
-        a_all = np.concatenate([a_v, *new_a]) if new_a else a_v
-        b_all = np.concatenate([b_v, *new_b]) if new_b else b_v
-        p_all = np.concatenate([p, *new_p]) if new_p else p
-        age_all = np.concatenate([age, np.zeros(p_all.shape[0] - n_hist, dtype=np.int64)])
+        a_all, b_all, p_all, age_all = a_v, b_v, p, age
         keep = (p_all >= cfg.prune_posterior) & (age_all <= cfg.max_age_frames)
         a_all, b_all, p_all, age_all = a_all[keep], b_all[keep], p_all[keep], age_all[keep]
         if p_all.shape[0] > cfg.max_pairs:

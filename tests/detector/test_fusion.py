@@ -52,6 +52,9 @@ def test_three_sensors_confirm_in_one_frame():
     f.update({"hdl64": _pair("hdl64", *p)}, POSE0)
     r = f.update({s: _pair(s, *p) for s in ("hdl64", "hdl32_left", "hdl32_right")}, POSE0)
     assert len(r) == 1 and r.posterior[0] == pytest.approx(81 / 82) and r.confirmed.all()
+    g = PairFusion()
+    r = g.update({s: _pair(s, *p) for s in ("hdl64", "hdl32_left", "hdl32_right")}, POSE0)
+    assert len(r) == 1 and r.posterior[0] == pytest.approx(27 / 28) and r.confirmed.all()
 
 
 def test_pose_alignment_keeps_match():
