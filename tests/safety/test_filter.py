@@ -103,9 +103,9 @@ def test_ditch_standin_reckless():
 
 def test_cap_speed_mode_holds_safe_speed():
     env = BrakingSafetyFilter(PointCarDitchEnv(), mode="cap_speed")
-    obs, info = env.reset(seed=0)
+    obs, _ = env.reset(seed=0)
     for _ in range(400):
-        obs, _, term, _, info = env.step(np.array([1.0, 0.0], np.float32))
+        obs, _, term, _, _ = env.step(np.array([1.0, 0.0], np.float32))
         assert not term
     assert DITCH_Y_M - obs[0] >= 5.0 - 1e-6
 
