@@ -41,7 +41,7 @@ def test_protocol():
     for d in (
         ConstantSpeedDriver(),
         RecklessDriver(),
-        PurePursuitDriver(np.zeros((2, 2)) + [[0, 0], [0, 1]]),
+        PurePursuitDriver(np.array([[0.0, 0.0], [0.0, 1.0]])),
     ):
         assert isinstance(d, Driver)
 
