@@ -33,12 +33,12 @@ class GridSpec:
     @property
     def rows(self) -> int:
         """Number of cells along Y."""
-        return int(round((self.ahead_m + self.back_m) / self.cell_m))
+        return round((self.ahead_m + self.back_m) / self.cell_m)
 
     @property
     def cols(self) -> int:
         """Number of cells along X."""
-        return int(round(2 * self.side_m / self.cell_m))
+        return round(2 * self.side_m / self.cell_m)
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -19,7 +19,9 @@ def test_points_follow_the_documented_ray_convention():
     scan = _scan()
     p = scan.points_sensor
     # azimuth 0 points along +Y, positive azimuth towards +X, negative elevation points down
-    assert np.allclose(p[0, 1], 5.0 * np.array([0.0, math.cos(math.radians(-10)), math.sin(math.radians(-10))]))
+    assert np.allclose(
+        p[0, 1], 5.0 * np.array([0.0, math.cos(math.radians(-10)), math.sin(math.radians(-10))])
+    )
     assert p[0, 2, 0] > 0 and p[0, 0, 0] < 0
     assert np.allclose(np.linalg.norm(p, axis=-1), 5.0)
 
