@@ -9,7 +9,8 @@ import pytest
 import negobs_gym  # noqa: F401 - registers the envs
 
 
-def _train_save_load(tmp_path, total_steps: int) -> None:
+def _train_save_load(tmp_path, total_steps: int) -> int:
+    """Train, save, load; check both predict the same; return the loaded model's step count."""
     from stable_baselines3 import PPO
 
     env = gym.make("negobs_gym/Braking-v0")
@@ -24,12 +25,13 @@ def _train_save_load(tmp_path, total_steps: int) -> None:
     np.testing.assert_array_equal(a1, a2)
     assert env.action_space.contains(a2.astype(np.float32))
     env.close()
+    return loaded.num_timesteps
 
 
 def test_ppo_tiny_train_save_load(tmp_path) -> None:
-    _train_save_load(tmp_path, 64)
+    assert _train_save_load(tmp_path, 64) >= 64
 
 
 @pytest.mark.slow
 def test_ppo_few_thousand_steps(tmp_path) -> None:
-    _train_save_load(tmp_path, 2048)
+    assert _train_save_load(tmp_path, 2048) >= 2048
