@@ -372,30 +372,24 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
     heights = (slopes + weight * (bumps + fine) + ruts + border).astype(np.float32)
     hf = HeightField(heights_m=heights, resolution_m=r, origin_m=origin)
 
-    negatives = []
-    for k, spec in enumerate(config.negative_obstacles):
-        centre, yaw = _place(track, spec.station_m, spec.lateral_m, spec.xy_m, spec.yaw_deg)
-        hf, rec = carve_negative_obstacle(
-            hf,
-            spec,
-            centre_xy_m=centre,
-            yaw_rad=yaw,
-            obstacle_id=f"{spec.kind}-{k}",
-            field=f"negative_obstacles[{k}]",
-        )
-        negatives.append(rec)
-    positives = []
-    for k, spec in enumerate(config.positive_obstacles):
-        centre, yaw = _place(track, spec.station_m, spec.lateral_m, spec.xy_m, spec.yaw_deg)
-        hf, rec = place_positive_obstacle(
-            hf,
-            spec,
-            centre_xy_m=centre,
-            yaw_rad=yaw,
-            obstacle_id=f"{spec.kind}-{k}",
-            field=f"positive_obstacles[{k}]",
-        )
-        positives.append(rec)
+    records: dict[str, list] = {}
+    for field_name, specs, build in (
+        ("negative_obstacles", config.negative_obstacles, carve_negative_obstacle),
+        ("positive_obstacles", config.positive_obstacles, place_positive_obstacle),
+    ):
+        records[field_name] = []
+        for k, spec in enumerate(specs):
+            centre, yaw = _place(track, spec.station_m, spec.lateral_m, spec.xy_m, spec.yaw_deg)
+            hf, rec = build(
+                hf,
+                spec,
+                centre_xy_m=centre,
+                yaw_rad=yaw,
+                obstacle_id=f"{spec.kind}-{k}",
+                field=f"{field_name}[{k}]",
+            )
+            records[field_name].append(rec)
+    negatives, positives = records["negative_obstacles"], records["positive_obstacles"]
 
     start_yaw = math.radians(config.start_yaw_deg)
     goal, _ = track.pose_at(track.length_m - config.goal_margin_m)
