@@ -1,0 +1,226 @@
+"""Fast ray-cast backend: Intel Embree through ``embreex`` over a triangle copy of the world.
+
+The static scene holds the terrain — triangulated from the SAME heights PyBullet's heightfield
+uses (``World.physics_heightfield``), split along the same diagonal — and every other body that
+is not dynamic; a second, small scene holds the dynamic bodies (vehicles) and is rebuilt from
+their current PyBullet poses whenever they moved. Excluded bodies (the vehicle carrying the
+sensors) are never added. Embree works in float32, so all geometry and ray origins are taken
+relative to a local origin at the centre of the terrain (coordinates stay below ~1 km, i.e.
+float32 steps below 0.1 mm).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from negobs_gym.errors import ConfigError, MissingDependencyError, require
+from negobs_gym.sensors.raycast.base import check_rays
+from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
+
+if TYPE_CHECKING:
+    from negobs_gym.sim.world import World
+
+log = logging.getLogger(__name__)
+
+
+def _embree() -> tuple[Any, Any]:
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError as exc:
+        raise MissingDependencyError("embreex", "the 'embree' ray-cast backend") from exc
+    return rtcore_scene, TriangleMesh
+
+
+@dataclass(frozen=True, kw_only=True)
+class EmbreeConfig:
+    """Settings of the Embree backend.
+
+    Attributes:
+        max_chord_error_m: Largest gap between a tessellated sphere/cylinder/capsule and the true
+            surface [m]; sets the segment count per radius (0.1 mm: 141 segments for a 0.4 m
+            wheel). Rays grazing a curved body within ~sqrt(2 r e) of its silhouette can still
+            differ from PyBullet's exact shapes by more than 1 cm (about 1e-4 of such hits).
+        auto_update: Re-read dynamic bodies' poses before every :meth:`EmbreeCaster.cast` (the
+            scene is rebuilt only when a pose changed); False = call ``update_dynamic`` yourself.
+    """
+
+    max_chord_error_m: float = 1e-4  # SPEC §3.3: agree with PyBullet to 1 cm; 100x margin
+    auto_update: bool = True
+
+    def __post_init__(self) -> None:
+        require(
+            isinstance(self.max_chord_error_m, (int, float)) and 1e-6 <= self.max_chord_error_m <= 0.1,
+            "max_chord_error_m",
+            f"must be in [1e-6, 0.1] m, got {self.max_chord_error_m!r}",
+        )
+        require(isinstance(self.auto_update, bool), "auto_update", "must be a bool")
+
+
+class _Scene:
+    """One committed Embree scene of one triangle mesh (float32, local coordinates)."""
+
+    def __init__(self, mesh: Mesh, robust: bool = True) -> None:
+        rtcs, triangle_mesh = _embree()
+        v, f = mesh
+        self.n_triangles = int(f.shape[0])
+        self.scene = rtcs.EmbreeScene(robust=robust)
+        if self.n_triangles:
+            triangle_mesh(
+                self.scene, np.ascontiguousarray(v, dtype=np.float32), np.ascontiguousarray(f, np.int32)
+            )
+
+    def cast(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
+        """Hit distances (inf = miss) of float32 rays in local coordinates."""
+        if self.n_triangles == 0 or o.shape[0] == 0:
+            return np.full(o.shape[0], np.inf)
+        res = self.scene.run(o, d, dists=tmax.copy(), output=1)
+        return np.where(np.asarray(res["geomID"]) >= 0, np.asarray(res["tfar"], dtype=np.float64), np.inf)
+
+
+class EmbreeCaster:
+    """Ray caster over triangle meshes with Embree; implements :class:`~.base.RayCaster`.
+
+    Build it from a world with :meth:`from_world`, or directly from a static mesh in world
+    coordinates (``vertices_m`` (V, 3), ``triangles`` (F, 3)).
+
+    Raises:
+        MissingDependencyError: ``embreex`` is not installed.
+    """
+
+    def __init__(
+        self,
+        vertices_m: np.ndarray,
+        triangles: np.ndarray,
+        *,
+        local_origin_m: Iterable[float] | None = None,
+        config: EmbreeConfig | None = None,
+    ) -> None:
+        _embree()
+        self.config = config if config is not None else EmbreeConfig()
+        if not isinstance(self.config, EmbreeConfig):
+            raise ConfigError("config", f"must be an EmbreeConfig, got {type(self.config).__name__}")
+        v = np.asarray(vertices_m, dtype=np.float64)
+        f = np.asarray(triangles)
+        if v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
+            raise ConfigError("vertices_m", f"must be finite (V, 3), got shape {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or (f.size and (f.min() < 0 or f.max() >= v.shape[0])):
+            raise ConfigError("triangles", "must be (F, 3) indices into vertices_m")
+        if local_origin_m is None:
+            local_origin_m = 0.5 * (v.min(axis=0) + v.max(axis=0)) if v.size else np.zeros(3)
+        self.local_origin_m = np.asarray(tuple(local_origin_m), dtype=np.float64)
+        if self.local_origin_m.shape != (3,) or not np.isfinite(self.local_origin_m).all():
+            raise ConfigError("local_origin_m", "must be 3 finite values")
+        self._static = _Scene((v - self.local_origin_m, f.astype(np.int32)))
+        self._dynamic: _Scene | None = None
+        self._world: World | None = None
+        self._exclude: frozenset[int] = frozenset()
+        self._dyn_links: list = []
+        self._dyn_ids: tuple[int, ...] = ()
+        self._dyn_poses: np.ndarray | None = None
+
+    @classmethod
+    def from_world(
+        cls, world: World, exclude_body_ids: Iterable[int] = (), *, config: EmbreeConfig | None = None
+    ) -> EmbreeCaster:
+        """Caster over ``world``: terrain, static bodies, and dynamic bodies kept current.
+
+        Bodies created in the world after this call are not seen unless they are registered as
+        dynamic (``World.add_dynamic_body``); build a new caster after adding static bodies.
+
+        Raises:
+            SimulationError: A body has a collision shape the backend cannot represent.
+        """
+        import pybullet as p
+
+        from negobs_gym.sensors.raycast.meshes import merge_meshes
+        from negobs_gym.sensors.raycast.scene import body_link_meshes, link_poses, world_mesh
+
+        _embree()
+        cfg = config if config is not None else EmbreeConfig()
+        c = world.client_id
+        hf = world.physics_heightfield
+        x0, x1, y0, y1 = hf.extent_m
+        # local origin on a grid sample near the centre, so the local vertex x/y are exact multiples
+        res = hf.resolution_m
+        ny, nx = hf.heights_m.shape
+        origin = np.array([hf.origin_m[0] + (nx // 2) * res, hf.origin_m[1] + (ny // 2) * res, 0.0])
+        exclude = frozenset(int(b) for b in exclude_body_ids)
+        dynamic = set(world.dynamic_body_ids())
+        statics = []
+        for k in range(p.getNumBodies(physicsClientId=c)):
+            body = p.getBodyUniqueId(k, physicsClientId=c)
+            if body == world.terrain_body_id or body in exclude or body in dynamic:
+                continue
+            links = body_link_meshes(c, body, cfg.max_chord_error_m)
+            statics.append(world_mesh(links, link_poses(c, links), origin))
+        terrain = heightfield_mesh(hf, origin)
+        v, f = merge_meshes([terrain, *statics])
+        caster = cls(v + origin, f, local_origin_m=origin, config=cfg)
+        caster._world = world
+        caster._exclude = exclude
+        caster.update_dynamic()
+        log.debug(
+            "embree scene: %d triangles over x [%.1f, %.1f] y [%.1f, %.1f], %d static bodies",
+            f.shape[0],
+            x0,
+            x1,
+            y0,
+            y1,
+            len(statics),
+        )
+        return caster
+
+    @property
+    def n_static_triangles(self) -> int:
+        """Triangles in the static scene."""
+        return self._static.n_triangles
+
+    def set_dynamic_mesh(self, vertices_m: np.ndarray, triangles: np.ndarray) -> None:
+        """Replace the dynamic scene by a mesh in world coordinates (empty arrays clear it)."""
+        v = np.asarray(vertices_m, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(triangles).reshape(-1, 3)
+        self._dynamic = _Scene((v - self.local_origin_m, f.astype(np.int32))) if f.size else None
+
+    def update_dynamic(self) -> bool:
+        """Re-read the world's dynamic bodies and rebuild their scene if any moved; True if rebuilt."""
+        if self._world is None:
+            return False
+        from negobs_gym.sensors.raycast.scene import body_link_meshes, link_poses, world_mesh
+
+        c = self._world.client_id
+        ids = tuple(b for b in self._world.dynamic_body_ids() if b not in self._exclude)
+        if ids != self._dyn_ids:
+            self._dyn_links = [
+                lm for b in ids for lm in body_link_meshes(c, b, self.config.max_chord_error_m)
+            ]
+            self._dyn_ids = ids
+            self._dyn_poses = None
+        if not self._dyn_links:
+            self._dynamic = None
+            return False
+        poses = link_poses(c, self._dyn_links)
+        if self._dyn_poses is not None and np.array_equal(poses, self._dyn_poses):
+            return False
+        self._dyn_poses = poses
+        self._dynamic = _Scene(world_mesh(self._dyn_links, poses, self.local_origin_m))
+        return True
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
+        """Ranges [m] of the first hit along each ray; NaN where nothing is hit within range."""
+        o, d = check_rays(origins, directions, max_range_m)
+        if self.config.auto_update:
+            self.update_dynamic()
+        o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
+        d32 = np.ascontiguousarray(d, dtype=np.float32)
+        tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
+        t = self._static.cast(o32, d32, tmax)
+        if self._dynamic is not None:
+            t = np.minimum(t, self._dynamic.cast(o32, d32, tmax))
+        t[t > max_range_m] = np.inf
+        return np.where(np.isfinite(t), t, np.nan)

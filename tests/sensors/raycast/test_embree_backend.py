@@ -1,0 +1,138 @@
+import sys
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.errors import ConfigError, MissingDependencyError, ScanError, SimulationError
+from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
+from negobs_gym.sensors.raycast.meshes import box_mesh, transform_mesh
+from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
+from negobs_gym.sim.presets import braking_track, pedestrian_near_dropoff
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
+
+pytest.importorskip("embreex")
+
+
+@pytest.fixture(scope="module")
+def flat_world():
+    world = World(braking_track(rough=False, ditch_distance_m=20.0))
+    own = Vehicle(world)
+    yield world, own
+    world.close()
+
+
+def _down(xy, z0=10.0):
+    xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+    return np.column_stack([xy, np.full(len(xy), z0)]), np.tile([0.0, 0.0, -1.0], (len(xy), 1))
+
+
+def test_missing_embreex_raises(monkeypatch, flat_world):
+    monkeypatch.setitem(sys.modules, "embreex", None)
+    monkeypatch.setitem(sys.modules, "embreex.rtcore_scene", None)
+    with pytest.raises(MissingDependencyError, match="embreex"):
+        EmbreeCaster.from_world(flat_world[0])
+    with pytest.raises(MissingDependencyError, match="embreex"):
+        make_caster(flat_world[0], backend="embree")
+    assert isinstance(make_caster(flat_world[0], backend="auto"), PyBulletCaster)
+
+
+def test_make_caster(flat_world):
+    world, _ = flat_world
+    assert isinstance(make_caster(world), EmbreeCaster)
+    assert isinstance(make_caster(world, backend="pybullet"), PyBulletCaster)
+    with pytest.raises(ConfigError, match="backend"):
+        make_caster(world, backend="optix")
+
+
+def test_ditch_floor_and_ground(flat_world):
+    world, _ = flat_world
+    caster = EmbreeCaster.from_world(world)
+    ditch = world.terrain.negative_obstacles[0]
+    cx, cy = ditch.centre_xy_m
+    o, d = _down([[cx, cy], [cx, cy - 5.0]])
+    r = caster.cast(o, d, 50.0)
+    np.testing.assert_allclose(10.0 - r, [ditch.floor_z_m, 0.0], atol=1e-4)
+
+
+def test_own_vehicle_excluded_other_bodies_hit_and_tracked(flat_world):
+    world, own = flat_world
+    pose = own.true_pose()
+    o, d = _down([[pose.x, pose.y + 1.4]])  # straight down onto the roof
+    seen = EmbreeCaster.from_world(world)
+    blind = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
+    roof = seen.cast(o, d, 50.0)[0]
+    ground = blind.cast(o, d, 50.0)[0]
+    assert 10.0 - roof > 1.0  # the roof, well above the ground
+    assert abs((10.0 - ground) - 0.0) < 0.05
+    # the body moves: the auto-updated scene follows it, a frozen one does not
+    frozen = EmbreeCaster.from_world(world, config=EmbreeConfig(auto_update=False))
+    own.reset(Pose(pose.x + 10.0, pose.y, 0.0, 0.0, 0.0, pose.yaw))
+    try:
+        assert abs(10.0 - seen.cast(o, d, 50.0)[0]) < 0.05
+        assert frozen.cast(o, d, 50.0)[0] == pytest.approx(roof, abs=1e-4)
+        assert frozen.update_dynamic() is True
+        assert abs(10.0 - frozen.cast(o, d, 50.0)[0]) < 0.05
+        o2, d2 = _down([[pose.x + 10.0, pose.y + 1.4]])
+        assert seen.cast(o2, d2, 50.0)[0] == pytest.approx(roof, abs=1e-3)
+    finally:
+        own.reset(pose)
+
+
+def test_positive_obstacles_hit_like_pybullet():
+    with World(pedestrian_near_dropoff(seed=1)) as world:
+        (ped,) = world.terrain.positive_obstacles
+        assert ped.shape == "cylinder"
+        embree = EmbreeCaster.from_world(world)
+        bullet = PyBulletCaster(world.client_id)
+        # a fan of horizontal rays at mid height through the pedestrian
+        c = np.asarray(ped.centre_m)
+        ang = np.linspace(-0.2, 0.2, 201)
+        o = np.tile(c - [0.0, 5.0, 0.0], (ang.size, 1))
+        d = np.column_stack([np.sin(ang), np.cos(ang), np.zeros_like(ang)])
+        re, rb = embree.cast(o, d, 30.0), bullet.cast(o, d, 30.0)
+        on_ped = np.isfinite(rb) & (rb < 6.0)
+        assert on_ped.sum() > 10
+        np.testing.assert_array_equal(np.isfinite(re), np.isfinite(rb))
+        assert np.nanmax(np.abs(re[on_ped] - rb[on_ped])) < 0.01
+
+
+def test_direct_mesh_far_from_origin_keeps_precision():
+    # float32 would lose ~1 cm at 1e5 m; the local origin keeps it exact
+    v, f = transform_mesh(box_mesh(np.array([1.0, 1.0, 1.0])), np.eye(3), np.array([1e5, 2e5, 0.0]))
+    caster = EmbreeCaster(v, f)
+    o = np.array([[1e5 + 0.123, 2e5 - 0.456, 11.0]])
+    r = caster.cast(o, np.array([[0.0, 0.0, -1.0]]), 20.0)
+    assert r[0] == pytest.approx(10.0, abs=1e-4)
+    assert np.isnan(caster.cast(o, np.array([[0.0, 0.0, 1.0]]), 20.0)[0])
+    assert np.isnan(caster.cast(o, np.array([[0.0, 0.0, -1.0]]), 9.5)[0])  # beyond max range
+
+
+def test_bad_input():
+    v, f = box_mesh(np.ones(3))
+    caster = EmbreeCaster(v, f)
+    with pytest.raises(ScanError, match="finite"):
+        caster.cast(np.array([[np.nan, 0, 0]]), np.array([[0, 0, 1.0]]), 10.0)
+    with pytest.raises(ScanError, match="N, 3"):
+        caster.cast(np.zeros((2, 2)), np.zeros((2, 2)), 10.0)
+    with pytest.raises(ConfigError, match="vertices_m"):
+        EmbreeCaster(np.full((3, 3), np.inf), np.array([[0, 1, 2]]))
+    with pytest.raises(ConfigError, match="triangles"):
+        EmbreeCaster(v, f + 100)
+    with pytest.raises(ConfigError, match="max_chord_error_m"):
+        EmbreeConfig(max_chord_error_m=0.0)
+
+
+def test_unsupported_shape_raises():
+    with World(braking_track(rough=False, ditch_distance_m=10.0)) as world:
+        c = world.client_id
+        v = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]
+        shape = p.createCollisionShape(
+            p.GEOM_MESH, vertices=v, indices=[0, 1, 2, 0, 1, 3, 0, 2, 3, 1, 2, 3], physicsClientId=c
+        )
+        p.createMultiBody(0, shape, basePosition=[0, 5, 1], physicsClientId=c)
+        with pytest.raises(SimulationError, match="pybullet"):
+            EmbreeCaster.from_world(world)
