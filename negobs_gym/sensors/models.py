@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from negobs_gym.errors import require
+from negobs_gym.sensors.calibration import HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,14 +90,31 @@ class LidarModel:
         return int(self.azimuth_rad.size)
 
 
-def hdl64e_s2_nominal(azimuth_resolution_deg: float = 0.09) -> LidarModel:
-    """HDL-64E S2 with the nominal datasheet span +2 to -24.8 deg, uniform spacing (paper N §2).
+def hdl64e_s2(azimuth_resolution_deg: float = 0.09) -> LidarModel:
+    """HDL-64E S2 with a real unit's per-laser vertical angles (the default of paper N's rig).
 
-    Named alternative: a real unit's per-laser calibration table is not bundled yet. 0.09 deg
-    at 10 Hz gives 4000 columns x 64 = 256k rays per revolution.
+    The 64 angles are the calibration of one public unit (-24.85 to +4.97 deg, two interleaved
+    blocks; see :mod:`negobs_gym.sensors.calibration` for the source). 0.09 deg at 10 Hz gives
+    4000 columns x 64 = 256k rays per revolution (paper N §2, SPEC §3.3).
     """
     return LidarModel(
         name="hdl64e_s2",
+        elevation_deg=tuple(math.degrees(v) for v in HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD),
+        azimuth_resolution_deg=azimuth_resolution_deg,
+        min_range_m=0.9,
+        max_range_m=120.0,  # datasheet 120 m
+        rotation_rate_hz=10.0,
+    )
+
+
+def hdl64e_s2_nominal(azimuth_resolution_deg: float = 0.09) -> LidarModel:
+    """HDL-64E S2 with the nominal datasheet span +2 to -24.8 deg, uniform spacing (paper N §2).
+
+    Named alternative to :func:`hdl64e_s2`'s real calibration table. 0.09 deg at 10 Hz gives
+    4000 columns x 64 = 256k rays per revolution.
+    """
+    return LidarModel(
+        name="hdl64e_s2_nominal",
         elevation_deg=tuple(np.linspace(-24.8, 2.0, 64)),
         azimuth_resolution_deg=azimuth_resolution_deg,
         min_range_m=0.9,

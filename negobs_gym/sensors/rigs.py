@@ -14,7 +14,7 @@ import numpy as np
 
 from negobs_gym.core.pose import rotation_from_rpy
 from negobs_gym.errors import require
-from negobs_gym.sensors.models import LidarModel, hdl32e, hdl64e_s2_nominal, ibeo_lux
+from negobs_gym.sensors.models import LidarModel, hdl32e, hdl64e_s2, ibeo_lux
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -92,8 +92,12 @@ def paper_n_rig(
     hdl32_height_m: float = 2.0,
     hdl32_half_track_m: float = 0.9,
 ) -> Rig:
-    """Paper N's rig: upright HDL-64 plus left/right HDL-32E rolled 90 deg (lasers sweep radially)."""
-    h64 = hdl64 or hdl64e_s2_nominal()
+    """Paper N's rig: upright HDL-64 plus left/right HDL-32E rolled 90 deg (lasers sweep radially).
+
+    The HDL-64 defaults to :func:`~negobs_gym.sensors.models.hdl64e_s2` (a real unit's
+    calibration); pass ``hdl64=hdl64e_s2_nominal()`` for the uniform datasheet table.
+    """
+    h64 = hdl64 or hdl64e_s2()
     h32 = hdl32 or hdl32e()
     return Rig(
         name="paper_n",
@@ -131,9 +135,10 @@ def paper_t_rig(lux: LidarModel | None = None, height_m: float = 0.65, pitch_dow
     )
 
 
-def paper_n_rig_reduced() -> Rig:
-    """Reduced paper N rig for RL training: HDL-64 at 0.36 deg with 32 lasers, HDL-32 at 0.64 deg."""
-    full = hdl64e_s2_nominal()
+def paper_n_rig_reduced(hdl64: LidarModel | None = None) -> Rig:
+    """Reduced paper N rig for RL training: every other laser (by elevation) of the HDL-64 at
+    0.36 deg, HDL-32 at 0.64 deg. ``hdl64`` defaults to the calibrated :func:`hdl64e_s2`."""
+    full = hdl64 or hdl64e_s2()
     h64 = LidarModel(
         name="hdl64e_s2_reduced",
         elevation_deg=full.elevation_deg[::2],

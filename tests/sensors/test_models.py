@@ -2,7 +2,32 @@ import numpy as np
 import pytest
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.sensors import LidarModel, SensorMount, hdl32e, hdl64e_s2_nominal, ibeo_lux
+from negobs_gym.sensors import (
+    LidarModel,
+    SensorMount,
+    hdl32e,
+    hdl64e_s2,
+    hdl64e_s2_nominal,
+    ibeo_lux,
+    paper_n_rig,
+    paper_n_rig_reduced,
+)
+from negobs_gym.sensors.calibration import HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD
+
+
+def test_hdl64_calibrated_table():
+    m = hdl64e_s2()
+    assert m.n_lasers * m.n_columns == 256000
+    el = np.asarray(m.elevation_deg)
+    assert np.all(np.diff(el) > 0)  # detector order: ascending elevation (SPEC §4.1)
+    # the unit's table, not the uniform nominal one: same span within ~3 deg, uneven spacing
+    np.testing.assert_allclose(np.sort(np.rad2deg(HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD)), el)
+    assert el[0] == pytest.approx(-24.845, abs=1e-3) and el[-1] == pytest.approx(4.970, abs=1e-3)
+    assert np.ptp(np.diff(el)) > 0.3
+    assert paper_n_rig().mount("hdl64").model == m
+    reduced = paper_n_rig_reduced().mount("hdl64").model
+    assert reduced.elevation_deg == m.elevation_deg[::2] and reduced.n_columns == 1000
+    assert paper_n_rig_reduced(hdl64e_s2_nominal()).mount("hdl64").model.n_lasers == 32
 
 
 def test_tables():
