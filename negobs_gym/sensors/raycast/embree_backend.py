@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -46,11 +46,17 @@ class EmbreeConfig:
             surface [m]; sets the segment count per radius (0.1 mm: 141 segments for a 0.4 m
             wheel). Rays grazing a curved body within ~sqrt(2 r e) of its silhouette can still
             differ from PyBullet's exact shapes by more than 1 cm (about 1e-4 of such hits).
+        ground: Which heightfield the terrain mesh is built from: ``"physics"`` = the heights the
+            PyBullet body uses (``World.physics_heightfield``, 0.25 m by default; agrees with the
+            PyBullet backend), ``"terrain"`` = the terrain's own finer grid (0.1 m by default: pit
+            walls stay vertical within 0.1 m instead of sloping over one 0.25 m physics cell; the
+            vehicle still drives on the physics heightfield).
         auto_update: Re-read dynamic bodies' poses before every :meth:`EmbreeCaster.cast` (the
             scene is rebuilt only when a pose changed); False = call ``update_dynamic`` yourself.
     """
 
     max_chord_error_m: float = 1e-4  # SPEC §3.3: agree with PyBullet to 1 cm; 100x margin
+    ground: Literal["physics", "terrain"] = "physics"
     auto_update: bool = True
 
     def __post_init__(self) -> None:
@@ -58,6 +64,11 @@ class EmbreeConfig:
             isinstance(self.max_chord_error_m, (int, float)) and 1e-6 <= self.max_chord_error_m <= 0.1,
             "max_chord_error_m",
             f"must be in [1e-6, 0.1] m, got {self.max_chord_error_m!r}",
+        )
+        require(
+            self.ground in ("physics", "terrain"),
+            "ground",
+            f"must be 'physics' or 'terrain', got {self.ground!r}",
         )
         require(isinstance(self.auto_update, bool), "auto_update", "must be a bool")
 
@@ -144,7 +155,7 @@ class EmbreeCaster:
         _embree()
         cfg = config if config is not None else EmbreeConfig()
         c = world.client_id
-        hf = world.physics_heightfield
+        hf = world.physics_heightfield if cfg.ground == "physics" else world.terrain.heightfield
         x0, x1, y0, y1 = hf.extent_m
         # local origin on a grid sample near the centre, so the local vertex x/y are exact multiples
         res = hf.resolution_m

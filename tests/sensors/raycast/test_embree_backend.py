@@ -58,6 +58,22 @@ def test_ditch_floor_and_ground(flat_world):
     np.testing.assert_allclose(10.0 - r, [ditch.floor_z_m, 0.0], atol=1e-4)
 
 
+def test_ground_from_the_terrain_grid_keeps_walls_sharp(flat_world):
+    world, _ = flat_world
+    ditch = world.terrain.negative_obstacles[0]
+    cx = float(ditch.centre_xy_m[0])
+    near_edge = float(ditch.outline_xy_m[:, 1].min())
+    ys = near_edge + np.linspace(0.02, 0.2, 10)  # inside the ditch, within one physics cell of its edge
+    o, d = _down(np.column_stack([np.full(ys.size, cx), ys]))
+    fine = EmbreeCaster.from_world(world, config=EmbreeConfig(ground="terrain"))
+    coarse = EmbreeCaster.from_world(world)
+    assert fine.n_static_triangles > 4 * coarse.n_static_triangles
+    np.testing.assert_allclose(10.0 - fine.cast(o, d, 50.0), ditch.floor_z_m, atol=1e-4)
+    assert np.any(10.0 - coarse.cast(o, d, 50.0) > ditch.floor_z_m + 0.1)  # the 0.25 m cell slopes
+    with pytest.raises(ConfigError, match="ground"):
+        EmbreeConfig(ground="mesh")
+
+
 def test_own_vehicle_excluded_other_bodies_hit_and_tracked(flat_world):
     world, own = flat_world
     pose = own.true_pose()
