@@ -36,10 +36,17 @@ class TraversableConfig:
     hough_rho_step_m: float = 0.20
     # Not in paper T: every 2nd column votes (the least-squares refit then uses every point).
     hough_column_stride: int = 2
-    # Not in paper T: a point within 0.6 m of its layer's line lies on it. At this mount a ground
-    # hit moves ~10 m along the ray per metre of height, so 0.6 m keeps a ~8 cm road crown
-    # (Fig. 10) on the line and drops bank points higher than ~6 cm.
+    # Not in paper T: a point within 0.6 m (across the line) of its layer's scan line lies on
+    # it. At this mount a ground hit moves ~10 m along the ray per metre of height, so 0.6 m
+    # keeps ruts and a ~8 cm road crown (Fig. 10) on the line and drops bank points higher than
+    # ~6 cm.
     line_tolerance_m: float = 0.60
+    # Not in paper T (it keeps the Hough line): each layer is refit as a parabola in its Hough
+    # line's frame, since a pitched-down LUX draws conics (over 110 deg the ends bend 0.4-0.5 m off
+    # a straight line on flat ground). Two refits (the first drops the Hough band's outliers);
+    # a layer with fewer than 6 inliers keeps its Hough band.
+    curve_refits: int = 2
+    curve_min_points: int = 6
     # Not in paper T: adjacent on-line points farther apart than this are a tear (0.25 deg
     # columns are < 0.1 m apart on the road within 12 m; 0.5 m tolerates a few dropouts).
     tear_distance_m: float = 0.50
@@ -147,6 +154,16 @@ class TraversableConfig:
         ):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value}")
+        require(
+            isinstance(self.curve_refits, int) and self.curve_refits >= 0,
+            "curve_refits",
+            f"must be an int >= 0 (0 keeps the Hough line), got {self.curve_refits}",
+        )
+        require(
+            isinstance(self.curve_min_points, int) and self.curve_min_points >= 3,
+            "curve_min_points",
+            f"must be an int >= 3 (a parabola has 3 coefficients), got {self.curve_min_points}",
+        )
         require(
             isinstance(self.neighbour_columns, int) and self.neighbour_columns >= 0,
             "neighbour_columns",

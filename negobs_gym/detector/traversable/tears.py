@@ -1,9 +1,12 @@
 """Paper T §3.1: dominant scan line (Hough), tear points and boundary points per layer.
 
 On the road the LUX layers draw near-straight lines roughly parallel to the vehicle X axis. Per
-layer we find the dominant line with a Hough transform over XY, keep the points near it, call an
-adjacent pair of those points farther apart than a threshold a *tear*, and walk in from each end:
-the first point followed by ``n`` tear-free links is the segment end, a boundary point.
+layer we find the dominant line with a Hough transform over XY, refit the scan line as a parabola
+in that line's frame (the layers are really conics, see :func:`refine_curves`), keep the points
+near it, call an adjacent pair of those points farther apart than a threshold a *tear*, and walk
+in from each end: the first point followed by ``n`` tear-free links is the segment end, a
+boundary point, unless no return lies beyond it (the scan line leaves the field of view) or the
+return beyond it is much nearer (an occluder).
 """
 
 from __future__ import annotations
@@ -36,14 +39,14 @@ def hough_lines(
     counts = valid.sum(axis=1)
     if not (counts >= 2).any():
         return phi_out, rho_out
-    x = np.where(valid, xy_m[..., 0], 0.0)
-    y = np.where(valid, xy_m[..., 1], 0.0)
-    rho = x[..., None] * np.cos(phi) + y[..., None] * np.sin(phi)  # (L, C, A)
-    rho_lo = rho[valid].min()
-    bins = np.floor((rho - rho_lo) / config.hough_rho_step_m).astype(np.int64)
-    n_bins = int(bins[valid].max()) + 1
-    flat = (np.arange(layers)[:, None, None] * n_angles + np.arange(n_angles)) * n_bins + bins
-    votes = np.bincount(flat[valid].ravel(), minlength=layers * n_angles * n_bins)
+    layer_of, column_of = np.nonzero(valid)
+    trig = np.stack([np.cos(phi), np.sin(phi)])  # (2, A)
+    rho = xy_m[layer_of, column_of] @ trig  # (N valid points, A)
+    rho_lo = rho.min()
+    bins = ((rho - rho_lo) / config.hough_rho_step_m).astype(np.int64)  # >= 0: floor
+    n_bins = int(bins.max()) + 1
+    flat = (layer_of[:, None] * n_angles + np.arange(n_angles)) * n_bins + bins
+    votes = np.bincount(flat.ravel(), minlength=layers * n_angles * n_bins)
     votes = votes.reshape(layers, n_angles * n_bins)
     best = votes.argmax(axis=1)
     a_idx, b_idx = np.divmod(best, n_bins)
@@ -51,33 +54,6 @@ def hough_lines(
     phi_out[ok] = phi[a_idx[ok]]
     rho_out[ok] = rho_lo + (b_idx[ok] + 0.5) * config.hough_rho_step_m
     return phi_out, rho_out
-
-
-def refine_lines(xy_m: np.ndarray, inliers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Total-least-squares refit of each layer's line to its Hough inliers (NaN if < 2).
-
-    The Hough peak sits on the densest stretch of a sagging scan line (a road crown, paper T
-    Fig. 10); the refit centres the line on all of its points so both ends stay within tolerance.
-    """
-    layers = xy_m.shape[0]
-    phi = np.full(layers, np.nan)
-    rho = np.full(layers, np.nan)
-    w = inliers.astype(np.float64)
-    count = w.sum(axis=1)
-    ok = count >= 2
-    if not ok.any():
-        return phi, rho
-    pts = np.where(inliers[..., None], xy_m, 0.0)
-    mean = pts.sum(axis=1) / np.maximum(count, 1)[:, None]
-    d = np.where(inliers[..., None], xy_m - mean[:, None, :], 0.0)
-    sxx = (d[..., 0] ** 2).sum(axis=1)
-    syy = (d[..., 1] ** 2).sum(axis=1)
-    sxy = (d[..., 0] * d[..., 1]).sum(axis=1)
-    # Normal of the best-fit line: direction of least spread.
-    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy) + np.pi / 2
-    phi[ok] = angle[ok]
-    rho[ok] = mean[ok, 0] * np.cos(angle[ok]) + mean[ok, 1] * np.sin(angle[ok])
-    return phi, rho
 
 
 def line_inliers(
@@ -89,6 +65,78 @@ def line_inliers(
     with np.errstate(invalid="ignore"):
         dist = np.abs(xy_m[..., 0] * c + xy_m[..., 1] * s - rho_m[:, None])
         return valid & np.isfinite(rho_m)[:, None] & (dist <= config.line_tolerance_m)
+
+
+def line_frame(xy_m: np.ndarray, phi_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates of points (layers, columns, 2) along (u) and across (v) their layer's line.
+
+    ``v = x cos(phi) + y sin(phi)`` is the Hough normal coordinate (``rho`` on the line) and
+    ``u = x sin(phi) - y cos(phi)`` runs along the line; NaN points and layers give NaN.
+    """
+    c = np.cos(phi_rad)[:, None]
+    s = np.sin(phi_rad)[:, None]
+    x = xy_m[..., 0]
+    y = xy_m[..., 1]
+    return x * s - y * c, x * c + y * s
+
+
+def refine_curves(
+    u_m: np.ndarray, v_m: np.ndarray, inliers: np.ndarray, config: TraversableConfig
+) -> np.ndarray:
+    """Least-squares parabola ``v = c0 + c1 u + c2 u^2`` of each layer in its Hough line's frame.
+
+    Not in paper T, which keeps the Hough line: a LUX pitched down 5 deg draws conics on flat
+    ground, not lines. Over 110 deg the ends of the lowest layer bend ~0.5 m towards the sensor
+    off the best straight line and those of the upper layers ~0.4 m away from it (the pitch adds
+    less depression at wide azimuth). A straight tolerance band then ends the lowest layer early
+    and lets the upper layers climb a gentle bank, so the boundary points of one side lean
+    outwards with distance. The parabola follows the conic (and a road crown, Fig. 10) to within
+    a few centimetres, so the band means the same thing at every azimuth.
+
+    Args:
+        u_m, v_m: (layers, columns) coordinates from :func:`line_frame`.
+        inliers: (layers, columns) points to fit.
+        config: Detector configuration (``curve_min_points``).
+
+    Returns:
+        (layers, 3) coefficients ``(c0, c1, c2)``; NaN rows for layers with fewer than
+        ``curve_min_points`` usable inliers or whose inliers do not span a parabola.
+    """
+    layers = u_m.shape[0]
+    coef = np.full((layers, 3), np.nan)
+    use = inliers & np.isfinite(u_m) & np.isfinite(v_m)
+    ok = use.sum(axis=1) >= config.curve_min_points
+    if not ok.any():
+        return coef
+    u_s = np.where(use, u_m, 0.0) / _U_SCALE_M  # keeps the normal equations well scaled
+    w = use.astype(np.float64)
+    # Normal equations of all layers at once from the moments sum(u^k), k = 0..4, and
+    # sum(v u^k), k = 0..2, as batched matrix products (unused points have zero weight).
+    u2 = u_s * u_s  # products, not **: integer powers of arrays are far slower
+    powers = np.stack([np.ones_like(u_s), u_s, u2, u2 * u_s, u2 * u2], axis=-1)  # (L, C, 5)
+    moments = (w[:, None, :] @ powers)[:, 0]  # (L, 5)
+    ata = moments[:, np.add.outer(np.arange(3), np.arange(3))]  # (L, 3, 3), Hankel
+    atb = ((w * np.where(use, v_m, 0.0))[:, None, :] @ powers[..., :3])[:, 0]  # (L, 3)
+    ok[ok] = np.linalg.cond(ata[ok]) < _MAX_CONDITION
+    if ok.any():
+        scaled = np.linalg.solve(ata[ok], atb[ok][..., None])[..., 0]
+        coef[ok] = scaled / np.array([1.0, _U_SCALE_M, _U_SCALE_M**2])
+    return coef
+
+
+# Along-line coordinates are divided by this before the fit (a layer spans about +-10 m).
+_U_SCALE_M = 10.0
+# Normal equations worse conditioned than this have no unique parabola (points at one u).
+_MAX_CONDITION = 1e10
+
+
+def curve_inliers(
+    u_m: np.ndarray, v_m: np.ndarray, valid: np.ndarray, coef: np.ndarray, config: TraversableConfig
+) -> np.ndarray:
+    """Mask (layers, columns) of valid points within ``line_tolerance_m`` (along v) of the curve."""
+    with np.errstate(invalid="ignore"):
+        fit = coef[:, 0:1] + (coef[:, 1:2] + coef[:, 2:3] * u_m) * u_m
+        return valid & np.isfinite(coef).all(axis=1)[:, None] & (np.abs(v_m - fit) <= config.line_tolerance_m)
 
 
 def segment_end_indices(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[int, int] | None:
@@ -124,14 +172,28 @@ def _occluded(ranges_m: np.ndarray, column: int, outward: int, jump_m: float) ->
     return bool(finite.size and finite[0] < ranges_m[column] - jump_m)
 
 
+def _cut_by_fov(valid: np.ndarray, column: int, outward: int) -> bool:
+    """True when no return lies outwards of ``column`` (``outward`` = -1 left, +1 right)."""
+    beyond = valid[column + 1 :] if outward > 0 else valid[:column]
+    return not bool(beyond.any())
+
+
 def boundary_points(
     points_vehicle_m: np.ndarray, ranges_m: np.ndarray, config: TraversableConfig
 ) -> tuple[np.ndarray, np.ndarray]:
     """Raw left/right boundary points of the boundary layers (paper T §3.1).
 
-    A segment end whose next return outwards is much nearer (``occlusion_jump_m``) ends at an
-    occluding obstacle, not at the road edge (paper T Fig. 12 discusses this error); it is
-    reported as missing so that the Kalman filter keeps its previous estimate instead.
+    A boundary point is a segment end *at a tear*. Two kinds of segment end are not, and are
+    reported as missing so that the Kalman filter keeps its previous estimate instead:
+
+    - an end with no return outwards of it: no tear ends the segment there, the scan line
+      leaves the field of view (or the sensor's range) while still on the road, so the road edge
+      lies beyond what the layer sees. Taking that end as the edge puts the boundary point on the
+      FOV's edge ray; where the ground rises to one side (or the road is wider than the FOV at
+      the layer's range) the near layers are cut there and the fitted boundary leans along that
+      ray (a 55 deg edge ray from a sensor 2 m ahead of the axle is at x = -4.5 m at y = 5.2 m);
+    - an end whose next return outwards is much nearer (``occlusion_jump_m``): it ends at an
+      occluding obstacle, not at the road edge (paper T Fig. 12 discusses this error).
 
     Args:
         points_vehicle_m: (lasers, columns, 3) vehicle-frame points, NaN = no return.
@@ -147,8 +209,12 @@ def boundary_points(
     stride = config.hough_column_stride
     phi, rho = hough_lines(xy[:, ::stride], valid[:, ::stride], config)
     inl = line_inliers(xy, valid, phi, rho, config)
-    phi, rho = refine_lines(xy, inl)
-    inl = line_inliers(xy, valid, phi, rho, config)
+    u, v = line_frame(xy, phi)
+    for _ in range(config.curve_refits):
+        coef = refine_curves(u, v, inl, config)
+        # A layer too sparse for a parabola keeps its Hough line's inliers.
+        fitted = np.isfinite(coef).all(axis=1)[:, None]
+        inl = np.where(fitted, curve_inliers(u, v, valid, coef, config), inl)
     left = np.full((len(layers), 2), np.nan)
     right = np.full((len(layers), 2), np.nan)
     for i, layer in enumerate(layers):  # 3 layers; each layer's work is vectorized
@@ -157,8 +223,8 @@ def boundary_points(
         if ends is None:
             continue
         lc, rc = cols[ends[0]], cols[ends[1]]
-        if not _occluded(ranges_m[layer], lc, -1, config.occlusion_jump_m):
+        if not (_cut_by_fov(valid[i], lc, -1) or _occluded(ranges_m[layer], lc, -1, config.occlusion_jump_m)):
             left[i] = xy[i, lc]
-        if not _occluded(ranges_m[layer], rc, +1, config.occlusion_jump_m):
+        if not (_cut_by_fov(valid[i], rc, +1) or _occluded(ranges_m[layer], rc, +1, config.occlusion_jump_m)):
             right[i] = xy[i, rc]
     return left, right

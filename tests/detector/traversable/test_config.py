@@ -38,6 +38,9 @@ def test_paper_defaults() -> None:
         ("safety_margin_m", -0.1),
         ("vehicle_width_m", 0.0),
         ("neighbour_columns", -1),
+        ("curve_refits", -1),
+        ("curve_refits", 1.5),
+        ("curve_min_points", 2),
     ],
 )
 def test_invalid_values_name_the_field(field: str, value: object) -> None:

@@ -97,6 +97,23 @@ def test_bend_lines_lean_the_right_way(detector, radius) -> None:
     assert sign * res.right_line.slope > 0.15
 
 
+def test_scan_lines_leaving_the_field_of_view_give_no_boundary_points(detector) -> None:
+    # The cause of the simulated straight track's tilted left line: ground rising to the left of
+    # the vehicle (here the vehicle rolled right-side down relative to it) pulls the left scan
+    # lines in until they end at the 55 deg edge of the FOV, still on the road. Those ends lie on
+    # the FOV's edge ray, inside the road, and would tilt the left line along that ray.
+    scene = TrackScene(left_half_width_m=4.5, right_half_width_m=4.5)
+    res = run(detector, synthetic_scan(scene, vehicle_roll_rad=math.radians(-4.0)))
+    assert np.isnan(res.raw_left_m).all()  # every left end is an FOV cut: unknown, not an edge
+    assert res.left_line is None and not res.traversable.any()  # an unknown side bounds nothing
+    assert np.abs(res.raw_right_m[:, 0] - 4.5).max() < 0.3
+    # Rolled a little less, the far layer reaches the bank: the left line is the road edge.
+    res = run(detector, synthetic_scan(scene, vehicle_roll_rad=math.radians(-3.5)))
+    assert np.isfinite(res.raw_left_m).all(axis=1).sum() >= 1
+    ys = np.linspace(res.polygon_m[:, 1].min(), res.polygon_m[:, 1].max(), 20)
+    assert np.abs(res.left_line.x_at(ys) - scene.left_edge_x(ys)).max() <= 0.15
+
+
 def test_car_at_10m_is_one_cluster_and_its_shadow_is_cut(detector) -> None:
     res = run(detector, synthetic_scan(TrackScene(boxes=(CAR,))))
     assert len(res.obstacles) == 1
@@ -108,8 +125,10 @@ def test_car_at_10m_is_one_cluster_and_its_shadow_is_cut(detector) -> None:
     assert not res.traversable[grid_cell(detector, 0.0, 11.5)]
     assert not res.traversable[grid_cell(detector, 0.5, 10.3)]
     assert res.traversable[grid_cell(detector, 0.0, 8.0)]
-    assert res.traversable[grid_cell(detector, -3.0, 11.0)]
-    assert res.traversable[grid_cell(detector, 3.0, 11.0)]
+    # Beside the car (its near face is at 10 m; the region ends at the farthest boundary point,
+    # layer 2's road edge at ~11.1 m).
+    assert res.traversable[grid_cell(detector, -3.0, 10.6)]
+    assert res.traversable[grid_cell(detector, 3.0, 10.6)]
     assert res.positive_obstacles[grid_cell(detector, 0.0, 10.0)]
     # Boundaries are still the road edges (outer segment ends of the interrupted layers).
     assert abs(res.left_line.x_at(10.0) + 4.0) < 0.2 and abs(res.right_line.x_at(10.0) - 4.0) < 0.2

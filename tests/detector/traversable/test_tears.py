@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from negobs_gym.detector.traversable import TraversableConfig
-from negobs_gym.detector.traversable.tears import boundary_points, hough_lines, line_inliers, segment_ends
+from negobs_gym.detector.traversable import TrackScene, TraversableConfig, synthetic_scan
+from negobs_gym.detector.traversable.tears import (
+    boundary_points,
+    curve_inliers,
+    hough_lines,
+    line_frame,
+    line_inliers,
+    refine_curves,
+    segment_ends,
+)
 
 CFG = TraversableConfig()
 
@@ -63,17 +71,90 @@ def test_boundary_points_of_flat_lines_between_walls() -> None:
     assert np.allclose(left[:, 1], [9.0, 10.0, 11.5], atol=CFG.line_tolerance_m)
 
 
-def test_segment_end_at_an_occluder_is_not_a_boundary_point() -> None:
-    # One layer: ground from x = -3 to 3 at y = 10, but columns right of x = 1 hit a pole at y = 8.
-    cols = 61
-    x = np.linspace(-3, 3, cols)
+def _ground_lines_between_banks(cols: int = 81) -> tuple[np.ndarray, np.ndarray]:
+    """4 layers: ground from x = -3 to 3 at y = 10, 11, 12, 13; bank points pulled in beyond.
+
+    The bank pulls a point 2 m nearer per metre beyond the edge, so the first bank points stay
+    within the 0.6 m tolerance: segments end on the bank foot, 0.3-0.4 m beyond the edge.
+    """
+    x = np.linspace(-4, 4, cols)
     pts = np.zeros((4, cols, 3))
     pts[..., 0] = x
-    pts[..., 1] = 10.0 + np.arange(4)[:, None]
-    pole = x > 1.0
-    pts[0, pole, 1] = 8.0
-    ranges = np.linalg.norm(pts - np.array([0.0, 3.7, 0.65]), axis=-1)
-    left, right = boundary_points(pts, ranges, CFG)
+    beyond = np.maximum(np.abs(x) - 3.0, 0.0)
+    pts[..., 1] = 10.0 + np.arange(4)[:, None] - 2.0 * beyond
+    return pts, x
+
+
+def _ranges(pts: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(pts - np.array([0.0, 3.7, 0.65]), axis=-1)
+
+
+def _on_bank_foot(point: np.ndarray, layer: int) -> bool:
+    beyond = abs(point[0]) - 3.0
+    return 0.0 <= beyond <= 0.45 and point[1] == pytest.approx(10.0 + layer - 2.0 * beyond)
+
+
+def test_segment_end_at_an_occluder_is_not_a_boundary_point() -> None:
+    # Layer 0's columns right of x = 1 hit a pole at y = 8 instead of the ground.
+    pts, x = _ground_lines_between_banks()
+    pts[0, x > 1.0, 1] = 8.0
+    left, right = boundary_points(pts, _ranges(pts), CFG)
     assert np.isnan(right[0]).all()  # ends at the occluder: missing, not a road edge
-    assert right[1] == pytest.approx([3.0, 11.0])
-    assert left[0] == pytest.approx([-3.0, 10.0])
+    assert _on_bank_foot(right[1], 1) and right[1][0] > 0
+    assert _on_bank_foot(left[0], 0) and left[0][0] < 0
+
+
+def test_segment_end_at_the_edge_of_the_field_of_view_is_not_a_boundary_point() -> None:
+    # Layer 0 sees only x <= 2.5: its scan line is still on the ground when the FOV ends, so
+    # its right end is no road edge (taking it would put the boundary on the FOV's edge ray).
+    pts, x = _ground_lines_between_banks()
+    pts[0, x > 2.5] = np.nan
+    left, right = boundary_points(pts, _ranges(pts), CFG)
+    assert np.isnan(right[0]).all()
+    assert _on_bank_foot(left[0], 0) and left[0][0] < 0
+    assert _on_bank_foot(right[1], 1) and right[1][0] > 0
+    # One return beyond the end (here the floor of a drop-off) makes the same end a tear again.
+    pts[0, -1] = [4.0, 12.0, -1.0]
+    _, right = boundary_points(pts, _ranges(pts), CFG)
+    assert right[0] == pytest.approx([2.5, 10.0])
+
+
+def test_scan_lines_over_110_deg_are_conics_and_the_parabola_refit_follows_them() -> None:
+    # Flat ground in the whole FOV. A straight line misses the ends of the lowest layer by ~0.5 m
+    # towards the sensor and those of the upper layers away from it; the parabola stays within
+    # a few centimetres everywhere, so the tolerance band means the same at every azimuth.
+    scan = synthetic_scan(TrackScene(left_half_width_m=40.0, right_half_width_m=40.0))
+    xy = scan.points_vehicle[:3, :, :2]
+    valid = np.isfinite(xy).all(axis=-1)
+    assert valid.all()
+    phi, _ = hough_lines(xy, valid, CFG)
+    u, v = line_frame(xy, phi)
+    coef = refine_curves(u, v, valid, CFG)
+    parabola = coef[:, :1] + coef[:, 1:2] * u + coef[:, 2:] * u * u
+    assert np.abs(v - parabola).max() < 0.06
+    line_end_residual = []
+    for layer in range(3):
+        line = np.polyfit(u[layer], v[layer], 1)
+        res = v[layer] - np.polyval(line, u[layer])
+        line_end_residual.append(0.5 * (res[0] + res[-1]))
+    towards_sensor = np.sign(np.mean(v[0])) * np.array(line_end_residual)  # v grows away from it
+    assert towards_sensor[0] < -0.3 and towards_sensor[2] > 0.2
+    # With the parabola every column of every layer is on the scan line.
+    assert curve_inliers(u, v, valid, coef, CFG).all()
+
+
+def test_parabola_refit_needs_enough_points() -> None:
+    u = np.tile(np.arange(8) * 0.5, (2, 1))
+    v = 10.0 + 0.1 * u - 0.02 * u**2
+    inliers = np.ones((2, 8), dtype=bool)
+    inliers[1, CFG.curve_min_points - 1 :] = False
+    coef = refine_curves(u, v, inliers, CFG)
+    assert coef[0] == pytest.approx([10.0, 0.1, -0.02])
+    assert np.isnan(coef[1]).all()  # fewer than curve_min_points inliers
+    # All points at one along-line position span no parabola; NaN points are never used.
+    assert np.isnan(refine_curves(np.zeros((1, 8)), v[:1], np.ones((1, 8), dtype=bool), CFG)).all()
+    u_nan = u[:1].copy()
+    u_nan[0, 0] = np.nan
+    assert refine_curves(u_nan, v[:1], np.ones((1, 8), dtype=bool), CFG)[0] == pytest.approx(
+        [10.0, 0.1, -0.02]
+    )
