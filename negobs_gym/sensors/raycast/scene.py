@@ -72,7 +72,8 @@ def shape_mesh(client_id: int, body_id: int, shape: tuple, chord_error_m: float)
                 f"body {body_id} link {link}: its mesh shape cannot be read back from PyBullet (a concave "
                 "triangle mesh?); use the 'pybullet' ray-cast backend for this world"
             )
-        mesh = convex_hull_mesh(np.asarray(verts, dtype=np.float64))  # getMeshData applies meshScale
+        # getMeshData applies meshScale AND the collision frame: the hull is already in the link frame
+        return convex_hull_mesh(np.asarray(verts, dtype=np.float64))
     else:
         raise SimulationError(
             f"body {body_id} link {link}: collision shape type {geom} is not supported by the fast "
