@@ -227,3 +227,14 @@ def test_sphere_hits_match_the_exact_surface():
     assert ok.sum() > 1000
     np.testing.assert_allclose(got[ok], exact[ok], atol=5e-4)
     assert np.all(got[ok] >= exact[ok] - 1e-5)  # the mesh lies inside the true surface
+
+
+def test_deterministic_across_builds(flat_world):
+    world, own = flat_world
+    rng = np.random.default_rng(5)
+    o = np.tile([0.0, 0.0, 2.2], (5000, 1))
+    d = rng.normal(size=(5000, 3))
+    a = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
+    b = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
+    np.testing.assert_array_equal(a, b)
+    assert np.isfinite(a).sum() > 1000
