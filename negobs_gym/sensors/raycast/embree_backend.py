@@ -23,6 +23,7 @@ from negobs_gym.sensors.raycast.base import check_rays
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
 if TYPE_CHECKING:
+    from negobs_gym.sensors.raycast.scene import LinkMesh
     from negobs_gym.sim.world import World
 
 log = logging.getLogger(__name__)
@@ -131,7 +132,7 @@ class EmbreeCaster:
         self._dynamic: _Scene | None = None
         self._world: World | None = None
         self._exclude: frozenset[int] = frozenset()
-        self._dyn_links: list = []
+        self._dyn_links: list[LinkMesh] = []
         self._dyn_ids: tuple[int, ...] = ()
         self._dyn_poses: np.ndarray | None = None
 
