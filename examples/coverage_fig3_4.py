@@ -132,6 +132,9 @@ def main() -> None:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual mode
         os.replace(tmp, args.out)  # atomic write
     finally:
         if os.path.exists(tmp):
