@@ -23,6 +23,9 @@ class TraversableConfig:
     """
 
     n_layers: int = 4  # paper T Eq. 3: the LUX has 4 layers
+    # §4: the LUX reaches 200 m; a longer range is not a LUX return and is treated as none (it
+    # would also blow up the Hough accumulator, whose rho axis spans the points' extent).
+    max_range_m: float = 200.0
     # §3.1: the top layer is unreliable on rough ground; boundaries use the lower three layers.
     boundary_layers: tuple[int, ...] = (0, 1, 2)
     # §3.3 / Fig. 5: obstacles are searched on the middle two layers.
@@ -112,6 +115,7 @@ class TraversableConfig:
             "must have a laser on each side (not the first or last index)",
         )
         positive = (
+            "max_range_m",
             "hough_angle_step_deg",
             "hough_rho_step_m",
             "line_tolerance_m",

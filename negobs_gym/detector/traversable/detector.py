@@ -8,8 +8,9 @@ State lives only in the Kalman filters, as in the paper.
 Bad input: a scan that is not a :class:`StructuredScan`, has a laser count other than
 ``config.n_layers`` or elevations not in ascending (detector) order, or a pose that is not a finite
 :class:`Pose` raises :class:`~negobs_gym.errors.ScanError` (a ``ValueError``) naming the problem.
-NaN ranges are "no return" and are skipped; an empty scan yields no boundaries, no obstacles and
-empty grids (the filters only predict).
+NaN ranges are "no return" and are skipped, as are ranges beyond ``config.max_range_m`` (the LUX's
+200 m reach); an empty scan yields no boundaries, no obstacles and empty grids (the filters only
+predict).
 """
 
 from __future__ import annotations
@@ -153,7 +154,12 @@ class TraversableRegionDetector:
         pose = _check_pose(pose)
         cfg = self.config
         pts = scan.points_vehicle
-        raw_left, raw_right = boundary_points(pts, scan.ranges_m, cfg)
+        ranges = scan.ranges_m
+        beyond = ranges > cfg.max_range_m  # NaN compares False
+        if beyond.any():
+            ranges = np.where(beyond, np.nan, ranges)
+            pts = np.where(beyond[..., None], np.nan, pts)
+        raw_left, raw_right = boundary_points(pts, ranges, cfg)
         consistent = np.stack(
             [drop_inconsistent(side, cfg.layer_consistency_m) for side in (raw_left, raw_right)]
         )

@@ -41,6 +41,7 @@ def test_paper_defaults() -> None:
         ("curve_refits", -1),
         ("curve_refits", 1.5),
         ("curve_min_points", 2),
+        ("max_range_m", 0.0),
     ],
 )
 def test_invalid_values_name_the_field(field: str, value: object) -> None:

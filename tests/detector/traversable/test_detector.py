@@ -245,6 +245,19 @@ def test_nan_returns_are_skipped(detector) -> None:
     assert abs(res.left_line.x_at(10.0) + 4.0) < 0.2
 
 
+def test_ranges_beyond_the_lux_reach_are_no_return(detector) -> None:
+    # A 1e7 m range is no LUX return (it reaches 200 m); it must neither crash the Hough
+    # accumulator (whose rho axis spans the points) nor change the result.
+    ranges = synthetic_scan(TrackScene()).ranges_m.copy()
+    ranges[:, 100] = np.nan
+    expected = run(detector, make_scan(ranges))
+    ranges[:, 100] = 1e7
+    res = run(detector, make_scan(ranges))
+    assert np.array_equal(res.raw_left_m, expected.raw_left_m, equal_nan=True)
+    assert np.array_equal(res.traversable, expected.traversable)
+    assert res.obstacles == expected.obstacles == []
+
+
 def test_filters_keep_estimate_through_an_empty_frame() -> None:
     det = TraversableRegionDetector()
     first = det.update(synthetic_scan(TrackScene()), Pose())
