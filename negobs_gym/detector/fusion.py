@@ -1,10 +1,11 @@
 """Bayesian multi-sensor, multi-frame fusion of feature point pairs (paper N §3.3, Eq. 15-16).
 
 History pairs are stored in the world frame (INS pose) and moved into the current vehicle frame each
-frame. Pair-to-pair distance: Euclidean distance between pair midpoints (A + B) / 2. A history pair
-matched (within ``match_distance_m``) by a sensor gets that sensor's Bayes hit update (Eq. 15); one
-matched by no sensor gets the miss update (Eq. 16). Unmatched current pairs enter with ``prior``
-followed by their sensor's hit update.
+frame. Pair-to-pair distance: paper N's overlap distance in the ground plane
+(:func:`negobs_gym.detector.pairs.overlap_distance`), which stays put when the rings sweep over the
+rim as the vehicle moves or pitches. A history pair matched (within ``match_distance_m``) by a sensor
+gets that sensor's Bayes hit update (Eq. 15); one matched by no sensor gets the miss update (Eq. 16).
+Current pairs that match no history pair enter with ``prior`` followed by their sensor's hit update.
 
 Default arithmetic (odds form, odds = p / (1 - p)): prior 0.5 -> odds 1; hit likelihood ratio
 0.6 / 0.2 = 3; confirm 0.95 -> odds 19. Two hits: 9 < 19 (not confirmed); three hits (three frames of
@@ -17,10 +18,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from negobs_gym.core import Pose
-from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.detector.pairs import FeaturePairs, close_pairs
 from negobs_gym.errors import ConfigError, require
 
 
@@ -132,18 +132,16 @@ class PairFusion:
             if not (np.all(np.isfinite(fp.a_m)) and np.all(np.isfinite(fp.b_m))):
                 raise ValueError(f"pairs[{sensor!r}]: A/B contain NaN/inf")
             lik = cfg.likelihood(sensor)
-            mid_c = 0.5 * (fp.a_m + fp.b_m)
-            cur_matched = np.zeros(len(fp), dtype=bool)
-            if p.shape[0]:
-                # Pairs created earlier in this frame by another sensor are matched too, so three
-                # sensors seeing a new pair in one frame confirm it at once (paper N §4.2).
-                dist, idx = cKDTree(mid_c).query(0.5 * (a_v + b_v), distance_upper_bound=cfg.match_distance_m)
-                hit = np.isfinite(dist)
-                p[hit] = bayes_hit(p[hit], lik)
-                matched_any |= hit
-                age[hit] = 0
-                cur_matched[idx[hit]] = True
-            fresh = ~cur_matched
+            # Pairs created earlier in this frame by another sensor are matched too, so three
+            # sensors seeing a new pair in one frame confirm it at once (paper N §4.2).
+            i, j, _ = close_pairs(a_v[:, :2], b_v[:, :2], fp.a_m[:, :2], fp.b_m[:, :2], cfg.match_distance_m)
+            hit = np.zeros(len(p), dtype=bool)
+            hit[i] = True
+            p[hit] = bayes_hit(p[hit], lik)
+            matched_any |= hit
+            age[hit] = 0
+            fresh = np.ones(len(fp), dtype=bool)
+            fresh[j] = False
             n_new = int(fresh.sum())
             a_v = np.concatenate([a_v, fp.a_m[fresh]])
             b_v = np.concatenate([b_v, fp.b_m[fresh]])

@@ -4,6 +4,19 @@ feature extractors to the multi-frame fusion.
 A pair (A, B) spans the gap that a negative obstacle leaves in a scan line: ``A`` is the last ground
 point on the near side, ``B`` the first point on the far side (the back wall / far rim). ``C`` is the
 point after ``B`` on the same ray direction (used by the Eq. 14 back-wall test).
+
+Distance between two pairs (paper N §3.3, stated for DBSCAN and used here for fusion matching too):
+the mean distance over the part where they overlap along the laser direction. In the ground plane:
+
+- the common direction is the bisector of the two pairs' A->B directions (sign-aligned), so the
+  distance is symmetric;
+- both segments are projected on it; where the projections overlap, the distance is the mean of the
+  point-to-point distances at the two ends of the overlap (exact while the segments do not cross);
+- where they do not overlap, it is the distance between their nearest end points, so pairs one
+  behind the other along the same laser line still count as close when their ends are.
+
+Unlike a midpoint distance, this one does not move when a ring sweeps across the rim and the
+pair's A jumps to the next laser: overlapping pairs in one azimuth stay at their lateral offset.
 """
 
 from __future__ import annotations
@@ -11,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,3 +62,57 @@ class FeaturePairs:
         """No pairs."""
         z = np.empty((0, 3))
         return cls(sensor, z, z, z)
+
+
+def overlap_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """Row-wise pair distance [m] between (n, 2) segments a1-b1 and a2-b2 (see the module docstring)."""
+    u1 = _unit(b1 - a1)
+    u2 = _unit(b2 - a2)
+    sign = np.where(np.einsum("nk,nk->n", u1, u2) < 0.0, -1.0, 1.0)
+    axis = _unit(u1 + sign[:, None] * u2)
+    ta1, tb1 = np.einsum("nk,nk->n", a1, axis), np.einsum("nk,nk->n", b1, axis)
+    ta2, tb2 = np.einsum("nk,nk->n", a2, axis), np.einsum("nk,nk->n", b2, axis)
+    lo = np.maximum(np.minimum(ta1, tb1), np.minimum(ta2, tb2))
+    hi = np.minimum(np.maximum(ta1, tb1), np.maximum(ta2, tb2))
+    mean_gap = 0.5 * (
+        np.linalg.norm(_at(a1, b1, ta1, tb1, lo) - _at(a2, b2, ta2, tb2, lo), axis=1)
+        + np.linalg.norm(_at(a1, b1, ta1, tb1, hi) - _at(a2, b2, ta2, tb2, hi), axis=1)
+    )
+    ends1 = np.stack([a1, b1], axis=1)[:, :, None, :]
+    ends2 = np.stack([a2, b2], axis=1)[:, None, :, :]
+    nearest_ends = np.linalg.norm(ends1 - ends2, axis=-1).reshape(len(a1), 4).min(axis=1)
+    return np.where(hi >= lo, mean_gap, nearest_ends)
+
+
+def close_pairs(
+    a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray, max_distance_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All (i, j, distance) with :func:`overlap_distance` of pair i of set 1 and pair j of set 2 <= max.
+
+    Inputs are (n, 2) ground-plane points. Two pairs that close have points within ``max_distance_m``
+    of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length:
+    a KD-tree on the midpoints finds the candidates and only those are measured.
+    """
+    if len(a1) == 0 or len(a2) == 0:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty, np.empty(0)
+    half1 = 0.5 * float(np.max(np.linalg.norm(b1 - a1, axis=1)))
+    half2 = 0.5 * float(np.max(np.linalg.norm(b2 - a2, axis=1)))
+    tree1, tree2 = cKDTree(0.5 * (a1 + b1)), cKDTree(0.5 * (a2 + b2))
+    cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
+    i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
+    d = overlap_distance(a1[i], b1[i], a2[j], b2[j])
+    close = d <= max_distance_m
+    return i[close], j[close], d[close]
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, n, out=np.tile([1.0, 0.0], (len(v), 1)), where=n > 0)
+
+
+def _at(a: np.ndarray, b: np.ndarray, ta: np.ndarray, tb: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Point of segment a-b whose projection on the axis is ``t`` (its midpoint if it is perpendicular)."""
+    span = tb - ta
+    s = np.divide(t - ta, span, out=np.full_like(t, 0.5), where=np.abs(span) > 1e-12)
+    return a + np.clip(s, 0.0, 1.0)[:, None] * (b - a)

@@ -1,10 +1,12 @@
-"""Random structured scans through both extractors: only documented outcomes, no crash."""
+"""Random structured scans through both extractors and the full detector: no crash, sane output."""
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector import NegativeObstacleDetector
 from negobs_gym.detector.config import Hdl32FeatureConfig, Hdl64FeatureConfig
 from negobs_gym.detector.hdl32 import extract_hdl32_pairs
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
@@ -43,3 +45,21 @@ def test_extractors_never_crash(scan):
     ):
         assert fp.a_m.shape == fp.b_m.shape == fp.c_m.shape == (len(fp), 3)
         assert np.isfinite(fp.a_m).all() and np.isfinite(fp.b_m).all()
+
+
+@st.composite
+def poses(draw):
+    values = draw(st.lists(st.floats(-50.0, 50.0, allow_nan=False), min_size=6, max_size=6))
+    x, y, z, roll, pitch, yaw = values
+    return Pose(x=x, y=y, z=z, roll=roll / 200.0, pitch=pitch / 200.0, yaw=yaw / 10.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(scans(), scans(), poses()), min_size=1, max_size=3))
+def test_negative_detector_never_crashes(frames):
+    detector = NegativeObstacleDetector()
+    for top, side, pose in frames:
+        detection = detector.update({"hdl64": top, "hdl32_left": side}, pose)
+        assert detection.grid.shape == detection.grid_spec.shape and detection.grid.dtype == bool
+        assert len(detection.pairs) <= detector.config.fusion.max_pairs
+        assert all(np.isfinite(ob.outline_xy_m).all() for ob in detection.obstacles)

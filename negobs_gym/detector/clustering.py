@@ -1,0 +1,117 @@
+"""DBSCAN of fused feature pairs with paper N's pair distance, one convex outline per cluster (§3.3 step 3).
+
+The distance is :func:`negobs_gym.detector.pairs.overlap_distance`. Only pairs that close are
+measured (:func:`~negobs_gym.detector.pairs.close_pairs`), and scikit-learn's DBSCAN gets them as a
+sparse precomputed graph: memory grows with the neighbours, not with the square of the pairs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.spatial import ConvexHull
+from sklearn.cluster import DBSCAN
+
+from negobs_gym.detector.pairs import close_pairs
+from negobs_gym.errors import require
+
+_TINY = 1e-9  # sparse DBSCAN graphs drop explicit zeros: a zero distance is stored as this
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClusteringConfig:
+    """DBSCAN parameters (paper N §3.3 step 3) and the outline of degenerate clusters."""
+
+    eps_m: float = 0.40  # T_dbscan, paper N §3.3: 40 cm
+    min_pairs: int = 4  # MinFPs, paper N §3.3 (the pair itself counts, as in Tab. 4)
+    # a cluster whose points are collinear has no area; its outline is the segment widened by this
+    degenerate_half_width_m: float = 0.05
+
+    def __post_init__(self) -> None:
+        require(math.isfinite(self.eps_m) and self.eps_m > 0, "eps_m", "must be finite and > 0")
+        require(
+            isinstance(self.min_pairs, int) and self.min_pairs >= 1, "min_pairs", "must be an integer >= 1"
+        )
+        require(
+            math.isfinite(self.degenerate_half_width_m) and self.degenerate_half_width_m > 0,
+            "degenerate_half_width_m",
+            "must be finite and > 0",
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class DetectedObstacle:
+    """One detected negative obstacle in the vehicle frame.
+
+    Attributes:
+        outline_xy_m: (k, 2) convex outline, counter-clockwise, not closed.
+        centre_xy_m: (2,) centroid of the outline.
+        area_m2: area of the outline.
+        n_pairs: number of feature pairs in the cluster.
+        pair_indices: indices of those pairs in the clustered arrays.
+    """
+
+    outline_xy_m: np.ndarray
+    centre_xy_m: np.ndarray
+    area_m2: float
+    n_pairs: int
+    pair_indices: np.ndarray
+
+
+def cluster_labels(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig) -> np.ndarray:
+    """DBSCAN label per pair (-1 = noise) under paper N's overlap distance."""
+    n = len(a_xy)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    i, j, d = close_pairs(a_xy, b_xy, a_xy, b_xy, config.eps_m)
+    graph = sparse.csr_matrix((np.maximum(d, _TINY), (i, j)), shape=(n, n))
+    dbscan = DBSCAN(eps=config.eps_m, min_samples=config.min_pairs, metric="precomputed")
+    return dbscan.fit_predict(graph).astype(np.int64)
+
+
+def convex_outline(points_xy: np.ndarray, half_width_m: float) -> np.ndarray:
+    """Counter-clockwise convex hull of (n, 2) points; collinear points give a ``half_width_m`` strip."""
+    pts = np.unique(np.asarray(points_xy, dtype=np.float64), axis=0)
+    centred = pts - pts.mean(axis=0)
+    _, s, vt = np.linalg.svd(centred, full_matrices=False) if len(pts) > 1 else (None, np.zeros(2), np.eye(2))
+    if len(pts) >= 3 and s[-1] > 1e-6 * max(s[0], 1e-12):
+        hull = ConvexHull(pts)
+        return pts[hull.vertices]  # scipy gives 2-D hulls counter-clockwise
+    major = vt[0]
+    normal = np.array([-major[1], major[0]])
+    t = centred @ major
+    lo = pts.mean(axis=0) + t.min() * major
+    hi = pts.mean(axis=0) + t.max() * major
+    w = half_width_m * normal
+    return np.array([lo - w, hi - w, hi + w, lo + w])
+
+
+def polygon_area_centroid(poly: np.ndarray) -> tuple[float, np.ndarray]:
+    """Area and centroid of a simple counter-clockwise polygon (shoelace formula)."""
+    x, y = poly[:, 0], poly[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    area = 0.5 * float(cross.sum())
+    if abs(area) < 1e-12:
+        return 0.0, poly.mean(axis=0)
+    cx = float(((x + xn) * cross).sum()) / (6.0 * area)
+    cy = float(((y + yn) * cross).sum()) / (6.0 * area)
+    return abs(area), np.array([cx, cy])
+
+
+def cluster_obstacles(a_m: np.ndarray, b_m: np.ndarray, config: ClusteringConfig) -> list[DetectedObstacle]:
+    """Cluster pairs (vehicle-frame (n, 3) A and B points) into obstacles, nearest first."""
+    a_xy = np.asarray(a_m, dtype=np.float64)[:, :2]
+    b_xy = np.asarray(b_m, dtype=np.float64)[:, :2]
+    labels = cluster_labels(a_xy, b_xy, config)
+    obstacles = []
+    for label in np.unique(labels[labels >= 0]):
+        idx = np.flatnonzero(labels == label)
+        outline = convex_outline(np.concatenate([a_xy[idx], b_xy[idx]]), config.degenerate_half_width_m)
+        area, centre = polygon_area_centroid(outline)
+        obstacles.append(DetectedObstacle(outline, centre, area, len(idx), idx))
+    obstacles.sort(key=lambda ob: float(np.hypot(*ob.centre_xy_m)))
+    return obstacles

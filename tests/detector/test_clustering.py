@@ -1,0 +1,75 @@
+import numpy as np
+import pytest
+
+from negobs_gym.detector.clustering import (
+    ClusteringConfig,
+    cluster_labels,
+    cluster_obstacles,
+    convex_outline,
+    polygon_area_centroid,
+)
+from negobs_gym.errors import ConfigError
+
+
+def _radial_pairs(x0: float, x1: float, y_a: float, y_b: float, n: int, z_b: float = -0.5):
+    """n radial pairs spread over [x0, x1], A at y_a on the ground, B at y_b on the back wall."""
+    x = np.linspace(x0, x1, n)
+    a = np.stack([x, np.full(n, y_a), np.zeros(n)], axis=1)
+    b = np.stack([x, np.full(n, y_b), np.full(n, z_b)], axis=1)
+    return a, b
+
+
+def test_two_separate_pits_give_two_clusters_with_their_outlines():
+    a1, b1 = _radial_pairs(-0.5, 0.5, 8.0, 9.0, 20)
+    a2, b2 = _radial_pairs(2.0, 3.0, 12.0, 13.0, 20)
+    obstacles = cluster_obstacles(np.concatenate([a1, a2]), np.concatenate([b1, b2]), ClusteringConfig())
+    assert len(obstacles) == 2
+    near, far = obstacles  # nearest first
+    assert near.n_pairs == far.n_pairs == 20
+    assert near.area_m2 == pytest.approx(1.0)
+    np.testing.assert_allclose(near.centre_xy_m, [0.0, 8.5], atol=1e-9)
+    np.testing.assert_allclose(far.centre_xy_m, [2.5, 12.5], atol=1e-9)
+    assert set(near.pair_indices.tolist()) == set(range(20))
+
+
+def test_fewer_than_min_pairs_is_noise():
+    a, b = _radial_pairs(-0.1, 0.1, 8.0, 9.0, 3)
+    assert (cluster_labels(a[:, :2], b[:, :2], ClusteringConfig()) == -1).all()
+    assert cluster_obstacles(a, b, ClusteringConfig()) == []
+    # MinFPs = 4 counts the pair itself (paper N Tab. 4): four close pairs form a cluster
+    a, b = _radial_pairs(-0.1, 0.1, 8.0, 9.0, 4)
+    assert len(cluster_obstacles(a, b, ClusteringConfig())) == 1
+
+
+def test_eps_separates_rows_of_pairs():
+    # pairs 0.15 m apart sideways chain into one cluster at eps 0.40; at eps 0.10 each is alone
+    a, b = _radial_pairs(0.0, 1.05, 8.0, 9.0, 8)
+    (ob,) = cluster_obstacles(a, b, ClusteringConfig())
+    assert ob.n_pairs == 8
+    assert cluster_obstacles(a, b, ClusteringConfig(eps_m=0.10)) == []
+
+
+def test_collinear_cluster_gets_a_thin_strip_outline():
+    a, b = _radial_pairs(0.0, 0.0, 8.0, 9.0, 5)
+    (ob,) = cluster_obstacles(a, b, ClusteringConfig(degenerate_half_width_m=0.05))
+    assert ob.area_m2 == pytest.approx(0.1)  # 1 m long x 0.1 m wide
+    outline = convex_outline(np.array([[0.0, 0.0]]), 0.05)
+    assert outline.shape == (4, 2) and np.isfinite(outline).all()
+
+
+def test_polygon_area_centroid_of_a_square():
+    area, c = polygon_area_centroid(np.array([[0, 0], [2, 0], [2, 2], [0, 2]], dtype=float))
+    assert area == pytest.approx(4.0)
+    np.testing.assert_allclose(c, [1.0, 1.0])
+
+
+def test_no_pairs():
+    assert cluster_obstacles(np.empty((0, 3)), np.empty((0, 3)), ClusteringConfig()) == []
+
+
+@pytest.mark.parametrize(
+    "field, value", [("eps_m", 0.0), ("eps_m", np.nan), ("min_pairs", 0), ("min_pairs", 2.5)]
+)
+def test_bad_config(field, value):
+    with pytest.raises(ConfigError, match=field):
+        ClusteringConfig(**{field: value})

@@ -1,0 +1,156 @@
+"""NegativeObstacleDetector end to end on analytic scans (plane with a rectangular hole)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from negobs_gym.core import GridSpec, Pose
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.detector.synthetic import Hole, hdl32_side_scan, hdl64_scan
+from negobs_gym.errors import ConfigError
+
+POSE0 = Pose(x=0.0, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
+PIT_8M = Hole.ahead(8.0, width_m=1.0, length_m=1.0, depth_m=0.8)
+
+
+def _rig_scans(holes, rng=None, sigma=0.0):
+    kw = {"noise_sigma_m": sigma, "rng": rng}
+    return {
+        "hdl64": hdl64_scan(holes, **kw),
+        "hdl32_left": hdl32_side_scan(holes, side="left", **kw),
+        "hdl32_right": hdl32_side_scan(holes, side="right", **kw),
+    }
+
+
+def _hole_cells(hole: Hole, grid: GridSpec) -> np.ndarray:
+    c = grid.cell_centres()
+    return (
+        (c[..., 0] > hole.x0_m) & (c[..., 0] < hole.x1_m) & (c[..., 1] > hole.y0_m) & (c[..., 1] < hole.y1_m)
+    )
+
+
+def test_fused_rig_finds_the_pit_in_one_frame_and_marks_its_cells():
+    detection = NegativeObstacleDetector().update(_rig_scans([PIT_8M]), POSE0)
+    (ob,) = detection.obstacles
+    np.testing.assert_allclose(ob.centre_xy_m, [0.0, 8.5], atol=0.15)
+    assert 0.7 < ob.area_m2 < 1.5
+    truth = _hole_cells(PIT_8M, detection.grid_spec)
+    assert (detection.grid & truth).sum() >= 0.8 * truth.sum()
+    # nothing marked more than a cell and a half away from the pit
+    rows, cols = np.nonzero(detection.grid)
+    xy = detection.grid_spec.cell_centres()[rows, cols]
+    assert np.all(np.abs(xy[:, 0]) < 0.8) and np.all((xy[:, 1] > 7.7) & (xy[:, 1] < 9.3))
+    # every obstacle pair is confirmed and indexes the fused pairs
+    assert detection.pairs.confirmed[ob.pair_indices].all()
+
+
+def test_hdl64_alone_needs_three_frames():
+    detector = NegativeObstacleDetector(NegativeDetectorConfig(mode="hdl64"))
+    results = [detector.update(_rig_scans([PIT_8M]), POSE0) for _ in range(3)]
+    assert [len(r.obstacles) for r in results] == [0, 0, 1]
+    assert set(results[-1].frame_pairs) == {"hdl64"}
+
+
+def test_hdl32_mode_reads_only_the_side_sensors():
+    # The side lasers fan out sideways, ~1.33 deg apart: at 8 m their pairs lie ~0.2 m apart, too few
+    # within eps = 0.40 m for MinFPs = 4 (paper N Fig. 16: 32-only recall falls with distance); at
+    # 6 m they are ~0.14 m apart and cluster.
+    pit_6m = Hole.ahead(6.0, width_m=1.0, length_m=1.0, depth_m=0.8)
+    for hole, found in ((PIT_8M, False), (pit_6m, True)):
+        detector = NegativeObstacleDetector(NegativeDetectorConfig(mode="hdl32"))
+        for _ in range(3):
+            detection = detector.update(_rig_scans([hole]), POSE0)
+        assert set(detection.frame_pairs) == {"hdl32_left", "hdl32_right"}
+        assert detection.pairs.confirmed.sum() >= 4
+        truth = _hole_cells(hole, detection.grid_spec)
+        assert (detection.grid & truth).any() == found
+
+
+def test_noisy_plane_gives_no_obstacle():
+    rng = np.random.default_rng(0)
+    detector = NegativeObstacleDetector()
+    for _ in range(5):
+        detection = detector.update(_rig_scans([], rng=rng, sigma=0.02), POSE0)
+        assert detection.obstacles == [] and not detection.grid.any()
+
+
+def test_history_follows_the_pose_while_driving():
+    detector = NegativeObstacleDetector(NegativeDetectorConfig(mode="hdl64"))
+    for k in range(4):  # drive 0.5 m per frame towards a pit fixed in the world at y = 10 m
+        y = 0.5 * k
+        hole = Hole.ahead(10.0 - y, width_m=1.0, length_m=1.0, depth_m=0.8)
+        detection = detector.update(_rig_scans([hole]), Pose(x=0.0, y=y, z=0.0, roll=0.0, pitch=0.0, yaw=0.0))
+    (ob,) = detection.obstacles
+    np.testing.assert_allclose(ob.centre_xy_m, [0.0, 10.0 - 1.5 + 0.5], atol=0.2)
+
+
+def test_reset_forgets_the_history():
+    detector = NegativeObstacleDetector(NegativeDetectorConfig(mode="hdl64"))
+    for _ in range(2):
+        detector.update(_rig_scans([PIT_8M]), POSE0)
+    detector.reset()
+    assert detector.update(_rig_scans([PIT_8M]), POSE0).obstacles == []
+
+
+def test_same_input_same_detection_bit_for_bit():
+    def run():
+        rng = np.random.default_rng(5)
+        detector = NegativeObstacleDetector()
+        return [detector.update(_rig_scans([PIT_8M], rng=rng, sigma=0.02), POSE0) for _ in range(3)]
+
+    for d1, d2 in zip(run(), run(), strict=True):
+        np.testing.assert_array_equal(d1.grid, d2.grid)
+        np.testing.assert_array_equal(d1.pairs.a_m, d2.pairs.a_m)
+        np.testing.assert_array_equal(d1.pairs.posterior, d2.pairs.posterior)
+
+
+def test_other_sensors_in_the_mapping_are_ignored():
+    scans = _rig_scans([PIT_8M])
+    lux = dataclasses.replace(scans["hdl64"], sensor="lux")
+    detection = NegativeObstacleDetector().update({**scans, "lux": lux}, POSE0)
+    assert set(detection.frame_pairs) == {"hdl64", "hdl32_left", "hdl32_right"}
+
+
+def test_empty_frames_and_scans_without_returns_give_no_pairs():
+    detector = NegativeObstacleDetector()
+    assert not detector.update({}, POSE0).grid.any()
+    scan = hdl64_scan([])
+    blind = StructuredScan(
+        "hdl64",
+        np.full_like(scan.ranges_m, np.nan),
+        scan.azimuth_rad,
+        scan.elevation_rad,
+        rotation=scan.rotation,
+        translation_m=scan.translation_m,
+    )
+    detection = detector.update({"hdl64": blind}, POSE0)
+    assert len(detection.frame_pairs["hdl64"]) == 0 and not detection.grid.any()
+
+
+def test_bad_input_raises_value_error_naming_it():
+    detector = NegativeObstacleDetector()
+    scans = _rig_scans([])
+    with pytest.raises(ValueError, match="pose"):
+        detector.update(scans, Pose(x=np.nan, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0))
+    with pytest.raises(ValueError, match="none of the configured"):
+        detector.update({"velodyne": scans["hdl64"]}, POSE0)
+    with pytest.raises(ValueError, match="StructuredScan"):
+        detector.update({"hdl64": np.zeros((64, 10))}, POSE0)
+    with pytest.raises(TypeError, match="NegativeDetectorConfig"):
+        NegativeObstacleDetector(config={"mode": "fused"})
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"mode": "hdl16"}, "mode"),
+        ({"hdl64_sensors": ["hdl64"]}, "hdl64_sensors"),
+        ({"hdl32_sensors": ("hdl64",)}, "hdl32_sensors"),
+        ({"grid": 0.2}, "grid"),
+    ],
+)
+def test_bad_config(kwargs, field):
+    with pytest.raises(ConfigError, match=field):
+        NegativeDetectorConfig(**kwargs)
