@@ -16,9 +16,12 @@ from gymnasium import spaces
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
-from negobs_gym.envs.observation import OracleGrid, grid_space, state_space, state_vector
+from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels, state_space, state_vector
+from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
-from negobs_gym.errors import ActionError, ConfigError
+from negobs_gym.errors import ActionError
+from negobs_gym.safety.braking import BrakingConfig
+from negobs_gym.safety.protocol import HazardState
 from negobs_gym.sim.events import EventMonitor, StepEvents
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle
@@ -68,12 +71,6 @@ class NegObsEnv(gym.Env, abc.ABC):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
         obs_cfg = self.config.observation
-        if obs_cfg.source == "detector":
-            raise ConfigError(
-                "observation.source",
-                "'detector' needs negobs_gym.sensors and the negative-obstacle detector, which are not "
-                "available in this build; use 'oracle'",
-            )
         self.observation_space = spaces.Dict({"grid": grid_space(obs_cfg), "state": state_space(obs_cfg)})
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self._world_config = WorldConfig()
@@ -84,6 +81,9 @@ class NegObsEnv(gym.Env, abc.ABC):
         self.terrain: Terrain | None = None
         self._path: list[tuple[float, float]] = []
         self._renderer = None
+        self._perception: DetectorGrid | None = None
+        self._oracle: OracleGrid | None = None
+        self._sensor_rng: np.random.Generator | None = None
 
     # -- hooks ---------------------------------------------------------------------------------
     @classmethod
@@ -109,7 +109,13 @@ class NegObsEnv(gym.Env, abc.ABC):
         if self.config.start_speed_mps > 0:
             self._vehicle.set_speed(self.config.start_speed_mps)
         self._monitor.reset()
-        self._oracle = OracleGrid(self.config.observation, self.terrain)
+        self._sensor_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
+        self._perception = None
+        self._oracle = None
+        if self.config.observation.source == "detector":
+            self._start_perception()
+        else:
+            self._oracle = OracleGrid(self.config.observation, self.terrain)
         self._station = self._station_of(self._vehicle.true_pose())
         pose = self._vehicle.true_pose()
         self._path = [(pose.x, pose.y)]
@@ -180,9 +186,43 @@ class NegObsEnv(gym.Env, abc.ABC):
             self._world.close()
         self._world = self._vehicle = self._monitor = None
 
+    def hazard_state(self) -> HazardState:
+        """Hazards for :class:`~negobs_gym.safety.BrakingSafetyFilter` (protocol in ``safety.protocol``).
+
+        The negative-obstacle points are the detector's cells, never the ground truth: with an
+        oracle observation the first call starts the sensors and detectors, which then run every
+        step of the episode.
+        """
+        if self._vehicle is None:
+            raise RuntimeError("call reset() before hazard_state()")
+        if self._perception is None:
+            self._start_perception()
+        cfg = self._vehicle.config
+        return HazardState(
+            speed_mps=max(0.0, self._vehicle.speed_mps()),
+            negative_obstacles_xy_m=self._perception.negative_cells_xy_m(),
+            vehicle_width_m=cfg.width_m,
+            wheelbase_m=cfg.wheelbase_m,
+            max_steer_rad=math.radians(cfg.max_steer_deg),
+            dt_s=1.0 / self.config.control_hz,
+            max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
+            max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
+        )
+
+    def _start_perception(self) -> None:
+        self._perception = DetectorGrid(self.config.observation, self._world, self._vehicle, self._sensor_rng)
+        self._last_layers = self._perception.observe(self._world.sim_time_s)
+
+    def _layers(self, pose: Pose) -> dict[str, np.ndarray]:
+        if self._perception is not None:
+            self._last_layers = self._perception.observe(self._world.sim_time_s)
+        if self._oracle is not None:
+            return self._oracle.layers(pose)
+        return self._last_layers
+
     def _observe(self) -> dict[str, np.ndarray]:
         pose = self._vehicle.true_pose()
-        grid = self._oracle.observe(pose)
+        grid = stack_channels(self._layers(pose), self.config.observation)
         self._last_grid = grid
         state = state_vector(
             self.config.observation,

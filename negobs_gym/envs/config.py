@@ -19,8 +19,13 @@ class ObservationConfig:
     """What the ``grid`` observation holds.
 
     Attributes:
-        source: ``"oracle"`` rasterises the ground truth (for ablations); ``"detector"`` reads the
-            detector grid (needs the sensors and detector packages).
+        source: ``"detector"`` casts the LiDAR rig and stacks the detectors' grids (see
+            :mod:`negobs_gym.envs.perception`); ``"oracle"`` rasterises the ground truth (ablations).
+        rig: ``"reduced"`` (paper N's rig at half resolution, for training) or ``"native"``; both
+            carry paper T's bumper LUX.
+        raycast_backend: ``"auto"`` (Embree when ``embreex`` is installed, else PyBullet),
+            ``"embree"`` or ``"pybullet"``.
+        sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
         downsample: Integer block size for max-pooling the grid (1 = full resolution).
@@ -28,7 +33,10 @@ class ObservationConfig:
         max_goal_distance_m: Goal vector components are clipped to +- this [m].
     """
 
-    source: str = "oracle"
+    source: str = "detector"
+    rig: str = "reduced"
+    raycast_backend: str = "auto"
+    sensor_noise: bool = True
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
     downsample: int = 4
@@ -40,6 +48,12 @@ class ObservationConfig:
             self.source in ("oracle", "detector"),
             "source",
             f"must be 'oracle' or 'detector', got {self.source!r}",
+        )
+        require(self.rig in ("native", "reduced"), "rig", f"must be 'native' or 'reduced', got {self.rig!r}")
+        require(
+            self.raycast_backend in ("auto", "embree", "pybullet"),
+            "raycast_backend",
+            f"must be 'auto', 'embree' or 'pybullet', got {self.raycast_backend!r}",
         )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(

@@ -11,7 +11,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.sim.events import pad_polygons, points_in_polygons
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["STATE_FIELDS", "OracleGrid", "grid_space", "state_space", "state_vector"]
+__all__ = ["STATE_FIELDS", "OracleGrid", "grid_space", "stack_channels", "state_space", "state_vector"]
 
 #: Order of the ``state`` observation: speed, yaw rate, steering angle, goal vector (vehicle frame).
 STATE_FIELDS: tuple[str, ...] = ("speed_mps", "yaw_rate_rps", "steering_rad", "goal_x_m", "goal_y_m")
@@ -81,8 +81,8 @@ class OracleGrid:
         self._centres_v = config.grid.cell_centres().reshape(-1, 2)
         self._track_tree = _centreline_tree(np.asarray(terrain.track.centreline_xy_m, dtype=np.float64))
 
-    def observe(self, pose: Pose) -> np.ndarray:
-        """uint8 (channels, rows, cols) grid around ``pose``."""
+    def layers(self, pose: Pose) -> dict[str, np.ndarray]:
+        """Full-resolution bool layers by channel name around ``pose``."""
         cfg = self.config
         c, s = np.cos(pose.yaw), np.sin(pose.yaw)
         rot = np.array([[c, -s], [s, c]])
@@ -100,9 +100,17 @@ class OracleGrid:
             "traversable": on_track & ~neg & ~pos & observed,
             "observed": observed,
         }
-        rows, cols = cfg.grid.shape
-        grid = np.stack([layers[name].reshape(rows, cols) for name in cfg.channels]).astype(np.uint8)
-        return _max_pool(grid, cfg.downsample)
+        return {name: layer.reshape(cfg.grid.shape) for name, layer in layers.items()}
+
+    def observe(self, pose: Pose) -> np.ndarray:
+        """uint8 (channels, rows, cols) grid around ``pose``."""
+        return stack_channels(self.layers(pose), self.config)
+
+
+def stack_channels(layers: dict[str, np.ndarray], config: ObservationConfig) -> np.ndarray:
+    """uint8 (channels, rows, cols) observation from full-resolution layers, max-pooled."""
+    grid = np.stack([layers[name] for name in config.channels]).astype(np.uint8)
+    return _max_pool(grid, config.downsample)
 
 
 def _footprint(obstacle) -> np.ndarray:

@@ -82,7 +82,7 @@ def test_rough_track_has_no_negative_obstacles_and_border_band_is_off_centre() -
 NEEDED = {
     "negobs_gym.sensors.rigs": ("paper_n_rig", "paper_n_rig_reduced"),
     "negobs_gym.sensors.lidar": ("scan_rig",),
-    "negobs_gym.sensors.raycast.pybullet_backend": ("PyBulletCaster",),
+    "negobs_gym.sensors.raycast": ("make_caster",),
     "negobs_gym.detector": ("NegativeObstacleDetector",),
 }
 
@@ -108,16 +108,16 @@ def _require(module: str, names: tuple[str, ...]) -> list:
 def _make_scanner(world, vehicle, rng: np.random.Generator, native: bool) -> Callable[[], dict]:
     """Return ``scan() -> {sensor name: StructuredScan}`` for paper N's rig on the vehicle (noise on).
 
-    Paper N rig (native or reduced), PyBullet ray caster that ignores the vehicle's own body,
+    Paper N rig (native or reduced), the fast ray caster (PyBullet without embreex) that ignores the vehicle's own body,
     default sensor noise drawn from ``rng``.
     """
     paper_n_rig, paper_n_rig_reduced = _require(
         "negobs_gym.sensors.rigs", ("paper_n_rig", "paper_n_rig_reduced")
     )
     (scan_rig,) = _require("negobs_gym.sensors.lidar", ("scan_rig",))
-    (caster_cls,) = _require("negobs_gym.sensors.raycast.pybullet_backend", ("PyBulletCaster",))
+    (make_caster,) = _require("negobs_gym.sensors.raycast", ("make_caster",))
     rig = paper_n_rig() if native else paper_n_rig_reduced()
-    caster = caster_cls(world.client_id, exclude_body_ids=(vehicle.body_id,))
+    caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
 
     def scan() -> dict:
         return scan_rig(rig, caster, vehicle.true_pose(), rng=rng)

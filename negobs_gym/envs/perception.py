@@ -1,0 +1,95 @@
+"""The envs' perception: cast the LiDAR rig, run both detectors, stack their grids as channels.
+
+One frame per control step (the sensors' 10 Hz): the paper N rig (native or reduced) plus paper T's
+bumper LUX are cast from the vehicle's true pose with sensor noise from the env's generator, and the
+detectors get the INS pose, exactly as on a real vehicle. Channels on the observation grid:
+
+- ``negative``: cells of paper N's detector (:class:`~negobs_gym.detector.NegativeObstacleDetector`);
+- ``positive``: obstacle cells of paper T's detector
+  (:class:`~negobs_gym.detector.TraversableRegionDetector`);
+- ``traversable``: paper T's traversable region;
+- ``observed``: cells holding at least one LiDAR return this frame (the rest is unknown).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector import (
+    Detection,
+    NegativeDetectorConfig,
+    NegativeObstacleDetector,
+    TraversableRegion,
+    TraversableRegionDetector,
+)
+from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.noise import NoiseConfig
+from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
+
+__all__ = ["DetectorGrid", "env_rig"]
+
+LUX_NAME = "lux"
+
+
+def env_rig(rig: str) -> Rig:
+    """Paper N's rig (``"native"`` or ``"reduced"`` for training) plus paper T's bumper LUX."""
+    base = paper_n_rig() if rig == "native" else paper_n_rig_reduced()
+    return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig().mounts)
+
+
+class DetectorGrid:
+    """Runs the rig and both detectors each control step; keeps the last frame for rendering."""
+
+    def __init__(
+        self, config: ObservationConfig, world: World, vehicle: Vehicle, rng: np.random.Generator
+    ) -> None:
+        self.config = config
+        self.rig = env_rig(config.rig)
+        self._vehicle = vehicle
+        self._rng = rng
+        self._noise = NoiseConfig(enabled=config.sensor_noise)
+        self._caster = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+        self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
+        self.traversable = TraversableRegionDetector(grid=config.grid)
+        self.scans: dict[str, StructuredScan] = {}
+        self.detection: Detection | None = None
+        self.region: TraversableRegion | None = None
+
+    def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
+        """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
+        true_pose = self._vehicle.true_pose()
+        ins_pose: Pose = self._vehicle.pose()
+        self.scans = scan_rig(
+            self.rig, self._caster, true_pose, noise=self._noise, rng=self._rng, timestamp_s=timestamp_s
+        )
+        self.detection = self.negative.update(self.scans, ins_pose)
+        self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
+        return {
+            "negative": self.detection.grid,
+            "positive": np.asarray(self.region.positive_obstacles, dtype=bool),
+            "traversable": np.asarray(self.region.traversable, dtype=bool),
+            "observed": self._observed(),
+        }
+
+    def points_vehicle(self) -> np.ndarray:
+        """(N, 3) vehicle-frame returns of the last frame, all sensors (for rendering)."""
+        pts = [s.points_vehicle[np.isfinite(s.ranges_m)] for s in self.scans.values()]
+        return np.concatenate(pts) if pts else np.empty((0, 3))
+
+    def negative_cells_xy_m(self) -> np.ndarray:
+        """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells."""
+        if self.detection is None:
+            return np.empty((0, 2))
+        return self.config.grid.cell_centres()[self.detection.grid]
+
+    def _observed(self) -> np.ndarray:
+        mask = np.zeros(self.config.grid.shape, dtype=bool)
+        row, col, inside = self.config.grid.cell_of(self.points_vehicle()[:, :2])
+        mask[row[inside], col[inside]] = True
+        return mask
