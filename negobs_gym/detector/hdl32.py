@@ -57,9 +57,9 @@ def same_laser_density(points_m: np.ndarray, radius_m: float, half_window: int) 
     dens = np.zeros((n_l, n_c))
     valid = ~np.isnan(points_m[..., 0])
     for off in range(1, min(half_window, n_c - 1) + 1):  # loop over offsets, not points
-        dist = np.linalg.norm(points_m[:, off:] - points_m[:, :-off], axis=-1)
+        d = points_m[:, off:] - points_m[:, :-off]
         with np.errstate(invalid="ignore"):
-            near = dist <= radius_m
+            near = np.einsum("lck,lck->lc", d, d) <= radius_m * radius_m
         dens[:, off:] += near
         dens[:, :-off] += near
     return np.where(valid, dens + 1.0, 0.0)

@@ -45,20 +45,17 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     """
     r = np.asarray(ranges_m, dtype=np.float64)
     n_l, n_c = r.shape
-    pad = np.full((n_l, half_window), np.nan)
-    rp = np.concatenate([pad, r, pad], axis=1)
-    best = np.zeros(r.shape)
-    best_mag = np.zeros(r.shape)
-    for j in range(1, half_window + 1):  # 2 * half_window whole-array passes, no point loop
-        for d in (
-            rp[:, half_window + j : half_window + j + n_c] - r,
-            r - rp[:, half_window - j : half_window - j + n_c],
-        ):
-            d = np.nan_to_num(d, nan=0.0)
-            mag = np.abs(d)
-            upd = mag > best_mag
-            best = np.where(upd, d, best)
-            best_mag = np.where(upd, mag, best_mag)
+    h = half_window
+    rp = np.concatenate([np.full((n_l, h), np.nan), r, np.full((n_l, h), np.nan)], axis=1)
+    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; argmax keeps the first of
+    # equal magnitudes
+    diffs = np.empty((2 * h, n_l, n_c))
+    for j in range(1, h + 1):
+        diffs[2 * j - 2] = rp[:, h + j : h + j + n_c] - r
+        diffs[2 * j - 1] = r - rp[:, h - j : h - j + n_c]
+    np.nan_to_num(diffs, copy=False, nan=0.0)
+    pick = np.abs(diffs).argmax(axis=0)
+    best = np.take_along_axis(diffs, pick[None], axis=0)[0]
     labels = np.zeros(r.shape, dtype=np.int8)
     labels[best > rise_m] = RISE
     labels[best < fall_m] = FALL
