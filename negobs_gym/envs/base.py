@@ -152,16 +152,35 @@ class NegObsEnv(gym.Env, abc.ABC):
         return obs, float(sum(rewards.values())), terminated, False, info
 
     def render(self):
+        """The top-down frame (``rgb_array``) or show it in a window (``human``); see ``envs.rendering``.
+
+        Shows the terrain overview with the path, and the vehicle-centred grid with the last LiDAR
+        frame, the detected and true negative-obstacle outlines and the safety filter's state
+        (from :meth:`set_render_overlay`; grey when no filter decided the last step).
+        """
         if self.render_mode is None or self._vehicle is None:
             return None
-        from negobs_gym.envs.rendering import render_frame
+        from negobs_gym.envs.rendering import VehicleFootprint, render_frame
 
+        perception = self._perception
+        detection = perception.detection if perception is not None else None
+        overlay = getattr(self, "_render_overlay", None)
+        cfg = self._vehicle.config
         frame = render_frame(
             self.terrain,
             self._vehicle.true_pose(),
             np.asarray(self._path),
             self._last_grid,
             self.config.observation,
+            points_vehicle_m=perception.points_vehicle() if perception is not None else None,
+            detected_outlines_m=[o.outline_xy_m for o in detection.obstacles]
+            if detection is not None
+            else (),
+            # only the decision taken for the step that led to this state (see set_render_overlay)
+            safety=overlay[1] if overlay is not None and overlay[0] == len(self._path) else None,
+            footprint=VehicleFootprint(
+                width_m=cfg.width_m, length_m=cfg.length_m, rear_overhang_m=cfg.rear_overhang_m
+            ),
         )
         if self.render_mode == "human":
             from negobs_gym.envs.rendering import show_frame
@@ -169,6 +188,16 @@ class NegObsEnv(gym.Env, abc.ABC):
             self._renderer = show_frame(frame, self._renderer)
             return None
         return frame
+
+    def set_render_overlay(self, safety: dict[str, Any] | None) -> None:
+        """Show a safety filter's decision for the coming step in :meth:`render` (None clears it).
+
+        :class:`~negobs_gym.safety.BrakingSafetyFilter` calls this before stepping the env, so the
+        frames rendered after that step (``human`` mode inside ``step``, or ``RecordVideo`` around
+        the filter) show it, whatever the wrapper order. Frames of later steps without a decision
+        show no filter state.
+        """
+        self._render_overlay = None if safety is None else (len(self._path) + 1, dict(safety))
 
     def close(self) -> None:
         self._close_world()

@@ -152,6 +152,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
         applied, record = self.filter_action(action)
+        if hasattr(self.env.unwrapped, "set_render_overlay"):  # negobs envs draw the decision
+            self.env.unwrapped.set_render_overlay(record)
         obs, reward, terminated, truncated, info = self.env.step(applied)
         info = dict(info)
         info["safety"] = record

@@ -1,4 +1,4 @@
-"""rgb_array frames (moviepy is not installed here, so RecordVideo is tested only when it is)."""
+"""rgb_array frames: layout, LiDAR points, detected outlines, safety-filter state, RecordVideo."""
 
 from __future__ import annotations
 
@@ -7,17 +7,143 @@ import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
+from negobs_gym.core.pose import Pose
+from negobs_gym.envs import rendering
+from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.envs.rendering import RenderConfig, frame_shape, render_frame
+from negobs_gym.errors import ConfigError
+from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.sim import presets
+
+OBS = ObservationConfig()
 
 
-def test_rgb_frames_have_a_fixed_shape_and_follow_the_vehicle() -> None:
-    env = gym.make("negobs_gym/Braking-v0", render_mode="rgb_array")
-    env.reset(seed=2)
+@pytest.fixture(scope="module")
+def terrain():
+    return presets.braking_track(ditch_distance_m=20.0, seed=0, rough=False)
+
+
+def _frame(terrain, **kwargs) -> np.ndarray:
+    pose = Pose(x=0.0, y=0.0, yaw=0.0)
+    return render_frame(terrain, pose, np.array([[0.0, -1.0], [0.0, 0.0]]), None, OBS, **kwargs)
+
+
+def _local(frame: np.ndarray) -> np.ndarray:
+    return frame[:, RenderConfig().overview_width_px :]
+
+
+def _local_px(x_m: float, y_m: float) -> tuple[int, int]:
+    """Pixel of a vehicle-frame point in the local panel (same mapping as the renderer)."""
+    h, w = RenderConfig().height_px, frame_shape(OBS)[1] - RenderConfig().overview_width_px
+    g = OBS.grid
+    return int((g.ahead_m - y_m) * h / (g.ahead_m + g.back_m)), int((x_m + g.side_m) * w / (2 * g.side_m))
+
+
+def test_frame_shape_is_even_and_as_announced(terrain) -> None:
+    frame = _frame(terrain)
+    assert frame.shape == frame_shape(OBS) and frame.dtype == np.uint8
+    assert frame.shape[0] % 2 == 0 and frame.shape[1] % 2 == 0  # yuv420p video needs even sizes
+
+
+def test_vetoed_and_passing_steps_differ_in_the_border_only_there(terrain) -> None:
+    record = {"hazard_distance_m": 12.0, "braking_distance_m": 8.0}
+    passed = _local(_frame(terrain, safety={**record, "vetoed": False}))
+    vetoed = _local(_frame(terrain, safety={**record, "vetoed": True}))
+    none = _local(_frame(terrain, safety=None))
+    b = RenderConfig().border_px
+    for img, colour in (
+        (passed, rendering.BORDER_PASS),
+        (vetoed, rendering.BORDER_VETO),
+        (none, rendering.BORDER_NONE),
+    ):
+        for edge in (img[:b], img[-b:], img[:, :b], img[:, -b:]):
+            assert np.all(edge == colour)
+    inner = (slice(b, -b), slice(b, -b))
+    assert np.array_equal(passed[inner], vetoed[inner])  # the decision shows in the border
+
+
+def test_hazard_and_braking_marks_are_drawn_at_their_distances(terrain) -> None:
+    frame = _local(
+        _frame(terrain, safety={"vetoed": True, "hazard_distance_m": 12.0, "braking_distance_m": 6.0})
+    )
+    for d, colour in ((12.0, rendering.HAZARD_MARK), (6.0, rendering.BRAKING_MARK)):
+        row, col = _local_px(0.0, d)
+        assert np.array_equal(frame[row, col], colour)
+        assert not np.array_equal(frame[_local_px(0.0, d + 1.5)], colour)
+    clear = _local(
+        _frame(terrain, safety={"vetoed": False, "hazard_distance_m": np.inf, "braking_distance_m": 6.0})
+    )
+    assert not np.any(np.all(clear == rendering.HAZARD_MARK, axis=-1))  # no hazard: no d mark
+
+
+def test_lidar_points_appear_where_the_returns_are(terrain) -> None:
+    xs, ys = np.meshgrid(np.linspace(-4.0, 4.0, 9), np.linspace(5.0, 17.0, 7))  # clear of vehicle and ditch
+    pts = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, -0.8)], axis=1)  # a pit floor: blue end
+    without = _local(_frame(terrain))
+    with_pts = _local(_frame(terrain, points_vehicle_m=pts))
+    changed = np.any(with_pts != without, axis=-1)
+    assert 0 < changed.sum() <= len(pts)
+    floor = rendering._height_colours(np.array([-0.8]), RenderConfig().point_z_range_m)[0]
+    for x, y, _ in pts:
+        assert np.array_equal(with_pts[_local_px(x, y)], floor)
+
+
+def test_points_are_subsampled_and_non_finite_rows_skipped(terrain) -> None:
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(-6, 6, 20000), rng.uniform(-3, 25, 20000), rng.uniform(-1, 1, 20000)])
+    pts[::7] = np.nan
+    cfg = RenderConfig(max_points=50)
+    without = _local(_frame(terrain, config=cfg))
+    with_pts = _local(_frame(terrain, points_vehicle_m=pts, config=cfg))
+    assert 0 < np.any(with_pts != without, axis=-1).sum() <= 50
+
+
+def test_detected_outlines_are_drawn(terrain) -> None:
+    square = np.array([[-1.0, 8.0], [1.0, 8.0], [1.0, 9.0], [-1.0, 9.0]])
+    frame = _local(_frame(terrain, detected_outlines_m=[square]))
+    assert np.array_equal(frame[_local_px(0.0, 8.0)], rendering.DETECTED_OUTLINE)
+    assert not np.any(np.all(_local(_frame(terrain)) == rendering.DETECTED_OUTLINE, axis=-1))
+
+
+def test_bad_inputs_are_refused(terrain) -> None:
+    with pytest.raises(ValueError, match="grid must have the observation shape"):
+        render_frame(terrain, Pose(), np.zeros((1, 2)), np.zeros((4, 3, 3), np.uint8), OBS)
+    with pytest.raises(ConfigError, match="height_px"):
+        RenderConfig(height_px=481)
+    with pytest.raises(ConfigError, match="point_z_range_m"):
+        RenderConfig(point_z_range_m=(1.0, 1.0))
+
+
+def test_env_frames_keep_their_shape_and_show_the_filter_state() -> None:
+    env = BrakingSafetyFilter(gym.make("negobs_gym/Braking-v0", render_mode="rgb_array"))
+    env.reset(seed=0)
+    shape = frame_shape(env.unwrapped.config.observation)
+    b = RenderConfig().border_px
     first = env.render()
-    for _ in range(5):
-        env.step(np.array([0.5, 0.0], np.float32))
-    later = env.render()
-    assert first.shape == later.shape and first.dtype == np.uint8
-    assert not np.array_equal(first, later)  # the vehicle and its path moved
+    assert first.shape == shape and np.all(_local(first)[:b] == rendering.BORDER_NONE)  # no decision yet
+    colours = []
+    for _ in range(40):  # full throttle towards the ditch until the filter vetoes
+        _, _, term, trunc, info = env.step(np.array([1.0, 0.0], np.float32))
+        frame = env.render()
+        assert frame.shape == shape
+        colours.append(tuple(_local(frame)[0, 0]))
+        assert colours[-1] == (rendering.BORDER_VETO if info["safety"]["vetoed"] else rendering.BORDER_PASS)
+        if info["safety"]["vetoed"] or term or trunc:
+            break
+    assert rendering.BORDER_PASS in colours and colours[-1] == rendering.BORDER_VETO
+    env.unwrapped.step(np.array([-1.0, 0.0], np.float32))  # a step no filter decided
+    assert tuple(_local(env.render())[0, 0]) == rendering.BORDER_NONE
+    env.close()
+
+
+def test_env_frame_draws_the_last_lidar_frame() -> None:
+    env = gym.make("negobs_gym/Braking-v0", render_mode="rgb_array")
+    env.reset(seed=1)
+    perception = env.unwrapped._perception
+    assert len(perception.points_vehicle()) > 0
+    with_points = env.render()
+    perception.points_vehicle = lambda: np.empty((0, 3))
+    assert np.any(_local(with_points) != _local(env.render()))
     env.close()
 
 
@@ -35,11 +161,15 @@ def test_bad_render_mode_is_refused() -> None:
         BrakingEnv(render_mode="ascii")
 
 
-def test_record_video_writes_a_file(tmp_path) -> None:
+def test_record_video_writes_a_non_empty_file(tmp_path) -> None:
     pytest.importorskip("moviepy")
-    env = gym.wrappers.RecordVideo(gym.make("negobs_gym/Braking-v0", render_mode="rgb_array"), str(tmp_path))
+    env = gym.make("negobs_gym/Braking-v0", render_mode="rgb_array")
+    env = gym.wrappers.RecordVideo(
+        BrakingSafetyFilter(env), str(tmp_path / "videos"), episode_trigger=lambda _: True
+    )
     env.reset(seed=0)
-    for _ in range(3):
-        env.step(np.zeros(2, np.float32))
+    for _ in range(5):
+        env.step(np.array([0.5, 0.0], np.float32))
     env.close()
-    assert list(tmp_path.glob("*.mp4"))
+    videos = list((tmp_path / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000
