@@ -1,161 +1,150 @@
-"""Quick-start demo: brake for a ditch at 25 km/h and draw the drive from above.
+"""Quick-start demo: a reckless driver at 25 km/h towards a ditch, without and with the safety filter.
 
-Builds the braking preset (a straight track with a ditch ``--ditch-distance`` metres ahead), drives
-the vehicle at 25 km/h, applies a full brake ``--brake-before`` metres before the ditch, logs the stop
-distance and the margin left to the ditch, and writes a top-down PNG with the driven path.
+Runs ``negobs_gym/Braking-v0`` twice with the same seed (same terrain, same ditch 20-40 m ahead,
+same sensor noise). The reckless driver holds full throttle and never brakes. The second run wraps
+the env in :class:`~negobs_gym.safety.BrakingSafetyFilter`, which sees the ditch only through the
+LiDAR detector grid (paper N's rig and detector) and brakes when the distance to it falls below
+R(v) = v^2/(2 mu g) + v T_r + B (paper N Eq. 18). Logs both outcomes and writes the two final
+top-down frames side by side to a PNG.
 
-Run: ``python -m negobs_gym [--out outputs/demo.png] [--seed 0] [--ditch-distance 30]``
+Run: ``python -m negobs_gym [--out outputs/demo.png] [--seed 0]``
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
-import math
+import os
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 
-from negobs_gym.core.pose import Pose
-from negobs_gym.sim import presets
-from negobs_gym.sim.events import EventMonitor
-from negobs_gym.sim.render import render_top_down
-from negobs_gym.sim.vehicle import Vehicle
-from negobs_gym.sim.world import World, WorldConfig
+from negobs_gym.drivers import RecklessDriver
+from negobs_gym.envs.scenarios import BrakingEnv
+from negobs_gym.safety import BrakingSafetyFilter
 
 log = logging.getLogger("negobs_gym.demo")
 
-DEMO_SPEED_MPS = 25.0 / 3.6  # paper N §4: the ALV's test speed, 25 km/h
+STANDSTILL_MPS = 0.1  # the run ends after STANDSTILL_S below this speed
+STANDSTILL_S = 1.0
 
 
 @dataclass(frozen=True)
-class BrakingDemoResult:
-    """Outcome of :func:`run_braking_demo`; distances in metres along the track."""
+class DemoRun:
+    """One episode of the demo; distances in metres from the front bumper to the ditch."""
 
-    brake_station_m: float  # where the brake was applied (vehicle front bumper)
-    brake_speed_mps: float  # speed when the brake was applied
-    stop_distance_m: float  # distance driven from brake application to standstill
-    margin_m: float  # gap left between the front bumper and the ditch's near edge
+    filtered: bool
+    start_gap_m: float  # ditch distance at the start
     entered_ditch: bool
-    path_xy_m: np.ndarray
-    final_pose: Pose
-    image_path: Path | None
+    final_gap_m: float  # gap left at the end (inf once the bumper is past the ditch's near edge)
+    final_speed_mps: float
+    first_veto_gap_m: float | None  # gap when the filter first braked (None: never)
+    vetoes: int
+    steps: int
+    frame: np.ndarray  # final rgb_array frame
 
 
-def run_braking_demo(
-    *,
-    out_path: str | Path | None = "outputs/demo.png",
-    seed: int = 0,
-    ditch_distance_m: float = 30.0,
-    brake_before_m: float = 15.0,
-    speed_mps: float = DEMO_SPEED_MPS,
-    max_time_s: float = 30.0,
-) -> BrakingDemoResult:
-    """Drive the braking preset and brake in front of the ditch (see module docstring).
-
-    ``ditch_distance_m`` is measured from the start of the track to the ditch's near edge; the
-    brake goes on when the front bumper is ``brake_before_m`` from that edge.
-    """
-    if not (math.isfinite(ditch_distance_m) and ditch_distance_m > brake_before_m + 5.0):
-        raise ValueError(
-            f"ditch_distance_m must exceed brake_before_m + 5 m = {brake_before_m + 5.0}, "
-            f"got {ditch_distance_m}"
-        )
-    terrain = presets.braking_track(ditch_distance_m=ditch_distance_m, seed=seed)
-    ditch = terrain.negative_obstacles[0]
-    world_config = WorldConfig()
-    with World(terrain, world_config) as world:
-        vehicle = Vehicle(world)
-        monitor = EventMonitor(world, vehicle)
-        front_m = vehicle.config.length_m - vehicle.config.rear_overhang_m  # rear axle -> front bumper
-        start = np.asarray(terrain.start_xy_yaw[:2])
-        heading = Pose(yaw=terrain.start_xy_yaw[2]).heading
-        near_edge_m = float(np.min((np.asarray(ditch.outline_xy_m) - start) @ heading))
-        world.step(round(0.5 / world_config.time_step_s))  # let the suspension settle
-        vehicle.set_speed(speed_mps)
-        vehicle.apply(0.0, 0.0, 0.0)
-        path = []
-        brake_station = None
-        brake_speed = math.nan
-        steps_per_sample = max(1, round(0.05 / world_config.time_step_s))
-        for _ in range(round(max_time_s / (steps_per_sample * world_config.time_step_s))):
-            pose = vehicle.true_pose()
-            path.append((pose.x, pose.y))
-            station = float((np.array([pose.x, pose.y]) - start) @ heading)
-            if brake_station is None and station + front_m >= near_edge_m - brake_before_m:
-                brake_station = station
-                brake_speed = vehicle.speed_mps()
-                vehicle.apply(0.0, 1.0, 0.0)
-            elif brake_station is None:
-                # hold the speed until the brake point (a simple proportional cruise control)
-                vehicle.apply(float(np.clip(5.0 * (speed_mps - vehicle.speed_mps()), 0.0, 1.0)), 0.0, 0.0)
-            world.step(steps_per_sample)
-            if brake_station is not None and abs(vehicle.speed_mps()) < 0.01:
-                break
-        final = vehicle.true_pose()
-        path.append((final.x, final.y))
-        events = monitor.poll()
-    if brake_station is None:
-        raise RuntimeError("the vehicle never reached the brake point; increase max_time_s")
-    final_station = float((np.array([final.x, final.y]) - start) @ heading)
-    result_path = np.asarray(path)
-    image = None
-    if out_path is not None:
-        image = Path(out_path)
-        image.parent.mkdir(parents=True, exist_ok=True)
-        render_top_down(terrain, path_xy_m=result_path, vehicle_pose=final, out_path=image)
-    return BrakingDemoResult(
-        brake_station_m=brake_station + front_m,
-        brake_speed_mps=brake_speed,
-        stop_distance_m=final_station - brake_station,
-        margin_m=near_edge_m - (final_station + front_m),
-        entered_ditch=ditch.obstacle_id in monitor.entered_ids or bool(events.entered_negative_obstacle),
-        path_xy_m=result_path,
-        final_pose=final,
-        image_path=image,
+def run_episode(seed: int, filtered: bool) -> DemoRun:
+    """Drive one reckless episode of Braking-v0, optionally behind the safety filter."""
+    env: gym.Env = BrakingEnv(render_mode="rgb_array")
+    if filtered:
+        env = BrakingSafetyFilter(env)
+    driver = RecklessDriver()
+    driver.reset(seed)
+    obs, info = env.reset(seed=seed)
+    start_gap = float(info["distance_to_negative_ahead_m"])
+    dt = 1.0 / env.unwrapped.config.control_hz
+    first_veto, vetoes, still_s, steps = None, 0, 0.0, 0
+    done = False
+    while not done:
+        gap = float(info["distance_to_negative_ahead_m"])
+        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
+        steps += 1
+        if filtered and info["safety"]["vetoed"]:
+            vetoes += 1
+            first_veto = gap if first_veto is None else first_veto
+        still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
+        done = terminated or truncated or still_s >= STANDSTILL_S
+    frame = env.render()
+    env.close()
+    return DemoRun(
+        filtered=filtered,
+        start_gap_m=start_gap,
+        entered_ditch=bool(info["events"]["entered_negative_obstacle"]),
+        final_gap_m=float(info["distance_to_negative_ahead_m"]),
+        final_speed_mps=float(info["speed_mps"]),
+        first_veto_gap_m=first_veto,
+        vetoes=vetoes,
+        steps=steps,
+        frame=frame,
     )
+
+
+def write_figure(runs: Sequence[DemoRun], out_path: Path) -> Path:
+    """Final frames side by side with their outcome as titles; written atomically as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(6 * len(runs), 6.5), squeeze=False)
+    for ax, run in zip(axes[0], runs, strict=True):
+        ax.imshow(run.frame)
+        ax.set_axis_off()
+        outcome = "entered the ditch" if run.entered_ditch else f"stopped {run.final_gap_m:.1f} m before it"
+        name = "with safety filter" if run.filtered else "no filter"
+        ax.set_title(f"reckless driver, {name}: {outcome}")
+    fig.suptitle("Braking-v0: ditch seen only by the LiDAR detector grid, 25 km/h")
+    fig.tight_layout()
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out_path.parent, suffix=".png.tmp")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, format="png", dpi=100)
+        os.replace(tmp, out_path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return out_path
+
+
+def run_demo(out_path: str | Path | None = "outputs/demo.png", seed: int = 0) -> list[DemoRun]:
+    """Both runs (no filter, then filter) with the same seed; the figure when ``out_path`` is set."""
+    runs = [run_episode(seed, filtered=False), run_episode(seed, filtered=True)]
+    if out_path is not None:
+        write_figure(runs, Path(out_path))
+    return runs
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point of ``python -m negobs_gym``."""
     parser = argparse.ArgumentParser(prog="python -m negobs_gym", description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="outputs/demo.png", help="PNG to write (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="terrain seed (default: %(default)s)")
-    parser.add_argument(
-        "--ditch-distance",
-        type=float,
-        default=30.0,
-        help="start to the ditch's near edge [m] (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--brake-before",
-        type=float,
-        default=15.0,
-        help="brake this far before the ditch [m] (default: %(default)s)",
-    )
+    parser.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
     args = parser.parse_args(argv)
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    try:
-        result = run_braking_demo(
-            out_path=args.out,
-            seed=args.seed,
-            ditch_distance_m=args.ditch_distance,
-            brake_before_m=args.brake_before,
-        )
-    except ValueError as exc:
-        parser.error(str(exc))
-    log.info("full brake at 25 km/h, %.1f m before the ditch", args.brake_before)
-    ideal = result.brake_speed_mps**2 / (2 * 0.65 * 9.81)
-    log.info(
-        "speed at the brake point %.2f m/s; stop distance %.2f m (flat-ground v^2/(2 mu g) = %.2f m)",
-        result.brake_speed_mps,
-        result.stop_distance_m,
-        ideal,
-    )
-    log.info("margin to the ditch: %.2f m; entered the ditch: %s", result.margin_m, result.entered_ditch)
-    log.info("wrote %s", result.image_path)
+    runs = run_demo(args.out, args.seed)
+    log.info("Braking-v0, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", args.seed, runs[0].start_gap_m)
+    for run in runs:
+        name = "with safety filter" if run.filtered else "no filter"
+        if run.entered_ditch:
+            log.info("  %-18s entered the ditch after %d steps", name, run.steps)
+        else:
+            log.info(
+                "  %-18s stopped %.2f m before the ditch; first brake at %.1f m, %d vetoed steps",
+                name,
+                run.final_gap_m,
+                run.first_veto_gap_m if run.first_veto_gap_m is not None else float("nan"),
+                run.vetoes,
+            )
+    log.info("wrote %s", args.out)
     return 0
 
 

@@ -1,29 +1,33 @@
-"""The quick-start demo (``python -m negobs_gym``): brakes before the ditch and writes its PNG."""
+"""The quick-start demo (``python -m negobs_gym``): the filter saves the reckless driver, PNG written."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
-from negobs_gym.demo import DEMO_SPEED_MPS, main, run_braking_demo
+from negobs_gym.demo import main, run_demo
 
 
-def test_demo_stops_before_the_ditch(tmp_path):
-    result = run_braking_demo(out_path=tmp_path / "demo.png", seed=0)
-    assert result.image_path is not None
-    assert result.image_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert result.brake_speed_mps == pytest.approx(DEMO_SPEED_MPS, rel=0.03)
-    ideal = result.brake_speed_mps**2 / (2 * 0.65 * 9.81)
-    assert result.stop_distance_m == pytest.approx(ideal, rel=0.15)  # rough ground: within ~8 %
-    assert not result.entered_ditch
-    # brake 15 m before the ditch, minus at most one 0.05 s sample of travel, minus the stop distance
-    assert 15.0 - 0.4 - result.stop_distance_m <= result.margin_m <= 15.0 - result.stop_distance_m + 0.05
-    assert result.path_xy_m.shape[1] == 2 and len(result.path_xy_m) > 20
+def test_demo_filter_stops_before_the_ditch_the_reckless_driver_enters(tmp_path):
+    out = tmp_path / "demo.png"
+    plain, filtered = run_demo(out, seed=0)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert plain.start_gap_m == filtered.start_gap_m  # same seed, same ditch
+    assert plain.entered_ditch and plain.vetoes == 0
+    assert not filtered.entered_ditch
+    assert filtered.final_speed_mps < 0.1 and 0.0 < filtered.final_gap_m < 6.0
+    # the filter braked before the ditch came within R(25 km/h) of the rear axle (10.52 m, minus
+    # the 3.65 m from the rear axle to the bumper) and not absurdly early
+    assert filtered.first_veto_gap_m is not None and 6.0 < filtered.first_veto_gap_m < 15.0
+    assert plain.frame.shape == filtered.frame.shape and plain.frame.ndim == 3
+    assert not math.isnan(filtered.final_gap_m)
 
 
-def test_demo_cli_writes_png_and_rejects_a_too_close_ditch(tmp_path, capsys):
+def test_demo_cli_writes_png_and_rejects_a_negative_seed(tmp_path, capsys):
     out = tmp_path / "sub" / "demo.png"
-    assert main(["--out", str(out), "--seed", "1", "--ditch-distance", "25"]) == 0
+    assert main(["--out", str(out), "--seed", "1"]) == 0
     assert out.stat().st_size > 1000
     with pytest.raises(SystemExit):
-        main(["--out", str(out), "--ditch-distance", "10"])
-    assert "ditch_distance_m" in capsys.readouterr().err
+        main(["--out", str(out), "--seed", "-1"])
+    assert "--seed" in capsys.readouterr().err
