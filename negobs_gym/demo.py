@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +24,7 @@ import numpy as np
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.sim.render import write_png_atomic
 
 log = logging.getLogger("negobs_gym.demo")
 
@@ -100,16 +99,10 @@ def write_figure(runs: Sequence[DemoRun], out_path: Path) -> Path:
         ax.set_title(f"reckless driver, {name}: {outcome}")
     fig.suptitle("Braking-v0: ditch seen only by the LiDAR detector grid, 25 km/h")
     fig.tight_layout()
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out_path.parent, suffix=".png.tmp")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=100)
-        os.replace(tmp, out_path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    fig.canvas.draw()
+    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    write_png_atomic(image, out_path)
     return out_path
 
 

@@ -172,11 +172,11 @@ def render_top_down(
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if out_path is not None:
-        _write_png_atomic(image, Path(out_path))
+        write_png_atomic(image, Path(out_path))
     return image
 
 
-def _write_png_atomic(image: np.ndarray, out_path: Path) -> None:
+def write_png_atomic(image: np.ndarray, out_path: Path) -> None:
     """Write ``image`` as PNG via a temp file in the same folder and ``os.replace``."""
     import matplotlib.image as mpimg
 
