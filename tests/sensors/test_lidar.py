@@ -1,32 +1,20 @@
 import warnings
 
 import numpy as np
-import pybullet as p
 import pytest
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.sensors import NoiseConfig, hdl64e_s2, hdl64e_s2_nominal, paper_n_rig
 from negobs_gym.sensors.lidar import scan
 from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
+from tests.sensors.helpers import static_box
 
 OFF = NoiseConfig(enabled=False)
 
 
-@pytest.fixture
-def client():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
-def _box(c, half, pos):
-    s = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
-    return p.createMultiBody(0, s, basePosition=pos, physicsClientId=c)
-
-
 @pytest.mark.parametrize("model", [hdl64e_s2, hdl64e_s2_nominal])
 def test_flat_ring_radii(client, model):
-    _box(client, [100, 100, 1], [0, 0, -1])
+    static_box(client, [100, 100, 1], [0, 0, -1])
     mount = paper_n_rig(hdl64=model()).mount("hdl64")
     s = scan(mount, PyBulletCaster(client), Pose(), noise=OFF)
     pts = s.points_vehicle
@@ -44,11 +32,11 @@ def test_flat_ring_radii(client, model):
 
 def test_side_spacing_and_pit(client):
     # ground with a 1 x 1 x 0.8 m pit centred 8 m ahead: four slabs around it plus the floor.
-    _box(client, [100, 100, 1], [0, 0, -1.8])
-    _box(client, [100, 46, 0.4], [0, 8.5 + 46, -0.4])
-    _box(client, [100, 46, 0.4], [0, 7.5 - 46, -0.4])
-    _box(client, [49.5, 0.5, 0.4], [-0.5 - 49.5, 8, -0.4])
-    _box(client, [49.5, 0.5, 0.4], [0.5 + 49.5, 8, -0.4])
+    static_box(client, [100, 100, 1], [0, 0, -1.8])
+    static_box(client, [100, 46, 0.4], [0, 8.5 + 46, -0.4])
+    static_box(client, [100, 46, 0.4], [0, 7.5 - 46, -0.4])
+    static_box(client, [49.5, 0.5, 0.4], [-0.5 - 49.5, 8, -0.4])
+    static_box(client, [49.5, 0.5, 0.4], [0.5 + 49.5, 8, -0.4])
     rig = paper_n_rig()
     caster = PyBulletCaster(client)
     s64 = scan(rig.mount("hdl64"), caster, Pose(), noise=OFF)
@@ -82,7 +70,7 @@ def test_side_spacing_and_pit(client):
 
 
 def test_noise_deterministic(client):
-    _box(client, [100, 100, 1], [0, 0, -1])
+    static_box(client, [100, 100, 1], [0, 0, -1])
     mount = paper_n_rig().mount("hdl64")
     a = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
     b = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
@@ -90,8 +78,8 @@ def test_noise_deterministic(client):
 
 
 def test_exclude_own_body(client):
-    _box(client, [100, 100, 1], [0, 0, -1])
-    car = _box(client, [1.5, 3, 0.8], [0, 0, 0.8])
+    static_box(client, [100, 100, 1], [0, 0, -1])
+    car = static_box(client, [1.5, 3, 0.8], [0, 0, 0.8])
     mount = paper_n_rig().mount("hdl64")
     with_car = scan(mount, PyBulletCaster(client), Pose(), noise=OFF)
     without = scan(mount, PyBulletCaster(client, exclude_body_ids=[car]), Pose(), noise=OFF)

@@ -1,27 +1,15 @@
 import numpy as np
-import pybullet as p
 import pytest
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.sensors.raycast.pybullet_backend import MAX_BATCH, PyBulletCaster
-
-
-@pytest.fixture
-def client():
-    c = p.connect(p.DIRECT)
-    yield c
-    p.disconnect(c)
-
-
-def _box(c, half, pos):
-    s = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
-    return p.createMultiBody(0, s, basePosition=pos, physicsClientId=c)
+from tests.sensors.helpers import static_box
 
 
 def test_rays_through_excluded_bodies_hit_what_is_behind(client):
-    wall = _box(client, [5, 0.5, 5], [0, 10.5, 0])
-    a = _box(client, [1, 1, 1], [0, 3, 0])
-    b = _box(client, [1, 1, 1], [0, 6, 0])
+    wall = static_box(client, [5, 0.5, 5], [0, 10.5, 0])
+    a = static_box(client, [1, 1, 1], [0, 3, 0])
+    b = static_box(client, [1, 1, 1], [0, 6, 0])
     o = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [3.0, 0.0, 0.0]])
     d = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
     np.testing.assert_allclose(PyBulletCaster(client).cast(o, d, 50.0), [2.0, 2.0, 10.0], atol=1e-4)
@@ -35,7 +23,7 @@ def test_rays_through_excluded_bodies_hit_what_is_behind(client):
 
 
 def test_more_rays_than_one_batch(client):
-    _box(client, [100, 100, 1], [0, 0, -1])
+    static_box(client, [100, 100, 1], [0, 0, -1])
     n = 2 * MAX_BATCH + 5
     o = np.column_stack([np.linspace(-50, 50, n), np.zeros(n), np.full(n, 3.0)])
     d = np.tile([0.0, 0.0, -1.0], (n, 1))
