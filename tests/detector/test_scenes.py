@@ -4,9 +4,8 @@ Terrain presets, the PyBullet world and the vehicle give the ground truth and th
 rig (``negobs_gym.sensors``) synthesises the structured scans; ``NegativeObstacleDetector`` fuses
 them; ``negobs_gym.eval`` matches its obstacles to the ground truth on the 20 cm grid.
 
-The two hooks into parts still being written live in :func:`_make_scanner` and
-:func:`_obstacle_outlines`; when a part is missing the scene tests skip and name exactly what is
-missing. The ground-truth checks at the top run without those parts.
+The hooks into the sensors and the detector live in :func:`_make_scanner` and
+:func:`_obstacle_outlines`. The ground-truth checks at the top run without those parts.
 """
 
 from __future__ import annotations
@@ -108,8 +107,8 @@ def _require(module: str, names: tuple[str, ...]) -> list:
 def _make_scanner(world, vehicle, rng: np.random.Generator, native: bool) -> Callable[[], dict]:
     """Return ``scan() -> {sensor name: StructuredScan}`` for paper N's rig on the vehicle (noise on).
 
-    Paper N rig (native or reduced), the fast ray caster (PyBullet without embreex) that ignores the vehicle's own body,
-    default sensor noise drawn from ``rng``.
+    Paper N rig (native or reduced), the fast ray caster (PyBullet without embreex) that ignores
+    the vehicle's own body, default sensor noise drawn from ``rng``.
     """
     paper_n_rig, paper_n_rig_reduced = _require(
         "negobs_gym.sensors.rigs", ("paper_n_rig", "paper_n_rig_reduced")
