@@ -10,7 +10,6 @@ The hooks into the sensors and the detector live in :func:`_make_scanner` and
 
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Callable
 
@@ -19,6 +18,7 @@ import pytest
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
+from negobs_gym.detector import NegativeObstacleDetector
 from negobs_gym.eval import (
     DetectionEvalConfig,
     RecallTable,
@@ -27,8 +27,13 @@ from negobs_gym.eval import (
     track_border_mask,
     world_outline_to_vehicle,
 )
+from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.rigs import paper_n_rig, paper_n_rig_reduced
 from negobs_gym.sim.presets import braking_track, rough_track
 from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
 
 GRID = GridSpec()
 FRAME_S = 0.1  # 10 Hz sensor frames (paper N: HDL-64/HDL-32 at 10 Hz)
@@ -77,44 +82,12 @@ def test_rough_track_has_no_negative_obstacles_and_border_band_is_off_centre() -
 # --- hooks into the sensors and detector parts --------------------------------------------------
 
 
-# what the scene tests need from the parts being written (issue 3 sensors, issue 4 fusion)
-NEEDED = {
-    "negobs_gym.sensors.rigs": ("paper_n_rig", "paper_n_rig_reduced"),
-    "negobs_gym.sensors.lidar": ("scan_rig",),
-    "negobs_gym.sensors.raycast": ("make_caster",),
-    "negobs_gym.detector": ("NegativeObstacleDetector",),
-}
-
-
-def _skip_if_parts_missing() -> None:
-    missing = []
-    for module, names in NEEDED.items():
-        try:
-            mod = importlib.import_module(module)
-        except ImportError as exc:
-            missing.append(f"{module} ({exc})")
-            continue
-        missing += [f"{module}.{n}" for n in names if not hasattr(mod, n)]
-    if missing:
-        pytest.skip("scene tests need " + ", ".join(missing))
-
-
-def _require(module: str, names: tuple[str, ...]) -> list:
-    mod = importlib.import_module(module)
-    return [getattr(mod, n) for n in names]
-
-
 def _make_scanner(world, vehicle, rng: np.random.Generator, native: bool) -> Callable[[], dict]:
     """Return ``scan() -> {sensor name: StructuredScan}`` for paper N's rig on the vehicle (noise on).
 
     Paper N rig (native or reduced), the fast ray caster (PyBullet without embreex) that ignores
     the vehicle's own body, default sensor noise drawn from ``rng``.
     """
-    paper_n_rig, paper_n_rig_reduced = _require(
-        "negobs_gym.sensors.rigs", ("paper_n_rig", "paper_n_rig_reduced")
-    )
-    (scan_rig,) = _require("negobs_gym.sensors.lidar", ("scan_rig",))
-    (make_caster,) = _require("negobs_gym.sensors.raycast", ("make_caster",))
     rig = paper_n_rig() if native else paper_n_rig_reduced()
     caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
 
@@ -124,11 +97,6 @@ def _make_scanner(world, vehicle, rng: np.random.Generator, native: bool) -> Cal
     return scan
 
 
-def _make_detector():
-    (detector_cls,) = _require("negobs_gym.detector", ("NegativeObstacleDetector",))
-    return detector_cls()
-
-
 def _obstacle_outlines(detection) -> list[np.ndarray]:
     """Vehicle-frame outlines of a ``Detection``'s obstacles (issue 4: outline polygon per obstacle)."""
     return [np.asarray(o.outline_xy_m) for o in detection.obstacles]
@@ -136,13 +104,10 @@ def _obstacle_outlines(detection) -> list[np.ndarray]:
 
 def _run_frames(terrain, n_frames: int, speed_mps: float, native: bool, seed: int):
     """Yield (detection, true pose) per 10 Hz frame with the vehicle held at ``speed_mps``."""
-    _skip_if_parts_missing()
-    world_mod = pytest.importorskip("negobs_gym.sim.world")
-    vehicle_mod = pytest.importorskip("negobs_gym.sim.vehicle")
     rng = np.random.default_rng(seed)
-    detector = _make_detector()
-    with world_mod.World(terrain) as world:
-        vehicle = vehicle_mod.Vehicle(world, rng=rng)
+    detector = NegativeObstacleDetector()
+    with World(terrain) as world:
+        vehicle = Vehicle(world, rng=rng)
         scan = _make_scanner(world, vehicle, rng, native)
         steps = round(FRAME_S / world.config.time_step_s)
         world.step(steps)  # settle on the suspension
