@@ -38,11 +38,13 @@ def _rays(rig, pose):
     return np.concatenate([o for o, _ in parts]), np.concatenate([d for _, d in parts])
 
 
-def _check(scene, rigs):
+def _worst_agreement(scene, rigs) -> tuple[float, float, int]:
+    """Worst hit/miss agreement and worst |dr| <= 1 cm share over rigs and poses; rays on the other car."""
     world, own, other = scene
     embree = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
     bullet = PyBulletCaster(world.client_id, exclude_body_ids=[own.body_id])
     hits_other = 0
+    worst_hit_miss, worst_within = 1.0, 1.0
     for station in STATIONS_M:
         xy, yaw = world.terrain.track.pose_at(station)
         own.reset(Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw)))
@@ -52,22 +54,26 @@ def _check(scene, rigs):
             ref = bullet.cast(o, d, 120.0)
             fast = embree.cast(o, d, 120.0)
             a = compare_ranges(ref, fast, tol_m=0.01)
-            assert a.hit_miss >= 0.999, (rig.name, station, a)
-            assert a.within_tol >= 0.999, (rig.name, station, a)
-            assert a.n_common_hits > 0.3 * a.n_rays
+            worst_hit_miss = min(worst_hit_miss, a.hit_miss)
+            worst_within = min(worst_within, a.within_tol)
+            assert a.n_common_hits > 0.3 * a.n_rays, (rig.name, station, a)
             # the other car is hit by both backends (a dynamic body is in the fast scene)
             pts = o + d * np.nan_to_num(fast)[:, None]
             near_other = np.linalg.norm(pts[:, :2] - other.true_pose().as_array()[:2], axis=1) < 3.0
             hits_other += int(
                 (near_other & (pts[:, 2] > 0.6 + world.terrain.heightfield.height_at(pts[:, :2]))).sum()
             )
-    assert hits_other > 0
+    return worst_hit_miss, worst_within, hits_other
 
 
 def test_agreement_reduced_and_paper_t(scene):
-    _check(scene, [paper_n_rig_reduced(), paper_t_rig()])
+    hit_miss, within, hits_other = _worst_agreement(scene, [paper_n_rig_reduced(), paper_t_rig()])
+    assert hit_miss >= 0.999 and within >= 0.999
+    assert hits_other > 0
 
 
 @pytest.mark.slow
 def test_agreement_full_native_rig(scene):
-    _check(scene, [paper_n_rig()])
+    hit_miss, within, hits_other = _worst_agreement(scene, [paper_n_rig()])
+    assert hit_miss >= 0.999 and within >= 0.999
+    assert hits_other > 0
