@@ -52,47 +52,51 @@ def _finite(value: float) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def _check_placement(
-    station_m: float | None, lateral_m: float, xy_m: tuple[float, float] | None, yaw_deg: float
-) -> None:
-    require(
-        (station_m is None) != (xy_m is None),
-        "station_m",
-        "give exactly one placement: station_m (track coordinates) or xy_m (world)",
-    )
-    if station_m is not None:
-        require(_finite(station_m), "station_m", f"must be finite, got {station_m!r}")
-    if xy_m is not None:
-        require(
-            len(xy_m) == 2 and all(_finite(v) for v in xy_m),
-            "xy_m",
-            f"must be two finite numbers, got {xy_m!r}",
-        )
-    require(_finite(lateral_m), "lateral_m", f"must be finite, got {lateral_m!r}")
-    require(_finite(yaw_deg), "yaw_deg", f"must be finite, got {yaw_deg!r}")
-
-
 @dataclass(frozen=True, kw_only=True)
-class NegativeObstacleSpec:
-    """One negative obstacle to carve.
+class ObstaclePlacement:
+    """Where an obstacle goes, shared by the negative and positive specs.
 
-    Placement is either in track coordinates (``station_m`` = distance of the obstacle's CENTRE
-    along the track from the start, ``lateral_m`` = offset of the centre, + to the right) with
-    ``yaw_deg`` relative to the track heading, or in world coordinates (``xy_m``) with ``yaw_deg``
-    the world yaw of the obstacle's length axis (0 = along world +Y).
+    Either track coordinates (``station_m`` = distance of the obstacle's CENTRE along the track from
+    the start, ``lateral_m`` = offset of the centre, + to the right) with ``yaw_deg`` relative to
+    the track heading, or world coordinates (``xy_m``) with ``yaw_deg`` the world yaw of the
+    obstacle's length axis (0 = along world +Y).
     """
 
-    kind: str = "pit"  # one of NEGATIVE_KINDS; "crater" is elliptical, the others rectangular
-    length_m: float = 1.0  # along the heading [m]; paper N §4 pits are 1.0-1.5 m long
-    width_m: float = 0.5  # across the heading [m]; paper N §3.1 minimum width 0.3 m
-    depth_m: float = 0.8  # rim to floor [m]; SPEC §3.1: 0.3-1.5 m
-    wall_slope_deg: float = 90.0  # wall angle from horizontal; 90 = vertical walls
     station_m: float | None = None
     lateral_m: float = 0.0
     xy_m: tuple[float, float] | None = None
     yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
+        require(
+            (self.station_m is None) != (self.xy_m is None),
+            "station_m",
+            "give exactly one placement: station_m (track coordinates) or xy_m (world)",
+        )
+        if self.station_m is not None:
+            require(_finite(self.station_m), "station_m", f"must be finite, got {self.station_m!r}")
+        if self.xy_m is not None:
+            require(
+                len(self.xy_m) == 2 and all(_finite(v) for v in self.xy_m),
+                "xy_m",
+                f"must be two finite numbers, got {self.xy_m!r}",
+            )
+        require(_finite(self.lateral_m), "lateral_m", f"must be finite, got {self.lateral_m!r}")
+        require(_finite(self.yaw_deg), "yaw_deg", f"must be finite, got {self.yaw_deg!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class NegativeObstacleSpec(ObstaclePlacement):
+    """One negative obstacle to carve; placement as in :class:`ObstaclePlacement`."""
+
+    kind: str = "pit"  # one of NEGATIVE_KINDS; "crater" is elliptical, the others rectangular
+    length_m: float = 1.0  # along the heading [m]; paper N §4 pits are 1.0-1.5 m long
+    width_m: float = 0.5  # across the heading [m]; paper N §3.1 minimum width 0.3 m
+    depth_m: float = 0.8  # rim to floor [m]; SPEC §3.1: 0.3-1.5 m
+    wall_slope_deg: float = 90.0  # wall angle from horizontal; 90 = vertical walls
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
         require(
             self.kind in NEGATIVE_KINDS,
             "kind",
@@ -106,12 +110,11 @@ class NegativeObstacleSpec:
             "wall_slope_deg",
             f"must be in (0, 90], got {self.wall_slope_deg!r}",
         )
-        _check_placement(self.station_m, self.lateral_m, self.xy_m, self.yaw_deg)
 
 
 @dataclass(frozen=True, kw_only=True)
-class PositiveObstacleSpec:
-    """One positive obstacle; placement as in :class:`NegativeObstacleSpec`.
+class PositiveObstacleSpec(ObstaclePlacement):
+    """One positive obstacle; placement as in :class:`ObstaclePlacement`.
 
     ``size_m`` is (length along heading, width across, height) [m]; None takes the kind's default
     from :data:`POSITIVE_DEFAULT_SIZES_M`. Pedestrians are cylinders of diameter ``size_m[0]``;
@@ -121,12 +124,9 @@ class PositiveObstacleSpec:
 
     kind: str = "rock"
     size_m: tuple[float, float, float] | None = None
-    station_m: float | None = None
-    lateral_m: float = 0.0
-    xy_m: tuple[float, float] | None = None
-    yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         require(
             self.kind in POSITIVE_KINDS,
             "kind",
@@ -138,7 +138,6 @@ class PositiveObstacleSpec:
                 "size_m",
                 f"must be three finite sizes > 0, got {self.size_m!r}",
             )
-        _check_placement(self.station_m, self.lateral_m, self.xy_m, self.yaw_deg)
 
     @property
     def resolved_size_m(self) -> tuple[float, float, float]:
