@@ -114,17 +114,9 @@ def run_demo(out_path: str | Path | None = "outputs/demo.png", seed: int = 0) ->
     return runs
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point of ``python -m negobs_gym``."""
-    parser = argparse.ArgumentParser(prog="python -m negobs_gym", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="outputs/demo.png", help="PNG to write (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
-    args = parser.parse_args(argv)
-    if args.seed < 0:
-        parser.error(f"--seed must be >= 0, got {args.seed}")
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    runs = run_demo(args.out, args.seed)
-    log.info("Braking-v0, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", args.seed, runs[0].start_gap_m)
+def log_runs(runs: Sequence[DemoRun], seed: int, out_path: str | Path | None) -> None:
+    """Log the outcome of both demo runs (and where the figure went)."""
+    log.info("Braking-v0, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", seed, runs[0].start_gap_m)
     for run in runs:
         name = "with safety filter" if run.filtered else "no filter"
         if run.entered_ditch:
@@ -137,7 +129,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                 run.first_veto_gap_m if run.first_veto_gap_m is not None else float("nan"),
                 run.vetoes,
             )
-    log.info("wrote %s", args.out)
+    if out_path is not None:
+        log.info("wrote %s", out_path)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point of ``python -m negobs_gym`` (same as ``negobs demo``)."""
+    parser = argparse.ArgumentParser(prog="python -m negobs_gym", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="outputs/demo.png", help="PNG to write (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
+    args = parser.parse_args(argv)
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    log_runs(run_demo(args.out, args.seed), args.seed, args.out)
     return 0
 
 

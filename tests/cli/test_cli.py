@@ -1,0 +1,37 @@
+"""The ``negobs`` console script: every command has --help, bad options fail cleanly."""
+
+from __future__ import annotations
+
+import pytest
+
+from negobs_gym.cli import COMMAND_MODULES, build_parser, main
+
+
+@pytest.mark.parametrize("command", COMMAND_MODULES)
+def test_every_command_has_help(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    assert f"negobs {command}" in capsys.readouterr().out
+
+
+def test_top_level_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert all(command in out for command in COMMAND_MODULES)
+
+
+def test_a_command_is_required_and_bad_values_are_named(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([])
+    assert exit_info.value.code == 2
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["demo", "--seed", "-3"])
+    assert "--seed" in capsys.readouterr().err
+
+
+def test_demo_command_writes_the_png(tmp_path):
+    out = tmp_path / "demo.png"
+    assert main(["-q", "demo", "--out", str(out), "--seed", "2"]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
