@@ -16,7 +16,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "braking safety filter on the LiDAR detector grid) and writes both final frames to a PNG.",
     )
     parser.add_argument("--out", default="outputs/demo.png", help="PNG to write (default: %(default)s)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: %(default)s)")
+    parser.add_argument(
+        "--seed", type=non_negative_int, default=0, help="episode seed (default: %(default)s)"
+    )
     parser.set_defaults(handler=run)
 
 
