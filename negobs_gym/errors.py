@@ -29,6 +29,10 @@ class ActionError(NegobsError, ValueError):
     """An action passed to an environment or driver is malformed (wrong shape, NaN, inf)."""
 
 
+class GeometryError(NegobsError, ValueError):
+    """A geometry input (points, polygon, polyline, frame) has the wrong shape or non-finite values."""
+
+
 class SimulationError(NegobsError, RuntimeError):
     """The physics simulation is in a state it cannot continue from (e.g. closed world)."""
 

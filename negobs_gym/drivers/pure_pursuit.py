@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.geometry import world_to_vehicle_xy
 from negobs_gym.drivers.base import read_speed_mps, speed_command
 from negobs_gym.errors import ActionError, ConfigError, require
 
@@ -77,11 +78,7 @@ class PurePursuitDriver:
         self._index = int(window[nearest])
         ahead = np.nonzero(dist[nearest:] >= self.config.lookahead_m)[0]
         target = pts[nearest + ahead[0]] if ahead.size else pts[-1]
-        dx, dy = target - xy
-        # world -> vehicle frame (vehicle-to-world is Rz(yaw)); X right, Y forward
-        c, s = np.cos(yaw), np.sin(yaw)
-        x_v = c * dx + s * dy
-        y_v = -s * dx + c * dy
+        x_v, y_v = world_to_vehicle_xy(target, xy, yaw)  # X right, Y forward
         ld2 = max(x_v * x_v + y_v * y_v, 1e-6)
         curvature = 2.0 * (-x_v) / ld2  # left (towards -X) positive
         steer = np.arctan(self.config.wheelbase_m * curvature)

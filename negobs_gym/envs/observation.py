@@ -5,10 +5,16 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from negobs_gym.core.geometry import (
+    pad_polygons,
+    points_in_polygons,
+    polyline_stations,
+    vehicle_to_world_xy,
+    world_to_vehicle_xy,
+)
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.errors import ConfigError
-from negobs_gym.sim.events import pad_polygons, points_in_polygons
 from negobs_gym.sim.types import Terrain
 
 __all__ = ["STATE_FIELDS", "OracleGrid", "grid_space", "stack_channels", "state_space", "state_vector"]
@@ -43,9 +49,7 @@ def state_vector(
     goal_xy_m: np.ndarray,
 ) -> np.ndarray:
     """The ``state`` observation (see :data:`STATE_FIELDS`); goal vector in the vehicle frame."""
-    d = np.asarray(goal_xy_m, dtype=np.float64) - np.array([pose.x, pose.y])
-    c, s = np.cos(pose.yaw), np.sin(pose.yaw)
-    goal_v = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])  # world -> vehicle (Rz(-yaw))
+    goal_v = world_to_vehicle_xy(np.asarray(goal_xy_m, dtype=np.float64), (pose.x, pose.y), pose.yaw)
     space = state_space(config)
     raw = np.array([speed_mps, yaw_rate_rps, steering_rad, goal_v[0], goal_v[1]], dtype=np.float64)
     return np.clip(raw, space.low, space.high).astype(np.float32)
@@ -84,9 +88,7 @@ class OracleGrid:
     def layers(self, pose: Pose) -> dict[str, np.ndarray]:
         """Full-resolution bool layers by channel name around ``pose``."""
         cfg = self.config
-        c, s = np.cos(pose.yaw), np.sin(pose.yaw)
-        rot = np.array([[c, -s], [s, c]])
-        pts = self._centres_v @ rot.T + np.array([pose.x, pose.y])
+        pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
         neg = points_in_polygons(pts, self._neg).any(axis=1)
         pos = points_in_polygons(pts, self._pos).any(axis=1)
         hf = self.terrain.heightfield
@@ -122,8 +124,7 @@ def _footprint(obstacle) -> np.ndarray:
     else:
         t = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
         local = np.stack([hx * np.cos(t), hx * np.sin(t)], axis=1)
-    c, s = np.cos(obstacle.yaw_rad), np.sin(obstacle.yaw_rad)
-    return local @ np.array([[c, -s], [s, c]]).T + np.array([cx, cy])
+    return vehicle_to_world_xy(local, (cx, cy), obstacle.yaw_rad)
 
 
 def _centreline_tree(polyline: np.ndarray, spacing_m: float = 0.05):
@@ -131,9 +132,7 @@ def _centreline_tree(polyline: np.ndarray, spacing_m: float = 0.05):
     lateral distance to within ``spacing_m / 2`` (fine for 20 cm cells)."""
     from scipy.spatial import cKDTree
 
-    seg = np.diff(polyline, axis=0)
-    seg_len = np.linalg.norm(seg, axis=1)
-    stations = np.concatenate([[0.0], np.cumsum(seg_len)])
+    stations = polyline_stations(polyline)
     s = np.arange(0.0, stations[-1] + spacing_m, spacing_m)
     xy = np.stack([np.interp(s, stations, polyline[:, 0]), np.interp(s, stations, polyline[:, 1])], axis=1)
     return cKDTree(xy)

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.geometry import vehicle_to_world_xy, world_to_vehicle_xy
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
@@ -246,21 +247,9 @@ def _overview(
     path = np.asarray(path_xy_m, dtype=np.float64).reshape(-1, 2)
     if len(path) > 0:
         _polyline(img, *to_px(path), PATH, closed=False, size=2)
-    _polyline(img, *to_px(_to_world(footprint.corners_vehicle_m(), pose)), VEHICLE, closed=True, size=2)
+    corners = vehicle_to_world_xy(footprint.corners_vehicle_m(), (pose.x, pose.y), pose.yaw)
+    _polyline(img, *to_px(corners), VEHICLE, closed=True, size=2)
     return img
-
-
-def _to_world(xy_vehicle: np.ndarray, pose: Pose) -> np.ndarray:
-    """Vehicle-frame (x right, y forward) ground-plane points to world (x, y) by the pose's yaw."""
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    fwd, right = np.array([-s, c]), np.array([c, s])
-    return np.array([pose.x, pose.y]) + xy_vehicle[:, :1] * right + xy_vehicle[:, 1:2] * fwd
-
-
-def _to_vehicle(xy_world: np.ndarray, pose: Pose) -> np.ndarray:
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    rel = np.asarray(xy_world, dtype=np.float64) - np.array([pose.x, pose.y])
-    return np.stack([rel @ np.array([c, s]), rel @ np.array([-s, c])], axis=1)
 
 
 def _grid_image(
@@ -318,7 +307,8 @@ def _local(
         if len(pts):
             _stamp(img, *to_px(pts[:, :2]), _height_colours(pts[:, 2], config.point_z_range_m), 1)
     for ob in terrain.negative_obstacles:
-        _polyline(img, *to_px(_to_vehicle(ob.outline_xy_m, pose)), TRUTH_OUTLINE, closed=True, size=1)
+        outline = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw)
+        _polyline(img, *to_px(outline), TRUTH_OUTLINE, closed=True, size=1)
     for outline in detected_outlines_m:
         _polyline(img, *to_px(outline), DETECTED_OUTLINE, closed=True, size=2)
     _polyline(img, *to_px(footprint.corners_vehicle_m()), VEHICLE, closed=True, size=2)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from negobs_gym.core.geometry import points_in_polygon, project_onto_polyline
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError, require
@@ -97,15 +98,7 @@ def rasterize_outline(outline_xy_m: np.ndarray, grid: GridSpec) -> np.ndarray:
         r1, c1, _ = grid.cell_of(hi)
         r0, r1 = int(np.clip(r0, 0, grid.rows - 1)), int(np.clip(r1, 0, grid.rows - 1))
         c0, c1 = int(np.clip(c0, 0, grid.cols - 1)), int(np.clip(c1, 0, grid.cols - 1))
-        sub = centres[r0 : r1 + 1, c0 : c1 + 1].reshape(-1, 2)
-        px, py = sub[:, 0:1], sub[:, 1:2]
-        ax, ay = poly[:, 0][None, :], poly[:, 1][None, :]
-        bx, by = np.roll(poly[:, 0], -1)[None, :], np.roll(poly[:, 1], -1)[None, :]
-        straddles = (ay > py) != (by > py)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_cross = ax + (py - ay) * (bx - ax) / (by - ay)
-        crossings = np.sum(straddles & (px < x_cross), axis=1)
-        inside = (crossings % 2 == 1).reshape(r1 - r0 + 1, c1 - c0 + 1)
+        inside = points_in_polygon(centres[r0 : r1 + 1, c0 : c1 + 1], poly)
         mask[r0 : r1 + 1, c0 : c1 + 1] |= inside
     if not mask.any():
         row, col, ok = grid.cell_of(poly)
@@ -132,12 +125,7 @@ def track_border_mask(
     line = _as_polygon(centreline_vehicle_xy_m, "centreline_vehicle_xy_m")
     require(line.shape[0] >= 2, "centreline_vehicle_xy_m", "needs at least two points")
     require(math.isfinite(width_m) and width_m > 0, "width_m", f"must be > 0, got {width_m}")
-    p = grid.cell_centres().reshape(-1, 1, 2)
-    a, b = line[:-1][None], line[1:][None]
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-12)
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / denom, 0.0, 1.0)
-    dist = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=1)
+    _, dist = project_onto_polyline(grid.cell_centres().reshape(-1, 2), line)
     near_border = np.abs(dist - 0.5 * width_m) <= band_m
     return near_border.reshape(grid.shape)
 

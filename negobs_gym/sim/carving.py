@@ -18,6 +18,7 @@ from typing import get_args
 
 import numpy as np
 
+from negobs_gym.core.geometry import heading_axes, points_in_polygon
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.sim.types import (
     HeightField,
@@ -181,13 +182,6 @@ def sample_pit_spec(
     )
 
 
-def _axes(yaw_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors of the length axis (forward at this yaw) and the width axis (to its right)."""
-    fwd = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
-    right = np.array([fwd[1], -fwd[0]])
-    return fwd, right
-
-
 def _ccw(poly: np.ndarray) -> np.ndarray:
     x, y = poly[:, 0], poly[:, 1]
     area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
@@ -198,7 +192,7 @@ def obstacle_outline(
     kind: str, length_m: float, width_m: float, centre_xy_m: np.ndarray, yaw_rad: float
 ) -> np.ndarray:
     """World outline (N, 2), counter-clockwise: a rectangle, or an ellipse for craters."""
-    fwd, right = _axes(yaw_rad)
+    fwd, right = heading_axes(yaw_rad)
     if kind == "crater":
         t = np.linspace(0.0, 2 * np.pi, _CRATER_VERTICES, endpoint=False)
         a = 0.5 * length_m * np.cos(t)
@@ -208,27 +202,6 @@ def obstacle_outline(
         b = 0.5 * width_m * np.array([-1.0, -1.0, 1.0, 1.0])
     poly = np.asarray(centre_xy_m, dtype=np.float64) + a[:, None] * fwd + b[:, None] * right
     return _ccw(poly)
-
-
-def points_in_polygon(xy_m: np.ndarray, polygon_xy_m: np.ndarray) -> np.ndarray:
-    """Boolean mask (...) of points (..., 2) inside a simple polygon (N, 2) (even-odd rule).
-
-    Vectorised over points and edges (memory ~ points x edges); for outlines of a few dozen
-    vertices, as the obstacle records have.
-    """
-    pts = np.asarray(xy_m, dtype=np.float64)
-    poly = np.asarray(polygon_xy_m, dtype=np.float64)
-    if pts.shape[-1:] != (2,) or poly.ndim != 2 or poly.shape[1] != 2 or len(poly) < 3:
-        raise ValueError(f"need points (..., 2) and a polygon (N>=3, 2), got {pts.shape} and {poly.shape}")
-    x = pts[..., 0, None]
-    y = pts[..., 1, None]
-    x1, y1 = poly[:, 0], poly[:, 1]
-    x2, y2 = np.roll(x1, -1), np.roll(y1, -1)
-    straddles = (y1 > y) != (y2 > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
-    crossings = np.count_nonzero(straddles & (x < x_cross), axis=-1)
-    return crossings % 2 == 1
 
 
 def _window(hf: HeightField, outline: np.ndarray, field: str) -> tuple[slice, slice, np.ndarray, np.ndarray]:
@@ -253,7 +226,7 @@ def _window(hf: HeightField, outline: np.ndarray, field: str) -> tuple[slice, sl
 
 
 def _local(gx: np.ndarray, gy: np.ndarray, centre: np.ndarray, yaw_rad: float):
-    fwd, right = _axes(yaw_rad)
+    fwd, right = heading_axes(yaw_rad)
     dx, dy = gx - centre[0], gy - centre[1]
     return dx * fwd[0] + dy * fwd[1], dx * right[0] + dy * right[1]
 

@@ -13,11 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
+from negobs_gym.core.geometry import pad_polygons, points_in_polygons
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
 
-__all__ = ["EventConfig", "EventMonitor", "StepEvents", "pad_polygons", "points_in_polygons"]
+__all__ = ["EventConfig", "EventMonitor", "StepEvents"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,53 +84,6 @@ class StepEvents:
         return bool(self.entered_negative_obstacle or self.trapped or self.collision or self.rollover)
 
 
-def pad_polygons(polygons: list[np.ndarray]) -> np.ndarray:
-    """Stack polygons of different vertex counts into (M, N_max, 2), repeating each last vertex.
-
-    Repeated vertices form zero-length edges, which the crossing test ignores.
-    """
-    if not polygons:
-        return np.zeros((0, 3, 2))
-    arrays = [np.asarray(poly, dtype=np.float64) for poly in polygons]
-    for k, a in enumerate(arrays):
-        if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 3 or not np.all(np.isfinite(a)):
-            raise ConfigError(
-                f"negative_obstacles[{k}].outline_xy_m", f"needs (N>=3, 2) finite vertices, got {a.shape}"
-            )
-    n_max = max(a.shape[0] for a in arrays)
-    out = np.empty((len(arrays), n_max, 2))
-    for k, a in enumerate(arrays):
-        out[k, : len(a)] = a
-        out[k, len(a) :] = a[-1]
-    return out
-
-
-def points_in_polygons(points_xy: np.ndarray, polygons: np.ndarray) -> np.ndarray:
-    """Even-odd point-in-polygon test of P points against M padded polygons.
-
-    Args:
-        points_xy: (P, 2) points.
-        polygons: (M, N, 2) closed polygons (last vertex connects to the first), see :func:`pad_polygons`.
-
-    Returns:
-        (P, M) bool, True where the point is inside the polygon.
-    """
-    pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
-    polys = np.asarray(polygons, dtype=np.float64)
-    if polys.size == 0:
-        return np.zeros((len(pts), 0), dtype=bool)
-    a = polys[None]  # (1, M, N, 2)
-    b = np.roll(polys, -1, axis=1)[None]
-    px = pts[:, None, None, 0]
-    py = pts[:, None, None, 1]
-    straddle = (a[..., 1] > py) != (b[..., 1] > py)
-    dy = b[..., 1] - a[..., 1]
-    safe_dy = np.where(dy == 0, 1.0, dy)
-    x_cross = a[..., 0] + (py - a[..., 1]) * (b[..., 0] - a[..., 0]) / safe_dy
-    crossings = straddle & (px < x_cross)
-    return (np.count_nonzero(crossings, axis=-1) % 2) == 1
-
-
 class EventMonitor:
     """Watches a vehicle after every physics step and accumulates events until :meth:`poll`.
 
@@ -147,7 +101,9 @@ class EventMonitor:
         self.vehicle = vehicle
         negatives = world.terrain.negative_obstacles
         self._neg_ids = np.array([o.obstacle_id for o in negatives], dtype=object)
-        self._polygons = pad_polygons([o.outline_xy_m for o in negatives])
+        self._polygons = pad_polygons(
+            [o.outline_xy_m for o in negatives], name="negative_obstacles.outline_xy_m"
+        )
         self._body_to_obstacle = {body: oid for oid, body in world.obstacle_body_ids.items()}
         self._stuck_s = 0.0
         self._belly_s = 0.0

@@ -7,7 +7,6 @@ x_min) * width``, ``row = (y_max - y) / (y_max - y_min) * height``.
 
 from __future__ import annotations
 
-import math
 import os
 import uuid
 from pathlib import Path
@@ -16,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from negobs_gym.core import Pose
+from negobs_gym.core.geometry import heading_axes, vehicle_to_world_xy
 from negobs_gym.sim.types import Terrain
 
 if TYPE_CHECKING:
@@ -106,10 +106,8 @@ def _footprint(shape: str, centre_xy: np.ndarray, half_extents: np.ndarray, yaw_
 
 def _box_corners(centre_xy: np.ndarray, half_x: float, half_y: float, yaw_rad: float) -> np.ndarray:
     """Corners of a box with body X right, Y forward, yawed by ``yaw_rad`` (core/pose.py)."""
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
     local = np.array([[-half_x, -half_y], [half_x, -half_y], [half_x, half_y], [-half_x, half_y]])
-    rot = np.array([[c, -s], [s, c]])
-    return np.asarray(centre_xy, dtype=np.float64)[:2] + local @ rot.T
+    return vehicle_to_world_xy(local, centre_xy, yaw_rad)
 
 
 def render_top_down(
@@ -164,7 +162,7 @@ def render_top_down(
     if vehicle_pose is not None:
         width, length = vehicle_size_m
         x, y, yaw = float(vehicle_pose.x), float(vehicle_pose.y), float(vehicle_pose.yaw)
-        fwd = np.array([-math.sin(yaw), math.cos(yaw)])
+        fwd, _ = heading_axes(yaw)
         # The pose origin is the rear axle: the footprint centre lies length/2 - overhang ahead.
         centre = np.array([x, y]) + fwd * (0.5 * length - rear_overhang_m)
         corners = _box_corners(centre, 0.5 * width, 0.5 * length, yaw)

@@ -11,6 +11,8 @@ from typing import Literal
 
 import numpy as np
 
+from negobs_gym.core.geometry import polyline_stations
+
 NegativeKind = Literal["pit", "ditch", "trench", "crater"]
 PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian"]
 PrimitiveShape = Literal["box", "cylinder"]
@@ -110,8 +112,7 @@ class Track:
     @property
     def stations_m(self) -> np.ndarray:
         """Cumulative distance along the centre line at each vertex, (N,) starting at 0."""
-        seg = np.linalg.norm(np.diff(np.asarray(self.centreline_xy_m, dtype=np.float64), axis=0), axis=1)
-        return np.concatenate([[0.0], np.cumsum(seg)])
+        return polyline_stations(self.centreline_xy_m)
 
     @property
     def length_m(self) -> float:

@@ -19,6 +19,7 @@ from typing import Literal
 import numpy as np
 import pybullet as p
 
+from negobs_gym.core.geometry import heading_axes
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ActionError, ConfigError, require
 from negobs_gym.sim.world import World
@@ -290,8 +291,7 @@ class Vehicle:
             )
         cfg = self.config
         yaw = start_pose.yaw
-        fwd = np.array([-math.sin(yaw), math.cos(yaw)])
-        right = np.array([math.cos(yaw), math.sin(yaw)])
+        fwd, right = heading_axes(yaw)
         origin = np.array([start_pose.x, start_pose.y])
         corners = np.array(
             [

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from negobs_gym.core.geometry import points_in_polygon
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import (
     DEPTH_RANGE_M,
@@ -19,7 +20,6 @@ from negobs_gym.sim.carving import (
     carve_negative_obstacle,
     obstacle_outline,
     place_positive_obstacle,
-    points_in_polygon,
     sample_pit_spec,
 )
 from negobs_gym.sim.terrain import RoughnessConfig, TerrainConfig, generate_terrain
@@ -269,12 +269,3 @@ def test_any_carve_floor_inside_untouched_outside(kind, length_m, width_m, depth
     area = _signed_area(rec.outline_xy_m)
     assert abs(changed.sum() * RES * RES - area) <= perimeter * RES + 1e-9
     assert float(new.height_at(np.array([[x_m, y_m]]))[0]) == pytest.approx(rec.floor_z_m, abs=0.02)
-
-
-def test_points_in_polygon() -> None:
-    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
-    pts = np.array([[1.0, 1.0], [3.0, 1.0], [1.0, -0.5], [0.5, 1.9]])
-    assert points_in_polygon(pts, square).tolist() == [True, False, False, True]
-    assert points_in_polygon(pts.reshape(2, 2, 2), square).shape == (2, 2)
-    with pytest.raises(ValueError, match="polygon"):
-        points_in_polygon(pts, square[:2])

@@ -10,7 +10,7 @@ import pytest
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim import presets
-from negobs_gym.sim.events import EventConfig, EventMonitor, StepEvents, pad_polygons, points_in_polygons
+from negobs_gym.sim.events import EventConfig, EventMonitor, StepEvents
 from negobs_gym.sim.types import PositiveObstacle, Terrain
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -47,27 +47,6 @@ def drive(
 
 def entered(events: list[StepEvents]) -> set[str]:
     return {oid for e in events for oid in e.entered_negative_obstacle}
-
-
-def test_points_in_polygons_square_and_concave():
-    square = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
-    ell = np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]], float)
-    polys = pad_polygons([square, ell])
-    assert polys.shape == (2, 6, 2)
-    pts = np.array([[0.5, 0.5], [2.5, 0.5], [2, 2.5], [0.5, 2.5], [-1, 1], [5, 5]], float)
-    got = points_in_polygons(pts, polys)
-    expected = np.array(
-        [[True, True], [False, True], [False, False], [False, True], [False, False], [False, False]]
-    )
-    np.testing.assert_array_equal(got, expected)
-    assert points_in_polygons(pts, pad_polygons([])).shape == (6, 0)
-
-
-def test_pad_polygons_rejects_bad_outline():
-    with pytest.raises(ConfigError, match="outline_xy_m"):
-        pad_polygons([np.array([[0.0, 0.0], [1.0, 1.0]])])
-    with pytest.raises(ConfigError, match="outline_xy_m"):
-        pad_polygons([np.array([[0.0, 0.0], [1.0, np.nan], [0.0, 1.0]])])
 
 
 def pit_terrain(lateral_offset_m: float) -> Terrain:

@@ -1,0 +1,159 @@
+"""General 2-D geometry on the ground plane: polygons, vehicle/world frames, centre-line distance.
+
+One home for what the simulator, the envs, the evaluation and the drivers all need. Frames follow
+:mod:`negobs_gym.core.pose`: the vehicle's X points right, Y forward; at yaw 0 it faces world +Y
+and positive yaw turns it left, so the vehicle-to-world rotation on the ground is ``Rz(yaw)``.
+Everything is vectorised over points (no Python loops over points); numpy only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from negobs_gym.errors import GeometryError
+
+__all__ = [
+    "heading_axes",
+    "pad_polygons",
+    "points_in_polygon",
+    "points_in_polygons",
+    "polyline_stations",
+    "project_onto_polyline",
+    "vehicle_to_world_xy",
+    "world_to_vehicle_xy",
+]
+
+
+def _points(points_xy: np.ndarray, name: str) -> np.ndarray:
+    pts = np.asarray(points_xy, dtype=np.float64)
+    if pts.ndim == 0 or pts.shape[-1] != 2:
+        raise GeometryError(f"{name}: expected points of shape (..., 2), got {pts.shape}")
+    return pts
+
+
+def _polygon(polygon_xy: np.ndarray, name: str, min_vertices: int = 3) -> np.ndarray:
+    poly = np.asarray(polygon_xy, dtype=np.float64)
+    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < min_vertices:
+        raise GeometryError(f"{name}: expected ({'N>=' + str(min_vertices)}, 2) vertices, got {poly.shape}")
+    if not np.all(np.isfinite(poly)):
+        raise GeometryError(f"{name}: vertices contain NaN or inf")
+    return poly
+
+
+# --- frames -----------------------------------------------------------------------------------
+
+
+def heading_axes(yaw_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """World unit vectors of the vehicle's forward (+Y) and right (+X) axes at ``yaw_rad``."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.array([-s, c]), np.array([c, s])
+
+
+def _origin_yaw(origin_xy: np.ndarray, yaw_rad: float) -> tuple[np.ndarray, float]:
+    origin = np.asarray(origin_xy, dtype=np.float64).reshape(-1)[:2]
+    if origin.shape != (2,) or not np.all(np.isfinite(origin)) or not math.isfinite(yaw_rad):
+        raise GeometryError(f"frame: need a finite origin (x, y) and yaw, got {origin_xy!r}, {yaw_rad!r}")
+    return origin, float(yaw_rad)
+
+
+def vehicle_to_world_xy(points_vehicle: np.ndarray, origin_xy: np.ndarray, yaw_rad: float) -> np.ndarray:
+    """Map ground points (..., 2) from the vehicle frame (x right, y forward) to world (x, y).
+
+    ``origin_xy`` is the vehicle origin in the world (a pose's ``x, y``), ``yaw_rad`` its yaw.
+    """
+    pts = _points(points_vehicle, "points_vehicle")
+    origin, yaw = _origin_yaw(origin_xy, yaw_rad)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return pts @ np.array([[c, s], [-s, c]]) + origin
+
+
+def world_to_vehicle_xy(points_world: np.ndarray, origin_xy: np.ndarray, yaw_rad: float) -> np.ndarray:
+    """Map world ground points (..., 2) to the vehicle frame; inverse of :func:`vehicle_to_world_xy`."""
+    pts = _points(points_world, "points_world")
+    origin, yaw = _origin_yaw(origin_xy, yaw_rad)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return (pts - origin) @ np.array([[c, -s], [s, c]])
+
+
+# --- polygons ---------------------------------------------------------------------------------
+
+
+def pad_polygons(polygons: list[np.ndarray], name: str = "polygons") -> np.ndarray:
+    """Stack polygons of different vertex counts into (M, N_max, 2), repeating each last vertex.
+
+    Repeated vertices form zero-length edges, which the crossing test ignores. ``name`` is used in
+    the error raised for a polygon with fewer than 3 vertices, a wrong shape, or NaN/inf.
+    """
+    arrays = [_polygon(poly, f"{name}[{k}]") for k, poly in enumerate(polygons)]
+    if not arrays:
+        return np.zeros((0, 3, 2))
+    n_max = max(a.shape[0] for a in arrays)
+    out = np.empty((len(arrays), n_max, 2))
+    for k, a in enumerate(arrays):
+        out[k, : len(a)] = a
+        out[k, len(a) :] = a[-1]
+    return out
+
+
+def points_in_polygons(points_xy: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """Even-odd point-in-polygon test of points (..., 2) against M padded polygons (M, N, 2).
+
+    Polygons are closed (last vertex connects to the first), see :func:`pad_polygons`. Returns a
+    bool array (..., M). Memory ~ points x polygons x vertices: meant for outlines of a few dozen
+    vertices, as the obstacle records have. Points with NaN are outside.
+    """
+    pts = _points(points_xy, "points_xy")
+    polys = np.asarray(polygons, dtype=np.float64)
+    if polys.ndim != 3 or polys.shape[2] != 2:
+        raise GeometryError(f"polygons: expected padded polygons (M, N, 2), got {polys.shape}")
+    flat = pts.reshape(-1, 2)
+    if polys.shape[0] == 0:
+        return np.zeros((*pts.shape[:-1], 0), dtype=bool)
+    a = polys[None]  # (1, M, N, 2)
+    b = np.roll(polys, -1, axis=1)[None]
+    px = flat[:, None, None, 0]
+    py = flat[:, None, None, 1]
+    straddle = (a[..., 1] > py) != (b[..., 1] > py)
+    dy = b[..., 1] - a[..., 1]
+    safe_dy = np.where(dy == 0, 1.0, dy)  # horizontal edges never straddle
+    x_cross = a[..., 0] + (py - a[..., 1]) * (b[..., 0] - a[..., 0]) / safe_dy
+    inside = (np.count_nonzero(straddle & (px < x_cross), axis=-1) % 2) == 1
+    return inside.reshape(*pts.shape[:-1], polys.shape[0])
+
+
+def points_in_polygon(points_xy: np.ndarray, polygon_xy: np.ndarray) -> np.ndarray:
+    """Bool mask (...) of points (..., 2) inside one simple polygon (N>=3, 2) (even-odd rule)."""
+    poly = _polygon(polygon_xy, "polygon_xy")
+    return points_in_polygons(points_xy, poly[None])[..., 0]
+
+
+# --- centre lines -----------------------------------------------------------------------------
+
+
+def polyline_stations(polyline_xy: np.ndarray) -> np.ndarray:
+    """Cumulative distance along a polyline (N>=2, 2) at each vertex, (N,) starting at 0."""
+    line = _polygon(polyline_xy, "polyline_xy", min_vertices=2)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(line, axis=0), axis=1))])
+
+
+def project_onto_polyline(points_xy: np.ndarray, polyline_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Station (distance along the polyline) and distance of the nearest polyline point, each (...).
+
+    Exact projection onto the segments (clamped to the ends: points beyond an end project onto the
+    end vertex). Memory ~ points x segments.
+    """
+    pts = _points(points_xy, "points_xy")
+    line = _polygon(polyline_xy, "polyline_xy", min_vertices=2)
+    stations = polyline_stations(line)
+    p = pts.reshape(-1, 1, 2)
+    a, ab = line[:-1][None], np.diff(line, axis=0)[None]
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
+    dist = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    k = np.argmin(dist, axis=1)
+    rows = np.arange(len(k))
+    seg_len = np.diff(stations)
+    station = stations[k] + t[rows, k] * seg_len[k]
+    shape = pts.shape[:-1]
+    return station.reshape(shape), dist[rows, k].reshape(shape)

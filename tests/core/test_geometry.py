@@ -1,0 +1,157 @@
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from negobs_gym.core import Pose
+from negobs_gym.core.geometry import (
+    heading_axes,
+    pad_polygons,
+    points_in_polygon,
+    points_in_polygons,
+    polyline_stations,
+    project_onto_polyline,
+    vehicle_to_world_xy,
+    world_to_vehicle_xy,
+)
+from negobs_gym.errors import GeometryError, NegobsError
+
+coord = st.floats(-1e3, 1e3, allow_nan=False)
+yaw = st.floats(-10.0, 10.0, allow_nan=False)
+points = arrays(np.float64, st.tuples(st.integers(0, 20), st.just(2)), elements=coord)
+
+SQUARE = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], float)
+ELL = np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]], float)
+
+
+@settings(max_examples=200, deadline=None)
+@given(points, coord, coord, yaw)
+def test_frame_round_trip(pts, x, y, yaw_rad):
+    back = world_to_vehicle_xy(vehicle_to_world_xy(pts, (x, y), yaw_rad), (x, y), yaw_rad)
+    np.testing.assert_allclose(back, pts, atol=1e-9 * (1 + np.abs(pts).max(initial=0) + abs(x) + abs(y)))
+
+
+@settings(max_examples=100, deadline=None)
+@given(points, coord, coord, yaw)
+def test_frames_agree_with_pose_and_heading(pts, x, y, yaw_rad):
+    pose = Pose(x=x, y=y, yaw=yaw_rad)
+    z = np.zeros((len(pts), 1))
+    expected = pose.to_world(np.hstack([pts, z]))[:, :2]
+    np.testing.assert_allclose(vehicle_to_world_xy(pts, (x, y), yaw_rad), expected, atol=1e-6)
+    fwd, right = heading_axes(yaw_rad)
+    np.testing.assert_allclose(fwd, pose.heading)
+    # a point 1 m ahead and 1 m right in the vehicle frame lands at origin + fwd + right
+    np.testing.assert_allclose(
+        vehicle_to_world_xy(np.array([[1.0, 1.0]]), (x, y), yaw_rad)[0], np.array([x, y]) + fwd + right
+    )
+
+
+def test_frame_known_values_and_shapes():
+    # yaw +90 deg: the vehicle faces world -X, its right is world +Y
+    np.testing.assert_allclose(
+        vehicle_to_world_xy(np.array([[0.0, 1.0], [1.0, 0.0]]), (10.0, 0.0), math.pi / 2),
+        [[9.0, 0.0], [10.0, 1.0]],
+        atol=1e-12,
+    )
+    assert world_to_vehicle_xy(np.zeros((3, 4, 2)), (0, 0), 0.3).shape == (3, 4, 2)
+    assert world_to_vehicle_xy(np.zeros((0, 2)), (0, 0), 0.3).shape == (0, 2)
+    with pytest.raises(GeometryError, match="points_world"):
+        world_to_vehicle_xy(np.zeros((3, 3)), (0, 0), 0.0)
+    with pytest.raises(GeometryError, match="frame"):
+        vehicle_to_world_xy(np.zeros((3, 2)), (0, np.nan), 0.0)
+
+
+def test_points_in_polygons_square_and_concave():
+    polys = pad_polygons([SQUARE, ELL])
+    assert polys.shape == (2, 6, 2)
+    pts = np.array([[0.5, 0.5], [2.5, 0.5], [2, 2.5], [0.5, 2.5], [-1, 1], [5, 5], [np.nan, 1.0]], float)
+    got = points_in_polygons(pts, polys)
+    expected = np.array(
+        [[1, 1], [0, 1], [0, 0], [0, 1], [0, 0], [0, 0], [0, 0]],
+        dtype=bool,
+    )
+    np.testing.assert_array_equal(got, expected)
+    assert points_in_polygons(pts, pad_polygons([])).shape == (7, 0)
+    assert points_in_polygons(np.zeros((0, 2)), polys).shape == (0, 2)
+    assert points_in_polygons(pts[:6].reshape(2, 3, 2), polys).shape == (2, 3, 2)
+
+
+def test_points_in_polygon_single():
+    pts = np.array([[1.0, 1.0], [3.0, 1.0], [1.0, -0.5], [0.5, 1.9]])
+    assert points_in_polygon(pts, SQUARE).tolist() == [True, False, False, True]
+    assert points_in_polygon(pts.reshape(2, 2, 2), SQUARE).shape == (2, 2)
+    assert points_in_polygon(np.zeros((0, 2)), SQUARE).shape == (0,)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    arrays(np.float64, (30, 2), elements=st.floats(-3, 3, allow_nan=False)),
+    st.floats(0.1, 5.0),
+    st.floats(0.1, 5.0),
+    coord,
+    coord,
+    yaw,
+)
+def test_rotated_rectangle_matches_vehicle_frame_bounds(pts_v, half_w, half_l, x, y, yaw_rad):
+    """A rectangle built in the vehicle frame contains exactly the points inside its bounds there."""
+    rect_v = np.array([[-half_w, -half_l], [half_w, -half_l], [half_w, half_l], [-half_w, half_l]])
+    rect_w = vehicle_to_world_xy(rect_v, (x, y), yaw_rad)
+    pts_w = vehicle_to_world_xy(pts_v, (x, y), yaw_rad)
+    margin = 1e-6 * (1 + abs(x) + abs(y))
+    clear = (np.abs(np.abs(pts_v[:, 0]) - half_w) > margin) & (np.abs(np.abs(pts_v[:, 1]) - half_l) > margin)
+    expected = (np.abs(pts_v[:, 0]) < half_w) & (np.abs(pts_v[:, 1]) < half_l)
+    got = points_in_polygon(pts_w, rect_w)
+    np.testing.assert_array_equal(got[clear], expected[clear])
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [np.zeros((2, 2)), np.zeros((4, 3)), np.zeros(6), np.array([[0, 0], [1, np.nan], [0, 1.0]])],
+)
+def test_bad_polygons_raise(bad):
+    with pytest.raises(GeometryError, match=r"outline_xy_m\[0\]"):
+        pad_polygons([bad], name="outline_xy_m")
+    with pytest.raises(GeometryError, match="polygon_xy"):
+        points_in_polygon(np.zeros((1, 2)), bad)
+    assert issubclass(GeometryError, NegobsError) and issubclass(GeometryError, ValueError)
+
+
+def test_bad_points_raise():
+    with pytest.raises(GeometryError, match="points_xy"):
+        points_in_polygon(np.zeros((3, 3)), SQUARE)
+    with pytest.raises(GeometryError, match="polygons"):
+        points_in_polygons(np.zeros((3, 2)), SQUARE)
+
+
+def test_polyline_stations_and_projection_known():
+    line = np.array([[0.0, 0.0], [0.0, 3.0], [4.0, 3.0]])
+    np.testing.assert_allclose(polyline_stations(line), [0.0, 3.0, 7.0])
+    pts = np.array([[1.0, 1.0], [2.0, 5.0], [-1.0, -1.0], [9.0, 3.0]])
+    station, dist = project_onto_polyline(pts, line)
+    np.testing.assert_allclose(station, [1.0, 5.0, 0.0, 7.0])
+    np.testing.assert_allclose(dist, [1.0, 2.0, math.sqrt(2), 5.0])
+    s0, d0 = project_onto_polyline(np.zeros((0, 2)), line)
+    assert s0.shape == d0.shape == (0,)
+    with pytest.raises(GeometryError, match="polyline_xy"):
+        polyline_stations(line[:1])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    arrays(np.float64, st.tuples(st.integers(2, 8), st.just(2)), elements=st.floats(-50, 50)),
+    st.floats(0.0, 1.0),
+)
+def test_points_on_polyline_project_to_their_station(line, frac):
+    """A point on the polyline at station s projects back to distance 0 (and station s when unique)."""
+    stations = polyline_stations(line)
+    s = frac * stations[-1]
+    p = np.array([np.interp(s, stations, line[:, 0]), np.interp(s, stations, line[:, 1])])
+    station, dist = project_onto_polyline(p, line)
+    assert dist == pytest.approx(0.0, abs=1e-6)
+    assert 0.0 <= station <= stations[-1] + 1e-9
+    # the projected station maps back onto the same point (it may differ where the line crosses itself)
+    q = np.array([np.interp(station, stations, line[:, 0]), np.interp(station, stations, line[:, 1])])
+    np.testing.assert_allclose(q, p, atol=1e-6)
