@@ -21,6 +21,7 @@ from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.errors import ActionError
 from negobs_gym.safety.braking import BrakingConfig
+from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.protocol import HazardState
 from negobs_gym.sim.events import EventMonitor, StepEvents
 from negobs_gym.sim.types import Terrain
@@ -189,7 +190,7 @@ class NegObsEnv(gym.Env, abc.ABC):
             return None
         return frame
 
-    def set_render_overlay(self, safety: dict[str, Any] | None) -> None:
+    def set_render_overlay(self, decision: SafetyDecision | None) -> None:
         """Show a safety filter's decision for the coming step in :meth:`render` (None clears it).
 
         :class:`~negobs_gym.safety.BrakingSafetyFilter` calls this before stepping the env, so the
@@ -197,7 +198,7 @@ class NegObsEnv(gym.Env, abc.ABC):
         the filter) show it, whatever the wrapper order. Frames of later steps without a decision
         show no filter state.
         """
-        self._render_overlay = None if safety is None else (len(self._path) + 1, dict(safety))
+        self._render_overlay = None if decision is None else (len(self._path) + 1, decision)
 
     def close(self) -> None:
         self._close_world()
@@ -236,6 +237,8 @@ class NegObsEnv(gym.Env, abc.ABC):
             dt_s=1.0 / self.config.control_hz,
             max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
+            time_s=self._world.sim_time_s,
+            perception_time_s=self._perception.stamp_s,
         )
 
     def _start_perception(self) -> None:

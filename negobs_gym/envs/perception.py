@@ -60,6 +60,7 @@ class DetectorGrid:
         self.scans: dict[str, StructuredScan] = {}
         self.detection: Detection | None = None
         self.region: TraversableRegion | None = None
+        self.stamp_s: float | None = None  # sensing time of the last frame (None before the first)
 
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
@@ -70,6 +71,7 @@ class DetectorGrid:
         )
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
+        self.stamp_s = float(timestamp_s)
         return {
             "negative": self.detection.grid,
             "positive": np.asarray(self.region.positive_obstacles, dtype=bool),

@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import weakref
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +33,7 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.errors import require
+from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.sim.render import render_top_down
 from negobs_gym.sim.types import Terrain
 
@@ -285,7 +286,7 @@ def _local(
     obs_config: ObservationConfig,
     points_vehicle_m: np.ndarray | None,
     detected_outlines_m: Sequence[np.ndarray],
-    safety: Mapping[str, Any] | None,
+    safety: SafetyDecision | None,
     footprint: VehicleFootprint,
     config: RenderConfig,
 ) -> np.ndarray:
@@ -318,7 +319,7 @@ def _local(
 
 def _draw_safety(
     img: np.ndarray,
-    safety: Mapping[str, Any] | None,
+    safety: SafetyDecision | None,
     footprint: VehicleFootprint,
     to_px: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     config: RenderConfig,
@@ -328,10 +329,9 @@ def _draw_safety(
     if safety is None:
         colour = BORDER_NONE
     else:
-        colour = BORDER_VETO if bool(safety.get("vetoed", False)) else BORDER_PASS
+        colour = BORDER_VETO if safety.vetoed else BORDER_PASS
         half = 0.5 * footprint.width_m + 0.5
-        for key, mark in (("hazard_distance_m", HAZARD_MARK), ("braking_distance_m", BRAKING_MARK)):
-            d = float(safety.get(key, math.inf))
+        for d, mark in ((safety.hazard_distance_m, HAZARD_MARK), (safety.braking_distance_m, BRAKING_MARK)):
             if math.isfinite(d) and d >= 0:
                 rows, cols = to_px(np.array([[-half, d], [half, d]]))
                 _hline(img, rows[0], cols[0], cols[1], mark, config.mark_thickness_px)
@@ -350,7 +350,7 @@ def render_frame(
     *,
     points_vehicle_m: np.ndarray | None = None,
     detected_outlines_m: Sequence[np.ndarray] = (),
-    safety: Mapping[str, Any] | None = None,
+    safety: SafetyDecision | None = None,
     footprint: VehicleFootprint | None = None,
     config: RenderConfig | None = None,
 ) -> np.ndarray:
@@ -365,8 +365,8 @@ def render_frame(
         points_vehicle_m: (N, 3) vehicle-frame LiDAR returns of the last frame; non-finite rows
             are skipped, more than ``config.max_points`` are evenly strided.
         detected_outlines_m: vehicle-frame (k, 2) outlines of the detected negative obstacles.
-        safety: the safety filter's record for this step (``vetoed``, ``hazard_distance_m``,
-            ``braking_distance_m``) or None when no filter decided this step.
+        safety: the safety filter's decision for this step (border by ``vetoed``, marks at
+            ``hazard_distance_m`` and ``braking_distance_m``) or None when no filter decided.
         footprint: vehicle outline; default 2.0 x 4.5 m with 0.85 m rear overhang.
         config: layout, see :class:`RenderConfig`.
 

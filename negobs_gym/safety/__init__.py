@@ -2,14 +2,17 @@
 
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import hazard_distance_m
+from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
-from negobs_gym.safety.protocol import HazardSource, HazardState
+from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 __all__ = [
     "BrakingConfig",
     "BrakingSafetyFilter",
+    "DecisionSink",
     "HazardSource",
     "HazardState",
+    "SafetyDecision",
     "SafetyFilterConfig",
     "braking_distance_m",
     "hazard_distance_m",

@@ -9,10 +9,11 @@ from typing import Any, Literal, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from negobs_gym.errors import ActionError, require
+from negobs_gym.errors import ActionError, ConfigError, require
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import hazard_distance_m
-from negobs_gym.safety.protocol import HazardSource, HazardState
+from negobs_gym.safety.decision import SafetyDecision
+from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 logger = logging.getLogger(__name__)
 
@@ -24,8 +25,22 @@ class SafetyFilterConfig:
     braking: BrakingConfig = field(default_factory=BrakingConfig)
     margin_m: float = 0.4  # added to the vehicle width for the corridor (engineering choice) [m]
     mode: Literal["brake", "cap_speed"] = "brake"
+    # Oldest hazard data the filter acts on [s]; older or missing -> full brake. Not in paper N:
+    # two periods of its 10 Hz LiDAR / control loop, so one late frame (jitter) is tolerated and a
+    # second is not (at 25 km/h the car covers 1.4 m in 0.2 s that no scan has looked at).
+    perception_timeout_s: float = 0.2
 
     def __post_init__(self) -> None:
+        require(
+            isinstance(self.braking, BrakingConfig),
+            "braking",
+            f"must be a BrakingConfig, got {type(self.braking).__name__}",
+        )
+        require(
+            np.isfinite(self.perception_timeout_s) and self.perception_timeout_s > 0,
+            "perception_timeout_s",
+            f"must be finite and > 0, got {self.perception_timeout_s!r}",
+        )
         require(
             np.isfinite(self.margin_m) and self.margin_m >= 0,
             "margin_m",
@@ -46,21 +61,35 @@ class BrakingSafetyFilter(gym.Wrapper):
     ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is never
     changed; safe actions pass bit-identical.
 
-    ``info["safety"]``: vetoed, hazard_distance_m, braking_distance_m (R(v) at the current speed),
-    safe_speed_mps (largest v with R(v) <= d), original_action, applied_action.
+    Fail-safe: when the env has no perception yet, or its hazard data is older than
+    ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``), the
+    filter commands full brake whatever the distance.
+
+    Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
+    (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
+    ``perception_timeout_s``) over the defaults; passing both is a :class:`ConfigError`.
+
+    ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
+    braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
+    original_action, applied_action, perception_age_s, perception_stale).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
-    at the decision time, else 0.0 (a constraint cost for safe RL).
+    at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
+    step is :attr:`last_decision`; an env implementing :class:`DecisionSink` receives it before
+    the step so its frames can show it.
     """
 
     def __init__(
         self,
         env: gym.Env,
-        mu: float = 0.65,
-        reaction_time_s: float = 0.25,
-        buffer_m: float = 5.0,
-        g: float = 9.81,
-        margin_m: float = 0.4,
-        mode: Literal["brake", "cap_speed"] = "brake",
+        config: SafetyFilterConfig | None = None,
+        *,
+        mu: float | None = None,
+        reaction_time_s: float | None = None,
+        buffer_m: float | None = None,
+        g: float | None = None,
+        margin_m: float | None = None,
+        mode: Literal["brake", "cap_speed"] | None = None,
+        perception_timeout_s: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -71,12 +100,20 @@ class BrakingSafetyFilter(gym.Wrapper):
         space = env.action_space
         if not (isinstance(space, gym.spaces.Box) and space.shape == (2,)):
             raise TypeError(f"BrakingSafetyFilter needs a Box action space of shape (2,), got {space}")
-        self.config = SafetyFilterConfig(
-            braking=BrakingConfig(mu=mu, reaction_time_s=reaction_time_s, buffer_m=buffer_m, g_mps2=g),
-            margin_m=margin_m,
-            mode=mode,
-        )
-        self.last_safety: dict[str, Any] | None = None
+        braking_kw = {"mu": mu, "reaction_time_s": reaction_time_s, "buffer_m": buffer_m, "g_mps2": g}
+        braking_kw = {k: v for k, v in braking_kw.items() if v is not None}
+        filter_kw = {"margin_m": margin_m, "mode": mode, "perception_timeout_s": perception_timeout_s}
+        filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
+        if config is not None:
+            if braking_kw or filter_kw:
+                names = ", ".join(sorted({*braking_kw, *filter_kw}))
+                raise ConfigError("config", f"pass either config or keyword settings, not both (got {names})")
+            if not isinstance(config, SafetyFilterConfig):
+                raise ConfigError("config", f"must be a SafetyFilterConfig, got {type(config).__name__}")
+            self.config = config
+        else:
+            self.config = SafetyFilterConfig(braking=BrakingConfig(**braking_kw), **filter_kw)
+        self.last_decision: SafetyDecision | None = None
 
     def _hazard_state(self) -> HazardState:
         source = self.env.unwrapped if isinstance(self.env.unwrapped, HazardSource) else self.env
@@ -86,8 +123,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         return state
 
     def _r(self, v: Any) -> np.ndarray:
-        b = self.config.braking
-        return braking_distance_m(v, b.mu, b.reaction_time_s, b.buffer_m, b.g_mps2)
+        return braking_distance_m(v, self.config.braking)
 
     def _is_safe(self, state: HazardState, d: float, longitudinal: float) -> bool:
         v_next = state.predicted_speed_mps(longitudinal)
@@ -112,8 +148,8 @@ class BrakingSafetyFilter(gym.Wrapper):
             cmd = max(-1.0, cmd - 1e-9 - 1e-6 * abs(cmd))
         return cmd if self._is_safe(state, d, cmd) else -1.0
 
-    def filter_action(self, action: Any) -> tuple[np.ndarray, dict[str, Any]]:
-        """The action to apply and the safety record, without stepping the env."""
+    def filter_action(self, action: Any) -> tuple[np.ndarray, SafetyDecision]:
+        """The action to apply and the decision, without stepping the env."""
         try:
             original = np.asarray(action, dtype=np.float32)
         except (TypeError, ValueError) as exc:
@@ -126,39 +162,46 @@ class BrakingSafetyFilter(gym.Wrapper):
         steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
         half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
         d = hazard_distance_m(state.negative_obstacles_xy_m, steer, state.wheelbase_m, half_width)
-        b = self.config.braking
-        r_now = float(self._r(state.speed_mps))
         proposed = float(np.clip(original[0], -1.0, 1.0))
-        vetoed = not self._is_safe(state, d, proposed)
+        age = state.perception_age_s
+        stale = not age <= self.config.perception_timeout_s
+        vetoed = stale or not self._is_safe(state, d, proposed)
         applied = original
         if vetoed:
-            if self.config.mode == "cap_speed":
+            if self.config.mode == "cap_speed" and not stale:
                 cmd = self._capped_longitudinal(state, d, proposed)
             else:
                 cmd = -1.0
             applied = original.copy()
             applied[0] = np.float32(cmd)
-            logger.debug("veto: d=%.2f m, v=%.2f m/s, a0 %.3f -> %.3f", d, state.speed_mps, proposed, cmd)
-        record = {
-            "vetoed": vetoed,
-            "hazard_distance_m": d,
-            "braking_distance_m": r_now,
-            "safe_speed_mps": float(max_safe_speed_mps(d, b.mu, b.reaction_time_s, b.buffer_m, b.g_mps2)),
-            "original_action": original.copy(),
-            "applied_action": applied.copy(),
-        }
-        return (action if not vetoed else applied), record
+            logger.debug(
+                "veto: d=%.2f m, v=%.2f m/s, perception age %.3f s, a0 %.3f -> %.3f",
+                d,
+                state.speed_mps,
+                age,
+                proposed,
+                cmd,
+            )
+        decision = SafetyDecision(
+            vetoed=vetoed,
+            hazard_distance_m=d,
+            braking_distance_m=float(self._r(state.speed_mps)),
+            safe_speed_mps=float(max_safe_speed_mps(d, self.config.braking)),
+            original_action=original.copy(),
+            applied_action=applied.copy(),
+            perception_age_s=age,
+            perception_stale=stale,
+        )
+        return (action if not vetoed else applied), decision
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
-        applied, record = self.filter_action(action)
-        if hasattr(self.env.unwrapped, "set_render_overlay"):  # negobs envs draw the decision
-            self.env.unwrapped.set_render_overlay(record)
+        applied, decision = self.filter_action(action)
+        if isinstance(self.env.unwrapped, DecisionSink):  # negobs envs draw the decision
+            self.env.unwrapped.set_render_overlay(decision)
         obs, reward, terminated, truncated, info = self.env.step(applied)
         info = dict(info)
-        info["safety"] = record
-        info["cost"] = (
-            1.0 if (record["vetoed"] or record["hazard_distance_m"] < record["braking_distance_m"]) else 0.0
-        )
-        self.last_safety = record
+        info["safety"] = decision.as_dict()
+        info["cost"] = decision.cost
+        self.last_decision = decision
         return obs, reward, terminated, truncated, info

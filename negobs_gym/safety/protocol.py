@@ -12,6 +12,10 @@ Conventions every negobs env follows (and any other env must follow to be filter
   ``a0 < 0``.
 * ``negative_obstacles_xy_m`` holds the vehicle-frame xy of the DETECTED negative-obstacle cells
   (negobs envs fill it from the detector grid, never from ground truth).
+* Time: ``time_s`` is the env's clock at the decision, ``perception_time_s`` the time the
+  sensor data behind ``negative_obstacles_xy_m`` was taken (None when there is no perception
+  yet). The filter brakes when that data is missing or older than its
+  ``perception_timeout_s`` (fail-safe, as Nav2's collision monitor does with ``source_timeout``).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from negobs_gym.errors import require
+from negobs_gym.safety.decision import SafetyDecision
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -36,6 +41,8 @@ class HazardState:
     dt_s: float  # control period [s]
     max_accel_mps2: float  # acceleration at action[0] = +1 [m/s^2]
     max_brake_decel_mps2: float  # deceleration at action[0] = -1 [m/s^2], > 0
+    time_s: float  # env clock at this decision [s]
+    perception_time_s: float | None  # when the hazard points were sensed [s]; None = no perception
 
     def __post_init__(self) -> None:
         require(
@@ -66,6 +73,20 @@ class HazardState:
             value = getattr(self, name)
             require(np.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value!r}")
         require(self.max_steer_rad < np.pi / 2, "max_steer_rad", "must be < pi/2")
+        require(np.isfinite(self.time_s), "time_s", f"must be finite, got {self.time_s!r}")
+        if self.perception_time_s is not None:
+            require(
+                np.isfinite(self.perception_time_s) and self.perception_time_s <= self.time_s,
+                "perception_time_s",
+                f"must be finite and <= time_s ({self.time_s!r}), got {self.perception_time_s!r}",
+            )
+
+    @property
+    def perception_age_s(self) -> float:
+        """Age of the hazard points [s]; inf when there is no perception."""
+        if self.perception_time_s is None:
+            return float("inf")
+        return float(self.time_s - self.perception_time_s)
 
     def predicted_speed_mps(self, longitudinal: float) -> float:
         """Speed left after one control period under longitudinal command ``longitudinal``."""
@@ -80,6 +101,15 @@ class HazardState:
         distance, which the trapezoid over-estimates (conservative).
         """
         return 0.5 * self.dt_s * (self.speed_mps + v_next_mps)
+
+
+@runtime_checkable
+class DecisionSink(Protocol):
+    """An env (its ``unwrapped``) that shows the filter's decision, e.g. in its rendered frames."""
+
+    def set_render_overlay(self, decision: SafetyDecision | None) -> None:
+        """Show ``decision`` for the coming step (None clears it)."""
+        ...
 
 
 @runtime_checkable

@@ -12,7 +12,7 @@ from negobs_gym.envs import rendering
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.envs.rendering import RenderConfig, frame_shape, render_frame
 from negobs_gym.errors import ConfigError
-from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.safety import BrakingSafetyFilter, SafetyDecision
 from negobs_gym.sim import presets
 
 OBS = ObservationConfig()
@@ -21,6 +21,20 @@ OBS = ObservationConfig()
 @pytest.fixture(scope="module")
 def terrain():
     return presets.braking_track(ditch_distance_m=20.0, seed=0, rough=False)
+
+
+def _decision(vetoed: bool, hazard_distance_m: float, braking_distance_m: float) -> SafetyDecision:
+    action = np.zeros(2, np.float32)
+    return SafetyDecision(
+        vetoed=vetoed,
+        hazard_distance_m=hazard_distance_m,
+        braking_distance_m=braking_distance_m,
+        safe_speed_mps=0.0,
+        original_action=action,
+        applied_action=action,
+        perception_age_s=0.0,
+        perception_stale=False,
+    )
 
 
 def _frame(terrain, **kwargs) -> np.ndarray:
@@ -46,9 +60,8 @@ def test_frame_shape_is_even_and_as_announced(terrain) -> None:
 
 
 def test_vetoed_and_passing_steps_differ_in_the_border_only_there(terrain) -> None:
-    record = {"hazard_distance_m": 12.0, "braking_distance_m": 8.0}
-    passed = _local(_frame(terrain, safety={**record, "vetoed": False}))
-    vetoed = _local(_frame(terrain, safety={**record, "vetoed": True}))
+    passed = _local(_frame(terrain, safety=_decision(False, 12.0, 8.0)))
+    vetoed = _local(_frame(terrain, safety=_decision(True, 12.0, 8.0)))
     none = _local(_frame(terrain, safety=None))
     b = RenderConfig().border_px
     for img, colour in (
@@ -63,16 +76,12 @@ def test_vetoed_and_passing_steps_differ_in_the_border_only_there(terrain) -> No
 
 
 def test_hazard_and_braking_marks_are_drawn_at_their_distances(terrain) -> None:
-    frame = _local(
-        _frame(terrain, safety={"vetoed": True, "hazard_distance_m": 12.0, "braking_distance_m": 6.0})
-    )
+    frame = _local(_frame(terrain, safety=_decision(True, 12.0, 6.0)))
     for d, colour in ((12.0, rendering.HAZARD_MARK), (6.0, rendering.BRAKING_MARK)):
         row, col = _local_px(0.0, d)
         assert np.array_equal(frame[row, col], colour)
         assert not np.array_equal(frame[_local_px(0.0, d + 1.5)], colour)
-    clear = _local(
-        _frame(terrain, safety={"vetoed": False, "hazard_distance_m": np.inf, "braking_distance_m": 6.0})
-    )
+    clear = _local(_frame(terrain, safety=_decision(False, np.inf, 6.0)))
     assert not np.any(np.all(clear == rendering.HAZARD_MARK, axis=-1))  # no hazard: no d mark
 
 
@@ -128,6 +137,8 @@ def test_env_frames_keep_their_shape_and_show_the_filter_state() -> None:
         assert frame.shape == shape
         colours.append(tuple(_local(frame)[0, 0]))
         assert colours[-1] == (rendering.BORDER_VETO if info["safety"]["vetoed"] else rendering.BORDER_PASS)
+        # the env stamps the hazard points with the time of its last LiDAR frame: fresh every step
+        assert info["safety"]["perception_age_s"] == 0.0 and not info["safety"]["perception_stale"]
         if info["safety"]["vetoed"] or term or trunc:
             break
     assert rendering.BORDER_PASS in colours and colours[-1] == rendering.BORDER_VETO

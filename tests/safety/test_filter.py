@@ -6,9 +6,15 @@ from hypothesis import strategies as st
 
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ActionError, ConfigError
-from negobs_gym.safety import BrakingSafetyFilter, HazardState, braking_distance_m
+from negobs_gym.safety import (
+    BrakingConfig,
+    BrakingSafetyFilter,
+    HazardState,
+    SafetyFilterConfig,
+    braking_distance_m,
+)
 
-from .standins import DITCH_Y_M, FixedHazardEnv, PointCarDitchEnv
+from .standins import DITCH_Y_M, DT_S, FixedHazardEnv, PointCarDitchEnv
 
 HW = 0.5 * (1.8 + 0.4)
 
@@ -35,7 +41,7 @@ def brute_distance(points, steer_rad, wheelbase, half_width, ds=0.01, s_max=80.0
     return best
 
 
-def make_state(v, points):
+def make_state(v, points, time_s=0.0, perception_time_s=0.0):
     return HazardState(
         speed_mps=v,
         negative_obstacles_xy_m=points,
@@ -45,6 +51,8 @@ def make_state(v, points):
         dt_s=0.1,
         max_accel_mps2=3.0,
         max_brake_decel_mps2=0.65 * 9.81,
+        time_s=time_s,
+        perception_time_s=perception_time_s,
     )
 
 
@@ -131,3 +139,140 @@ def test_bad_actions(bad):
 def test_bad_config(kw):
     with pytest.raises(ConfigError):
         BrakingSafetyFilter(FixedHazardEnv(make_state(1.0, np.zeros((0, 2)))), **kw)
+
+
+def _drive(env, steps=400):
+    """Full throttle straight ahead; the per-step info dicts."""
+    env.reset(seed=0)
+    infos = []
+    for _ in range(steps):
+        _, _, term, _, info = env.step(np.array([1.0, 0.0], np.float32))
+        infos.append(info)
+        if term:
+            break
+    return infos
+
+
+@pytest.mark.parametrize("timeout_s", [0.2, 0.5])
+def test_brakes_when_perception_is_older_than_its_limit(timeout_s):
+    """The sensor dies at t = 1 s, 20 m before the ditch: the filter brakes once the data is too old."""
+    env = BrakingSafetyFilter(PointCarDitchEnv(sensor_dies_at_s=1.0), perception_timeout_s=timeout_s)
+    infos = _drive(env, 60)
+    ages = np.array([i["safety"]["perception_age_s"] for i in infos])
+    stale = np.array([i["safety"]["perception_stale"] for i in infos])
+    vetoed = np.array([i["safety"]["vetoed"] for i in infos])
+    applied = np.array([i["safety"]["applied_action"][0] for i in infos])
+    np.testing.assert_array_equal(stale, ages > timeout_s)
+    assert stale.any() and not stale[0]
+    first = int(np.argmax(stale))
+    assert 0.9 < first * DT_S < 1.0 + timeout_s + DT_S  # the first stale decision, not earlier
+    assert not vetoed[:first].any()  # fresh data, hazard far: full throttle passes
+    assert vetoed[first:].all() and np.all(applied[first:] == -1.0)  # from then on: full brake
+    assert all(i["cost"] == 1.0 for i in infos[first:])
+    y, v = env.unwrapped.y, env.unwrapped.v
+    assert v == 0.0 and y < DITCH_Y_M - 10.0  # stopped long before the ditch it no longer sees
+
+
+def test_fresh_perception_does_not_brake_early():
+    """Same drive with a working sensor: no stale decision, the Eq. 18 stop only near the ditch."""
+    infos = _drive(BrakingSafetyFilter(PointCarDitchEnv()))
+    assert not any(i["safety"]["perception_stale"] for i in infos)
+    assert max(i["safety"]["perception_age_s"] for i in infos) == 0.0
+
+
+@pytest.mark.parametrize("mode", ["brake", "cap_speed"])
+def test_missing_perception_brakes(mode):
+    state = make_state(5.0, np.zeros((0, 2)), time_s=3.0, perception_time_s=None)
+    env = BrakingSafetyFilter(FixedHazardEnv(state), mode=mode)
+    _, _, _, _, info = env.step(np.array([0.7, 0.2], np.float32))
+    rec = info["safety"]
+    assert rec["vetoed"] and rec["perception_stale"] and np.isposinf(rec["perception_age_s"])
+    assert np.isposinf(rec["hazard_distance_m"])  # nothing detected, still brakes: fail-safe
+    np.testing.assert_array_equal(env.unwrapped.received, np.array([-1.0, 0.2], np.float32))
+    assert env.last_decision is not None and env.last_decision.perception_stale
+
+
+def test_hazard_state_rejects_perception_from_the_future():
+    with pytest.raises(ConfigError, match="perception_time_s") as err:
+        make_state(1.0, np.zeros((0, 2)), time_s=1.0, perception_time_s=1.5)
+    assert err.value.field == "perception_time_s"
+
+
+def test_config_form_is_used():
+    config = SafetyFilterConfig(braking=BrakingConfig(buffer_m=8.0), mode="cap_speed")
+    env = BrakingSafetyFilter(PointCarDitchEnv(), config=config)
+    assert env.config is config
+    infos = _drive(env)
+    y = env.unwrapped.y
+    assert DITCH_Y_M - y >= 8.0 - 1e-6
+    assert any(i["safety"]["vetoed"] for i in infos)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    v=st.floats(0, 12),
+    a0=st.floats(-1, 1),
+    steer=st.floats(-1, 1),
+    pts=points_st,
+    mu=st.floats(0.2, 1.0),
+    buffer_m=st.floats(0.0, 10.0),
+    reaction_time_s=st.floats(0.0, 1.0),
+    margin_m=st.floats(0.0, 1.0),
+    mode=st.sampled_from(["brake", "cap_speed"]),
+    age_s=st.floats(0.0, 0.4),
+)
+def test_keyword_and_config_forms_decide_the_same(
+    v, a0, steer, pts, mu, buffer_m, reaction_time_s, margin_m, mode, age_s
+):
+    state = make_state(v, pts, time_s=10.0, perception_time_s=10.0 - age_s)
+    kw = {"mu": mu, "buffer_m": buffer_m, "reaction_time_s": reaction_time_s, "margin_m": margin_m}
+    by_kw = BrakingSafetyFilter(FixedHazardEnv(state), mode=mode, **kw)
+    config = SafetyFilterConfig(
+        braking=BrakingConfig(mu=mu, buffer_m=buffer_m, reaction_time_s=reaction_time_s),
+        margin_m=margin_m,
+        mode=mode,
+    )
+    by_config = BrakingSafetyFilter(FixedHazardEnv(state), config=config)
+    assert by_kw.config == by_config.config
+    action = np.array([a0, steer], np.float32)
+    _, rec_kw = by_kw.filter_action(action)
+    _, rec_cfg = by_config.filter_action(action)
+    assert rec_kw.vetoed == rec_cfg.vetoed
+    assert rec_kw.hazard_distance_m == rec_cfg.hazard_distance_m
+    np.testing.assert_array_equal(rec_kw.applied_action, rec_cfg.applied_action)
+
+
+def test_defaults_are_the_papers_and_equal_in_both_forms():
+    env = FixedHazardEnv(make_state(1.0, np.zeros((0, 2))))
+    b = BrakingSafetyFilter(env).config.braking
+    assert (b.mu, b.reaction_time_s, b.buffer_m, b.g_mps2) == (0.65, 0.25, 5.0, 9.81)  # Eq. 18
+    assert BrakingSafetyFilter(env).config == BrakingSafetyFilter(env, config=SafetyFilterConfig()).config
+
+
+def test_config_and_keywords_together_are_an_error():
+    env = FixedHazardEnv(make_state(1.0, np.zeros((0, 2))))
+    with pytest.raises(ConfigError, match=r"not both.*margin_m") as err:
+        BrakingSafetyFilter(env, config=SafetyFilterConfig(), margin_m=1.0)
+    assert err.value.field == "config"
+    with pytest.raises(ConfigError) as err:
+        BrakingSafetyFilter(env, config={"mu": 0.5})
+    assert err.value.field == "config"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"perception_timeout_s": 0.0}, "perception_timeout_s"),
+        ({"perception_timeout_s": np.nan}, "perception_timeout_s"),
+        ({"margin_m": -1.0}, "margin_m"),
+        ({"mode": "swerve"}, "mode"),
+        ({"braking": {"mu": 0.5}}, "braking"),
+    ],
+)
+def test_invalid_config_names_the_field(kwargs, field):
+    with pytest.raises(ConfigError, match=field) as err:
+        SafetyFilterConfig(**kwargs)
+    assert err.value.field == field
+    with pytest.raises(ConfigError) as err:
+        BrakingConfig(reaction_time_s=-1.0)
+    assert err.value.field == "reaction_time_s"

@@ -1,0 +1,52 @@
+"""The braking safety filter's decision for one step, as a typed record."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SafetyDecision:
+    """What :class:`~negobs_gym.safety.BrakingSafetyFilter` decided for one step.
+
+    Attributes:
+        vetoed: The proposed action was replaced.
+        hazard_distance_m: Arc length to the nearest detected hazard in the corridor (inf = clear).
+        braking_distance_m: R(v) at the current speed (Eq. 18).
+        safe_speed_mps: Largest v with R(v) <= hazard distance.
+        original_action: The action proposed (float32, shape (2,)).
+        applied_action: The action passed to the env.
+        perception_age_s: Age of the hazard data at the decision [s] (inf = no perception).
+        perception_stale: The hazard data was missing or older than the filter's timeout, so the
+            filter braked whatever the distance.
+    """
+
+    vetoed: bool
+    hazard_distance_m: float
+    braking_distance_m: float
+    safe_speed_mps: float
+    original_action: np.ndarray
+    applied_action: np.ndarray
+    perception_age_s: float
+    perception_stale: bool
+
+    @property
+    def cost(self) -> float:
+        """1.0 when vetoed or when the vehicle already violates d < R(v), else 0.0 (safe-RL cost)."""
+        return 1.0 if (self.vetoed or self.hazard_distance_m < self.braking_distance_m) else 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for ``info["safety"]`` (arrays copied)."""
+        return {
+            "vetoed": self.vetoed,
+            "hazard_distance_m": self.hazard_distance_m,
+            "braking_distance_m": self.braking_distance_m,
+            "safe_speed_mps": self.safe_speed_mps,
+            "original_action": self.original_action.copy(),
+            "applied_action": self.applied_action.copy(),
+            "perception_age_s": self.perception_age_s,
+            "perception_stale": self.perception_stale,
+        }
