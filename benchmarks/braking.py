@@ -1,4 +1,4 @@
-"""Full-brake stopping distance from 25 km/h on flat ground (SPEC §3.2, paper N Eq. 18).
+"""Full-brake stopping distance from 25 km/h on flat ground (physics part of paper N Eq. 18; docs/physics.md).
 
 Settles the vehicle on a flat braking preset, sets 25 km/h, locks the wheels and measures the
 distance to standstill. The ideal is v^2 / (2 mu g) = 3.78 m for mu = 0.65. The last line printed is

@@ -3,7 +3,7 @@
 441 columns x 4 layers of an analytic scene (banked straight track with a parked car), noisy
 ranges, vehicle pitch bouncing; the scans are made up front, only ``update`` is timed.
 Prints per-scene medians and, as the last line, ``median_ms=<value>`` over all frames.
-Goal (SPEC §9): <= 2 ms (paper T: 25 ms on a 1 GHz Cortex-A8).
+Goal: <= 2 ms (paper T: 25 ms on a 1 GHz Cortex-A8).
 
 Run: python benchmarks/traversable.py [--frames N]
 """

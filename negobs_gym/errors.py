@@ -45,6 +45,17 @@ class MissingDependencyError(NegobsError, ImportError):
         super().__init__(f"{feature} needs the optional package {package!r}: pip install {package}")
 
 
+class InterfaceError(NegobsError, TypeError):
+    """An object passed in lacks the interface needed (e.g. an env without ``hazard_state()``)."""
+
+
+class UnknownNameError(NegobsError, KeyError):
+    """A lookup by name found nothing (e.g. a sensor mount a rig does not have)."""
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0]) if self.args else ""
+
+
 def require(condition: bool, field: str, message: str) -> None:
     """Raise :class:`ConfigError` for ``field`` unless ``condition`` holds (config validation)."""
     if not condition:

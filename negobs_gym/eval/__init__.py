@@ -1,4 +1,7 @@
-"""Evaluation helpers (SPEC §8): detection recall and false alarms on the vehicle grid."""
+"""Evaluation helpers: detection recall and false alarms on the vehicle grid.
+
+Paper N §4.2, Table 7; see docs/eval.md.
+"""
 
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,

@@ -1,4 +1,4 @@
-"""Detection-recall evaluation of negative-obstacle detections (paper N §4.2, Table 7; SPEC §8).
+"""Detection-recall evaluation of negative-obstacle detections (paper N §4.2, Table 7; docs/eval.md).
 
 Everything happens on the vehicle-centred 20 cm grid (:class:`negobs_gym.core.GridSpec`):
 ground-truth outlines (world frame) are mapped to the vehicle frame and rasterised; a detected
@@ -20,7 +20,7 @@ from scipy import ndimage
 from negobs_gym.core.geometry import points_in_polygon, project_onto_polyline
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import ConfigError, require
+from negobs_gym.errors import ConfigError, GeometryError, require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,10 +53,10 @@ class DetectionEvalConfig:
 def _as_polygon(outline: np.ndarray, name: str) -> np.ndarray:
     poly = np.asarray(outline, dtype=np.float64)
     if poly.ndim != 2 or poly.shape[1] < 2 or poly.shape[0] < 1:
-        raise ValueError(f"{name}: expected an (N, 2) outline, got shape {poly.shape}")
+        raise GeometryError(f"{name}: expected an (N, 2) outline, got shape {poly.shape}")
     poly = poly[:, :2]
     if not np.all(np.isfinite(poly)):
-        raise ValueError(f"{name}: outline contains NaN or inf")
+        raise GeometryError(f"{name}: outline contains NaN or inf")
     return poly
 
 
@@ -77,7 +77,7 @@ def world_outline_to_vehicle(
         np.asarray(pose.z if ground_z_m is None else ground_z_m, dtype=np.float64), (len(poly),)
     )
     if not np.all(np.isfinite(z)):
-        raise ValueError("ground_z_m: contains NaN or inf")
+        raise GeometryError("ground_z_m: contains NaN or inf")
     return pose.to_vehicle(np.column_stack([poly, z]))[:, :2]
 
 
@@ -110,7 +110,7 @@ def components_from_grid(obstacle_grid: np.ndarray) -> list[np.ndarray]:
     """Split a boolean obstacle grid into one cell mask per 8-connected blob."""
     grid = np.asarray(obstacle_grid)
     if grid.ndim != 2:
-        raise ValueError(f"obstacle_grid: expected a 2-D grid, got shape {grid.shape}")
+        raise GeometryError(f"obstacle_grid: expected a 2-D grid, got shape {grid.shape}")
     labels, count = ndimage.label(grid.astype(bool), structure=np.ones((3, 3), dtype=bool))
     return [labels == k for k in range(1, count + 1)]
 
@@ -173,13 +173,13 @@ def match_frame(
     if border_mask is not None:
         border_mask = np.asarray(border_mask, dtype=bool)
         if border_mask.shape != grid.shape:
-            raise ValueError(f"border_mask: shape {border_mask.shape} != grid shape {grid.shape}")
+            raise GeometryError(f"border_mask: shape {border_mask.shape} != grid shape {grid.shape}")
     det_masks = []
     for i, item in enumerate(detected):
         arr = np.asarray(item)
         if arr.dtype == bool:
             if arr.shape != grid.shape:
-                raise ValueError(f"detected[{i}]: mask shape {arr.shape} != grid shape {grid.shape}")
+                raise GeometryError(f"detected[{i}]: mask shape {arr.shape} != grid shape {grid.shape}")
             det_masks.append(arr)
         else:
             det_masks.append(rasterize_outline(arr, grid))

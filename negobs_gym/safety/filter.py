@@ -9,7 +9,7 @@ from typing import Any, Literal, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from negobs_gym.errors import ActionError, ConfigError, require
+from negobs_gym.errors import ActionError, ConfigError, InterfaceError, require
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import hazard_distance_m
 from negobs_gym.safety.decision import SafetyDecision
@@ -93,13 +93,13 @@ class BrakingSafetyFilter(gym.Wrapper):
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
-            raise TypeError(
+            raise InterfaceError(
                 f"BrakingSafetyFilter needs an env implementing hazard_state() -> HazardState "
                 f"(see negobs_gym.safety.protocol); {type(env.unwrapped).__name__} has no hazard_state"
             )
         space = env.action_space
         if not (isinstance(space, gym.spaces.Box) and space.shape == (2,)):
-            raise TypeError(f"BrakingSafetyFilter needs a Box action space of shape (2,), got {space}")
+            raise InterfaceError(f"BrakingSafetyFilter needs a Box action space of shape (2,), got {space}")
         braking_kw = {"mu": mu, "reaction_time_s": reaction_time_s, "buffer_m": buffer_m, "g_mps2": g}
         braking_kw = {k: v for k, v in braking_kw.items() if v is not None}
         filter_kw = {"margin_m": margin_m, "mode": mode, "perception_timeout_s": perception_timeout_s}
@@ -119,7 +119,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         source = self.env.unwrapped if isinstance(self.env.unwrapped, HazardSource) else self.env
         state = source.hazard_state()
         if not isinstance(state, HazardState):
-            raise TypeError(f"hazard_state() must return a HazardState, got {type(state).__name__}")
+            raise InterfaceError(f"hazard_state() must return a HazardState, got {type(state).__name__}")
         return state
 
     def _r(self, v: Any) -> np.ndarray:

@@ -1,4 +1,7 @@
-"""Range realism: Gaussian range noise, random dropout, min/max range (SPEC §3)."""
+"""Range realism: Gaussian range noise, random dropout, min/max range.
+
+See docs/sensors.md; dropout models the absorbing/specular surfaces of paper N §3.2 step 2.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from negobs_gym.errors import require
+from negobs_gym.errors import InterfaceError, require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -37,7 +40,7 @@ def apply_noise(ranges_m: np.ndarray, config: NoiseConfig, rng: np.random.Genera
     if not config.enabled:
         return r
     if not isinstance(rng, np.random.Generator):
-        raise TypeError("noise is enabled: pass an np.random.Generator (or disable noise)")
+        raise InterfaceError("rng: noise is enabled, pass an np.random.Generator (or disable noise)")
     r = r + rng.normal(0.0, config.range_sigma_m, size=r.shape)
     r[rng.random(r.shape) < config.dropout_prob] = np.nan
     r[r < 0] = np.nan

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from negobs_gym.core.pose import rotation_from_rpy
-from negobs_gym.errors import require
+from negobs_gym.errors import UnknownNameError, require
 from negobs_gym.sensors.models import LidarModel, hdl32e, hdl64e_s2, ibeo_lux
 
 
@@ -72,7 +72,8 @@ class Rig:
         for m in self.mounts:
             if m.name == name:
                 return m
-        raise KeyError(name)
+        names = [m.name for m in self.mounts]
+        raise UnknownNameError(f"rig {self.name!r} has no sensor {name!r}; it has {names}")
 
 
 def _rot(m: np.ndarray) -> tuple[float, ...]:

@@ -16,6 +16,7 @@ import numpy as np
 
 from negobs_gym.core import Pose
 from negobs_gym.core.geometry import heading_axes, vehicle_to_world_xy
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim.types import Terrain
 
 if TYPE_CHECKING:
@@ -146,7 +147,7 @@ def render_top_down(
     if width_px is None:
         width_px = max(64, round(height_px * (x1 - x0) / max(y1 - y0, 1e-9)))
     if height_px < 16 or width_px < 16:
-        raise ValueError(f"image size must be at least 16x16 px, got {width_px}x{height_px}")
+        raise ConfigError("width_px/height_px", f"must be at least 16x16 px, got {width_px}x{height_px}")
     dpi = 100
     fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)
@@ -156,7 +157,7 @@ def render_top_down(
     if path_xy_m is not None:
         path = np.asarray(path_xy_m, dtype=np.float64)
         if path.ndim != 2 or path.shape[1] != 2:
-            raise ValueError(f"path_xy_m must have shape (N, 2), got {path.shape}")
+            raise GeometryError(f"path_xy_m must have shape (N, 2), got {path.shape}")
         finite = np.all(np.isfinite(path), axis=1)
         ax.plot(path[finite, 0], path[finite, 1], color=PATH_COLOUR, lw=1.5)
     if vehicle_pose is not None:

@@ -1,4 +1,4 @@
-"""Procedural off-road terrain: a corridor of heightfield around a drivable track (SPEC §3.1).
+"""Procedural off-road terrain: a corridor of heightfield around a drivable track (docs/terrain.md).
 
 The heightfield is the sum of
 
@@ -25,7 +25,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from negobs_gym.errors import ConfigError, require
+from negobs_gym.errors import ConfigError, GeometryError, require
 from negobs_gym.sim.carving import (
     NegativeObstacleSpec,
     PositiveObstacleSpec,
@@ -85,9 +85,9 @@ class BendSpec:
 class RoughnessConfig:
     """Off-road roughness; every amplitude is the peak height of its octave [m]."""
 
-    slope_amplitude_m: float = 1.0  # gentle slopes over the whole corridor (SPEC §3.1)
+    slope_amplitude_m: float = 1.0  # gentle slopes over the whole corridor (docs/terrain.md)
     slope_wavelength_m: float = 60.0  # feature size of the slopes [m]
-    bump_amplitude_m: float = 0.25  # off-track bumps; SPEC §3.1 bumps 5-30 cm
+    bump_amplitude_m: float = 0.25  # off-track bumps of 5-30 cm (docs/terrain.md; the papers give no figure)
     bump_wavelength_m: float = 3.0
     fine_amplitude_m: float = 0.05  # fine clods/grass tufts
     fine_wavelength_m: float = 0.6
@@ -156,7 +156,7 @@ class BorderConfig:
 class TerrainConfig:
     """A course: track geometry, roughness, borders and obstacles. Lengths in m, angles in deg."""
 
-    resolution_m: float = 0.10  # heightfield sample spacing; SPEC §3.1: 5-10 cm
+    resolution_m: float = 0.10  # sample spacing; 5-10 cm puts 3+ samples across a 0.3 m pit
     length_m: float = 200.0  # centre-line length from the start [m]
     lead_in_m: float = 10.0  # terrain behind the start [m]
     run_out_m: float = 10.0  # terrain beyond the end of the centre line [m]
@@ -261,7 +261,7 @@ def track_coordinates(
     """
     xy = np.asarray(xy_m, dtype=np.float64)
     if xy.shape[-1:] != (2,) or not np.all(np.isfinite(xy)):
-        raise ValueError(f"xy_m must be finite points of shape (..., 2), got shape {xy.shape}")
+        raise GeometryError(f"xy_m must be finite points of shape (..., 2), got shape {xy.shape}")
     s = np.arange(-extend_m, track.length_m + extend_m + spacing_m, spacing_m)
     pts, yaw = track.pose_at(s)
     tree = cKDTree(pts)

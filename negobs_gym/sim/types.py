@@ -12,6 +12,7 @@ from typing import Literal
 import numpy as np
 
 from negobs_gym.core.geometry import polyline_stations
+from negobs_gym.errors import GeometryError
 
 NegativeKind = Literal["pit", "ditch", "trench", "crater"]
 PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian"]
@@ -65,7 +66,7 @@ class HeightField:
 
 @dataclass(frozen=True, eq=False)
 class NegativeObstacle:
-    """Ground truth of one carved negative obstacle (SPEC §3.1)."""
+    """Ground truth of one carved negative obstacle (docs/terrain.md)."""
 
     obstacle_id: str
     kind: NegativeKind
@@ -97,7 +98,7 @@ class PositiveObstacle:
 
 @dataclass(frozen=True, eq=False)
 class Track:
-    """The drivable track: a centre line and a width, plus its borders (SPEC §3.1).
+    """The drivable track: a centre line and a width, plus its borders (paper T's scenes; docs/terrain.md).
 
     Track coordinates: ``station_m`` is the distance along the centre line from its first vertex
     (the start), ``lateral_m`` the signed offset from it, positive to the RIGHT of the driving
@@ -129,7 +130,7 @@ class Track:
         """
         pts = np.asarray(self.centreline_xy_m, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[0] < 2 or pts.shape[1] != 2:
-            raise ValueError(f"centreline_xy_m must be (N>=2, 2), got {pts.shape}")
+            raise GeometryError(f"centreline_xy_m must be (N>=2, 2), got {pts.shape}")
         st = self.stations_m
         s = np.asarray(station_m, dtype=np.float64)
         lat = np.asarray(lateral_m, dtype=np.float64)

@@ -285,7 +285,7 @@ class World:
         """Advance physics by ``n_steps`` fixed time steps, running the pre-step hooks each time."""
         c = self.client_id
         if not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
-            raise ValueError(f"n_steps must be an int >= 0, got {n_steps!r}")
+            raise ConfigError("n_steps", f"must be an int >= 0, got {n_steps!r}")
         for _ in range(int(n_steps)):
             for hook in self._pre_step:
                 hook()

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.eval import (
     DetectionEvalConfig,
     RecallTable,
@@ -64,7 +64,7 @@ def test_rasterize_outside_grid_is_empty() -> None:
     ],
 )
 def test_rasterize_rejects_bad_outline(bad: np.ndarray, match: str) -> None:
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(GeometryError, match=match):
         rasterize_outline(bad, GRID)
 
 
@@ -83,7 +83,7 @@ def test_world_outline_to_vehicle_uses_ground_height_when_pitched() -> None:
     pose = Pose(x=0.0, y=0.0, z=1.0, roll=0.0, pitch=pitch, yaw=0.0)
     veh = world_outline_to_vehicle(np.array([[0.0, 10.0]]), pose, ground_z_m=0.0)
     assert veh[0, 1] == pytest.approx(10.0 * math.cos(pitch) - 1.0 * math.sin(pitch))
-    with pytest.raises(ValueError, match="ground_z_m"):
+    with pytest.raises(GeometryError, match="ground_z_m"):
         world_outline_to_vehicle(np.array([[0.0, 10.0]]), pose, ground_z_m=np.nan)
 
 
@@ -124,9 +124,9 @@ def test_grid_masks_and_components() -> None:
     assert len(blobs) == 2
     m = match_frame(blobs, [square(0.5, 8.5, 1.0)], GRID)
     assert m.truth_recalled[0] and m.false_alarms == 1
-    with pytest.raises(ValueError, match="mask shape"):
+    with pytest.raises(GeometryError, match="mask shape"):
         match_frame([np.zeros((3, 3), dtype=bool)], [], GRID)
-    with pytest.raises(ValueError, match="2-D"):
+    with pytest.raises(GeometryError, match="2-D"):
         components_from_grid(np.zeros(5, dtype=bool))
 
 
@@ -139,7 +139,7 @@ def test_border_detections_are_not_false_alarms() -> None:
     on_border = [square(4.0, 10.0, 0.6)]
     assert match_frame(on_border, [], GRID).false_alarms == 1
     assert match_frame(on_border, [], GRID, border_mask=border).false_alarms == 0
-    with pytest.raises(ValueError, match="border_mask"):
+    with pytest.raises(GeometryError, match="border_mask"):
         match_frame(on_border, [], GRID, border_mask=np.zeros((2, 2), dtype=bool))
 
 

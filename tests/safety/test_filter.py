@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from negobs_gym.drivers import RecklessDriver
-from negobs_gym.errors import ActionError, ConfigError
+from negobs_gym.errors import ActionError, ConfigError, InterfaceError
 from negobs_gym.safety import (
     BrakingConfig,
     BrakingSafetyFilter,
@@ -124,7 +124,7 @@ class NoProtocolEnv(gym.Env):
 
 
 def test_missing_protocol():
-    with pytest.raises(TypeError, match="hazard_state"):
+    with pytest.raises(InterfaceError, match="hazard_state"):
         BrakingSafetyFilter(NoProtocolEnv())
 
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, InterfaceError, UnknownNameError
 from negobs_gym.sensors import (
     LidarModel,
     SensorMount,
@@ -19,7 +19,7 @@ def test_hdl64_calibrated_table():
     m = hdl64e_s2()
     assert m.n_lasers * m.n_columns == 256000
     el = np.asarray(m.elevation_deg)
-    assert np.all(np.diff(el) > 0)  # detector order: ascending elevation (SPEC §4.1)
+    assert np.all(np.diff(el) > 0)  # detector order: ascending elevation (paper N §3.1)
     # the unit's table, not the uniform nominal one: same span within ~3 deg, uneven spacing
     np.testing.assert_allclose(np.sort(np.rad2deg(HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD)), el)
     assert el[0] == pytest.approx(-24.845, abs=1e-3) and el[-1] == pytest.approx(4.970, abs=1e-3)
@@ -58,3 +58,16 @@ def test_bad_model(kwargs, field):
 def test_bad_rotation():
     with pytest.raises(ConfigError, match="rotation"):
         SensorMount(name="s", model=hdl32e(), rotation=(1.0, 0.1, 0, 0, 1, 0, 0, 0, 1))
+
+
+def test_unknown_mount_and_missing_rng_raise_package_errors():
+    from negobs_gym.sensors.noise import NoiseConfig, apply_noise
+    from negobs_gym.sensors.rigs import paper_n_rig
+
+    rig = paper_n_rig()
+    with pytest.raises(UnknownNameError, match="no sensor 'lux'") as err:
+        rig.mount("lux")
+    assert isinstance(err.value, KeyError)  # callers catching KeyError keep working
+    with pytest.raises(InterfaceError, match="rng") as err:
+        apply_noise(np.ones(3), NoiseConfig(enabled=True), rng=None)
+    assert isinstance(err.value, TypeError)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core import Pose
+from negobs_gym.errors import GeometryError
 from negobs_gym.sim import presets
 from negobs_gym.sim.render import render_top_down
 
@@ -66,5 +67,5 @@ def test_default_width_follows_terrain_aspect() -> None:
 
 def test_bad_path_raises() -> None:
     terrain = presets.rough_track(length_m=20.0, seed=0, resolution_m=0.2)
-    with pytest.raises(ValueError, match="path_xy_m"):
+    with pytest.raises(GeometryError, match="path_xy_m"):
         render_top_down(terrain, path_xy_m=np.zeros((5, 3)), height_px=100)

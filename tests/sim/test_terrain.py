@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim.carving import NegativeObstacleSpec
 from negobs_gym.sim.terrain import (
     BendSpec,
@@ -188,5 +188,5 @@ def test_track_pose_extrapolates_straight_and_rejects_bad_centreline() -> None:
     xy, yaw = track.pose_at(np.array([-5.0, 25.0]))
     np.testing.assert_allclose(xy, [[0.0, -5.0], [15.0, 10.0]])
     np.testing.assert_allclose(yaw, [0.0, -np.pi / 2])  # yaw -90 deg faces world +X
-    with pytest.raises(ValueError, match="centreline_xy_m"):
+    with pytest.raises(GeometryError, match="centreline_xy_m"):
         Track(centreline_xy_m=np.zeros((1, 2)), width_m=4.0).pose_at(0.0)
