@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from negobs_gym.safety.braking import BrakingConfig
 from negobs_gym.sim import presets
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World, WorldConfig
@@ -41,10 +42,10 @@ def main() -> None:
     parser.add_argument("--rate-hz", type=float, default=240.0, help="physics rate (240 or 120)")
     parser.add_argument("--rough", action="store_true", help="brake on the rough preset instead of flat")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--mu", type=float, default=0.65, help="tyre mu for the ideal figure")
+    parser.add_argument("--mu", type=float, default=BrakingConfig().mu, help="tyre mu for the ideal figure")
     args = parser.parse_args()
     speed = args.speed_kmh / 3.6
-    ideal = speed**2 / (2 * args.mu * 9.81)
+    ideal = speed**2 / (2 * args.mu * BrakingConfig().g_mps2)
     t0 = time.perf_counter()
     distance, duration = stop_distance_m(speed, 1.0 / args.rate_hz, args.rough, args.seed)
     wall = time.perf_counter() - t0

@@ -59,16 +59,18 @@ def make_state(v, points, time_s=0.0, perception_time_s=0.0):
 points_st = st.lists(st.tuples(st.floats(-25, 25), st.floats(0.5, 40)), min_size=0, max_size=6).map(
     lambda p: np.array(p, dtype=float).reshape(-1, 2)
 )
+# one filter decision: speed, proposed action, detected points, mode
+DECISION_CASE = {
+    "v": st.floats(0, 12),
+    "a0": st.floats(-1, 1),
+    "steer": st.floats(-1, 1),
+    "pts": points_st,
+    "mode": st.sampled_from(["brake", "cap_speed"]),
+}
 
 
 @settings(max_examples=1000, deadline=None)
-@given(
-    v=st.floats(0, 12),
-    a0=st.floats(-1, 1),
-    steer=st.floats(-1, 1),
-    pts=points_st,
-    mode=st.sampled_from(["brake", "cap_speed"]),
-)
+@given(**DECISION_CASE)
 def test_never_lets_unsafe_through(v, a0, steer, pts, mode):
     state = make_state(v, pts)
     env = BrakingSafetyFilter(FixedHazardEnv(state), mode=mode)
@@ -210,15 +212,11 @@ def test_config_form_is_used():
 
 @settings(max_examples=100, deadline=None)
 @given(
-    v=st.floats(0, 12),
-    a0=st.floats(-1, 1),
-    steer=st.floats(-1, 1),
-    pts=points_st,
+    **DECISION_CASE,
     mu=st.floats(0.2, 1.0),
     buffer_m=st.floats(0.0, 10.0),
     reaction_time_s=st.floats(0.0, 1.0),
     margin_m=st.floats(0.0, 1.0),
-    mode=st.sampled_from(["brake", "cap_speed"]),
     age_s=st.floats(0.0, 0.4),
 )
 def test_keyword_and_config_forms_decide_the_same(
