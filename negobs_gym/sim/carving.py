@@ -18,7 +18,7 @@ from typing import get_args
 
 import numpy as np
 
-from negobs_gym.core.geometry import heading_axes, points_in_polygon
+from negobs_gym.core.geometry import heading_axes, points_in_polygon, world_to_vehicle_xy
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.sim.types import (
     HeightField,
@@ -226,9 +226,9 @@ def _window(hf: HeightField, outline: np.ndarray, field: str) -> tuple[slice, sl
 
 
 def _local(gx: np.ndarray, gy: np.ndarray, centre: np.ndarray, yaw_rad: float):
-    fwd, right = heading_axes(yaw_rad)
-    dx, dy = gx - centre[0], gy - centre[1]
-    return dx * fwd[0] + dy * fwd[1], dx * right[0] + dy * right[1]
+    """Obstacle coordinates (along its length, across to its right) of world samples."""
+    local = world_to_vehicle_xy(np.stack([gx, gy], axis=-1), centre, yaw_rad)
+    return local[..., 1], local[..., 0]
 
 
 def _rim_height(hf: HeightField, outline: np.ndarray) -> float:
