@@ -1,7 +1,4 @@
-"""Evaluation helpers: detection recall and false alarms on the vehicle grid.
-
-Paper N §4.2, Table 7; see docs/eval.md.
-"""
+"""Evaluation helpers (docs/eval.md): detection recall and false alarms on the vehicle grid."""
 
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,

@@ -1,7 +1,4 @@
-"""Range realism: Gaussian range noise, random dropout, min/max range.
-
-See docs/sensors.md; dropout models the absorbing/specular surfaces of paper N §3.2 step 2.
-"""
+"""Range realism: Gaussian range noise, random dropout, min/max range (docs/sensors.md)."""
 
 from __future__ import annotations
 

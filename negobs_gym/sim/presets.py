@@ -2,7 +2,7 @@
 
 Every preset starts the vehicle at the origin facing world +Y (``start_xy_yaw = (0, 0, 0)``) on the
 track centre line and puts the goal ``goal_margin_m`` before the end of the track. Distances
-"ahead" are measured along the track from the start pose (the vehicle frame origin, ``negobs_gym.core.pose``).
+"ahead" are measured along the track from the start pose (the vehicle frame origin, SPEC §2).
 Each preset takes ``seed`` (roughness noise and, for the winding course, the layout) and
 ``resolution_m``; ``PRESETS`` maps a name to each preset function.
 """

@@ -87,7 +87,7 @@ class RoughnessConfig:
 
     slope_amplitude_m: float = 1.0  # gentle slopes over the whole corridor (docs/terrain.md)
     slope_wavelength_m: float = 60.0  # feature size of the slopes [m]
-    bump_amplitude_m: float = 0.25  # off-track bumps of 5-30 cm (docs/terrain.md; the papers give no figure)
+    bump_amplitude_m: float = 0.25  # off-track bumps; docs/terrain.md bumps 5-30 cm
     bump_wavelength_m: float = 3.0
     fine_amplitude_m: float = 0.05  # fine clods/grass tufts
     fine_wavelength_m: float = 0.6
@@ -156,7 +156,7 @@ class BorderConfig:
 class TerrainConfig:
     """A course: track geometry, roughness, borders and obstacles. Lengths in m, angles in deg."""
 
-    resolution_m: float = 0.10  # sample spacing; 5-10 cm puts 3+ samples across a 0.3 m pit
+    resolution_m: float = 0.10  # heightfield sample spacing; docs/terrain.md: 5-10 cm
     length_m: float = 200.0  # centre-line length from the start [m]
     lead_in_m: float = 10.0  # terrain behind the start [m]
     run_out_m: float = 10.0  # terrain beyond the end of the centre line [m]

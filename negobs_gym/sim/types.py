@@ -98,7 +98,7 @@ class PositiveObstacle:
 
 @dataclass(frozen=True, eq=False)
 class Track:
-    """The drivable track: a centre line and a width, plus its borders (paper T's scenes; docs/terrain.md).
+    """The drivable track: a centre line and a width, plus its borders (docs/terrain.md).
 
     Track coordinates: ``station_m`` is the distance along the centre line from its first vertex
     (the start), ``lateral_m`` the signed offset from it, positive to the RIGHT of the driving

@@ -39,9 +39,7 @@ class Agreement:
 
 
 def compare_ranges(reference_m: np.ndarray, candidate_m: np.ndarray, tol_m: float = 0.01) -> Agreement:
-    """Compare two range arrays of the same rays (NaN = miss); ``tol_m`` default: 1 cm.
-
-    The 1 cm agreement bar is documented in docs/sensors.md.
+    """Compare two range arrays of the same rays (NaN = miss); ``tol_m`` default is docs/sensors.md's 1 cm.
 
     Raises:
         ScanError: Shapes differ or there are no rays.
