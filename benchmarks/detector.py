@@ -4,7 +4,7 @@ Scans are cast up front in the PyBullet world with the fast ray caster (braking 
 1 x 1 x 0.8 m pit and rough ground, vehicle driving at 25 km/h, sensor noise on); the cast is timed
 per frame, then ``NegativeObstacleDetector.update`` (feature pairs of the three sensors, fusion,
 DBSCAN, grid) is timed on the recorded frames. Prints the cast and per-stage medians, cast +
-detector (goal: <= 100 ms, the sensors' own 10 Hz) and, as the last line, ``median_ms=<value>`` of ``update``.
+detector (SPEC §9 goal: <= 100 ms) and, as the last line, ``median_ms=<value>`` of ``update``.
 Goal (issue 4): <= 60 ms on 2 cores.
 
 Run: python benchmarks/detector.py [--frames N]
