@@ -56,6 +56,7 @@ FRAME_COLUMNS = (
     "frame",
     "speed_mps",
     "travelled_m",
+    "lateral_m",
     *(f"{k}_{m}" for m in SENSOR_MODES for k in ("detections", "false_alarms_on", "false_alarms_off")),
 )
 
@@ -232,7 +233,15 @@ def run_episode(episode: Episode) -> Rows:
                 )
                 recalled[m] = match.truth_recalled
                 fa_cells += [match.detections, on.false_alarms, match.false_alarms - on.false_alarms]
-            frames.append(format_row([episode.key, seed, frame, speed, travelled, *fa_cells]))
+            row = [
+                episode.key,
+                seed,
+                frame,
+                speed,
+                travelled,
+                pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0])),
+            ]
+            frames.append(format_row([*row, *fa_cells]))
             for k, truth in enumerate(truths):
                 cells = rasterize_outline(truth, grid) if truth.size else None
                 if cells is None or int(match.truth_cells[k]) == 0:
