@@ -31,7 +31,7 @@ def load_toml(path: str | Path, command: str) -> dict[str, Any]:
         try:
             import tomli as tomllib
         except ModuleNotFoundError as error:
-            raise MissingDependencyError("--config on Python 3.10 needs tomli: pip install tomli") from error
+            raise MissingDependencyError("tomli", "--config on Python 3.10") from error
     try:
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as error:

@@ -141,9 +141,7 @@ def import_ray() -> Any:
     try:
         import ray
     except ImportError as error:
-        raise MissingDependencyError(
-            "--ray needs the optional dependency ray: pip install 'negobs_gym[ray]'"
-        ) from error
+        raise MissingDependencyError("negobs_gym[ray]", "running campaigns on Ray (--ray)") from error
     return ray
 
 
@@ -199,6 +197,8 @@ def run_episodes(
     if parts.exists() and not resume:
         shutil.rmtree(parts)
     parts.mkdir(parents=True, exist_ok=True)
+    for stale in parts.glob(".*.tmp"):  # a temp file of a killed run: never a finished part
+        stale.unlink()
     finished = {p.stem: p for p in parts.glob("*.json") if p.stem in set(keys)}
     todo = [ep for ep in episodes if ep.key not in finished]
     if resume:

@@ -103,7 +103,7 @@ def distribution_plot(
     """One box per configuration (label -> samples), empty configurations shown as such."""
     plt = _pyplot()
     labels = list(samples)
-    fig, ax = plt.subplots(figsize=(8, 0.45 * len(labels) + 1.8))
+    fig, ax = plt.subplots(figsize=(9, 0.45 * len(labels) + 1.8), layout="constrained")
     data = [np.asarray(samples[k], dtype=float) for k in labels]
     positions = np.arange(len(labels))
     filled = [i for i, d in enumerate(data) if d.size]
@@ -117,5 +117,4 @@ def distribution_plot(
     ax.set_xlabel(xlabel)
     ax.set_title(title)
     ax.grid(axis="x", alpha=0.3)
-    fig.tight_layout()
     return _save(fig, path)
