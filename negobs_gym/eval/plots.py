@@ -110,8 +110,12 @@ def distribution_plot(
     if filled:
         ax.boxplot([data[i] for i in filled], positions=positions[filled], vert=False, widths=0.6)
     for i, d in enumerate(data):
-        if not d.size:
-            ax.text(0.0, i, "  none", va="center", color="grey", fontsize=8)
+        if d.size:  # every sample as a dot: small campaigns have too few for a box
+            ax.plot(d, np.full(d.size, i), "o", color="tab:blue", alpha=0.5, markersize=4)
+        else:
+            ax.text(
+                0.01, i, "none", va="center", color="grey", fontsize=8, transform=ax.get_yaxis_transform()
+            )
     ax.set_yticks(positions, [f"{k} (n={d.size})" for k, d in zip(labels, data, strict=True)], fontsize=8)
     ax.set_ylim(-0.7, len(labels) - 0.3)
     ax.set_xlabel(xlabel)
