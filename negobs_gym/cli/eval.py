@@ -123,12 +123,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     pol.set_defaults(handler=run_policy)
 
 
-def _backend(args: argparse.Namespace):
-    from negobs_gym.eval.campaign import Backend, import_ray
+def _options(args: argparse.Namespace):
+    from negobs_gym.eval.campaign import Backend, RunOptions, import_ray
 
     if args.ray is not None:
         import_ray()  # fail before any work when ray is missing
-    return Backend(workers=args.workers, ray=args.ray)
+    return RunOptions(Backend(workers=args.workers, ray=args.ray), args.resume, not args.no_progress)
 
 
 def _toml(args: argparse.Namespace) -> dict[str, Any]:
@@ -154,9 +154,7 @@ def run_detection(args: argparse.Namespace) -> int:
         config.rig,
         args.out,
     )
-    out = run_detection_campaign(
-        config, args.out, backend=_backend(args), resume=args.resume, progress=not args.no_progress
-    )
+    out = run_detection_campaign(config, args.out, _options(args))
     s = out.summary
     rates = s.false_alarm_rates("fused")
     log.info(
@@ -193,9 +191,7 @@ def run_braking(args: argparse.Namespace) -> int:
         "algo": args.algo,
     }
     config = build_config(BrakingCampaignConfig, _toml(args), cli)
-    out = run_braking_campaign(
-        config, args.out, backend=_backend(args), resume=args.resume, progress=not args.no_progress
-    )
+    out = run_braking_campaign(config, args.out, _options(args))
     for s in out.summaries:
         print(summary_line(s))  # the campaign's result on stdout, one line per configuration
     for path in (out.table_md, out.summary_json, out.csv, out.margins_png, out.first_veto_png):
@@ -218,9 +214,7 @@ def run_policy(args: argparse.Namespace) -> int:
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
     config = build_config(PolicyCampaignConfig, _toml(args), cli)
-    csv, summary_json, summary = run_policy_campaign(
-        config, args.out, backend=_backend(args), resume=args.resume, progress=not args.no_progress
-    )
+    csv, summary_json, summary = run_policy_campaign(config, args.out, _options(args))
     for name, s in summary.items():
         print(
             f"{config.env_id}/{name} success={int(s['successes'])}/{int(s['episodes'])} "

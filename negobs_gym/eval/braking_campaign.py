@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.campaign import Episode, Rows, format_row, read_csv
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -371,26 +371,16 @@ class BrakingOutputs:
 def run_braking_campaign(
     config: BrakingCampaignConfig,
     out_dir: str | Path,
-    *,
-    backend: Any = None,
-    resume: bool = False,
-    progress: bool = True,
+    options: RunOptions | None = None,
 ) -> BrakingOutputs:
     """Run (or resume) the braking campaign; CSV, summary JSON, table and plots in ``out_dir``."""
-    from negobs_gym.eval.campaign import assemble_csv, run_episodes, write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
     from negobs_gym.eval.plots import distribution_plot
 
     out = Path(out_dir)
-    results = run_episodes(
-        run_episode,
-        episodes(config),
-        out,
-        backend=backend,
-        resume=resume,
-        progress=progress,
-        description="braking episodes",
-    )
-    csv = assemble_csv(results, "braking", COLUMNS, out / "braking.csv")
+    csv = run_campaign(run_episode, episodes(config), out, {"braking": COLUMNS}, options, "braking episodes")[
+        "braking"
+    ]
     summaries = summarize(csv)
     obstacle = [s for s in summaries if s.obstacle]
     return BrakingOutputs(

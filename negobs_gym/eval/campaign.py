@@ -229,6 +229,40 @@ def assemble_csv(
     return write_text_atomic(out_path, "\n".join(lines) + "\n")
 
 
+@dataclass(frozen=True)
+class RunOptions:
+    """How a campaign runs: where (``backend``), whether it resumes, whether it shows a progress bar."""
+
+    backend: Backend = field(default_factory=Backend)
+    resume: bool = False
+    progress: bool = True
+
+
+def run_campaign(
+    fn: EpisodeFn,
+    episodes: Sequence[Episode],
+    out_dir: str | Path,
+    tables: Mapping[str, Sequence[str]],
+    options: RunOptions | None = None,
+    description: str = "episodes",
+) -> dict[str, Path]:
+    """:func:`run_episodes` then :func:`assemble_csv` of each table (name -> header) to ``out/<name>.csv``."""
+    opts = options or RunOptions()
+    results = run_episodes(
+        fn,
+        episodes,
+        out_dir,
+        backend=opts.backend,
+        resume=opts.resume,
+        progress=opts.progress,
+        description=description,
+    )
+    return {
+        name: assemble_csv(results, name, header, Path(out_dir) / f"{name}.csv")
+        for name, header in tables.items()
+    }
+
+
 def read_csv(path: str | Path) -> list[dict[str, str]]:
     """Rows of a campaign CSV as dicts of text (the writer never quotes, see :func:`format_value`)."""
     lines = Path(path).read_text(encoding="utf-8").splitlines()

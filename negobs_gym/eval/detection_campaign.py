@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.campaign import Episode, Rows, format_row, read_csv
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,
     match_frame,
@@ -426,28 +426,17 @@ class DetectionOutputs:
 def run_detection_campaign(
     config: DetectionCampaignConfig,
     out_dir: str | Path,
-    *,
-    backend: Any = None,
-    resume: bool = False,
-    progress: bool = True,
+    options: RunOptions | None = None,
 ) -> DetectionOutputs:
     """Run (or resume) the campaign and write its CSVs, summary JSON, tables and figures to ``out_dir``."""
-    from negobs_gym.eval.campaign import assemble_csv, run_episodes, write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
     from negobs_gym.eval.plots import fig16_plot, recall_heatmap
     from negobs_gym.eval.tables import PAPER_N_TABLE7, paper_n_fig16_fused
 
     out = Path(out_dir)
-    results = run_episodes(
-        run_episode,
-        episodes(config),
-        out,
-        backend=backend,
-        resume=resume,
-        progress=progress,
-        description="detection courses",
-    )
-    obstacles_csv = assemble_csv(results, "obstacles", OBSTACLE_COLUMNS, out / "obstacles.csv")
-    frames_csv = assemble_csv(results, "frames", FRAME_COLUMNS, out / "frames.csv")
+    tables = {"obstacles": OBSTACLE_COLUMNS, "frames": FRAME_COLUMNS}
+    csvs = run_campaign(run_episode, episodes(config), out, tables, options, "detection courses")
+    obstacles_csv, frames_csv = csvs["obstacles"], csvs["frames"]
     summary = summarize(obstacles_csv, frames_csv, config.eval)
     return DetectionOutputs(
         obstacles_csv=obstacles_csv,

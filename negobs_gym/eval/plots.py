@@ -108,7 +108,12 @@ def distribution_plot(
     positions = np.arange(len(labels))
     filled = [i for i, d in enumerate(data) if d.size]
     if filled:
-        ax.boxplot([data[i] for i in filled], positions=positions[filled], vert=False, widths=0.6)
+        import matplotlib
+
+        major, minor = (int(v) for v in matplotlib.__version__.split(".")[:2])
+        # matplotlib 3.10 renamed vert=False to orientation="horizontal" (and deprecated vert)
+        horizontal = {"orientation": "horizontal"} if (major, minor) >= (3, 10) else {"vert": False}
+        ax.boxplot([data[i] for i in filled], positions=positions[filled], widths=0.6, **horizontal)
     for i, d in enumerate(data):
         if d.size:  # every sample as a dot: small campaigns have too few for a box
             ax.plot(d, np.full(d.size, i), "o", color="tab:blue", alpha=0.5, markersize=4)

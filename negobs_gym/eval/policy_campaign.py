@@ -15,7 +15,7 @@ from typing import Any
 
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
-from negobs_gym.eval.campaign import Episode, Rows, format_row, read_csv
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
 
@@ -107,25 +107,15 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
 def run_policy_campaign(
     config: PolicyCampaignConfig,
     out_dir: str | Path,
-    *,
-    backend: Any = None,
-    resume: bool = False,
-    progress: bool = True,
+    options: RunOptions | None = None,
 ) -> tuple[Path, Path, dict[str, dict[str, float]]]:
     """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
-    from negobs_gym.eval.campaign import assemble_csv, run_episodes, write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
 
     out = Path(out_dir)
-    results = run_episodes(
-        run_episode,
-        episodes(config),
-        out,
-        backend=backend,
-        resume=resume,
-        progress=progress,
-        description="policy episodes",
-    )
-    csv = assemble_csv(results, "policy", COLUMNS, out / "policy.csv")
+    csv = run_campaign(run_episode, episodes(config), out, {"policy": COLUMNS}, options, "policy episodes")[
+        "policy"
+    ]
     summary = summarize(csv)
     text = json.dumps({"config": dataclasses.asdict(config), "summary": summary}, indent=1, sort_keys=True)
     return csv, write_text_atomic(out / "summary.json", text), summary
