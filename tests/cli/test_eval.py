@@ -67,3 +67,21 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     rows = (out / "policy.csv").read_text().splitlines()
     assert len(rows) == 2 and rows[0].startswith("episode,env,filter,seed,success")
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
+    # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
+    config = tmp_path / "braking.toml"
+    config.write_text("[braking]\nfilters = [true]\n")
+    braking = [
+        "eval",
+        "braking",
+        "--model",
+        str(path),
+        "--drivers",
+        "sb3",
+        "--scenarios",
+        "ditch",
+        "--seeds",
+        "1",
+    ]
+    assert main(["-q", *braking, "--config", str(config), "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    assert line.startswith("ditch/sb3/filter stopped_before=")
