@@ -86,7 +86,7 @@ class DetectionCampaignConfig:
     depth_m: tuple[float, float] = (0.3, 1.5)  # paper N §4: 0.3-1.5 m deep
     clutter_per_100m: float = 10.0  # rocks and mounds on the verges (not in paper N)
     raycast_backend: str = "auto"
-    eval: DetectionEvalConfig = field(default_factory=DetectionEvalConfig)
+    matching: DetectionEvalConfig = field(default_factory=DetectionEvalConfig)  # grid matching, bins
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -101,8 +101,8 @@ class DetectionCampaignConfig:
             lo, hi = getattr(self, name)
             require(0 < lo <= hi and math.isfinite(hi), name, "must be (low, high), 0 < low <= high")
         require(self.clutter_per_100m >= 0, "clutter_per_100m", "must be >= 0")
-        if not isinstance(self.eval, DetectionEvalConfig):
-            raise ConfigError("eval", "must be a DetectionEvalConfig")
+        if not isinstance(self.matching, DetectionEvalConfig):
+            raise ConfigError("matching", "must be a DetectionEvalConfig")
 
     def frames_of(self, index: int) -> int:
         """Frames of the ``index``-th seed (the remainder goes to the first seeds)."""
@@ -165,10 +165,45 @@ def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=1)
 
 
+def _lateral_offset(pose: Any, centreline: np.ndarray) -> float:
+    """Vehicle x minus the centre line's x at its y (the course runs along +Y)."""
+    return pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0]))
+
+
+def _centre_line_near_grid(centreline: np.ndarray, pose: Any, grid: Any) -> np.ndarray:
+    """The vehicle-frame centre line cut to the grid (the border mask is all-cells x all-segments)."""
+    line = world_outline_to_vehicle(centreline, pose)
+    near = np.flatnonzero((line[:, 1] > -grid.back_m - 2.0) & (line[:, 1] < grid.ahead_m + 2.0))
+    return line[max(near[0] - 1, 0) : near[-1] + 2] if near.size else line
+
+
+def _judge_frame(
+    detections: dict[str, Any],
+    truths: list[np.ndarray],
+    centre_line: np.ndarray,
+    track_width_m: float,
+    grid: Any,
+    matching: DetectionEvalConfig,
+) -> tuple[dict[str, np.ndarray], list[int], np.ndarray]:
+    """Per mode: which truths were recalled; detections, false alarms on and off the track; truth cells."""
+    border = track_border_mask(centre_line, track_width_m, grid, matching.border_band_m)
+    recalled, counts = {}, []
+    for m in SENSOR_MODES:
+        outlines = [np.asarray(o.outline_xy_m) for o in detections[m].obstacles]
+        match = match_frame(outlines, truths, grid, matching, border)
+        centres = np.array([o.mean(axis=0) for o in outlines]).reshape(-1, 2)
+        on_track = _distance_to_polyline(centres, centre_line) <= 0.5 * track_width_m
+        on = match_frame(
+            [o for o, k in zip(outlines, on_track, strict=True) if k], truths, grid, matching, border
+        )
+        recalled[m] = match.truth_recalled
+        counts += [match.detections, on.false_alarms, match.false_alarms - on.false_alarms]
+    return recalled, counts, match.truth_cells
+
+
 def run_episode(episode: Episode) -> Rows:
     """Drive one seeded course; the obstacle and frame rows of :data:`OBSTACLE_COLUMNS`/``FRAME_COLUMNS``."""
     from negobs_gym.core.grid import GridSpec
-    from negobs_gym.core.pose import Pose
     from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
     from negobs_gym.sensors.lidar import scan_rig
     from negobs_gym.sensors.noise import NoiseConfig
@@ -190,76 +225,41 @@ def run_episode(episode: Episode) -> Rows:
     # 1 m segments are exact on a straight course and within 7 mm on an 18 m bend
     step = max(1, round(1.0 / max(float(np.median(np.diff(terrain.track.stations_m))), 1e-3)))
     centreline = np.vstack([centreline[::step], centreline[-1:]])
-    half_width = 0.5 * terrain.track.width_m
     obstacles, frames = [], []
     with World(terrain) as world:
         vehicle = Vehicle(world, rng=rng)
         caster = make_caster(world, cfg.raycast_backend, exclude_body_ids=(vehicle.body_id,))
         steps = round(FRAME_S / world.config.time_step_s)
         world.step(round(SETTLE_S / world.config.time_step_s))
-        last: Pose = vehicle.true_pose()
+        last = vehicle.true_pose()
         for frame in range(n_frames):
-            pose = vehicle.true_pose()
             # hold the centre line: steer against the lateral offset and the heading error
-            lateral = pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0]))
-            vehicle.apply(0.0, 0.0, float(np.clip(0.5 * lateral - 2.0 * pose.yaw, -1.0, 1.0)))
+            steer = 0.5 * _lateral_offset(last, centreline) - 2.0 * last.yaw
+            vehicle.apply(0.0, 0.0, float(np.clip(steer, -1.0, 1.0)))
             vehicle.set_speed(speed)
             world.step(steps)
             pose = vehicle.true_pose()
             scans = scan_rig(rig, caster, pose, noise=noise, rng=rng, timestamp_s=world.sim_time_s)
-            ins = vehicle.pose()
-            detections = {m: d.update(scans, ins) for m, d in detectors.items()}
+            detections = {m: d.update(scans, vehicle.pose()) for m, d in detectors.items()}
             travelled = math.hypot(pose.x - last.x, pose.y - last.y)
             last = pose
-            truths, ids = [], []
-            for ob in terrain.negative_obstacles:
-                truths.append(world_outline_to_vehicle(ob.outline_xy_m, pose, ob.floor_z_m + ob.depth_m))
-                ids.append(ob.obstacle_id)
-            centre_v = world_outline_to_vehicle(centreline, pose)
-            # the border mask is all-cells x all-segments: keep the centre line near the grid only
-            near = np.flatnonzero(
-                (centre_v[:, 1] > -grid.back_m - 2.0) & (centre_v[:, 1] < grid.ahead_m + 2.0)
-            )
-            centre_v = centre_v[max(near[0] - 1, 0) : near[-1] + 2] if near.size else centre_v
-            border = track_border_mask(centre_v, terrain.track.width_m, grid, cfg.eval.border_band_m)
-            recalled, fa_cells = {}, []
-            for m in SENSOR_MODES:
-                outlines = [np.asarray(o.outline_xy_m) for o in detections[m].obstacles]
-                match = match_frame(outlines, truths, grid, cfg.eval, border)
-                centres = np.array([o.mean(axis=0) for o in outlines]).reshape(-1, 2)
-                on_track = _distance_to_polyline(centres, centre_v) <= half_width
-                on = match_frame(
-                    [o for o, k in zip(outlines, on_track, strict=True) if k], truths, grid, cfg.eval, border
-                )
-                recalled[m] = match.truth_recalled
-                fa_cells += [match.detections, on.false_alarms, match.false_alarms - on.false_alarms]
-            row = [
-                episode.key,
-                seed,
-                frame,
-                speed,
-                travelled,
-                pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0])),
+            truths = [
+                world_outline_to_vehicle(ob.outline_xy_m, pose, ob.floor_z_m + ob.depth_m)
+                for ob in terrain.negative_obstacles
             ]
-            frames.append(format_row([*row, *fa_cells]))
-            for k, truth in enumerate(truths):
-                cells = rasterize_outline(truth, grid) if truth.size else None
-                if cells is None or int(match.truth_cells[k]) == 0:
+            centre_line = _centre_line_near_grid(centreline, pose, grid)
+            recalled, counts, truth_cells = _judge_frame(
+                detections, truths, centre_line, terrain.track.width_m, grid, cfg.matching
+            )
+            row = [episode.key, seed, frame, speed, travelled, _lateral_offset(pose, centreline)]
+            frames.append(format_row([*row, *counts]))
+            for k, (ob, truth) in enumerate(zip(terrain.negative_obstacles, truths, strict=True)):
+                if int(truth_cells[k]) == 0:
                     continue
-                centre = grid.cell_centres()[cells].mean(axis=0)
-                obstacles.append(
-                    format_row(
-                        [
-                            episode.key,
-                            seed,
-                            frame,
-                            ids[k],
-                            int(match.truth_cells[k]),
-                            float(math.hypot(*centre)),
-                            *(bool(recalled[m][k]) for m in SENSOR_MODES),
-                        ]
-                    )
-                )
+                centre = grid.cell_centres()[rasterize_outline(truth, grid)].mean(axis=0)
+                hits = [bool(recalled[m][k]) for m in SENSOR_MODES]
+                row = [episode.key, seed, frame, ob.obstacle_id, int(truth_cells[k]), math.hypot(*centre)]
+                obstacles.append(format_row([*row, *hits]))
     return {"obstacles": obstacles, "frames": frames}
 
 
@@ -437,7 +437,7 @@ def run_detection_campaign(
     tables = {"obstacles": OBSTACLE_COLUMNS, "frames": FRAME_COLUMNS}
     csvs = run_campaign(run_episode, episodes(config), out, tables, options, "detection courses")
     obstacles_csv, frames_csv = csvs["obstacles"], csvs["frames"]
-    summary = summarize(obstacles_csv, frames_csv, config.eval)
+    summary = summarize(obstacles_csv, frames_csv, config.matching)
     return DetectionOutputs(
         obstacles_csv=obstacles_csv,
         frames_csv=frames_csv,
