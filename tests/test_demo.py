@@ -1,4 +1,4 @@
-"""The quick-start demo (``python -m negobs_gym``): the filter saves the reckless driver, PNG written."""
+"""The braking demo of ``negobs demo`` (and ``python -m negobs_gym``): the filter saves the reckless driver"""
 
 from __future__ import annotations
 

@@ -31,7 +31,16 @@ def test_a_command_is_required_and_bad_values_are_named(capsys):
     assert "--seed" in capsys.readouterr().err
 
 
-def test_demo_command_writes_the_png(tmp_path):
+def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path):
     out = tmp_path / "demo.png"
-    assert main(["-q", "demo", "--out", str(out), "--seed", "2"]) == 0
+    evaluation = tmp_path / "eval"
+    args = ["-q", "demo", "--out", str(out), "--seed", "2", "--eval-out", str(evaluation), "--frames", "4"]
+    assert main(args) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "Table 6" in (evaluation / "tables.md").read_text()
+    for png in ("fig16.png", "recall_heatmap.png"):
+        assert (evaluation / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (
+        main(["-q", "demo", "--out", str(out), "--no-detection", "--eval-out", str(tmp_path / "none")]) == 0
+    )
+    assert not (tmp_path / "none").exists()

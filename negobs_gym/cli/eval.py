@@ -1,0 +1,225 @@
+"""``negobs eval detection|braking|policy``: the evaluation campaigns of :mod:`negobs_gym.eval`.
+
+Options shared by the three campaigns: ``--seeds``, ``--out DIR``, ``--workers N`` (local
+processes), ``--ray [ADDRESS]`` (Ray; without ADDRESS a local instance), ``--resume``, ``--rig`` and
+``--config FILE``. The TOML file sets fields of the campaign's config dataclass (top-level keys for
+every command, a ``[detection]`` / ``[braking]`` / ``[policy]`` table for one); options given on
+the command line win over the file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import logging
+from pathlib import Path
+from typing import Any
+
+from negobs_gym.cli.common import positive_int
+from negobs_gym.errors import ConfigError, MissingDependencyError
+
+log = logging.getLogger("negobs_gym.cli.eval")
+
+COMMANDS = ("detection", "braking", "policy")
+
+
+def load_toml(path: str | Path, command: str) -> dict[str, Any]:
+    """Campaign fields from a TOML file: top-level keys plus the ``[command]`` table (lists -> tuples)."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        try:
+            import tomli as tomllib
+        except ModuleNotFoundError as error:
+            raise MissingDependencyError("tomli", "--config on Python 3.10") from error
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise ConfigError("config", f"cannot read {path}: {error}") from error
+    fields = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    section = data.get(command, {})
+    if not isinstance(section, dict):
+        raise ConfigError("config", f"[{command}] must be a table")
+    fields.update(section)
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()}
+
+
+def build_config(cls: type, toml_fields: dict[str, Any], cli_fields: dict[str, Any]) -> Any:
+    """``cls(**toml, **cli)``: unknown TOML keys and invalid values are a :class:`ConfigError`."""
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(toml_fields) - names)
+    if unknown:
+        raise ConfigError("config", f"unknown keys {unknown} for {cls.__name__}; known: {sorted(names)}")
+    merged = {**toml_fields, **{k: v for k, v in cli_fields.items() if v is not None}}
+    try:
+        return cls(**merged)
+    except TypeError as error:
+        raise ConfigError("config", str(error)) from error
+
+
+def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
+    group = parser.add_argument_group("campaign options")
+    group.add_argument("--seeds", type=positive_int, default=None, help="episodes (seeds 0..N-1)")
+    group.add_argument("--out", default=default_out, help="output directory (default: %(default)s)")
+    group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
+    group.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray (pip install 'negobs_gym[ray]'); no ADDRESS starts a local instance",
+    )
+    group.add_argument("--resume", action="store_true", help="keep finished episodes of a killed run")
+    group.add_argument("--rig", choices=("native", "reduced"), default=None, help="paper N rig resolution")
+    group.add_argument("--config", metavar="FILE", default=None, help="TOML file of campaign settings")
+    group.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``eval`` and its three campaign commands."""
+    parser = subparsers.add_parser(
+        "eval",
+        help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy",
+        description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
+        "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
+    )
+    commands = parser.add_subparsers(dest="campaign", metavar="CAMPAIGN", required=True)
+
+    det = commands.add_parser(
+        "detection",
+        help="paper N §4.2: recall by size and distance, false alarms per km, Fig. 16",
+        description="Drives seeded courses with paper N's pit mix and writes obstacles.csv, frames.csv, "
+        "summary.json, tables.md (Tables 6/7 beside paper N's), fig16.png and recall_heatmap.png.",
+    )
+    _common(det, "outputs/eval/detection")
+    det.add_argument("--frames", type=positive_int, default=None, help="total frames (default 1000)")
+    det.add_argument("--no-noise", action="store_true", help="sensor noise off")
+    det.set_defaults(handler=run_detection)
+
+    brk = commands.add_parser(
+        "braking",
+        help="25 km/h braking: scripted drivers / an SB3 model, with and without the safety filter",
+        description="Runs every scenario x driver x filter on the seeds; prints stopped_before=<k>/<n> "
+        "per configuration and writes braking.csv, summary.json, table.md and two PNGs.",
+    )
+    _common(brk, "outputs/eval/braking")
+    brk.add_argument("--scenarios", default=None, help="comma-separated subset of the scenarios")
+    brk.add_argument("--drivers", default=None, help="comma-separated subset of reckless,constant_speed")
+    brk.add_argument("--model", default=None, help="a saved SB3 model: adds the driver 'sb3'")
+    brk.add_argument("--algo", default=None, help="its stable-baselines3 class (default PPO)")
+    brk.set_defaults(handler=run_braking)
+
+    pol = commands.add_parser(
+        "policy",
+        help="a saved SB3 model on an env id: success, entries, collisions, progress, vetoes, cost",
+        description="Evaluates MODEL on seeds 0..N-1 of --env, without and/or with the safety filter.",
+    )
+    pol.add_argument("model", metavar="MODEL", help="saved stable-baselines3 model (.zip)")
+    _common(pol, "outputs/eval/policy")
+    pol.add_argument("--env", dest="env_id", default=None, help="env id (default negobs_gym/Braking-v0)")
+    pol.add_argument("--algo", default=None, help="stable-baselines3 class (default PPO)")
+    pol.add_argument("--filter", choices=("off", "on", "both"), default=None, help="default: both")
+    pol.set_defaults(handler=run_policy)
+
+
+def _options(args: argparse.Namespace):
+    from negobs_gym.eval.campaign import Backend, RunOptions, import_ray
+
+    if args.ray is not None:
+        import_ray()  # fail before any work when ray is missing
+    return RunOptions(Backend(workers=args.workers, ray=args.ray), args.resume, not args.no_progress)
+
+
+def _toml(args: argparse.Namespace) -> dict[str, Any]:
+    return load_toml(args.config, args.campaign) if args.config else {}
+
+
+def _split(text: str | None) -> tuple[str, ...] | None:
+    return None if text is None else tuple(t.strip() for t in text.split(",") if t.strip())
+
+
+def run_detection(args: argparse.Namespace) -> int:
+    """The detection campaign; logs where the tables and figures are."""
+    from negobs_gym.eval.detection_campaign import DetectionCampaignConfig, run_detection_campaign
+
+    cli = {"seeds": args.seeds, "frames": args.frames, "rig": args.rig}
+    if args.no_noise:
+        cli["sensor_noise"] = False
+    config = build_config(DetectionCampaignConfig, _toml(args), cli)
+    log.info(
+        "detection campaign: %d courses, %d frames, %s rig -> %s",
+        config.seeds,
+        config.frames,
+        config.rig,
+        args.out,
+    )
+    out = run_detection_campaign(config, args.out, _options(args))
+    s = out.summary
+    rates = s.false_alarm_rates("fused")
+    log.info(
+        "%d frames, %.3f km; fused false alarms %.3f per frame, %.2f per km (on track %.2f, off %.2f)",
+        s.frames,
+        s.km,
+        rates["per_frame"],
+        rates["total_per_km"],
+        rates["on_track_per_km"],
+        rates["off_track_per_km"],
+    )
+    for path in (
+        out.tables_md,
+        out.summary_json,
+        out.obstacles_csv,
+        out.frames_csv,
+        out.fig16_png,
+        out.heatmap_png,
+    ):
+        log.info("wrote %s", path)
+    return 0
+
+
+def run_braking(args: argparse.Namespace) -> int:
+    """The braking campaign; prints ``stopped_before=<k>/<n>`` per configuration."""
+    from negobs_gym.eval.braking_campaign import BrakingCampaignConfig, run_braking_campaign, summary_line
+
+    cli = {
+        "seeds": args.seeds,
+        "rig": args.rig,
+        "scenarios": _split(args.scenarios),
+        "drivers": _split(args.drivers),
+        "model_path": args.model,
+        "algo": args.algo,
+    }
+    config = build_config(BrakingCampaignConfig, _toml(args), cli)
+    out = run_braking_campaign(config, args.out, _options(args))
+    for s in out.summaries:
+        print(summary_line(s))  # the campaign's result on stdout, one line per configuration
+    for path in (out.table_md, out.summary_json, out.csv, out.margins_png, out.first_veto_png):
+        log.info("wrote %s", path)
+    return 0
+
+
+def run_policy(args: argparse.Namespace) -> int:
+    """The policy evaluation; prints one line per filter setting."""
+    from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
+
+    filters = {"off": (False,), "on": (True,), "both": (False, True), None: None}[args.filter]
+    cli = {
+        "model_path": args.model,
+        "seeds": args.seeds,
+        "env_id": args.env_id,
+        "algo": args.algo,
+        "filters": filters,
+    }
+    if args.rig is not None:
+        log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
+    config = build_config(PolicyCampaignConfig, _toml(args), cli)
+    csv, summary_json, summary = run_policy_campaign(config, args.out, _options(args))
+    for name, s in summary.items():
+        print(
+            f"{config.env_id}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
+            f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
+            f"mean_progress_m={s['mean_progress_m']:.2f} vetoes={int(s['vetoes'])} cost={s['cost']:.1f}"
+        )
+    log.info("wrote %s and %s", csv, summary_json)
+    return 0

@@ -1,0 +1,403 @@
+"""Braking campaign at 25 km/h: drivers with and without the Eq. 18 safety filter, per scenario.
+
+Configurations are data: every scenario of :data:`SCENARIOS` (paper N's pit sizes, the Braking
+ditch, a narrow trench, an off-centre pit, an obstacle-free track for false vetoes) x every driver
+(scripted drivers of :mod:`negobs_gym.drivers`, optionally a saved SB3 model) x filter off / on
+(:class:`~negobs_gym.safety.BrakingSafetyFilter`), each run on seeds 0..n-1. One CSV row per
+episode (:data:`COLUMNS`); :func:`summarize` turns the CSV into per-configuration counts.
+
+:func:`run_driven_episode` is also what ``negobs eval policy`` runs on a registered env id.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from negobs_gym.errors import ConfigError, require
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+
+STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
+STANDSTILL_S = 1.0
+
+#: Scenarios as data: name -> (terrain preset of :mod:`negobs_gym.sim.presets`, its arguments).
+#: Obstacle scenarios put the obstacle's near edge 20-40 m ahead (drawn per seed, as Braking-v0).
+SCENARIOS: dict[str, tuple[str, dict[str, float]]] = {
+    # Braking-v0's ditch: 1.0 m along the track, 3.0 m across, 0.8 m deep
+    "ditch": ("braking_track", {"ditch_length_m": 1.0, "ditch_width_m": 3.0, "ditch_depth_m": 0.8}),
+    # paper N §4.1's pit sizes, the long side across the track, 0.8 m deep
+    "pit_100x50": ("braking_track", {"ditch_length_m": 0.5, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
+    "pit_100x80": ("braking_track", {"ditch_length_m": 0.8, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
+    "pit_150x60": ("braking_track", {"ditch_length_m": 0.6, "ditch_width_m": 1.5, "ditch_depth_m": 0.8}),
+    "pit_100x100": ("braking_track", {"ditch_length_m": 1.0, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
+    # a narrow trench across the whole track: 0.4 m along it (paper N's 0.30 m minimum width + 10 cm)
+    "trench_narrow": ("braking_track", {"ditch_length_m": 0.4, "ditch_width_m": 6.0, "ditch_depth_m": 1.0}),
+    # a 1 m pit under the right wheels (centre 0.8 m right of the centre line)
+    "pit_offcentre": (
+        "braking_track",
+        {"ditch_length_m": 1.0, "ditch_width_m": 1.0, "ditch_depth_m": 0.8, "lateral_offset_m": 0.8},
+    ),
+    # no obstacle at all: every veto is a false veto
+    "free_track": ("rough_track", {"length_m": 160.0}),
+}
+DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
+OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
+TIME_LIMIT_S = 15.0  # Braking-v0's episode length: 104 m at 25 km/h
+
+COLUMNS = (
+    "episode",
+    "scenario",
+    "driver",
+    "filter",
+    "seed",
+    "steps",
+    "distance_m",
+    "progress_m",
+    "entered",
+    "collision",
+    "rollover",
+    "trapped",
+    "goal",
+    "stopped",
+    "start_gap_m",
+    "final_gap_m",
+    "first_veto_gap_m",
+    "vetoes",
+    "veto_events",
+    "cost",
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class BrakingCampaignConfig:
+    """Which configurations the braking campaign runs."""
+
+    seeds: int = 10
+    scenarios: tuple[str, ...] = tuple(SCENARIOS)
+    drivers: tuple[str, ...] = DRIVERS
+    filters: tuple[bool, ...] = (False, True)
+    model_path: str | None = None  # a saved SB3 model: adds the driver "sb3"
+    algo: str = "PPO"  # its stable-baselines3 class
+    rig: str = "reduced"  # the envs' training rig; "native" for paper N's full resolution
+
+    def __post_init__(self) -> None:
+        require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
+        unknown = sorted(set(self.scenarios) - set(SCENARIOS))
+        require(not unknown, "scenarios", f"unknown {unknown}; known: {sorted(SCENARIOS)}")
+        known_drivers = (*DRIVERS, "sb3")
+        bad = sorted(set(self.drivers) - set(known_drivers))
+        require(not bad, "drivers", f"unknown {bad}; known: {list(known_drivers)}")
+        require(
+            "sb3" not in self.drivers or self.model_path is not None,
+            "model_path",
+            "driver 'sb3' needs a saved model",
+        )
+        require(self.rig in ("native", "reduced"), "rig", f"must be 'native' or 'reduced', got {self.rig!r}")
+        require(bool(self.scenarios) and bool(self.drivers) and bool(self.filters), "scenarios", "empty")
+
+    def all_drivers(self) -> tuple[str, ...]:
+        """The drivers run, ``sb3`` added when a model is given."""
+        extra = ("sb3",) if self.model_path is not None and "sb3" not in self.drivers else ()
+        return self.drivers + extra
+
+
+def configuration_name(scenario: str, driver: str, filtered: bool) -> str:
+    """``scenario/driver/filter|nofilter``: one line of the summary."""
+    return f"{scenario}/{driver}/{'filter' if filtered else 'nofilter'}"
+
+
+def episodes(config: BrakingCampaignConfig) -> list[Episode]:
+    """scenario x driver x filter x seed, keyed in that order."""
+    out = []
+    for scenario in config.scenarios:
+        for driver in config.all_drivers():
+            for filtered in config.filters:
+                for seed in range(config.seeds):
+                    key = f"{scenario}.{driver}.{int(filtered)}.{seed:05d}"
+                    args = {
+                        "scenario": scenario,
+                        "driver": driver,
+                        "filtered": filtered,
+                        "seed": seed,
+                        "model_path": config.model_path,
+                        "algo": config.algo,
+                        "rig": config.rig,
+                    }
+                    out.append(Episode(key, args))
+    return out
+
+
+def _scenario_env(scenario: str, rig: str, oracle: bool) -> Any:
+    from negobs_gym.envs.scenarios import BrakingEnv
+    from negobs_gym.sim import presets
+
+    preset, params = SCENARIOS[scenario]
+
+    class ScenarioBrakingEnv(BrakingEnv):
+        def _make_terrain(self, rng: np.random.Generator):
+            kwargs = dict(params)
+            if preset == "braking_track":
+                kwargs["ditch_distance_m"] = float(rng.uniform(*OBSTACLE_DISTANCE_M))
+            return presets.PRESETS[preset](seed=int(rng.integers(0, 2**31 - 1)), **kwargs)
+
+    config = BrakingEnv.default_config()
+    # scripted drivers ignore the observation: the oracle grid skips the sensors unless the
+    # filter asks for the detector (it always sees obstacles through the detector grid)
+    observation = dataclasses.replace(config.observation, rig=rig, source="oracle" if oracle else "detector")
+    return ScenarioBrakingEnv(dataclasses.replace(config, observation=observation, time_limit_s=TIME_LIMIT_S))
+
+
+class ModelDriver:
+    """A saved stable-baselines3 model as a driver (deterministic actions)."""
+
+    def __init__(self, path: str, algo: str = "PPO") -> None:
+        import stable_baselines3
+
+        cls = getattr(stable_baselines3, algo, None)
+        if cls is None:
+            raise ConfigError("algo", f"stable_baselines3 has no algorithm {algo!r}")
+        if not Path(path).exists() and not Path(f"{path}.zip").exists():
+            raise ConfigError("model_path", f"no saved model at {path}")
+        self.model = cls.load(path, device="cpu")
+
+    def reset(self, seed: int | None = None) -> None:
+        """Stateless policy."""
+
+    def act(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
+        action, _ = self.model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:
+    """A driver by name: ``reckless``, ``constant_speed`` or ``sb3`` (``model_path`` needed)."""
+    from negobs_gym.drivers import ConstantSpeedDriver, RecklessDriver
+
+    if name == "reckless":
+        return RecklessDriver()
+    if name == "constant_speed":
+        return ConstantSpeedDriver()
+    if name == "sb3":
+        if model_path is None:
+            raise ConfigError("model_path", "driver 'sb3' needs a saved model")
+        return ModelDriver(model_path, algo)
+    raise ConfigError("driver", f"unknown driver {name!r}")
+
+
+def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_steps: int) -> dict[str, Any]:
+    """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``); its metrics.
+
+    Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
+    ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead).
+    """
+    from negobs_gym.safety import BrakingSafetyFilter
+
+    if filtered:
+        env = BrakingSafetyFilter(env)
+    driver.reset(seed)
+    obs, info = env.reset(seed=seed)
+    dt = 1.0 / env.unwrapped.config.control_hz
+    start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
+    first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
+    events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
+    goal, was_vetoed, done = False, False, False
+    last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
+    while not done and steps < max_steps:
+        gap = float(info["distance_to_negative_ahead_m"])
+        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
+        steps += 1
+        xy = np.asarray(info["pose"][:2], dtype=np.float64)
+        distance += float(np.hypot(*(xy - last_xy)))
+        last_xy = xy
+        for k in events:
+            events[k] |= bool(info["events"][k])
+        goal |= bool(info.get("goal_reached", False))
+        vetoed = bool(filtered and info["safety"]["vetoed"])
+        if vetoed:
+            vetoes += 1
+            veto_events += not was_vetoed
+            first_veto = gap if math.isnan(first_veto) else first_veto
+        was_vetoed = vetoed
+        cost += float(info.get("cost", 0.0))
+        still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
+        done = terminated or truncated or still_s >= STANDSTILL_S
+    env.close()
+    return {
+        "steps": steps,
+        "distance_m": distance,
+        "progress_m": float(info["station_m"]) - start_station,
+        "entered": events["entered_negative_obstacle"],
+        "collision": events["collision"],
+        "rollover": events["rollover"],
+        "trapped": events["trapped"],
+        "goal": goal,
+        "stopped": still_s >= STANDSTILL_S,
+        "start_gap_m": start_gap,
+        "final_gap_m": float(info["distance_to_negative_ahead_m"]),
+        "first_veto_gap_m": first_veto,
+        "vetoes": vetoes,
+        "veto_events": veto_events,
+        "cost": cost,
+    }
+
+
+def run_episode(episode: Episode) -> Rows:
+    """One braking episode of :func:`episodes`; one row of :data:`COLUMNS`."""
+    a = episode.args
+    driver = make_driver(a["driver"], a["model_path"], a["algo"])
+    env = _scenario_env(a["scenario"], a["rig"], oracle=a["driver"] != "sb3")
+    metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], round(TIME_LIMIT_S * 10))
+    row = [episode.key, a["scenario"], a["driver"], "filter" if a["filtered"] else "nofilter", a["seed"]]
+    return {"braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])]}
+
+
+# -- summary -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ConfigurationSummary:
+    """Totals of one scenario x driver x filter configuration."""
+
+    name: str
+    obstacle: bool
+    episodes: int
+    entries: int
+    stopped_before: int  # stopped short of the obstacle without entering it
+    km: float
+    veto_events: int
+    false_vetoes_per_km: float | None  # obstacle-free scenarios only
+    stop_margins_m: list[float]  # final gap of the stops before the obstacle
+    first_veto_gaps_m: list[float]
+
+
+def _flag(row: Mapping[str, str], key: str) -> bool:
+    return row[key] == "1"
+
+
+def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
+    """Per-configuration totals from the campaign CSV, in the CSV's configuration order."""
+    groups: dict[str, list[dict[str, str]]] = {}
+    for row in read_csv(csv_path):
+        filtered = row["filter"] == "filter"
+        groups.setdefault(configuration_name(row["scenario"], row["driver"], filtered), []).append(row)
+    out = []
+    for name, rows in groups.items():
+        obstacle = SCENARIOS[rows[0]["scenario"]][0] != "rough_track"
+        km = sum(float(r["distance_m"]) for r in rows) / 1000.0
+        events = sum(int(r["veto_events"]) for r in rows)
+        stops = [r for r in rows if obstacle and _flag(r, "stopped") and not _flag(r, "entered")]
+        out.append(
+            ConfigurationSummary(
+                name=name,
+                obstacle=obstacle,
+                episodes=len(rows),
+                entries=sum(_flag(r, "entered") for r in rows),
+                stopped_before=len(stops),
+                km=km,
+                veto_events=events,
+                false_vetoes_per_km=None if obstacle else (events / km if km > 0 else None),
+                stop_margins_m=[float(r["final_gap_m"]) for r in stops],
+                first_veto_gaps_m=[
+                    float(r["first_veto_gap_m"]) for r in rows if math.isfinite(float(r["first_veto_gap_m"]))
+                ],
+            )
+        )
+    return out
+
+
+def summary_json(summaries: Sequence[ConfigurationSummary]) -> str:
+    """The summaries as JSON (``[ConfigurationSummary(**d) for d in json.loads(text)]`` restores them)."""
+    return json.dumps([dataclasses.asdict(s) for s in summaries], indent=1, sort_keys=True)
+
+
+def summary_line(s: ConfigurationSummary) -> str:
+    """The one-line result of a configuration, e.g. ``ditch/reckless/filter stopped_before=9/10 ...``."""
+    text = f"{s.name} stopped_before={s.stopped_before}/{s.episodes} entries={s.entries}/{s.episodes}"
+    if s.false_vetoes_per_km is not None:
+        text += f" false_vetoes_per_km={s.false_vetoes_per_km:.2f} ({s.veto_events} in {s.km:.3f} km)"
+    if s.stop_margins_m:
+        text += f" median_stop_margin_m={float(np.median(s.stop_margins_m)):.2f}"
+    return text
+
+
+def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
+    """The per-configuration table as markdown."""
+    from negobs_gym.eval.tables import key_value_table
+
+    rows = [
+        [
+            s.name,
+            s.episodes,
+            s.entries,
+            s.stopped_before,
+            "-" if not s.stop_margins_m else float(np.median(s.stop_margins_m)),
+            "-" if not s.first_veto_gaps_m else float(np.median(s.first_veto_gaps_m)),
+            "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
+            s.km,
+        ]
+        for s in summaries
+    ]
+    header = [
+        "configuration",
+        "episodes",
+        "entries",
+        "stopped before",
+        "median stop margin [m]",
+        "median first-veto gap [m]",
+        "false vetoes per km",
+        "km",
+    ]
+    return "# Braking campaign at 25 km/h\n\n" + key_value_table(header, rows) + "\n"
+
+
+@dataclass(frozen=True)
+class BrakingOutputs:
+    """Files of a finished braking campaign."""
+
+    csv: Path
+    summary_json: Path
+    table_md: Path
+    margins_png: Path
+    first_veto_png: Path
+    summaries: list[ConfigurationSummary]
+
+
+def run_braking_campaign(
+    config: BrakingCampaignConfig,
+    out_dir: str | Path,
+    options: RunOptions | None = None,
+) -> BrakingOutputs:
+    """Run (or resume) the braking campaign; CSV, summary JSON, table and plots in ``out_dir``."""
+    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
+    from negobs_gym.eval.plots import distribution_plot
+
+    out = Path(out_dir)
+    csv = run_campaign(run_episode, episodes(config), out, {"braking": COLUMNS}, options, "braking episodes")[
+        "braking"
+    ]
+    summaries = summarize(csv)
+    obstacle = [s for s in summaries if s.obstacle]
+    return BrakingOutputs(
+        csv=csv,
+        summary_json=write_text_atomic(out / "summary.json", summary_json(summaries)),
+        table_md=write_text_atomic(out / "table.md", report_markdown(summaries)),
+        margins_png=distribution_plot(
+            {s.name: s.stop_margins_m for s in obstacle},
+            "gap left between the front bumper and the obstacle at standstill [m]",
+            "Stop margins of the runs that stopped before the obstacle",
+            out / "stop_margins.png",
+        ),
+        first_veto_png=distribution_plot(
+            {s.name: s.first_veto_gaps_m for s in summaries if s.name.endswith("/filter")},
+            "gap to the obstacle when the filter first braked [m]",
+            "First-veto distance of the filtered runs",
+            out / "first_veto.png",
+        ),
+        summaries=summaries,
+    )

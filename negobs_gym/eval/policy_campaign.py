@@ -1,0 +1,121 @@
+"""Evaluate a saved stable-baselines3 model on a registered env over seeds, with and without the filter.
+
+One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
+rollover or trap during the episode), the failure events, goal reached, progress along the track,
+distance driven, the filter's vetoes and the summed constraint ``cost`` (``info["cost"]``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from negobs_gym.errors import ConfigError, require
+from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+
+DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
+
+COLUMNS = (
+    "episode",
+    "env",
+    "filter",
+    "seed",
+    "success",
+    "entered",
+    "collision",
+    "rollover",
+    "trapped",
+    "goal",
+    "progress_m",
+    "distance_m",
+    "steps",
+    "vetoes",
+    "cost",
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PolicyCampaignConfig:
+    """A saved model, the env id it runs on, the seeds and the filter settings."""
+
+    model_path: str
+    env_id: str = "negobs_gym/Braking-v0"
+    algo: str = "PPO"
+    seeds: int = 10
+    filters: tuple[bool, ...] = (False, True)
+
+    def __post_init__(self) -> None:
+        require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
+        require(bool(self.filters), "filters", "needs at least one of off / on")
+        if not Path(self.model_path).exists() and not Path(f"{self.model_path}.zip").exists():
+            raise ConfigError("model_path", f"no saved model at {self.model_path}")
+
+
+def episodes(config: PolicyCampaignConfig) -> list[Episode]:
+    """filter x seed."""
+    args = {"model_path": config.model_path, "env_id": config.env_id, "algo": config.algo}
+    return [
+        Episode(f"{int(f)}.{seed:05d}", {**args, "filtered": f, "seed": seed})
+        for f in config.filters
+        for seed in range(config.seeds)
+    ]
+
+
+def run_episode(episode: Episode) -> Rows:
+    """One episode of the model on ``gym.make(env_id)``."""
+    import gymnasium as gym
+
+    import negobs_gym  # noqa: F401 - registers the env ids
+
+    a = episode.args
+    env = gym.make(a["env_id"])
+    max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
+    m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], a["filtered"], max_steps)
+    success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"])
+    row: list[Any] = [episode.key, a["env_id"], "filter" if a["filtered"] else "nofilter", a["seed"], success]
+    row += [m[c] for c in COLUMNS[5:]]
+    return {"policy": [format_row(row)]}
+
+
+def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
+    """Per filter setting: episodes, success rate, entries, collisions, mean progress, vetoes, cost."""
+    out: dict[str, dict[str, float]] = {}
+    for r in read_csv(csv_path):
+        s = out.setdefault(
+            r["filter"],
+            dict.fromkeys(
+                ("episodes", "successes", "entries", "collisions", "progress_m", "vetoes", "cost"), 0.0
+            ),
+        )
+        s["episodes"] += 1
+        s["successes"] += r["success"] == "1"
+        s["entries"] += r["entered"] == "1"
+        s["collisions"] += r["collision"] == "1"
+        s["progress_m"] += float(r["progress_m"])
+        s["vetoes"] += int(r["vetoes"])
+        s["cost"] += float(r["cost"])
+    for s in out.values():
+        s["success_rate"] = s["successes"] / s["episodes"]
+        s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
+    return out
+
+
+def run_policy_campaign(
+    config: PolicyCampaignConfig,
+    out_dir: str | Path,
+    options: RunOptions | None = None,
+) -> tuple[Path, Path, dict[str, dict[str, float]]]:
+    """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
+    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
+
+    out = Path(out_dir)
+    csv = run_campaign(run_episode, episodes(config), out, {"policy": COLUMNS}, options, "policy episodes")[
+        "policy"
+    ]
+    summary = summarize(csv)
+    text = json.dumps({"config": dataclasses.asdict(config), "summary": summary}, indent=1, sort_keys=True)
+    return csv, write_text_atomic(out / "summary.json", text), summary

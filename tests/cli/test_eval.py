@@ -1,0 +1,87 @@
+"""``negobs eval``: --help, TOML config, clean errors, and a saved SB3 model evaluated on seeds."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.cli.eval import build_config, load_toml
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
+
+
+@pytest.mark.parametrize("campaign", ["detection", "braking", "policy"])
+def test_every_campaign_has_help(campaign: str, capsys) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["eval", campaign, "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert f"negobs eval {campaign}" in out
+    assert all(
+        opt in out for opt in ("--seeds", "--out", "--workers", "--ray", "--resume", "--rig", "--config")
+    )
+
+
+def test_toml_fields_and_command_line_precedence(tmp_path: Path) -> None:
+    path = tmp_path / "c.toml"
+    path.write_text('rig = "reduced"\nseeds = 3\n[detection]\nframes = 30\nspacing_m = [6.0, 9.0]\n')
+    fields = load_toml(path, "detection")
+    assert fields == {"rig": "reduced", "seeds": 3, "frames": 30, "spacing_m": (6.0, 9.0)}
+    cfg = build_config(DetectionCampaignConfig, fields, {"seeds": 5, "frames": None})
+    assert (cfg.seeds, cfg.frames, cfg.rig, cfg.spacing_m) == (5, 30, "reduced", (6.0, 9.0))
+    with pytest.raises(ConfigError, match="unknown keys"):
+        build_config(DetectionCampaignConfig, {"frame": 3}, {})
+
+
+def test_bad_config_and_missing_ray_exit_2(tmp_path: Path, monkeypatch, capsys) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("frames = [\n")
+    out = ["--out", str(tmp_path / "o")]
+    assert main(["eval", "detection", "--config", str(bad), *out]) == 2
+    assert "cannot read" in capsys.readouterr().err
+    monkeypatch.setitem(sys.modules, "ray", None)
+    assert main(["eval", "detection", "--ray", *out]) == 2
+    assert "negobs_gym[ray]" in capsys.readouterr().err
+
+
+def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    import negobs_gym  # noqa: F401 - registers the envs
+
+    env = gym.make("negobs_gym/Braking-v0")
+    model = PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=16)
+    path = tmp_path / "tiny.zip"
+    model.save(path)
+    env.close()
+    out = tmp_path / "policy"
+    args = ["eval", "policy", str(path), "--seeds", "1", "--filter", "on", "--out", str(out), "--no-progress"]
+    assert main(["-q", *args]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    assert line.startswith("negobs_gym/Braking-v0/filter success=")
+    rows = (out / "policy.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[0].startswith("episode,env,filter,seed,success")
+    assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
+    # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
+    config = tmp_path / "braking.toml"
+    config.write_text("[braking]\nfilters = [true]\n")
+    braking = [
+        "eval",
+        "braking",
+        "--model",
+        str(path),
+        "--drivers",
+        "sb3",
+        "--scenarios",
+        "ditch",
+        "--seeds",
+        "1",
+    ]
+    assert main(["-q", *braking, "--config", str(config), "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    assert line.startswith("ditch/sb3/filter stopped_before=")

@@ -1,0 +1,91 @@
+"""Braking campaign: the filter stops the reckless driver before the ditch; summaries from the CSV."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.braking_campaign import (
+    COLUMNS,
+    SCENARIOS,
+    BrakingCampaignConfig,
+    ConfigurationSummary,
+    episodes,
+    summarize,
+    summary_line,
+)
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "braking"
+    args = ["eval", "braking", "--seeds", "1", "--scenarios", "ditch,free_track", "--drivers", "reckless"]
+    assert main(["-q", *args, "--out", str(out), "--no-progress"]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert set(lines) == {
+        "ditch/reckless/nofilter",
+        "ditch/reckless/filter",
+        "free_track/reckless/nofilter",
+        "free_track/reckless/filter",
+    }
+    # never braking, the reckless driver enters the ditch; behind the filter it stops before it
+    assert "stopped_before=0/1 entries=1/1" in lines["ditch/reckless/nofilter"]
+    assert "stopped_before=1/1 entries=0/1" in lines["ditch/reckless/filter"]
+    assert "false_vetoes_per_km=" in lines["free_track/reckless/filter"]
+    summaries = [ConfigurationSummary(**d) for d in json.loads((out / "summary.json").read_text())]
+    ditch = next(s for s in summaries if s.name == "ditch/reckless/filter")
+    assert len(ditch.stop_margins_m) == 1 and ditch.stop_margins_m[0] > 0
+    assert len(ditch.first_veto_gaps_m) == 1 and ditch.first_veto_gaps_m[0] > ditch.stop_margins_m[0]
+    for png in ("stop_margins.png", "first_veto.png"):
+        assert (out / png).read_bytes()[:8] == PNG
+
+
+def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
+    def row(scenario, flt, seed, entered, stopped, final_gap, veto_gap, events, dist):
+        values = [
+            f"{scenario}.r.{seed}",
+            scenario,
+            "reckless",
+            flt,
+            seed,
+            100,
+            dist,
+            dist,
+            entered,
+            0,
+            0,
+            0,
+            0,
+        ]
+        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 3.0])
+
+    csv = tmp_path / "b.csv"
+    rows = [
+        row("ditch", "filter", 0, 0, 1, 2.5, 9.0, 1, 26.0),
+        row("ditch", "filter", 1, 1, 0, -1.0, 4.0, 1, 31.0),
+        row("free_track", "filter", 0, 0, 0, "inf", "nan", 2, 500.0),
+        row("free_track", "filter", 1, 0, 0, "inf", "nan", 0, 500.0),
+    ]
+    csv.write_text(",".join(COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    ditch, free = summarize(csv)
+    assert (ditch.episodes, ditch.entries, ditch.stopped_before) == (2, 1, 1)
+    assert ditch.stop_margins_m == [2.5] and ditch.first_veto_gaps_m == [9.0, 4.0]
+    assert ditch.false_vetoes_per_km is None
+    assert free.false_vetoes_per_km == pytest.approx(2.0) and free.stopped_before == 0
+    assert summary_line(ditch).startswith("ditch/reckless/filter stopped_before=1/2")
+
+
+def test_configurations_are_data() -> None:
+    cfg = BrakingCampaignConfig(seeds=2, scenarios=("ditch", "pit_100x50"), drivers=("reckless",))
+    keys = [e.key for e in episodes(cfg)]
+    assert len(keys) == 2 * 1 * 2 * 2 == len(set(keys))
+    assert {"ditch", "pit_100x50", "trench_narrow", "pit_offcentre", "free_track"} <= set(SCENARIOS)
+    with pytest.raises(ConfigError, match="scenarios"):
+        BrakingCampaignConfig(scenarios=("moon",))
+    with pytest.raises(ConfigError, match="model_path"):
+        BrakingCampaignConfig(drivers=("sb3",))
