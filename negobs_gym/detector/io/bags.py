@@ -11,7 +11,7 @@ import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
-from negobs_gym.detector.io.recording import RecordedFrame
+from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
 from negobs_gym.errors import ScanError
 
@@ -61,11 +61,12 @@ def bag_frames(
     highlevel = optional_import("rosbags.highlevel", "rosbags", "reading ROS bags")
     p = Path(path)
     bag = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
+    check_not_empty(os.fspath(p))
     try:
         reader = highlevel.AnyReader([bag])
         reader.open()
     except Exception as error:  # rosbags raises its own ReaderError / AnyReaderError on bad bags
-        raise ScanError(f"{p}: not a readable ROS bag ({type(error).__name__}: {error})") from error
+        raise unreadable(os.fspath(p), "ROS bag", error) from error
     try:
         clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
         if topic is None and len(clouds) != 1:
@@ -79,7 +80,7 @@ def bag_frames(
             try:
                 msg = reader.deserialize(raw, connection.msgtype)
             except Exception as error:  # a corrupt message body
-                raise ScanError(f"{source}: cannot decode the PointCloud2 message ({error})") from error
+                raise unreadable(source, "PointCloud2 message", error) from error
             fields = pointcloud2_fields(msg, source)
             scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=stamp_ns * 1e-9)
             yield RecordedFrame(scan, os.fspath(p), index, ring_source, int(msg.width) * int(msg.height))

@@ -8,24 +8,56 @@ one may be a partial revolution (as recorded).
 
 from __future__ import annotations
 
+import logging
 import os
+import struct
 from collections.abc import Iterator
 
 import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
-from negobs_gym.detector.io.recording import RecordedFrame
+from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
 from negobs_gym.errors import ScanError
+
+log = logging.getLogger(__name__)
+
+
+def truncated_at(path: str) -> int | None:
+    """Byte offset of a last packet record cut short (a capture stopped mid-write), else None.
+
+    Walks the libpcap record headers only (16 bytes each, one seek per packet, no payload read).
+    """
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        magic = f.read(4)
+        order = {
+            b"\xd4\xc3\xb2\xa1": "<",
+            b"\x4d\x3c\xb2\xa1": "<",
+            b"\xa1\xb2\xc3\xd4": ">",
+            b"\xa1\xb2\x3c\x4d": ">",
+        }
+        if magic not in order:
+            return None  # not classic libpcap (pcapng or junk): the decoder reports it
+        offset = 24
+        while offset + 16 <= size:
+            f.seek(offset + 8)
+            (incl_len,) = struct.unpack(order[magic] + "I", f.read(4))
+            if offset + 16 + incl_len > size:
+                return offset
+            offset += 16 + incl_len
+        return offset if offset < size else None
 
 
 def pcap_frames(path: str | os.PathLike[str], setup: ScanSetup) -> Iterator[RecordedFrame]:
     """One frame per revolution of a Velodyne pcap (sensor frame x forward, y left, z up)."""
     vd = optional_import("velodyne_decoder", "velodyne-decoder", "reading Velodyne pcap files")
     name = os.fspath(path)
-    if os.path.getsize(name) == 0:
-        raise ScanError(f"{name}: file is empty")
+    check_not_empty(name)
+    cut = truncated_at(name)
+    if cut is not None:
+        log.warning("%s: capture ends inside a packet at byte %d; reading the packets before it", name, cut)
     index = 0
     try:
         for stamp, points in vd.read_pcap(name, vd.Config(), as_pcl_structs=True):
@@ -38,7 +70,7 @@ def pcap_frames(path: str | os.PathLike[str], setup: ScanSetup) -> Iterator[Reco
     except ScanError:
         raise
     except Exception as error:  # the decoder raises ValueError/RuntimeError/dpkt errors on bad captures
-        raise ScanError(f"{name}: not a readable Velodyne pcap ({type(error).__name__}: {error})") from error
+        raise unreadable(name, "Velodyne pcap", error) from error
     if index == 0:
         raise ScanError(f"{name}: no Velodyne data packets in the capture")
 

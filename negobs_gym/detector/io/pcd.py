@@ -8,9 +8,8 @@ import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
-from negobs_gym.detector.io.recording import RecordedFrame
+from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
-from negobs_gym.errors import ScanError
 
 
 def read_pcd(path: str | os.PathLike[str], setup: ScanSetup) -> RecordedFrame:
@@ -18,11 +17,12 @@ def read_pcd(path: str | os.PathLike[str], setup: ScanSetup) -> RecordedFrame:
     ``ring``/``channel``/``laser_id`` field when there is one (see :func:`fields_to_scan`)."""
     pypcd4 = optional_import("pypcd4", "pypcd4", "reading PCD files")
     name = os.fspath(path)
+    check_not_empty(name)
     try:
         cloud = pypcd4.PointCloud.from_path(name)
         data = cloud.pc_data
     except Exception as error:  # pypcd4 raises bare ValueError/KeyError/struct.error on bad files
-        raise ScanError(f"{name}: not a readable PCD file ({type(error).__name__}: {error})") from error
+        raise unreadable(name, "PCD file", error) from error
     fields = {k: np.asarray(data[k]) for k in data.dtype.names or ()}
     scan, ring_source = fields_to_scan(fields, setup, source=name)
     return RecordedFrame(scan, name, 0, ring_source, int(data.shape[0]))

@@ -38,6 +38,18 @@ class RecordedFrame:
     n_points: int
 
 
+def unreadable(name: str, what: str, error: BaseException) -> ScanError:
+    """One-line :class:`ScanError` for a file a third-party reader rejected (its message's first line)."""
+    first = (str(error).strip().splitlines() or [""])[0]
+    return ScanError(f"{name}: not a readable {what} ({type(error).__name__}: {first})")
+
+
+def check_not_empty(name: str) -> None:
+    """ScanError if ``name`` is an empty file (third-party readers give obscure messages for it)."""
+    if os.path.isfile(name) and os.path.getsize(name) == 0:
+        raise ScanError(f"{name}: file is empty")
+
+
 def read_bin(path: str | os.PathLike[str], setup: ScanSetup, layout: BinLayout = "xyzi") -> RecordedFrame:
     """A headerless float32 binary: KITTI ``x, y, z, intensity`` or ``x, y, z, intensity, ring``."""
     names = {"xyzi": ("x", "y", "z", "intensity"), "xyzir": ("x", "y", "z", "intensity", "ring")}
