@@ -224,13 +224,20 @@ def rings_from_point_order(xyz_m: np.ndarray, elevation_rad: np.ndarray) -> np.n
     inside = step[np.abs(step) < np.pi]  # steps across the +-180 deg seam say nothing about direction
     if inside.size == 0 or np.median(inside) == 0:
         return None
-    back = np.sign(np.median(inside)) * step < -RING_WRAP_STEP_RAD
+    spin = np.sign(np.median(inside))
+    back = spin * step < -RING_WRAP_STEP_RAD
+    # A laser whose sweep starts a little before the +-180 deg seam is cut there: the piece after the
+    # seam ends before the piece before it starts (in spin order). Such cuts are joined.
+    cut = np.flatnonzero(back) + 1  # first point of each new piece
+    if cut.size:
+        a = spin * az
+        starts = np.concatenate([[0], cut])
+        ends = np.concatenate([cut - 1, [xyz.shape[0] - 1]])
+        across_seam = np.abs(step[cut - 1]) > np.pi
+        joined = across_seam & (a[ends[1:]] < a[starts[:-1]])
+        back[cut[joined] - 1] = False
     ring = np.concatenate([[0], np.cumsum(back)])
     el = point_elevation(xyz)
-    _, med = measured_ring_elevations(xyz, ring)
-    cut = np.flatnonzero(back) + 1  # first point of rings 1..k
-    joined = np.abs(np.diff(med)) < 0.5 * table_spacing
-    ring = np.concatenate([[0], np.cumsum(np.isin(np.arange(1, xyz.shape[0]), cut[~joined]))])
     n_rings = int(ring[-1]) + 1
     if not 2 <= n_rings <= table.size:
         return None
