@@ -2,10 +2,10 @@
 
 Reads each FILE (see :mod:`negobs_gym.detector.io`), runs one
 :class:`~negobs_gym.detector.NegativeObstacleDetector` over all frames in order (a bag or pcap is a
-sequence, several files are one sequence) and writes, per frame, ``<stem>_<frame>.json`` (this
-frame's pairs, the fused pairs, the obstacles, the grid's occupied cells) and ``<stem>_<frame>.png``
-(top-down: points coloured by height, pairs and outlines drawn), plus ``summary.json``; every file
-is written atomically.
+sequence, several files are one sequence) and writes, for frame ``n`` of the sequence,
+``<n>_<stem>_<frame>.json`` (this frame's pairs, the fused pairs, the obstacles, the grid's occupied
+cells) and ``<n>_<stem>_<frame>.png`` (top-down: points coloured by height, pairs and outlines
+drawn), plus ``summary.json``; every file is written atomically.
 """
 
 from __future__ import annotations
@@ -148,9 +148,9 @@ def run(args: argparse.Namespace) -> int:
         for path in args.files
         for f in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic)
     )
-    for frame in tqdm(frames, desc="negobs detect", unit="frame", disable=None):
+    for n, frame in enumerate(tqdm(frames, desc="negobs detect", unit="frame", disable=None)):
         detection = detector.update({frame.scan.sensor: frame.scan}, Pose())
-        stem = f"{Path(frame.source).stem}_{frame.index:04d}"
+        stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
         record = detection_record(frame, detection, args.sensor)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:

@@ -71,6 +71,7 @@ def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -
     import matplotlib
 
     matplotlib.use("Agg")
+    from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
 
     spec = detection.grid_spec
@@ -85,15 +86,20 @@ def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -
     extent = (-spec.side_m, spec.side_m, -spec.back_m, spec.ahead_m)
     cells = np.ma.masked_where(~detection.grid, detection.grid.astype(float))
     ax.imshow(cells, origin="lower", extent=extent, cmap="spring", alpha=0.6, interpolation="nearest")
-    for pairs in detection.frame_pairs.values():
-        for a, b in zip(pairs.a_m, pairs.b_m, strict=True):
-            ax.plot([a[0], b[0]], [a[1], b[1]], color="red", lw=0.8)
     ok = np.asarray(detection.pairs.confirmed, dtype=bool)
-    for a, b in zip(detection.pairs.a_m[ok], detection.pairs.b_m[ok], strict=True):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color="orange", lw=1.2)
-    for ob in detection.obstacles:
-        ring = np.vstack([ob.outline_xy_m, ob.outline_xy_m[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], color="cyan", lw=1.5)
+    segments = [
+        (
+            np.concatenate([p.a_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+            np.concatenate([p.b_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+            "red",
+            0.8,
+        ),
+        (detection.pairs.a_m[ok, :2], detection.pairs.b_m[ok, :2], "orange", 1.2),
+    ]
+    for a, b, colour, width in segments:
+        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors=colour, linewidths=width))
+    outlines = [np.vstack([ob.outline_xy_m, ob.outline_xy_m[:1]]) for ob in detection.obstacles]
+    ax.add_collection(LineCollection(outlines, colors="cyan", linewidths=1.5))
     ax.plot([0], [0], marker="^", color="white", ms=8)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
