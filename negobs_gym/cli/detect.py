@@ -16,47 +16,45 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from negobs_gym.cli.common import write_atomic
 
-log = logging.getLogger(__name__)
+if TYPE_CHECKING:
+    from negobs_gym.detector.io import ScanSetup
 
-PAPER_N_HDL64_HEIGHT_M = 2.2  # paper N §2: HDL-64 2.2 m above ground
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
 class RecordedSensor:
-    """A sensor ``--sensor`` can name: its table, column width, mounting and detector path."""
+    """A sensor ``--sensor`` can name: column width, fallback elevation table, and the paper N rig
+    mount whose extrinsics it takes (``hdl64``: upright on the roof; ``hdl32_left/right``: rolled
+    90 deg on the sides). Upright sensors feed the detector's HDL-64 path, rolled ones its HDL-32 path."""
 
     help: str
     azimuth_resolution_deg: float
     elevation_deg: tuple[float, ...]  # fallback table for clouds without ring (empty: ring needed)
-    side: str = ""  # "" upright; "left"/"right": rolled 90 deg as paper N's side HDL-32s
+    mount: str = "hdl64"
 
 
-def _sensors() -> dict[str, RecordedSensor]:
+def recorded_sensors() -> dict[str, RecordedSensor]:
+    """The sensors ``--sensor`` offers, by name."""
     from negobs_gym.sensors.models import hdl32e, hdl64e_s2
 
-    h64, h32 = hdl64e_s2(), hdl32e()
+    h64, h32 = hdl64e_s2().elevation_deg, hdl32e().elevation_deg
     return {
-        "hdl64": RecordedSensor("HDL-64E S2 upright (default)", 0.09, h64.elevation_deg),
-        "hdl32": RecordedSensor("HDL-32E upright", 0.16, h32.elevation_deg),
-        "hdl32-left": RecordedSensor(
-            "HDL-32E rolled 90 deg, left side (paper N rig)", 0.16, h32.elevation_deg, "left"
-        ),
-        "hdl32-right": RecordedSensor(
-            "HDL-32E rolled 90 deg, right side (paper N rig)", 0.16, h32.elevation_deg, "right"
-        ),
+        "hdl64": RecordedSensor("HDL-64E S2 upright (default)", 0.09, h64),
+        "hdl32": RecordedSensor("HDL-32E upright", 0.16, h32),
+        "hdl32-left": RecordedSensor("HDL-32E rolled 90 deg, left side", 0.16, h32, "hdl32_left"),
+        "hdl32-right": RecordedSensor("HDL-32E rolled 90 deg, right side", 0.16, h32, "hdl32_right"),
         # VLP-16 datasheet: 16 lasers -15..+15 deg in 2 deg steps, 0.2 deg at 10 Hz
         "vlp16": RecordedSensor("VLP-16 upright", 0.2, tuple(float(v) for v in np.arange(-15.0, 16.0, 2.0))),
         # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
         "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
     }
-
-
-SENSOR_NAMES = ("hdl64", "hdl32", "hdl32-left", "hdl32-right", "vlp16", "vlp32c")
 
 
 def positive_float(text: str) -> float:
@@ -86,16 +84,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
     parser.add_argument(
         "--sensor",
-        choices=SENSOR_NAMES,
+        choices=tuple(recorded_sensors()),
         default="hdl64",
-        help="sensor model and mounting (default: %(default)s); upright sensors use the detector's "
-        "HDL-64 path, the rolled side HDL-32s its HDL-32 path",
+        help="sensor model and mounting: "
+        + "; ".join(f"{name}: {spec.help}" for name, spec in recorded_sensors().items())
+        + ". Upright sensors use the detector's HDL-64 path (paper N §3.1), rolled ones its HDL-32 "
+        "path (§3.2)",
     )
     parser.add_argument(
         "--height",
         type=positive_float,
-        default=PAPER_N_HDL64_HEIGHT_M,
-        help="sensor origin above the ground [m] (default: %(default)s, paper N's HDL-64)",
+        default=None,
+        help="sensor origin above the ground [m] (default: the paper N rig's, 2.2 m for the roof "
+        "sensor, 2.0 m for the side HDL-32s)",
     )
     parser.add_argument(
         "--bin-fields", choices=("xyzi", "xyzir"), default="xyzi", help=".bin layout (default: %(default)s)"
@@ -112,21 +113,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def scan_setup(args: argparse.Namespace):  # -> ScanSetup
-    """The :class:`ScanSetup` for ``--sensor``/``--height``/``--azimuth-resolution``."""
+def scan_setup(args: argparse.Namespace) -> ScanSetup:
+    """The :class:`ScanSetup` for ``--sensor``, ``--height`` and ``--azimuth-resolution``."""
     from negobs_gym.detector.io import ScanSetup
-    from negobs_gym.sensors.rigs import SIDE_LEFT_R, SIDE_RIGHT_R
+    from negobs_gym.sensors.rigs import paper_n_rig
 
-    spec = _sensors()[args.sensor]
-    rotation = {"": np.eye(3), "left": SIDE_LEFT_R, "right": SIDE_RIGHT_R}[spec.side]
-    half_track = 0.9  # paper N rig: side HDL-32s 0.9 m either side of the centre line
-    x = {"": 0.0, "left": -half_track, "right": half_track}[spec.side]
+    spec = recorded_sensors()[args.sensor]
+    mount = next(m for m in paper_n_rig().mounts if m.name == spec.mount)
+    x, y, z = mount.translation_m
     return ScanSetup(
-        sensor={"": "hdl64", "left": "hdl32_left", "right": "hdl32_right"}[spec.side],
+        sensor=mount.name,
         azimuth_resolution_deg=args.azimuth_resolution or spec.azimuth_resolution_deg,
         elevation_rad=tuple(math.radians(v) for v in spec.elevation_deg),
-        rotation=tuple(tuple(float(v) for v in row) for row in rotation),
-        translation_m=(x, 0.0, args.height),
+        rotation=tuple(tuple(float(v) for v in row) for row in mount.rotation_matrix),
+        translation_m=(x, y, z if args.height is None else args.height),
     )
 
 

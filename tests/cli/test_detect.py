@@ -71,3 +71,21 @@ def test_help_says_frames_stand_still(capsys):
     with pytest.raises(SystemExit):
         main(["detect", "--help"])
     assert "standing still" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("sensor", ["hdl64", "hdl32", "hdl32-left", "hdl32-right", "vlp16", "vlp32c"])
+def test_sensor_choices_give_paper_n_mounts(sensor):
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.sensors.rigs import paper_n_rig
+
+    setup = scan_setup(build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor]))
+    mount = {m.name: m for m in paper_n_rig().mounts}[setup.sensor]
+    assert setup.sensor == ("hdl64" if "-" not in sensor else sensor.replace("-", "_"))
+    np.testing.assert_array_equal(setup.rotation, mount.rotation_matrix)
+    assert setup.translation_m == mount.translation_m  # default height: the rig's
+    assert (len(setup.elevation_rad) == 0) == (sensor == "vlp32c")
+    high = scan_setup(
+        build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor, "--height", "1.5"])
+    )
+    assert high.translation_m[2] == 1.5

@@ -13,7 +13,7 @@ All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and c
 package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`.
 """
 
-from negobs_gym.detector.io.recording import BinLayout, RecordedFrame, read_bin, read_recording, structured
+from negobs_gym.detector.io.recording import BinLayout, RecordedFrame, read_bin, read_recording
 from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, fields_to_scan
 
 __all__ = [
@@ -24,5 +24,4 @@ __all__ = [
     "fields_to_scan",
     "read_bin",
     "read_recording",
-    "structured",
 ]

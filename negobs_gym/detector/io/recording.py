@@ -93,8 +93,3 @@ def read_recording(
         yield from bag_frames(p, setup, topic=topic)
     else:
         raise ScanError(f"{p}: unknown recording type (expected .bin, .pcd, .pcap, .bag, a ROS 2 bag)")
-
-
-def structured(frames: Iterator[RecordedFrame]) -> Iterator[StructuredScan]:
-    """Only the scans of ``frames``."""
-    return (frame.scan for frame in frames)

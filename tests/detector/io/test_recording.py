@@ -111,3 +111,21 @@ def test_dispatch_and_setup_errors(tmp_path):
         ScanSetup(azimuth_resolution_deg=0.0)
     with pytest.raises(ConfigError, match="translation_m"):
         ScanSetup(translation_m=(0.0, 0.0, float("nan")))
+
+
+def test_io_imports_no_simulator_and_no_optional_reader_for_bins(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "frame.bin"
+    np.array([[1.0, 2.0, -1.0, 0.5, 0.0], [2.0, 1.0, -1.0, 0.5, 1.0]], np.float32).tofile(path)
+    code = (
+        "import sys\n"
+        "from negobs_gym.detector.io import ScanSetup, read_bin\n"
+        f"read_bin({str(path)!r}, ScanSetup(), 'xyzir')\n"
+        "bad = ('pybullet', 'gymnasium', 'matplotlib', 'negobs_gym.sim', 'negobs_gym.sensors',"
+        " 'pypcd4', 'rosbags', 'velodyne_decoder')\n"
+        "print([m for m in bad if m in sys.modules])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
