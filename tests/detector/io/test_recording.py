@@ -129,3 +129,24 @@ def test_io_imports_no_simulator_and_no_optional_reader_for_bins(tmp_path):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize(
+    ("module", "package", "name"),
+    [
+        ("pypcd4", "pypcd4", "x.pcd"),
+        ("velodyne_decoder", "velodyne-decoder", "x.pcap"),
+        ("rosbags.highlevel", "rosbags", "x.bag"),
+    ],
+)
+def test_missing_extra_names_the_package(tmp_path, monkeypatch, module, package, name):
+    import sys
+
+    from negobs_gym.errors import MissingDependencyError
+
+    path = tmp_path / name
+    path.write_bytes(b"\0" * 64)
+    monkeypatch.setitem(sys.modules, module, None)  # importing it now raises ImportError
+    with pytest.raises(MissingDependencyError, match=rf"pip install {package}") as info:
+        list(read_recording(path, SETUP))
+    assert "negobs_gym[real]" in str(info.value)
