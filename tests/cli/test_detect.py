@@ -89,3 +89,16 @@ def test_sensor_choices_give_paper_n_mounts(sensor):
         build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor, "--height", "1.5"])
     )
     assert high.translation_m[2] == 1.5
+
+
+def test_pcap_sequence_json_only(tmp_path):
+    out = tmp_path / "out"
+    args = ["-q", "detect", str(REAL / "hdl32e_a.pcap"), "--sensor", "hdl32", "--height", "3.1"]
+    assert main([*args, "--no-png", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "00000_hdl32e_a_0000.json",
+        "00001_hdl32e_a_0001.json",
+        "summary.json",
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert [s["n_points"] for s in summary] == [18154, 1425]

@@ -88,6 +88,9 @@ def test_wrong_field_set_nan_and_inf(tmp_path, hdl32e_points):
         read_recording(_write_pcd(tmp_path / "half.pcd", fields), ScanSetup(azimuth_resolution_deg=0.16))
     )
     assert frame.scan.valid.sum() == p.size - (p.size + 1) // 2
+    half_ring = dict(fields, ring=fields["ring"].astype(np.float32) + 0.5)
+    with pytest.raises(ScanError, match="ring field must hold integers"):
+        list(read_recording(_write_pcd(tmp_path / "halfring.pcd", half_ring), ScanSetup()))
     fields["x"][:] = np.nan
     with pytest.raises(ScanError, match="no finite point"):
         list(read_recording(_write_pcd(tmp_path / "nan.pcd", fields), ScanSetup()))
