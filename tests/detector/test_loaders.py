@@ -4,6 +4,7 @@ import pytest
 from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
 from negobs_gym.detector.loaders import (
+    assign_rings,
     cloud_to_scan,
     load_kitti_bin,
     recover_rings,
@@ -47,17 +48,34 @@ def test_ring_cloud_round_trip(analytic):
 
 
 def test_kitti_bin_round_trip_recovers_rings_and_pairs(analytic, tmp_path):
-    xyz, _ring = _cloud(analytic)
+    xyz, _ring = _cloud(analytic)  # laser by laser, each in azimuth order: KITTI's point order
     kitti = np.column_stack([xyz[:, 1], -xyz[:, 0], xyz[:, 2], np.zeros(len(xyz))])
     path = tmp_path / "000000.bin"
     kitti.astype(np.float32).tofile(path)
     scan = load_kitti_bin(path, analytic.elevation_rad, translation_m=[0, 0, 2.2])
-    valid = ~np.isnan(scan.ranges_m)
-    assert valid.sum() == (~np.isnan(analytic.ranges_m)).sum()
-    np.testing.assert_allclose(scan.ranges_m[valid], analytic.ranges_m[valid], rtol=1e-6)
+    seen = analytic.valid.any(axis=1)  # lasers above the horizon return nothing: no ring to recover
+    assert scan.shape == (seen.sum(), analytic.shape[1])
+    np.testing.assert_allclose(scan.elevation_rad, analytic.elevation_rad[seen], atol=1e-6)
+    np.testing.assert_allclose(scan.ranges_m, analytic.ranges_m[seen], rtol=1e-6, equal_nan=True)
     fp = extract_hdl64_pairs(scan, Hdl64FeatureConfig())
     ref = extract_hdl64_pairs(analytic, Hdl64FeatureConfig())
     assert len(fp) == len(ref) > 0
+
+
+def test_point_order_survives_another_units_table(analytic):
+    """Rings of a unit whose lasers sit 0.25 deg off the table: the point order gets every ring,
+    the nearest table entry mis-rings points (the table is one unit's calibration)."""
+    el = analytic.elevation_rad + np.radians(0.25) * np.where(np.arange(64) % 2, 1.0, -1.0)
+    other = synthetic_scan("hdl64", el, analytic.azimuth_rad, np.eye(3), np.array([0, 0, 2.2]), [])
+    xyz, ring = _cloud(other)
+    by_order = assign_rings(xyz, analytic.elevation_rad)
+    assert by_order.source == "point_order"
+    seen = np.flatnonzero(other.valid.any(axis=1))
+    np.testing.assert_array_equal(seen[by_order.ring], ring)
+    np.testing.assert_allclose(by_order.elevation_rad, el[seen], atol=1e-9)
+    assert (recover_rings(xyz, analytic.elevation_rad) != ring).mean() > 0.1
+    firing = np.transpose(other.points_sensor, (1, 0, 2))[other.valid.T]  # column by column
+    assert assign_rings(firing, analytic.elevation_rad).source == "elevation_table"
 
 
 def test_recover_rings_nearest_entry():

@@ -1,0 +1,116 @@
+"""What ``negobs detect`` writes per frame: a JSON record and a top-down PNG (matplotlib Agg)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from negobs_gym.detector.io import RecordedFrame
+from negobs_gym.detector.negative import Detection
+
+
+def _xyz(a: np.ndarray) -> list[list[float]]:
+    return np.round(np.asarray(a, dtype=np.float64), 4).tolist()
+
+
+def detection_record(frame: RecordedFrame, detection: Detection, sensor: str) -> dict[str, Any]:
+    """JSON-ready record of one frame: provenance, this frame's pairs, fused pairs, obstacles, grid.
+
+    Coordinates are metres in the vehicle frame (X right, Y forward, Z up); the grid is given by
+    its spec and the ``[row, col]`` of every occupied cell (row 0 = rear edge, col 0 = left edge).
+    """
+    spec = detection.grid_spec
+    fused = detection.pairs
+    return {
+        "source": frame.source,
+        "frame": frame.index,
+        "timestamp_s": frame.scan.timestamp_s,
+        "sensor": sensor,
+        "height_m": float(frame.scan.translation_m[2]),
+        "ring_source": frame.ring_source,
+        "n_points": frame.n_points,
+        "scan_shape": list(frame.scan.shape),
+        "n_frame_pairs": int(sum(len(p) for p in detection.frame_pairs.values())),
+        "frame_pairs": {
+            name: {"a_m": _xyz(p.a_m), "b_m": _xyz(p.b_m), "c_m": _xyz(np.nan_to_num(p.c_m, nan=0.0))}
+            for name, p in detection.frame_pairs.items()
+        },
+        "fused_pairs": {
+            "a_m": _xyz(fused.a_m),
+            "b_m": _xyz(fused.b_m),
+            "posterior": np.round(fused.posterior, 6).tolist(),
+            "confirmed": np.asarray(fused.confirmed, dtype=bool).tolist(),
+        },
+        "n_obstacles": len(detection.obstacles),
+        "obstacles": [
+            {
+                "outline_xy_m": _xyz(ob.outline_xy_m),
+                "centre_xy_m": _xyz(ob.centre_xy_m),
+                "area_m2": round(float(ob.area_m2), 4),
+                "n_pairs": int(ob.n_pairs),
+            }
+            for ob in detection.obstacles
+        ],
+        "grid": {
+            "cell_m": spec.cell_m,
+            "ahead_m": spec.ahead_m,
+            "back_m": spec.back_m,
+            "side_m": spec.side_m,
+            "shape": list(detection.grid.shape),
+            "occupied_cells": np.argwhere(detection.grid).tolist(),
+        },
+    }
+
+
+def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -> None:
+    """Top-down PNG of one frame over the grid's extent: returns coloured by height above ground,
+    grid cells (magenta), this frame's pairs A->B (red), confirmed fused pairs (orange), obstacle
+    outlines (cyan)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+
+    spec = detection.grid_spec
+    pts = frame.scan.points_vehicle[frame.scan.valid]
+    inside = (np.abs(pts[:, 0]) <= spec.side_m) & (pts[:, 1] >= -spec.back_m) & (pts[:, 1] <= spec.ahead_m)
+    pts = pts[inside]
+    fig = Figure(figsize=(7, 9), dpi=110)
+    ax = fig.add_subplot()
+    ax.set_facecolor("black")
+    sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.6, cmap="viridis", vmin=-1.0, vmax=1.5, lw=0)
+    fig.colorbar(sc, ax=ax, shrink=0.6, label="height above ground [m] (vehicle frame)")
+    extent = (-spec.side_m, spec.side_m, -spec.back_m, spec.ahead_m)
+    cells = np.ma.masked_where(~detection.grid, detection.grid.astype(float))
+    ax.imshow(cells, origin="lower", extent=extent, cmap="spring", alpha=0.6, interpolation="nearest")
+    ok = np.asarray(detection.pairs.confirmed, dtype=bool)
+    segments = [
+        (
+            np.concatenate([p.a_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+            np.concatenate([p.b_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+            "red",
+            0.8,
+        ),
+        (detection.pairs.a_m[ok, :2], detection.pairs.b_m[ok, :2], "orange", 1.2),
+    ]
+    for a, b, colour, width in segments:
+        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors=colour, linewidths=width))
+    outlines = [np.vstack([ob.outline_xy_m, ob.outline_xy_m[:1]]) for ob in detection.obstacles]
+    ax.add_collection(LineCollection(outlines, colors="cyan", linewidths=1.5))
+    ax.plot([0], [0], marker="^", color="white", ms=8)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("X right [m]")
+    ax.set_ylabel("Y forward [m]")
+    n_pairs = sum(len(p) for p in detection.frame_pairs.values())
+    ax.set_title(
+        f"{Path(frame.source).name} frame {frame.index}: {n_pairs} pairs (red), "
+        f"{int(ok.sum())} confirmed (orange),\n{len(detection.obstacles)} obstacles (cyan); "
+        f"rings from {frame.ring_source}",
+        fontsize=9,
+    )
+    fig.savefig(out_path, format="png")

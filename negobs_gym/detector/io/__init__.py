@@ -1,0 +1,27 @@
+"""Recorded LiDAR files in, :class:`~negobs_gym.core.scan.StructuredScan` out.
+
+- ``.bin``: KITTI-style float32 ``x, y, z, intensity`` (ring from the point order, else from the
+  elevation table) or ``x, y, z, intensity, ring`` (numpy only);
+- ``.pcd`` with a ``ring``/``channel``/``laser_id`` field (:mod:`~negobs_gym.detector.io.pcd`);
+- ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (:mod:`~negobs_gym.detector.io.bags`);
+- raw Velodyne ``.pcap`` (:mod:`~negobs_gym.detector.io.pcap`).
+
+The last three need ``pip install negobs_gym[real]`` (pypcd4, rosbags, velodyne-decoder), imported
+only when such a file is read; without them a :class:`~negobs_gym.errors.MissingDependencyError`
+says what to install. Files that cannot be read raise :class:`~negobs_gym.errors.ScanError`.
+All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and converted to this
+package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`.
+"""
+
+from negobs_gym.detector.io.recording import BinLayout, RecordedFrame, read_bin, read_recording
+from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, fields_to_scan
+
+__all__ = [
+    "RING_FIELD_NAMES",
+    "BinLayout",
+    "RecordedFrame",
+    "ScanSetup",
+    "fields_to_scan",
+    "read_bin",
+    "read_recording",
+]

@@ -1,0 +1,95 @@
+"""ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (``rosbags``, extra ``negobs_gym[real]``; no
+ROS install needed). A bag is a sequence: one frame per message of one topic, in time order."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.io._optional import optional_import
+from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
+from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
+from negobs_gym.errors import ScanError
+
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+# sensor_msgs/PointField datatype codes -> numpy scalar types
+_POINTFIELD_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+def pointcloud2_fields(msg: object, source: str) -> dict[str, np.ndarray]:
+    """The per-point fields of a PointCloud2 message as numpy arrays (padding and row steps honoured)."""
+    endian = ">" if msg.is_bigendian else "<"  # type: ignore[attr-defined]
+    names, formats, offsets = [], [], []
+    for f in msg.fields:  # type: ignore[attr-defined]
+        if f.datatype not in _POINTFIELD_DTYPES:
+            raise ScanError(f"{source}: field {f.name!r} has unknown PointField datatype {f.datatype}")
+        names.append(f.name)
+        formats.append(
+            (endian + _POINTFIELD_DTYPES[f.datatype], (f.count,))
+            if f.count > 1
+            else endian + _POINTFIELD_DTYPES[f.datatype]
+        )
+        offsets.append(f.offset)
+    width, height = int(msg.width), int(msg.height)  # type: ignore[attr-defined]
+    point_step, row_step = int(msg.point_step), int(msg.row_step)  # type: ignore[attr-defined]
+    data = np.frombuffer(bytes(msg.data), dtype=np.uint8)  # type: ignore[attr-defined]
+    if point_step <= 0 or row_step < width * point_step or data.size < height * row_step:
+        raise ScanError(
+            f"{source}: PointCloud2 holds {data.size} bytes, {height} rows x {row_step} bytes expected "
+            f"(width {width}, point_step {point_step}; truncated message?)"
+        )
+    try:
+        dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
+    except ValueError as error:
+        raise ScanError(
+            f"{source}: PointCloud2 fields do not fit point_step {point_step} ({error})"
+        ) from error
+    rows = data[: height * row_step].reshape(height, row_step)[:, : width * point_step]
+    points = np.ascontiguousarray(rows).view(dtype).reshape(-1)
+    return {name: points[name] for name in names}
+
+
+def bag_frames(
+    path: str | os.PathLike[str], setup: ScanSetup, *, topic: str | None = None
+) -> Iterator[RecordedFrame]:
+    """Frames of the PointCloud2 ``topic`` of a ROS 1 ``.bag`` or ROS 2 bag (folder, ``.db3``,
+    ``.mcap``); without ``topic`` the bag must hold exactly one PointCloud2 topic."""
+    highlevel = optional_import("rosbags.highlevel", "rosbags", "reading ROS bags")
+    p = Path(path)
+    bag = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
+    check_not_empty(os.fspath(p))
+    try:
+        reader = highlevel.AnyReader([bag])
+        reader.open()
+    except Exception as error:  # rosbags raises its own ReaderError / AnyReaderError on bad bags
+        raise unreadable(os.fspath(p), "ROS bag", error) from error
+    try:
+        clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
+        if topic is None and len(clouds) != 1:
+            raise ScanError(f"{p}: {len(clouds)} PointCloud2 topics {clouds}; name one with topic=")
+        chosen = topic or clouds[0]
+        if chosen not in clouds:
+            raise ScanError(f"{p}: no PointCloud2 topic {chosen!r} (has {clouds})")
+        connections = [c for c in reader.connections if c.topic == chosen]
+        for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
+            source = f"{p}#{index}"
+            try:
+                msg = reader.deserialize(raw, connection.msgtype)
+            except Exception as error:  # a corrupt message body
+                raise unreadable(source, "PointCloud2 message", error) from error
+            fields = pointcloud2_fields(msg, source)
+            scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=stamp_ns * 1e-9)
+            yield RecordedFrame(scan, os.fspath(p), index, ring_source, int(msg.width) * int(msg.height))
+    finally:
+        reader.close()
+
+
+def read_bag(
+    path: str | os.PathLike[str], setup: ScanSetup | None = None, *, topic: str | None = None
+) -> Iterator[StructuredScan]:
+    """The structured scans of a bag's PointCloud2 topic (see :func:`bag_frames`)."""
+    return (frame.scan for frame in bag_frames(path, setup or ScanSetup(), topic=topic))

@@ -1,0 +1,122 @@
+"""How a recorded cloud becomes a structured scan: sensor name, extrinsics, column width, and the
+fallback elevation table for clouds that carry no ring (see :mod:`negobs_gym.detector.loaders`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.loaders import (
+    HDL64E_AZIMUTH_RESOLUTION_DEG,
+    RingSource,
+    assign_rings,
+    cloud_to_scan,
+    measured_ring_elevations,
+    ros_to_sensor_frame,
+)
+from negobs_gym.errors import ScanError, require
+
+#: Names under which recorded files carry the laser index (velodyne driver: ring; Autoware nebula:
+#: channel; Ouster / some SDKs: laser_id).
+RING_FIELD_NAMES: tuple[str, ...] = ("ring", "channel", "laser_id")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScanSetup:
+    """The sensor a recording comes from, as the detector needs it.
+
+    Attributes:
+        sensor: Scan name, i.e. the detector's key (``"hdl64"`` is the upright spinning path).
+        azimuth_resolution_deg: Column width of the range image [deg].
+        elevation_rad: Elevation table [rad] for clouds without a ring field when their point order
+            is not laser by laser (empty: such clouds are refused).
+        rotation: Sensor-to-vehicle rotation ``R`` (paper N Eq. 9).
+        translation_m: Sensor origin in the vehicle frame ``T`` [m]; ``T[2]`` is the height.
+    """
+
+    sensor: str = "hdl64"
+    azimuth_resolution_deg: float = HDL64E_AZIMUTH_RESOLUTION_DEG
+    elevation_rad: tuple[float, ...] = ()
+    rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    translation_m: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        require(isinstance(self.sensor, str) and bool(self.sensor), "sensor", "must be a non-empty name")
+        require(
+            math.isfinite(self.azimuth_resolution_deg) and 0 < self.azimuth_resolution_deg <= 360,
+            "azimuth_resolution_deg",
+            "must be in (0, 360]",
+        )
+        require(bool(np.isfinite(self.elevation_rad).all()), "elevation_rad", "must be finite")
+        require(np.shape(self.rotation) == (3, 3), "rotation", "must be 3x3")
+        require(
+            len(self.translation_m) == 3 and bool(np.isfinite(self.translation_m).all()),
+            "translation_m",
+            "must be 3 finite values",
+        )
+
+    def scan(
+        self,
+        xyz_sensor_m: np.ndarray,
+        ring: np.ndarray,
+        elevation_rad: np.ndarray,
+        intensity: np.ndarray | None,
+        timestamp_s: float,
+    ) -> StructuredScan:
+        """Bin a sensor-frame cloud with rings into a scan with this setup's geometry."""
+        return cloud_to_scan(
+            xyz_sensor_m,
+            ring,
+            elevation_rad,
+            sensor=self.sensor,
+            intensity=intensity,
+            azimuth_resolution_deg=self.azimuth_resolution_deg,
+            rotation=np.asarray(self.rotation),
+            translation_m=np.asarray(self.translation_m),
+            timestamp_s=timestamp_s,
+        )
+
+
+def fields_to_scan(
+    fields: dict[str, np.ndarray], setup: ScanSetup, *, source: str, timestamp_s: float = 0.0
+) -> tuple[StructuredScan, RingSource]:
+    """Scan from named per-point fields in the ROS frame (x forward, y left, z up).
+
+    ``x, y, z`` are required, ``intensity`` optional; the ring comes from the first field of
+    :data:`RING_FIELD_NAMES` present (row elevations measured from the points), else from
+    :func:`~negobs_gym.detector.loaders.assign_rings` with ``setup.elevation_rad``. Points with a
+    NaN coordinate are dropped (organised clouds mark missing returns so); a cloud with no finite
+    point, a missing coordinate or an infinite value raises :class:`ScanError`.
+    """
+    missing = [k for k in ("x", "y", "z") if k not in fields]
+    if missing:
+        raise ScanError(f"{source}: no {'/'.join(missing)} field (has {sorted(fields)})")
+    xyz = np.column_stack([np.asarray(fields[k], dtype=np.float64).reshape(-1) for k in "xyz"])
+    if np.isinf(xyz).any():
+        raise ScanError(f"{source}: coordinates contain inf")
+    keep = ~np.isnan(xyz).any(axis=1)
+    if not keep.any():
+        raise ScanError(f"{source}: cloud has no finite point ({xyz.shape[0]} points, all NaN or none)")
+    xyz = ros_to_sensor_frame(xyz[keep])
+    intensity = fields.get("intensity")
+    if intensity is not None:
+        intensity = np.asarray(intensity, dtype=np.float64).reshape(-1)[keep]
+    ring_name = next((k for k in RING_FIELD_NAMES if k in fields), None)
+    if ring_name is not None:
+        ring = np.asarray(fields[ring_name]).reshape(-1)[keep]
+        if not np.issubdtype(ring.dtype, np.integer):
+            ring_f = ring.astype(np.float64)
+            if not np.isfinite(ring_f).all() or np.any(ring_f != np.round(ring_f)):
+                raise ScanError(f"{source}: {ring_name} field must hold integers")
+            ring = ring_f.astype(np.int64)
+        compact, elevation = measured_ring_elevations(xyz, ring)
+        return setup.scan(xyz, compact, elevation, intensity, timestamp_s), "ring_field"
+    if not setup.elevation_rad:
+        raise ScanError(
+            f"{source}: no ring field ({'/'.join(RING_FIELD_NAMES)}) and no elevation table for this sensor"
+        )
+    rings = assign_rings(xyz, np.asarray(setup.elevation_rad))
+    return setup.scan(xyz, rings.ring, rings.elevation_rad, intensity, timestamp_s), rings.source

@@ -1,0 +1,104 @@
+"""``negobs detect`` end to end on the committed real HDL-32E capture, and on bad files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.core.pose import Pose
+from negobs_gym.detector import NegativeObstacleDetector
+from negobs_gym.detector.io import ScanSetup, read_recording
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+HDL32E_B = REAL / "hdl32e_b.pcap"
+pytest.importorskip("velodyne_decoder")
+
+
+def test_detect_writes_png_and_json_that_round_trip(tmp_path):
+    out = tmp_path / "out"
+    args = ["-q", "detect", str(HDL32E_B), str(HDL32E_B), str(HDL32E_B), "--sensor", "hdl32"]
+    assert main([*args, "--height", "2.3", "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    stems = [f"{n:05d}_hdl32e_b_0000" for n in range(3)]
+    assert names == sorted([*(s + ".json" for s in stems), *(s + ".png" for s in stems), "summary.json"])
+    assert all((out / f"{s}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for s in stems)
+    # the same three frames through the API (standing still: identity pose every frame)
+    setup = ScanSetup(azimuth_resolution_deg=0.16, elevation_rad=(), translation_m=(0.0, 0.0, 2.3))
+    detector = NegativeObstacleDetector()
+    for stem in stems:
+        frame = next(read_recording(HDL32E_B, setup))
+        det = detector.update({"hdl64": frame.scan}, Pose())
+        record = json.loads((out / f"{stem}.json").read_text())
+        assert record["ring_source"] == "ring_field" and record["n_points"] == 30596
+        assert record["height_m"] == 2.3 and record["scan_shape"] == [32, 2250]
+        assert record["n_frame_pairs"] == len(det.frame_pairs["hdl64"]) > 0
+        np.testing.assert_allclose(
+            record["frame_pairs"]["hdl64"]["a_m"], det.frame_pairs["hdl64"].a_m, atol=1e-4
+        )
+        assert record["fused_pairs"]["confirmed"] == det.pairs.confirmed.tolist()
+        assert record["n_obstacles"] == len(record["obstacles"]) == len(det.obstacles)
+        for ob_json, ob in zip(record["obstacles"], det.obstacles, strict=True):
+            np.testing.assert_allclose(ob_json["outline_xy_m"], ob.outline_xy_m, atol=1e-4)
+        grid = np.zeros(record["grid"]["shape"], dtype=bool)
+        grid[tuple(np.array(record["grid"]["occupied_cells"], dtype=int).reshape(-1, 2).T)] = True
+        np.testing.assert_array_equal(grid, det.grid)
+    summary = json.loads((out / "summary.json").read_text())
+    assert [s["frame"] for s in summary] == stems
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "match"),
+    [
+        ("cut.bin", np.zeros(7, np.float32).tobytes(), "not a multiple of 4"),
+        ("empty.pcap", b"", "file is empty"),
+        ("junk.pcd", b"# .PCD v0.7\nFIELDS x y\n", "not a readable PCD"),
+    ],
+)
+def test_bad_file_exits_non_zero_with_one_line(tmp_path, capsys, name, content, match):
+    bad = tmp_path / name
+    bad.write_bytes(content)
+    assert main(["detect", str(bad), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("negobs detect: ") and match in err
+    assert "Traceback" not in err
+
+
+def test_help_says_frames_stand_still(capsys):
+    with pytest.raises(SystemExit):
+        main(["detect", "--help"])
+    assert "standing still" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("sensor", ["hdl64", "hdl32", "hdl32-left", "hdl32-right", "vlp16", "vlp32c"])
+def test_sensor_choices_give_paper_n_mounts(sensor):
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.sensors.rigs import paper_n_rig
+
+    setup = scan_setup(build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor]))
+    mount = {m.name: m for m in paper_n_rig().mounts}[setup.sensor]
+    assert setup.sensor == ("hdl64" if "-" not in sensor else sensor.replace("-", "_"))
+    np.testing.assert_array_equal(setup.rotation, mount.rotation_matrix)
+    assert setup.translation_m == mount.translation_m  # default height: the rig's
+    assert (len(setup.elevation_rad) == 0) == (sensor == "vlp32c")
+    high = scan_setup(
+        build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor, "--height", "1.5"])
+    )
+    assert high.translation_m[2] == 1.5
+
+
+def test_pcap_sequence_json_only(tmp_path):
+    out = tmp_path / "out"
+    args = ["-q", "detect", str(REAL / "hdl32e_a.pcap"), "--sensor", "hdl32", "--height", "3.1"]
+    assert main([*args, "--no-png", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "00000_hdl32e_a_0000.json",
+        "00001_hdl32e_a_0001.json",
+        "summary.json",
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert [s["n_points"] for s in summary] == [18154, 1425]

@@ -1,0 +1,125 @@
+"""ROS 1 / ROS 2 bags with sensor_msgs/PointCloud2, written here from the real HDL-32E frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from negobs_gym.detector.io import ScanSetup, fields_to_scan, read_recording
+from negobs_gym.detector.io.bags import read_bag
+from negobs_gym.errors import ScanError
+
+from .conftest import HDL32E_A
+
+pytest.importorskip("rosbags")
+vd = pytest.importorskip("velodyne_decoder")
+from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+TOPIC = "/velodyne_points"
+SETUP = ScanSetup(azimuth_resolution_deg=0.16, translation_m=(0.0, 0.0, 2.3))
+# sensor_msgs/PointField datatypes of the decoder's fields
+_CODES = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("u1"): 2}
+
+
+@pytest.fixture(scope="module")
+def frames():
+    """(stamp_ns, points) of the two real HDL-32E frames of hdl32e_a.pcap."""
+    return [(int(s.host * 1e9), p) for s, p in vd.read_pcap(str(HDL32E_A), vd.Config(), as_pcl_structs=True)]
+
+
+def pointcloud2(store, points: np.ndarray, stamp_ns: int, data: bytes | None = None, ros1: bool = False):
+    """A PointCloud2 message holding ``points`` (a numpy structured array) as they lie in memory."""
+    t = store.types
+    msg_types = {
+        "PointField": t["sensor_msgs/msg/PointField"],
+        "PointCloud2": t["sensor_msgs/msg/PointCloud2"],
+        "Header": t["std_msgs/msg/Header"],
+        "Time": t["builtin_interfaces/msg/Time"],
+    }
+    fields = [
+        msg_types["PointField"](
+            name=n, offset=points.dtype.fields[n][1], datatype=_CODES[points.dtype.fields[n][0]], count=1
+        )
+        for n in points.dtype.names
+    ]
+    stamp = msg_types["Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    raw = (
+        np.frombuffer(points.tobytes(), dtype=np.uint8)
+        if data is None
+        else np.frombuffer(data, dtype=np.uint8)
+    )
+    return msg_types["PointCloud2"](
+        header=msg_types["Header"](**({"seq": 0} if ros1 else {}), stamp=stamp, frame_id="velodyne"),
+        height=1,
+        width=points.size,
+        fields=fields,
+        is_bigendian=False,
+        point_step=points.dtype.itemsize,
+        row_step=points.dtype.itemsize * points.size,
+        data=raw,
+        is_dense=True,
+    )
+
+
+def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None):
+    store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
+    msgtype = "sensor_msgs/msg/PointCloud2"
+    writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
+    with writer:
+        for topic in topics:
+            conn = writer.add_connection(topic, msgtype, typestore=store)
+            for stamp, points in frames:
+                msg = pointcloud2(store, points, stamp, data, ros1=ros == 1)
+                raw = store.serialize_ros1(msg, msgtype) if ros == 1 else store.serialize_cdr(msg, msgtype)
+                writer.write(conn, stamp, raw)
+    return path
+
+
+@pytest.mark.parametrize(("ros", "name"), [(1, "drive.bag"), (2, "drive_ros2")])
+def test_bag_frames_equal_the_recorded_points(tmp_path, frames, ros, name):
+    bag = write_bag(tmp_path / name, frames, ros)
+    got = list(read_recording(bag, SETUP))
+    assert [f.index for f in got] == [0, 1] and all(f.ring_source == "ring_field" for f in got)
+    for frame, (stamp, points) in zip(got, frames, strict=True):
+        fields = {k: points[k] for k in ("x", "y", "z", "intensity", "ring")}
+        direct, _ = fields_to_scan(fields, SETUP, source="points")
+        np.testing.assert_array_equal(frame.scan.ranges_m, direct.ranges_m)
+        assert frame.scan.timestamp_s == pytest.approx(stamp * 1e-9)
+        assert frame.n_points == points.size
+
+
+def test_ros2_bag_by_its_db3_file_and_named_topic(tmp_path, frames):
+    bag = write_bag(tmp_path / "two", frames[:1], 2, topics=("/a", "/b"))
+    db3 = next(bag.glob("*.db3"))
+    with pytest.raises(ScanError, match="2 PointCloud2 topics"):
+        list(read_recording(db3, SETUP))
+    with pytest.raises(ScanError, match="no PointCloud2 topic '/c'"):
+        list(read_recording(db3, SETUP, topic="/c"))
+    assert len(list(read_bag(db3, SETUP, topic="/b"))) == 1
+
+
+def test_truncated_message_data_raises_scan_error(tmp_path, frames):
+    stamp, points = frames[0]
+    bag = write_bag(tmp_path / "cut.bag", [(stamp, points)], 1, data=points.tobytes()[: points.nbytes // 2])
+    with pytest.raises(ScanError, match="truncated message"):
+        list(read_recording(bag, SETUP))
+
+
+def test_bag_without_xyz_fields_raises_scan_error(tmp_path, frames):
+    stamp, points = frames[0]
+    no_z = points[["x", "y", "intensity", "ring"]]
+    bag = write_bag(tmp_path / "noz.bag", [(stamp, no_z)], 1, data=no_z.tobytes())
+    with pytest.raises(ScanError, match="no z field"):
+        list(read_recording(bag, SETUP))
+
+
+@pytest.mark.parametrize(
+    ("content", "match"), [(b"", "file is empty"), (b"#ROSBAG V2.0\nnot a bag" * 5, "not a readable ROS bag")]
+)
+def test_bad_bag_files_raise_scan_error(tmp_path, content, match):
+    bad = tmp_path / "bad.bag"
+    bad.write_bytes(content)
+    with pytest.raises(ScanError, match=match):
+        list(read_recording(bad, SETUP))
