@@ -18,6 +18,7 @@ Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|reduced] [--cac
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import tempfile
 from pathlib import Path
@@ -152,7 +153,7 @@ def main() -> None:
     ]
     tables = evaluate(rig, drives)
     edges = EVAL.distance_bin_edges_m
-    bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in zip(edges[:-1], edges[1:], strict=True)]
+    bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in itertools.pairwise(edges)]
     recall = {m: t.recall()[0] for m, t in tables.items()}
     print(f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}")
     print(f"frames per bin: {' '.join(str(n) for n in tables['fused'].seen[0])}")
