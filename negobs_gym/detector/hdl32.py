@@ -110,7 +110,7 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     """Negative-obstacle feature pairs (A, B, C) of one side HDL-32 scan (paper N §3.2).
 
     Empty scans (no columns or no returns) give empty pairs; a non-positive sensor height
-    raises ``ValueError``.
+    raises ``ScanError``.
     """
     h = sensor_height(scan, config.sensor_height_m)
     ranges = scan.ranges_m

@@ -21,6 +21,7 @@ from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.geometry import nadir_angle_from_elevation, ring_radius
 from negobs_gym.detector.pair_test import pair_test
 from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.errors import ScanError
 
 RISE, FALL = 1, -1
 
@@ -194,7 +195,7 @@ def sensor_height(scan: StructuredScan, override_m: float | None) -> float:
     """Sensor height above the ground: the config override or the mounting ``T_z``."""
     h = float(scan.translation_m[2]) if override_m is None else float(override_m)
     if not h > 0:
-        raise ValueError(
+        raise ScanError(
             f"{scan.sensor}: sensor height {h} m must be > 0 (vehicle origin is on the ground); "
             "set sensor_height_m in the config"
         )
@@ -205,7 +206,7 @@ def extract_hdl64_pairs(scan: StructuredScan, config: Hdl64FeatureConfig) -> Fea
     """Negative-obstacle feature pairs (A, B, C) of one upright HDL-64 scan (paper N §3.1).
 
     Returns an empty :class:`FeaturePairs` for scans with no columns or no returns. Raises
-    ``ValueError`` if the sensor height is not positive.
+    ``ScanError`` if the sensor height is not positive.
     """
     h = sensor_height(scan, config.sensor_height_m)
     order = np.argsort(scan.elevation_rad, kind="stable")

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from negobs_gym.errors import ScanError
+
 
 @dataclass(frozen=True, eq=False)
 class FeaturePairs:
@@ -49,7 +51,7 @@ class FeaturePairs:
             object.__setattr__(self, name, arr)
         n = self.a_m.shape[0]
         if self.b_m.shape[0] != n or self.c_m.shape[0] != n:
-            raise ValueError(
+            raise ScanError(
                 f"{self.sensor}: A, B, C must have the same number of rows, got "
                 f"{self.a_m.shape[0]}, {self.b_m.shape[0]}, {self.c_m.shape[0]}"
             )
