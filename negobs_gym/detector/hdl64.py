@@ -48,15 +48,13 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     n_l, n_c = r.shape
     h = half_window
     rp = np.concatenate([np.full((n_l, h), np.nan), r, np.full((n_l, h), np.nan)], axis=1)
-    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; argmax keeps the first of
-    # equal magnitudes
-    diffs = np.empty((2 * h, n_l, n_c))
-    for j in range(1, h + 1):
-        diffs[2 * j - 2] = rp[:, h + j : h + j + n_c] - r
-        diffs[2 * j - 1] = r - rp[:, h - j : h - j + n_c]
-    np.nan_to_num(diffs, copy=False, nan=0.0)
-    pick = np.abs(diffs).argmax(axis=0)
-    best = np.take_along_axis(diffs, pick[None], axis=0)[0]
+    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; a later one replaces the
+    # best so far only when strictly larger in magnitude (the first of equal magnitudes is kept)
+    best = np.zeros(r.shape)
+    with np.errstate(invalid="ignore"):
+        for j in range(1, h + 1):
+            for d in (rp[:, h + j : h + j + n_c] - r, r - rp[:, h - j : h - j + n_c]):
+                np.copyto(best, d, where=np.abs(d) > np.abs(best))
     labels = np.zeros(r.shape, dtype=np.int8)
     labels[best > rise_m] = RISE
     labels[best < fall_m] = FALL

@@ -91,21 +91,34 @@ def close_pairs(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All (i, j, distance) with :func:`overlap_distance` of pair i of set 1 and pair j of set 2 <= max.
 
-    Inputs are (n, 2) ground-plane points. Two pairs that close have points within ``max_distance_m``
-    of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length:
-    a KD-tree on the midpoints finds the candidates and only those are measured.
+    Inputs are (n, 2) ground-plane points. Two pairs that close have a point of one segment within
+    ``max_distance_m`` of a point of the other (where their projections overlap, one of the two
+    end distances averaged is at most the mean; elsewhere the nearest ends are). Each segment is
+    sampled every ``max_distance_m`` (so every point of it lies within half that of a sample), a
+    KD-tree finds the samples within twice the distance, and only the pairs they name are
+    measured: the cost grows with the samples and their close neighbours, never with all pairs.
     """
     if len(a1) == 0 or len(a2) == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty, np.empty(0)
-    half1 = 0.5 * float(np.max(np.linalg.norm(b1 - a1, axis=1)))
-    half2 = 0.5 * float(np.max(np.linalg.norm(b2 - a2, axis=1)))
-    tree1, tree2 = cKDTree(0.5 * (a1 + b1)), cKDTree(0.5 * (a2 + b2))
-    cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-    i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
+    step = max_distance_m
+    owner1, pts1 = _samples(a1, b1, step)
+    owner2, pts2 = _samples(a2, b2, step)
+    cand = cKDTree(pts1).sparse_distance_matrix(cKDTree(pts2), max_distance_m + step, output_type="ndarray")
+    key = np.unique(owner1[cand["i"]] * len(a2) + owner2[cand["j"]])
+    i, j = key // len(a2), key % len(a2)
     d = overlap_distance(a1[i], b1[i], a2[j], b2[j])
     close = d <= max_distance_m
     return i[close], j[close], d[close]
+
+
+def _samples(a: np.ndarray, b: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along each segment a-b at most ``step`` apart, both ends included, and their owner."""
+    n = np.ceil(np.linalg.norm(b - a, axis=1) / step).astype(np.int64) + 1
+    owner = np.repeat(np.arange(len(a)), n)
+    first = np.cumsum(n) - n
+    t = (np.arange(owner.size) - first[owner]) / np.maximum(n[owner] - 1, 1)
+    return owner, a[owner] + t[:, None] * (b[owner] - a[owner])
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -165,18 +165,22 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
     n_sectors = math.ceil(360.0 / config.sector_deg)
     n_bins = max(1, math.ceil((max_range_m + config.range_margin_m) / config.bin_m))
     n_cells = n_sectors * n_bins
-    pts = [np.asarray(c, dtype=np.float64).reshape(-1, 3) for c in clouds]
-    p = np.concatenate(pts) if pts else np.empty((0, 3))
-    p = p[np.isfinite(p).all(axis=1)]
-    dist = np.hypot(p[:, 0], p[:, 1])
-    p, dist = p[dist < n_bins * config.bin_m], dist[dist < n_bins * config.bin_m]
-    ang = np.arctan2(p[:, 1], p[:, 0])
-    sector = np.floor((ang + np.pi) / math.radians(config.sector_deg)).astype(np.int64) % n_sectors
-    cell = sector * n_bins + np.floor(dist / config.bin_m).astype(np.int64)
+    reach = n_bins * config.bin_m
     z_min = np.full(n_cells, np.inf)
     z_max = np.full(n_cells, -np.inf)
-    np.minimum.at(z_min, cell, p[:, 2])
-    np.maximum.at(z_max, cell, p[:, 2])
+    for cloud in clouds:
+        p = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
+        x, y = p[:, 0], p[:, 1]
+        d2 = x * x + y * y
+        with np.errstate(invalid="ignore"):
+            near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
+        x, y, z = x[near], y[near], p[near, 2]
+        near = np.isfinite(z)
+        x, y, z, dist = x[near], y[near], z[near], np.sqrt(d2[near][near])
+        sector = np.floor((np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)).astype(np.int64)
+        cell = (sector % n_sectors) * n_bins + np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
+        np.minimum.at(z_min, cell, z)
+        np.maximum.at(z_max, cell, z)
     z_min = z_min.reshape(n_sectors, n_bins)
     z_max = z_max.reshape(n_sectors, n_bins)
 
