@@ -174,9 +174,8 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
         d2 = x * x + y * y
         with np.errstate(invalid="ignore"):
             near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
-        x, y, z = x[near], y[near], p[near, 2]
-        near = np.isfinite(z)
-        x, y, z, dist = x[near], y[near], z[near], np.sqrt(d2[near][near])
+        near = near[np.isfinite(p[near, 2])]
+        x, y, z, dist = x[near], y[near], p[near, 2], np.sqrt(d2[near])
         sector = np.floor((np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)).astype(np.int64)
         cell = (sector % n_sectors) * n_bins + np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
         np.minimum.at(z_min, cell, z)
