@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 
 NegativeKind = Literal["pit", "ditch", "trench", "crater"]
-PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian"]
+PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian", "pole"]
 PrimitiveShape = Literal["box", "cylinder"]
 
 
