@@ -49,9 +49,10 @@ class NegativeDetectorConfig:
     hdl64_sensors: tuple[str, ...] = ("hdl64",)
     hdl32_sensors: tuple[str, ...] = ("hdl32_left", "hdl32_right")
     # pairs whose far point B lies farther than this (ground-plane distance from the vehicle origin)
-    # are dropped: paper N evaluates detection 6-20 m ahead (Table 7); beyond, the HDL-64 rings are
-    # metres apart and every shadow behind a crest passes Eq. 14
-    max_range_m: float = 20.0
+    # are dropped: paper N evaluates detection 6-20 m ahead by the pit's nearest point (Table 7),
+    # and B lies on the back wall, up to 1.5 m (its longest pit) beyond it, + 0.5 m for pitch and
+    # INS jitter; beyond, the HDL-64 rings are metres apart and shadows behind crests pass Eq. 14
+    max_range_m: float = 22.0
     roi: RoiConfig = field(default_factory=RoiConfig)  # Table 1 line 1, ExtractROIPoints (rule: roi.py)
     hdl64: Hdl64FeatureConfig = field(default_factory=Hdl64FeatureConfig)  # §3.1
     hdl32: Hdl32FeatureConfig = field(default_factory=Hdl32FeatureConfig)  # §3.2
@@ -173,7 +174,7 @@ class NegativeObstacleDetector:
         frame_pairs = {}
         for name in active:
             if name in cfg.hdl64_sensors:
-                pairs = extract_hdl64_pairs(scans[name], cfg.hdl64)
+                pairs = extract_hdl64_pairs(scans[name], cfg.hdl64, ground)
             else:
                 pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
             frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground)
