@@ -26,6 +26,15 @@ HDL64_ELEVATION_DEG = np.linspace(-24.8, 2.0, 64)  # HDL-64E-like, ~0.43 deg spa
 HDL32_ELEVATION_DEG = np.linspace(-30.67, 10.67, 32)  # HDL-32E, 1.33 deg spacing
 
 
+def _check_box(box: object, size_field: str) -> None:
+    """Finite footprint [x0, x1] x [y0, y1] with x1 > x0, y1 > y0, and a positive ``size_field``."""
+    for name in ("x0_m", "x1_m", "y0_m", "y1_m", size_field):
+        require(np.isfinite(getattr(box, name)), name, "must be finite")
+    require(box.x1_m > box.x0_m, "x1_m", "must exceed x0_m")  # type: ignore[attr-defined]
+    require(box.y1_m > box.y0_m, "y1_m", "must exceed y0_m")  # type: ignore[attr-defined]
+    require(getattr(box, size_field) > 0, size_field, "must be > 0")
+
+
 @dataclass(frozen=True, kw_only=True)
 class Hole:
     """Axis-aligned rectangular hole in the vehicle frame: opening [x0, x1] x [y0, y1], depth."""
@@ -37,11 +46,7 @@ class Hole:
     depth_m: float
 
     def __post_init__(self) -> None:
-        for name in ("x0_m", "x1_m", "y0_m", "y1_m", "depth_m"):
-            require(np.isfinite(getattr(self, name)), name, "must be finite")
-        require(self.x1_m > self.x0_m, "x1_m", "must exceed x0_m")
-        require(self.y1_m > self.y0_m, "y1_m", "must exceed y0_m")
-        require(self.depth_m > 0, "depth_m", "must be > 0")
+        _check_box(self, "depth_m")
 
     @classmethod
     def ahead(cls, distance_m: float, width_m: float, length_m: float, depth_m: float) -> Hole:
@@ -66,11 +71,7 @@ class Block:
     height_m: float
 
     def __post_init__(self) -> None:
-        for name in ("x0_m", "x1_m", "y0_m", "y1_m", "height_m"):
-            require(np.isfinite(getattr(self, name)), name, "must be finite")
-        require(self.x1_m > self.x0_m, "x1_m", "must exceed x0_m")
-        require(self.y1_m > self.y0_m, "y1_m", "must exceed y0_m")
-        require(self.height_m > 0, "height_m", "must be > 0")
+        _check_box(self, "height_m")
 
 
 def _block_entry(o: np.ndarray, d: np.ndarray, block: Block) -> np.ndarray:
