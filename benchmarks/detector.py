@@ -6,7 +6,7 @@ per frame, then ``NegativeObstacleDetector.update`` (feature pairs of the three 
 DBSCAN, grid) is timed on the recorded frames. Prints the cast and per-stage medians, cast +
 detector (SPEC §9 goal: <= 100 ms), ``median_ms=<value>`` of ``update`` (goal, issue 10: <= 40 ms)
 and, as the last line, ``dense_median_ms=<value>``: ``update`` on a dense frame, analytic scans
-(``negobs_gym.detector.synthetic``, 2 cm range noise) of flat ground with a field of 48 pits of
+(``negobs_gym.detector.synthetic``, 2 cm range noise) of flat ground with a field of 80 pits of
 1 x 1 x 0.8 m between 6 and 20 m ahead, which gives >= 2,000 candidate feature pairs per frame
 (printed) for fusion matching and DBSCAN (goal, issue 10: <= 100 ms; the cost of matching and
 clustering grows as n log n in the pairs).
@@ -67,12 +67,12 @@ def record_frames(
 
 
 def dense_frames(n_frames: int, seed: int = 0) -> list[dict]:
-    """Analytic rig scans of a field of 48 pits (6 across x 8 along, 6-20 m ahead), noise on."""
-    holes = [Hole.ahead(float(y), width_m=1.0, length_m=1.0, depth_m=0.8) for y in np.linspace(6.0, 19.0, 8)]
+    """Analytic rig scans of a field of 80 pits (8 across x 10 along, 6-20 m ahead), noise on."""
+    holes = [Hole.ahead(float(y), width_m=1.0, length_m=1.0, depth_m=0.8) for y in np.linspace(6.0, 19.5, 10)]
     holes = [
         Hole(x0_m=h.x0_m + dx, x1_m=h.x1_m + dx, y0_m=h.y0_m, y1_m=h.y1_m, depth_m=h.depth_m)
         for h in holes
-        for dx in (-6.25, -3.75, -1.25, 1.25, 3.75, 6.25)
+        for dx in (-8.75, -6.25, -3.75, -1.25, 1.25, 3.75, 6.25, 8.75)
     ]
     rng = np.random.default_rng(seed)
     kw = {"noise_sigma_m": 0.02, "rng": rng}
