@@ -7,7 +7,7 @@ DBSCAN, grid) is timed on the recorded frames. Prints the cast and per-stage med
 detector (SPEC §9 goal: <= 100 ms), ``median_ms=<value>`` of ``update`` (goal, issue 10: <= 40 ms)
 and, as the last line, ``dense_median_ms=<value>``: ``update`` on a dense frame, analytic scans
 (``negobs_gym.detector.synthetic``, 2 cm range noise) of flat ground with a field of 80 pits of
-1 x 1 x 0.8 m between 6 and 20 m ahead, which gives >= 2,000 candidate feature pairs per frame
+1 x 1 x 0.8 m between 6 and 20 m ahead, which gives ~2,000 candidate feature pairs per frame
 (printed) for fusion matching and DBSCAN (goal, issue 10: <= 100 ms; the cost of matching and
 clustering grows as n log n in the pairs).
 
