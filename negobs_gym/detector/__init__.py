@@ -6,8 +6,9 @@ run on recorded scans from a real vehicle (see :mod:`negobs_gym.detector.loaders
 - Paper N, negative obstacles: per-sensor feature point pairs (:mod:`~negobs_gym.detector.hdl64`,
   :mod:`~negobs_gym.detector.hdl32`, Eq. 11–14 in :mod:`~negobs_gym.detector.pair_test`) and the
   geometry of paper N §2 (:mod:`~negobs_gym.detector.geometry`), Bayesian fusion
-  (:mod:`~negobs_gym.detector.fusion`), DBSCAN (:mod:`~negobs_gym.detector.clustering`), the grid
-  (:mod:`~negobs_gym.detector.grid`), all behind :class:`NegativeObstacleDetector`.
+  (:mod:`~negobs_gym.detector.fusion`), the ROI step of Table 1 (:mod:`~negobs_gym.detector.roi`),
+  DBSCAN (:mod:`~negobs_gym.detector.clustering`), the grid (:mod:`~negobs_gym.detector.grid`), all
+  behind :class:`NegativeObstacleDetector`.
 - Paper T, traversable region from a 4-layer LiDAR: :mod:`negobs_gym.detector.traversable`.
 """
 
@@ -24,6 +25,7 @@ from negobs_gym.detector.negative import (
     NegativeObstacleDetector,
 )
 from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map
 from negobs_gym.detector.traversable import (
     TraversableConfig,
     TraversableRegion,
@@ -38,16 +40,19 @@ __all__ = [
     "FeaturePairs",
     "FusedPairs",
     "FusionConfig",
+    "GroundMap",
     "Hdl32FeatureConfig",
     "Hdl64FeatureConfig",
     "NegativeDetectorConfig",
     "NegativeObstacleDetector",
     "PairFusion",
     "PairTestConfig",
+    "RoiConfig",
     "SensorLikelihood",
     "TraversableConfig",
     "TraversableRegion",
     "TraversableRegionDetector",
+    "build_ground_map",
     "cluster_obstacles",
     "convex_overlap_mask",
     "extract_hdl32_pairs",

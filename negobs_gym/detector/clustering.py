@@ -27,6 +27,15 @@ class ClusteringConfig:
 
     eps_m: float = 0.40  # T_dbscan, paper N §3.3: 40 cm
     min_pairs: int = 4  # MinFPs, paper N §3.3 (the pair itself counts, as in Tab. 4)
+    # A pair farther than this from the vehicle counts w = range / this toward MinFPs and reaches
+    # w * eps (w at most max_pair_weight; documented deviation, the paper counts every pair once
+    # within a fixed eps). A sensor's scan lines cross a pit at a lateral spacing that grows with
+    # range (the side HDL-32s' lasers are 1.33 deg apart: 0.23 m at 10 m, 0.46 m at 20 m, past
+    # eps), so a pit of a given width yields pairs ~ 1/range, spread wider than eps: the fixed
+    # rule ends the side sensors' reach at ~14 m, against paper N Fig. 16. Every pair is still
+    # confirmed by fusion (3 hits, §4.2) before it is clustered. inf = the paper's rule.
+    full_weight_range_m: float = 10.0
+    max_pair_weight: float = 2.0
     # a cluster whose points are collinear has no area; its outline is the segment widened by this
     degenerate_half_width_m: float = 0.05
 
@@ -34,6 +43,12 @@ class ClusteringConfig:
         require(math.isfinite(self.eps_m) and self.eps_m > 0, "eps_m", "must be finite and > 0")
         require(
             isinstance(self.min_pairs, int) and self.min_pairs >= 1, "min_pairs", "must be an integer >= 1"
+        )
+        require(self.full_weight_range_m > 0, "full_weight_range_m", "must be > 0 (inf: every pair counts 1)")
+        require(
+            math.isfinite(self.max_pair_weight) and self.max_pair_weight >= 1,
+            "max_pair_weight",
+            "must be finite and >= 1",
         )
         require(
             math.isfinite(self.degenerate_half_width_m) and self.degenerate_half_width_m > 0,
@@ -61,15 +76,28 @@ class DetectedObstacle:
     pair_indices: np.ndarray
 
 
+def pair_weights(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig) -> np.ndarray:
+    """What each pair counts toward MinFPs: 1 up to ``full_weight_range_m`` (midpoint distance
+    from the vehicle origin), then range / ``full_weight_range_m``, at most ``max_pair_weight``."""
+    mid = 0.5 * (np.asarray(a_xy) + np.asarray(b_xy))
+    rng = np.sqrt(mid[:, 0] ** 2 + mid[:, 1] ** 2)
+    return np.clip(rng / config.full_weight_range_m, 1.0, config.max_pair_weight)
+
+
 def cluster_labels(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig) -> np.ndarray:
     """DBSCAN label per pair (-1 = noise) under paper N's overlap distance."""
     n = len(a_xy)
     if n == 0:
         return np.empty(0, dtype=np.int64)
-    i, j, d = close_pairs(a_xy, b_xy, a_xy, b_xy, config.eps_m)
-    graph = sparse.csr_matrix((np.maximum(d, _TINY), (i, j)), shape=(n, n))
+    weights = pair_weights(a_xy, b_xy, config)
+    i, j, d = close_pairs(a_xy, b_xy, a_xy, b_xy, config.eps_m * float(weights.max()))
+    # the neighbourhood widens with the same factor: distances are divided by the smaller weight
+    d = d / np.minimum(weights[i], weights[j])
+    keep = d <= config.eps_m
+    graph = sparse.csr_matrix((np.maximum(d[keep], _TINY), (i[keep], j[keep])), shape=(n, n))
     dbscan = DBSCAN(eps=config.eps_m, min_samples=config.min_pairs, metric="precomputed")
-    return dbscan.fit_predict(graph).astype(np.int64)
+    # tolerance: a weight sum equal to MinFPs up to rounding is a core pair
+    return dbscan.fit_predict(graph, sample_weight=weights * (1.0 + 1e-9)).astype(np.int64)
 
 
 def convex_outline(points_xy: np.ndarray, half_width_m: float) -> np.ndarray:

@@ -81,6 +81,15 @@ class Hdl32FeatureConfig:
     density_half_window: int = 8  # columns either side searched for same-laser neighbours
     jump_threshold_m: float = 0.30  # §3.2 step 4, T32 = 0.30 m
     density_threshold: float = 4.0  # §3.2 step 4, D_th32 = 4
+    # Beyond this horizontal range from the sensor the threshold falls as (range / this)^-2
+    # (documented deviation): the back-wall returns a point can have within T_d32 are the visible
+    # wall height h w / d (Eq. 7) over the firing step d * dalpha on it, ~ h w / (d^2 dalpha);
+    # for a 1 m pit seen from 2 m they drop to 4 at ~12 m, so the paper's fixed D_th32 ends the
+    # side sensors' reach there, against paper N Fig. 16. inf = the paper's fixed threshold.
+    density_full_range_m: float = 12.0
+    # the threshold never falls below this: B keeps at least one same-laser neighbour within
+    # T_d32 (an isolated noise return has none)
+    density_threshold_min: float = 1.5
     compensate_missing: bool = True
     # C = first point after B on the same laser at least this far from B (documented deviation:
     # the paper's literal "next point" is 0.0; at the HDL-32E's 0.16 deg firing step the next
@@ -106,6 +115,16 @@ class Hdl32FeatureConfig:
             "must be finite and > 0",
         )
         require(_finite(self.density_threshold), "density_threshold", "must be finite")
+        require(
+            isinstance(self.density_full_range_m, (int, float)) and self.density_full_range_m > 0,
+            "density_full_range_m",
+            "must be > 0 (inf for the paper's fixed threshold)",
+        )
+        require(
+            _finite(self.density_threshold_min) and self.density_threshold_min <= self.density_threshold,
+            "density_threshold_min",
+            "must be finite and <= density_threshold",
+        )
         require(
             _finite(self.c_min_separation_m) and self.c_min_separation_m >= 0,
             "c_min_separation_m",

@@ -21,7 +21,7 @@ import numpy as np
 
 from negobs_gym.core import Pose
 from negobs_gym.detector.pairs import FeaturePairs, close_pairs
-from negobs_gym.errors import ConfigError, require
+from negobs_gym.errors import ConfigError, ScanError, require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,10 +115,10 @@ class PairFusion:
         """Fuse this frame's pairs (vehicle frame) at INS ``pose``.
 
         Raises:
-            ValueError: ``pose`` has a non-finite value, or a pair has a non-finite A/B.
+            ScanError: ``pose`` has a non-finite value, or a pair has a non-finite A/B.
         """
         if not np.all(np.isfinite(pose.as_array())):
-            raise ValueError("pose: contains NaN/inf")
+            raise ScanError("pose: contains NaN/inf")
         cfg = self.config
         n_hist = len(self)
         a_v = pose.to_vehicle(self._a_w) if n_hist else np.empty((0, 3))
@@ -130,7 +130,7 @@ class PairFusion:
             if len(fp) == 0:
                 continue
             if not (np.all(np.isfinite(fp.a_m)) and np.all(np.isfinite(fp.b_m))):
-                raise ValueError(f"pairs[{sensor!r}]: A/B contain NaN/inf")
+                raise ScanError(f"pairs[{sensor!r}]: A/B contain NaN/inf")
             lik = cfg.likelihood(sensor)
             # Pairs created earlier in this frame by another sensor are matched too, so three
             # sensors seeing a new pair in one frame confirm it at once (paper N §4.2).

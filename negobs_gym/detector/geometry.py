@@ -11,11 +11,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from negobs_gym.errors import ConfigError
+
 
 def _pos(name: str, value: ArrayLike) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64)
     if not np.isfinite(arr).all() or (arr <= 0).any():
-        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+        raise ConfigError(name, f"must be finite and > 0, got {value!r}")
     return arr
 
 

@@ -13,13 +13,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from negobs_gym.core.grid import GridSpec
+from negobs_gym.errors import ConfigError
 
 
 def convex_overlap_mask(outline_xy_m: np.ndarray, grid: GridSpec) -> np.ndarray:
     """Boolean (rows, cols) mask of cells overlapping a convex polygon (k >= 3 vertices, either winding)."""
     poly = np.asarray(outline_xy_m, dtype=np.float64)
     if poly.ndim != 2 or poly.shape[0] < 3 or poly.shape[1] != 2 or not np.isfinite(poly).all():
-        raise ValueError(f"outline_xy_m: need a finite (k >= 3, 2) polygon, got shape {poly.shape}")
+        raise ConfigError("outline_xy_m", f"need a finite (k >= 3, 2) polygon, got shape {poly.shape}")
     x, y = poly[:, 0], poly[:, 1]
     if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
         poly = poly[::-1]  # clockwise input: the outward normals below need counter-clockwise

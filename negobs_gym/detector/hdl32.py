@@ -6,12 +6,15 @@ plane and its columns cross the ground radially. "Along each laser near to far" 
 both column directions: at column ``k`` the sequence ``k-2, k-1, k`` (or ``k+2, k+1, k``) is
 used where the flat-ground hit distances of those rays increase (a property of the ray
 geometry alone, so it holds for any mounting). Pipeline: missing-return compensation ->
-same-laser density -> range jump (second difference) -> pair (A = previous point,
+same-laser density (its threshold falling beyond ``density_full_range_m``) -> range jump
+(second difference) -> pair (A = previous point,
 B = jump point, C = next point beyond B's back-wall neighbourhood, see
 ``Hdl32FeatureConfig.c_min_separation_m``) -> Eq. 14.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -24,11 +27,24 @@ from negobs_gym.detector.pairs import FeaturePairs
 
 def ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
     """Horizontal distance from the sensor at which each ray would hit flat ground (inf = never)."""
-    d = ray_directions(scan.elevation_rad, scan.azimuth_rad) @ scan.rotation.T
+    geometry = (scan.elevation_rad.tobytes(), scan.azimuth_rad.tobytes(), scan.rotation.tobytes())
+    return height_m * _ground_hit_per_metre(*geometry, scan.elevation_rad.size)
+
+
+@functools.lru_cache(maxsize=8)
+def _ground_hit_per_metre(elevation: bytes, azimuth: bytes, rotation: bytes, n_lasers: int) -> np.ndarray:
+    """Ground-hit distance per metre of sensor height of each ray; cached per scan geometry, which a
+    sensor keeps from frame to frame."""
+    el = np.frombuffer(elevation, dtype=np.float64)
+    az = np.frombuffer(azimuth, dtype=np.float64)
+    rot = np.frombuffer(rotation, dtype=np.float64).reshape(3, 3)
+    d = ray_directions(el, az) @ rot.T
     down = d[..., 2] < -1e-9
     horiz = np.hypot(d[..., 0], d[..., 1])
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(down, height_m * horiz / np.where(down, -d[..., 2], 1.0), np.inf)
+        out = np.where(down, horiz / np.where(down, -d[..., 2], 1.0), np.inf)
+    out.flags.writeable = False
+    return out.reshape(n_lasers, az.size)
 
 
 def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
@@ -50,19 +66,42 @@ def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(r) & ordered, est, r)
 
 
-def same_laser_density(points_m: np.ndarray, radius_m: float, half_window: int) -> np.ndarray:
+def same_laser_density(
+    points_m: np.ndarray,
+    radius_m: float,
+    half_window: int,
+    rows: np.ndarray | None = None,
+    cols: np.ndarray | None = None,
+) -> np.ndarray:
     """Number of points of the same laser (own included) within ``radius_m`` of each point,
-    searched over ``+-half_window`` columns; 0 for missing points."""
+    searched over ``+-half_window`` columns; 0 for missing points.
+
+    With ``rows``/``cols`` only those points are evaluated ((n,) result), else every point
+    ((lasers, columns) result). Cost: O(points evaluated x half_window).
+    """
     n_l, n_c, _ = points_m.shape
-    dens = np.zeros((n_l, n_c))
-    valid = ~np.isnan(points_m[..., 0])
-    for off in range(1, min(half_window, n_c - 1) + 1):  # loop over offsets, not points
-        d = points_m[:, off:] - points_m[:, :-off]
-        with np.errstate(invalid="ignore"):
-            near = np.einsum("lck,lck->lc", d, d) <= radius_m * radius_m
-        dens[:, off:] += near
-        dens[:, :-off] += near
-    return np.where(valid, dens + 1.0, 0.0)
+    if rows is None or cols is None:
+        rr, cc = np.indices((n_l, n_c))
+        return same_laser_density(points_m, radius_m, half_window, rr.ravel(), cc.ravel()).reshape(n_l, n_c)
+    rows, cols = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
+    offs = np.concatenate([np.arange(-half_window, 0), np.arange(1, half_window + 1)])
+    nb = cols[:, None] + offs[None, :]
+    inside = (nb >= 0) & (nb < n_c)
+    q = points_m[rows, cols]
+    d = points_m[rows[:, None], np.clip(nb, 0, n_c - 1)] - q[:, None, :]
+    with np.errstate(invalid="ignore"):
+        near = inside & (np.einsum("nkd,nkd->nk", d, d) <= radius_m * radius_m)
+    return np.where(np.isnan(q[:, 0]), 0.0, 1.0 + near.sum(axis=1))
+
+
+def density_threshold(points_m: np.ndarray, sensor_m: np.ndarray, config: Hdl32FeatureConfig) -> np.ndarray:
+    """Per-point D_th32: the paper's value up to ``density_full_range_m`` from the sensor, then
+    falling with the square of the range to ``density_threshold_min`` (see the config)."""
+    d = np.hypot(points_m[..., 0] - sensor_m[0], points_m[..., 1] - sensor_m[1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.minimum(1.0, (config.density_full_range_m / d) ** 2)
+    thr = np.maximum(config.density_threshold_min, config.density_threshold * scale)
+    return np.where(np.isnan(d), config.density_threshold, thr)
 
 
 def range_jumps(ranges_m: np.ndarray, ground_m: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
@@ -110,7 +149,7 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     """Negative-obstacle feature pairs (A, B, C) of one side HDL-32 scan (paper N §3.2).
 
     Empty scans (no columns or no returns) give empty pairs; a non-positive sensor height
-    raises ``ValueError``.
+    raises ``ScanError``.
     """
     h = sensor_height(scan, config.sensor_height_m)
     ranges = scan.ranges_m
@@ -121,12 +160,13 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     valid = ~np.isnan(ranges)
     r_c = compensate_missing(ranges) if config.compensate_missing else ranges
     ground = ground_hit_distance(scan, h)
-    dens = same_laser_density(pts, config.density_radius_m, config.density_half_window)
-    dense = dens > config.density_threshold
     a_all, b_all, c_all = [], [], []
     for step in (1, -1):
-        cand = range_jumps(r_c, ground, config.jump_threshold_m, step) & dense & valid
-        rows, cols = np.nonzero(cand)
+        rows, cols = np.nonzero(range_jumps(r_c, ground, config.jump_threshold_m, step) & valid)
+        # density only where it is used: at the jump points
+        dens = same_laser_density(pts, config.density_radius_m, config.density_half_window, rows, cols)
+        dense = dens > density_threshold(pts[rows, cols], scan.translation_m, config)
+        rows, cols = rows[dense], cols[dense]
         prev = cols - step
         ok_idx = (prev >= 0) & (prev < n_c)
         rows, cols, prev = rows[ok_idx], cols[ok_idx], prev[ok_idx]

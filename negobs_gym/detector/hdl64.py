@@ -21,6 +21,8 @@ from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.geometry import nadir_angle_from_elevation, ring_radius
 from negobs_gym.detector.pair_test import pair_test
 from negobs_gym.detector.pairs import FeaturePairs
+from negobs_gym.detector.roi import GroundMap
+from negobs_gym.errors import ScanError
 
 RISE, FALL = 1, -1
 
@@ -47,15 +49,13 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     n_l, n_c = r.shape
     h = half_window
     rp = np.concatenate([np.full((n_l, h), np.nan), r, np.full((n_l, h), np.nan)], axis=1)
-    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; argmax keeps the first of
-    # equal magnitudes
-    diffs = np.empty((2 * h, n_l, n_c))
-    for j in range(1, h + 1):
-        diffs[2 * j - 2] = rp[:, h + j : h + j + n_c] - r
-        diffs[2 * j - 1] = r - rp[:, h - j : h - j + n_c]
-    np.nan_to_num(diffs, copy=False, nan=0.0)
-    pick = np.abs(diffs).argmax(axis=0)
-    best = np.take_along_axis(diffs, pick[None], axis=0)[0]
+    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; a later one replaces the
+    # best so far only when strictly larger in magnitude (the first of equal magnitudes is kept)
+    best = np.zeros(r.shape)
+    with np.errstate(invalid="ignore"):
+        for j in range(1, h + 1):
+            for d in (rp[:, h + j : h + j + n_c] - r, r - rp[:, h - j : h - j + n_c]):
+                np.copyto(best, d, where=np.abs(d) > np.abs(best))
     labels = np.zeros(r.shape, dtype=np.int8)
     labels[best > rise_m] = RISE
     labels[best < fall_m] = FALL
@@ -194,18 +194,32 @@ def sensor_height(scan: StructuredScan, override_m: float | None) -> float:
     """Sensor height above the ground: the config override or the mounting ``T_z``."""
     h = float(scan.translation_m[2]) if override_m is None else float(override_m)
     if not h > 0:
-        raise ValueError(
+        raise ScanError(
             f"{scan.sensor}: sensor height {h} m must be > 0 (vehicle origin is on the ground); "
             "set sensor_height_m in the config"
         )
     return h
 
 
-def extract_hdl64_pairs(scan: StructuredScan, config: Hdl64FeatureConfig) -> FeaturePairs:
+def _segment_points(row: np.ndarray, lo: np.ndarray, hi: np.ndarray, n_c: int):
+    """(segment, row, col) of every cell of the segments ``row[k], lo[k]:hi[k]`` (clipped to the scan)."""
+    lo = np.clip(lo, 0, n_c)
+    lengths = np.clip(hi, lo, n_c) - lo
+    seg = np.repeat(np.arange(row.size), lengths)
+    cols = lo[seg] + np.arange(seg.size) - (np.cumsum(lengths) - lengths)[seg]
+    return seg, row[seg], cols
+
+
+def extract_hdl64_pairs(
+    scan: StructuredScan, config: Hdl64FeatureConfig, ground: GroundMap | None = None
+) -> FeaturePairs:
     """Negative-obstacle feature pairs (A, B, C) of one upright HDL-64 scan (paper N §3.1).
 
-    Returns an empty :class:`FeaturePairs` for scans with no columns or no returns. Raises
-    ``ValueError`` if the sensor height is not positive.
+    With a ``ground`` map (the ROI step, :mod:`.roi`), a bump whose side windows (the points the
+    mean-range test compares it with) hold a return on a structure cell is dropped: the gap
+    between two shrubs, poles or cars on one ring is a bump of the same shape as a pit's, but its
+    edges are structure, not ground. Returns an empty :class:`FeaturePairs` for scans with no
+    columns or no returns. Raises ``ScanError`` if the sensor height is not positive.
     """
     h = sensor_height(scan, config.sensor_height_m)
     order = np.argsort(scan.elevation_rad, kind="stable")
@@ -213,7 +227,8 @@ def extract_hdl64_pairs(scan: StructuredScan, config: Hdl64FeatureConfig) -> Fea
     n_l, n_c = ranges.shape
     if n_c == 0 or n_l == 0 or np.isnan(ranges).all():
         return FeaturePairs.empty(scan.sensor)
-    pts = scan.points_vehicle[order]
+    sorted_already = bool(np.all(order == np.arange(order.size)))
+    pts = scan.points_vehicle if sorted_already else scan.points_vehicle[order]
     valid = ~np.isnan(ranges)
     r_f = max_filter_ranges(ranges, config.max_filter_radius)
     labels = edge_labels(r_f, config.edge_rise_m, config.edge_fall_m, config.edge_half_window)
@@ -227,11 +242,16 @@ def extract_hdl64_pairs(scan: StructuredScan, config: Hdl64FeatureConfig) -> Fea
     with np.errstate(invalid="ignore"):
         keep = (mean_in > mean_left) & (mean_in > mean_right)
     b_row, b_start, b_end = b_row[keep], b_start[keep], b_end[keep]
+    if ground is not None and b_row.size:
+        sides = []
+        for lo, hi in ((b_start - w, b_start), (b_end + 1, b_end + 1 + w)):
+            seg, rows, cols = _segment_points(b_row, lo, hi, n_c)
+            ok = valid[rows, cols]
+            sides.append(np.bincount(seg[ok], ground.on_structure_cell(pts[rows[ok], cols[ok]]), b_row.size))
+        keep = (sides[0] == 0) & (sides[1] == 0)
+        b_row, b_start, b_end = b_row[keep], b_start[keep], b_end[keep]
     # density on the bump points only (the only place it is used)
-    lengths = b_end + 1 - b_start
-    seg = np.repeat(np.arange(b_row.size), lengths)
-    cols = b_start[seg] + np.arange(seg.size) - (np.cumsum(lengths) - lengths)[seg]
-    rows = b_row[seg]
+    seg, rows, cols = _segment_points(b_row, b_start, b_end + 1, n_c)
     member = valid[rows, cols]
     seg, rows, cols = seg[member], rows[member], cols[member]
     t_d = ring_gap_threshold(scan.elevation_rad[order], h, config.density_factor)

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from negobs_gym.errors import ScanError
+
 
 @dataclass(frozen=True, eq=False)
 class FeaturePairs:
@@ -49,7 +51,7 @@ class FeaturePairs:
             object.__setattr__(self, name, arr)
         n = self.a_m.shape[0]
         if self.b_m.shape[0] != n or self.c_m.shape[0] != n:
-            raise ValueError(
+            raise ScanError(
                 f"{self.sensor}: A, B, C must have the same number of rows, got "
                 f"{self.a_m.shape[0]}, {self.b_m.shape[0]}, {self.c_m.shape[0]}"
             )
@@ -64,23 +66,47 @@ class FeaturePairs:
         return cls(sensor, z, z, z)
 
 
+_CHUNK = 8192  # rows per block: the ~40 temporaries of a block stay in cache (and below mmap size)
+
+
 def overlap_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> np.ndarray:
     """Row-wise pair distance [m] between (n, 2) segments a1-b1 and a2-b2 (see the module docstring)."""
-    u1 = _unit(b1 - a1)
-    u2 = _unit(b2 - a2)
-    sign = np.where(np.einsum("nk,nk->n", u1, u2) < 0.0, -1.0, 1.0)
-    axis = _unit(u1 + sign[:, None] * u2)
-    ta1, tb1 = np.einsum("nk,nk->n", a1, axis), np.einsum("nk,nk->n", b1, axis)
-    ta2, tb2 = np.einsum("nk,nk->n", a2, axis), np.einsum("nk,nk->n", b2, axis)
+    cols = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (a1, b1, a2, b2)], axis=1)
+    cols = np.ascontiguousarray(cols.T)  # (8, n): a1x, a1y, b1x, b1y, a2x, a2y, b2x, b2y
+    out = np.empty(cols.shape[1])
+    for k in range(0, cols.shape[1], _CHUNK):
+        out[k : k + _CHUNK] = _overlap_distance(*cols[:, k : k + _CHUNK])
+    return out
+
+
+def _overlap_distance(
+    a1x: np.ndarray,
+    a1y: np.ndarray,
+    b1x: np.ndarray,
+    b1y: np.ndarray,
+    a2x: np.ndarray,
+    a2y: np.ndarray,
+    b2x: np.ndarray,
+    b2y: np.ndarray,
+) -> np.ndarray:
+    u1x, u1y = _unit_xy(b1x - a1x, b1y - a1y)
+    u2x, u2y = _unit_xy(b2x - a2x, b2y - a2y)
+    sign = np.where(u1x * u2x + u1y * u2y < 0.0, -1.0, 1.0)
+    ax, ay = _unit_xy(u1x + sign * u2x, u1y + sign * u2y)
+    ta1, tb1 = a1x * ax + a1y * ay, b1x * ax + b1y * ay
+    ta2, tb2 = a2x * ax + a2y * ay, b2x * ax + b2y * ay
     lo = np.maximum(np.minimum(ta1, tb1), np.minimum(ta2, tb2))
     hi = np.minimum(np.maximum(ta1, tb1), np.maximum(ta2, tb2))
-    mean_gap = 0.5 * (
-        np.linalg.norm(_at(a1, b1, ta1, tb1, lo) - _at(a2, b2, ta2, tb2, lo), axis=1)
-        + np.linalg.norm(_at(a1, b1, ta1, tb1, hi) - _at(a2, b2, ta2, tb2, hi), axis=1)
+    gaps = []
+    for t in (lo, hi):
+        p1x, p1y = _at(a1x, a1y, b1x, b1y, ta1, tb1, t)
+        p2x, p2y = _at(a2x, a2y, b2x, b2y, ta2, tb2, t)
+        gaps.append(_norm(p1x - p2x, p1y - p2y))
+    mean_gap = 0.5 * (gaps[0] + gaps[1])
+    nearest_ends = np.minimum(
+        np.minimum(_norm(a1x - a2x, a1y - a2y), _norm(a1x - b2x, a1y - b2y)),
+        np.minimum(_norm(b1x - a2x, b1y - a2y), _norm(b1x - b2x, b1y - b2y)),
     )
-    ends1 = np.stack([a1, b1], axis=1)[:, :, None, :]
-    ends2 = np.stack([a2, b2], axis=1)[:, None, :, :]
-    nearest_ends = np.linalg.norm(ends1 - ends2, axis=-1).reshape(len(a1), 4).min(axis=1)
     return np.where(hi >= lo, mean_gap, nearest_ends)
 
 
@@ -90,29 +116,66 @@ def close_pairs(
     """All (i, j, distance) with :func:`overlap_distance` of pair i of set 1 and pair j of set 2 <= max.
 
     Inputs are (n, 2) ground-plane points. Two pairs that close have points within ``max_distance_m``
-    of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length:
-    a KD-tree on the midpoints finds the candidates and only those are measured.
+    of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length.
+    Pairs are grouped by length (classes doubling from :data:`_SHORTEST_CLASS_M`); for each two
+    classes a KD-tree on the midpoints finds the candidates within ``max_distance_m`` plus the two
+    classes' longest half-lengths, and only those are measured. A candidate's midpoints are thus
+    never farther apart than twice what its own lengths allow, so the work grows with the pairs
+    and their near neighbours (n log n), not with all pairs, however long the longest pair is.
     """
     if len(a1) == 0 or len(a2) == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty, np.empty(0)
-    half1 = 0.5 * float(np.max(np.linalg.norm(b1 - a1, axis=1)))
-    half2 = 0.5 * float(np.max(np.linalg.norm(b2 - a2, axis=1)))
-    tree1, tree2 = cKDTree(0.5 * (a1 + b1)), cKDTree(0.5 * (a2 + b2))
-    cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-    i, j = cand["i"].astype(np.int64), cand["j"].astype(np.int64)
+    found_i, found_j = [], []
+    for idx1, half1 in _length_classes(a1, b1):
+        tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
+        for idx2, half2 in _length_classes(a2, b2):
+            tree2 = cKDTree(0.5 * (a2[idx2] + b2[idx2]))
+            cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
+            found_i.append(idx1[cand["i"]])
+            found_j.append(idx2[cand["j"]])
+    i, j = np.concatenate(found_i).astype(np.int64), np.concatenate(found_j).astype(np.int64)
     d = overlap_distance(a1[i], b1[i], a2[j], b2[j])
     close = d <= max_distance_m
     return i[close], j[close], d[close]
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=1, keepdims=True)
-    return np.divide(v, n, out=np.tile([1.0, 0.0], (len(v), 1)), where=n > 0)
+_SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (Eq. 14: w_min 0.30 m)
 
 
-def _at(a: np.ndarray, b: np.ndarray, ta: np.ndarray, tb: np.ndarray, t: np.ndarray) -> np.ndarray:
+def _length_classes(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, float]]:
+    """(indices, longest half-length) of the pairs in each non-empty length class."""
+    length = _norm(*(b - a).T)
+    cls = np.ceil(np.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)).astype(np.int64)
+    order = np.argsort(cls, kind="stable")
+    bounds = np.flatnonzero(np.diff(cls[order])) + 1
+    return [(idx, 0.5 * float(length[idx].max())) for idx in np.split(order, bounds)]
+
+
+def _norm(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Length of (x, y) (np.hypot is several times slower and its overflow guard is not needed here)."""
+    return np.sqrt(x * x + y * y)
+
+
+def _unit_xy(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors of (x, y); zero vectors become (1, 0)."""
+    n = _norm(x, y)
+    ok = n > 0
+    safe = np.where(ok, n, 1.0)
+    return np.where(ok, x / safe, 1.0), np.where(ok, y / safe, 0.0)
+
+
+def _at(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    ta: np.ndarray,
+    tb: np.ndarray,
+    t: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Point of segment a-b whose projection on the axis is ``t`` (its midpoint if it is perpendicular)."""
     span = tb - ta
     s = np.divide(t - ta, span, out=np.full_like(t, 0.5), where=np.abs(span) > 1e-12)
-    return a + np.clip(s, 0.0, 1.0)[:, None] * (b - a)
+    s = np.clip(s, 0.0, 1.0)
+    return ax + s * (bx - ax), ay + s * (by - ay)

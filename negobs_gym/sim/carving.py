@@ -39,6 +39,7 @@ POSITIVE_DEFAULT_SIZES_M: dict[str, tuple[float, float, float]] = {
     "vehicle": (4.5, 1.8, 1.5),  # a parked car (issue 2)
     "motorbike": (2.0, 0.8, 1.2),  # paper T's parked-motorbike scene
     "pedestrian": (0.6, 0.6, 1.7),  # cylinder r 0.3 m, h 1.7 m (issue 2)
+    "pole": (0.12, 0.12, 1.5),  # thin cylinder: a sapling, a stem, a post (vegetation-like clutter)
 }
 
 # Paper N §4: sizes (length x width) [m] of the pits in its test scenes.
@@ -118,7 +119,7 @@ class PositiveObstacleSpec(ObstaclePlacement):
     """One positive obstacle; placement as in :class:`ObstaclePlacement`.
 
     ``size_m`` is (length along heading, width across, height) [m]; None takes the kind's default
-    from :data:`POSITIVE_DEFAULT_SIZES_M`. Pedestrians are cylinders of diameter ``size_m[0]``;
+    from :data:`POSITIVE_DEFAULT_SIZES_M`. Pedestrians and poles are cylinders of diameter ``size_m[0]``;
     mounds are raised into the heightfield (smooth cosine bump) and recorded with
     ``in_heightfield=True``; every other kind is a box the world builds as a static body.
     """
@@ -324,7 +325,7 @@ def place_positive_obstacle(
     """
     length, width, height = spec.resolved_size_m
     centre = np.asarray(centre_xy_m, dtype=np.float64)
-    footprint_kind = "crater" if spec.kind in ("pedestrian", "mound") else "box"
+    footprint_kind = "crater" if spec.kind in ("pedestrian", "pole", "mound") else "box"
     outline = obstacle_outline(footprint_kind, length, width, centre, yaw_rad)
     place_field = f"{field}.{'station_m' if spec.station_m is not None else 'xy_m'}"
     rows, cols, gx, gy = _window(heightfield, outline, place_field)
@@ -340,7 +341,7 @@ def place_positive_obstacle(
         heights[rows, cols] = (heights[rows, cols] + bump).astype(heights.dtype)
         base_z = float(heightfield.height_at(centre[None])[0])
 
-    if spec.kind == "pedestrian":
+    if spec.kind in ("pedestrian", "pole"):
         shape = "cylinder"
         half = np.array([0.5 * length, 0.5 * length, 0.5 * height])
     else:

@@ -258,6 +258,129 @@ def winding_course(
     return generate_terrain(config, seed)
 
 
+CLUTTER_KINDS: tuple[str, ...] = ("walls", "vehicles", "rocks", "vegetation")
+_TRACK_HALF_M = 3.0  # half of TerrainConfig's default 6 m track
+_CLEAR_HALF_M = 1.6  # clutter on the track keeps this far from the centre line (vehicle 1.8 m wide)
+
+
+def _clutter_specs(kind: str, layout: np.random.Generator, start_m: float, end_m: float) -> list:
+    """Positive obstacles of one clutter kind between stations ``start_m`` and ``end_m``."""
+    specs: list[PositiveObstacleSpec] = []
+
+    def side() -> float:
+        return float(layout.choice((-1.0, 1.0)))
+
+    if kind == "walls":  # wall segments beyond the verge, alternating sides
+        s, sign = start_m, 1.0
+        while s < end_m - 4.0:
+            length = float(layout.uniform(6.0, 14.0))
+            specs.append(
+                PositiveObstacleSpec(
+                    kind="box",
+                    station_m=s + 0.5 * length,
+                    lateral_m=sign * float(layout.uniform(_TRACK_HALF_M + 1.0, _TRACK_HALF_M + 2.5)),
+                    size_m=(length, 0.3, float(layout.uniform(1.2, 2.5))),
+                )
+            )
+            s += length + float(layout.uniform(4.0, 12.0))
+            sign = -sign
+    elif kind == "vehicles":  # parked cars on the track edge and the verge
+        for station in np.arange(start_m, end_m, 18.0) + layout.uniform(0.0, 6.0):
+            specs.append(
+                PositiveObstacleSpec(
+                    kind="vehicle",
+                    station_m=float(station),
+                    lateral_m=side() * float(layout.uniform(_CLEAR_HALF_M + 1.0, _TRACK_HALF_M + 2.0)),
+                    yaw_deg=float(layout.uniform(-8.0, 8.0)) + float(layout.choice((0.0, 180.0))),
+                )
+            )
+    elif kind == "rocks":  # rock fields: groups of rocks on and beside the track
+        for centre in np.arange(start_m, end_m, 15.0) + layout.uniform(0.0, 5.0):
+            sign = side()
+            for _ in range(int(layout.integers(5, 11))):
+                size = float(layout.uniform(0.3, 0.9))
+                specs.append(
+                    PositiveObstacleSpec(
+                        kind="rock",
+                        station_m=float(centre + layout.uniform(-3.0, 3.0)),
+                        lateral_m=sign * float(layout.uniform(_CLEAR_HALF_M + 0.5 * size, 7.0)),
+                        yaw_deg=float(layout.uniform(0.0, 180.0)),
+                        size_m=(
+                            size,
+                            size * float(layout.uniform(0.6, 1.0)),
+                            size * float(layout.uniform(0.5, 0.8)),
+                        ),
+                    )
+                )
+    elif kind == "vegetation":  # stems and shrubs, about one per metre of track
+        for station in np.arange(start_m, end_m, 1.0) + layout.uniform(
+            0.0, 1.0, size=int(np.ceil(end_m - start_m))
+        ):
+            lateral = side() * float(layout.uniform(_CLEAR_HALF_M + 0.3, 9.0))
+            if layout.random() < 0.7:
+                d = float(layout.uniform(0.04, 0.2))
+                spec = PositiveObstacleSpec(
+                    kind="pole",
+                    station_m=float(station),
+                    lateral_m=lateral,
+                    size_m=(d, d, float(layout.uniform(0.8, 2.5))),
+                )
+            else:
+                w = float(layout.uniform(0.3, 0.7))
+                spec = PositiveObstacleSpec(
+                    kind="box",
+                    station_m=float(station),
+                    lateral_m=lateral,
+                    yaw_deg=float(layout.uniform(0.0, 90.0)),
+                    size_m=(w, w, float(layout.uniform(0.4, 1.0))),
+                )
+            specs.append(spec)
+    return specs
+
+
+def clutter_track(
+    *,
+    seed: int = 0,
+    clutter: tuple[str, ...] = CLUTTER_KINDS,
+    pits: bool = False,
+    length_m: float = 140.0,
+    resolution_m: float = 0.10,
+) -> Terrain:
+    """Straight rough track through clutter that real vehicles meet (false-alarm tests, issue 10).
+
+    ``clutter`` picks from :data:`CLUTTER_KINDS`: ``"walls"`` (6-14 m wall segments, 1.2-2.5 m
+    high, beyond the verges; the left border is an earth embankment whenever walls are asked for),
+    ``"vehicles"`` (parked cars every ~18 m on the track edge or the verge), ``"rocks"`` (fields of
+    5-10 rocks, 0.3-0.9 m, every ~15 m, on the track's edge and beside it) and ``"vegetation"``
+    (about one thin stem (pole, 4-20 cm) or shrub (box) per metre, both sides). Clutter on the
+    track keeps ``1.6 m`` from the centre line so the vehicle can drive it straight. ``pits=True``
+    adds a paper N pit (sizes +-20 %, 0.3-1.5 m deep) on the centre line every 30 m from 25 m on
+    (ids ``"pit-<k>"``). The layout comes from ``seed`` (a stream separate from the roughness).
+    """
+    require(length_m >= 40.0, "length_m", f"must be >= 40 m, got {length_m!r}")
+    unknown = set(clutter) - set(CLUTTER_KINDS)
+    require(not unknown, "clutter", f"unknown clutter kinds {sorted(unknown)}; expected {CLUTTER_KINDS}")
+    layout = np.random.default_rng([int(seed), 2])
+    positives = []
+    for kind in CLUTTER_KINDS:
+        if kind in clutter:
+            positives.extend(_clutter_specs(kind, layout, 8.0, length_m - 10.0))
+    negatives = ()
+    if pits:
+        negatives = tuple(
+            sample_pit_spec(layout, station_m=float(station))
+            for station in np.arange(25.0, length_m - 10.0, 30.0)
+        )
+    config = TerrainConfig(
+        resolution_m=resolution_m,
+        length_m=length_m,
+        left_border=BorderConfig(kind="bank") if "walls" in clutter else BorderConfig(),
+        negative_obstacles=negatives,
+        positive_obstacles=tuple(positives),
+    )
+    return generate_terrain(config, seed)
+
+
 PRESETS: dict[str, Callable[..., Terrain]] = {
     "braking_track": braking_track,
     "trench_crossing": trench_crossing,
@@ -268,4 +391,5 @@ PRESETS: dict[str, Callable[..., Terrain]] = {
     "parked_motorbike": parked_motorbike,
     "pedestrian_near_dropoff": pedestrian_near_dropoff,
     "winding_course": winding_course,
+    "clutter_track": clutter_track,
 }

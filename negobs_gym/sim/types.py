@@ -15,7 +15,7 @@ from negobs_gym.core.geometry import polyline_stations
 from negobs_gym.errors import GeometryError
 
 NegativeKind = Literal["pit", "ditch", "trench", "crater"]
-PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian"]
+PositiveKind = Literal["rock", "box", "mound", "vehicle", "motorbike", "pedestrian", "pole"]
 PrimitiveShape = Literal["box", "cylinder"]
 
 

@@ -6,6 +6,7 @@ from negobs_gym.detector.clustering import (
     cluster_labels,
     cluster_obstacles,
     convex_outline,
+    pair_weights,
     polygon_area_centroid,
 )
 from negobs_gym.errors import ConfigError
@@ -73,3 +74,20 @@ def test_no_pairs():
 def test_bad_config(field, value):
     with pytest.raises(ConfigError, match=field):
         ClusteringConfig(**{field: value})
+
+
+def test_pairs_beyond_full_weight_range_count_more_and_reach_farther():
+    # three pairs 0.5 m apart (the side HDL-32s' line spacing at ~20 m): noise at 8 m, where every
+    # pair counts once within eps = 0.40 m; one cluster at 18 m, where each counts 1.8 and reaches
+    # 0.72 m
+    near_a, near_b = _radial_pairs(-0.5, 0.5, 8.0, 9.0, 3)
+    far_a, far_b = _radial_pairs(-0.5, 0.5, 18.0, 19.0, 3)
+    cfg = ClusteringConfig()
+    assert (cluster_labels(near_a[:, :2], near_b[:, :2], cfg) == -1).all()
+    labels = cluster_labels(far_a[:, :2], far_b[:, :2], cfg)
+    assert (labels == 0).all()
+    paper = ClusteringConfig(full_weight_range_m=float("inf"))  # the paper's fixed count and eps
+    assert (cluster_labels(far_a[:, :2], far_b[:, :2], paper) == -1).all()
+    np.testing.assert_allclose(pair_weights(far_a[:, :2], far_b[:, :2], cfg), 1.85, atol=0.01)
+    far_a2, far_b2 = _radial_pairs(-0.5, 0.5, 40.0, 41.0, 2)
+    assert pair_weights(far_a2[:, :2], far_b2[:, :2], cfg).max() == cfg.max_pair_weight

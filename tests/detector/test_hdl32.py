@@ -5,6 +5,7 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.config import Hdl32FeatureConfig
 from negobs_gym.detector.hdl32 import (
     compensate_missing,
+    density_threshold,
     extract_hdl32_pairs,
     ground_hit_distance,
     next_point,
@@ -96,3 +97,21 @@ def test_config_validation():
     with pytest.raises(ConfigError, match="c_min_separation_m"):
         Hdl32FeatureConfig(c_min_separation_m=-1)
     assert CFG.pair_test.gamma1 == 5.0 and CFG.pair_test.gamma2 == 0.4
+
+
+def test_density_threshold_is_the_papers_up_to_12_m_then_falls_with_range_squared():
+    cfg = Hdl32FeatureConfig()
+    pts = np.array([[0.0, 6.0, 0.0], [0.0, 12.0, 0.0], [0.0, 16.97, 0.0], [0.0, 40.0, 0.0]])
+    thr = density_threshold(pts, np.zeros(3), cfg)
+    np.testing.assert_allclose(thr, [4.0, 4.0, 2.0, 1.5], atol=0.01)
+    paper = Hdl32FeatureConfig(density_full_range_m=float("inf"))
+    np.testing.assert_allclose(density_threshold(pts, np.zeros(3), paper), 4.0)
+
+
+def test_side_sensor_finds_a_pit_at_14_m_only_with_the_range_density():
+    # at 14 m the back wall of a 1 m pit holds 3-4 returns within 0.15 m: the paper's D_th32 = 4
+    # (strictly more) removes every jump, the range-scaled threshold (2.9) keeps them
+    scan = hdl32_side_scan([Hole.ahead(14.0, 1.0, 1.0, 0.8)], side="left")
+    pairs = extract_hdl32_pairs(scan, Hdl32FeatureConfig())
+    assert len(pairs) >= 2 and np.all((pairs.b_m[:, 1] > 14.0) & (pairs.b_m[:, 1] < 15.2))
+    assert len(extract_hdl32_pairs(scan, Hdl32FeatureConfig(density_full_range_m=float("inf")))) == 0

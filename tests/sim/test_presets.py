@@ -107,3 +107,28 @@ def test_bad_preset_arguments_raise_config_error() -> None:
     with pytest.raises(ConfigError) as info:
         presets.braking_track(lateral_offset_m=30.0, resolution_m=RES)
     assert info.value.field == "negative_obstacles[0].station_m"
+
+
+def test_clutter_track_kinds_keep_the_centre_clear_and_pits_on_it() -> None:
+    terrain = presets.clutter_track(seed=2, pits=True, length_m=100.0, resolution_m=RES)
+    kinds = {o.kind for o in terrain.positive_obstacles}
+    assert {"box", "vehicle", "rock", "pole"} <= kinds
+    poles = [o for o in terrain.positive_obstacles if o.kind == "pole"]
+    assert len(poles) > 30 and all(o.shape == "cylinder" and o.half_extents_m[0] <= 0.1 for o in poles)
+    _s, lat = track_coordinates(terrain.track, np.array([o.centre_m[:2] for o in terrain.positive_obstacles]))
+    half_width = np.array([min(o.half_extents_m[:2]) for o in terrain.positive_obstacles])
+    assert np.all(np.abs(lat) - half_width >= 1.0)  # the vehicle's 1.8 m wide lane stays clear
+    assert terrain.track.border_kinds[0] == "bank"  # the embankment beside the walls
+    _s_pit, lat_pit = track_coordinates(
+        terrain.track, np.array([o.centre_xy_m for o in terrain.negative_obstacles])
+    )
+    assert len(terrain.negative_obstacles) == 3 and np.all(np.abs(lat_pit) < 0.1)
+    bare = presets.clutter_track(seed=2, clutter=("rocks",), resolution_m=RES)
+    assert {o.kind for o in bare.positive_obstacles} == {"rock"} and bare.negative_obstacles == ()
+    again = presets.clutter_track(seed=2, pits=True, length_m=100.0, resolution_m=RES)
+    assert [o.centre_m.tolist() for o in again.positive_obstacles] == [
+        o.centre_m.tolist() for o in terrain.positive_obstacles
+    ]
+    with pytest.raises(ConfigError) as info:
+        presets.clutter_track(clutter=("trees",))
+    assert info.value.field == "clutter"

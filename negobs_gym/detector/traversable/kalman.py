@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from negobs_gym.errors import ScanError
+
 
 class BoundaryKalman:
     """A bank of independent scalar Kalman filters (F = H = I, u = 0)."""
@@ -59,7 +61,7 @@ class BoundaryKalman:
         """
         z = np.asarray(measurement, dtype=np.float64)
         if z.shape != self.shape:
-            raise ValueError(f"measurement shape {z.shape} != filter shape {self.shape}")
+            raise ScanError(f"measurement shape {z.shape} != filter shape {self.shape}")
         seen = np.isfinite(z)
         fresh = seen & ~np.isfinite(self.state)
         # First measurement initialises the state with variance R.

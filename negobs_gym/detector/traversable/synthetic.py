@@ -17,7 +17,7 @@ import numpy as np
 
 from negobs_gym.core.pose import Pose, rotation_from_rpy
 from negobs_gym.core.scan import StructuredScan, ray_directions
-from negobs_gym.errors import require
+from negobs_gym.errors import ConfigError, require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -229,7 +229,7 @@ def synthetic_scan(
     """
     rig = rig if rig is not None else LuxRig()
     if range_noise_m > 0 and rng is None:
-        raise ValueError("range_noise_m > 0 needs an explicit rng (np.random.Generator)")
+        raise ConfigError("rng", "range_noise_m > 0 needs an explicit rng (np.random.Generator)")
     el = np.radians(np.asarray(rig.elevations_deg, dtype=np.float64))
     az = rig.azimuth_rad
     d_sensor = ray_directions(el, az).reshape(-1, 3)

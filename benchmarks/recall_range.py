@@ -1,0 +1,175 @@
+"""Benchmark: recall of paper N's detector against range, per sensor mode (paper N Table 7, Fig. 16).
+
+Drives at 25 km/h toward one pit of each of paper N's four sizes (100x50, 100x80, 150x60,
+100x100 cm, 0.8 m deep, straight ahead) on the rough braking track, for ``--seeds`` terrain/noise
+seeds, sensor noise on. Every frame's scans go to three detectors (fused, HDL-64 only, HDL-32 only,
+paper N Fig. 16) that each keep their own history. A frame counts as recalled in a mode when one
+of its detected obstacles overlaps the pit on the 20 cm grid (``negobs_gym.eval.match_frame``);
+frames are binned by the distance to the pit's nearest cell (``negobs_gym.eval.RecallTable``, one
+size bin). Prints the table, then ``fused_recall_12_20=<mean of the 12-20 m bins>`` and, last,
+``fig16_order=<ok|violated>`` (ok: HDL-32 only >= HDL-64 only in every bin beyond 14 m).
+
+``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
+run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
+
+Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|reduced] [--cache DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.pose import Pose
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector import SENSOR_MODES, NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
+from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced
+from negobs_gym.sim.carving import PAPER_N_PIT_SIZES_M
+from negobs_gym.sim.presets import braking_track
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
+
+SPEED_MPS = 25 / 3.6  # paper N §4.2: 25 km/h
+PIT_DEPTH_M = 0.8
+PIT_START_M = 24.0  # near rim ahead of the start: a few frames of history before the 20 m bin
+NEAREST_M = 6.0  # stop once the pit is this close (Table 7's first bin starts at 6 m)
+FRAME_S = 0.1  # 10 Hz
+RIGS = {"native": paper_n_rig, "reduced": paper_n_rig_reduced}
+# paper N Table 7, pits of 25-34 cells, 2 m bins from 6-8 m to 18-20 m
+PAPER_TABLE7 = (0.95, 0.93, 0.85, 0.75, 0.54, 0.31, 0.17)
+EVAL = DetectionEvalConfig(size_bin_edges_cells=(1, 10_000))  # one size bin: every pit counts
+GRID = GridSpec()
+
+
+def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int) -> dict:
+    """Scans (float32 ranges per sensor), INS poses, true poses and the pit outline of one drive."""
+    length, width = size_m
+    terrain = braking_track(
+        ditch_distance_m=PIT_START_M,
+        ditch_length_m=length,
+        ditch_width_m=width,
+        ditch_depth_m=PIT_DEPTH_M,
+        seed=seed,
+    )
+    (pit,) = terrain.negative_obstacles
+    rng = np.random.default_rng([seed, int(100 * length), int(100 * width)])
+    drive: dict = {"ins": [], "truth": []} | {m.name: [] for m in rig.mounts}
+    with World(terrain) as world:
+        vehicle = Vehicle(world, rng=rng)
+        caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
+        steps = round(FRAME_S / world.config.time_step_s)
+        while True:
+            vehicle.set_speed(SPEED_MPS)
+            world.step(steps)
+            true = vehicle.true_pose()
+            near = world_outline_to_vehicle(pit.outline_xy_m, true)[:, 1].min()
+            if near < NEAREST_M - 1.0:
+                break
+            for name, s in scan_rig(rig, caster, true, rng=rng).items():
+                drive[name].append(s.ranges_m.astype(np.float32))
+            drive["ins"].append(vehicle.pose().as_array())
+            drive["truth"].append(true.as_array())
+    drive = {k: np.asarray(v) for k, v in drive.items()}
+    drive["outline"] = np.asarray(pit.outline_xy_m)
+    drive["rim_z"] = np.array(pit.floor_z_m + pit.depth_m)
+    return drive
+
+
+def load_or_cast(rig: Rig, size_m: tuple[float, float], seed: int, cache: Path | None) -> dict:
+    """One drive, from ``cache`` when there, else cast (and stored atomically when caching)."""
+    if cache is None:
+        return cast_drive(rig, size_m, seed)
+    models = "_".join(m.model.name for m in rig.mounts)
+    path = cache / f"{models}_{size_m[0]}x{size_m[1]}_seed{seed}.npz"
+    if path.exists():
+        with np.load(path) as data:
+            return dict(data)
+    drive = cast_drive(rig, size_m, seed)
+    cache.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=cache, suffix=".npz")
+    with os.fdopen(fd, "wb") as f:
+        np.savez_compressed(f, **drive)
+    os.replace(tmp, path)
+    return drive
+
+
+def frame_scans(rig: Rig, drive: dict, k: int) -> dict[str, StructuredScan]:
+    """Rebuild frame ``k``'s StructuredScans from the stored ranges."""
+    pose = Pose.from_array(drive["truth"][k])
+    return {
+        m.name: StructuredScan(
+            sensor=m.name,
+            ranges_m=drive[m.name][k].astype(np.float64),
+            azimuth_rad=m.model.azimuth_rad,
+            elevation_rad=m.model.elevation_rad,
+            rotation=m.rotation_matrix,
+            translation_m=np.asarray(m.translation_m),
+            pose=pose,
+        )
+        for m in rig.mounts
+    }
+
+
+def evaluate(rig: Rig, drives: list[dict]) -> dict[str, RecallTable]:
+    """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive)."""
+    detectors = {m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m)) for m in SENSOR_MODES}
+    tables = {m: RecallTable(EVAL) for m in SENSOR_MODES}
+    for drive in drives:
+        for det in detectors.values():
+            det.reset()
+        for k in range(len(drive["ins"])):
+            scans = frame_scans(rig, drive, k)
+            ins = Pose.from_array(drive["ins"][k])
+            truth = world_outline_to_vehicle(
+                drive["outline"], Pose.from_array(drive["truth"][k]), drive["rim_z"]
+            )
+            for mode, det in detectors.items():
+                detection = det.update(scans, ins)
+                outlines = [o.outline_xy_m for o in detection.obstacles]
+                tables[mode].add(match_frame(outlines, [truth], GRID, EVAL))
+    return tables
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=8, help="terrain/noise seeds per pit size (>= 8)")
+    parser.add_argument("--rig", choices=sorted(RIGS), default="native", help="sensor rig")
+    parser.add_argument("--cache", type=Path, default=None, help="directory keeping the cast scans")
+    args = parser.parse_args()
+    rig = RIGS[args.rig]()
+    drives = [
+        load_or_cast(rig, size, seed, args.cache)
+        for seed in range(args.seeds)
+        for size in PAPER_N_PIT_SIZES_M
+    ]
+    tables = evaluate(rig, drives)
+    edges = EVAL.distance_bin_edges_m
+    bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in itertools.pairwise(edges)]
+    recall = {m: t.recall()[0] for m, t in tables.items()}
+    print(f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}")
+    print(f"frames per bin: {' '.join(str(n) for n in tables['fused'].seen[0])}")
+    print(f"{'mode':<14}" + "".join(f"{b:>9}" for b in bins))
+    for mode, label in (("fused", "fused"), ("hdl64", "HDL-64 only"), ("hdl32", "HDL-32 only")):
+        print(f"{label:<14}" + "".join(f"{r:9.2f}" for r in recall[mode]))
+    print(f"{'paper Table 7':<14}" + "".join(f"{r:9.2f}" for r in PAPER_TABLE7))
+    below = [b for b, r, p in zip(bins, recall["fused"], PAPER_TABLE7, strict=True) if not r >= p]
+    print(f"fused below paper N Table 7 in: {', '.join(below) if below else 'no bin'}")
+    print(f"false alarms per frame (fused): {tables['fused'].false_alarms_per_frame():.3f}")
+    far = np.asarray(edges[:-1]) >= 12.0
+    print(f"fused_recall_12_20={np.nanmean(recall['fused'][far]):.2f}")
+    beyond = np.asarray(edges[:-1]) >= 14.0
+    ok = bool(np.all(recall["hdl32"][beyond] >= recall["hdl64"][beyond]))
+    print(f"fig16_order={'ok' if ok else 'violated'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,206 @@
+"""Region of interest of paper N's detector (Table 1, line 1: ``roi_points = ExtractROIPoints()``).
+
+Paper N names the step but not its rule. The rule here: the feature tests may only use *ground*
+returns inside the region the detector reports (within ``max_range_m``), so a pair is kept when
+
+1. its A and its B lie on ground cells, not on cells holding vertical structure (walls, vehicle
+   bodies, trunks, rocks, dense vegetation): the foot of a wall is a ground-level return in the same
+   cell as the wall above it, and a wall's foot seen past the ground in front of it looks to Eq. 14
+   like a pit's back wall;
+2. no structure stands between A and B (B is not ground seen past an occluder: the "shadow" behind
+   a parked car or a wall forms a range jump that Eq. 14 alone cannot tell from a pit);
+3. C, the back-wall point beyond B, is not on structure either: a wall seen at a grazing angle puts
+   B on the ground just before its foot and C on the wall. A real pit's C lies on its back wall or
+   the ground beyond, at or below the rim's level, so it stays ground.
+
+Ground vs structure comes from a polar elevation map around the vehicle origin, built from every
+return of the frame (all sensors together): cells of ``sector_deg`` x ``bin_m``, each with its
+lowest and highest point. Walking each sector outward from the vehicle (whose origin is on the
+ground, z = 0), a cell's lowest point is ground when it lies within
+``ground_step_m + tan(max_ground_slope_deg) * (distance to the last ground cell)`` above, or
+``ground_step_m + tan(max_ground_slope_deg) * bin_m`` below, the last ground cell's level (then it
+is the new ground level); a point is *structure* when it stands more than ``ground_tolerance_m`` above the
+ground level of its cell. Drops are never structure, and a steep drop does not lower the ground
+level: the back wall of a pit (and C beyond B, paper N Fig. 5) lies at or below the near rim's
+level, so it stays ground, while anything rising above the ground in front of it is structure.
+
+Cost: O(n) to bin the points plus one vectorized pass per radial bin over all sectors.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from negobs_gym.errors import require
+
+
+@dataclass(frozen=True, kw_only=True)
+class RoiConfig:
+    """Constants of the ROI rule (paper N is silent on all of them; reasons given per field)."""
+
+    enabled: bool = True  # False: every return counts as ground (the detector before the ROI step)
+    # angular width of a polar cell: 0.5 deg is 17 cm at 20 m, under the 20 cm output grid cell
+    sector_deg: float = 0.5
+    # radial length of a polar cell: a quarter of the HDL-64 ring gap at 10 m, so a pit's near rim
+    # and its back wall (>= w_min = 30 cm apart, Eq. 14) never share a cell
+    bin_m: float = 0.25
+    # height above the local ground that makes a return structure: above the 5-30 cm ground
+    # bumps and ruts of an off-road track, below the 0.3 m of a rock or a kerb worth avoiding
+    ground_tolerance_m: float = 0.25
+    # steepest rise of the ground from one ground cell to the next: gentle terrain slopes
+    # (<= ~10 % on off-road tracks) pass, a vehicle body or a wall (near vertical) does not
+    max_ground_slope_deg: float = 12.0
+    # step between neighbouring ground cells allowed on top of the slope: ruts, clods and range
+    # noise (a few cm); smaller than ground_tolerance_m, so the ground level cannot climb a
+    # rock's or a car's face cell by cell
+    ground_step_m: float = 0.10
+    # cells beyond the detector's max_range_m that still feed the map (the ground behind a pit
+    # at the range limit is needed to judge it)
+    range_margin_m: float = 2.0
+
+    def __post_init__(self) -> None:
+        require(isinstance(self.enabled, bool), "enabled", "must be a bool")
+        require(
+            math.isfinite(self.sector_deg) and 0 < self.sector_deg <= 45,
+            "sector_deg",
+            "must be in (0, 45]",
+        )
+        require(math.isfinite(self.bin_m) and self.bin_m > 0, "bin_m", "must be finite and > 0")
+        require(
+            math.isfinite(self.ground_tolerance_m) and self.ground_tolerance_m > 0,
+            "ground_tolerance_m",
+            "must be finite and > 0",
+        )
+        require(
+            math.isfinite(self.ground_step_m) and 0 <= self.ground_step_m <= self.ground_tolerance_m,
+            "ground_step_m",
+            "must be in [0, ground_tolerance_m]",
+        )
+        require(
+            math.isfinite(self.max_ground_slope_deg) and 0 <= self.max_ground_slope_deg < 90,
+            "max_ground_slope_deg",
+            "must be in [0, 90)",
+        )
+        require(
+            math.isfinite(self.range_margin_m) and self.range_margin_m >= 0,
+            "range_margin_m",
+            "must be finite and >= 0",
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class GroundMap:
+    """Polar elevation map of one frame (vehicle frame), see the module docstring.
+
+    Attributes:
+        ground_z_m: (sectors, bins) ground level of each cell [m].
+        structure_before: (sectors, bins + 1) number of structure cells in bins ``< k`` of a sector.
+        config: the rule's constants.
+        n_bins: radial bins per sector.
+    """
+
+    ground_z_m: np.ndarray
+    structure_before: np.ndarray
+    config: RoiConfig
+    n_bins: int
+
+    def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(sector, bin, inside) of (n, 2) vehicle-frame points."""
+        n_sectors = self.ground_z_m.shape[0]
+        ang = np.arctan2(xy[:, 1], xy[:, 0])
+        sector = np.floor((ang + np.pi) / math.radians(self.config.sector_deg)).astype(np.int64) % n_sectors
+        dist = np.hypot(xy[:, 0], xy[:, 1])
+        b = np.floor(dist / self.config.bin_m).astype(np.int64)
+        return sector, np.minimum(b, self.n_bins - 1), b < self.n_bins
+
+    def is_structure(self, points_m: np.ndarray) -> np.ndarray:
+        """(n,) True where a (n, 3) vehicle-frame point stands on vertical structure.
+
+        Points beyond the map are judged against the last cell of their sector.
+        """
+        p = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+        sector, b, _ = self._cells(p[:, :2])
+        return p[:, 2] > self.ground_z_m[sector, b] + self.config.ground_tolerance_m
+
+    def structure_between(
+        self, a_m: np.ndarray, b_m: np.ndarray, c_m: np.ndarray | None = None
+    ) -> np.ndarray:
+        """(n,) True where a structure cell lies on B's sector from A's bin to one bin past B's (or
+        past C's, where C is given and finite).
+
+        Inclusive of B's and C's cells and the one beyond, since the foot of a wall or a vehicle
+        body is a ground-level return in or next to the cell of the structure above it.
+        """
+        a = np.asarray(a_m, dtype=np.float64).reshape(-1, 3)
+        b = np.asarray(b_m, dtype=np.float64).reshape(-1, 3)
+        sector, bin_b, _ = self._cells(b[:, :2])
+        _, bin_a, _ = self._cells(a[:, :2])
+        far = np.maximum(bin_a, bin_b)
+        if c_m is not None:
+            c = np.asarray(c_m, dtype=np.float64).reshape(-1, 3)
+            known = np.isfinite(c).all(axis=1)
+            _, bin_c, _ = self._cells(np.where(known[:, None], c, b)[:, :2])
+            far = np.maximum(far, bin_c)
+        lo = np.minimum(bin_a, bin_b)
+        hi = np.minimum(far + 2, self.n_bins)
+        return self.structure_before[sector, hi] - self.structure_before[sector, lo] > 0
+
+    def on_structure_cell(self, points_m: np.ndarray) -> np.ndarray:
+        """(n,) True where a (n, 3) point lies in a cell that holds structure."""
+        p = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
+        sector, b, _ = self._cells(p[:, :2])
+        return self.structure_before[sector, b + 1] - self.structure_before[sector, b] > 0
+
+    def keep_pairs(self, a_m: np.ndarray, b_m: np.ndarray, c_m: np.ndarray | None = None) -> np.ndarray:
+        """(n,) True for pairs inside the ROI: A, B (and C) on ground cells, no structure between."""
+        return ~(self.on_structure_cell(a_m) | self.structure_between(a_m, b_m, c_m))
+
+
+def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: RoiConfig) -> GroundMap:
+    """Polar elevation map from vehicle-frame clouds (any shape (..., 3), NaN rows = no return)."""
+    n_sectors = math.ceil(360.0 / config.sector_deg)
+    n_bins = max(1, math.ceil((max_range_m + config.range_margin_m) / config.bin_m))
+    n_cells = n_sectors * n_bins
+    reach = n_bins * config.bin_m
+    z_min = np.full(n_cells, np.inf)
+    z_max = np.full(n_cells, -np.inf)
+    for cloud in clouds:
+        p = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
+        x, y = p[:, 0], p[:, 1]
+        d2 = x * x + y * y
+        with np.errstate(invalid="ignore"):
+            near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
+        near = near[np.isfinite(p[near, 2])]
+        x, y, z, dist = x[near], y[near], p[near, 2], np.sqrt(d2[near])
+        sector = np.floor((np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)).astype(np.int64)
+        cell = (sector % n_sectors) * n_bins + np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
+        np.minimum.at(z_min, cell, z)
+        np.maximum.at(z_max, cell, z)
+    z_min = z_min.reshape(n_sectors, n_bins)
+    z_max = z_max.reshape(n_sectors, n_bins)
+
+    slope = math.tan(math.radians(config.max_ground_slope_deg))
+    fall = slope * config.bin_m
+    tol = config.ground_tolerance_m
+    step = config.ground_step_m
+    ground = np.zeros((n_sectors, n_bins))
+    z_g = np.zeros(n_sectors)  # vehicle origin on the ground
+    d_g = np.zeros(n_sectors)
+    for k in range(n_bins):  # one pass per radial bin, vectorized over the sectors
+        d_k = (k + 0.5) * config.bin_m
+        rise = slope * (d_k - d_g)
+        low = z_min[:, k]
+        # down: one cell's worth of slope only, so the back wall seen past a pit's shadow (empty
+        # cells) is a drop, never the new ground level
+        is_ground = np.isfinite(low) & (low <= z_g + step + rise) & (low >= z_g - step - fall)
+        ground[:, k] = np.where(is_ground, low, z_g)
+        z_g = np.where(is_ground, low, z_g)
+        d_g = np.where(is_ground, d_k, d_g)
+    structure = z_max > ground + tol
+    before = np.zeros((n_sectors, n_bins + 1), dtype=np.int64)
+    np.cumsum(structure, axis=1, out=before[:, 1:])
+    return GroundMap(ground, before, config, n_bins)
