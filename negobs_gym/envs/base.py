@@ -22,6 +22,7 @@ from gymnasium import spaces
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
+from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.outcome import StepOutcome, termination_conditions
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.envs.sources import DetectorSource, GridSource, make_grid_source
@@ -239,6 +240,11 @@ class NegObsEnv(gym.Env):
             off_track=lateral > 0.5 * self.terrain.track.width_m,
         )
 
+    @property
+    def perception(self) -> DetectorGrid | None:
+        """The running LiDAR rig and detectors (last scans and detection), or None before they start."""
+        return self._detector.perception if self._detector is not None else None
+
     # -- rendering -----------------------------------------------------------------------------
     def render(self):
         """The top-down frame (``rgb_array``) or show it in a window (``human``); see ``envs.rendering``.
@@ -252,7 +258,7 @@ class NegObsEnv(gym.Env):
             return None
         from negobs_gym.envs.rendering import VehicleFootprint, render_frame
 
-        perception = self._detector.perception if self._detector is not None else None
+        perception = self.perception
         detection = perception.detection if perception is not None else None
         overlay = self._render_overlay
         cfg = self._vehicle.config

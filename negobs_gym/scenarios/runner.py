@@ -136,7 +136,9 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
     if name == "constant_speed":
         return ConstantSpeedDriver(ConstantSpeedConfig(target_speed_mps=target))
     if name == "pure_pursuit":
-        return PurePursuitDriver(terrain.track.centreline_xy_m, PurePursuitConfig(target_speed_mps=target))
+        track = terrain.track
+        route, _ = track.pose_at(np.arange(0.0, track.length_m, 0.5), spec.run.lane_offset_m)
+        return PurePursuitDriver(route, PurePursuitConfig(target_speed_mps=target))
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVERS)}")
 
 

@@ -265,8 +265,10 @@ class RunSpec:
     driver: DriverName = "reckless"
     filter: bool = True
     target_speed_mps: float = 25.0 / 3.6  # paper N §4: 25 km/h
+    lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
 
     def __post_init__(self) -> None:
+        require(math.isfinite(self.lane_offset_m), "lane_offset_m", f"must be finite, got {self.lane_offset_m!r}")
         require(
             math.isfinite(self.target_speed_mps) and self.target_speed_mps > 0,
             "target_speed_mps",
