@@ -124,6 +124,17 @@ class NegObsEnv(gym.Env):
         self._renderer = None
         self._render_overlay = None
 
+    @classmethod
+    def default_config(cls) -> EnvConfig:
+        """The :class:`EnvConfig` of this env's default scenario, to change with ``dataclasses.replace``.
+
+        A ``config`` passed to the env replaces the spec's episode, start speed, goal radius,
+        observation and reward as a whole, so start from this one to change a single setting.
+        """
+        if cls.default_scenario is None:
+            raise ConfigError("scenario", f"{cls.__name__} has no default scenario")
+        return _load_spec(cls.default_scenario).env_config()
+
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
