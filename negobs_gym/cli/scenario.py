@@ -39,9 +39,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "fails a criterion named in the spec's [criteria], 0 when all pass.",
     )
     p_run.add_argument("spec", metavar="SPEC", help="shipped scenario name or TOML file")
-    p_run.add_argument("--driver", choices=DRIVER_CHOICES, help="scripted driver (default: the spec's run.driver)")
+    p_run.add_argument(
+        "--driver", choices=DRIVER_CHOICES, help="scripted driver (default: the spec's run.driver)"
+    )
     filt = p_run.add_mutually_exclusive_group()
-    filt.add_argument("--filter", dest="filter", action="store_true", default=None, help="guard with the safety filter")
+    filt.add_argument(
+        "--filter", dest="filter", action="store_true", default=None, help="guard with the safety filter"
+    )
     filt.add_argument("--no-filter", dest="filter", action="store_false", help="no safety filter")
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
@@ -50,7 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p_render = sub.add_parser("render", help="write an episode's first top-down frame to a PNG")
     p_render.add_argument("spec", metavar="SPEC", help="shipped scenario name or TOML file")
     p_render.add_argument("--out", default="outputs/scenario.png", help="PNG to write (default: %(default)s)")
-    p_render.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: %(default)s)")
+    p_render.add_argument(
+        "--seed", type=non_negative_int, default=0, help="episode seed (default: %(default)s)"
+    )
     p_render.set_defaults(handler=_render)
 
 

@@ -22,8 +22,8 @@ from gymnasium import spaces
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
-from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.outcome import StepOutcome, termination_conditions
+from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.envs.sources import DetectorSource, GridSource, make_grid_source
 from negobs_gym.errors import ActionError, ConfigError, ResetNeeded
@@ -240,7 +240,9 @@ class NegObsEnv(gym.Env):
         self._station = station
         self._entered = self._entered or bool(events.entered_negative_obstacle)
         speed = self._vehicle.speed_mps()
-        self._still_s = self._still_s + 1.0 / self.config.control_hz if abs(speed) < task.stop_speed_mps else 0.0
+        self._still_s = (
+            self._still_s + 1.0 / self.config.control_hz if abs(speed) < task.stop_speed_mps else 0.0
+        )
         stopped = self._still_s >= task.stop_hold_s and not self._entered
         return StepOutcome(
             events=events,

@@ -7,8 +7,12 @@ longitudinal (> 0 throttle, < 0 brake, -1 full brake), ``action[1]`` steering (+
 
 | key | space | content |
 |---|---|---|
-| ``grid`` | ``Box(0, 1, (4, 36, 16), uint8)`` | channels ``negative``, ``positive``, ``traversable``, ``observed`` on the 20 cm vehicle-centred grid (25.6 m ahead, 3.2 m back, 6.4 m each side), max-pooled 4 x 4 |
-| ``state`` | ``Box(float32, (5,))`` | speed [m/s] (+-15), yaw rate [rad/s] (+-3), steering angle [rad] (+-1), goal x, goal y in the vehicle frame [m] (+-300) |
+| ``grid`` | ``Box(0, 1, (4, 36, 16), uint8)`` | channels negative, positive, traversable, observed |
+| ``state`` | ``Box(float32, (5,))`` | speed, yaw rate, steering angle, goal x, goal y |
+
+The grid is the 20 cm vehicle-centred grid (25.6 m ahead, 3.2 m back, 6.4 m each side),
+max-pooled 4 x 4. The state is in SI units, clipped to speed +-15 m/s, yaw rate +-3 rad/s,
+steering +-1 rad and a goal vector (vehicle frame) of +-300 m.
 
 Arguments of every env: ``config`` (an :class:`~negobs_gym.envs.config.EnvConfig` that overrides
 the spec's episode length, start speed, goal radius, observation and reward weights),

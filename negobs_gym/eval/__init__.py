@@ -1,4 +1,4 @@
-"""Evaluation helpers (SPEC §8): detection recall and false alarms on the vehicle grid."""
+"""Evaluation helpers (docs/eval.md): detection recall and false alarms on the vehicle grid."""
 
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,

@@ -1,4 +1,4 @@
-"""Detection-recall evaluation of negative-obstacle detections (paper N §4.2, Table 7; SPEC §8).
+"""Detection-recall evaluation of negative-obstacle detections (paper N §4.2, Table 7; docs/eval.md).
 
 Everything happens on the vehicle-centred 20 cm grid (:class:`negobs_gym.core.GridSpec`):
 ground-truth outlines (world frame) are mapped to the vehicle frame and rasterised; a detected

@@ -36,7 +36,8 @@ class Range:
     def __post_init__(self) -> None:
         if not (_is_number(self.low) and _is_number(self.high) and self.low <= self.high):
             raise ConfigError(
-                "range", f"must be [low, high] finite numbers with low <= high, got [{self.low!r}, {self.high!r}]"
+                "range",
+                f"must be [low, high] finite numbers with low <= high, got [{self.low!r}, {self.high!r}]",
             )
 
     def sample(self, rng: np.random.Generator) -> float:
@@ -122,9 +123,7 @@ def from_plain(cls: type, data: Any, path: str = "") -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     unknown = sorted(set(data) - set(fields))
     if unknown:
-        raise ConfigError(
-            _join(path, str(unknown[0])), f"unknown key; {cls.__name__} has {sorted(fields)}"
-        )
+        raise ConfigError(_join(path, str(unknown[0])), f"unknown key; {cls.__name__} has {sorted(fields)}")
     kwargs = {name: _convert(hints[name], value, _join(path, name)) for name, value in data.items()}
     try:
         return cls(**kwargs)

@@ -31,7 +31,14 @@ from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import CriteriaSpec, ScenarioSpec
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["DRIVERS", "FALSE_VETO_TOLERANCE_M", "ScenarioResult", "check_criteria", "make_driver", "run_scenario"]
+__all__ = [
+    "DRIVERS",
+    "FALSE_VETO_TOLERANCE_M",
+    "ScenarioResult",
+    "check_criteria",
+    "make_driver",
+    "run_scenario",
+]
 
 #: A veto is false when the true negative obstacle ahead is farther than the distance the filter
 #: acted on plus this [m] (the detected near edge may lie up to a ring gap before the rim; the
@@ -101,8 +108,9 @@ class ScenarioResult:
         margin = f"{self.stop_margin_m:.2f}" if self.stop_margin_m is not None else "-"
         end = ",".join(self.termination) or ("time_limit" if self.truncated else "-")
         verdict = "PASS" if self.passed else "FAIL " + ",".join(self.failures)
+        filtered = "on" if self.filtered else "off"
         return (
-            f"{self.scenario} seed={self.seed} driver={self.driver} filter={'on' if self.filtered else 'off'} "
+            f"{self.scenario} seed={self.seed} driver={self.driver} filter={filtered} "
             f"entered={int(self.entered_negative_obstacle)} stopped_before={int(self.stopped_before)} "
             f"margin_m={margin} collision={int(self.collision)} goal={int(self.goal_reached)} "
             f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
@@ -193,7 +201,13 @@ def run_scenario(
     env = _wrap(base, filter)
     try:
         obs, info = env.reset(seed=seed)
-        name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
+        name = (
+            driver
+            if isinstance(driver, str)
+            else spec.run.driver
+            if driver is None
+            else type(driver).__name__
+        )
         pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
         pilot.reset(seed)
         vehicle = base._vehicle.config

@@ -15,12 +15,12 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal, get_args
 
 import numpy as np
+import tomllib
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig, ObservationConfig, RewardConfig
@@ -120,7 +120,9 @@ class PositiveObstacleEntry:
 
     def sample(self, rng: np.random.Generator) -> PositiveObstacleSpec:
         """The obstacle with its ranges drawn from ``rng``."""
-        return PositiveObstacleSpec(kind=self.kind, size_m=self.size_m, **_draw_fields(self, self._NUMBERS, rng))
+        return PositiveObstacleSpec(
+            kind=self.kind, size_m=self.size_m, **_draw_fields(self, self._NUMBERS, rng)
+        )
 
 
 def _param_range(name: str, value: list | tuple) -> Range:
@@ -149,13 +151,15 @@ class TerrainSpec:
         )
         params = dict(self.params)
         if self.preset is not None:
-            require(self.preset in PRESETS, "preset", f"unknown preset {self.preset!r}; one of {sorted(PRESETS)}")
+            require(
+                self.preset in PRESETS, "preset", f"unknown preset {self.preset!r}; one of {sorted(PRESETS)}"
+            )
             accepted = set(inspect.signature(PRESETS[self.preset]).parameters) - {"seed"}
             for name, value in params.items():
                 require(
                     name in accepted,
                     f"params.{name}",
-                    f"not a parameter of {self.preset} (the seed comes from the env); one of {sorted(accepted)}",
+                    f"not a parameter of {self.preset} (the env draws the seed); one of {sorted(accepted)}",
                 )
                 if isinstance(value, (list, tuple)):
                     params[name] = _param_range(name, value)
@@ -202,7 +206,9 @@ class EpisodeSpec:
     settle_time_s: float = 0.25  # suspension settling at reset [s]
 
     def __post_init__(self) -> None:
-        EnvConfig(control_hz=self.control_hz, time_limit_s=self.time_limit_s, settle_time_s=self.settle_time_s)
+        EnvConfig(
+            control_hz=self.control_hz, time_limit_s=self.time_limit_s, settle_time_s=self.settle_time_s
+        )
 
     @property
     def max_episode_steps(self) -> int:
@@ -268,7 +274,9 @@ class RunSpec:
     lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
 
     def __post_init__(self) -> None:
-        require(math.isfinite(self.lane_offset_m), "lane_offset_m", f"must be finite, got {self.lane_offset_m!r}")
+        require(
+            math.isfinite(self.lane_offset_m), "lane_offset_m", f"must be finite, got {self.lane_offset_m!r}"
+        )
         require(
             math.isfinite(self.target_speed_mps) and self.target_speed_mps > 0,
             "target_speed_mps",
@@ -308,7 +316,11 @@ class CriteriaSpec:
     @property
     def named(self) -> dict[str, Any]:
         """The criteria that are set, by name."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) is not None}
+        return {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) is not None
+        }
 
 
 @dataclass(frozen=True)
@@ -333,7 +345,13 @@ class ScenarioSpec:
     episode: EpisodeSpec = field(default_factory=EpisodeSpec)
     task: TaskSpec = field(default_factory=TaskSpec)
     reward: RewardConfig = field(default_factory=RewardConfig)
-    terminations: tuple[TerminationRule, ...] = ("entered_negative_obstacle", "trapped", "collision", "rollover", "goal")
+    terminations: tuple[TerminationRule, ...] = (
+        "entered_negative_obstacle",
+        "trapped",
+        "collision",
+        "rollover",
+        "goal",
+    )
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     ins: InsSpec = field(default_factory=InsSpec)
     physics: WorldConfig = field(default_factory=WorldConfig)
@@ -383,7 +401,9 @@ class ScenarioSpec:
         return dataclasses.replace(
             self,
             episode=EpisodeSpec(
-                control_hz=config.control_hz, time_limit_s=config.time_limit_s, settle_time_s=config.settle_time_s
+                control_hz=config.control_hz,
+                time_limit_s=config.time_limit_s,
+                settle_time_s=config.settle_time_s,
             ),
             start=dataclasses.replace(self.start, speed_mps=config.start_speed_mps),
             task=dataclasses.replace(self.task, goal_radius_m=config.goal_radius_m),

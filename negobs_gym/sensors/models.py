@@ -1,7 +1,7 @@
 """LiDAR sensor models as data: per-laser elevations, azimuth resolution, FOV, range limits.
 
 Importable without pybullet so recorded-data users can use the tables. Lasers are stored in
-detector order (SPEC §4.1): ascending elevation, so for an upright sensor a lower index is a
+detector order (docs/detector_features.md): ascending elevation, so for an upright sensor a lower index is a
 nearer ground hit.
 """
 
@@ -95,7 +95,7 @@ def hdl64e_s2(azimuth_resolution_deg: float = 0.09) -> LidarModel:
 
     The 64 angles are the calibration of one public unit (-24.85 to +4.97 deg, two interleaved
     blocks; see :mod:`negobs_gym.sensors.calibration` for the source). 0.09 deg at 10 Hz gives
-    4000 columns x 64 = 256k rays per revolution (paper N §2, SPEC §3.3).
+    4000 columns x 64 = 256k rays per revolution (paper N §2, docs/sensors.md).
     """
     return LidarModel(
         name="hdl64e_s2",

@@ -1,4 +1,4 @@
-"""Range realism: Gaussian range noise, random dropout, min/max range (SPEC §3)."""
+"""Range realism: Gaussian range noise, random dropout, min/max range (docs/sensors.md)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ carved obstacle is flat at ``floor_z_m = rim height - depth``, where the rim hei
 surface height sampled along the outline before carving.
 
 Obstacle sizes follow paper N §4 (pits of 100x50, 100x80, 150x60 and 100x100 cm, minimum width
-30 cm) and SPEC §3.1 (depth 0.3-1.5 m). ``length_m`` is measured along the obstacle's heading
+30 cm) and docs/terrain.md (depth 0.3-1.5 m). ``length_m`` is measured along the obstacle's heading
 (for track placement: along the track), ``width_m`` across it.
 """
 
@@ -43,7 +43,7 @@ POSITIVE_DEFAULT_SIZES_M: dict[str, tuple[float, float, float]] = {
 # Paper N §4: sizes (length x width) [m] of the pits in its test scenes.
 PAPER_N_PIT_SIZES_M: tuple[tuple[float, float], ...] = ((1.0, 0.5), (1.0, 0.8), (1.5, 0.6), (1.0, 1.0))
 MIN_NEGATIVE_WIDTH_M = 0.3  # paper N §3.1 (Eq. 14): minimum negative-obstacle width w_min
-DEPTH_RANGE_M = (0.3, 1.5)  # SPEC §3.1
+DEPTH_RANGE_M = (0.3, 1.5)  # docs/terrain.md
 
 _CRATER_VERTICES = 48
 
@@ -92,7 +92,7 @@ class NegativeObstacleSpec(ObstaclePlacement):
     kind: str = "pit"  # one of NEGATIVE_KINDS; "crater" is elliptical, the others rectangular
     length_m: float = 1.0  # along the heading [m]; paper N §4 pits are 1.0-1.5 m long
     width_m: float = 0.5  # across the heading [m]; paper N §3.1 minimum width 0.3 m
-    depth_m: float = 0.8  # rim to floor [m]; SPEC §3.1: 0.3-1.5 m
+    depth_m: float = 0.8  # rim to floor [m]; docs/terrain.md: 0.3-1.5 m
     wall_slope_deg: float = 90.0  # wall angle from horizontal; 90 = vertical walls
 
     def __post_init__(self) -> None:

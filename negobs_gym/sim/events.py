@@ -1,4 +1,4 @@
-"""Ground-truth events of a drive (SPEC §3.2): negative-obstacle entry, trapped, collision, rollover.
+"""Ground-truth events of a drive (docs/physics.md): negative-obstacle entry, trapped, collision, rollover.
 
 An :class:`EventMonitor` checks the vehicle after every physics step (it registers a step hook on the
 world), so a 0.3 m pit cannot slip between two 10 Hz control steps; :meth:`EventMonitor.poll` returns

@@ -1,4 +1,4 @@
-"""Procedural off-road terrain: a corridor of heightfield around a drivable track (SPEC §3.1).
+"""Procedural off-road terrain: a corridor of heightfield around a drivable track (docs/terrain.md).
 
 The heightfield is the sum of
 
@@ -85,9 +85,9 @@ class BendSpec:
 class RoughnessConfig:
     """Off-road roughness; every amplitude is the peak height of its octave [m]."""
 
-    slope_amplitude_m: float = 1.0  # gentle slopes over the whole corridor (SPEC §3.1)
+    slope_amplitude_m: float = 1.0  # gentle slopes over the whole corridor (docs/terrain.md)
     slope_wavelength_m: float = 60.0  # feature size of the slopes [m]
-    bump_amplitude_m: float = 0.25  # off-track bumps; SPEC §3.1 bumps 5-30 cm
+    bump_amplitude_m: float = 0.25  # off-track bumps; docs/terrain.md bumps 5-30 cm
     bump_wavelength_m: float = 3.0
     fine_amplitude_m: float = 0.05  # fine clods/grass tufts
     fine_wavelength_m: float = 0.6
@@ -156,7 +156,7 @@ class BorderConfig:
 class TerrainConfig:
     """A course: track geometry, roughness, borders and obstacles. Lengths in m, angles in deg."""
 
-    resolution_m: float = 0.10  # heightfield sample spacing; SPEC §3.1: 5-10 cm
+    resolution_m: float = 0.10  # heightfield sample spacing; docs/terrain.md: 5-10 cm
     length_m: float = 200.0  # centre-line length from the start [m]
     lead_in_m: float = 10.0  # terrain behind the start [m]
     run_out_m: float = 10.0  # terrain beyond the end of the centre line [m]

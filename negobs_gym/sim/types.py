@@ -63,7 +63,7 @@ class HeightField:
 
 @dataclass(frozen=True, eq=False)
 class NegativeObstacle:
-    """Ground truth of one carved negative obstacle (SPEC §3.1)."""
+    """Ground truth of one carved negative obstacle (docs/terrain.md)."""
 
     obstacle_id: str
     kind: NegativeKind
@@ -95,7 +95,7 @@ class PositiveObstacle:
 
 @dataclass(frozen=True, eq=False)
 class Track:
-    """The drivable track: a centre line and a width, plus its borders (SPEC §3.1).
+    """The drivable track: a centre line and a width, plus its borders (docs/terrain.md).
 
     Track coordinates: ``station_m`` is the distance along the centre line from its first vertex
     (the start), ``lateral_m`` the signed offset from it, positive to the RIGHT of the driving

@@ -6,7 +6,8 @@ a sphere wheel (spheres ran about 4x faster than cylinders on a heightfield with
 result). Wheel contact is soft (``contactStiffness`` / ``contactDamping``) so the tyres stay on the
 ground; damping of the bodies is zero so nothing but tyre friction slows the car.
 
-Vehicle frame (SPEC §2): origin at the rear-axle centre on the ground, Y forward, X right, Z up.
+Vehicle frame (README, "Frames and units"): origin at the rear-axle centre on the ground, Y forward,
+X right, Z up.
 The PyBullet base frame has the same axes, so its rotation is the vehicle's rotation.
 """
 
@@ -30,20 +31,20 @@ WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
 
 @dataclass(frozen=True, kw_only=True)
 class VehicleConfig:
-    """Geometry, mass and actuator limits of the full-size ALV (SPEC §3.2).
+    """Geometry, mass and actuator limits of the full-size ALV (docs/physics.md).
 
     Lengths in metres, masses in kg, forces in N, torques in N m, angles in degrees (config edge).
     """
 
-    length_m: float = 4.5  # SPEC §3.2: about 4.5 x 2.0 m
+    length_m: float = 4.5  # docs/physics.md: about 4.5 x 2.0 m
     width_m: float = 2.0
     body_height_m: float = 0.9  # chassis box height above the belly
     ground_clearance_m: float = 0.35  # belly height at rest
-    wheelbase_m: float = 2.8  # SPEC §3.2
+    wheelbase_m: float = 2.8  # docs/physics.md
     track_width_m: float = 1.6  # wheel centre to wheel centre, left to right
     rear_overhang_m: float = 0.85  # rear bumper behind the rear axle
     wheel_radius_m: float = 0.4
-    mass_kg: float = 2000.0  # SPEC §3.2: ~2000 kg, everything included
+    mass_kg: float = 2000.0  # docs/physics.md: ~2000 kg, everything included
     wheel_mass_kg: float = 25.0
     cg_height_m: float = 0.6  # centre of mass above the ground at rest
     max_steer_deg: float = 35.0  # paper T: maximum steering angle 35 deg
@@ -137,7 +138,7 @@ class Vehicle:
     Args:
         world: The world to build in; the vehicle registers a per-step hook there (suspension and
             drive forces).
-        config: Vehicle parameters; defaults are SPEC §3.2 / paper values.
+        config: Vehicle parameters; defaults are docs/physics.md / paper values.
         start_pose: Where to put the vehicle frame origin: x, y and yaw are used; the vehicle is
             placed on the terrain (z, roll, pitch are taken from the ground).
         rng: Generator for INS noise; required when the config asks for noise.

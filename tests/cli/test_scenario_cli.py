@@ -7,7 +7,9 @@ import pytest
 from negobs_gym.cli import main
 from negobs_gym.scenarios import load_scenario, scenario_names, spec_from_toml
 
-PAPER_SCENES = [n for n in scenario_names() if n.startswith(("paper_n_", "paper_t_")) and not n.endswith("_v0")]
+PAPER_SCENES = [
+    n for n in scenario_names() if n.startswith(("paper_n_", "paper_t_")) and not n.endswith("_v0")
+]
 
 # no filter, a pit in the driving line, and a criterion that the reckless driver must fail
 FAILING = """

@@ -70,7 +70,11 @@ def test_spec_time_limit_truncates_a_directly_built_env() -> None:
 
 
 def test_registered_time_limits_come_from_the_specs() -> None:
-    for env_id, steps in (("negobs_gym/Braking-v0", 150), ("negobs_gym/Braking-v1", 150), ("negobs_gym/OffroadNav-v0", 600)):
+    for env_id, steps in (
+        ("negobs_gym/Braking-v0", 150),
+        ("negobs_gym/Braking-v1", 150),
+        ("negobs_gym/OffroadNav-v0", 600),
+    ):
         env = gym.make(env_id)
         assert env.unwrapped.scenario.episode.max_episode_steps == steps
         assert env.spec.max_episode_steps is None  # no second, registry-side limit to disagree with
@@ -120,15 +124,18 @@ def test_step_before_reset_raises_reset_needed() -> None:
 
 def test_ins_noise_physics_and_render_settings_reach_the_episode() -> None:
     spec = spec_from_toml(
-        STOP_SCENE
-        + "[ins]\nposition_noise_m = 0.5\n[physics]\ntime_step_s = 0.008333333333333333\n[render]\nheight_px = 240\n"
+        STOP_SCENE + "[ins]\nposition_noise_m = 0.5\n[physics]\ntime_step_s = 0.008333333333333333\n"
+        "[render]\nheight_px = 240\n"
     )
     env = NegObsEnv(scenario=spec, render_mode="rgb_array")
     env.reset(seed=1)
     assert env._substeps == 12  # 1/120 s physics at 10 Hz control
     vehicle = env._vehicle
     assert vehicle.config.ins_position_noise_m == 0.5
-    offsets = [np.hypot(vehicle.pose().x - vehicle.true_pose().x, vehicle.pose().y - vehicle.true_pose().y) for _ in range(20)]
+    offsets = [
+        np.hypot(vehicle.pose().x - vehicle.true_pose().x, vehicle.pose().y - vehicle.true_pose().y)
+        for _ in range(20)
+    ]
     assert 0.1 < np.mean(offsets) < 1.5
     assert env.render().shape[0] == 240
     env.close()

@@ -46,7 +46,9 @@ min_stop_margin_m = 0.5
 @pytest.fixture(scope="module")
 def runs() -> dict[bool, list[ScenarioResult]]:
     spec = spec_from_toml(PIT_SCENE)
-    return {f: [run_scenario(spec, RecklessDriver(), filter=f, seed=s) for s in range(5)] for f in (False, True)}
+    return {
+        f: [run_scenario(spec, RecklessDriver(), filter=f, seed=s) for s in range(5)] for f in (False, True)
+    }
 
 
 def test_reckless_driver_enters_the_pit_without_the_filter(runs) -> None:
@@ -78,7 +80,9 @@ def test_criteria_check_each_named_bound() -> None:
         vetoes=3, false_vetoes=1, termination=("stopped",), truncated=False,
     )  # fmt: skip
     assert check_criteria(CriteriaSpec(), result) == ()
-    assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == ("min_stop_margin_m",)
+    assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == (
+        "min_stop_margin_m",
+    )
     assert check_criteria(CriteriaSpec(max_false_vetoes=0, max_vetoes=3, max_time_s=0.5), result) == (
         "max_false_vetoes",
         "max_time_s",
@@ -88,5 +92,7 @@ def test_criteria_check_each_named_bound() -> None:
         "max_decel_mps2",
     )
     none = dataclasses.replace(result, stop_margin_m=None, stopped_before=False)
-    assert check_criteria(CriteriaSpec(min_stop_margin_m=0.0, stopped_before=False), none) == ("min_stop_margin_m",)
+    assert check_criteria(CriteriaSpec(min_stop_margin_m=0.0, stopped_before=False), none) == (
+        "min_stop_margin_m",
+    )
     assert "margin_m=-" in none.line() and math.isfinite(result.time_s)

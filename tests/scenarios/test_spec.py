@@ -10,7 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios import Range, ScenarioSpec, load_scenario, scenario_names, spec_from_toml, spec_to_toml
+from negobs_gym.scenarios import (
+    Range,
+    ScenarioSpec,
+    load_scenario,
+    scenario_names,
+    spec_from_toml,
+    spec_to_toml,
+)
 from negobs_gym.scenarios.spec import TERMINATION_RULES
 
 PIT_TOML = """
@@ -90,7 +97,11 @@ def test_preset_with_an_obstacle_list_is_refused() -> None:
 
 def test_an_obstacle_off_the_terrain_is_named_at_reset() -> None:
     spec = ScenarioSpec.from_dict(
-        {"name": "x", "terrain": {"course": {"length_m": 40.0}}, "obstacles": [{"station_m": 10.0, "lateral_m": 40.0}]}
+        {
+            "name": "x",
+            "terrain": {"course": {"length_m": 40.0}},
+            "obstacles": [{"station_m": 10.0, "lateral_m": 40.0}],
+        }
     )
     with pytest.raises(ConfigError) as err:
         spec.sample(np.random.default_rng(0))
@@ -146,15 +157,26 @@ _positive = st.fixed_dictionaries(
     },
 )
 _spec = st.fixed_dictionaries(
-    {"name": st.text(min_size=1, max_size=20).filter(str.strip), "terrain": st.just({"course": {"length_m": 40.0}})},
+    {
+        "name": st.text(min_size=1, max_size=20).filter(str.strip),
+        "terrain": st.just({"course": {"length_m": 40.0}}),
+    },
     optional={
         "description": st.text(max_size=40),
         "obstacles": st.lists(_obstacle, max_size=3),
         "positive_obstacles": st.lists(_positive, max_size=2),
-        "start": st.fixed_dictionaries({}, optional={"speed_mps": _number(0.0, 10.0), "lateral_m": _number(-1, 1)}),
-        "episode": st.fixed_dictionaries({}, optional={"time_limit_s": _num, "control_hz": st.sampled_from([5.0, 10.0])}),
-        "task": st.fixed_dictionaries({}, optional={"kind": st.sampled_from(["reach_goal", "stop_before_hazard"])}),
-        "reward": st.fixed_dictionaries({}, optional={"stopped": st.floats(-100, 100), "time": st.floats(-1, 0)}),
+        "start": st.fixed_dictionaries(
+            {}, optional={"speed_mps": _number(0.0, 10.0), "lateral_m": _number(-1, 1)}
+        ),
+        "episode": st.fixed_dictionaries(
+            {}, optional={"time_limit_s": _num, "control_hz": st.sampled_from([5.0, 10.0])}
+        ),
+        "task": st.fixed_dictionaries(
+            {}, optional={"kind": st.sampled_from(["reach_goal", "stop_before_hazard"])}
+        ),
+        "reward": st.fixed_dictionaries(
+            {}, optional={"stopped": st.floats(-100, 100), "time": st.floats(-1, 0)}
+        ),
         "terminations": st.lists(st.sampled_from(TERMINATION_RULES), unique=True),
         "criteria": st.fixed_dictionaries(
             {}, optional={"entered_negative_obstacle": st.booleans(), "max_vetoes": st.integers(0, 100)}

@@ -1,6 +1,6 @@
 """Check a ray-cast backend against the reference: hit/miss and range agreement, and a test scene.
 
-Used by the agreement tests and ``benchmarks/raycast.py`` (SPEC §3.3: the fast backend agrees
+Used by the agreement tests and ``benchmarks/raycast.py`` (docs/sensors.md: the fast backend agrees
 with PyBullet to 1 cm on the same scene).
 """
 
@@ -39,7 +39,7 @@ class Agreement:
 
 
 def compare_ranges(reference_m: np.ndarray, candidate_m: np.ndarray, tol_m: float = 0.01) -> Agreement:
-    """Compare two range arrays of the same rays (NaN = miss); ``tol_m`` default is SPEC §3.3's 1 cm.
+    """Compare two range arrays of the same rays (NaN = miss); ``tol_m`` default is docs/sensors.md's 1 cm.
 
     Raises:
         ScanError: Shapes differ or there are no rays.

@@ -56,7 +56,7 @@ class EmbreeConfig:
             scene is rebuilt only when a pose changed); False = call ``update_dynamic`` yourself.
     """
 
-    max_chord_error_m: float = 1e-4  # SPEC §3.3: agree with PyBullet to 1 cm; 100x margin
+    max_chord_error_m: float = 1e-4  # docs/sensors.md: agree with PyBullet to 1 cm; 100x margin
     ground: Literal["physics", "terrain"] = "physics"
     auto_update: bool = True
 
