@@ -12,7 +12,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "demo",
         help="reckless driver towards a ditch without and with the safety filter; writes a PNG",
-        description="Runs negobs_gym/Braking-v0 twice with one seed (no filter, then the Eq. 18 "
+        description="Runs negobs_gym/Braking-v1 twice with one seed (no filter, then the Eq. 18 "
         "braking safety filter on the LiDAR detector grid) and writes both final frames to a PNG.",
     )
     parser.add_argument("--out", default="outputs/demo.png", help="PNG to write (default: %(default)s)")
