@@ -35,7 +35,7 @@ from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
 from negobs_gym.sim.world import World
 
 if TYPE_CHECKING:
-    from negobs_gym.scenarios.spec import ScenarioSpec
+    from negobs_gym.scenarios.spec import SampledScenario, ScenarioSpec
 
 log = logging.getLogger(__name__)
 
@@ -139,20 +139,8 @@ class NegObsEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._close_world()
-        spec = self.scenario
-        episode = spec.sample(self.np_random)
-        self.terrain = episode.terrain
-        self._world = World(self.terrain, spec.physics)
-        ins_rng = None
-        vehicle_config = VehicleConfig(
-            ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
-        )
-        if spec.ins.noisy:
-            ins_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
-        self._vehicle = Vehicle(self._world, vehicle_config, rng=ins_rng)
-        self._vehicle.reset(episode.start_pose)
-        self._monitor = EventMonitor(self._world, self._vehicle)
-        self._world.step(max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s)))
+        episode = self._sample_episode(self.np_random)
+        self._build_world(episode)
         if episode.start_speed_mps > 0:
             self._vehicle.set_speed(episode.start_speed_mps)
         self._monitor.reset()
@@ -169,6 +157,26 @@ class NegObsEnv(gym.Env):
         self._last_grid = None
         obs = self._observe()
         return obs, self._info(StepOutcome(events=StepEvents()), {}, ())
+
+    def _sample_episode(self, rng: np.random.Generator) -> SampledScenario:
+        """This episode's terrain, start pose and speed: the spec's ranges drawn from ``rng``."""
+        return self.scenario.sample(rng)
+
+    def _build_world(self, episode: SampledScenario) -> None:
+        """Physics world, vehicle (INS noise from the spec) and event monitor, settled at the start."""
+        spec = self.scenario
+        self.terrain = episode.terrain
+        self._world = World(self.terrain, spec.physics)
+        ins_rng = None
+        if spec.ins.noisy:  # drawn only then, so noise-free specs keep their draws
+            ins_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
+        vehicle_config = VehicleConfig(
+            ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
+        )
+        self._vehicle = Vehicle(self._world, vehicle_config, rng=ins_rng)
+        self._vehicle.reset(episode.start_pose)
+        self._monitor = EventMonitor(self._world, self._vehicle)
+        self._world.step(max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s)))
 
     def step(self, action):
         if self._vehicle is None:
