@@ -20,9 +20,9 @@ class GridSpec:
     """Extent and resolution of a vehicle-centred grid (vehicle frame: Y forward, X right)."""
 
     cell_m: float = 0.20  # paper N §3.4: 20 cm x 20 cm cells
-    ahead_m: float = 30.0  # docs/detector_features.md: at least 25 m ahead
+    ahead_m: float = 30.0  # design range >= 25 m: paper N Table 7 evaluates to 20 m, plus margin
     back_m: float = 5.0
-    side_m: float = 10.0  # docs/detector_features.md: 10 m each side
+    side_m: float = 10.0  # design range: 10 m each side of the vehicle
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "ahead_m", "side_m"):

@@ -66,9 +66,12 @@ def _draw(value: Number, rng: np.random.Generator) -> float:
 
 
 def _corners(obj: Any, names: tuple[str, ...]) -> tuple[dict[str, float], dict[str, float]]:
-    """The low and the high end of every ranged field (plain numbers on both)."""
-    low = {n: (v.low if isinstance(v, Range) else v) for n in names for v in [getattr(obj, n)]}
-    high = {n: (v.high if isinstance(v, Range) else v) for n in names for v in [getattr(obj, n)]}
+    """The fields ``names`` with every range at its low end, and at its high end."""
+
+    def end(value: Number, which: str) -> float:
+        return getattr(value, which) if isinstance(value, Range) else value
+
+    low, high = ({n: end(getattr(obj, n), which) for n in names} for which in ("low", "high"))
     return low, high
 
 
@@ -134,6 +137,19 @@ def _param_range(name: str, value: list | tuple) -> Range:
         raise ConfigError(f"params.{name}", f"must be a number or [low, high], got {list(value)!r}") from exc
 
 
+def _check_param(name: str, value: Any, annotation: str) -> None:
+    """A preset parameter against the preset's annotation (``float``, ``int``, ``bool``, ...)."""
+    finite = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    kinds = {
+        "bool": (isinstance(value, bool), "true or false"),
+        "int": (isinstance(value, int) and not isinstance(value, bool), "an integer"),
+        "float": (finite or isinstance(value, Range), "a finite number or [low, high]"),
+        "float | None": (finite or isinstance(value, Range), "a finite number or [low, high]"),
+    }
+    ok, expected = kinds.get(annotation, (True, ""))
+    require(ok, f"params.{name}", f"must be {expected}, got {value!r}")
+
+
 @dataclass(frozen=True, kw_only=True)
 class TerrainSpec:
     """Either ``preset`` (a name in :data:`~negobs_gym.sim.presets.PRESETS`) with ``params``, or a
@@ -154,7 +170,8 @@ class TerrainSpec:
             require(
                 self.preset in PRESETS, "preset", f"unknown preset {self.preset!r}; one of {sorted(PRESETS)}"
             )
-            accepted = set(inspect.signature(PRESETS[self.preset]).parameters) - {"seed"}
+            signature = inspect.signature(PRESETS[self.preset]).parameters
+            accepted = set(signature) - {"seed"}
             for name, value in params.items():
                 require(
                     name in accepted,
@@ -163,13 +180,7 @@ class TerrainSpec:
                 )
                 if isinstance(value, (list, tuple)):
                     params[name] = _param_range(name, value)
-                else:
-                    finite = isinstance(value, (int, float)) and math.isfinite(value)
-                    require(
-                        isinstance(value, (bool, str, Range)) or finite,
-                        f"params.{name}",
-                        f"must be a finite number, a bool, a string or [low, high], got {value!r}",
-                    )
+                _check_param(name, params[name], str(signature[name].annotation))
         else:
             require(not params, "params", "params belong to a preset; a course takes its fields directly")
             require(

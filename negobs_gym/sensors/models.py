@@ -1,7 +1,7 @@
 """LiDAR sensor models as data: per-laser elevations, azimuth resolution, FOV, range limits.
 
 Importable without pybullet so recorded-data users can use the tables. Lasers are stored in
-detector order (docs/detector_features.md): ascending elevation, so for an upright sensor a lower index is a
+detector order (docs/sensors.md): ascending elevation, so for an upright sensor a lower index is a
 nearer ground hit.
 """
 

@@ -78,6 +78,12 @@ def test_ranges_are_drawn_from_the_given_generator_only() -> None:
         ({"terrain": {"course": {"length_m": 40.0, "bogus": 1}}}, "terrain.course.bogus"),
         ({"terrain": {"preset": "braking_track", "params": {"seed": 3}}}, "terrain.params.seed"),
         ({"terrain": {"preset": "no_such_preset"}}, "terrain.preset"),
+        ({"terrain": {"preset": "braking_track", "params": {"rough": "yes"}}}, "terrain.params.rough"),
+        (
+            {"terrain": {"preset": "winding_course", "params": {"n_negative": 2.5}}},
+            "terrain.params.n_negative",
+        ),
+        ({"terrain": {"preset": "bend", "params": {"angle_deg": [60, 30]}}}, "terrain.params.angle_deg"),
         ({"colour": "red"}, "colour"),
     ],
 )
