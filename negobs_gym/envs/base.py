@@ -262,6 +262,11 @@ class NegObsEnv(gym.Env):
         )
 
     @property
+    def vehicle(self) -> Vehicle | None:
+        """The simulated vehicle of the running episode (None before ``reset``)."""
+        return self._vehicle
+
+    @property
     def perception(self) -> DetectorGrid | None:
         """The running LiDAR rig and detectors (last scans and detection), or None before they start."""
         return self._detector.perception if self._detector is not None else None

@@ -63,6 +63,8 @@ class BrakingEnv(NegObsEnv):
     - v1: rewards and ends on stopping before the ditch (``stopped`` term and rule); the time
       limit is the env's own, so ``EnvConfig.time_limit_s`` is honoured.
     - v0: no reward for stopping (stopping only ended by the 15 s limit); terrain draws as v1.
+      Since the spec layer reset casts one LiDAR frame instead of two, so sensor-noise draws
+      differ from earlier builds of v0.
     """
 
     default_scenario = "braking_v1"
@@ -70,7 +72,8 @@ class BrakingEnv(NegObsEnv):
 
 class BrakingV0Env(NegObsEnv):
     """``negobs_gym/Braking-v0`` (spec ``braking_v0``): :class:`BrakingEnv` without the ``stopped``
-    reward and rule, kept so results reported on v0 can be reproduced. See :class:`BrakingEnv`."""
+    reward and rule, kept for results reported on v0. See :class:`BrakingEnv` (manual and
+    version history)."""
 
     default_scenario = "braking_v0"
 
@@ -105,7 +108,9 @@ class OffroadNavEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version; since the spec layer the time limit is the env's own (same 60 s).
+    - v0: initial version. Since the spec layer the time limit is the env's own (same 60 s)
+      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
+      builds of v0.
     """
 
     default_scenario = "offroad_nav_v0"
@@ -139,7 +144,9 @@ class TrenchCrossingEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version; since the spec layer the time limit is the env's own (same 30 s).
+    - v0: initial version. Since the spec layer the time limit is the env's own (same 30 s)
+      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
+      builds of v0.
     """
 
     default_scenario = "trench_crossing_v0"
@@ -173,7 +180,9 @@ class PaperTStraightEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version; since the spec layer the time limit is the env's own (same 30 s).
+    - v0: initial version. Since the spec layer the time limit is the env's own (same 30 s)
+      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
+      builds of v0.
     """
 
     default_scenario = "paper_t_straight_v0"

@@ -210,7 +210,7 @@ def run_scenario(
         )
         pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
         pilot.reset(seed)
-        vehicle = base._vehicle.config
+        vehicle = base.vehicle.config
         bumper_m = vehicle.length_m - vehicle.rear_overhang_m
         dt = 1.0 / base.config.control_hz
         start_gap = float(info["distance_to_negative_ahead_m"])

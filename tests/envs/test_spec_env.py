@@ -130,7 +130,8 @@ def test_ins_noise_physics_and_render_settings_reach_the_episode() -> None:
     env = NegObsEnv(scenario=spec, render_mode="rgb_array")
     env.reset(seed=1)
     assert env._substeps == 12  # 1/120 s physics at 10 Hz control
-    vehicle = env._vehicle
+    assert env.vehicle.world.config.time_step_s == pytest.approx(1 / 120)
+    vehicle = env.vehicle
     assert vehicle.config.ins_position_noise_m == 0.5
     offsets = [
         np.hypot(vehicle.pose().x - vehicle.true_pose().x, vehicle.pose().y - vehicle.true_pose().y)
