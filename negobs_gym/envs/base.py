@@ -81,7 +81,7 @@ class NegObsEnv(gym.Env):
     ## Info
     ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth from the front bumper, inf if
     none), ``speed_mps``, ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array``
-    restores it), ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``termination``.
+    restores it), ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``off_track``, ``termination``.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012 - gymnasium API
@@ -234,6 +234,7 @@ class NegObsEnv(gym.Env):
             "station_m": self._station,
             "goal_reached": outcome.goal,
             "stopped": outcome.stopped,
+            "off_track": outcome.off_track,
             "termination": list(termination),
             "rewards": rewards,
         }

@@ -68,6 +68,10 @@ class ScenarioResult:
         trapped: Got stuck.
         rollover: Rolled or pitched past the limit.
         goal_reached: Reached the goal.
+        left_track: The rear-axle centre left the track (beyond half its width) at some step.
+        task_done: The spec's task succeeded: ``reach_goal`` = goal reached; ``stop_before_hazard``
+            = ``stopped_before``; ``cross`` = goal reached without being trapped; ``follow`` = goal
+            reached without leaving the track.
         max_decel_mps2: Largest speed drop over one control period, per second [m/s^2].
         vetoes: Steps whose action the filter replaced.
         false_vetoes: Vetoes with no true negative obstacle within the filter's hazard distance
@@ -91,6 +95,8 @@ class ScenarioResult:
     trapped: bool
     rollover: bool
     goal_reached: bool
+    left_track: bool
+    task_done: bool
     max_decel_mps2: float
     vetoes: int
     false_vetoes: int
@@ -111,6 +117,7 @@ class ScenarioResult:
         filtered = "on" if self.filtered else "off"
         return (
             f"{self.scenario} seed={self.seed} driver={self.driver} filter={filtered} "
+            f"task_done={int(self.task_done)} "
             f"entered={int(self.entered_negative_obstacle)} stopped_before={int(self.stopped_before)} "
             f"margin_m={margin} collision={int(self.collision)} goal={int(self.goal_reached)} "
             f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
@@ -122,6 +129,7 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
     """Names of the criteria that ``result`` fails (unset criteria are skipped)."""
     margin = result.stop_margin_m
     checks = {
+        "task_done": lambda v: result.task_done == v,
         "entered_negative_obstacle": lambda v: result.entered_negative_obstacle == v,
         "stopped_before": lambda v: result.stopped_before == v,
         "min_stop_margin_m": lambda v: margin is not None and margin >= v,
@@ -214,7 +222,7 @@ def run_scenario(
         bumper_m = vehicle.length_m - vehicle.rear_overhang_m
         dt = 1.0 / base.config.control_hz
         start_gap = float(info["distance_to_negative_ahead_m"])
-        entered = collision = trapped = rollover = goal = False
+        entered = collision = trapped = rollover = goal = left = False
         vetoes = false_vetoes = steps = 0
         max_decel = 0.0
         terminated = truncated = False
@@ -233,8 +241,15 @@ def run_scenario(
             trapped |= bool(ev["trapped"])
             rollover |= bool(ev["rollover"])
             goal |= bool(info["goal_reached"])
+            left |= bool(info["off_track"])
         gap = float(info["distance_to_negative_ahead_m"])
         stopped = not entered and abs(info["speed_mps"]) < spec.task.stop_speed_mps and np.isfinite(gap)
+        task_done = {
+            "reach_goal": goal,
+            "stop_before_hazard": stopped,
+            "cross": goal and not trapped,
+            "follow": goal and not left,
+        }[spec.task.kind]
         result = ScenarioResult(
             scenario=spec.name,
             seed=seed,
@@ -250,6 +265,8 @@ def run_scenario(
             trapped=trapped,
             rollover=rollover,
             goal_reached=goal,
+            left_track=left,
+            task_done=bool(task_done),
             max_decel_mps2=float(max_decel),
             vetoes=int(vetoes),
             false_vetoes=int(false_vetoes),

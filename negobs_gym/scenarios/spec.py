@@ -233,8 +233,9 @@ class TaskSpec:
 
     Attributes:
         kind: ``reach_goal``, ``stop_before_hazard`` (stop short of the negative obstacle ahead),
-            ``cross`` (get over the obstacles to the goal) or ``follow`` (drive the track to the goal
-            without leaving it).
+            ``cross`` (get over the obstacles to the goal without being trapped) or ``follow``
+            (drive the track to the goal without leaving it); decides a run's ``task_done``
+            (:class:`negobs_gym.scenarios.runner.ScenarioResult`).
         goal_radius_m: The goal counts as reached within this distance [m].
         stop_speed_mps: Below this speed the vehicle is standing [m/s].
         stop_hold_s: ``stopped`` holds after standing this long without entering a negative
@@ -303,6 +304,7 @@ class CriteriaSpec:
     :class:`negobs_gym.scenarios.runner.ScenarioResult` for the measured quantities.
     """
 
+    task_done: bool | None = None
     entered_negative_obstacle: bool | None = None
     stopped_before: bool | None = None
     min_stop_margin_m: float | None = None

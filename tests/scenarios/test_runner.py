@@ -54,7 +54,7 @@ def runs() -> dict[bool, list[ScenarioResult]]:
 def test_reckless_driver_enters_the_pit_without_the_filter(runs) -> None:
     for r in runs[False]:
         assert r.entered_negative_obstacle and not r.stopped_before and r.stop_margin_m is None
-        assert r.vetoes == 0 and not r.filtered
+        assert r.vetoes == 0 and not r.filtered and not r.task_done
         assert r.termination == ("entered_negative_obstacle",)
         assert set(r.failures) >= {"entered_negative_obstacle", "stopped_before"} and not r.passed
 
@@ -68,7 +68,7 @@ def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
         assert 0.5 < r.stop_margin_m < 8.0
         assert r.vetoes > 0 and r.false_vetoes == 0
         assert r.max_decel_mps2 > 4.0  # a real brake (mu g = 6.4 m/s^2 with locked wheels)
-        assert r.termination == ("stopped",) and r.passed
+        assert r.termination == ("stopped",) and r.passed and r.task_done and not r.left_track
         assert not r.collision and not r.goal_reached and r.time_s < 9.0
 
 
@@ -76,10 +76,12 @@ def test_criteria_check_each_named_bound() -> None:
     result = ScenarioResult(
         scenario="x", seed=0, driver="d", filtered=True, steps=10, time_s=1.0,
         entered_negative_obstacle=False, stopped_before=True, stop_margin_m=2.0, start_gap_m=20.0,
-        collision=False, trapped=False, rollover=False, goal_reached=False, max_decel_mps2=6.0,
+        collision=False, trapped=False, rollover=False, goal_reached=False, left_track=False,
+        task_done=True, max_decel_mps2=6.0,
         vetoes=3, false_vetoes=1, termination=("stopped",), truncated=False,
     )  # fmt: skip
     assert check_criteria(CriteriaSpec(), result) == ()
+    assert check_criteria(CriteriaSpec(task_done=False), result) == ("task_done",)
     assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == (
         "min_stop_margin_m",
     )
