@@ -17,6 +17,10 @@ steering +-1 rad and a goal vector (vehicle frame) of +-300 m.
 Arguments of every env: ``config`` (an :class:`~negobs_gym.envs.config.EnvConfig` that overrides
 the spec's episode length, start speed, goal radius, observation and reward weights),
 ``render_mode`` (``"rgb_array"`` or ``"human"``) and ``scenario`` (another spec, name or TOML path).
+
+Note on v0 builds: since the spec layer every env truncates at its spec's time limit itself
+(same limits as before, now also when built directly) and reset casts one LiDAR frame instead of
+two, so sensor-noise draws, and with them detector-grid rollouts, differ from earlier v0 builds.
 """
 
 from __future__ import annotations
@@ -63,8 +67,7 @@ class BrakingEnv(NegObsEnv):
     - v1: rewards and ends on stopping before the ditch (``stopped`` term and rule); the time
       limit is the env's own, so ``EnvConfig.time_limit_s`` is honoured.
     - v0: no reward for stopping (stopping only ended by the 15 s limit); terrain draws as v1.
-      Since the spec layer reset casts one LiDAR frame instead of two, so sensor-noise draws
-      differ from earlier builds of v0.
+      See the module note on v0 builds.
     """
 
     default_scenario = "braking_v1"
@@ -108,9 +111,8 @@ class OffroadNavEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version. Since the spec layer the time limit is the env's own (same 60 s)
-      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
-      builds of v0.
+    - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
+      note on v0 builds).
     """
 
     default_scenario = "offroad_nav_v0"
@@ -144,9 +146,8 @@ class TrenchCrossingEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version. Since the spec layer the time limit is the env's own (same 30 s)
-      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
-      builds of v0.
+    - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
+      note on v0 builds).
     """
 
     default_scenario = "trench_crossing_v0"
@@ -180,9 +181,8 @@ class PaperTStraightEnv(NegObsEnv):
     ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
-    - v0: initial version. Since the spec layer the time limit is the env's own (same 30 s)
-      and reset casts one LiDAR frame instead of two, so sensor-noise draws differ from earlier
-      builds of v0.
+    - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
+      note on v0 builds).
     """
 
     default_scenario = "paper_t_straight_v0"
