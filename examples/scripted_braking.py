@@ -1,4 +1,4 @@
-"""Scripted braking on Braking-v0: cruise at 25 km/h, full brake once the grid shows a ditch close ahead.
+"""Scripted braking on Braking-v1: cruise at 25 km/h, full brake once the grid shows a ditch close ahead.
 
 Reads only the observation (the ``negative`` grid channel and the speed in ``state``), not the
 ground truth; the ground truth in ``info`` is used to report the outcome.
@@ -41,7 +41,7 @@ def main() -> None:
     )
     parser.add_argument("--frames", type=Path, default=None, help="folder for a PNG of each final frame")
     args = parser.parse_args()
-    env = gym.make("negobs_gym/Braking-v0", render_mode="rgb_array" if args.frames else None)
+    env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array" if args.frames else None)
     obs_config = env.unwrapped.config.observation
     stopped = 0
     for seed in range(args.episodes):

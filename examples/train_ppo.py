@@ -2,7 +2,7 @@
 
 Run::
 
-    python examples/train_ppo.py --env-id negobs_gym/Braking-v0 --steps 20000 --envs 4 --out outputs/ppo
+    python examples/train_ppo.py --env-id negobs_gym/Braking-v1 --steps 20000 --envs 4 --out outputs/ppo
     python examples/train_ppo.py --filter ...   # wrap each env in the Eq. 18 braking safety filter
 
 The model is saved to ``<out>/ppo_<env>_<filter|nofilter>.zip`` and evaluated on 5 seeded
@@ -52,7 +52,7 @@ def evaluate(model, env_id: str, use_filter: bool, episodes: int = 5) -> tuple[f
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="negobs_gym/Braking-v0")
+    parser.add_argument("--env-id", default="negobs_gym/Braking-v1")
     parser.add_argument("--steps", type=int, default=20_000, help="total environment steps")
     parser.add_argument("--envs", type=int, default=2, help="parallel environments (SubprocVecEnv)")
     parser.add_argument("--filter", action="store_true", help="wrap envs in BrakingSafetyFilter")

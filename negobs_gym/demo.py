@@ -1,6 +1,6 @@
 """Quick-start demo: a reckless driver at 25 km/h towards a ditch, without and with the safety filter.
 
-Runs ``negobs_gym/Braking-v0`` twice with the same seed (same terrain, same ditch 20-40 m ahead,
+Runs ``negobs_gym/Braking-v1`` twice with the same seed (same terrain, same ditch 20-40 m ahead,
 same sensor noise). The reckless driver holds full throttle and never brakes. The second run wraps
 the env in :class:`~negobs_gym.safety.BrakingSafetyFilter`, which sees the ditch only through the
 LiDAR detector grid (paper N's rig and detector) and brakes when the distance to it falls below
@@ -48,7 +48,7 @@ class DemoRun:
 
 
 def run_episode(seed: int, filtered: bool) -> DemoRun:
-    """Drive one reckless episode of Braking-v0, optionally behind the safety filter."""
+    """Drive one reckless episode of Braking-v1, optionally behind the safety filter."""
     env: gym.Env = BrakingEnv(render_mode="rgb_array")
     if filtered:
         env = BrakingSafetyFilter(env)
@@ -67,7 +67,7 @@ def run_episode(seed: int, filtered: bool) -> DemoRun:
             vetoes += 1
             first_veto = gap if first_veto is None else first_veto
         still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
-        done = terminated or truncated or still_s >= STANDSTILL_S
+        done = terminated or truncated or still_s >= STANDSTILL_S  # v1 itself ends after 1 s standing
     frame = env.render()
     env.close()
     return DemoRun(
@@ -97,7 +97,7 @@ def write_figure(runs: Sequence[DemoRun], out_path: Path) -> Path:
         outcome = "entered the ditch" if run.entered_ditch else f"stopped {run.final_gap_m:.1f} m before it"
         name = "with safety filter" if run.filtered else "no filter"
         ax.set_title(f"reckless driver, {name}: {outcome}")
-    fig.suptitle("Braking-v0: ditch seen only by the LiDAR detector grid, 25 km/h")
+    fig.suptitle("Braking-v1: ditch seen only by the LiDAR detector grid, 25 km/h")
     fig.tight_layout()
     fig.canvas.draw()
     image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
@@ -116,7 +116,7 @@ def run_demo(out_path: str | Path | None = "outputs/demo.png", seed: int = 0) ->
 
 def log_runs(runs: Sequence[DemoRun], seed: int, out_path: str | Path | None) -> None:
     """Log the outcome of both demo runs (and where the figure went)."""
-    log.info("Braking-v0, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", seed, runs[0].start_gap_m)
+    log.info("Braking-v1, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", seed, runs[0].start_gap_m)
     for run in runs:
         name = "with safety filter" if run.filtered else "no filter"
         if run.entered_ditch:

@@ -37,6 +37,10 @@ class SimulationError(NegobsError, RuntimeError):
     """The physics simulation is in a state it cannot continue from (e.g. closed world)."""
 
 
+class ResetNeeded(NegobsError, RuntimeError):
+    """An environment was used before ``reset()`` (or after ``close()``): call ``reset()`` first."""
+
+
 class MissingDependencyError(NegobsError, ImportError):
     """An optional dependency is needed for this feature; the message says what to install."""
 

@@ -14,11 +14,15 @@ import sys
 from types import ModuleType
 
 #: (id, entry point, max_episode_steps); entry points are strings, so nothing heavy is imported.
+#: No ``TimeLimit`` from the registry (None): each env truncates at its spec's ``time_limit_s``,
+#: so the limit is the same whether an env is made here or built directly, and a ``config`` passed
+#: to ``gymnasium.make`` changes it.
 ENV_SPECS: tuple[tuple[str, str, int | None], ...] = (
-    ("negobs_gym/OffroadNav-v0", "negobs_gym.envs.scenarios:OffroadNavEnv", 600),
-    ("negobs_gym/Braking-v0", "negobs_gym.envs.scenarios:BrakingEnv", 150),
-    ("negobs_gym/TrenchCrossing-v0", "negobs_gym.envs.scenarios:TrenchCrossingEnv", 300),
-    ("negobs_gym/PaperTStraight-v0", "negobs_gym.envs.scenarios:PaperTStraightEnv", 300),
+    ("negobs_gym/OffroadNav-v0", "negobs_gym.envs.scenarios:OffroadNavEnv", None),
+    ("negobs_gym/Braking-v0", "negobs_gym.envs.scenarios:BrakingV0Env", None),
+    ("negobs_gym/Braking-v1", "negobs_gym.envs.scenarios:BrakingEnv", None),
+    ("negobs_gym/TrenchCrossing-v0", "negobs_gym.envs.scenarios:TrenchCrossingEnv", None),
+    ("negobs_gym/PaperTStraight-v0", "negobs_gym.envs.scenarios:PaperTStraightEnv", None),
 )
 
 

@@ -17,7 +17,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "demo",
         help="braking demo (reckless driver without and with the safety filter), small detection campaign",
-        description="Runs negobs_gym/Braking-v0 twice with one seed (no filter, then the Eq. 18 "
+        description="Runs negobs_gym/Braking-v1 twice with one seed (no filter, then the Eq. 18 "
         "braking safety filter on the LiDAR detector grid) and writes both final frames to a PNG; then "
         "a small paper N detection campaign (native rig, noise on) whose tables and figures go to "
         "--eval-out.",

@@ -1,14 +1,19 @@
-"""The abstract negobs env: physics world + vehicle + events, a grid observation, named rewards.
+"""The negobs env: one Gymnasium env driven by a scenario spec, with HighwayEnv-style hooks.
 
-Scenarios subclass :class:`NegObsEnv` and implement :meth:`NegObsEnv._make_terrain`.
+:class:`NegObsEnv` builds each episode from a :class:`~negobs_gym.scenarios.spec.ScenarioSpec`
+(terrain, obstacles, start, INS noise, physics), observes through a swappable grid source
+(:mod:`negobs_gym.envs.sources`), and decides reward, termination, truncation and info in the hooks
+:meth:`~NegObsEnv._reward`, :meth:`~NegObsEnv._is_terminated`, :meth:`~NegObsEnv._is_truncated` and
+:meth:`~NegObsEnv._info`, which read the spec's reward weights, termination rules and time limit.
+The registered envs (:mod:`negobs_gym.envs.scenarios`) are subclasses that only name their spec.
 """
 
 from __future__ import annotations
 
-import abc
+import dataclasses
 import logging
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -16,30 +21,42 @@ from gymnasium import spaces
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
-from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels, state_space, state_vector
+from negobs_gym.envs.observation import stack_channels, state_space, state_vector
+from negobs_gym.envs.outcome import StepOutcome, termination_conditions
 from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
-from negobs_gym.errors import ActionError
+from negobs_gym.envs.sources import DetectorSource, GridSource, make_grid_source
+from negobs_gym.errors import ActionError, ConfigError, ResetNeeded
 from negobs_gym.safety.braking import BrakingConfig
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.protocol import HazardState
 from negobs_gym.sim.events import EventMonitor, StepEvents
 from negobs_gym.sim.types import Terrain
-from negobs_gym.sim.vehicle import Vehicle
-from negobs_gym.sim.world import World, WorldConfig
+from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
+from negobs_gym.sim.world import World
+
+if TYPE_CHECKING:
+    from negobs_gym.scenarios.spec import SampledScenario, ScenarioSpec
 
 log = logging.getLogger(__name__)
 
 __all__ = ["NegObsEnv"]
 
 
-class NegObsEnv(gym.Env, abc.ABC):
-    """Drive an off-road vehicle past negative obstacles (abstract base of all negobs envs).
+def _load_spec(scenario: ScenarioSpec | str) -> ScenarioSpec:
+    # imported here: negobs_gym.scenarios imports the env package (its runner drives envs)
+    from negobs_gym.scenarios.library import load_scenario
+
+    return load_scenario(scenario)
+
+
+class NegObsEnv(gym.Env):
+    """Drive an off-road vehicle past negative obstacles, as a scenario spec describes.
 
     ## Action Space
     ``Box(-1, 1, (2,), float32)``: ``action[0]`` longitudinal (> 0 throttle, < 0 brake),
     ``action[1]`` steering (+1 = full left). NaN/inf raise :class:`~negobs_gym.errors.ActionError`.
-    Control runs at ``config.control_hz`` (10 Hz) with physics sub-steps in between.
+    Control runs at the spec's ``episode.control_hz`` (10 Hz) with physics sub-steps in between.
 
     ## Observation Space
     ``Dict(grid, state)``: ``grid`` uint8 (channels, rows, cols) in {0, 1}, vehicle-centred
@@ -48,85 +65,123 @@ class NegObsEnv(gym.Env, abc.ABC):
     y in the vehicle frame).
 
     ## Rewards
-    Weighted terms by name in ``info["rewards"]``: progress along the track, negative-obstacle
-    entry, collision/rollover, time, goal.
+    Weighted terms by name in ``info["rewards"]`` (weights: the spec's ``[reward]``): progress
+    along the track, negative-obstacle entry, collision/rollover, time, goal, stopped before a
+    hazard.
 
     ## Episode End
-    Terminates on entering a negative obstacle, trapped, collision, rollover or reaching the goal;
-    truncated by the time limit (``TimeLimit`` wrapper from the registry).
+    Terminates when a rule named in the spec's ``terminations`` fires (``info["termination"]``
+    lists them); truncates after ``episode.time_limit_s`` whether made through the registry or
+    built directly.
+
+    ## Arguments
+    ``config``: an :class:`EnvConfig` overriding the spec's episode, start speed, goal radius,
+    observation and reward. ``render_mode``: ``"rgb_array"`` or ``"human"``. ``scenario``: a
+    :class:`ScenarioSpec`, a shipped scenario's name or a TOML path (subclasses name their own).
 
     ## Info
-    ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth, inf if none), ``speed_mps``,
-    ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array`` restores it),
-    ``rewards``, ``station_m``, ``goal_reached``.
+    ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth from the front bumper, inf if
+    none), ``speed_mps``, ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array``
+    restores it), ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``off_track``, ``termination``.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012 - gymnasium API
 
-    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None) -> None:
-        self.config = config if config is not None else self.default_config()
+    #: Scenario used when none is passed (subclasses name their registered spec).
+    default_scenario: str | None = None
+
+    def __init__(
+        self,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+        *,
+        scenario: ScenarioSpec | str | None = None,
+    ) -> None:
+        scenario = scenario if scenario is not None else self.default_scenario
+        if scenario is None:
+            raise ConfigError("scenario", "NegObsEnv needs a scenario spec, a shipped name or a TOML path")
+        spec = _load_spec(scenario)
+        self.scenario: ScenarioSpec = spec.with_env_config(config) if config is not None else spec
+        self.config = self.scenario.env_config()
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']}, got {render_mode!r}"
             )
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
-        obs_cfg = self.config.observation
-        self.observation_space = spaces.Dict({"grid": grid_space(obs_cfg), "state": state_space(obs_cfg)})
+        self._grid_source: GridSource = make_grid_source(self.config.observation)
+        self.observation_space = spaces.Dict(
+            {"grid": self._grid_source.space(), "state": state_space(self.config.observation)}
+        )
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self._world_config = WorldConfig()
-        self._substeps = max(1, round(1.0 / (self.config.control_hz * self._world_config.time_step_s)))
+        physics = self.scenario.physics
+        self._substeps = max(1, round(1.0 / (self.config.control_hz * physics.time_step_s)))
         self._world: World | None = None
         self._vehicle: Vehicle | None = None
         self._monitor: EventMonitor | None = None
+        self._detector: DetectorSource | None = None
         self.terrain: Terrain | None = None
         self._path: list[tuple[float, float]] = []
         self._renderer = None
-        self._perception: DetectorGrid | None = None
-        self._oracle: OracleGrid | None = None
-        self._sensor_rng: np.random.Generator | None = None
+        self._render_overlay = None
 
-    # -- hooks ---------------------------------------------------------------------------------
     @classmethod
     def default_config(cls) -> EnvConfig:
-        """Config used when none is given; scenarios override."""
-        return EnvConfig()
+        """The :class:`EnvConfig` of this env's default scenario, to change with ``dataclasses.replace``.
 
-    @abc.abstractmethod
-    def _make_terrain(self, rng: np.random.Generator) -> Terrain:
-        """Build this episode's terrain from the env's generator."""
+        A ``config`` passed to the env replaces the spec's episode, start speed, goal radius,
+        observation and reward as a whole, so start from this one to change a single setting.
+        """
+        if cls.default_scenario is None:
+            raise ConfigError("scenario", f"{cls.__name__} has no default scenario")
+        return _load_spec(cls.default_scenario).env_config()
 
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._close_world()
-        self.terrain = self._make_terrain(self.np_random)
-        self._world = World(self.terrain, self._world_config)
-        self._vehicle = Vehicle(self._world)
-        sx, sy, syaw = self.terrain.start_xy_yaw
-        self._vehicle.reset(Pose(x=sx, y=sy, yaw=syaw))
-        self._monitor = EventMonitor(self._world, self._vehicle)
-        self._world.step(max(0, round(self.config.settle_time_s / self._world_config.time_step_s)))
-        if self.config.start_speed_mps > 0:
-            self._vehicle.set_speed(self.config.start_speed_mps)
+        episode = self._sample_episode(self.np_random)
+        self._build_world(episode)
+        if episode.start_speed_mps > 0:
+            self._vehicle.set_speed(episode.start_speed_mps)
         self._monitor.reset()
         self._sensor_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
-        self._perception = None
-        self._oracle = None
-        if self.config.observation.source == "detector":
-            self._start_perception()
-        else:
-            self._oracle = OracleGrid(self.config.observation, self.terrain)
-        self._station = self._station_of(self._vehicle.true_pose())
+        self._grid_source.start(self._world, self._vehicle, self.terrain, self._sensor_rng)
+        self._detector = self._grid_source if isinstance(self._grid_source, DetectorSource) else None
+        self._steps = 0
+        self._still_s = 0.0
+        self._entered = False
+        self._stop_rewarded = False
         pose = self._vehicle.true_pose()
+        self._station, _ = self._track_position(pose)
         self._path = [(pose.x, pose.y)]
         self._last_grid = None
-        info = self._info(StepEvents(), {}, False)
-        return self._observe(), info
+        obs = self._observe()
+        return obs, self._info(StepOutcome(events=StepEvents()), {}, ())
+
+    def _sample_episode(self, rng: np.random.Generator) -> SampledScenario:
+        """This episode's terrain, start pose and speed: the spec's ranges drawn from ``rng``."""
+        return self.scenario.sample(rng)
+
+    def _build_world(self, episode: SampledScenario) -> None:
+        """Physics world, vehicle (INS noise from the spec) and event monitor, settled at the start."""
+        spec = self.scenario
+        self.terrain = episode.terrain
+        self._world = World(self.terrain, spec.physics)
+        ins_rng = None
+        if spec.ins.noisy:  # drawn only then, so noise-free specs keep their draws
+            ins_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
+        vehicle_config = VehicleConfig(
+            ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
+        )
+        self._vehicle = Vehicle(self._world, vehicle_config, rng=ins_rng)
+        self._vehicle.reset(episode.start_pose)
+        self._monitor = EventMonitor(self._world, self._vehicle)
+        self._world.step(max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s)))
 
     def step(self, action):
         if self._vehicle is None:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeeded("call reset() before step()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
             raise ActionError(f"action must have shape (2,), got {a.shape}")
@@ -135,37 +190,105 @@ class NegObsEnv(gym.Env, abc.ABC):
         a = np.clip(a, -1.0, 1.0)
         self._vehicle.apply(max(a[0], 0.0), max(-a[0], 0.0), a[1])
         self._world.step(self._substeps)
-        events = self._monitor.poll()
-        pose = self._vehicle.true_pose()
-        self._path.append((pose.x, pose.y))
-        station = self._station_of(pose)
-        progress = station - self._station
-        self._station = station
-        goal = math.dist((pose.x, pose.y), self.terrain.goal_xy_m) <= self.config.goal_radius_m
-        rewards = reward_terms(self.config.reward, progress, events, goal)
-        terminated = bool(
-            events.entered_negative_obstacle or events.trapped or events.collision or events.rollover or goal
-        )
+        self._steps += 1
+        outcome = self._outcome(self._monitor.poll())
+        rewards = self._reward(outcome)
+        fired = self._is_terminated(outcome)
         obs = self._observe()
-        info = self._info(events, rewards, goal)
+        info = self._info(outcome, rewards, fired)
         if self.render_mode == "human":
             self.render()
-        return obs, float(sum(rewards.values())), terminated, False, info
+        return obs, float(sum(rewards.values())), bool(fired), self._is_truncated(), info
 
+    # -- hooks (HighwayEnv style; they read the spec) ------------------------------------------
+    def _reward(self, outcome: StepOutcome) -> dict[str, float]:
+        """Reward terms by name, weighted by the spec's ``[reward]``; the reward is their sum."""
+        rewards = reward_terms(self.config.reward, outcome, self._stop_rewarded)
+        self._stop_rewarded = self._stop_rewarded or outcome.stopped_before_hazard
+        return rewards
+
+    def _is_terminated(self, outcome: StepOutcome) -> tuple[str, ...]:
+        """Names of the spec's termination rules that fired this step (empty: go on)."""
+        fired = termination_conditions(outcome)
+        return tuple(name for name in self.scenario.terminations if fired[name])
+
+    def _is_truncated(self) -> bool:
+        """True once the spec's time limit (``episode.time_limit_s``) has run out."""
+        return self._steps >= self.scenario.episode.max_episode_steps
+
+    def _info(
+        self, outcome: StepOutcome, rewards: dict[str, float], termination: tuple[str, ...]
+    ) -> dict[str, Any]:
+        """The info dict of ``reset`` and ``step`` (ground truth for evaluation, see the class doc)."""
+        pose = self._vehicle.true_pose()
+        events = outcome.events
+        return {
+            "events": {
+                "entered_negative_obstacle": events.entered_negative_obstacle,
+                "trapped": events.trapped,
+                "collision": events.collision,
+                "rollover": events.rollover,
+            },
+            "distance_to_negative_ahead_m": self._distance_to_negative_ahead(pose),
+            "speed_mps": self._vehicle.speed_mps(),
+            "pose": pose.as_array(),
+            "station_m": self._station,
+            "goal_reached": outcome.goal,
+            "stopped": outcome.stopped,
+            "off_track": outcome.off_track,
+            "termination": list(termination),
+            "rewards": rewards,
+        }
+
+    def _outcome(self, events: StepEvents) -> StepOutcome:
+        """Ground-truth judgement of the step just simulated (progress, goal, stop, off track)."""
+        task = self.scenario.task
+        pose = self._vehicle.true_pose()
+        self._path.append((pose.x, pose.y))
+        station, lateral = self._track_position(pose)
+        progress = station - self._station
+        self._station = station
+        self._entered = self._entered or bool(events.entered_negative_obstacle)
+        speed = self._vehicle.speed_mps()
+        self._still_s = (
+            self._still_s + 1.0 / self.config.control_hz if abs(speed) < task.stop_speed_mps else 0.0
+        )
+        stopped = self._still_s >= task.stop_hold_s and not self._entered
+        return StepOutcome(
+            events=events,
+            progress_m=progress,
+            goal=math.dist((pose.x, pose.y), self.terrain.goal_xy_m) <= task.goal_radius_m,
+            stopped=stopped,
+            stopped_before_hazard=stopped and self._distance_to_negative_ahead(pose) <= task.stop_window_m,
+            off_track=lateral > 0.5 * self.terrain.track.width_m,
+        )
+
+    @property
+    def vehicle(self) -> Vehicle | None:
+        """The simulated vehicle of the running episode (None before ``reset``)."""
+        return self._vehicle
+
+    @property
+    def perception(self) -> DetectorGrid | None:
+        """The running LiDAR rig and detectors (last scans and detection), or None before they start."""
+        return self._detector.perception if self._detector is not None else None
+
+    # -- rendering -----------------------------------------------------------------------------
     def render(self):
         """The top-down frame (``rgb_array``) or show it in a window (``human``); see ``envs.rendering``.
 
         Shows the terrain overview with the path, and the vehicle-centred grid with the last LiDAR
         frame, the detected and true negative-obstacle outlines and the safety filter's state
-        (from :meth:`set_render_overlay`; grey when no filter decided the last step).
+        (from :meth:`set_render_overlay`; grey when no filter decided the last step). Layout: the
+        spec's ``[render]`` settings.
         """
         if self.render_mode is None or self._vehicle is None:
             return None
         from negobs_gym.envs.rendering import VehicleFootprint, render_frame
 
-        perception = self._perception
+        perception = self.perception
         detection = perception.detection if perception is not None else None
-        overlay = getattr(self, "_render_overlay", None)
+        overlay = self._render_overlay
         cfg = self._vehicle.config
         frame = render_frame(
             self.terrain,
@@ -182,6 +305,7 @@ class NegObsEnv(gym.Env, abc.ABC):
             footprint=VehicleFootprint(
                 width_m=cfg.width_m, length_m=cfg.length_m, rear_overhang_m=cfg.rear_overhang_m
             ),
+            config=self.scenario.render,
         )
         if self.render_mode == "human":
             from negobs_gym.envs.rendering import show_frame
@@ -224,13 +348,13 @@ class NegObsEnv(gym.Env, abc.ABC):
         step of the episode.
         """
         if self._vehicle is None:
-            raise RuntimeError("call reset() before hazard_state()")
-        if self._perception is None:
-            self._start_perception()
+            raise ResetNeeded("call reset() before hazard_state()")
+        if self._detector is None:
+            self._start_detector()
         cfg = self._vehicle.config
         return HazardState(
             speed_mps=max(0.0, self._vehicle.speed_mps()),
-            negative_obstacles_xy_m=self._perception.negative_cells_xy_m(),
+            negative_obstacles_xy_m=self._detector.perception.negative_cells_xy_m(),
             vehicle_width_m=cfg.width_m,
             wheelbase_m=cfg.wheelbase_m,
             max_steer_rad=math.radians(cfg.max_steer_deg),
@@ -238,24 +362,23 @@ class NegObsEnv(gym.Env, abc.ABC):
             max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
-            perception_time_s=self._perception.stamp_s,
+            perception_time_s=self._detector.perception.stamp_s,
         )
 
-    def _start_perception(self) -> None:
-        self._perception = DetectorGrid(self.config.observation, self._world, self._vehicle, self._sensor_rng)
-        self._last_layers = self._perception.observe(self._world.sim_time_s)
-
-    def _layers(self, pose: Pose) -> dict[str, np.ndarray]:
-        if self._perception is not None:
-            self._last_layers = self._perception.observe(self._world.sim_time_s)
-        if self._oracle is not None:
-            return self._oracle.layers(pose)
-        return self._last_layers
+    def _start_detector(self) -> None:
+        """Detectors beside an oracle grid, for the hazards only (they then run every step)."""
+        detector_obs = dataclasses.replace(self.config.observation, source="detector")
+        self._detector = DetectorSource(detector_obs)
+        self._detector.start(self._world, self._vehicle, self.terrain, self._sensor_rng)
+        self._detector.layers(self._world.sim_time_s)
 
     def _observe(self) -> dict[str, np.ndarray]:
-        pose = self._vehicle.true_pose()
-        grid = stack_channels(self._layers(pose), self.config.observation)
+        t = self._world.sim_time_s
+        if self._detector is not None and self._detector is not self._grid_source:
+            self._detector.layers(t)  # keep the hazard detectors' history going
+        grid = stack_channels(self._grid_source.layers(t), self.config.observation)
         self._last_grid = grid
+        pose = self._vehicle.true_pose()
         state = state_vector(
             self.config.observation,
             pose,
@@ -266,8 +389,8 @@ class NegObsEnv(gym.Env, abc.ABC):
         )
         return {"grid": grid, "state": state}
 
-    def _station_of(self, pose: Pose) -> float:
-        """Distance along the track centre line of the nearest centre-line point [m]."""
+    def _track_position(self, pose: Pose) -> tuple[float, float]:
+        """(station along the centre line [m], distance from it [m]) of the nearest centre-line point."""
         pts = np.asarray(self.terrain.track.centreline_xy_m, dtype=np.float64)
         a, b = pts[:-1], pts[1:]
         ab = b - a
@@ -275,7 +398,7 @@ class NegObsEnv(gym.Env, abc.ABC):
         t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-12), 0.0, 1.0)
         d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
         k = int(np.argmin(d))
-        return float(self.terrain.track.stations_m[k] + t[k] * np.linalg.norm(ab[k]))
+        return float(self.terrain.track.stations_m[k] + t[k] * np.linalg.norm(ab[k])), float(d[k])
 
     def _distance_to_negative_ahead(self, pose: Pose) -> float:
         """Ground-truth distance from the front bumper to the nearest negative-obstacle vertex ahead."""
@@ -293,20 +416,3 @@ class NegObsEnv(gym.Env, abc.ABC):
             if ahead.size:
                 best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
         return best
-
-    def _info(self, events: StepEvents, rewards: dict[str, float], goal: bool) -> dict[str, Any]:
-        pose = self._vehicle.true_pose()
-        return {
-            "events": {
-                "entered_negative_obstacle": events.entered_negative_obstacle,
-                "trapped": events.trapped,
-                "collision": events.collision,
-                "rollover": events.rollover,
-            },
-            "distance_to_negative_ahead_m": self._distance_to_negative_ahead(pose),
-            "speed_mps": self._vehicle.speed_mps(),
-            "pose": pose.as_array(),
-            "station_m": self._station,
-            "goal_reached": goal,
-            "rewards": rewards,
-        }

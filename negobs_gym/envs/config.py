@@ -96,6 +96,8 @@ class RewardConfig:
         collision: Once, on contact with a positive obstacle or a rollover.
         time: Per control step (a small cost of time).
         goal: Once, on reaching the goal.
+        stopped: Once, on coming to a stop before a negative obstacle (the braking task; see
+            ``TaskSpec.stop_window_m`` in :mod:`negobs_gym.scenarios.spec`).
     """
 
     progress: float = 1.0
@@ -103,9 +105,10 @@ class RewardConfig:
     collision: float = -100.0
     time: float = -0.01
     goal: float = 50.0
+    stopped: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("progress", "negative_entry", "collision", "time", "goal"):
+        for name in ("progress", "negative_entry", "collision", "time", "goal", "stopped"):
             v = getattr(self, name)
             require(isinstance(v, (int, float)) and math.isfinite(v), name, f"must be finite, got {v!r}")
 
@@ -124,7 +127,7 @@ class EnvConfig:
         reward: See :class:`RewardConfig`.
     """
 
-    control_hz: float = 10.0  # SPEC §6: 10 Hz control
+    control_hz: float = 10.0  # paper N: the LiDARs spin at 10 Hz; control runs at the sensor rate
     time_limit_s: float = 30.0
     start_speed_mps: float = 0.0
     goal_radius_m: float = 3.0

@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 from negobs_gym.envs.config import RewardConfig
-from negobs_gym.sim.events import StepEvents
+from negobs_gym.envs.outcome import StepOutcome
 
 __all__ = ["reward_terms"]
 
 
-def reward_terms(
-    config: RewardConfig, progress_m: float, events: StepEvents, reached_goal: bool
-) -> dict[str, float]:
-    """Weighted reward terms of one control step, by name (they sum to the reward)."""
+def reward_terms(config: RewardConfig, outcome: StepOutcome, stop_rewarded: bool) -> dict[str, float]:
+    """Weighted reward terms of one control step, by name (they sum to the reward).
+
+    ``stop_rewarded`` says the ``stopped`` bonus was already paid this episode (it is paid once).
+    """
+    ev = outcome.events
     return {
-        "progress": config.progress * progress_m,
-        "negative_entry": config.negative_entry * float(bool(events.entered_negative_obstacle)),
-        "collision": config.collision * float(bool(events.collision) or events.rollover),
+        "progress": config.progress * outcome.progress_m,
+        "negative_entry": config.negative_entry * float(bool(ev.entered_negative_obstacle)),
+        "collision": config.collision * float(bool(ev.collision) or ev.rollover),
         "time": config.time,
-        "goal": config.goal * float(reached_goal),
+        "goal": config.goal * float(outcome.goal),
+        "stopped": config.stopped * float(outcome.stopped_before_hazard and not stop_rewarded),
     }

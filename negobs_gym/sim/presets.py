@@ -2,9 +2,12 @@
 
 Every preset starts the vehicle at the origin facing world +Y (``start_xy_yaw = (0, 0, 0)``) on the
 track centre line and puts the goal ``goal_margin_m`` before the end of the track. Distances
-"ahead" are measured along the track from the start pose (the vehicle frame origin, SPEC §2).
-Each preset takes ``seed`` (roughness noise and, for the winding course, the layout) and
-``resolution_m``; ``PRESETS`` maps a name to each preset function.
+"ahead" are measured along the track from the start pose (the vehicle frame origin, see
+``negobs_gym/core/pose.py``). Every preset has one signature shape: its scene parameters first
+(positional or keyword), then the common keyword-only parameters in one order — ``seed``
+(roughness noise and, for the winding course, the layout), ``rough`` where the preset has it,
+``length_m`` where it is not a scene parameter, and ``resolution_m``. ``PRESETS`` maps a name to
+each preset function; scenario specs (:mod:`negobs_gym.scenarios`) call them by name.
 """
 
 from __future__ import annotations
@@ -45,12 +48,12 @@ def braking_track(
     ditch_width_m: float = 3.0,
     ditch_depth_m: float = 0.8,
     lateral_offset_m: float = 0.0,
+    wall_slope_deg: float = 90.0,
+    *,
     seed: int = 0,
     rough: bool = True,
-    *,
     length_m: float | None = None,
     resolution_m: float = 0.10,
-    wall_slope_deg: float = 90.0,
 ) -> Terrain:
     """Straight track along +Y with one ditch (obstacle id ``"ditch-0"``).
 
@@ -80,11 +83,11 @@ def braking_track(
 
 
 def trench_crossing(
-    seed: int = 0,
     trench_distance_m: float = 30.0,
     trench_length_m: float = 3.0,
     trench_depth_m: float = 1.0,
     *,
+    seed: int = 0,
     rough: bool = True,
     resolution_m: float = 0.10,
 ) -> Terrain:
@@ -113,13 +116,13 @@ def trench_crossing(
     return generate_terrain(config, seed)
 
 
-def rough_track(length_m: float = 200.0, seed: int = 0, *, resolution_m: float = 0.10) -> Terrain:
+def rough_track(length_m: float = 200.0, *, seed: int = 0, resolution_m: float = 0.10) -> Terrain:
     """Straight rough track with verges and no obstacles at all (false-alarm tests)."""
     config = TerrainConfig(resolution_m=resolution_m, length_m=length_m)
     return generate_terrain(config, seed)
 
 
-def straight_banked_track(seed: int = 0, length_m: float = 80.0, *, resolution_m: float = 0.10) -> Terrain:
+def straight_banked_track(length_m: float = 80.0, *, seed: int = 0, resolution_m: float = 0.10) -> Terrain:
     """Paper T's straight track between two earth banks."""
     bank = BorderConfig(kind="bank")
     config = TerrainConfig(resolution_m=resolution_m, length_m=length_m, left_border=bank, right_border=bank)
@@ -127,10 +130,10 @@ def straight_banked_track(seed: int = 0, length_m: float = 80.0, *, resolution_m
 
 
 def bend(
-    seed: int = 0,
     angle_deg: float = 60.0,
     radius_m: float = 30.0,
     *,
+    seed: int = 0,
     resolution_m: float = 0.10,
 ) -> Terrain:
     """Paper T's bend: 20 m straight, a circular bend (+ = left), 30 m straight, banked sides."""
@@ -147,7 +150,7 @@ def bend(
     return generate_terrain(config, seed)
 
 
-def oncoming_car(seed: int = 0, car_distance_m: float = 35.0, *, resolution_m: float = 0.10) -> Terrain:
+def oncoming_car(car_distance_m: float = 35.0, *, seed: int = 0, resolution_m: float = 0.10) -> Terrain:
     """Paper T's scene: a car (as a static box) facing us in the left half of the track."""
     config = TerrainConfig(
         resolution_m=resolution_m,
@@ -159,7 +162,7 @@ def oncoming_car(seed: int = 0, car_distance_m: float = 35.0, *, resolution_m: f
     return generate_terrain(config, seed)
 
 
-def parked_motorbike(seed: int = 0, bike_distance_m: float = 25.0, *, resolution_m: float = 0.10) -> Terrain:
+def parked_motorbike(bike_distance_m: float = 25.0, *, seed: int = 0, resolution_m: float = 0.10) -> Terrain:
     """Paper T's scene: a motorbike parked at the right edge of the track."""
     config = TerrainConfig(
         resolution_m=resolution_m,
@@ -172,7 +175,7 @@ def parked_motorbike(seed: int = 0, bike_distance_m: float = 25.0, *, resolution
 
 
 def pedestrian_near_dropoff(
-    seed: int = 0, pedestrian_distance_m: float = 25.0, *, resolution_m: float = 0.10
+    pedestrian_distance_m: float = 25.0, *, seed: int = 0, resolution_m: float = 0.10
 ) -> Terrain:
     """Paper T's scene: a pedestrian on the right verge, just before a drop-off."""
     right = BorderConfig(kind="dropoff")
@@ -192,11 +195,11 @@ def pedestrian_near_dropoff(
 
 
 def winding_course(
-    seed: int = 0,
     length_m: float = 200.0,
     *,
     n_negative: int = 6,
     n_positive: int = 4,
+    seed: int = 0,
     resolution_m: float = 0.10,
 ) -> Terrain:
     """Winding track with mixed obstacles placed from ``seed``; the goal is near its end.

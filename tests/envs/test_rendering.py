@@ -150,7 +150,7 @@ def test_env_frames_keep_their_shape_and_show_the_filter_state() -> None:
 def test_env_frame_draws_the_last_lidar_frame() -> None:
     env = gym.make("negobs_gym/Braking-v0", render_mode="rgb_array")
     env.reset(seed=1)
-    perception = env.unwrapped._perception
+    perception = env.unwrapped.perception
     assert len(perception.points_vehicle()) > 0
     with_points = env.render()
     perception.points_vehicle = lambda: np.empty((0, 3))

@@ -88,10 +88,10 @@ class TraversableConfig:
     obstacle_inside_margin_m: float = 0.30
 
     # --- §3.5 reachability ---
-    vehicle_width_m: float = 2.0  # SPEC §3.2: d_c, a 4.5 x 2.0 m vehicle
+    vehicle_width_m: float = 2.0  # docs/physics.md: d_c, a 4.5 x 2.0 m vehicle
     # Not in paper T: safety margin epsilon of Eq. 12.
     safety_margin_m: float = 0.30
-    wheelbase_m: float = 2.8  # Eq. 13: l, SPEC §3.2
+    wheelbase_m: float = 2.8  # Eq. 13: l, docs/physics.md
     max_steering_deg: float = 35.0  # §3.5: phi_max = 35 deg
     # Not in paper T: sampled path family (turn, or turn + counter-turn, then straight), 21
     # curvatures x 12 arc lengths each, sampled every 0.2 m up to 30 m.

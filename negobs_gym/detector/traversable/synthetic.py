@@ -27,7 +27,7 @@ class LuxRig:
     elevations_deg: tuple[float, ...] = (-1.2, -0.4, 0.4, 1.2)  # Eq. 3, detector order (lowest first)
     height_m: float = 0.65  # §4: mounted 65 cm above ground
     pitch_down_deg: float = 5.03  # §4: pitched down 5.03 deg
-    forward_m: float = 3.7  # front bumper of a 4.5 m vehicle, from the rear axle (SPEC §3.2)
+    forward_m: float = 3.7  # front bumper of a 4.5 m vehicle, from the rear axle (docs/physics.md)
     fov_deg: float = 110.0  # §4: 85 deg, extendable to 110 deg
     resolution_deg: float = 0.25  # §4: 0.125 / 0.25 / 0.5 deg
     max_range_m: float = 60.0  # LUX reaches 200 m; 60 m covers every ground hit of this mount
@@ -104,7 +104,7 @@ class TrackScene:
     bend_radius_m: float | None = None
     # Road crown: the centre line this much higher than the road edges (paper T Fig. 10) [m].
     crown_m: float = 0.0
-    # Two wheel ruts along the track (SPEC §3.1): depth [m], centres at +-rut_spacing_m / 2.
+    # Two wheel ruts along the track (docs/terrain.md): depth [m], centres at +-rut_spacing_m / 2.
     rut_depth_m: float = 0.0
     rut_spacing_m: float = 1.7
     bumps: tuple[Bump, ...] = ()

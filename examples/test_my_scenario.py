@@ -1,0 +1,33 @@
+"""A researcher's own scenario test, in a few lines: ``python -m pytest examples/test_my_scenario.py``.
+
+The scene is data (TOML): a 0.8 m deep ditch 15-25 m ahead at 25 km/h. The test drives it with the
+reckless driver behind the Eq. 18 safety filter on three seeds and asserts on the outcome.
+"""
+
+import pytest
+
+from negobs_gym.scenarios import run_scenario, spec_from_toml
+
+SCENE = spec_from_toml("""
+name = "my_ditch"
+terminations = ["entered_negative_obstacle", "stopped"]
+[terrain.course]
+length_m = 50.0
+[[obstacles]]
+kind = "ditch"
+length_m = 1.0
+width_m = 3.0
+depth_m = 0.8
+station_m = [15, 25]
+[start]
+speed_mps = 6.944444444444445
+[episode]
+time_limit_s = 10.0
+""")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_filter_stops_before_my_ditch(seed):
+    result = run_scenario(SCENE, "reckless", filter=True, seed=seed)
+    assert result.stopped_before and not result.entered_negative_obstacle, result.line()
+    assert result.stop_margin_m > 0.5 and result.false_vetoes == 0

@@ -1,0 +1,90 @@
+"""Swappable sources of the ``grid`` observation behind one interface (``space()``, ``observe()``).
+
+Like HighwayEnv's observation types: the env asks its source for the space once and for a grid each
+control step, and does not care whether the grid is the ground truth or the detectors' output.
+
+- :class:`OracleSource` rasterises the terrain's ground-truth records (:class:`~negobs_gym.envs.
+  observation.OracleGrid`), for ablations;
+- :class:`DetectorSource` casts the LiDAR rig and runs both papers' detectors
+  (:class:`~negobs_gym.envs.perception.DetectorGrid`), as on a real vehicle.
+
+A new source subclasses :class:`GridSource` and is added to :data:`GRID_SOURCES` under the name
+``ObservationConfig.source`` selects it by.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import numpy as np
+from gymnasium import spaces
+
+from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels
+from negobs_gym.envs.perception import DetectorGrid
+from negobs_gym.errors import ConfigError
+from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
+
+__all__ = ["GRID_SOURCES", "DetectorSource", "GridSource", "OracleSource", "make_grid_source"]
+
+
+class GridSource(abc.ABC):
+    """Produces the vehicle-centred grid channels of :class:`ObservationConfig` each control step."""
+
+    def __init__(self, config: ObservationConfig) -> None:
+        self.config = config
+
+    def space(self) -> spaces.Box:
+        """The observation space of :meth:`observe` (uint8, channels x rows x cols)."""
+        return grid_space(self.config)
+
+    @abc.abstractmethod
+    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
+        """Begin an episode in ``world`` (called at every reset; ``rng`` is the sensors' generator)."""
+
+    @abc.abstractmethod
+    def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
+        """Full-resolution bool layers by channel name at the vehicle's current pose."""
+
+    def observe(self, timestamp_s: float) -> np.ndarray:
+        """The ``grid`` observation: uint8 (channels, rows, cols), max-pooled by ``downsample``."""
+        return stack_channels(self.layers(timestamp_s), self.config)
+
+
+class OracleSource(GridSource):
+    """Ground truth rasterised around the vehicle's true pose (see :class:`OracleGrid`)."""
+
+    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
+        self._vehicle = vehicle
+        self.grid = OracleGrid(self.config, terrain)
+
+    def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
+        return self.grid.layers(self._vehicle.true_pose())
+
+
+class DetectorSource(GridSource):
+    """The LiDAR rig cast from the true pose and both detectors on the INS pose (:class:`DetectorGrid`).
+
+    ``perception`` keeps the last frame (scans, detection) for the hazards and the renderer.
+    """
+
+    perception: DetectorGrid | None = None
+
+    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
+        self.perception = DetectorGrid(self.config, world, vehicle, rng)
+
+    def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
+        return self.perception.observe(timestamp_s)
+
+
+#: ``ObservationConfig.source`` -> the source class.
+GRID_SOURCES: dict[str, type[GridSource]] = {"oracle": OracleSource, "detector": DetectorSource}
+
+
+def make_grid_source(config: ObservationConfig) -> GridSource:
+    """The source ``config.source`` names."""
+    if config.source not in GRID_SOURCES:
+        raise ConfigError("source", f"no grid source {config.source!r}; one of {sorted(GRID_SOURCES)}")
+    return GRID_SOURCES[config.source](config)

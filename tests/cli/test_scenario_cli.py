@@ -1,0 +1,83 @@
+"""``negobs scenario``: list, show, run (one line per seed, exit 1 on a failed criterion), render."""
+
+from __future__ import annotations
+
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.scenarios import load_scenario, scenario_names, spec_from_toml
+
+PAPER_SCENES = [
+    n for n in scenario_names() if n.startswith(("paper_n_", "paper_t_")) and not n.endswith("_v0")
+]
+
+# no filter, a pit in the driving line, and a criterion that the reckless driver must fail
+FAILING = """
+name = "reckless_into_pit"
+terminations = ["entered_negative_obstacle"]
+[terrain.course]
+length_m = 30.0
+[[obstacles]]
+kind = "ditch"
+length_m = 1.0
+width_m = 3.0
+station_m = [8.0, 10.0]
+[start]
+speed_mps = 6.944444444444445
+[episode]
+time_limit_s = 4.0
+[observation]
+source = "oracle"
+[run]
+filter = false
+[criteria]
+entered_negative_obstacle = {entered}
+"""
+
+
+def _lines(capsys) -> list[str]:
+    return [line for line in capsys.readouterr().out.splitlines() if line.strip()]
+
+
+def test_list_names_every_shipped_scenario(capsys):
+    assert main(["scenario", "list"]) == 0
+    listed = [line.split()[0] for line in _lines(capsys)]
+    assert listed == list(scenario_names())
+    assert len(PAPER_SCENES) == 10
+
+
+def test_show_prints_toml_that_loads_back_equal(capsys):
+    assert main(["scenario", "show", "paper_n_three_pits"]) == 0
+    assert spec_from_toml(capsys.readouterr().out) == load_scenario("paper_n_three_pits")
+
+
+def test_run_exits_non_zero_exactly_when_a_named_criterion_fails(tmp_path, capsys):
+    for entered, code in (("false", 1), ("true", 0)):
+        path = tmp_path / f"scene_{entered}.toml"
+        path.write_text(FAILING.format(entered=entered))
+        assert main(["scenario", "run", str(path), "--seeds", "2"]) == code
+        lines = _lines(capsys)
+        assert [line.split()[1] for line in lines] == ["seed=0", "seed=1"]
+        assert all("entered=1" in line and "filter=off" in line for line in lines)
+        assert all(line.endswith("FAIL entered_negative_obstacle") == (code == 1) for line in lines)
+
+
+def test_unknown_scenario_is_a_one_line_error(capsys):
+    assert main(["scenario", "run", "no_such_scene"]) == 2
+    assert "unknown scenario" in capsys.readouterr().err
+
+
+def test_render_writes_a_png(tmp_path):
+    out = tmp_path / "sub" / "scene.png"
+    assert main(["scenario", "render", "paper_t_parked_motorbike", "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [p for p in out.parent.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", PAPER_SCENES)
+def test_run_each_paper_scene_prints_a_line_per_seed(scene, capsys):
+    code = main(["scenario", "run", scene, "--seeds", "2"])
+    lines = _lines(capsys)
+    assert [line.split()[:2] for line in lines] == [[scene, "seed=0"], [scene, "seed=1"]]
+    assert code == (0 if all(line.endswith("PASS") for line in lines) else 1)

@@ -1,0 +1,100 @@
+"""run_scenario: a researcher's scripted scenario test, with and without the safety filter."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from negobs_gym.drivers import RecklessDriver
+from negobs_gym.scenarios import ScenarioResult, run_scenario, spec_from_toml
+from negobs_gym.scenarios.runner import check_criteria
+from negobs_gym.scenarios.spec import CriteriaSpec
+
+# a 0.6 m deep pit under both wheel tracks at a station drawn from the env's generator
+PIT_SCENE = """
+name = "pit_0.6m"
+terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "goal", "stopped"]
+
+[terrain.course]
+length_m = 45.0
+
+[[obstacles]]
+kind = "pit"
+length_m = 1.0
+width_m = 2.5
+depth_m = 0.6
+station_m = [14.0, 20.0]
+
+[start]
+speed_mps = 6.944444444444445
+
+[episode]
+time_limit_s = 9.0
+
+[task]
+kind = "stop_before_hazard"
+
+[criteria]
+entered_negative_obstacle = false
+stopped_before = true
+min_stop_margin_m = 0.5
+"""
+
+
+@pytest.fixture(scope="module")
+def runs() -> dict[bool, list[ScenarioResult]]:
+    spec = spec_from_toml(PIT_SCENE)
+    return {
+        f: [run_scenario(spec, RecklessDriver(), filter=f, seed=s) for s in range(5)] for f in (False, True)
+    }
+
+
+def test_reckless_driver_enters_the_pit_without_the_filter(runs) -> None:
+    for r in runs[False]:
+        assert r.entered_negative_obstacle and not r.stopped_before and r.stop_margin_m is None
+        assert r.vetoes == 0 and not r.filtered and not r.task_done
+        assert r.termination == ("entered_negative_obstacle",)
+        assert set(r.failures) >= {"entered_negative_obstacle", "stopped_before"} and not r.passed
+
+
+def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
+    starts = {round(r.start_gap_m, 6) for r in runs[True]}
+    assert len(starts) == 5  # the station is drawn per seed
+    for r, plain in zip(runs[True], runs[False], strict=True):
+        assert r.start_gap_m == plain.start_gap_m  # same seed, same pit
+        assert not r.entered_negative_obstacle and r.stopped_before
+        assert 0.5 < r.stop_margin_m < 8.0
+        assert r.vetoes > 0 and r.false_vetoes == 0
+        assert r.max_decel_mps2 > 4.0  # a real brake (mu g = 6.4 m/s^2 with locked wheels)
+        assert r.termination == ("stopped",) and r.passed and r.task_done and not r.left_track
+        assert not r.collision and not r.goal_reached and r.time_s < 9.0
+
+
+def test_criteria_check_each_named_bound() -> None:
+    result = ScenarioResult(
+        scenario="x", seed=0, driver="d", filtered=True, steps=10, time_s=1.0,
+        entered_negative_obstacle=False, stopped_before=True, stop_margin_m=2.0, start_gap_m=20.0,
+        collision=False, trapped=False, rollover=False, goal_reached=False, left_track=False,
+        task_done=True, max_decel_mps2=6.0,
+        vetoes=3, false_vetoes=1, termination=("stopped",), truncated=False,
+    )  # fmt: skip
+    assert check_criteria(CriteriaSpec(), result) == ()
+    assert check_criteria(CriteriaSpec(task_done=False), result) == ("task_done",)
+    assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == (
+        "min_stop_margin_m",
+    )
+    assert check_criteria(CriteriaSpec(max_false_vetoes=0, max_vetoes=3, max_time_s=0.5), result) == (
+        "max_false_vetoes",
+        "max_time_s",
+    )
+    assert check_criteria(CriteriaSpec(max_decel_mps2=5.0, goal_reached=True), result) == (
+        "goal_reached",
+        "max_decel_mps2",
+    )
+    none = dataclasses.replace(result, stop_margin_m=None, stopped_before=False)
+    assert check_criteria(CriteriaSpec(min_stop_margin_m=0.0, stopped_before=False), none) == (
+        "min_stop_margin_m",
+    )
+    assert "margin_m=-" in none.line() and math.isfinite(result.time_s)
