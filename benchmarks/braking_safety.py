@@ -1,13 +1,16 @@
 """Braking safety at 25 km/h: the reckless driver on Braking-v0, with and without the safety filter.
 
 Each seeded episode starts at 25 km/h with a 1.0 m long, 3.0 m wide, 0.8 m deep ditch 20-40 m
-ahead. The reckless driver holds full throttle up to 25 km/h and never brakes. The filter
-(``BrakingSafetyFilter``, paper N Eq. 18: mu 0.65, T_r 0.25 s, B 5 m) sees only the detector grid
-(reduced paper N rig + LUX, sensor noise on). An episode ends on entering the ditch, after 2 s at
-standstill, or at the 15 s limit. Prints per-mode counts, stop margins and false vetoes; the last
-line is ``stopped_before=<k>/<n>`` of the filtered runs.
+ahead; a second geometry (``--narrow-length-m``, default 0.5 m along the track, same width and
+depth) repeats the filtered runs with a ditch narrower than 1 m. The reckless driver holds full
+throttle up to 25 km/h and never brakes. The filter (``BrakingSafetyFilter``, paper N Eq. 18:
+mu 0.65, T_r 0.25 s, B 5 m) sees only the detector grid (the default observation: the
+native-resolution paper N rig cast in the grid's ROI + LUX, sensor noise on). An episode ends on
+entering the ditch, after 2 s at standstill, or at the 15 s limit. Prints per-mode counts, stop
+margins and false vetoes; the last lines are ``narrow_stopped_before=<k>/<n>`` and, last,
+``stopped_before=<k>/<n>`` of the filtered runs.
 
-Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2]
+Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow-length-m 0.5]
 """
 
 from __future__ import annotations
@@ -22,15 +25,37 @@ import numpy as np
 
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.drivers import RecklessDriver
+from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.sim import presets
 
 STANDSTILL_MPS = 0.1
 STANDSTILL_S = 2.0
 
 
-def run_episode(seed: int, filtered: bool) -> dict[str, float]:
+class _DitchLengthBraking(BrakingEnv):
+    """Braking-v0 with the ditch ``ditch_length_m`` long along the track."""
+
+    def __init__(self, ditch_length_m: float) -> None:
+        super().__init__()
+        self.ditch_length_m = ditch_length_m
+
+    def _make_terrain(self, rng: np.random.Generator):
+        lo, hi = self.ditch_distance_range_m
+        return presets.braking_track(
+            ditch_distance_m=float(rng.uniform(lo, hi)),
+            ditch_length_m=self.ditch_length_m,
+            seed=int(rng.integers(0, 2**31 - 1)),
+        )
+
+
+def run_episode(seed: int, filtered: bool, ditch_length_m: float | None = None) -> dict[str, float]:
     """One episode; returns whether the ditch was entered, the gap left and the veto counts."""
-    env = gym.make("negobs_gym/Braking-v0")
+    if ditch_length_m is None:
+        env = gym.make("negobs_gym/Braking-v0")
+    else:
+        base = _DitchLengthBraking(ditch_length_m)
+        env = gym.wrappers.TimeLimit(base, max_episode_steps=base.config.max_episode_steps)
     if filtered:
         env = BrakingSafetyFilter(env)
     driver = RecklessDriver()
@@ -64,7 +89,7 @@ def run_episode(seed: int, filtered: bool) -> dict[str, float]:
     }
 
 
-def _run(args: tuple[int, bool]) -> dict[str, float]:
+def _run(args: tuple[int, bool, float | None]) -> dict[str, float]:
     return run_episode(*args)
 
 
@@ -73,14 +98,21 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-baseline", action="store_true", help="skip the unfiltered runs")
+    parser.add_argument(
+        "--narrow-length-m", type=float, default=0.5, help="ditch length along the track, 2nd geometry [m]"
+    )
     args = parser.parse_args()
+    if not 0.3 <= args.narrow_length_m < 1.0:
+        parser.error("--narrow-length-m must be in [0.3, 1.0) m (paper N: w_min 0.30 m)")
     modes = [True] if args.no_baseline else [False, True]
     t0 = time.perf_counter()
     results: dict[bool, list[dict[str, float]]] = {}
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         for filtered in modes:
-            jobs = [(seed, filtered) for seed in range(args.episodes)]
+            jobs = [(seed, filtered, None) for seed in range(args.episodes)]
             results[filtered] = list(pool.map(_run, jobs))
+        jobs = [(seed, True, args.narrow_length_m) for seed in range(args.episodes)]
+        narrow = list(pool.map(_run, jobs))
     for filtered in modes:
         rs = results[filtered]
         name = "filter" if filtered else "no filter"
@@ -96,6 +128,11 @@ def main() -> None:
             if filtered and not r["stopped_before"]:
                 print(f"  seed {r['seed']}: ditch at {r['start_gap_m']:.1f} m, entered={r['entered']}")
     print(f"wall time {time.perf_counter() - t0:.0f} s")
+    for r in narrow:
+        if not r["stopped_before"]:
+            print(f"  narrow seed {r['seed']}: ditch at {r['start_gap_m']:.1f} m, entered={r['entered']}")
+    k = sum(r["stopped_before"] for r in narrow)
+    print(f"narrow_ditch_length_m={args.narrow_length_m} narrow_stopped_before={k}/{len(narrow)}")
     k = sum(r["stopped_before"] for r in results[True])
     print(f"stopped_before={k}/{len(results[True])}")
 

@@ -10,6 +10,9 @@ from negobs_gym.errors import require
 
 __all__ = ["CHANNELS", "EnvConfig", "ObservationConfig", "RewardConfig"]
 
+#: Rigs of the detector observation (see ``ObservationConfig.rig``).
+RIGS: tuple[str, ...] = ("roi", "native", "reduced")
+
 #: Grid channels an observation can carry, in this fixed order.
 CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
 
@@ -21,8 +24,11 @@ class ObservationConfig:
     Attributes:
         source: ``"detector"`` casts the LiDAR rig and stacks the detectors' grids (see
             :mod:`negobs_gym.envs.perception`); ``"oracle"`` rasterises the ground truth (ablations).
-        rig: ``"reduced"`` (paper N's rig at half resolution, for training) or ``"native"``; both
-            carry paper T's bumper LUX.
+        rig: ``"roi"`` (default: paper N's native-resolution rig, casting only the rays that can
+            return a point inside ``grid`` plus the detectors' neighbourhoods; inside the grid the
+            scans equal the native ones, see :mod:`negobs_gym.sensors.roi`), ``"native"`` (the
+            full 360 deg native rig) or ``"reduced"`` (half resolution, blind beyond ~12 m; kept
+            for comparison). All carry paper T's bumper LUX. Recall and rates: docs/performance.md.
         raycast_backend: ``"auto"`` (Embree when ``embreex`` is installed, else PyBullet),
             ``"embree"`` or ``"pybullet"``.
         sensor_noise: Range noise and dropout on the simulated scans.
@@ -34,7 +40,7 @@ class ObservationConfig:
     """
 
     source: str = "detector"
-    rig: str = "reduced"
+    rig: str = "roi"
     raycast_backend: str = "auto"
     sensor_noise: bool = True
     channels: tuple[str, ...] = CHANNELS
@@ -49,7 +55,7 @@ class ObservationConfig:
             "source",
             f"must be 'oracle' or 'detector', got {self.source!r}",
         )
-        require(self.rig in ("native", "reduced"), "rig", f"must be 'native' or 'reduced', got {self.rig!r}")
+        require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         require(
             self.raycast_backend in ("auto", "embree", "pybullet"),
             "raycast_backend",

@@ -13,6 +13,8 @@ detectors get the INS pose, exactly as on a real vehicle. Channels on the observ
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from negobs_gym.core.pose import Pose
@@ -29,6 +31,7 @@ from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
 
@@ -38,9 +41,16 @@ LUX_NAME = "lux"
 
 
 def env_rig(rig: str) -> Rig:
-    """Paper N's rig (``"native"`` or ``"reduced"`` for training) plus paper T's bumper LUX."""
-    base = paper_n_rig() if rig == "native" else paper_n_rig_reduced()
+    """Paper N's rig plus paper T's bumper LUX: native resolution (``"native"``, ``"roi"``) or
+    ``"reduced"``."""
+    base = paper_n_rig_reduced() if rig == "reduced" else paper_n_rig()
     return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig().mounts)
+
+
+@functools.lru_cache(maxsize=4)
+def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
+    """One selector (and its mask cache) per rig and region, shared by the envs of a process."""
+    return RoiSelector(rig, config)
 
 
 class DetectorGrid:
@@ -55,6 +65,13 @@ class DetectorGrid:
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)
         self._caster = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+        self._roi: RoiSelector | None = None
+        if config.rig == "roi":
+            g = config.grid
+            self._roi = roi_selector(
+                self.rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m))
+            )
+            self._heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
         self.traversable = TraversableRegionDetector(grid=config.grid)
         self.scans: dict[str, StructuredScan] = {}
@@ -65,8 +82,17 @@ class DetectorGrid:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
         true_pose = self._vehicle.true_pose()
         ins_pose: Pose = self._vehicle.pose()
+        subsets = None
+        if self._roi is not None:
+            subsets = self._roi.subsets(*self._heights.band(true_pose, self._roi.config.region_xy_m))
         self.scans = scan_rig(
-            self.rig, self._caster, true_pose, noise=self._noise, rng=self._rng, timestamp_s=timestamp_s
+            self.rig,
+            self._caster,
+            true_pose,
+            noise=self._noise,
+            rng=self._rng,
+            timestamp_s=timestamp_s,
+            subsets=subsets,
         )
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
