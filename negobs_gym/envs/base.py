@@ -6,6 +6,7 @@ Scenarios subclass :class:`NegObsEnv` and implement :meth:`NegObsEnv._make_terra
 from __future__ import annotations
 
 import abc
+import copy
 import logging
 import math
 from typing import Any
@@ -19,6 +20,7 @@ from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels, state_space, state_vector
 from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
+from negobs_gym.envs.world_cache import CachedWorld, WorldCache, build_world, generator_key
 from negobs_gym.errors import ActionError
 from negobs_gym.safety.braking import BrakingConfig
 from negobs_gym.safety.protocol import HazardState
@@ -73,8 +75,10 @@ class NegObsEnv(gym.Env, abc.ABC):
         obs_cfg = self.config.observation
         self.observation_space = spaces.Dict({"grid": grid_space(obs_cfg), "state": state_space(obs_cfg)})
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self._world_config = WorldConfig()
-        self._substeps = max(1, round(1.0 / (self.config.control_hz * self._world_config.time_step_s)))
+        self._world_config = WorldConfig(time_step_s=self.config.physics_time_step_s)
+        self._worlds = WorldCache(self.config.world_cache_size)
+        self._entry: CachedWorld | None = None
+        self._substeps = self.config.physics_substeps
         self._world: World | None = None
         self._vehicle: Vehicle | None = None
         self._monitor: EventMonitor | None = None
@@ -98,14 +102,13 @@ class NegObsEnv(gym.Env, abc.ABC):
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self._close_world()
-        self.terrain = self._make_terrain(self.np_random)
-        self._world = World(self.terrain, self._world_config)
-        self._vehicle = Vehicle(self._world)
-        sx, sy, syaw = self.terrain.start_xy_yaw
-        self._vehicle.reset(Pose(x=sx, y=sy, yaw=syaw))
-        self._monitor = EventMonitor(self._world, self._vehicle)
-        self._world.step(max(0, round(self.config.settle_time_s / self._world_config.time_step_s)))
+        self._entry = self._acquire_world()
+        self.terrain = self._entry.terrain
+        self._world, self._vehicle, self._monitor = (
+            self._entry.world,
+            self._entry.vehicle,
+            self._entry.monitor,
+        )
         if self.config.start_speed_mps > 0:
             self._vehicle.set_speed(self.config.start_speed_mps)
         self._monitor.reset()
@@ -113,7 +116,7 @@ class NegObsEnv(gym.Env, abc.ABC):
         self._perception = None
         self._oracle = None
         if self.config.observation.source == "detector":
-            self._start_perception()
+            self._start_perception(observe=False)  # _observe below takes the first frame
         else:
             self._oracle = OracleGrid(self.config.observation, self.terrain)
         self._station = self._station_of(self._vehicle.true_pose())
@@ -209,11 +212,33 @@ class NegObsEnv(gym.Env, abc.ABC):
 
     # -- internals -----------------------------------------------------------------------------
     def _close_world(self) -> None:
-        if self._monitor is not None:
-            self._monitor.detach()
-        if self._world is not None:
-            self._world.close()
-        self._world = self._vehicle = self._monitor = None
+        self._worlds.close()
+        self._world = self._vehicle = self._monitor = self._entry = None
+
+    def _acquire_world(self) -> CachedWorld:
+        """This episode's settled world: kept from an earlier episode on the same terrain, or built.
+
+        Without a terrain pool the key is the generator's state before the terrain draw (the
+        generator is moved on exactly as a build would); with ``terrain_pool_size`` the terrain is
+        the pool's ``k``-th (its own generator seeded with ``k``), ``k`` drawn from the env's.
+        """
+        pool = self.config.terrain_pool_size
+        if pool is None:
+            key, terrain_rng = generator_key(self.np_random), self.np_random
+        else:
+            index = int(self.np_random.integers(pool))
+            key, terrain_rng = f"pool-{index}", np.random.default_rng(index)
+        entry = self._worlds.get(key)
+        if entry is None:
+            settle = max(0, round(self.config.settle_time_s / self._world_config.time_step_s))
+            entry = build_world(self._make_terrain(terrain_rng), self._world_config, settle)
+            if pool is None:
+                entry.rng_state_after_terrain = copy.deepcopy(self.np_random.bit_generator.state)
+            self._worlds.put(key, entry)
+        elif pool is None:
+            self.np_random.bit_generator.state = copy.deepcopy(entry.rng_state_after_terrain)
+        entry.restore()
+        return entry
 
     def hazard_state(self) -> HazardState:
         """Hazards for :class:`~negobs_gym.safety.BrakingSafetyFilter` (protocol in ``safety.protocol``).
@@ -238,9 +263,12 @@ class NegObsEnv(gym.Env, abc.ABC):
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
         )
 
-    def _start_perception(self) -> None:
-        self._perception = DetectorGrid(self.config.observation, self._world, self._vehicle, self._sensor_rng)
-        self._last_layers = self._perception.observe(self._world.sim_time_s)
+    def _start_perception(self, observe: bool = True) -> None:
+        self._perception = DetectorGrid(
+            self.config.observation, self._world, self._vehicle, self._sensor_rng, cache=self._entry.extras
+        )
+        if observe:
+            self._last_layers = self._perception.observe(self._world.sim_time_s)
 
     def _layers(self, pose: Pose) -> dict[str, np.ndarray]:
         if self._perception is not None:

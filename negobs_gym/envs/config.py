@@ -121,20 +121,31 @@ class EnvConfig:
     """Episode settings shared by all negobs envs.
 
     Attributes:
-        control_hz: Control rate [Hz]; physics runs ``1 / (control_hz * time_step_s)`` sub-steps.
+        control_hz: Control rate [Hz].
+        physics_substeps: Physics steps per control step; the physics time step is
+            ``1 / (control_hz * physics_substeps)`` (12 at 10 Hz = 1/120 s: the full-brake distance
+            from 25 km/h stays within 10 % of v^2 / (2 mu g), ``tests/envs/test_physics_substeps``).
         time_limit_s: Episode length before truncation [s].
         start_speed_mps: Initial forward speed [m/s] (paper N §4: 25 km/h for braking).
         goal_radius_m: Reaching within this distance of the goal ends the episode [m].
         settle_time_s: Physics time to let the suspension settle at reset [s].
+        world_cache_size: Settled worlds kept between episodes (see :mod:`negobs_gym.envs.world_cache`);
+            a reset onto a kept terrain restores it in milliseconds instead of building it (~1.2 s).
+        terrain_pool_size: None = a new terrain every episode; k = episodes draw one of k fixed
+            terrains (terrain ``i`` is the scenario's terrain from ``default_rng(i)``), so with
+            ``world_cache_size >= k`` resets are cheap after the first k (Procgen-style levels).
         observation: See :class:`ObservationConfig`.
         reward: See :class:`RewardConfig`.
     """
 
     control_hz: float = 10.0  # SPEC §6: 10 Hz control
+    physics_substeps: int = 12  # papers silent; 120 Hz physics, see docstring
     time_limit_s: float = 30.0
     start_speed_mps: float = 0.0
     goal_radius_m: float = 3.0
     settle_time_s: float = 0.25
+    world_cache_size: int = 1
+    terrain_pool_size: int | None = None
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
 
@@ -143,6 +154,12 @@ class EnvConfig:
             math.isfinite(self.control_hz) and 1.0 <= self.control_hz <= 60.0,
             "control_hz",
             "must be in [1, 60] Hz",
+        )
+        require(
+            isinstance(self.physics_substeps, int)
+            and 1.0 / 1000.0 <= 1.0 / (self.control_hz * max(1, self.physics_substeps)) <= 1.0 / 60.0,
+            "physics_substeps",
+            f"must be an int giving a physics step in [1/1000, 1/60] s, got {self.physics_substeps!r}",
         )
         require(math.isfinite(self.time_limit_s) and self.time_limit_s > 0, "time_limit_s", "must be > 0")
         require(
@@ -155,9 +172,25 @@ class EnvConfig:
             math.isfinite(self.settle_time_s) and self.settle_time_s >= 0, "settle_time_s", "must be >= 0"
         )
         require(
+            isinstance(self.world_cache_size, int) and self.world_cache_size >= 1,
+            "world_cache_size",
+            f"must be an int >= 1, got {self.world_cache_size!r}",
+        )
+        require(
+            self.terrain_pool_size is None
+            or (isinstance(self.terrain_pool_size, int) and self.terrain_pool_size >= 1),
+            "terrain_pool_size",
+            f"must be None or an int >= 1, got {self.terrain_pool_size!r}",
+        )
+        require(
             isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"
         )
         require(isinstance(self.reward, RewardConfig), "reward", "must be a RewardConfig")
+
+    @property
+    def physics_time_step_s(self) -> float:
+        """Physics time step [s]."""
+        return 1.0 / (self.control_hz * self.physics_substeps)
 
     @property
     def max_episode_steps(self) -> int:

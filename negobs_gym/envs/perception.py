@@ -57,21 +57,34 @@ class DetectorGrid:
     """Runs the rig and both detectors each control step; keeps the last frame for rendering."""
 
     def __init__(
-        self, config: ObservationConfig, world: World, vehicle: Vehicle, rng: np.random.Generator
+        self,
+        config: ObservationConfig,
+        world: World,
+        vehicle: Vehicle,
+        rng: np.random.Generator,
+        cache: dict | None = None,
     ) -> None:
+        """``cache`` (one dict per world, e.g. ``CachedWorld.extras``) keeps the ray caster and the
+        height envelope of ``world`` for the next episode on it."""
         self.config = config
         self.rig = env_rig(config.rig)
         self._vehicle = vehicle
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)
-        self._caster = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+        cache = {} if cache is None else cache
+        key = ("caster", config.raycast_backend)
+        if key not in cache:
+            cache[key] = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+        self._caster = cache[key]
         self._roi: RoiSelector | None = None
         if config.rig == "roi":
             g = config.grid
             self._roi = roi_selector(
                 self.rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m))
             )
-            self._heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+            if "heights" not in cache:
+                cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+            self._heights = cache["heights"]
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
         self.traversable = TraversableRegionDetector(grid=config.grid)
         self.scans: dict[str, StructuredScan] = {}
