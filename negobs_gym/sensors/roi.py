@@ -118,7 +118,8 @@ class HeightEnvelope:
 
     ``top`` is the terrain height raised to the AABB top of each static body over its footprint,
     ``bottom`` the terrain height lowered to each body's AABB bottom. :meth:`band` turns them into
-    vehicle-frame bounds over a region at a pose.
+    vehicle-frame bounds over a region at a pose, adding the current AABBs of the world's moving
+    bodies (other vehicles) that are not excluded.
     """
 
     def __init__(self, world: World, exclude_body_ids: Iterable[int] = ()) -> None:
@@ -130,7 +131,9 @@ class HeightEnvelope:
         h = np.asarray(hf.heights_m, dtype=np.float64)
         self.top = h.copy()
         self.bottom = h.copy()
-        exclude = {int(b) for b in exclude_body_ids} | set(world.dynamic_body_ids())
+        self._world = world
+        self._exclude = {int(b) for b in exclude_body_ids}
+        exclude = self._exclude | set(world.dynamic_body_ids())
         c = world.client_id
         for k in range(p.getNumBodies(physicsClientId=c)):
             body = p.getBodyUniqueId(k, physicsClientId=c)
@@ -179,7 +182,25 @@ class HeightEnvelope:
         z_top = (plane + rot[2, 2] * top)[inside]
         z_bottom = (plane + rot[2, 2] * bottom)[inside]
         tilt = res * (abs(rot[0, 2]) + abs(rot[1, 2]))
-        return float(z_bottom.min()) - tilt, float(z_top.max()) + tilt
+        z_lo, z_hi = float(z_bottom.min()) - tilt, float(z_top.max()) + tilt
+        for z in self._moving_z(pose):
+            z_lo, z_hi = min(z_lo, z), max(z_hi, z)
+        return z_lo, z_hi
+
+    def _moving_z(self, pose: Pose) -> list[float]:
+        """Vehicle-frame z of the AABB corners of the moving bodies not excluded."""
+        import pybullet as p
+
+        c = self._world.client_id
+        out: list[float] = []
+        for body in self._world.dynamic_body_ids():
+            if body in self._exclude:
+                continue
+            for link in range(-1, p.getNumJoints(body, physicsClientId=c)):
+                lo, hi = p.getAABB(body, link, physicsClientId=c)
+                corners = np.array(np.meshgrid(*zip(lo, hi, strict=True))).reshape(3, -1).T
+                out.extend(pose.to_vehicle(corners)[:, 2].tolist())
+        return out
 
 
 class RoiSelector:
