@@ -10,6 +10,9 @@ Configurations (the env's registered config with ``ObservationConfig`` changed):
 - ``rig=reduced``: the old half-resolution rig;
 - ``obs=oracle``: the ground-truth grid (no sensors), for comparison.
 
+Reset cost: the mean over 40 episodes with a new seed each, with a new terrain every episode
+(the default) and with ``terrain_pool_size=8`` (kept worlds restored instead of built).
+
 Per-stage milliseconds per control step (one process, the default rig) are measured by wrapping
 the stages' functions with timers: physics (``World.step``, of which the event checks), scan
 synthesis, paper N's detector, paper T's detector, the rest of the step (observation stacking,
@@ -67,10 +70,15 @@ def _drive(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int]:
 
 
 class StageTimer:
-    """Wraps functions with accumulating wall-clock timers (restored on exit)."""
+    """Wraps functions with accumulating wall-clock and process-CPU timers (restored on exit).
+
+    CPU time (all threads of this process) is what a stage costs whatever else loads the
+    machine; wall time is what a trainer waits.
+    """
 
     def __init__(self) -> None:
         self.total_s: dict[str, float] = defaultdict(float)
+        self.cpu_s: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
         self._undo: list[Callable[[], None]] = []
 
@@ -78,11 +86,12 @@ class StageTimer:
         original = getattr(owner, attr)
 
         def timed(*args, **kwargs):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return original(*args, **kwargs)
             finally:
                 self.total_s[stage] += time.perf_counter() - t0
+                self.cpu_s[stage] += time.process_time() - c0
                 self.calls[stage] += 1
 
         setattr(owner, attr, timed)
@@ -96,8 +105,11 @@ class StageTimer:
             undo()
 
 
-def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[dict[str, float], float, int]:
-    """Milliseconds per control step by stage (reset: per reset), steps/s and the reset count."""
+Stages = dict[str, float]
+
+
+def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[Stages, Stages, float, int]:
+    """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s, resets."""
     env = _make(env_id, "detector", rig)()
     env.reset(seed=0)  # first make/reset (imports, first masks) outside the timing
     with StageTimer() as timer:
@@ -110,19 +122,43 @@ def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[dict[str, float]
         timer.wrap(env_base.NegObsEnv, "reset", "reset")
         sps, resets = _drive(env, steps, seed=1)
     env.close()
-    t = timer.total_s
-    ms = {
-        "physics": 1e3 * t["physics"] / steps,
-        "events": 1e3 * t["events"] / steps,
-        "scan": 1e3 * t["scan"] / steps,
-        "paper_n": 1e3 * t["paper_n"] / steps,
-        "paper_t": 1e3 * t["paper_t"] / steps,
-    }
+    resets_timed = max(0, timer.calls["reset"] - 1)  # _drive's first reset is not a step's
+    wall = _per_step(timer.total_s, steps, resets_timed)
+    return wall, _per_step(timer.cpu_s, steps, resets_timed), sps, resets
+
+
+def _per_step(t: dict[str, float], steps: int, resets: int) -> dict[str, float]:
+    ms = {k: 1e3 * t[k] / steps for k in ("physics", "events", "scan", "paper_n", "paper_t")}
     inner = t["physics"] + t["scan"] + t["paper_n"] + t["paper_t"]
     ms["other"] = 1e3 * (t["step"] - inner) / steps
-    ms["reset_per_reset"] = 1e3 * t["reset"] / max(1, timer.calls["reset"])
-    ms["reset_per_step"] = 1e3 * t["reset"] / steps
-    return ms, sps, resets
+    ms["reset_per_reset"] = 1e3 * t["reset"] / max(1, resets + 1) if resets else float("nan")
+    return ms
+
+
+def reset_stream_s(env_id: str, resets: int, pool: int | None) -> float:
+    """Mean seconds per reset over ``resets`` episodes (a new seed each), default observation.
+
+    ``pool``: ``EnvConfig.terrain_pool_size`` (and as many kept worlds); None = a new terrain each.
+    """
+    spec_id = f"negobs_gym:{env_id}"
+    probe = gym.make(spec_id)
+    cfg = probe.unwrapped.default_config()
+    probe.close()
+    if pool is not None:
+        cfg = dataclasses.replace(cfg, terrain_pool_size=pool, world_cache_size=pool)
+    env = gym.make(spec_id, config=cfg)
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    for k in range(resets):
+        env.reset(seed=1000 + k)
+        env.step(ACTION)
+    dt = time.perf_counter() - t0
+    env.close()
+    return dt / resets
+
+
+def _fmt(ms: dict[str, float]) -> str:
+    return " ".join(f"{k}={v:.2f}" for k, v in ms.items())
 
 
 def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> float:
@@ -161,9 +197,12 @@ def main() -> None:
             label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
             sps, _ = _drive(_make(args.env_id, source, rig)(), max(20, args.steps // 4))
             print(f"{label} processes=1 steps_per_s={sps:.1f}")
-    ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
-    stages = " ".join(f"{k}={v:.2f}" for k, v in ms.items())
-    print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {stages}")
+    for pool in (None, 8):
+        mean_s = reset_stream_s(args.env_id, 40, pool)
+        print(f"reset_s_mean terrain_pool={pool} over 40 episodes: {mean_s:.3f}")
+    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
+    print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
+    print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
     vec = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
     print(f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f}")
     print(f"train_steps_per_s={sps:.1f}")

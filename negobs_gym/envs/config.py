@@ -31,6 +31,9 @@ class ObservationConfig:
             for comparison). All carry paper T's bumper LUX. Recall and rates: docs/performance.md.
         raycast_backend: ``"auto"`` (Embree when ``embreex`` is installed, else PyBullet),
             ``"embree"`` or ``"pybullet"``.
+        raycast_threads: Threads per Embree cast; None = 2 (at most the CPU count) in a main
+            process and 1 in a worker process of a vector env, whose processes already share the
+            cores (workers also pin numpy's BLAS to 1 thread; measured in docs/performance.md).
         sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
@@ -42,6 +45,7 @@ class ObservationConfig:
     source: str = "detector"
     rig: str = "roi"
     raycast_backend: str = "auto"
+    raycast_threads: int | None = None
     sensor_noise: bool = True
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
@@ -60,6 +64,12 @@ class ObservationConfig:
             self.raycast_backend in ("auto", "embree", "pybullet"),
             "raycast_backend",
             f"must be 'auto', 'embree' or 'pybullet', got {self.raycast_backend!r}",
+        )
+        require(
+            self.raycast_threads is None
+            or (isinstance(self.raycast_threads, int) and 1 <= self.raycast_threads <= 64),
+            "raycast_threads",
+            f"must be None or an int in [1, 64], got {self.raycast_threads!r}",
         )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(

@@ -14,6 +14,8 @@ detectors get the INS pose, exactly as on a real vehicle. Channels on the observ
 from __future__ import annotations
 
 import functools
+import multiprocessing
+import os
 
 import numpy as np
 
@@ -47,6 +49,27 @@ def env_rig(rig: str) -> Rig:
     return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig().mounts)
 
 
+def cast_threads(config: ObservationConfig) -> int:
+    """Ray-cast threads: the config's, else 1 in a worker process (after pinning its BLAS to 1
+    thread), else 2 (at most the CPU count)."""
+    if config.raycast_threads is not None:
+        return config.raycast_threads
+    if multiprocessing.parent_process() is not None:
+        _pin_blas_threads()
+        return 1
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+@functools.cache
+def _pin_blas_threads() -> None:
+    """One BLAS thread in this process (vector-env workers already fill the cores)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # scikit-learn brings it; without it the BLAS keeps its default
+        return
+    threadpool_limits(limits=1, user_api="blas")
+
+
 @functools.lru_cache(maxsize=4)
 def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
     """One selector (and its mask cache) per rig and region, shared by the envs of a process."""
@@ -72,9 +95,12 @@ class DetectorGrid:
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)
         cache = {} if cache is None else cache
-        key = ("caster", config.raycast_backend)
+        threads = cast_threads(config)
+        key = ("caster", config.raycast_backend, threads)
         if key not in cache:
-            cache[key] = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+            cache[key] = make_caster(
+                world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,), threads=threads
+            )
         self._caster = cache[key]
         self._roi: RoiSelector | None = None
         if config.rig == "roi":

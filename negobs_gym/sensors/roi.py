@@ -54,8 +54,9 @@ class RoiConfig:
         column_margin: Columns either side also cast: max filter 3 + edge half-window 2 + bump
             side window 5 + density columns 2 (``Hdl64FeatureConfig``) + 4 spare; the HDL-32's
             same-laser density window (8) is inside it.
-        height_step_m: Height bands are rounded outwards to multiples of this [m], so a few masks
-            serve a whole drive (the papers are silent; 0.5 m keeps ~10 bands on a hilly course).
+        height_step_m: Height bands are rounded outwards to multiples of this [m] and computed one
+            step wider, so a few masks serve a whole drive (the papers are silent; 0.25 m: a
+            finer step casts fewer rays but recomputes masks more often).
         full_sensors: Sensors always cast in full (paper T reads the whole LUX frame; it is small).
         cache_size: Masks kept (least recently used dropped first).
     """
@@ -63,9 +64,9 @@ class RoiConfig:
     region_xy_m: tuple[float, float, float, float] = (-6.4, 6.4, -3.2, 25.6)
     laser_margin: int = 8
     column_margin: int = 16
-    height_step_m: float = 0.5
+    height_step_m: float = 0.25
     full_sensors: tuple[str, ...] = ("lux",)
-    cache_size: int = 64
+    cache_size: int = 16
 
     def __post_init__(self) -> None:
         x0, x1, y0, y1 = (float(v) for v in self.region_xy_m)
@@ -84,15 +85,20 @@ class RoiConfig:
 
 @dataclass(frozen=True)
 class RaySubset:
-    """The rays of one sensor to cast: flat (laser-major) indices and their vehicle-frame directions."""
+    """The rays of one sensor to cast: flat (laser-major) indices into its full direction table."""
 
-    index: np.ndarray  # (k,) int64, increasing
-    directions_vehicle: np.ndarray  # (k, 3) unit vectors
+    index: np.ndarray  # (k,) int32, increasing
+    all_directions_vehicle: np.ndarray  # (lasers * columns, 3) unit vectors of the whole scan
 
     @property
     def size(self) -> int:
         """Number of rays."""
         return int(self.index.size)
+
+    @property
+    def directions_vehicle(self) -> np.ndarray:
+        """(k, 3) vehicle-frame unit directions of the rays (gathered on use: masks stay small)."""
+        return self.all_directions_vehicle[self.index]
 
 
 def rays_meeting_box(
@@ -211,7 +217,9 @@ class RoiSelector:
         self.config = config if config is not None else RoiConfig()
         self._directions = {mt.name: directions_vehicle(mt) for mt in rig.mounts}
         self._full = {
-            mt.name: RaySubset(np.arange(len(self._directions[mt.name])), self._directions[mt.name])
+            mt.name: RaySubset(
+                np.arange(len(self._directions[mt.name]), dtype=np.int32), self._directions[mt.name]
+            )
             for mt in rig.mounts
         }
         self._cache: OrderedDict[tuple[int, int], dict[str, RaySubset]] = OrderedDict()
@@ -222,12 +230,18 @@ class RoiSelector:
         return math.floor(z_min_m / step), math.ceil(z_max_m / step)
 
     def subsets(self, z_min_m: float, z_max_m: float) -> dict[str, RaySubset]:
-        """Rays to cast per sensor when every surface in the region lies in [z_min_m, z_max_m]."""
-        key = self.band_key(z_min_m, z_max_m)
-        hit = self._cache.get(key)
-        if hit is not None:
-            self._cache.move_to_end(key)
-            return hit
+        """Rays to cast per sensor when every surface in the region lies in [z_min_m, z_max_m].
+
+        A cached band that contains the asked one serves it (its rays are a superset, so the scan
+        inside the region is the same); otherwise a band one step wider each way is computed, so
+        that small height changes along a drive keep hitting the cache.
+        """
+        lo, hi = self.band_key(z_min_m, z_max_m)
+        for key in reversed(self._cache):  # most recently used first
+            if key[0] <= lo and key[1] >= hi:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+        key = (lo - 1, hi + 1)
         step = self.config.height_step_m
         out = {mt.name: self._subset(mt, key[0] * step, key[1] * step) for mt in self.rig.mounts}
         self._cache[key] = out
@@ -254,5 +268,5 @@ class RoiSelector:
     def _subset(self, mount: SensorMount, z_lo_m: float, z_hi_m: float) -> RaySubset:
         if mount.name in self.config.full_sensors:
             return self._full[mount.name]
-        index = np.flatnonzero(self.mask(mount, z_lo_m, z_hi_m))
-        return RaySubset(index, self._directions[mount.name][index])
+        index = np.flatnonzero(self.mask(mount, z_lo_m, z_hi_m)).astype(np.int32)
+        return RaySubset(index, self._directions[mount.name])

@@ -71,7 +71,9 @@ def test_upper_lasers_are_skipped_and_the_lux_is_cast_in_full():
     assert per_laser[-1] == 0 and per_laser[0] > 0  # above the horizon: nothing in the region
     assert subsets["hdl64"].size < 0.6 * mask.size
     assert subsets["lux"].size == RIG.mount("lux").model.n_lasers * RIG.mount("lux").model.n_columns
-    assert sel.subsets(-0.4, 0.4) is subsets  # same quantised band: cached
+    assert sel.subsets(-0.4, 0.4) is subsets  # a cached band containing the asked one serves it
+    wider = sel.subsets(-1.5, 0.5)
+    assert wider is not subsets and wider["hdl64"].size >= subsets["hdl64"].size
 
 
 def _vehicle_at(world: World, distance_m: float, ditch_y_m: float) -> Vehicle:
