@@ -123,7 +123,7 @@ class DetectorGrid:
         ins_pose: Pose = self._vehicle.pose()
         subsets = None
         if self._roi is not None:
-            subsets = self._roi.subsets(*self._heights.band(true_pose, self._roi.config.region_xy_m))
+            subsets = self._roi.subsets_for_bands(self._heights.bands(true_pose, self._roi.tiles))
         self.scans = scan_rig(
             self.rig,
             self._caster,

@@ -5,16 +5,17 @@ for the features of those returns, their neighbours in the range image (paper N 
 5-neighbourhood edges, bump sides, density window, the A/C search on the lasers below/above). A
 ray is cast when
 
-1. its straight path within the sensor's range meets the box ``region x [z_lo, z_hi]`` in the
-   vehicle frame, where ``[z_lo, z_hi]`` bounds every surface in the region (terrain and static
-   bodies, from the world's physics heightfield and body AABBs, at the current true pose), so any
-   ray whose first hit lies in the region is in this set; or
+1. its straight path within the sensor's range meets, over one tile of the region (the region is
+   split into a few boxes), the tile's height band ``[z_lo, z_hi]`` in the vehicle frame, which
+   bounds every surface over that tile (terrain and static bodies from the world's physics
+   heightfield and body AABBs, other vehicles' AABBs, at the current true pose): any ray whose
+   first hit lies in the region is in this set; or
 2. it lies within ``laser_margin`` lasers and ``column_margin`` columns of such a ray in the range
    image (the features' neighbourhoods; columns wrap around a 360 deg sensor's seam).
 
 Per laser this is an azimuth window; lasers whose cone cannot reach the region are skipped. Masks
-depend only on the rig, the region and the quantised height band, so they are computed once per
-band and cached. The scan keeps the native shape: rays not cast are NaN (no return), rays cast
+depend only on the rig, the tiles and their quantised height bands, so they are computed once per
+set of bands and cached. The scan keeps the native shape: rays not cast are NaN (no return), rays cast
 carry exactly the native scan's ranges, noise included (counter-based noise keyed per ray, see
 :func:`~negobs_gym.sensors.noise.apply_keyed_noise`).
 """
@@ -57,6 +58,10 @@ class RoiConfig:
         height_step_m: Height bands are rounded outwards to multiples of this [m] and computed one
             step wider, so a few masks serve a whole drive (the papers are silent; 0.25 m: a
             finer step casts fewer rays but recomputes masks more often).
+        tiles: (across, along) split of the region into boxes with their own height band, so a
+            tall obstacle or a crest in one part does not widen the band everywhere (papers
+            silent; 4 x 4 = boxes of 3.2 m x 7.2 m on the envs' grid: 23 % fewer rays than one box on
+            OffroadNav, finer splits gain < 2 % more).
         full_sensors: Sensors always cast in full (paper T reads the whole LUX frame; it is small).
         cache_size: Masks kept (least recently used dropped first).
     """
@@ -65,6 +70,7 @@ class RoiConfig:
     laser_margin: int = 8
     column_margin: int = 16
     height_step_m: float = 0.25
+    tiles: tuple[int, int] = (4, 4)
     full_sensors: tuple[str, ...] = ("lux",)
     cache_size: int = 16
 
@@ -81,6 +87,11 @@ class RoiConfig:
             require(isinstance(v, int) and v >= 0, name, f"must be an int >= 0, got {v!r}")
         require(math.isfinite(self.height_step_m) and self.height_step_m > 0, "height_step_m", "must be > 0")
         require(isinstance(self.cache_size, int) and self.cache_size >= 1, "cache_size", "must be >= 1")
+        require(
+            len(self.tiles) == 2 and all(isinstance(n, int) and 1 <= n <= 16 for n in self.tiles),
+            "tiles",
+            f"must be two ints in [1, 16], got {self.tiles!r}",
+        )
 
 
 @dataclass(frozen=True)
@@ -99,24 +110,6 @@ class RaySubset:
     def directions_vehicle(self) -> np.ndarray:
         """(k, 3) vehicle-frame unit directions of the rays (gathered on use: masks stay small)."""
         return self.all_directions_vehicle[self.index]
-
-
-def rays_meeting_box(
-    origin: np.ndarray, directions: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_range_m: float
-) -> np.ndarray:
-    """Mask of rays ``origin + t d`` (0 <= t <= max_range_m) that meet the box [lo, hi] (slab test)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / directions
-        t0 = (lo - origin) * inv
-        t1 = (hi - origin) * inv
-    # a zero direction component: inside the slab -> unbounded, outside -> empty
-    zero = directions == 0.0
-    inside = (origin >= lo) & (origin <= hi)
-    t_near = np.where(zero, np.where(inside, -np.inf, np.inf), np.minimum(t0, t1))
-    t_far = np.where(zero, np.where(inside, np.inf, -np.inf), np.maximum(t0, t1))
-    enter = np.maximum(t_near.max(axis=1), 0.0)
-    leave = np.minimum(t_far.min(axis=1), max_range_m)
-    return enter <= leave
 
 
 class HeightEnvelope:
@@ -162,36 +155,49 @@ class HeightEnvelope:
         return slice(j0, j1 + 1), slice(i0, i1 + 1)
 
     def band(self, pose: Pose, region_xy_m: tuple[float, float, float, float]) -> tuple[float, float]:
-        """Vehicle-frame (z_min, z_max) of all surfaces over the region's footprint at ``pose``.
+        """Vehicle-frame (z_min, z_max) of all surfaces over the region's footprint at ``pose``."""
+        (band,) = self.bands(pose, [region_xy_m])
+        return band if band is not None else (0.0, 0.0)
 
-        Samples count whose vehicle-frame xy lies within the region grown by one sample spacing
-        (a surface between samples is bounded by the samples around it); the height change of a
-        tilted frame across one spacing is added. Outside the heightfield nothing is hit.
+    def bands(
+        self, pose: Pose, boxes_xy_m: list[tuple[float, float, float, float]]
+    ) -> list[tuple[float, float] | None]:
+        """Per vehicle-frame box, (z_min, z_max) of all surfaces over its footprint at ``pose``.
+
+        Samples count whose vehicle-frame xy (at their bottom or top height) lies within the box
+        grown by 1.5 sample spacings (a surface between samples is bounded by the samples around
+        it); the height change of a tilted frame across one spacing is added. None: no surface
+        (outside the heightfield, no moving body), nothing can be hit there.
         """
-        x0, x1, y0, y1 = region_xy_m
         res = self.resolution_m
+        boxes = np.asarray(boxes_xy_m, dtype=np.float64).reshape(-1, 4)
+        x0, x1 = boxes[:, 0].min(), boxes[:, 1].max()
+        y0, y1 = boxes[:, 2].min(), boxes[:, 3].max()
         corners = pose.to_world(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0]]))
-        lo, hi = corners.min(axis=0) - res, corners.max(axis=0) + res
+        lo, hi = corners.min(axis=0) - 2 * res, corners.max(axis=0) + 2 * res
         rows, cols = self._slice(lo[0], hi[0], lo[1], hi[1])
         rot = pose.rotation  # vehicle coordinates = rot.T @ (p - t)
-        xs = self.origin_m[0] + res * np.arange(cols.start, cols.stop) - pose.x
-        ys = self.origin_m[1] + res * np.arange(rows.start, rows.stop) - pose.y
+        xs = (self.origin_m[0] + res * np.arange(cols.start, cols.stop) - pose.x)[None, :]
+        ys = (self.origin_m[1] + res * np.arange(rows.start, rows.stop) - pose.y)[:, None]
         top = self.top[rows, cols] - pose.z
         bottom = self.bottom[rows, cols] - pose.z
-        pad = res * 1.5
-        vx = rot[0, 0] * xs[None, :] + rot[1, 0] * ys[:, None] + rot[2, 0] * bottom
-        vy = rot[0, 1] * xs[None, :] + rot[1, 1] * ys[:, None] + rot[2, 1] * bottom
-        inside = (vx >= x0 - pad) & (vx <= x1 + pad) & (vy >= y0 - pad) & (vy <= y1 + pad)
-        if not inside.any():
-            return 0.0, 0.0
-        plane = rot[0, 2] * xs[None, :] + rot[1, 2] * ys[:, None]
-        z_top = (plane + rot[2, 2] * top)[inside]
-        z_bottom = (plane + rot[2, 2] * bottom)[inside]
+        pad = 1.5 * res
+        vx_plane, vy_plane = rot[0, 0] * xs + rot[1, 0] * ys, rot[0, 1] * xs + rot[1, 1] * ys
+        vx = np.stack([vx_plane + rot[2, 0] * bottom, vx_plane + rot[2, 0] * top])
+        vy = np.stack([vy_plane + rot[2, 1] * bottom, vy_plane + rot[2, 1] * top])
+        plane = rot[0, 2] * xs + rot[1, 2] * ys
+        z_top = plane + rot[2, 2] * top
+        z_bottom = plane + rot[2, 2] * bottom
         tilt = res * (abs(rot[0, 2]) + abs(rot[1, 2]))
-        z_lo, z_hi = float(z_bottom.min()) - tilt, float(z_top.max()) + tilt
-        for z in self._moving_z(pose):
-            z_lo, z_hi = min(z_lo, z), max(z_hi, z)
-        return z_lo, z_hi
+        moving = self._moving_z(pose)
+        out: list[tuple[float, float] | None] = []
+        for bx0, bx1, by0, by1 in boxes:
+            inside = ((vx >= bx0 - pad) & (vx <= bx1 + pad) & (vy >= by0 - pad) & (vy <= by1 + pad)).any(0)
+            zs = list(moving)
+            if inside.any():
+                zs += [float(z_bottom[inside].min()) - tilt, float(z_top[inside].max()) + tilt]
+            out.append((min(zs), max(zs)) if zs else None)
+        return out
 
     def _moving_z(self, pose: Pose) -> list[float]:
         """Vehicle-frame z of the AABB corners of the moving bodies not excluded."""
@@ -209,8 +215,51 @@ class HeightEnvelope:
         return out
 
 
+_EMPTY = (10**9, -(10**9))  # band key of a tile with nothing to hit: contained in any band
+
+
+@dataclass(frozen=True)
+class _TileRays:
+    """The rays of one sensor whose path crosses one tile's xy box, with their z range there."""
+
+    index: np.ndarray  # (k,) int32
+    z_min_m: np.ndarray  # (k,) lowest z of the ray over the tile [m]
+    z_max_m: np.ndarray  # (k,) highest z of the ray over the tile [m]
+
+
+def tile_rays(
+    origin: np.ndarray,
+    directions: np.ndarray,
+    box_xy_m: tuple[float, float, float, float],
+    max_range_m: float,
+) -> _TileRays:
+    """Rays ``origin + t d`` (0 <= t <= max_range_m) crossing the xy box, and their z span inside it."""
+    x0, x1, y0, y1 = box_xy_m
+    inf = np.full(len(directions), np.inf)
+    t_near, t_far = np.zeros(len(directions)), np.full(len(directions), max_range_m)
+    for axis, (lo, hi) in enumerate(((x0, x1), (y0, y1))):
+        d = directions[:, axis]
+        o = origin[axis]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (lo - o) / d, (hi - o) / d
+        parallel = d == 0.0
+        inside = lo <= o <= hi
+        near = np.where(parallel, np.where(inside, -inf, inf), np.minimum(t0, t1))
+        far = np.where(parallel, np.where(inside, inf, -inf), np.maximum(t0, t1))
+        t_near, t_far = np.maximum(t_near, near), np.minimum(t_far, far)
+    hit = np.flatnonzero(t_near <= t_far)
+    z_a = origin[2] + t_near[hit] * directions[hit, 2]
+    z_b = origin[2] + t_far[hit] * directions[hit, 2]
+    return _TileRays(hit.astype(np.int32), np.minimum(z_a, z_b), np.maximum(z_a, z_b))
+
+
 class RoiSelector:
-    """Per-sensor ray subsets of a rig for a vehicle-frame region, cached by height band."""
+    """Per-sensor ray subsets of a rig for a vehicle-frame region, cached by the tiles' height bands.
+
+    The region is split into ``RoiConfig.tiles`` boxes; a ray is selected when, over some tile,
+    its z span meets that tile's height band. Each tile's rays and z spans are computed once, so a
+    new set of bands costs a comparison per (ray, tile), the dilation and the gather.
+    """
 
     def __init__(self, rig: Rig, config: RoiConfig | None = None) -> None:
         self.rig = rig
@@ -222,51 +271,78 @@ class RoiSelector:
             )
             for mt in rig.mounts
         }
-        self._cache: OrderedDict[tuple[int, int], dict[str, RaySubset]] = OrderedDict()
+        self.tiles = self._tile_boxes()
+        self._tile_rays = {
+            mt.name: [
+                tile_rays(np.asarray(mt.translation_m), self._directions[mt.name], box, mt.model.max_range_m)
+                for box in self.tiles
+            ]
+            for mt in rig.mounts
+            if mt.name not in self.config.full_sensors
+        }
+        self._cache: OrderedDict[tuple[tuple[int, int], ...], dict[str, RaySubset]] = OrderedDict()
 
-    def band_key(self, z_min_m: float, z_max_m: float) -> tuple[int, int]:
-        """The quantised height band (outward rounding) that covers [z_min_m, z_max_m]."""
+    def _tile_boxes(self) -> list[tuple[float, float, float, float]]:
+        x0, x1, y0, y1 = self.config.region_xy_m
+        nx, ny = self.config.tiles
+        xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+        return [
+            (float(xs[i]), float(xs[i + 1]), float(ys[j]), float(ys[j + 1]))
+            for j in range(ny)
+            for i in range(nx)
+        ]
+
+    def band_key(self, band: tuple[float, float] | None) -> tuple[int, int]:
+        """The quantised height band (outward rounding) covering ``band``; None = nothing to hit."""
+        if band is None:
+            return _EMPTY
         step = self.config.height_step_m
-        return math.floor(z_min_m / step), math.ceil(z_max_m / step)
+        return math.floor(band[0] / step), math.ceil(band[1] / step)
 
     def subsets(self, z_min_m: float, z_max_m: float) -> dict[str, RaySubset]:
-        """Rays to cast per sensor when every surface in the region lies in [z_min_m, z_max_m].
+        """Rays to cast per sensor when every surface in the region lies in [z_min_m, z_max_m]."""
+        return self.subsets_for_bands([(z_min_m, z_max_m)] * len(self.tiles))
 
-        A cached band that contains the asked one serves it (its rays are a superset, so the scan
-        inside the region is the same); otherwise a band one step wider each way is computed, so
-        that small height changes along a drive keep hitting the cache.
+    def subsets_for_bands(self, bands: list[tuple[float, float] | None]) -> dict[str, RaySubset]:
+        """Rays to cast per sensor given each tile's height band (see :meth:`HeightEnvelope.bands`).
+
+        A cached set of bands that contains the asked ones tile by tile serves them (its rays are a
+        superset, so the scan inside the region is the same); otherwise bands one step wider each
+        way are computed, so that small height changes along a drive keep hitting the cache.
         """
-        lo, hi = self.band_key(z_min_m, z_max_m)
+        if len(bands) != len(self.tiles):
+            raise ValueError(f"need one band per tile ({len(self.tiles)}), got {len(bands)}")
+        asked = [self.band_key(b) for b in bands]
         for key in reversed(self._cache):  # most recently used first
-            if key[0] <= lo and key[1] >= hi:
+            if all(c[0] <= a[0] and c[1] >= a[1] for c, a in zip(key, asked, strict=True)):
                 self._cache.move_to_end(key)
                 return self._cache[key]
-        key = (lo - 1, hi + 1)
-        step = self.config.height_step_m
-        out = {mt.name: self._subset(mt, key[0] * step, key[1] * step) for mt in self.rig.mounts}
+        key = tuple(a if a == _EMPTY else (a[0] - 1, a[1] + 1) for a in asked)
+        out = {mt.name: self._subset(mt, key) for mt in self.rig.mounts}
         self._cache[key] = out
         if len(self._cache) > self.config.cache_size:
             self._cache.popitem(last=False)
         return out
 
-    def mask(self, mount: SensorMount, z_lo_m: float, z_hi_m: float) -> np.ndarray:
-        """(lasers, columns) bool: the rays of ``mount`` cast for the height band [z_lo_m, z_hi_m]."""
+    def mask(self, mount: SensorMount, key: tuple[tuple[int, int], ...]) -> np.ndarray:
+        """(lasers, columns) bool: the rays of ``mount`` cast for the tiles' quantised bands."""
         m = mount.model
-        x0, x1, y0, y1 = self.config.region_xy_m
-        meets = rays_meeting_box(
-            np.asarray(mount.translation_m),
-            self._directions[mount.name],
-            np.array([x0, y0, z_lo_m]),
-            np.array([x1, y1, z_hi_m]),
-            m.max_range_m,
-        ).reshape(m.n_lasers, m.n_columns)
+        step = self.config.height_step_m
+        meets = np.zeros(m.n_lasers * m.n_columns, dtype=bool)
+        for rays, (lo, hi) in zip(self._tile_rays[mount.name], key, strict=True):
+            if (lo, hi) == _EMPTY:
+                continue
+            sel = (rays.z_min_m <= hi * step) & (rays.z_max_m >= lo * step)
+            meets[rays.index[sel]] = True
         cfg = self.config
         size = (2 * cfg.laser_margin + 1, 2 * cfg.column_margin + 1)
         wrap = "wrap" if m.hfov_deg >= 360.0 else "constant"
-        return maximum_filter(meets, size=size, mode=("constant", wrap), cval=False)
+        return maximum_filter(
+            meets.reshape(m.n_lasers, m.n_columns), size=size, mode=("constant", wrap), cval=False
+        )
 
-    def _subset(self, mount: SensorMount, z_lo_m: float, z_hi_m: float) -> RaySubset:
+    def _subset(self, mount: SensorMount, key: tuple[tuple[int, int], ...]) -> RaySubset:
         if mount.name in self.config.full_sensors:
             return self._full[mount.name]
-        index = np.flatnonzero(self.mask(mount, z_lo_m, z_hi_m)).astype(np.int32)
+        index = np.flatnonzero(self.mask(mount, key)).astype(np.int32)
         return RaySubset(index, self._directions[mount.name])

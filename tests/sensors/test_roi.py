@@ -14,7 +14,7 @@ from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_t_rig
-from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector, rays_meeting_box
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector, tile_rays
 from negobs_gym.sim import presets
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -24,7 +24,7 @@ REGION = (-GRID.side_m, GRID.side_m, -GRID.back_m, GRID.ahead_m)
 RIG = Rig(name="native+lux", mounts=paper_n_rig().mounts + paper_t_rig().mounts)
 
 
-def test_slab_test_matches_sampling_along_the_rays():
+def test_tile_z_spans_match_sampling_along_the_rays():
     rng = np.random.default_rng(0)
     d = rng.normal(size=(4000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -32,7 +32,9 @@ def test_slab_test_matches_sampling_along_the_rays():
     d[:50] /= np.linalg.norm(d[:50], axis=1, keepdims=True)
     origin = np.array([0.0, 0.0, 2.0])
     lo, hi = np.array([-3.0, -1.0, -0.5]), np.array([3.0, 20.0, 0.5])
-    got = rays_meeting_box(origin, d, lo, hi, 30.0)
+    rays = tile_rays(origin, d, (lo[0], hi[0], lo[1], hi[1]), 30.0)
+    got = np.zeros(len(d), bool)
+    got[rays.index[(rays.z_min_m <= hi[2]) & (rays.z_max_m >= lo[2])]] = True
     t = np.linspace(0.0, 30.0, 6001)
     pts = origin + t[None, :, None] * d[:, None, :]
     sampled = ((pts >= lo) & (pts <= hi)).all(axis=2).any(axis=1)
@@ -100,7 +102,7 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
     sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
     heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
     pose = vehicle.true_pose()
-    subsets = sel.subsets(*heights.band(pose, REGION))
+    subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
     roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets)
     native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9))
     for name, full in native.items():
@@ -132,7 +134,7 @@ def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
         caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
         heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
         pose = vehicle.true_pose()
-        subsets = sel.subsets(*heights.band(pose, REGION))
+        subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
         rng_seed = 100 + k
         roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed), subsets=subsets)
         native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed))
