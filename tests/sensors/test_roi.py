@@ -162,3 +162,18 @@ def p_remove(world: World, vehicle: Vehicle) -> None:
     world.remove_step_hook(vehicle._pre_step)
     world._dynamic.remove(vehicle.body_id)
     p.removeBody(vehicle.body_id, physicsClientId=world.client_id)
+
+
+def test_threaded_embree_cast_equals_one_thread(ditch_world):
+    pytest.importorskip("embreex")
+    from negobs_gym.sensors.lidar import scan_rays_world
+    from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
+
+    mount = RIG.mount("hdl64")
+    o, d = scan_rays_world(mount, Pose(x=0.0, y=10.0, z=0.3))
+    one = EmbreeCaster.from_world(ditch_world, config=EmbreeConfig(threads=1)).cast(o, d, 120.0)
+    two = EmbreeCaster.from_world(ditch_world, config=EmbreeConfig(threads=3)).cast(o, d, 120.0)
+    np.testing.assert_array_equal(one, two)
+    assert np.isfinite(one).mean() > 0.3
+    with pytest.raises(ConfigError, match="threads"):
+        EmbreeConfig(threads=0)
