@@ -10,8 +10,9 @@ Configurations (the env's registered config with ``ObservationConfig`` changed):
 - ``rig=reduced``: the old half-resolution rig;
 - ``obs=oracle``: the ground-truth grid (no sensors), for comparison.
 
-Reset cost: the mean over 40 episodes with a new seed each, with a new terrain every episode
-(the default) and with ``terrain_pool_size=8`` (kept worlds restored instead of built).
+Reset cost: the mean over an episode stream with a new seed each, with a new terrain every
+episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
+then kept worlds restored instead of built). A reset includes the first observation.
 
 Per-stage milliseconds per control step (one process, the default rig) are measured by wrapping
 the stages' functions with timers: physics (``World.step``, of which the event checks), scan
@@ -135,8 +136,8 @@ def _per_step(t: dict[str, float], steps: int, resets: int) -> dict[str, float]:
     return ms
 
 
-def reset_stream_s(env_id: str, resets: int, pool: int | None) -> float:
-    """Mean seconds per reset over ``resets`` episodes (a new seed each), default observation.
+def reset_stream_s(env_id: str, resets: int, pool: int | None) -> tuple[float, float]:
+    """Mean wall and CPU seconds per reset over ``resets`` episodes (a new seed each), default obs.
 
     ``pool``: ``EnvConfig.terrain_pool_size`` (and as many kept worlds); None = a new terrain each.
     """
@@ -148,13 +149,15 @@ def reset_stream_s(env_id: str, resets: int, pool: int | None) -> float:
         cfg = dataclasses.replace(cfg, terrain_pool_size=pool, world_cache_size=pool)
     env = gym.make(spec_id, config=cfg)
     env.reset(seed=0)
-    t0 = time.perf_counter()
+    wall = cpu = 0.0
     for k in range(resets):
+        t0, c0 = time.perf_counter(), time.process_time()
         env.reset(seed=1000 + k)
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
         env.step(ACTION)
-    dt = time.perf_counter() - t0
     env.close()
-    return dt / resets
+    return wall / resets, cpu / resets
 
 
 def _fmt(ms: dict[str, float]) -> str:
@@ -197,9 +200,9 @@ def main() -> None:
             label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
             sps, _ = _drive(_make(args.env_id, source, rig)(), max(20, args.steps // 4))
             print(f"{label} processes=1 steps_per_s={sps:.1f}")
-    for pool in (None, 8):
-        mean_s = reset_stream_s(args.env_id, 40, pool)
-        print(f"reset_s_mean terrain_pool={pool} over 40 episodes: {mean_s:.3f}")
+    for pool, episodes in ((None, 10), (8, 100)):
+        wall_s, cpu_s = reset_stream_s(args.env_id, episodes, pool)
+        print(f"reset_s_mean terrain_pool={pool} over {episodes} episodes: {wall_s:.3f} (cpu {cpu_s:.3f})")
     ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
     print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
