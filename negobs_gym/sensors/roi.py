@@ -118,7 +118,10 @@ class HeightEnvelope:
     ``top`` is the terrain height raised to the AABB top of each static body over its footprint,
     ``bottom`` the terrain height lowered to each body's AABB bottom. :meth:`band` turns them into
     vehicle-frame bounds over a region at a pose, adding the current AABBs of the world's moving
-    bodies (other vehicles) that are not excluded.
+    bodies (other vehicles) that are not excluded. It bounds the surfaces a caster sees when the
+    caster's ground is the physics heightfield (``EmbreeConfig(ground="physics")``, the default
+    and the envs', or the PyBullet backend); a caster on the terrain's finer grid can see heights
+    between physics samples outside these bounds.
     """
 
     def __init__(self, world: World, exclude_body_ids: Iterable[int] = ()) -> None:
