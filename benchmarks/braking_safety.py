@@ -107,12 +107,23 @@ def main() -> None:
     modes = [True] if args.no_baseline else [False, True]
     t0 = time.perf_counter()
     results: dict[bool, list[dict[str, float]]] = {}
+    narrow: list[dict[str, float]] = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        for filtered in modes:
-            jobs = [(seed, filtered, None) for seed in range(args.episodes)]
-            results[filtered] = list(pool.map(_run, jobs))
-        jobs = [(seed, True, args.narrow_length_m) for seed in range(args.episodes)]
-        narrow = list(pool.map(_run, jobs))
+        if not args.no_baseline:
+            results[False] = list(pool.map(_run, [(seed, False, None) for seed in range(args.episodes)]))
+        # filtered runs of both geometries interleaved, each printed when done (partial runs count)
+        jobs = [
+            (seed, True, length) for seed in range(args.episodes) for length in (None, args.narrow_length_m)
+        ]
+        results[True] = []
+        for (seed, _, length), r in zip(jobs, pool.map(_run, jobs), strict=True):
+            (results[True] if length is None else narrow).append(r)
+            tag = "ditch" if length is None else "narrow"
+            print(
+                f"episode {tag} seed={seed} stopped_before={r['stopped_before']} entered={r['entered']} "
+                f"gap_m={r['gap_m']:.2f}",
+                flush=True,
+            )
     for filtered in modes:
         rs = results[filtered]
         name = "filter" if filtered else "no filter"
