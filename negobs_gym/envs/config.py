@@ -33,7 +33,7 @@ class ObservationConfig:
             ``"embree"`` or ``"pybullet"``.
         raycast_threads: Threads per Embree cast; None = 2 (at most the CPU count) in a main
             process and 1 in a worker process of a vector env, whose processes already share the
-            cores (workers also pin numpy's BLAS to 1 thread; measured in docs/performance.md).
+            cores (workers also pin numpy's BLAS to 1 thread; see docs/performance.md).
         sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
