@@ -1,13 +1,16 @@
 """Braking safety at 25 km/h: the reckless driver on Braking-v0, with and without the safety filter.
 
 Each seeded episode starts at 25 km/h with a 1.0 m long, 3.0 m wide, 0.8 m deep ditch 20-40 m
-ahead. The reckless driver holds full throttle up to 25 km/h and never brakes. The filter
-(``BrakingSafetyFilter``, paper N Eq. 18: mu 0.65, T_r 0.25 s, B 5 m) sees only the detector grid
-(reduced paper N rig + LUX, sensor noise on). An episode ends on entering the ditch, after 2 s at
-standstill, or at the 15 s limit. Prints per-mode counts, stop margins and false vetoes; the last
-line is ``stopped_before=<k>/<n>`` of the filtered runs.
+ahead; a second geometry (``--narrow-length-m``, default 0.5 m along the track, same width and
+depth) repeats the filtered runs with a ditch narrower than 1 m. The reckless driver holds full
+throttle up to 25 km/h and never brakes. The filter (``BrakingSafetyFilter``, paper N Eq. 18:
+mu 0.65, T_r 0.25 s, B 5 m) sees only the detector grid (the default observation: the
+native-resolution paper N rig cast in the grid's ROI + LUX, sensor noise on). An episode ends on
+entering the ditch, after 2 s at standstill, or at the 15 s limit. Prints per-mode counts, stop
+margins and false vetoes; the last lines are ``narrow_stopped_before=<k>/<n>`` and, last,
+``stopped_before=<k>/<n>`` of the filtered runs.
 
-Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2]
+Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow-length-m 0.5]
 """
 
 from __future__ import annotations
@@ -22,15 +25,28 @@ import numpy as np
 
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.drivers import RecklessDriver
+from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.scenarios import ScenarioSpec, load_scenario
 
 STANDSTILL_MPS = 0.1
 STANDSTILL_S = 2.0
 
 
-def run_episode(seed: int, filtered: bool) -> dict[str, float]:
+def _narrow_env(ditch_length_m: float) -> gym.Env:
+    """Braking-v0 with the ditch ``ditch_length_m`` long along the track (time limit included)."""
+    data = load_scenario("braking_v0").to_dict()
+    data["name"] = f"braking_ditch_{ditch_length_m:g}m"
+    data["terrain"]["params"]["ditch_length_m"] = ditch_length_m
+    return NegObsEnv(scenario=ScenarioSpec.from_dict(data))
+
+
+def run_episode(seed: int, filtered: bool, ditch_length_m: float | None = None) -> dict[str, float]:
     """One episode; returns whether the ditch was entered, the gap left and the veto counts."""
-    env = gym.make("negobs_gym/Braking-v0")
+    if ditch_length_m is None:
+        env = gym.make("negobs_gym/Braking-v0")
+    else:
+        env = _narrow_env(ditch_length_m)
     if filtered:
         env = BrakingSafetyFilter(env)
     driver = RecklessDriver()
@@ -64,7 +80,7 @@ def run_episode(seed: int, filtered: bool) -> dict[str, float]:
     }
 
 
-def _run(args: tuple[int, bool]) -> dict[str, float]:
+def _run(args: tuple[int, bool, float | None]) -> dict[str, float]:
     return run_episode(*args)
 
 
@@ -73,14 +89,32 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-baseline", action="store_true", help="skip the unfiltered runs")
+    parser.add_argument(
+        "--narrow-length-m", type=float, default=0.5, help="ditch length along the track, 2nd geometry [m]"
+    )
     args = parser.parse_args()
+    if not 0.3 <= args.narrow_length_m < 1.0:
+        parser.error("--narrow-length-m must be in [0.3, 1.0) m (paper N: w_min 0.30 m)")
     modes = [True] if args.no_baseline else [False, True]
     t0 = time.perf_counter()
     results: dict[bool, list[dict[str, float]]] = {}
+    narrow: list[dict[str, float]] = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        for filtered in modes:
-            jobs = [(seed, filtered) for seed in range(args.episodes)]
-            results[filtered] = list(pool.map(_run, jobs))
+        if not args.no_baseline:
+            results[False] = list(pool.map(_run, [(seed, False, None) for seed in range(args.episodes)]))
+        # filtered runs of both geometries interleaved, each printed when done (partial runs count)
+        jobs = [
+            (seed, True, length) for seed in range(args.episodes) for length in (None, args.narrow_length_m)
+        ]
+        results[True] = []
+        for (seed, _, length), r in zip(jobs, pool.map(_run, jobs), strict=True):
+            (results[True] if length is None else narrow).append(r)
+            tag = "ditch" if length is None else "narrow"
+            print(
+                f"episode {tag} seed={seed} stopped_before={r['stopped_before']} entered={r['entered']} "
+                f"gap_m={r['gap_m']:.2f}",
+                flush=True,
+            )
     for filtered in modes:
         rs = results[filtered]
         name = "filter" if filtered else "no filter"
@@ -96,6 +130,11 @@ def main() -> None:
             if filtered and not r["stopped_before"]:
                 print(f"  seed {r['seed']}: ditch at {r['start_gap_m']:.1f} m, entered={r['entered']}")
     print(f"wall time {time.perf_counter() - t0:.0f} s")
+    for r in narrow:
+        if not r["stopped_before"]:
+            print(f"  narrow seed {r['seed']}: ditch at {r['start_gap_m']:.1f} m, entered={r['entered']}")
+    k = sum(r["stopped_before"] for r in narrow)
+    print(f"narrow_ditch_length_m={args.narrow_length_m} narrow_stopped_before={k}/{len(narrow)}")
     k = sum(r["stopped_before"] for r in results[True])
     print(f"stopped_before={k}/{len(results[True])}")
 

@@ -1,17 +1,26 @@
-"""Control steps per second of a negobs env: detector observation on both rigs, and the oracle.
+"""Control steps per second of a negobs env with the detector grid, per stage, per rig, per process count.
 
-Run: ``python benchmarks/env_step.py [--steps 60] [--envs 2] [--env-id negobs_gym/Braking-v0]``
+Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]``
 
 Configurations (the env's registered config with ``ObservationConfig`` changed):
 
-- ``obs=detector rig=reduced``: the training rig (paper N's rig at half resolution + LUX, Embree
-  casts, both detectors every step) - the default observation;
-- ``obs=detector rig=native``: paper N's full-resolution rig + LUX;
+- ``rig=roi``: the default training observation (paper N's native rig cast only where the grid
+  and the detectors' neighbourhoods need it, + LUX; both detectors every step);
+- ``rig=native``: the full 360 deg native rig + LUX;
+- ``rig=reduced``: the old half-resolution rig;
 - ``obs=oracle``: the ground-truth grid (no sensors), for comparison.
 
-Each runs in one process and vectorized with SB3 ``SubprocVecEnv`` (``--envs`` processes; steps/s
-counts the steps of all of them). A constant half-throttle action drives; finished episodes are
-reset. Also prints the first reset time and the ``rgb_array`` render time per frame.
+Reset cost: the mean over an episode stream with a new seed each, with a new terrain every
+episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
+then kept worlds restored instead of built). A reset includes the first observation.
+
+Per-stage milliseconds per control step (one process, the default rig) are measured by wrapping
+the stages' functions with timers: physics (``World.step``, of which the event checks), scan
+synthesis, paper N's detector, paper T's detector, the rest of the step (observation stacking,
+info, Python glue) and the reset. The default rig also runs vectorized with SB3 ``SubprocVecEnv``
+(``--envs`` processes; steps/s counts the steps of all of them). A constant half-throttle action
+drives; finished episodes are reset (their cost included). The last line is
+``train_steps_per_s=<v>``: the default observation in one process.
 """
 
 from __future__ import annotations
@@ -19,16 +28,23 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+from collections import defaultdict
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 
-import negobs_gym  # noqa: F401 - registers the envs
+import negobs_gym
+from negobs_gym.detector import NegativeObstacleDetector, TraversableRegionDetector
+from negobs_gym.envs import base as env_base
+from negobs_gym.envs import perception
+from negobs_gym.sim.events import EventMonitor
+from negobs_gym.sim.world import World
 
 ACTION = np.array([0.5, 0.0], np.float32)
 
 
-def _make(env_id: str, source: str, rig: str, render_mode: str | None = None):
+def _make(env_id: str, source: str, rig: str):
     def thunk():
         # "module:id" makes gymnasium import negobs_gym (and so register) inside a subprocess
         spec_id = f"negobs_gym:{env_id}"
@@ -36,22 +52,116 @@ def _make(env_id: str, source: str, rig: str, render_mode: str | None = None):
         cfg = probe.unwrapped.default_config()
         probe.close()
         obs = dataclasses.replace(cfg.observation, source=source, rig=rig)
-        return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs), render_mode=render_mode)
+        return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs))
 
     return thunk
 
 
-def _run_single(env_id: str, source: str, rig: str, steps: int) -> float:
-    env = _make(env_id, source, rig)()
-    env.reset(seed=0)
+def _drive(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int]:
+    """Steps/s over ``steps`` control steps (resets included) and the number of resets."""
+    env.reset(seed=seed)
+    resets = 0
     t0 = time.perf_counter()
     for k in range(steps):
         _, _, term, trunc, _ = env.step(ACTION)
         if term or trunc:
-            env.reset(seed=k + 1)
-    dt = time.perf_counter() - t0
+            env.reset(seed=seed + k + 1)
+            resets += 1
+    return steps / (time.perf_counter() - t0), resets
+
+
+class StageTimer:
+    """Wraps functions with accumulating wall-clock and process-CPU timers (restored on exit).
+
+    CPU time (all threads of this process) is what a stage costs whatever else loads the
+    machine; wall time is what a trainer waits.
+    """
+
+    def __init__(self) -> None:
+        self.total_s: dict[str, float] = defaultdict(float)
+        self.cpu_s: dict[str, float] = defaultdict(float)
+        self.calls: dict[str, int] = defaultdict(int)
+        self._undo: list[Callable[[], None]] = []
+
+    def wrap(self, owner: object, attr: str, stage: str) -> None:
+        original = getattr(owner, attr)
+
+        def timed(*args, **kwargs):
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self.total_s[stage] += time.perf_counter() - t0
+                self.cpu_s[stage] += time.process_time() - c0
+                self.calls[stage] += 1
+
+        setattr(owner, attr, timed)
+        self._undo.append(lambda: setattr(owner, attr, original))
+
+    def __enter__(self) -> StageTimer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for undo in reversed(self._undo):
+            undo()
+
+
+Stages = dict[str, float]
+
+
+def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[Stages, Stages, float, int]:
+    """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s, resets."""
+    env = _make(env_id, "detector", rig)()
+    env.reset(seed=0)  # first make/reset (imports, first masks) outside the timing
+    with StageTimer() as timer:
+        timer.wrap(World, "step", "physics")
+        timer.wrap(EventMonitor, "_check", "events")
+        timer.wrap(perception, "scan_rig", "scan")
+        timer.wrap(NegativeObstacleDetector, "update", "paper_n")
+        timer.wrap(TraversableRegionDetector, "update", "paper_t")
+        timer.wrap(env_base.NegObsEnv, "step", "step")
+        timer.wrap(env_base.NegObsEnv, "reset", "reset")
+        sps, resets = _drive(env, steps, seed=1)
     env.close()
-    return steps / dt
+    resets_timed = max(0, timer.calls["reset"] - 1)  # _drive's first reset is not a step's
+    wall = _per_step(timer.total_s, steps, resets_timed)
+    return wall, _per_step(timer.cpu_s, steps, resets_timed), sps, resets
+
+
+def _per_step(t: dict[str, float], steps: int, resets: int) -> dict[str, float]:
+    ms = {k: 1e3 * t[k] / steps for k in ("physics", "events", "scan", "paper_n", "paper_t")}
+    inner = t["physics"] + t["scan"] + t["paper_n"] + t["paper_t"]
+    ms["other"] = 1e3 * (t["step"] - inner) / steps
+    ms["reset_per_reset"] = 1e3 * t["reset"] / max(1, resets + 1) if resets else float("nan")
+    return ms
+
+
+def reset_stream_s(env_id: str, resets: int, pool: int | None) -> tuple[float, float]:
+    """Mean wall and CPU seconds per reset over ``resets`` episodes (a new seed each), default obs.
+
+    ``pool``: ``EnvConfig.terrain_pool_size`` (and as many kept worlds); None = a new terrain each.
+    """
+    spec_id = f"negobs_gym:{env_id}"
+    probe = gym.make(spec_id)
+    cfg = probe.unwrapped.default_config()
+    probe.close()
+    if pool is not None:
+        cfg = dataclasses.replace(cfg, terrain_pool_size=pool, world_cache_size=pool)
+    env = gym.make(spec_id, config=cfg)
+    env.reset(seed=0)
+    wall = cpu = 0.0
+    for k in range(resets):
+        t0, c0 = time.perf_counter(), time.process_time()
+        env.reset(seed=1000 + k)
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        env.step(ACTION)
+    env.close()
+    return wall / resets, cpu / resets
+
+
+def _fmt(ms: dict[str, float]) -> str:
+    return " ".join(f"{k}={v:.2f}" for k, v in ms.items())
 
 
 def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> float:
@@ -70,40 +180,35 @@ def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> flo
     return steps * n_envs / dt
 
 
-def _render_ms(env_id: str, frames: int) -> float:
-    env = _make(env_id, "detector", "reduced", render_mode="rgb_array")()
-    env.reset(seed=0)
-    env.render()  # the terrain overview is drawn once per terrain and cached
-    total = 0.0
-    for _ in range(frames):
-        env.step(ACTION)
-        t0 = time.perf_counter()
-        env.render()
-        total += time.perf_counter() - t0
-    env.close()
-    return 1000.0 * total / frames
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="negobs_gym/Braking-v0")
-    parser.add_argument("--steps", type=int, default=60, help="control steps per configuration")
-    parser.add_argument("--envs", type=int, default=2, help="processes of the vectorized runs")
+    parser.add_argument("--env-id", default="negobs_gym/OffroadNav-v0")
+    parser.add_argument("--steps", type=int, default=200, help="control steps per configuration")
+    parser.add_argument("--envs", type=int, default=2, help="processes of the vectorized run")
+    parser.add_argument("--skip-others", action="store_true", help="only the default rig")
     args = parser.parse_args()
     if args.steps < 1 or args.envs < 1:
         parser.error("--steps and --envs must be >= 1")
+    default_rig = negobs_gym.envs.config.ObservationConfig().rig
     t0 = time.perf_counter()
-    env = _make(args.env_id, "detector", "reduced")()
+    env = _make(args.env_id, "detector", default_rig)()
     env.reset(seed=0)
     print(f"env={args.env_id} first_make_and_reset_s={time.perf_counter() - t0:.2f}")
     env.close()
-    print(f"render_ms_per_frame={_render_ms(args.env_id, 20):.2f} (rgb_array, reduced rig)")
-    for source, rig in (("detector", "reduced"), ("detector", "native"), ("oracle", "reduced")):
-        label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
-        sps = _run_single(args.env_id, source, rig, args.steps)
-        print(f"{label} processes=1 steps_per_s={sps:.1f}")
-        sps = _run_vec(args.env_id, source, rig, max(1, args.steps // args.envs), args.envs)
-        print(f"{label} processes={args.envs} steps_per_s={sps:.1f}")
+    if not args.skip_others:
+        for source, rig in (("detector", "native"), ("detector", "reduced"), ("oracle", default_rig)):
+            label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
+            sps, _ = _drive(_make(args.env_id, source, rig)(), max(20, args.steps // 4))
+            print(f"{label} processes=1 steps_per_s={sps:.1f}")
+    for pool, episodes in ((None, 10), (8, 100)):
+        wall_s, cpu_s = reset_stream_s(args.env_id, episodes, pool)
+        print(f"reset_s_mean terrain_pool={pool} over {episodes} episodes: {wall_s:.3f} (cpu {cpu_s:.3f})")
+    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
+    print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
+    print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
+    vec = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
+    print(f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f}")
+    print(f"train_steps_per_s={sps:.1f}")
 
 
 if __name__ == "__main__":

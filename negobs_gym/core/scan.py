@@ -42,6 +42,23 @@ def ray_directions(elevation_rad: np.ndarray, azimuth_rad: np.ndarray) -> np.nda
     return np.stack(np.broadcast_arrays(ce * np.sin(a), ce * np.cos(a), np.sin(e)), axis=-1)
 
 
+_DIRECTION_TABLES: dict[tuple[bytes, bytes], np.ndarray] = {}
+_MAX_DIRECTION_TABLES = 8
+
+
+def _direction_table(elevation_rad: np.ndarray, azimuth_rad: np.ndarray) -> np.ndarray:
+    """:func:`ray_directions` kept for the last few angle tables (a rig reuses its tables every frame)."""
+    key = (elevation_rad.tobytes(), azimuth_rad.tobytes())
+    table = _DIRECTION_TABLES.get(key)
+    if table is None:
+        if len(_DIRECTION_TABLES) >= _MAX_DIRECTION_TABLES:
+            _DIRECTION_TABLES.pop(next(iter(_DIRECTION_TABLES)))
+        table = ray_directions(elevation_rad, azimuth_rad)
+        table.flags.writeable = False
+        _DIRECTION_TABLES[key] = table
+    return table
+
+
 @dataclass(frozen=True, eq=False)
 class StructuredScan:
     """One revolution (or one frame) of one LiDAR, as a range image with its geometry.
@@ -122,7 +139,7 @@ class StructuredScan:
     @cached_property
     def points_sensor(self) -> np.ndarray:
         """Points in the sensor frame, (lasers, columns, 3); NaN where there is no return."""
-        return ray_directions(self.elevation_rad, self.azimuth_rad) * self.ranges_m[..., None]
+        return _direction_table(self.elevation_rad, self.azimuth_rad) * self.ranges_m[..., None]
 
     @cached_property
     def points_vehicle(self) -> np.ndarray:

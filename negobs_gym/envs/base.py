@@ -10,6 +10,7 @@ The registered envs (:mod:`negobs_gym.envs.scenarios`) are subclasses that only 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import math
@@ -26,6 +27,7 @@ from negobs_gym.envs.outcome import StepOutcome, termination_conditions
 from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.envs.sources import DetectorSource, GridSource, make_grid_source
+from negobs_gym.envs.world_cache import CachedWorld, WorldCache, build_world, generator_key
 from negobs_gym.errors import ActionError, ConfigError, ResetNeeded
 from negobs_gym.safety.braking import BrakingConfig
 from negobs_gym.safety.decision import SafetyDecision
@@ -116,6 +118,8 @@ class NegObsEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         physics = self.scenario.physics
         self._substeps = max(1, round(1.0 / (self.config.control_hz * physics.time_step_s)))
+        self._worlds = WorldCache(self.config.world_cache_size)
+        self._entry: CachedWorld | None = None
         self._world: World | None = None
         self._vehicle: Vehicle | None = None
         self._monitor: EventMonitor | None = None
@@ -139,14 +143,18 @@ class NegObsEnv(gym.Env):
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self._close_world()
-        episode = self._sample_episode(self.np_random)
-        self._build_world(episode)
+        self._entry = self._acquire_world()
+        episode = self._entry.episode
+        self.terrain = episode.terrain
+        entry = self._entry
+        self._world, self._vehicle, self._monitor = entry.world, entry.vehicle, entry.monitor
+        if self.scenario.ins.noisy:  # drawn only then, so noise-free specs keep their draws
+            self._vehicle.use_ins_rng(np.random.default_rng(int(self.np_random.integers(0, 2**63))))
         if episode.start_speed_mps > 0:
             self._vehicle.set_speed(episode.start_speed_mps)
         self._monitor.reset()
         self._sensor_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
-        self._grid_source.start(self._world, self._vehicle, self.terrain, self._sensor_rng)
+        self._grid_source.start(self._world, self._vehicle, self.terrain, self._sensor_rng, entry.extras)
         self._detector = self._grid_source if isinstance(self._grid_source, DetectorSource) else None
         self._steps = 0
         self._still_s = 0.0
@@ -163,21 +171,37 @@ class NegObsEnv(gym.Env):
         """This episode's terrain, start pose and speed: the spec's ranges drawn from ``rng``."""
         return self.scenario.sample(rng)
 
-    def _build_world(self, episode: SampledScenario) -> None:
-        """Physics world, vehicle (INS noise from the spec) and event monitor, settled at the start."""
-        spec = self.scenario
-        self.terrain = episode.terrain
-        self._world = World(self.terrain, spec.physics)
-        ins_rng = None
-        if spec.ins.noisy:  # drawn only then, so noise-free specs keep their draws
-            ins_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
-        vehicle_config = VehicleConfig(
-            ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
-        )
-        self._vehicle = Vehicle(self._world, vehicle_config, rng=ins_rng)
-        self._vehicle.reset(episode.start_pose)
-        self._monitor = EventMonitor(self._world, self._vehicle)
-        self._world.step(max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s)))
+    def _acquire_world(self) -> CachedWorld:
+        """This episode's settled world: kept from an earlier episode on the same draw, or built.
+
+        Without a terrain pool the key is the generator's state before the spec is drawn (after a
+        hit the generator is moved on exactly as the draw would have); with
+        ``episode.terrain_pool_size`` the episode is the pool's ``k``-th draw (its own generator
+        seeded with ``k``), ``k`` drawn from the env's. Every episode starts from the settled
+        state saved after the build, so a kept world gives the same episode bit for bit.
+        """
+        pool = self.config.terrain_pool_size
+        if pool is None:
+            key, draw_rng = generator_key(self.np_random), self.np_random
+        else:
+            index = int(self.np_random.integers(pool))
+            key, draw_rng = f"pool-{index}", np.random.default_rng(index)
+        entry = self._worlds.get(key)
+        if entry is None:
+            spec = self.scenario
+            episode = self._sample_episode(draw_rng)
+            vehicle_config = VehicleConfig(
+                ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
+            )
+            settle_steps = max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s))
+            entry = build_world(episode, spec.physics, vehicle_config, settle_steps)
+            if pool is None:
+                entry.rng_state_after_draw = copy.deepcopy(self.np_random.bit_generator.state)
+            self._worlds.put(key, entry, keep=self._entry)
+        elif pool is None:
+            self.np_random.bit_generator.state = copy.deepcopy(entry.rng_state_after_draw)
+        entry.restore()
+        return entry
 
     def step(self, action):
         if self._vehicle is None:
@@ -334,11 +358,8 @@ class NegObsEnv(gym.Env):
 
     # -- internals -----------------------------------------------------------------------------
     def _close_world(self) -> None:
-        if self._monitor is not None:
-            self._monitor.detach()
-        if self._world is not None:
-            self._world.close()
-        self._world = self._vehicle = self._monitor = None
+        self._worlds.close()
+        self._world = self._vehicle = self._monitor = self._entry = None
 
     def hazard_state(self) -> HazardState:
         """Hazards for :class:`~negobs_gym.safety.BrakingSafetyFilter` (protocol in ``safety.protocol``).
@@ -369,7 +390,7 @@ class NegObsEnv(gym.Env):
         """Detectors beside an oracle grid, for the hazards only (they then run every step)."""
         detector_obs = dataclasses.replace(self.config.observation, source="detector")
         self._detector = DetectorSource(detector_obs)
-        self._detector.start(self._world, self._vehicle, self.terrain, self._sensor_rng)
+        self._detector.start(self._world, self._vehicle, self.terrain, self._sensor_rng, self._entry.extras)
         self._detector.layers(self._world.sim_time_s)
 
     def _observe(self) -> dict[str, np.ndarray]:

@@ -7,8 +7,12 @@ from dataclasses import dataclass, field
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.errors import require
+from negobs_gym.sim.world import WorldConfig
 
-__all__ = ["CHANNELS", "EnvConfig", "ObservationConfig", "RewardConfig"]
+__all__ = ["CHANNELS", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
+
+#: Rigs of the detector observation (see ``ObservationConfig.rig``).
+RIGS: tuple[str, ...] = ("roi", "native", "reduced")
 
 #: Grid channels an observation can carry, in this fixed order.
 CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
@@ -21,10 +25,16 @@ class ObservationConfig:
     Attributes:
         source: ``"detector"`` casts the LiDAR rig and stacks the detectors' grids (see
             :mod:`negobs_gym.envs.perception`); ``"oracle"`` rasterises the ground truth (ablations).
-        rig: ``"reduced"`` (paper N's rig at half resolution, for training) or ``"native"``; both
-            carry paper T's bumper LUX.
+        rig: ``"roi"`` (default: paper N's native-resolution rig, casting only the rays that can
+            return a point inside ``grid`` plus the detectors' neighbourhoods; inside the grid the
+            scans equal the native ones, see :mod:`negobs_gym.sensors.roi`), ``"native"`` (the
+            full 360 deg native rig) or ``"reduced"`` (half resolution, blind beyond ~12 m; kept
+            for comparison). All carry paper T's bumper LUX. Recall and rates: docs/performance.md.
         raycast_backend: ``"auto"`` (Embree when ``embreex`` is installed, else PyBullet),
             ``"embree"`` or ``"pybullet"``.
+        raycast_threads: Threads per Embree cast; None = 2 (at most the CPU count) in a main
+            process and 1 in a worker process of a vector env, whose processes already share the
+            cores (workers also pin numpy's BLAS to 1 thread; see docs/performance.md).
         sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
@@ -34,8 +44,9 @@ class ObservationConfig:
     """
 
     source: str = "detector"
-    rig: str = "reduced"
+    rig: str = "roi"
     raycast_backend: str = "auto"
+    raycast_threads: int | None = None
     sensor_noise: bool = True
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
@@ -49,11 +60,17 @@ class ObservationConfig:
             "source",
             f"must be 'oracle' or 'detector', got {self.source!r}",
         )
-        require(self.rig in ("native", "reduced"), "rig", f"must be 'native' or 'reduced', got {self.rig!r}")
+        require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         require(
             self.raycast_backend in ("auto", "embree", "pybullet"),
             "raycast_backend",
             f"must be 'auto', 'embree' or 'pybullet', got {self.raycast_backend!r}",
+        )
+        require(
+            self.raycast_threads is None
+            or (isinstance(self.raycast_threads, int) and 1 <= self.raycast_threads <= 64),
+            "raycast_threads",
+            f"must be None or an int in [1, 64], got {self.raycast_threads!r}",
         )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(
@@ -114,15 +131,34 @@ class RewardConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class EnvPhysicsConfig(WorldConfig):
+    """The physics world of an env episode: :class:`~negobs_gym.sim.world.WorldConfig` at 1/120 s.
+
+    12 sub-steps per 10 Hz control step instead of 24 of 1/240 s halve the physics cost; the
+    full-brake distance from 25 km/h stays within 10 % of v^2 / (2 mu g) (docs/performance.md,
+    ``tests/envs/test_physics_substeps.py``).
+    """
+
+    time_step_s: float = 1.0 / 120.0  # papers silent; see the docstring
+
+
+@dataclass(frozen=True, kw_only=True)
 class EnvConfig:
     """Episode settings shared by all negobs envs.
 
     Attributes:
-        control_hz: Control rate [Hz]; physics runs ``1 / (control_hz * time_step_s)`` sub-steps.
+        control_hz: Control rate [Hz]; physics runs ``1 / (control_hz * time_step_s)`` sub-steps of
+            the scenario's ``physics.time_step_s`` (:class:`EnvPhysicsConfig`, 1/120 s: 12 sub-steps
+            at 10 Hz).
         time_limit_s: Episode length before truncation [s].
         start_speed_mps: Initial forward speed [m/s] (paper N §4: 25 km/h for braking).
         goal_radius_m: Reaching within this distance of the goal ends the episode [m].
         settle_time_s: Physics time to let the suspension settle at reset [s].
+        world_cache_size: Settled worlds kept between episodes (see :mod:`negobs_gym.envs.world_cache`);
+            a reset onto a kept terrain restores it in milliseconds instead of building it (~1.2 s).
+        terrain_pool_size: None = a new terrain every episode; k = episodes draw one of k fixed
+            terrains (terrain ``i`` is the scenario's terrain from ``default_rng(i)``), so with
+            ``world_cache_size >= k`` resets are cheap after the first k (Procgen-style levels).
         observation: See :class:`ObservationConfig`.
         reward: See :class:`RewardConfig`.
     """
@@ -132,6 +168,8 @@ class EnvConfig:
     start_speed_mps: float = 0.0
     goal_radius_m: float = 3.0
     settle_time_s: float = 0.25
+    world_cache_size: int = 1
+    terrain_pool_size: int | None = None
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
 
@@ -150,6 +188,17 @@ class EnvConfig:
         require(math.isfinite(self.goal_radius_m) and self.goal_radius_m > 0, "goal_radius_m", "must be > 0")
         require(
             math.isfinite(self.settle_time_s) and self.settle_time_s >= 0, "settle_time_s", "must be >= 0"
+        )
+        require(
+            isinstance(self.world_cache_size, int) and self.world_cache_size >= 1,
+            "world_cache_size",
+            f"must be an int >= 1, got {self.world_cache_size!r}",
+        )
+        require(
+            self.terrain_pool_size is None
+            or (isinstance(self.terrain_pool_size, int) and self.terrain_pool_size >= 1),
+            "terrain_pool_size",
+            f"must be None or an int >= 1, got {self.terrain_pool_size!r}",
         )
         require(
             isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"

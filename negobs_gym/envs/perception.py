@@ -13,6 +13,10 @@ detectors get the INS pose, exactly as on a real vehicle. Channels on the observ
 
 from __future__ import annotations
 
+import functools
+import multiprocessing
+import os
+
 import numpy as np
 
 from negobs_gym.core.pose import Pose
@@ -29,6 +33,7 @@ from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
 
@@ -38,23 +43,74 @@ LUX_NAME = "lux"
 
 
 def env_rig(rig: str) -> Rig:
-    """Paper N's rig (``"native"`` or ``"reduced"`` for training) plus paper T's bumper LUX."""
-    base = paper_n_rig() if rig == "native" else paper_n_rig_reduced()
+    """Paper N's rig plus paper T's bumper LUX: native resolution (``"native"``, ``"roi"``) or
+    ``"reduced"``."""
+    base = paper_n_rig_reduced() if rig == "reduced" else paper_n_rig()
     return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig().mounts)
+
+
+def cast_threads(config: ObservationConfig) -> int:
+    """Ray-cast threads: the config's, else 1 in a worker process (after pinning its BLAS to 1
+    thread), else 2 (at most the CPU count)."""
+    if config.raycast_threads is not None:
+        return config.raycast_threads
+    if multiprocessing.parent_process() is not None:
+        _pin_blas_threads()
+        return 1
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+@functools.cache
+def _pin_blas_threads() -> None:
+    """One BLAS thread in this process (vector-env workers already fill the cores)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # scikit-learn brings it; without it the BLAS keeps its default
+        return
+    threadpool_limits(limits=1, user_api="blas")
+
+
+@functools.lru_cache(maxsize=4)
+def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
+    """One selector (and its mask cache) per rig and region, shared by the envs of a process."""
+    return RoiSelector(rig, config)
 
 
 class DetectorGrid:
     """Runs the rig and both detectors each control step; keeps the last frame for rendering."""
 
     def __init__(
-        self, config: ObservationConfig, world: World, vehicle: Vehicle, rng: np.random.Generator
+        self,
+        config: ObservationConfig,
+        world: World,
+        vehicle: Vehicle,
+        rng: np.random.Generator,
+        cache: dict | None = None,
     ) -> None:
+        """``cache`` (one dict per world, e.g. ``CachedWorld.extras``) keeps the ray caster and the
+        height envelope of ``world`` for the next episode on it."""
         self.config = config
         self.rig = env_rig(config.rig)
         self._vehicle = vehicle
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)
-        self._caster = make_caster(world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,))
+        cache = {} if cache is None else cache
+        threads = cast_threads(config)
+        key = ("caster", config.raycast_backend, threads)
+        if key not in cache:
+            cache[key] = make_caster(
+                world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,), threads=threads
+            )
+        self._caster = cache[key]
+        self._roi: RoiSelector | None = None
+        if config.rig == "roi":
+            g = config.grid
+            self._roi = roi_selector(
+                self.rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m))
+            )
+            if "heights" not in cache:
+                cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+            self._heights = cache["heights"]
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
         self.traversable = TraversableRegionDetector(grid=config.grid)
         self.scans: dict[str, StructuredScan] = {}
@@ -66,8 +122,17 @@ class DetectorGrid:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
         true_pose = self._vehicle.true_pose()
         ins_pose: Pose = self._vehicle.pose()
+        subsets = None
+        if self._roi is not None:
+            subsets = self._roi.subsets_for_bands(self._heights.bands(true_pose, self._roi.tiles))
         self.scans = scan_rig(
-            self.rig, self._caster, true_pose, noise=self._noise, rng=self._rng, timestamp_s=timestamp_s
+            self.rig,
+            self._caster,
+            true_pose,
+            noise=self._noise,
+            rng=self._rng,
+            timestamp_s=timestamp_s,
+            subsets=subsets,
         )
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)

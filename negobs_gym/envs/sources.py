@@ -41,8 +41,17 @@ class GridSource(abc.ABC):
         return grid_space(self.config)
 
     @abc.abstractmethod
-    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
-        """Begin an episode in ``world`` (called at every reset; ``rng`` is the sensors' generator)."""
+    def start(
+        self,
+        world: World,
+        vehicle: Vehicle,
+        terrain: Terrain,
+        rng: np.random.Generator,
+        cache: dict | None = None,
+    ) -> None:
+        """Begin an episode in ``world`` (called at every reset; ``rng`` is the sensors' generator;
+        ``cache`` is a dict kept with ``world`` across episodes, for products of the world such as
+        the ray caster)."""
 
     @abc.abstractmethod
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
@@ -56,7 +65,14 @@ class GridSource(abc.ABC):
 class OracleSource(GridSource):
     """Ground truth rasterised around the vehicle's true pose (see :class:`OracleGrid`)."""
 
-    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
+    def start(
+        self,
+        world: World,
+        vehicle: Vehicle,
+        terrain: Terrain,
+        rng: np.random.Generator,
+        cache: dict | None = None,
+    ) -> None:
         self._vehicle = vehicle
         self.grid = OracleGrid(self.config, terrain)
 
@@ -72,8 +88,15 @@ class DetectorSource(GridSource):
 
     perception: DetectorGrid | None = None
 
-    def start(self, world: World, vehicle: Vehicle, terrain: Terrain, rng: np.random.Generator) -> None:
-        self.perception = DetectorGrid(self.config, world, vehicle, rng)
+    def start(
+        self,
+        world: World,
+        vehicle: Vehicle,
+        terrain: Terrain,
+        rng: np.random.Generator,
+        cache: dict | None = None,
+    ) -> None:
+        self.perception = DetectorGrid(self.config, world, vehicle, rng, cache=cache)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         return self.perception.observe(timestamp_s)

@@ -134,24 +134,30 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     return out
 
 
-def _scenario_env(scenario: str, rig: str, oracle: bool) -> Any:
-    from negobs_gym.envs.scenarios import BrakingEnv
-    from negobs_gym.sim import presets
+def scenario_spec(scenario: str, rig: str, oracle: bool) -> Any:
+    """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
+    (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
+    scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
+    from negobs_gym.scenarios import ScenarioSpec, load_scenario
 
     preset, params = SCENARIOS[scenario]
-
-    class ScenarioBrakingEnv(BrakingEnv):
-        def _make_terrain(self, rng: np.random.Generator):
-            kwargs = dict(params)
-            if preset == "braking_track":
-                kwargs["ditch_distance_m"] = float(rng.uniform(*OBSTACLE_DISTANCE_M))
-            return presets.PRESETS[preset](seed=int(rng.integers(0, 2**31 - 1)), **kwargs)
-
-    config = BrakingEnv.default_config()
+    data = load_scenario("braking_v0").to_dict()
+    data["name"] = f"braking_campaign_{scenario}"
+    data["terrain"] = {"preset": preset, "params": dict(params)}
+    if preset == "braking_track":
+        data["terrain"]["params"]["ditch_distance_m"] = list(OBSTACLE_DISTANCE_M)
+    data["episode"]["time_limit_s"] = TIME_LIMIT_S
+    spec = ScenarioSpec.from_dict(data)
     # scripted drivers ignore the observation: the oracle grid skips the sensors unless the
     # filter asks for the detector (it always sees obstacles through the detector grid)
-    observation = dataclasses.replace(config.observation, rig=rig, source="oracle" if oracle else "detector")
-    return ScenarioBrakingEnv(dataclasses.replace(config, observation=observation, time_limit_s=TIME_LIMIT_S))
+    observation = dataclasses.replace(spec.observation, rig=rig, source="oracle" if oracle else "detector")
+    return dataclasses.replace(spec, observation=observation)
+
+
+def _scenario_env(scenario: str, rig: str, oracle: bool) -> Any:
+    from negobs_gym.envs.base import NegObsEnv
+
+    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle))
 
 
 class ModelDriver:

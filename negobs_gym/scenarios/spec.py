@@ -23,7 +23,7 @@ import numpy as np
 import tomllib
 
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import EnvConfig, ObservationConfig, RewardConfig
+from negobs_gym.envs.config import EnvConfig, EnvPhysicsConfig, ObservationConfig, RewardConfig
 from negobs_gym.envs.rendering import RenderConfig
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.scenarios.fields import Range, from_plain, to_plain
@@ -32,7 +32,6 @@ from negobs_gym.sim.carving import NegativeObstacleSpec, PositiveObstacleSpec
 from negobs_gym.sim.presets import PRESETS
 from negobs_gym.sim.terrain import TerrainConfig, generate_terrain
 from negobs_gym.sim.types import Terrain
-from negobs_gym.sim.world import WorldConfig
 
 __all__ = [
     "TERMINATION_RULES",
@@ -215,10 +214,16 @@ class EpisodeSpec:
     control_hz: float = 10.0  # paper N: the LiDARs spin at 10 Hz, control runs with them
     time_limit_s: float = 30.0  # truncation [s]
     settle_time_s: float = 0.25  # suspension settling at reset [s]
+    world_cache_size: int = 1  # settled worlds kept between episodes (docs/performance.md)
+    terrain_pool_size: int | None = None  # None: a new terrain each episode; k: one of k fixed draws
 
     def __post_init__(self) -> None:
         EnvConfig(
-            control_hz=self.control_hz, time_limit_s=self.time_limit_s, settle_time_s=self.settle_time_s
+            control_hz=self.control_hz,
+            time_limit_s=self.time_limit_s,
+            settle_time_s=self.settle_time_s,
+            world_cache_size=self.world_cache_size,
+            terrain_pool_size=self.terrain_pool_size,
         )
 
     @property
@@ -367,7 +372,7 @@ class ScenarioSpec:
     )
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     ins: InsSpec = field(default_factory=InsSpec)
-    physics: WorldConfig = field(default_factory=WorldConfig)
+    physics: EnvPhysicsConfig = field(default_factory=EnvPhysicsConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     run: RunSpec = field(default_factory=RunSpec)
     criteria: CriteriaSpec = field(default_factory=CriteriaSpec)
@@ -404,6 +409,8 @@ class ScenarioSpec:
             start_speed_mps=speed.low if isinstance(speed, Range) else speed,
             goal_radius_m=self.task.goal_radius_m,
             settle_time_s=self.episode.settle_time_s,
+            world_cache_size=self.episode.world_cache_size,
+            terrain_pool_size=self.episode.terrain_pool_size,
             observation=self.observation,
             reward=self.reward,
         )
@@ -417,6 +424,8 @@ class ScenarioSpec:
                 control_hz=config.control_hz,
                 time_limit_s=config.time_limit_s,
                 settle_time_s=config.settle_time_s,
+                world_cache_size=config.world_cache_size,
+                terrain_pool_size=config.terrain_pool_size,
             ),
             start=dataclasses.replace(self.start, speed_mps=config.start_speed_mps),
             task=dataclasses.replace(self.task, goal_radius_m=config.goal_radius_m),

@@ -2,23 +2,52 @@
 
 from __future__ import annotations
 
+import zlib
+from functools import lru_cache
+
 import numpy as np
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan, ray_directions
-from negobs_gym.sensors.noise import NoiseConfig, apply_noise
+from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast.base import RayCaster
 from negobs_gym.sensors.rigs import Rig, SensorMount
 
 
+@lru_cache(maxsize=16)
+def directions_vehicle(mount: SensorMount) -> np.ndarray:
+    """(N, 3) vehicle-frame unit ray directions of one revolution, laser-major order (read-only)."""
+    m = mount.model
+    d = ray_directions(m.elevation_rad, m.azimuth_rad).reshape(-1, 3) @ mount.rotation_matrix.T
+    d.flags.writeable = False
+    return d
+
+
+def rotate_rows(directions: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """``directions @ rotation.T`` row by row with elementwise arithmetic, so a row's result does not
+    depend on which other rows are in the batch (BLAS kernels may round differently by size)."""
+    d = directions
+    return d[:, 0:1] * rotation[:, 0] + d[:, 1:2] * rotation[:, 1] + d[:, 2:3] * rotation[:, 2]
+
+
 def scan_rays_world(mount: SensorMount, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
     """World-frame (N, 3) origins and unit directions of one revolution, laser-major order."""
-    m = mount.model
-    d_sensor = ray_directions(m.elevation_rad, m.azimuth_rad).reshape(-1, 3)
-    r_wv = pose.rotation
-    d_world = d_sensor @ (r_wv @ mount.rotation_matrix).T
+    d_world = rotate_rows(directions_vehicle(mount), pose.rotation)
     origin = pose.to_world(np.asarray(mount.translation_m)[None, :])[0]
     return np.broadcast_to(origin, d_world.shape).copy(), d_world
+
+
+def frame_noise_key(rng: np.random.Generator | None, noise: NoiseConfig) -> int:
+    """One draw from ``rng`` that keys the noise of every ray of a frame (0 when noise is off)."""
+    if not noise.enabled:
+        return 0
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError("noise is enabled: pass an np.random.Generator (or disable noise)")
+    return int(rng.integers(0, 2**63))
+
+
+def _sensor_key(frame_key: int, name: str) -> int:
+    return (frame_key ^ zlib.crc32(name.encode())) & (2**64 - 1)
 
 
 def scan(
@@ -29,14 +58,37 @@ def scan(
     noise: NoiseConfig | None = None,
     rng: np.random.Generator | None = None,
     timestamp_s: float = 0.0,
+    rays: np.ndarray | None = None,
+    rays_vehicle: np.ndarray | None = None,
+    noise_key: int | None = None,
 ) -> StructuredScan:
-    """One structured scan of ``mount`` at vehicle ``pose``; noise on by default (needs ``rng``)."""
+    """One structured scan of ``mount`` at vehicle ``pose``; noise on by default (needs ``rng``).
+
+    ``rays`` (flat laser-major indices, with their vehicle-frame directions ``rays_vehicle``) casts only
+    those rays; the others are NaN. Noise is keyed per ray (``noise_key``, else one draw from
+    ``rng``), so a ray gets the same range whether the full scan or a subset is cast.
+    """
     m = mount.model
-    o, d = scan_rays_world(mount, pose)
-    ranges = caster.cast(o, d, m.max_range_m).reshape(m.n_lasers, m.n_columns)
-    ranges[ranges < m.min_range_m] = np.nan
-    ranges = apply_noise(ranges, noise or NoiseConfig(), rng)
-    ranges[(ranges < m.min_range_m) | (ranges > m.max_range_m)] = np.nan
+    cfg = noise or NoiseConfig()
+    key = frame_noise_key(rng, cfg) if noise_key is None else noise_key
+    if rays is None:
+        index = np.arange(m.n_lasers * m.n_columns)
+        dv = directions_vehicle(mount)
+    else:
+        index = np.asarray(rays)
+        dv = rays_vehicle
+    d = rotate_rows(dv, pose.rotation)
+    o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
+    hit = caster.cast(o, d, m.max_range_m) if index.size else np.empty(0)
+    hit[hit < m.min_range_m] = np.nan
+    hit = apply_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name))
+    hit[(hit < m.min_range_m) | (hit > m.max_range_m)] = np.nan
+    if rays is None:
+        ranges = hit.reshape(m.n_lasers, m.n_columns)
+    else:
+        ranges = np.full(m.n_lasers * m.n_columns, np.nan)
+        ranges[index] = hit
+        ranges = ranges.reshape(m.n_lasers, m.n_columns)
     return StructuredScan(
         sensor=mount.name,
         ranges_m=ranges,
@@ -57,8 +109,27 @@ def scan_rig(
     noise: NoiseConfig | None = None,
     rng: np.random.Generator | None = None,
     timestamp_s: float = 0.0,
+    subsets: dict | None = None,
 ) -> dict[str, StructuredScan]:
-    """Scans of every sensor of ``rig``, keyed by mount name."""
-    return {
-        mt.name: scan(mt, caster, pose, noise=noise, rng=rng, timestamp_s=timestamp_s) for mt in rig.mounts
-    }
+    """Scans of every sensor of ``rig``, keyed by mount name.
+
+    ``subsets`` (sensor name -> :class:`~negobs_gym.sensors.roi.RaySubset`, from
+    :class:`~negobs_gym.sensors.roi.RoiSelector`) casts only those rays of each sensor; the rays
+    cast equal the full scan's. One draw from ``rng`` keys the whole frame's noise.
+    """
+    cfg = noise or NoiseConfig()
+    key = frame_noise_key(rng, cfg)
+    out = {}
+    for mt in rig.mounts:
+        sub = subsets.get(mt.name) if subsets is not None else None
+        out[mt.name] = scan(
+            mt,
+            caster,
+            pose,
+            noise=cfg,
+            timestamp_s=timestamp_s,
+            rays=None if sub is None else sub.index,
+            rays_vehicle=None if sub is None else sub.directions_vehicle,
+            noise_key=key,
+        )
+    return out

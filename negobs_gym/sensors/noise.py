@@ -42,3 +42,46 @@ def apply_noise(ranges_m: np.ndarray, config: NoiseConfig, rng: np.random.Genera
     r[rng.random(r.shape) < config.dropout_prob] = np.nan
     r[r < 0] = np.nan
     return r
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    """SplitMix64 finaliser (Steele et al. 2014): a bijective 64-bit mix, uint64 in and out."""
+    with np.errstate(over="ignore"):
+        z = x + _GOLDEN
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+
+def _ray_bits(key: int, index: np.ndarray) -> np.ndarray:
+    """64 random bits per ray that depend only on (key, index): a counter-based generator."""
+    with np.errstate(over="ignore"):
+        return _splitmix64(index.astype(np.uint64) ^ _splitmix64(np.uint64(key)))
+
+
+def apply_keyed_noise(
+    ranges_m: np.ndarray, ray_index: np.ndarray, config: NoiseConfig, key: int
+) -> np.ndarray:
+    """Noisy copy of ``ranges_m`` whose draw for each ray depends only on ``(key, ray_index)``.
+
+    Same model as :func:`apply_noise` (Gaussian range noise, dropout with ``dropout_prob``), but
+    counter-based: a subset of a scan's rays (ROI casting) gets exactly the values the full scan
+    gets for those rays, without drawing the others. One 64-bit hash per ray gives two 24-bit
+    uniforms for a float32 Box-Muller normal and 16 bits for the dropout (probability resolution
+    1/65536).
+    """
+    r = np.array(ranges_m, dtype=np.float64)
+    if not config.enabled or r.size == 0:
+        return r
+    bits = _ray_bits(key, np.asarray(ray_index).reshape(r.shape))
+    scale = np.float32(1.0 / 2**24)
+    u1 = ((bits >> np.uint64(40)).astype(np.float32) + np.float32(0.5)) * scale
+    u2 = (((bits >> np.uint64(16)) & np.uint64(0xFFFFFF)).astype(np.float32) + np.float32(0.5)) * scale
+    u3 = (bits & np.uint64(0xFFFF)).astype(np.float32) * np.float32(1.0 / 2**16)
+    normal = np.sqrt(np.float32(-2.0) * np.log(u1)) * np.cos(np.float32(2.0 * np.pi) * u2)
+    r += config.range_sigma_m * normal
+    r[(u3 < np.float32(config.dropout_prob)) | (r < 0)] = np.nan
+    return r

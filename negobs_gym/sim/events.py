@@ -2,7 +2,8 @@
 
 An :class:`EventMonitor` checks the vehicle after every physics step (it registers a step hook on the
 world), so a 0.3 m pit cannot slip between two 10 Hz control steps; :meth:`EventMonitor.poll` returns
-what happened since the previous poll.
+what happened since the previous poll. The wheel contacts are tested in one vectorised pass against
+only the negative obstacles whose bounding circles can reach them (a KD-tree over their centres).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
+from scipy.spatial import cKDTree
 
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons
 from negobs_gym.errors import ConfigError, require
@@ -84,6 +86,27 @@ class StepEvents:
         return bool(self.entered_negative_obstacle or self.trapped or self.collision or self.rollover)
 
 
+class _PolygonIndex:
+    """KD-tree over the centres of polygons' bounding circles: the polygons near a few points."""
+
+    def __init__(self, polygons: np.ndarray) -> None:
+        if len(polygons) == 0:
+            self._tree = None
+            return
+        lo, hi = polygons.min(axis=1), polygons.max(axis=1)
+        self._centres = 0.5 * (lo + hi)
+        self._radius = float(np.max(np.linalg.norm(polygons - self._centres[:, None], axis=2)))
+        self._tree = cKDTree(self._centres)
+
+    def near(self, points_xy: np.ndarray) -> np.ndarray:
+        """Indices of the polygons that can contain one of ``points_xy`` (sorted)."""
+        if self._tree is None:
+            return np.empty(0, dtype=np.int64)
+        centre = 0.5 * (points_xy.min(axis=0) + points_xy.max(axis=0))
+        reach = float(np.max(np.linalg.norm(points_xy - centre, axis=1))) + self._radius
+        return np.asarray(sorted(self._tree.query_ball_point(centre, reach)), dtype=np.int64)
+
+
 class EventMonitor:
     """Watches a vehicle after every physics step and accumulates events until :meth:`poll`.
 
@@ -104,6 +127,7 @@ class EventMonitor:
         self._polygons = pad_polygons(
             [o.outline_xy_m for o in negatives], name="negative_obstacles.outline_xy_m"
         )
+        self._near = _PolygonIndex(self._polygons)
         self._body_to_obstacle = {body: oid for oid, body in world.obstacle_body_ids.items()}
         self._stuck_s = 0.0
         self._belly_s = 0.0
@@ -134,10 +158,13 @@ class EventMonitor:
         veh = self.vehicle
         c = self.world.client_id
         if len(self._neg_ids):
-            inside = points_in_polygons(veh.wheel_contact_xy(), self._polygons).any(axis=0)
-            hits = self._neg_ids[inside].tolist()
-            self._entered.update(hits)
-            self.entered_ids.update(hits)
+            wheels = veh.wheel_contact_xy()
+            near = self._near.near(wheels)
+            if near.size:
+                inside = points_in_polygons(wheels, self._polygons[near]).any(axis=0)
+                hits = self._neg_ids[near[inside]].tolist()
+                self._entered.update(hits)
+                self.entered_ids.update(hits)
         if self._body_to_obstacle:
             for contact in p.getContactPoints(bodyA=veh.body_id, physicsClientId=c):
                 oid = self._body_to_obstacle.get(contact[2])

@@ -282,6 +282,15 @@ class Vehicle:
         sprung = cfg.mass_kg - 4 * cfg.wheel_mass_kg - 2 * self._steer_mass - 4 * self._susp_mass
         self._preload_n = sprung * self.world.config.gravity_mps2 / 4.0  # static load per corner
 
+    def use_ins_rng(self, rng: np.random.Generator | None) -> None:
+        """Draw the INS noise from ``rng`` from now on (a kept world's vehicle starts a new episode)."""
+        cfg = self.config
+        if (cfg.ins_position_noise_m > 0 or cfg.ins_angle_noise_deg > 0) and not isinstance(
+            rng, np.random.Generator
+        ):
+            raise ConfigError("rng", "INS noise is configured: pass an np.random.Generator as rng")
+        self._rng = rng
+
     # -- placement -----------------------------------------------------------------------------
     def reset(self, start_pose: Pose, speed_mps: float = 0.0) -> None:
         """Put the vehicle at ``start_pose`` (x, y, yaw) on the ground, at rest or at ``speed_mps``."""

@@ -25,8 +25,12 @@ Backend = Literal["auto", "embree", "pybullet"]
 BACKENDS: tuple[str, ...] = ("auto", "embree", "pybullet")
 
 
-def make_caster(world: World, backend: Backend = "auto", exclude_body_ids: Iterable[int] = ()) -> RayCaster:
+def make_caster(
+    world: World, backend: Backend = "auto", exclude_body_ids: Iterable[int] = (), threads: int = 1
+) -> RayCaster:
     """A ray caster over ``world`` that never sees the bodies in ``exclude_body_ids``.
+
+    ``threads`` > 1 splits each Embree cast over that many threads (the PyBullet backend ignores it).
 
     Raises:
         ConfigError: Unknown ``backend``.
@@ -36,10 +40,12 @@ def make_caster(world: World, backend: Backend = "auto", exclude_body_ids: Itera
         raise ConfigError("backend", f"unknown ray-cast backend {backend!r}; expected one of {BACKENDS}")
     exclude = tuple(int(b) for b in exclude_body_ids)
     if backend in ("auto", "embree"):
-        from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster
+        from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
 
         try:
-            return EmbreeCaster.from_world(world, exclude_body_ids=exclude)
+            return EmbreeCaster.from_world(
+                world, exclude_body_ids=exclude, config=EmbreeConfig(threads=threads)
+            )
         except MissingDependencyError:
             if backend == "embree":
                 raise

@@ -1,0 +1,132 @@
+"""Built worlds kept between episodes, so a reset onto a terrain seen before skips the build.
+
+Building an episode's world (terrain generation, PyBullet heightfield with its internal-edge map,
+vehicle, settling, the Embree scene) takes ~1.2 s for OffroadNav's 120 m course; restoring a kept
+one takes milliseconds. A world is keyed by what decides its episode draw (terrain, start pose and
+speed): the env generator's state right before the scenario is drawn (so ``reset(seed=s)`` twice
+hits), or the index of the draw in a fixed pool (``EnvConfig.terrain_pool_size``). Right after
+settling, the PyBullet state is saved (``saveState``); every episode on that world, the first
+included, starts from ``restoreState``, so a kept world gives the same episode bit for bit as a
+fresh one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pybullet as p
+
+from negobs_gym.sim.events import EventMonitor
+from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
+from negobs_gym.sim.world import World, WorldConfig
+
+if TYPE_CHECKING:
+    from negobs_gym.scenarios.spec import SampledScenario
+
+__all__ = ["CachedWorld", "WorldCache", "generator_key"]
+
+
+def generator_key(rng: np.random.Generator) -> str:
+    """A digest of ``rng``'s bit-generator state: equal keys give equal draws."""
+    return hashlib.sha1(repr(rng.bit_generator.state).encode()).hexdigest()
+
+
+@dataclass(eq=False)
+class CachedWorld:
+    """One settled world: its episode draw, vehicle, event monitor and the saved settled state."""
+
+    episode: SampledScenario
+    world: World
+    vehicle: Vehicle
+    monitor: EventMonitor
+    settled_state_id: int
+    settled_time_s: float
+    rng_state_after_draw: dict[str, Any] | None = None
+    extras: dict[str, Any] = field(default_factory=dict)  # per-world products (ray caster, ...)
+
+    @property
+    def terrain(self) -> Terrain:
+        """The episode's terrain."""
+        return self.episode.terrain
+
+    def restore(self) -> None:
+        """Back to the settled state, vehicle at rest with no command (the start of an episode)."""
+        p.restoreState(self.settled_state_id, physicsClientId=self.world.client_id)
+        self.world.sim_time_s = self.settled_time_s
+        self.vehicle.apply(0.0, 0.0, 0.0)
+        self.monitor.reset()
+        self.monitor.poll()
+
+    def close(self) -> None:
+        """Release the PyBullet client."""
+        self.monitor.detach()
+        self.world.close()
+
+
+class WorldCache:
+    """At most ``max_worlds`` settled worlds, least recently used dropped (and closed) first."""
+
+    def __init__(self, max_worlds: int) -> None:
+        self.max_worlds = max_worlds
+        self._worlds: OrderedDict[str, CachedWorld] = OrderedDict()
+        self.hits = 0
+        self.misses = 0
+
+    def __len__(self) -> int:
+        return len(self._worlds)
+
+    def get(self, key: str) -> CachedWorld | None:
+        """The world under ``key`` (now most recently used), or None."""
+        entry = self._worlds.get(key)
+        if entry is None:
+            self.misses += 1
+            return None
+        self.hits += 1
+        self._worlds.move_to_end(key)
+        return entry
+
+    def put(self, key: str, entry: CachedWorld, keep: CachedWorld | None = None) -> None:
+        """Add ``entry``; evicts the least recently used others (never ``entry`` or ``keep``)."""
+        self._worlds[key] = entry
+        self._worlds.move_to_end(key)
+        for old_key in list(self._worlds):
+            if len(self._worlds) <= self.max_worlds:
+                break
+            old = self._worlds[old_key]
+            if old is entry or old is keep:
+                continue
+            del self._worlds[old_key]
+            old.close()
+
+    def close(self) -> None:
+        """Close every kept world."""
+        for entry in self._worlds.values():
+            entry.close()
+        self._worlds.clear()
+
+
+def build_world(
+    episode: SampledScenario, world_config: WorldConfig, vehicle_config: VehicleConfig, settle_steps: int
+) -> CachedWorld:
+    """Build, settle and save a world on the episode's terrain, the vehicle at its start pose.
+
+    With INS noise configured the vehicle gets a placeholder generator: the env hands it the
+    episode's own with :meth:`~negobs_gym.sim.vehicle.Vehicle.use_ins_rng` before any draw.
+    """
+    world = World(episode.terrain, world_config)
+    try:
+        noisy = vehicle_config.ins_position_noise_m > 0 or vehicle_config.ins_angle_noise_deg > 0
+        vehicle = Vehicle(world, vehicle_config, rng=np.random.default_rng(0) if noisy else None)
+        vehicle.reset(episode.start_pose)
+        monitor = EventMonitor(world, vehicle)
+        world.step(settle_steps)
+        state_id = p.saveState(physicsClientId=world.client_id)
+    except BaseException:
+        world.close()
+        raise
+    return CachedWorld(episode, world, vehicle, monitor, state_id, world.sim_time_s)

@@ -1,0 +1,179 @@
+"""ROI casting: the rays cast equal the native scan's, every native return in the region is cast,
+and paper N's detector sees the same pit frame by frame on ROI and native scans."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.pose import Pose
+from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.errors import ConfigError
+from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
+from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_t_rig
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector, tile_rays
+from negobs_gym.sim import presets
+from negobs_gym.sim.vehicle import Vehicle
+from negobs_gym.sim.world import World
+
+GRID = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)  # the envs' observation grid
+REGION = (-GRID.side_m, GRID.side_m, -GRID.back_m, GRID.ahead_m)
+RIG = Rig(name="native+lux", mounts=paper_n_rig().mounts + paper_t_rig().mounts)
+
+
+def test_tile_z_spans_match_sampling_along_the_rays():
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(4000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:50, 0] = 0.0  # rays parallel to a slab
+    d[:50] /= np.linalg.norm(d[:50], axis=1, keepdims=True)
+    origin = np.array([0.0, 0.0, 2.0])
+    lo, hi = np.array([-3.0, -1.0, -0.5]), np.array([3.0, 20.0, 0.5])
+    rays = tile_rays(origin, d, (lo[0], hi[0], lo[1], hi[1]), 30.0)
+    got = np.zeros(len(d), bool)
+    got[rays.index[(rays.z_min_m <= hi[2]) & (rays.z_max_m >= lo[2])]] = True
+    t = np.linspace(0.0, 30.0, 6001)
+    pts = origin + t[None, :, None] * d[:, None, :]
+    sampled = ((pts >= lo) & (pts <= hi)).all(axis=2).any(axis=1)
+    assert np.array_equal(got | sampled, got)  # every sampled hit is found
+    assert (got & ~sampled).sum() <= 0.01 * len(d)  # misses only by grazing between samples
+
+
+def test_keyed_noise_is_per_ray_and_has_the_configured_statistics():
+    cfg = NoiseConfig()
+    idx = np.arange(200_000)
+    full = apply_keyed_noise(np.full(idx.size, 10.0), idx, cfg, key=42)
+    part = apply_keyed_noise(np.full(1000, 10.0), idx[5000:6000], cfg, key=42)
+    np.testing.assert_array_equal(full[5000:6000], part)
+    assert np.nanstd(full) == pytest.approx(cfg.range_sigma_m, rel=0.02)
+    assert np.isnan(full).mean() == pytest.approx(cfg.dropout_prob, rel=0.1)
+    other = apply_keyed_noise(np.full(idx.size, 10.0), idx, cfg, key=43)
+    assert not np.array_equal(full, other, equal_nan=True)
+
+
+def test_config_rejects_bad_region_and_margins():
+    with pytest.raises(ConfigError, match="region_xy_m"):
+        RoiConfig(region_xy_m=(1.0, -1.0, 0.0, 5.0))
+    with pytest.raises(ConfigError, match="laser_margin"):
+        RoiConfig(laser_margin=-1)
+    with pytest.raises(ConfigError, match="height_step_m"):
+        RoiConfig(height_step_m=float("nan"))
+
+
+def test_upper_lasers_are_skipped_and_the_lux_is_cast_in_full():
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    subsets = sel.subsets(-0.5, 0.5)
+    hdl64 = RIG.mount("hdl64").model
+    mask = np.zeros(hdl64.n_lasers * hdl64.n_columns, bool)
+    mask[subsets["hdl64"].index] = True
+    per_laser = mask.reshape(hdl64.n_lasers, hdl64.n_columns).sum(axis=1)
+    assert per_laser[-1] == 0 and per_laser[0] > 0  # above the horizon: nothing in the region
+    assert subsets["hdl64"].size < 0.6 * mask.size
+    assert subsets["lux"].size == RIG.mount("lux").model.n_lasers * RIG.mount("lux").model.n_columns
+    assert sel.subsets(-0.4, 0.4) is subsets  # a cached band containing the asked one serves it
+    wider = sel.subsets(-1.5, 0.5)
+    assert wider is not subsets and wider["hdl64"].size >= subsets["hdl64"].size
+
+
+def _vehicle_at(world: World, distance_m: float, ditch_y_m: float) -> Vehicle:
+    vehicle = Vehicle(world)
+    sx, _, syaw = world.terrain.start_xy_yaw
+    # front of the ditch ``distance_m`` ahead of the vehicle origin (track along +Y)
+    vehicle.reset(Pose(x=sx, y=ditch_y_m - distance_m, yaw=syaw))
+    world.step(30)
+    return vehicle
+
+
+@pytest.fixture(scope="module")
+def ditch_world():
+    terrain = presets.braking_track(ditch_distance_m=30.0, ditch_length_m=0.6, seed=4)
+    with World(terrain) as world:
+        yield world
+
+
+def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_world):
+    world = ditch_world
+    outline = np.asarray(world.terrain.negative_obstacles[0].outline_xy_m)
+    vehicle = _vehicle_at(world, 12.0, float(outline[:, 1].min()))
+    caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+    pose = vehicle.true_pose()
+    subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
+    roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets)
+    native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9))
+    for name, full in native.items():
+        cast = np.zeros(full.ranges_m.size, bool)
+        cast[subsets[name].index] = True
+        cast = cast.reshape(full.shape)
+        np.testing.assert_array_equal(roi[name].ranges_m[cast], full.ranges_m[cast])
+        assert np.isnan(roi[name].ranges_m[~cast]).all()
+        xy = np.where(full.valid[..., None], full.points_vehicle[..., :2], 1e6)
+        _, _, inside = GRID.cell_of(xy)
+        assert inside.any()
+        assert not (inside & ~cast).any(), f"{name}: a native return inside the grid was not cast"
+
+
+def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
+    """Approach a 0.6 m ditch from 20 m to 6 m: the detector's grid is the same on both scans."""
+    world = ditch_world
+    outline = np.asarray(world.terrain.negative_obstacles[0].outline_xy_m)
+    near_y = float(outline[:, 1].min())
+    config = NegativeDetectorConfig(grid=GRID)
+    det_roi, det_native = NegativeObstacleDetector(config), NegativeObstacleDetector(config)
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    seen = pairs_seen = 0
+    vehicle = None
+    for k, distance in enumerate(np.arange(20.0, 5.9, -0.7)):  # 7 m/s at 10 Hz
+        if vehicle is not None:
+            p_remove(world, vehicle)
+        vehicle = _vehicle_at(world, float(distance), near_y)
+        caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
+        heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+        pose = vehicle.true_pose()
+        subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
+        rng_seed = 100 + k
+        roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed), subsets=subsets)
+        native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed))
+        a = det_roi.update(roi, pose)
+        b = det_native.update(native, pose)
+        np.testing.assert_array_equal(a.grid, b.grid, err_msg=f"frame at {distance} m")
+        for name in a.frame_pairs:  # pairs outside the grid (B up to 20 m to the side) are not read
+            np.testing.assert_array_equal(
+                _in_grid(a.frame_pairs[name].b_m), _in_grid(b.frame_pairs[name].b_m)
+            )
+        seen += int(a.grid.any())
+        pairs_seen += int(any(len(_in_grid(p.b_m)) for p in a.frame_pairs.values()))
+    # the comparison means something only if the ditch is found
+    assert pairs_seen >= 8 and seen >= 3, (pairs_seen, seen)
+
+
+def _in_grid(points_m: np.ndarray) -> np.ndarray:
+    return points_m[GRID.cell_of(points_m[:, :2])[2]]
+
+
+def p_remove(world: World, vehicle: Vehicle) -> None:
+    """Take a vehicle out of the world (the next one is placed fresh)."""
+    import pybullet as p
+
+    world.remove_step_hook(vehicle._pre_step)
+    world._dynamic.remove(vehicle.body_id)
+    p.removeBody(vehicle.body_id, physicsClientId=world.client_id)
+
+
+def test_threaded_embree_cast_equals_one_thread(ditch_world):
+    pytest.importorskip("embreex")
+    from negobs_gym.sensors.lidar import scan_rays_world
+    from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
+
+    mount = RIG.mount("hdl64")
+    o, d = scan_rays_world(mount, Pose(x=0.0, y=10.0, z=0.3))
+    one = EmbreeCaster.from_world(ditch_world, config=EmbreeConfig(threads=1)).cast(o, d, 120.0)
+    two = EmbreeCaster.from_world(ditch_world, config=EmbreeConfig(threads=3)).cast(o, d, 120.0)
+    np.testing.assert_array_equal(one, two)
+    assert np.isfinite(one).mean() > 0.3
+    with pytest.raises(ConfigError, match="threads"):
+        EmbreeConfig(threads=0)
