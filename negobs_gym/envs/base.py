@@ -419,14 +419,34 @@ class NegObsEnv(gym.Env):
         return float(station), float(distance)
 
     def _distance_to_negative_ahead(self, pose: Pose) -> float:
-        """Ground-truth distance from the front bumper to the nearest negative-obstacle vertex ahead."""
+        """Ground-truth distance from the front bumper to the nearest negative-obstacle outline
+        point ahead within the wheels' strip (track width + 1 m each side), inf if none."""
         if not self.terrain.negative_obstacles:
             return math.inf
         cfg = self._vehicle.config
+        half = 0.5 * cfg.track_width_m + 1.0
         best = math.inf
         for ob in self.terrain.negative_obstacles:
-            across, along = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw).T
-            ahead = along[(np.abs(across) <= 0.5 * cfg.track_width_m + 1.0) & (along > 0)]
+            outline = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw)
+            ahead = _outline_in_strip(outline, half)
+            ahead = ahead[ahead > 0]
             if ahead.size:
                 best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
         return best
+
+
+def _outline_in_strip(outline: np.ndarray, half_width: float) -> np.ndarray:
+    """Along-coordinates (y) of the closed outline's edges clipped to ``|x| <= half_width``: the
+    ends of each clipped edge (an edge's y is linear along it, so its extremes are there)."""
+    p0 = outline
+    d = np.roll(outline, -1, axis=0) - p0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half_width - p0[:, 0]) / d[:, 0]
+        tb = (half_width - p0[:, 0]) / d[:, 0]
+    flat = d[:, 0] == 0  # edge parallel to the strip: all of it inside or none
+    inside_flat = np.abs(p0[:, 0]) <= half_width
+    lo = np.where(flat, np.where(inside_flat, 0.0, 1.0), np.maximum(np.minimum(ta, tb), 0.0))
+    hi = np.where(flat, np.where(inside_flat, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
+    keep = lo <= hi
+    ends = np.concatenate([p0[keep, 1] + lo[keep] * d[keep, 1], p0[keep, 1] + hi[keep] * d[keep, 1]])
+    return ends
