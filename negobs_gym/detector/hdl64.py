@@ -29,13 +29,20 @@ RISE, FALL = 1, -1
 
 def max_filter_ranges(ranges_m: np.ndarray, radius: int) -> np.ndarray:
     """Max filter of radius ``radius`` along each row (laser); NaN (no return) stays NaN and is
-    ignored by its neighbours."""
+    ignored by its neighbours.
+
+    ``fmax`` of the row against its shifts by 1..radius columns either way (``fmax`` skips NaN; a
+    window is cut at the row's ends): 2 x radius passes, cheaper than a general filter for the
+    small radius of §3.1, and exact (a max selects one of the values).
+    """
     r = np.asarray(ranges_m, dtype=np.float64)
-    if r.shape[1] == 0:
-        return r.copy()
-    filled = np.where(np.isnan(r), -np.inf, r)
-    out = maximum_filter1d(filled, size=2 * radius + 1, axis=1, mode="nearest")
-    return np.where(np.isnan(r), np.nan, out)
+    out = r.copy()
+    n_c = r.shape[1]
+    for k in range(1, min(radius, n_c - 1) + 1):
+        np.fmax(out[:, k:], r[:, :-k], out=out[:, k:])
+        np.fmax(out[:, :-k], r[:, k:], out=out[:, :-k])
+    out[np.isnan(r)] = np.nan
+    return out
 
 
 def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window: int) -> np.ndarray:
@@ -47,18 +54,37 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     """
     r = np.asarray(ranges_m, dtype=np.float64)
     n_l, n_c = r.shape
-    h = half_window
-    rp = np.concatenate([np.full((n_l, h), np.nan), r, np.full((n_l, h), np.nan)], axis=1)
-    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; a later one replaces the
-    # best so far only when strictly larger in magnitude (the first of equal magnitudes is kept)
-    best = np.zeros(r.shape)
-    with np.errstate(invalid="ignore"):
-        for j in range(1, h + 1):
-            for d in (rp[:, h + j : h + j + n_c] - r, r - rp[:, h - j : h - j + n_c]):
-                np.copyto(best, d, where=np.abs(d) > np.abs(best))
     labels = np.zeros(r.shape, dtype=np.int8)
-    labels[best > rise_m] = RISE
-    labels[best < fall_m] = FALL
+    # Forward j at column i and backward j at column i + j are the same lag difference
+    # r[i+j] - r[i]. A column none of whose differences exceeds min(T+, -T-) in magnitude is no
+    # edge whichever wins, so the choice below runs only on the few columns near a range step.
+    lags = [r[:, j:] - r[:, :-j] for j in range(1, min(half_window, n_c - 1) + 1)]
+    quiet = min(rise_m, -fall_m)
+    if quiet >= 0:
+        near_step = np.zeros(r.shape, dtype=bool)
+        with np.errstate(invalid="ignore"):
+            for j, d in enumerate(lags, start=1):
+                big = np.abs(d) > quiet
+                near_step[:, : n_c - j] |= big
+                near_step[:, j:] |= big
+        rows, cols = np.divmod(np.flatnonzero(near_step), n_c)  # (np.nonzero is slow on 2-D)
+    else:
+        rows, cols = (i.ravel() for i in np.indices(r.shape))
+    # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; a later one replaces the
+    # best so far only when strictly larger in magnitude (the first of equal magnitudes is kept);
+    # a neighbour past the row's end is no candidate, as a NaN one
+    best = np.zeros(rows.size)
+    best_abs = np.zeros(rows.size)
+    with np.errstate(invalid="ignore"):
+        for j, d in enumerate(lags, start=1):
+            for at, inside in ((cols, cols < n_c - j), (cols - j, cols >= j)):
+                v = d[rows, np.clip(at, 0, n_c - j - 1)]
+                a = np.abs(v)
+                better = inside & (a > best_abs)
+                best = np.where(better, v, best)
+                best_abs = np.where(better, a, best_abs)
+    labels[rows[best > rise_m], cols[best > rise_m]] = RISE
+    labels[rows[best < fall_m], cols[best < fall_m]] = FALL
     return labels
 
 
@@ -93,14 +119,12 @@ def find_bumps(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     A bump ends at a falling edge that has a rising edge after the previous falling edge; it
     starts at that last rising edge. Bounds are inclusive.
     """
-    n_l, n_c = labels.shape
-    idx = np.broadcast_to(np.arange(n_c), labels.shape)
-    last_rise = np.maximum.accumulate(np.where(labels == RISE, idx, -1), axis=1)
-    last_fall = np.maximum.accumulate(np.where(labels == FALL, idx, -1), axis=1)
-    prev_fall = np.concatenate([np.full((n_l, 1), -1), last_fall[:, :-1]], axis=1)
-    ends = (labels == FALL) & (last_rise > prev_fall)
-    row, end = np.nonzero(ends)
-    return row, last_rise[row, end], end
+    row, col = np.divmod(np.flatnonzero(labels), labels.shape[1])  # edges in row-major order
+    kind = labels[row, col]
+    # a fall ends a bump when the edge just before it on its row is a rise (then that rise is the
+    # last one after the previous fall)
+    ends = (kind[1:] == FALL) & (kind[:-1] == RISE) & (row[1:] == row[:-1])
+    return row[1:][ends], col[:-1][ends], col[1:][ends]
 
 
 def ring_gap_threshold(elevation_rad: np.ndarray, height_m: float, factor: float) -> np.ndarray:
