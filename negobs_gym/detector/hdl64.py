@@ -14,9 +14,9 @@ A, B, C are the raw returns. Density is evaluated only on bump points (the only 
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
 
 from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.blocks import BLOCK_ELEMENTS, row_spans, spans
 from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.geometry import nadir_angle_from_elevation, ring_radius
 from negobs_gym.detector.pair_test import pair_test
@@ -36,12 +36,15 @@ def max_filter_ranges(ranges_m: np.ndarray, radius: int) -> np.ndarray:
     small radius of §3.1, and exact (a max selects one of the values).
     """
     r = np.asarray(ranges_m, dtype=np.float64)
-    out = r.copy()
+    out = np.empty_like(r)
     n_c = r.shape[1]
-    for k in range(1, min(radius, n_c - 1) + 1):
-        np.fmax(out[:, k:], r[:, :-k], out=out[:, k:])
-        np.fmax(out[:, :-k], r[:, k:], out=out[:, :-k])
-    out[np.isnan(r)] = np.nan
+    for rows in row_spans(r.shape[0], n_c):
+        src, dst = r[rows], out[rows]
+        dst[:] = src
+        for k in range(1, min(radius, n_c - 1) + 1):
+            np.fmax(dst[:, k:], src[:, :-k], out=dst[:, k:])
+            np.fmax(dst[:, :-k], src[:, k:], out=dst[:, :-k])
+        dst[np.isnan(src)] = np.nan
     return out
 
 
@@ -54,20 +57,23 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     """
     r = np.asarray(ranges_m, dtype=np.float64)
     n_l, n_c = r.shape
-    labels = np.zeros(r.shape, dtype=np.int8)
+    lags = range(1, min(half_window, n_c - 1) + 1)
     # Forward j at column i and backward j at column i + j are the same lag difference
     # r[i+j] - r[i]. A column none of whose differences exceeds min(T+, -T-) in magnitude is no
     # edge whichever wins, so the choice below runs only on the few columns near a range step.
-    lags = [r[:, j:] - r[:, :-j] for j in range(1, min(half_window, n_c - 1) + 1)]
     quiet = min(rise_m, -fall_m)
     if quiet >= 0:
-        near_step = np.zeros(r.shape, dtype=bool)
+        found = []
         with np.errstate(invalid="ignore"):
-            for j, d in enumerate(lags, start=1):
-                big = np.abs(d) > quiet
-                near_step[:, : n_c - j] |= big
-                near_step[:, j:] |= big
-        rows, cols = np.divmod(np.flatnonzero(near_step), n_c)  # (np.nonzero is slow on 2-D)
+            for block in row_spans(n_l, n_c):
+                rb = r[block]
+                near_step = np.zeros(rb.shape, dtype=bool)
+                for j in lags:
+                    big = np.abs(rb[:, j:] - rb[:, :-j]) > quiet
+                    near_step[:, : n_c - j] |= big
+                    near_step[:, j:] |= big
+                found.append(np.flatnonzero(near_step) + block.start * n_c)
+        rows, cols = np.divmod(np.concatenate(found), n_c)  # (np.nonzero is slow on 2-D arrays)
     else:
         rows, cols = (i.ravel() for i in np.indices(r.shape))
     # candidates in the order j = 1 forward, 1 backward, 2 forward, ...; a later one replaces the
@@ -76,13 +82,15 @@ def edge_labels(ranges_m: np.ndarray, rise_m: float, fall_m: float, half_window:
     best = np.zeros(rows.size)
     best_abs = np.zeros(rows.size)
     with np.errstate(invalid="ignore"):
-        for j, d in enumerate(lags, start=1):
-            for at, inside in ((cols, cols < n_c - j), (cols - j, cols >= j)):
-                v = d[rows, np.clip(at, 0, n_c - j - 1)]
+        for j in lags:
+            for lo, inside in ((cols, cols < n_c - j), (cols - j, cols >= j)):
+                lo = np.clip(lo, 0, n_c - j - 1)
+                v = r[rows, lo + j] - r[rows, lo]
                 a = np.abs(v)
                 better = inside & (a > best_abs)
                 best = np.where(better, v, best)
                 best_abs = np.where(better, a, best_abs)
+    labels = np.zeros(r.shape, dtype=np.int8)
     labels[rows[best > rise_m], cols[best > rise_m]] = RISE
     labels[rows[best < fall_m], cols[best < fall_m]] = FALL
     return labels
@@ -154,22 +162,29 @@ def point_density(
     """Number of lasers (own included) with a point within ``radius_m`` of each query point.
 
     Neighbour lasers ``rows +- 1..laser_window`` at columns ``cols +- column_window`` are
-    searched (vectorized); ``radius_m`` is per query point.
+    searched (vectorized, in blocks of query points); ``radius_m`` is per query point.
     """
     n_l, n_c, _ = points_m.shape
     if rows.size == 0:
         return np.zeros(0)
     dm = np.concatenate([np.arange(-laser_window, 0), np.arange(1, laser_window + 1)])
     dk = np.arange(-column_window, column_window + 1)
-    rr = rows[:, None, None] + dm[None, :, None]
-    cc = cols[:, None, None] + dk[None, None, :]
-    inside = (rr >= 0) & (rr < n_l) & (cc >= 0) & (cc < n_c)
-    nb = points_m[np.clip(rr, 0, n_l - 1), np.clip(cc, 0, n_c - 1)]
-    q = points_m[rows, cols][:, None, None, :]
-    dist = np.linalg.norm(nb - q, axis=-1)
-    with np.errstate(invalid="ignore"):
-        near = inside & (dist <= radius_m[:, None, None])
-    return 1.0 + near.any(axis=2).sum(axis=1)
+    flat = points_m.reshape(-1, 3)
+    coords = flat[:, 0], flat[:, 1], flat[:, 2]
+    out = np.empty(rows.size)
+    for block in spans(rows.size, max(1, BLOCK_ELEMENTS // (dm.size * dk.size))):
+        rr = rows[block, None] + dm[None, :]  # (queries, lasers)
+        cc = cols[block, None] + dk[None, :]  # (queries, columns)
+        inside = ((rr >= 0) & (rr < n_l))[:, :, None] & ((cc >= 0) & (cc < n_c))[:, None, :]
+        nb = (np.clip(rr, 0, n_l - 1) * n_c)[:, :, None] + np.clip(cc, 0, n_c - 1)[:, None, :]
+        q = rows[block] * n_c + cols[block]
+        dx, dy, dz = (c[nb] - c[q][:, None, None] for c in coords)
+        # ((dx^2 + dy^2) + dz^2): the sum np.linalg.norm forms over a (..., 3) axis, bit for bit
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        with np.errstate(invalid="ignore"):
+            near = inside & (dist <= radius_m[block, None, None])
+        out[block] = 1.0 + near.any(axis=2).sum(axis=1)
+    return out
 
 
 def trace_pairs(
@@ -247,13 +262,13 @@ def extract_hdl64_pairs(
     """
     h = sensor_height(scan, config.sensor_height_m)
     order = np.argsort(scan.elevation_rad, kind="stable")
-    ranges = scan.ranges_m[order]
-    n_l, n_c = ranges.shape
-    if n_c == 0 or n_l == 0 or np.isnan(ranges).all():
-        return FeaturePairs.empty(scan.sensor)
     sorted_already = bool(np.all(order == np.arange(order.size)))
-    pts = scan.points_vehicle if sorted_already else scan.points_vehicle[order]
+    ranges = scan.ranges_m if sorted_already else scan.ranges_m[order]
+    n_l, n_c = ranges.shape
     valid = ~np.isnan(ranges)
+    if n_c == 0 or n_l == 0 or not valid.any():
+        return FeaturePairs.empty(scan.sensor)
+    pts = scan.points_vehicle if sorted_already else scan.points_vehicle[order]
     r_f = max_filter_ranges(ranges, config.max_filter_radius)
     labels = edge_labels(r_f, config.edge_rise_m, config.edge_fall_m, config.edge_half_window)
     b_row, b_start, b_end = find_bumps(labels)

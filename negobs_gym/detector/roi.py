@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.detector.blocks import spans
 from negobs_gym.errors import require
 
 
@@ -168,18 +169,21 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
     reach = n_bins * config.bin_m
     z_min = np.full(n_cells, np.inf)
     z_max = np.full(n_cells, -np.inf)
+    sector_rad = math.radians(config.sector_deg)
     for cloud in clouds:
         p = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
-        x, y = p[:, 0], p[:, 1]
-        d2 = x * x + y * y
-        with np.errstate(invalid="ignore"):
-            near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
-        near = near[np.isfinite(p[near, 2])]
-        x, y, z, dist = x[near], y[near], p[near, 2], np.sqrt(d2[near])
-        sector = np.floor((np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)).astype(np.int64)
-        cell = (sector % n_sectors) * n_bins + np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
-        np.minimum.at(z_min, cell, z)
-        np.maximum.at(z_max, cell, z)
+        for block in spans(len(p)):
+            x, y, z = p[block, 0], p[block, 1], p[block, 2]
+            d2 = x * x + y * y
+            with np.errstate(invalid="ignore"):
+                near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
+            near = near[np.isfinite(z[near])]
+            x, y, z, dist = x[near], y[near], z[near], np.sqrt(d2[near])
+            sector = ((np.arctan2(y, x) + np.pi) / sector_rad).astype(np.int64)  # >= 0: truncation is floor
+            radial = np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
+            cell = (sector % n_sectors) * n_bins + radial
+            np.minimum.at(z_min, cell, z)
+            np.maximum.at(z_max, cell, z)
     z_min = z_min.reshape(n_sectors, n_bins)
     z_max = z_max.reshape(n_sectors, n_bins)
 
@@ -187,19 +191,22 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
     fall = slope * config.bin_m
     tol = config.ground_tolerance_m
     step = config.ground_step_m
-    ground = np.zeros((n_sectors, n_bins))
+    low_by_bin = np.ascontiguousarray(z_min.T)  # (bins, sectors): one contiguous row per pass
+    seen_by_bin = np.isfinite(low_by_bin)
+    ground_by_bin = np.empty_like(low_by_bin)
     z_g = np.zeros(n_sectors)  # vehicle origin on the ground
     d_g = np.zeros(n_sectors)
     for k in range(n_bins):  # one pass per radial bin, vectorized over the sectors
         d_k = (k + 0.5) * config.bin_m
         rise = slope * (d_k - d_g)
-        low = z_min[:, k]
+        low = low_by_bin[k]
         # down: one cell's worth of slope only, so the back wall seen past a pit's shadow (empty
         # cells) is a drop, never the new ground level
-        is_ground = np.isfinite(low) & (low <= z_g + step + rise) & (low >= z_g - step - fall)
-        ground[:, k] = np.where(is_ground, low, z_g)
+        is_ground = seen_by_bin[k] & (low <= z_g + step + rise) & (low >= z_g - step - fall)
         z_g = np.where(is_ground, low, z_g)
         d_g = np.where(is_ground, d_k, d_g)
+        ground_by_bin[k] = z_g
+    ground = np.ascontiguousarray(ground_by_bin.T)
     structure = z_max > ground + tol
     before = np.zeros((n_sectors, n_bins + 1), dtype=np.int64)
     np.cumsum(structure, axis=1, out=before[:, 1:])
