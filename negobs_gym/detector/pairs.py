@@ -22,10 +22,12 @@ pair's A jumps to the next laser: overlapping pairs in one azimuth stay at their
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from negobs_gym.detector.blocks import spans
 from negobs_gym.errors import ScanError
 
 
@@ -66,48 +68,89 @@ class FeaturePairs:
         return cls(sensor, z, z, z)
 
 
-_CHUNK = 8192  # rows per block: the ~40 temporaries of a block stay in cache (and below mmap size)
+class _Segments(NamedTuple):
+    """Per-pair columns of a set of (n, 2) ground-plane pairs, computed once per set."""
+
+    ax: np.ndarray
+    ay: np.ndarray
+    bx: np.ndarray
+    by: np.ndarray
+    ex: np.ndarray  # b - a
+    ey: np.ndarray
+    ux: np.ndarray  # unit A->B direction (1, 0) for a zero-length pair
+    uy: np.ndarray
+    offset: np.ndarray  # signed distance of the pair's line from the origin along (-uy, ux)
+
+
+def _segments(a: np.ndarray, b: np.ndarray) -> _Segments:
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    ax, ay, bx, by = (np.ascontiguousarray(v) for v in (a[:, 0], a[:, 1], b[:, 0], b[:, 1]))
+    ex, ey = bx - ax, by - ay
+    ux, uy = _unit_xy(ex, ey)
+    return _Segments(ax, ay, bx, by, ex, ey, ux, uy, ux * ay - uy * ax)
 
 
 def overlap_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> np.ndarray:
     """Row-wise pair distance [m] between (n, 2) segments a1-b1 and a2-b2 (see the module docstring)."""
-    cols = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (a1, b1, a2, b2)], axis=1)
-    cols = np.ascontiguousarray(cols.T)  # (8, n): a1x, a1y, b1x, b1y, a2x, a2y, b2x, b2y
-    out = np.empty(cols.shape[1])
-    for k in range(0, cols.shape[1], _CHUNK):
-        out[k : k + _CHUNK] = _overlap_distance(*cols[:, k : k + _CHUNK])
+    s1, s2 = _segments(a1, b1), _segments(a2, b2)
+    n = len(s1.ax)
+    if len(s2.ax) != n:
+        raise ValueError(f"overlap_distance: {n} and {len(s2.ax)} rows")
+    out = np.empty(n)
+    for block in spans(n):
+        rows = np.arange(block.start, block.stop)
+        out[block] = _pair_distance(s1, rows, s2, rows)
     return out
 
 
-def _overlap_distance(
-    a1x: np.ndarray,
-    a1y: np.ndarray,
-    b1x: np.ndarray,
-    b1y: np.ndarray,
-    a2x: np.ndarray,
-    a2y: np.ndarray,
-    b2x: np.ndarray,
-    b2y: np.ndarray,
-) -> np.ndarray:
-    u1x, u1y = _unit_xy(b1x - a1x, b1y - a1y)
-    u2x, u2y = _unit_xy(b2x - a2x, b2y - a2y)
+def _pair_distance(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray) -> np.ndarray:
+    """:func:`overlap_distance` of pair ``i`` of ``s1`` and pair ``j`` of ``s2`` (one block)."""
+    a1x, a1y, b1x, b1y, e1x, e1y, u1x, u1y = (v[i] for v in s1[:8])
+    a2x, a2y, b2x, b2y, e2x, e2y, u2x, u2y = (v[j] for v in s2[:8])
     sign = np.where(u1x * u2x + u1y * u2y < 0.0, -1.0, 1.0)
     ax, ay = _unit_xy(u1x + sign * u2x, u1y + sign * u2y)
     ta1, tb1 = a1x * ax + a1y * ay, b1x * ax + b1y * ay
     ta2, tb2 = a2x * ax + a2y * ay, b2x * ax + b2y * ay
     lo = np.maximum(np.minimum(ta1, tb1), np.minimum(ta2, tb2))
     hi = np.minimum(np.maximum(ta1, tb1), np.maximum(ta2, tb2))
-    gaps = []
-    for t in (lo, hi):
-        p1x, p1y = _at(a1x, a1y, b1x, b1y, ta1, tb1, t)
-        p2x, p2y = _at(a2x, a2y, b2x, b2y, ta2, tb2, t)
-        gaps.append(_norm(p1x - p2x, p1y - p2y))
-    mean_gap = 0.5 * (gaps[0] + gaps[1])
-    nearest_ends = np.minimum(
-        np.minimum(_norm(a1x - a2x, a1y - a2y), _norm(a1x - b2x, a1y - b2y)),
-        np.minimum(_norm(b1x - a2x, b1y - a2y), _norm(b1x - b2x, b1y - b2y)),
-    )
-    return np.where(hi >= lo, mean_gap, nearest_ends)
+    out = np.empty(len(i))
+    overlap = hi >= lo
+    k = np.flatnonzero(overlap)  # mean gap at the two ends of the overlap
+    if k.size:
+        gaps = []
+        for t in (lo[k], hi[k]):
+            p1x, p1y = _at(a1x[k], a1y[k], e1x[k], e1y[k], ta1[k], tb1[k], t)
+            p2x, p2y = _at(a2x[k], a2y[k], e2x[k], e2y[k], ta2[k], tb2[k], t)
+            gaps.append(_norm(p1x - p2x, p1y - p2y))
+        out[k] = 0.5 * (gaps[0] + gaps[1])
+    k = np.flatnonzero(~overlap)  # nearest end points
+    if k.size:
+        a1x, a1y, b1x, b1y = a1x[k], a1y[k], b1x[k], b1y[k]
+        a2x, a2y, b2x, b2y = a2x[k], a2y[k], b2x[k], b2y[k]
+        out[k] = np.minimum(
+            np.minimum(_norm(a1x - a2x, a1y - a2y), _norm(a1x - b2x, a1y - b2y)),
+            np.minimum(_norm(b1x - a2x, b1y - a2y), _norm(b1x - b2x, b1y - b2y)),
+        )
+    return out
+
+
+def _may_be_close(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, reach_m: float) -> np.ndarray:
+    """False where pair j of ``s2`` lies wholly on one side of pair i's line (or pair i of j's),
+    farther than ``reach_m``: a lower bound of their distance, since every point pair the overlap
+    distance measures joins the two segments and so crosses from one line's side to the other."""
+    keep = np.ones(len(i), dtype=bool)
+    for (sa, ia), (sb, ib) in (((s1, i), (s2, j)), ((s2, j), (s1, i))):
+        ux, uy, off = sa.ux[ia], sa.uy[ia], sa.offset[ia]
+        side_a = ux * sb.ay[ib] - uy * sb.ax[ib] - off
+        side_b = ux * sb.by[ib] - uy * sb.bx[ib] - off
+        keep &= (np.minimum(side_a, side_b) <= reach_m) & (np.maximum(side_a, side_b) >= -reach_m)
+    return keep
+
+
+# Margin of the line-side bound: far above the rounding of metre-scale coordinates (~1e-14 m), so a
+# pair whose computed distance passes the test is never dropped by the bound.
+_BOUND_MARGIN_M = 1e-6
 
 
 def close_pairs(
@@ -119,25 +162,40 @@ def close_pairs(
     of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length.
     Pairs are grouped by length (classes doubling from :data:`_SHORTEST_CLASS_M`); for each two
     classes a KD-tree on the midpoints finds the candidates within ``max_distance_m`` plus the two
-    classes' longest half-lengths, and only those are measured. A candidate's midpoints are thus
-    never farther apart than twice what its own lengths allow, so the work grows with the pairs
-    and their near neighbours (n log n), not with all pairs, however long the longest pair is.
+    classes' longest half-lengths. A candidate's midpoints are thus never farther apart than twice
+    what its own lengths allow, so the work grows with the pairs and their near neighbours
+    (n log n), not with all pairs, however long the longest pair is. Candidates one of which lies
+    wholly beyond ``max_distance_m`` on one side of the other's line are dropped unmeasured (a
+    lower bound of the distance, :func:`_may_be_close`); the rest are measured. The order of the
+    returned triples is unspecified.
     """
     if len(a1) == 0 or len(a2) == 0:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty, np.empty(0)
-    found_i, found_j = [], []
+    s1, s2 = _segments(a1, b1), _segments(a2, b2)
+    classes2 = [(idx, half, cKDTree(0.5 * (a2[idx] + b2[idx]))) for idx, half in _length_classes(a2, b2)]
+    found_i, found_j, found_d = [], [], []
     for idx1, half1 in _length_classes(a1, b1):
         tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
-        for idx2, half2 in _length_classes(a2, b2):
-            tree2 = cKDTree(0.5 * (a2[idx2] + b2[idx2]))
+        for idx2, half2, tree2 in classes2:
             cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-            found_i.append(idx1[cand["i"]])
-            found_j.append(idx2[cand["j"]])
-    i, j = np.concatenate(found_i).astype(np.int64), np.concatenate(found_j).astype(np.int64)
-    d = overlap_distance(a1[i], b1[i], a2[j], b2[j])
-    close = d <= max_distance_m
-    return i[close], j[close], d[close]
+            for block in spans(len(cand)):
+                i, j = idx1[cand["i"][block]], idx2[cand["j"][block]]
+                keep = _may_be_close(s1, i, s2, j, max_distance_m + _BOUND_MARGIN_M)
+                i, j = i[keep], j[keep]
+                d = _pair_distance(s1, i, s2, j)
+                close = d <= max_distance_m
+                found_i.append(i[close])
+                found_j.append(j[close])
+                found_d.append(d[close])
+    if not found_i:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty, np.empty(0)
+    return (
+        np.concatenate(found_i).astype(np.int64),
+        np.concatenate(found_j).astype(np.int64),
+        np.concatenate(found_d),
+    )
 
 
 _SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (Eq. 14: w_min 0.30 m)
@@ -168,14 +226,15 @@ def _unit_xy(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _at(
     ax: np.ndarray,
     ay: np.ndarray,
-    bx: np.ndarray,
-    by: np.ndarray,
+    ex: np.ndarray,
+    ey: np.ndarray,
     ta: np.ndarray,
     tb: np.ndarray,
     t: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Point of segment a-b whose projection on the axis is ``t`` (its midpoint if it is perpendicular)."""
+    """Point of segment a -> a + e whose projection on the axis is ``t`` (its midpoint if it is
+    perpendicular)."""
     span = tb - ta
     s = np.divide(t - ta, span, out=np.full_like(t, 0.5), where=np.abs(span) > 1e-12)
     s = np.clip(s, 0.0, 1.0)
-    return ax + s * (bx - ax), ay + s * (by - ay)
+    return ax + s * ex, ay + s * ey
