@@ -114,17 +114,13 @@ def _pair_distance(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray) -
     ta2, tb2 = a2x * ax + a2y * ay, b2x * ax + b2y * ay
     lo = np.maximum(np.minimum(ta1, tb1), np.minimum(ta2, tb2))
     hi = np.minimum(np.maximum(ta1, tb1), np.maximum(ta2, tb2))
-    out = np.empty(len(i))
-    overlap = hi >= lo
-    k = np.flatnonzero(overlap)  # mean gap at the two ends of the overlap
-    if k.size:
-        gaps = []
-        for t in (lo[k], hi[k]):
-            p1x, p1y = _at(a1x[k], a1y[k], e1x[k], e1y[k], ta1[k], tb1[k], t)
-            p2x, p2y = _at(a2x[k], a2y[k], e2x[k], e2y[k], ta2[k], tb2[k], t)
-            gaps.append(_norm(p1x - p2x, p1y - p2y))
-        out[k] = 0.5 * (gaps[0] + gaps[1])
-    k = np.flatnonzero(~overlap)  # nearest end points
+    gaps = []  # mean gap at the two ends of the overlap (used where there is one: most candidates)
+    for t in (lo, hi):
+        p1x, p1y = _at(a1x, a1y, e1x, e1y, ta1, tb1, t)
+        p2x, p2y = _at(a2x, a2y, e2x, e2y, ta2, tb2, t)
+        gaps.append(_norm(p1x - p2x, p1y - p2y))
+    out = 0.5 * (gaps[0] + gaps[1])
+    k = np.flatnonzero(~(hi >= lo))  # no overlap: nearest end points
     if k.size:
         a1x, a1y, b1x, b1y = a1x[k], a1y[k], b1x[k], b1y[k]
         a2x, a2y, b2x, b2y = a2x[k], a2y[k], b2x[k], b2y[k]
@@ -136,15 +132,20 @@ def _pair_distance(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray) -
 
 
 def _may_be_close(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, reach_m: float) -> np.ndarray:
-    """False where pair j of ``s2`` lies wholly on one side of pair i's line (or pair i of j's),
-    farther than ``reach_m``: a lower bound of their distance, since every point pair the overlap
-    distance measures joins the two segments and so crosses from one line's side to the other."""
-    keep = np.ones(len(i), dtype=bool)
-    for (sa, ia), (sb, ib) in (((s1, i), (s2, j)), ((s2, j), (s1, i))):
-        ux, uy, off = sa.ux[ia], sa.uy[ia], sa.offset[ia]
-        side_a = ux * sb.ay[ib] - uy * sb.ax[ib] - off
-        side_b = ux * sb.by[ib] - uy * sb.bx[ib] - off
-        keep &= (np.minimum(side_a, side_b) <= reach_m) & (np.maximum(side_a, side_b) >= -reach_m)
+    """Ascending indices into (i, j) of the candidates that may lie within ``reach_m``.
+
+    A candidate is dropped where pair j of ``s2`` lies wholly on one side of pair i's line farther
+    than ``reach_m`` (or pair i of pair j's line): a lower bound of their distance, since every
+    point pair the overlap distance measures joins the two segments and so crosses the gap between
+    one line and the other segment.
+    """
+    keep = np.arange(len(i))
+    for s_line, s_other, on_line, other in ((s1, s2, i, j), (s2, s1, j, i)):
+        ia, ib = on_line[keep], other[keep]
+        ux, uy, off = s_line.ux[ia], s_line.uy[ia], s_line.offset[ia]
+        side_a = ux * s_other.ay[ib] - uy * s_other.ax[ib] - off
+        side_b = ux * s_other.by[ib] - uy * s_other.bx[ib] - off
+        keep = keep[(np.minimum(side_a, side_b) <= reach_m) & (np.maximum(side_a, side_b) >= -reach_m)]
     return keep
 
 
