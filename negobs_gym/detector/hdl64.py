@@ -206,27 +206,32 @@ def trace_pairs(
     tol = epsilon_rad * (1 + 1e-9) + 1e-12
     lo = np.searchsorted(azimuth_rad, az_b - tol, side="left")
     hi = np.searchsorted(azimuth_rad, az_b + tol, side="right")
-    width = int((hi - lo).max())
-    win = lo[:, None] + np.arange(width)[None, :]
-    in_win = win < hi[:, None]
-    win = np.minimum(win, azimuth_rad.size - 1)
-    v = valid[:, win] & in_win[None]  # (lasers, nb, width)
-    cost = np.where(v, np.abs(azimuth_rad[win] - az_b[:, None])[None], np.inf)
-    best_col = cost.argmin(axis=2)  # (lasers, nb)
-    has = np.isfinite(cost.min(axis=2))  # (lasers, nb)
+    width = max(int((hi - lo).max()), 1)
     laser = np.arange(n_l)[:, None]
-    below = has & (laser < rows[None, :])
-    above = has & (laser > rows[None, :])
-    a_row = np.where(below.any(axis=0), np.where(below, laser, -1).max(axis=0), -1)
-    c_row = np.where(above.any(axis=0), np.where(above, laser, n_l).min(axis=0), -1)
-    out = []
-    for r in (a_row, c_row):
-        ok = r >= 0
-        rr = np.where(ok, r, 0)
-        cc = win[np.arange(nb), best_col[rr, np.arange(nb)]]
-        p = points_m[rr, cc]
-        out.append(np.where(ok[:, None], p, np.nan))
-    return out[0], out[1]
+    a_m, c_m = np.empty((nb, 3)), np.empty((nb, 3))
+    for block in spans(nb, max(1, BLOCK_ELEMENTS // (n_l * width))):
+        q = np.arange(block.stop - block.start)
+        win = lo[block, None] + np.arange(width)[None, :]
+        in_win = win < hi[block, None]
+        win = np.minimum(win, azimuth_rad.size - 1)
+        # window columns nearest in azimuth first (a stable sort: of equal ones the first column),
+        # so each laser's column is its first valid one in this order
+        cost = np.where(in_win, np.abs(azimuth_rad[win] - az_b[block, None]), np.inf)
+        rank = np.argsort(cost, axis=1, kind="stable")
+        win = np.take_along_axis(win, rank, axis=1)
+        v = valid[:, win] & np.take_along_axis(in_win, rank, axis=1)[None]  # (lasers, queries, width)
+        has = v.any(axis=2)
+        first = v.argmax(axis=2)
+        below = has & (laser < rows[None, block])
+        above = has & (laser > rows[None, block])
+        a_row = np.where(below.any(axis=0), np.where(below, laser, -1).max(axis=0), -1)
+        c_row = np.where(above.any(axis=0), np.where(above, laser, n_l).min(axis=0), -1)
+        for r, out in ((a_row, a_m), (c_row, c_m)):
+            ok = r >= 0
+            rr = np.where(ok, r, 0)
+            p = points_m[rr, win[q, first[rr, q]]]
+            out[block] = np.where(ok[:, None], p, np.nan)
+    return a_m, c_m
 
 
 def sensor_height(scan: StructuredScan, override_m: float | None) -> float:
