@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-BLOCK_ELEMENTS = 8192  # float64 elements per block: 64 KiB temporaries
+BLOCK_BYTES = 65536  # per temporary of a block
+BLOCK_ELEMENTS = BLOCK_BYTES // 8  # float64 elements per block
 
 
 def spans(n: int, size: int = BLOCK_ELEMENTS) -> Iterator[slice]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
-from negobs_gym.detector.blocks import BLOCK_ELEMENTS, row_spans, spans
+from negobs_gym.detector.blocks import BLOCK_BYTES, BLOCK_ELEMENTS, row_spans, spans
 from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.geometry import nadir_angle_from_elevation, ring_radius
 from negobs_gym.detector.pair_test import pair_test
@@ -209,7 +209,7 @@ def trace_pairs(
     width = max(int((hi - lo).max()), 1)
     laser = np.arange(n_l)[:, None]
     a_m, c_m = np.empty((nb, 3)), np.empty((nb, 3))
-    for block in spans(nb, max(1, BLOCK_ELEMENTS // (n_l * width))):
+    for block in spans(nb, max(1, BLOCK_BYTES // (n_l * width))):  # (lasers, points, width) bools
         q = np.arange(block.stop - block.start)
         win = lo[block, None] + np.arange(width)[None, :]
         in_win = win < hi[block, None]
@@ -219,17 +219,16 @@ def trace_pairs(
         cost = np.where(in_win, np.abs(azimuth_rad[win] - az_b[block, None]), np.inf)
         rank = np.argsort(cost, axis=1, kind="stable")
         win = np.take_along_axis(win, rank, axis=1)
-        v = valid[:, win] & np.take_along_axis(in_win, rank, axis=1)[None]  # (lasers, queries, width)
+        v = valid[:, win] & np.take_along_axis(in_win, rank, axis=1)[None]  # (lasers, points, width)
         has = v.any(axis=2)
-        first = v.argmax(axis=2)
         below = has & (laser < rows[None, block])
         above = has & (laser > rows[None, block])
-        a_row = np.where(below.any(axis=0), np.where(below, laser, -1).max(axis=0), -1)
-        c_row = np.where(above.any(axis=0), np.where(above, laser, n_l).min(axis=0), -1)
+        a_row = np.where(below.any(axis=0), n_l - 1 - below[::-1].argmax(axis=0), -1)  # highest below
+        c_row = np.where(above.any(axis=0), above.argmax(axis=0), -1)  # lowest above
         for r, out in ((a_row, a_m), (c_row, c_m)):
             ok = r >= 0
             rr = np.where(ok, r, 0)
-            p = points_m[rr, win[q, first[rr, q]]]
+            p = points_m[rr, win[q, v[rr, q].argmax(axis=1)]]
             out[block] = np.where(ok[:, None], p, np.nan)
     return a_m, c_m
 
