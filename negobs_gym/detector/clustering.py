@@ -1,7 +1,7 @@
 """DBSCAN of fused feature pairs with paper N's pair distance, one convex outline per cluster (§3.3 step 3).
 
 The distance is :func:`negobs_gym.detector.pairs.overlap_distance`. Only pairs that close are
-measured (:func:`~negobs_gym.detector.pairs.close_pairs`), and scikit-learn's DBSCAN gets them as a
+measured (:func:`~negobs_gym.detector.pairs.close_pairs_within`), and scikit-learn's DBSCAN gets them as a
 sparse precomputed graph: memory grows with the neighbours, not with the square of the pairs.
 """
 
@@ -15,7 +15,7 @@ from scipy import sparse
 from scipy.spatial import ConvexHull
 from sklearn.cluster import DBSCAN
 
-from negobs_gym.detector.pairs import close_pairs
+from negobs_gym.detector.pairs import close_pairs_within
 from negobs_gym.errors import require
 
 _TINY = 1e-9  # sparse DBSCAN graphs drop explicit zeros: a zero distance is stored as this
@@ -90,7 +90,7 @@ def cluster_labels(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig)
     if n == 0:
         return np.empty(0, dtype=np.int64)
     weights = pair_weights(a_xy, b_xy, config)
-    i, j, d = close_pairs(a_xy, b_xy, a_xy, b_xy, config.eps_m * float(weights.max()))
+    i, j, d = close_pairs_within(a_xy, b_xy, config.eps_m * float(weights.max()))
     # the neighbourhood widens with the same factor: distances are divided by the smaller weight
     d = d / np.minimum(weights[i], weights[j])
     keep = d <= config.eps_m

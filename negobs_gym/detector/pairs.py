@@ -68,6 +68,9 @@ class FeaturePairs:
         return cls(sensor, z, z, z)
 
 
+_Found = tuple[np.ndarray, np.ndarray, np.ndarray]  # (i, j, distance) of close pairs
+
+
 class _Segments(NamedTuple):
     """Per-pair columns of a set of (n, 2) ground-plane pairs, computed once per set."""
 
@@ -171,32 +174,67 @@ def close_pairs(
     returned triples is unspecified.
     """
     if len(a1) == 0 or len(a2) == 0:
-        empty = np.empty(0, dtype=np.int64)
-        return empty, empty, np.empty(0)
+        return _joined([])
     s1, s2 = _segments(a1, b1), _segments(a2, b2)
     classes2 = [(idx, half, cKDTree(0.5 * (a2[idx] + b2[idx]))) for idx, half in _length_classes(a2, b2)]
-    found_i, found_j, found_d = [], [], []
+    found = []
     for idx1, half1 in _length_classes(a1, b1):
         tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
         for idx2, half2, tree2 in classes2:
             cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-            for block in spans(len(cand)):
-                i, j = idx1[cand["i"][block]], idx2[cand["j"][block]]
-                keep = _may_be_close(s1, i, s2, j, max_distance_m + _BOUND_MARGIN_M)
-                i, j = i[keep], j[keep]
-                d = _pair_distance(s1, i, s2, j)
-                close = d <= max_distance_m
-                found_i.append(i[close])
-                found_j.append(j[close])
-                found_d.append(d[close])
-    if not found_i:
+            found.append(_measured(s1, idx1[cand["i"]], s2, idx2[cand["j"]], max_distance_m))
+    return _joined(found)
+
+
+def close_pairs_within(
+    a: np.ndarray, b: np.ndarray, max_distance_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``close_pairs(a, b, a, b, max_distance_m)`` (every pair with itself included), measuring each
+    two pairs once: :func:`overlap_distance` is symmetric bit for bit (swapping the pairs swaps or
+    negates every intermediate exactly), so (j, i) gets the distance of (i, j)."""
+    if len(a) == 0:
+        return _joined([])
+    s = _segments(a, b)
+    classes = [(idx, half, cKDTree(0.5 * (a[idx] + b[idx]))) for idx, half in _length_classes(a, b)]
+    found = []
+    for k, (idx1, half1, tree1) in enumerate(classes):
+        within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
+        found.append(_measured(s, idx1[within[:, 0]], s, idx1[within[:, 1]], max_distance_m))
+        for idx2, half2, tree2 in classes[k + 1 :]:
+            cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
+            found.append(_measured(s, idx1[cand["i"]], s, idx2[cand["j"]], max_distance_m))
+    i, j, d = _joined(found)
+    every = np.arange(len(s.ax))
+    found_self = _measured(s, every, s, every, max_distance_m)
+    return (
+        np.concatenate([i, j, found_self[0]]),
+        np.concatenate([j, i, found_self[1]]),
+        np.concatenate([d, d, found_self[2]]),
+    )
+
+
+def _measured(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, max_distance_m: float) -> _Found:
+    """(i, j, distance) of the candidates (i, j) within ``max_distance_m``, block by block."""
+    found = []
+    for block in spans(len(i)):
+        ib, jb = i[block], j[block]
+        keep = _may_be_close(s1, ib, s2, jb, max_distance_m + _BOUND_MARGIN_M)
+        ib, jb = ib[keep], jb[keep]
+        d = _pair_distance(s1, ib, s2, jb)
+        close = d <= max_distance_m
+        found.append((ib[close], jb[close], d[close]))
+    return _joined(found)
+
+
+def _joined(
+    found: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (i, j, distance) parts concatenated (int64 indices)."""
+    if not found:
         empty = np.empty(0, dtype=np.int64)
         return empty, empty, np.empty(0)
-    return (
-        np.concatenate(found_i).astype(np.int64),
-        np.concatenate(found_j).astype(np.int64),
-        np.concatenate(found_d),
-    )
+    i, j, d = zip(*found, strict=True)
+    return np.concatenate(i).astype(np.int64), np.concatenate(j).astype(np.int64), np.concatenate(d)
 
 
 _SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (Eq. 14: w_min 0.30 m)
