@@ -19,6 +19,7 @@ import functools
 import numpy as np
 
 from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.detector.blocks import row_spans
 from negobs_gym.detector.config import Hdl32FeatureConfig
 from negobs_gym.detector.hdl64 import sensor_height
 from negobs_gym.detector.pair_test import pair_test
@@ -27,8 +28,22 @@ from negobs_gym.detector.pairs import FeaturePairs
 
 def ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
     """Horizontal distance from the sensor at which each ray would hit flat ground (inf = never)."""
+    return _ground_hit_distance(scan, height_m).copy()
+
+
+def _ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
+    """:func:`ground_hit_distance`, read-only and cached per scan geometry and height."""
     geometry = (scan.elevation_rad.tobytes(), scan.azimuth_rad.tobytes(), scan.rotation.tobytes())
-    return height_m * _ground_hit_per_metre(*geometry, scan.elevation_rad.size)
+    return _ground_hit_cached(*geometry, scan.elevation_rad.size, float(height_m))
+
+
+@functools.lru_cache(maxsize=8)
+def _ground_hit_cached(
+    elevation: bytes, azimuth: bytes, rotation: bytes, n_lasers: int, height_m: float
+) -> np.ndarray:
+    out = height_m * _ground_hit_per_metre(elevation, azimuth, rotation, n_lasers)
+    out.flags.writeable = False
+    return out
 
 
 @functools.lru_cache(maxsize=8)
@@ -55,15 +70,25 @@ def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
     n_l, n_c = r.shape
     if n_c < 3 or n_l < 2:
         return r.copy()
-    up = np.concatenate([r[1:], np.full((1, n_c), np.nan)])
-    dn = np.concatenate([np.full((1, n_c), np.nan), r[:-1]])
+    return _compensated_rows(r, slice(0, n_l))
+
+
+def _compensated_rows(r: np.ndarray, rows: slice) -> np.ndarray:
+    """``compensate_missing(r)[rows]``, evaluated at the missing returns only."""
+    n_l, n_c = r.shape
+    out = r[rows].copy()
+    lz, c = np.divmod(np.flatnonzero(np.isnan(out)), n_c)
+    ln = lz + rows.start
+    up = np.where(ln + 1 < n_l, r[np.minimum(ln + 1, n_l - 1), c], np.nan)
+    dn = np.where(ln >= 1, r[np.maximum(ln - 1, 0), c], np.nan)
     est = np.where(np.isnan(up), dn, np.where(np.isnan(dn), up, 0.5 * (up + dn)))
-    left = np.concatenate([np.full((n_l, 1), np.nan), r[:, :-1]], axis=1)
-    right = np.concatenate([r[:, 1:], np.full((n_l, 1), np.nan)], axis=1)
+    left = np.where(c >= 1, r[ln, np.maximum(c - 1, 0)], np.nan)
+    right = np.where(c + 1 < n_c, r[ln, np.minimum(c + 1, n_c - 1)], np.nan)
     lo, hi = np.fmin(left, right), np.fmax(left, right)
     with np.errstate(invalid="ignore"):
         ordered = (est >= lo) & (est <= hi)
-    return np.where(np.isnan(r) & ordered, est, r)
+    out[lz, c] = np.where(ordered, est, out[lz, c])
+    return out
 
 
 def same_laser_density(
@@ -157,12 +182,18 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     if n_c == 0 or n_l == 0 or np.isnan(ranges).all():
         return FeaturePairs.empty(scan.sensor)
     pts = scan.points_vehicle
-    valid = ~np.isnan(ranges)
-    r_c = compensate_missing(ranges) if config.compensate_missing else ranges
-    ground = ground_hit_distance(scan, h)
+    ground = _ground_hit_distance(scan, h)
+    compensate = config.compensate_missing and n_c >= 3 and n_l >= 2
+    jumps: dict[int, list[np.ndarray]] = {1: [], -1: []}
+    for block in row_spans(n_l, n_c):  # range jumps of a block of lasers at a time
+        r_c = _compensated_rows(ranges, block) if compensate else ranges[block]
+        valid = ~np.isnan(ranges[block])
+        for step, found in jumps.items():
+            at = range_jumps(r_c, ground[block], config.jump_threshold_m, step) & valid
+            found.append(np.flatnonzero(at) + block.start * n_c)
     a_all, b_all, c_all = [], [], []
     for step in (1, -1):
-        rows, cols = np.nonzero(range_jumps(r_c, ground, config.jump_threshold_m, step) & valid)
+        rows, cols = np.divmod(np.concatenate(jumps[step]), n_c)
         # density only where it is used: at the jump points
         dens = same_laser_density(pts, config.density_radius_m, config.density_half_window, rows, cols)
         dense = dens > density_threshold(pts[rows, cols], scan.translation_m, config)

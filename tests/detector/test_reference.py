@@ -10,9 +10,10 @@ import pytest
 from scipy.ndimage import maximum_filter1d
 
 from negobs_gym.core import Pose
-from negobs_gym.detector import NegativeObstacleDetector, clustering, fusion, hdl64, roi
+from negobs_gym.detector import NegativeObstacleDetector, clustering, fusion, hdl32, hdl64, negative, roi
 from negobs_gym.detector.blocks import BLOCK_ELEMENTS
-from negobs_gym.detector.pairs import close_pairs, close_pairs_within, overlap_distance
+from negobs_gym.detector.pair_test import pair_test
+from negobs_gym.detector.pairs import FeaturePairs, close_pairs, close_pairs_within, overlap_distance
 from negobs_gym.detector.synthetic import Block, Hole, hdl32_side_scan, hdl64_scan
 
 # ---- references -------------------------------------------------------------------------------
@@ -87,6 +88,46 @@ def ref_trace_pairs(points, valid, azimuth, rows, cols, epsilon):
         p = points[rr, win[np.arange(nb), best_col[rr, np.arange(nb)]]]
         out.append(np.where((r >= 0)[:, None], p, np.nan))
     return out[0], out[1]
+
+
+def ref_compensate_missing(r):
+    n_l, n_c = r.shape
+    if n_c < 3 or n_l < 2:
+        return r.copy()
+    up = np.concatenate([r[1:], np.full((1, n_c), np.nan)])
+    dn = np.concatenate([np.full((1, n_c), np.nan), r[:-1]])
+    est = np.where(np.isnan(up), dn, np.where(np.isnan(dn), up, 0.5 * (up + dn)))
+    left = np.concatenate([np.full((n_l, 1), np.nan), r[:, :-1]], axis=1)
+    right = np.concatenate([r[:, 1:], np.full((n_l, 1), np.nan)], axis=1)
+    lo, hi = np.fmin(left, right), np.fmax(left, right)
+    with np.errstate(invalid="ignore"):
+        ordered = (est >= lo) & (est <= hi)
+    return np.where(np.isnan(r) & ordered, est, r)
+
+
+def ref_extract_hdl32_pairs(scan, config):
+    """Whole-image range jumps of the compensated scan, then the module's per-jump steps."""
+    h = hdl64.sensor_height(scan, config.sensor_height_m)
+    if scan.ranges_m.size == 0 or np.isnan(scan.ranges_m).all():
+        return FeaturePairs.empty(scan.sensor)
+    pts, valid = scan.points_vehicle, scan.valid
+    r_c = ref_compensate_missing(scan.ranges_m) if config.compensate_missing else scan.ranges_m
+    ground = hdl32.ground_hit_distance(scan, h)
+    abc = [], [], []
+    for step in (1, -1):
+        rows, cols = np.nonzero(hdl32.range_jumps(r_c, ground, config.jump_threshold_m, step) & valid)
+        dens = hdl32.same_laser_density(pts, config.density_radius_m, config.density_half_window, rows, cols)
+        dense = dens > hdl32.density_threshold(pts[rows, cols], scan.translation_m, config)
+        rows, cols = rows[dense], cols[dense]
+        ok = (cols - step >= 0) & (cols - step < scan.ranges_m.shape[1])
+        rows, cols = rows[ok], cols[ok]
+        abc[0].append(pts[rows, cols - step])
+        abc[1].append(pts[rows, cols])
+        m, w = config.c_min_separation_m, config.density_half_window
+        abc[2].append(hdl32.next_point(pts, rows, cols, step, m, w))
+    a, b, c = (np.concatenate(x) for x in abc)
+    ok = pair_test(a, b, c, scan.translation_m, h, config.pair_test)
+    return FeaturePairs(scan.sensor, a[ok], b[ok], c[ok])
 
 
 def _unit(x, y):
@@ -187,6 +228,11 @@ def test_max_filter_edges_and_bumps_match_the_whole_image_references():
                 np.testing.assert_array_equal(labels, ref_edge_labels(r, rise, fall, half))
                 for got, want in zip(hdl64.find_bumps(labels), ref_find_bumps(labels), strict=True):
                     np.testing.assert_array_equal(got, want)
+
+
+def test_missing_return_compensation_matches_the_whole_image_reference():
+    for r in _range_images(np.random.default_rng(8)):
+        np.testing.assert_array_equal(hdl32.compensate_missing(r), ref_compensate_missing(r))
 
 
 @pytest.fixture(scope="module")
@@ -297,6 +343,7 @@ def test_detector_on_the_references_gives_the_same_detection_bit_for_bit(monkeyp
         (hdl64, "trace_pairs", ref_trace_pairs),
         (fusion, "close_pairs", ref_close_pairs),
         (clustering, "close_pairs_within", _ref_close_pairs_within),
+        (negative, "extract_hdl32_pairs", ref_extract_hdl32_pairs),
     ):
         monkeypatch.setattr(module, name, ref)
     detector = NegativeObstacleDetector()
