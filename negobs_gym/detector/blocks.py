@@ -1,18 +1,18 @@
-"""Work on whole scans in blocks of at most :data:`BLOCK_ELEMENTS` array elements.
+"""Work on whole scans in blocks of at most :data:`BLOCK_BYTES` per temporary array.
 
-A numpy temporary of up to 128 KiB is served from memory the allocator keeps; a larger one is
-mapped afresh each time and every page of it faults on first touch. On the 2-core benchmark VM an
-element-wise operation on 256 Ki float64 cost 3-5 ns per element that way against ~1 ns on blocks
-of 8 Ki (measured), and the detector's full-scan passes (a 64 x 4,000 HDL-64 image, ~400 k points
-per frame) made ~5,700 page faults per frame. Passes over scans therefore run block by block; the
-results are element-wise the same.
+A numpy temporary under 128 KiB (glibc's default mmap threshold) is served from memory the
+allocator keeps; a larger one is mapped afresh each time and every page of it faults on first
+touch. On the 2-core benchmark VM an element-wise operation on 32-256 Ki float64 cost 3-5 ns per
+element that way against ~1 ns on blocks of up to 16 Ki (measured), and the detector's full-scan
+passes (a 64 x 4,000 HDL-64 image, ~400 k points per frame) made ~5,700 page faults per frame (~90
+after). Passes over scans therefore run block by block; the results are element-wise the same.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 
-BLOCK_BYTES = 65536  # per temporary of a block
+BLOCK_BYTES = 120 * 1024  # per temporary of a block
 BLOCK_ELEMENTS = BLOCK_BYTES // 8  # float64 elements per block
 
 

@@ -28,22 +28,25 @@ from negobs_gym.detector.pairs import FeaturePairs
 
 def ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
     """Horizontal distance from the sensor at which each ray would hit flat ground (inf = never)."""
-    return _ground_hit_distance(scan, height_m).copy()
+    return _ray_tables(scan, height_m)[0].copy()
 
 
-def _ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
-    """:func:`ground_hit_distance`, read-only and cached per scan geometry and height."""
+def _ray_tables(scan: StructuredScan, height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ground-hit distances and the near-to-far masks of both walking directions (read-only),
+    cached per scan geometry and height."""
     geometry = (scan.elevation_rad.tobytes(), scan.azimuth_rad.tobytes(), scan.rotation.tobytes())
-    return _ground_hit_cached(*geometry, scan.elevation_rad.size, float(height_m))
+    return _ray_tables_cached(*geometry, scan.elevation_rad.size, float(height_m))
 
 
 @functools.lru_cache(maxsize=8)
-def _ground_hit_cached(
+def _ray_tables_cached(
     elevation: bytes, azimuth: bytes, rotation: bytes, n_lasers: int, height_m: float
-) -> np.ndarray:
-    out = height_m * _ground_hit_per_metre(elevation, azimuth, rotation, n_lasers)
-    out.flags.writeable = False
-    return out
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ground = height_m * _ground_hit_per_metre(elevation, azimuth, rotation, n_lasers)
+    tables = (ground, _near_to_far(ground, 1), _near_to_far(ground, -1))
+    for t in tables:
+        t.flags.writeable = False
+    return tables
 
 
 @functools.lru_cache(maxsize=8)
@@ -74,21 +77,22 @@ def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
 
 
 def _compensated_rows(r: np.ndarray, rows: slice) -> np.ndarray:
-    """``compensate_missing(r)[rows]``, evaluated at the missing returns only."""
-    n_l, n_c = r.shape
-    out = r[rows].copy()
-    lz, c = np.divmod(np.flatnonzero(np.isnan(out)), n_c)
-    ln = lz + rows.start
-    up = np.where(ln + 1 < n_l, r[np.minimum(ln + 1, n_l - 1), c], np.nan)
-    dn = np.where(ln >= 1, r[np.maximum(ln - 1, 0), c], np.nan)
+    """``compensate_missing(r)[rows]`` (``r`` at least 2 x 3), from the block and its neighbour rows."""
+    n_l = r.shape[0]
+    block = r[rows]
+    up = np.full(block.shape, np.nan)  # the next laser at the same column
+    up[: min(rows.stop + 1, n_l) - rows.start - 1] = r[rows.start + 1 : rows.stop + 1]
+    dn = np.full(block.shape, np.nan)  # the previous laser
+    dn[1 if rows.start == 0 else 0 :] = r[max(rows.start - 1, 0) : rows.stop - 1]
     est = np.where(np.isnan(up), dn, np.where(np.isnan(dn), up, 0.5 * (up + dn)))
-    left = np.where(c >= 1, r[ln, np.maximum(c - 1, 0)], np.nan)
-    right = np.where(c + 1 < n_c, r[ln, np.minimum(c + 1, n_c - 1)], np.nan)
+    left = np.full(block.shape, np.nan)
+    left[:, 1:] = block[:, :-1]
+    right = np.full(block.shape, np.nan)
+    right[:, :-1] = block[:, 1:]
     lo, hi = np.fmin(left, right), np.fmax(left, right)
     with np.errstate(invalid="ignore"):
         ordered = (est >= lo) & (est <= hi)
-    out[lz, c] = np.where(ordered, est, out[lz, c])
-    return out
+    return np.where(np.isnan(block) & ordered, est, block)
 
 
 def same_laser_density(
@@ -132,14 +136,27 @@ def density_threshold(points_m: np.ndarray, sensor_m: np.ndarray, config: Hdl32F
 def range_jumps(ranges_m: np.ndarray, ground_m: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
     """Mask of ``r_diff = (r_i - r_i-1) - (r_i-1 - r_i-2) > threshold_m`` walking the columns
     with ``step`` (+1 or -1), where the rays' ground distances increase (near to far)."""
-    r = ranges_m if step == 1 else ranges_m[:, ::-1]
+    return _jumps(ranges_m, _near_to_far(ground_m, step), threshold_m, step)
+
+
+def _near_to_far(ground_m: np.ndarray, step: int) -> np.ndarray:
+    """Where the ground distances of columns i-2, i-1, i (walking ``step``) increase."""
     g = ground_m if step == 1 else ground_m[:, ::-1]
+    out = np.zeros(g.shape, dtype=bool)
+    if g.shape[1] >= 3:
+        out[:, 2:] = (g[:, 2:] > g[:, 1:-1]) & (g[:, 1:-1] > g[:, :-2])
+    return out if step == 1 else out[:, ::-1]
+
+
+def _jumps(ranges_m: np.ndarray, far: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
+    """:func:`range_jumps` given its near-to-far mask."""
+    r = ranges_m if step == 1 else ranges_m[:, ::-1]
     out = np.zeros(r.shape, dtype=bool)
     if r.shape[1] >= 3:
         rd = (r[:, 2:] - r[:, 1:-1]) - (r[:, 1:-1] - r[:, :-2])
-        far = (g[:, 2:] > g[:, 1:-1]) & (g[:, 1:-1] > g[:, :-2])
         with np.errstate(invalid="ignore"):
-            out[:, 2:] = (rd > threshold_m) & far
+            out[:, 2:] = rd > threshold_m
+    out &= far if step == 1 else far[:, ::-1]
     return out if step == 1 else out[:, ::-1]
 
 
@@ -182,15 +199,15 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     if n_c == 0 or n_l == 0 or np.isnan(ranges).all():
         return FeaturePairs.empty(scan.sensor)
     pts = scan.points_vehicle
-    ground = _ground_hit_distance(scan, h)
+    _, far_forward, far_backward = _ray_tables(scan, h)
     compensate = config.compensate_missing and n_c >= 3 and n_l >= 2
     jumps: dict[int, list[np.ndarray]] = {1: [], -1: []}
     for block in row_spans(n_l, n_c):  # range jumps of a block of lasers at a time
         r_c = _compensated_rows(ranges, block) if compensate else ranges[block]
         valid = ~np.isnan(ranges[block])
-        for step, found in jumps.items():
-            at = range_jumps(r_c, ground[block], config.jump_threshold_m, step) & valid
-            found.append(np.flatnonzero(at) + block.start * n_c)
+        for step, far in ((1, far_forward), (-1, far_backward)):
+            at = _jumps(r_c, far[block], config.jump_threshold_m, step) & valid
+            jumps[step].append(np.flatnonzero(at) + block.start * n_c)
     a_all, b_all, c_all = [], [], []
     for step in (1, -1):
         rows, cols = np.divmod(np.concatenate(jumps[step]), n_c)
