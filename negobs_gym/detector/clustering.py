@@ -90,7 +90,8 @@ def cluster_labels(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig)
     if n == 0:
         return np.empty(0, dtype=np.int64)
     weights = pair_weights(a_xy, b_xy, config)
-    i, j, d = close_pairs_within(a_xy, b_xy, config.eps_m * float(weights.max()))
+    # a pair reaches eps_m times its weight: pairs farther apart need not be measured
+    i, j, d = close_pairs_within(a_xy, b_xy, config.eps_m * float(weights.max()), config.eps_m * weights)
     # the neighbourhood widens with the same factor: distances are divided by the smaller weight
     d = d / np.minimum(weights[i], weights[j])
     keep = d <= config.eps_m

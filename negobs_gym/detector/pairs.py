@@ -134,8 +134,11 @@ def _pair_distance(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray) -
     return out
 
 
-def _may_be_close(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, reach_m: float) -> np.ndarray:
-    """Ascending indices into (i, j) of the candidates that may lie within ``reach_m``.
+def _may_be_close(
+    s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, reach_m: float | np.ndarray
+) -> np.ndarray:
+    """Ascending indices into (i, j) of the candidates that may lie within ``reach_m`` (one value,
+    or one per candidate).
 
     A candidate is dropped where pair j of ``s2`` lies wholly on one side of pair i's line farther
     than ``reach_m`` (or pair i of pair j's line): a lower bound of their distance, since every
@@ -145,10 +148,11 @@ def _may_be_close(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, re
     keep = np.arange(len(i))
     for s_line, s_other, on_line, other in ((s1, s2, i, j), (s2, s1, j, i)):
         ia, ib = on_line[keep], other[keep]
+        reach = reach_m if np.ndim(reach_m) == 0 else reach_m[keep]
         ux, uy, off = s_line.ux[ia], s_line.uy[ia], s_line.offset[ia]
         side_a = ux * s_other.ay[ib] - uy * s_other.ax[ib] - off
         side_b = ux * s_other.by[ib] - uy * s_other.bx[ib] - off
-        keep = keep[(np.minimum(side_a, side_b) <= reach_m) & (np.maximum(side_a, side_b) >= -reach_m)]
+        keep = keep[(np.minimum(side_a, side_b) <= reach) & (np.maximum(side_a, side_b) >= -reach)]
     return keep
 
 
@@ -187,22 +191,28 @@ def close_pairs(
 
 
 def close_pairs_within(
-    a: np.ndarray, b: np.ndarray, max_distance_m: float
+    a: np.ndarray, b: np.ndarray, max_distance_m: float, limit_m: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``close_pairs(a, b, a, b, max_distance_m)`` (every pair with itself included), measuring each
     two pairs once: :func:`overlap_distance` is symmetric bit for bit (swapping the pairs swaps or
-    negates every intermediate exactly), so (j, i) gets the distance of (i, j)."""
+    negates every intermediate exactly), so (j, i) gets the distance of (i, j).
+
+    ``limit_m`` (optional, one per pair): two pairs farther apart than the smaller of their limits
+    may be left out unmeasured; every two within both limits and ``max_distance_m`` are returned
+    (for a caller whose own test is tighter per pair; it applies that test to the result).
+    """
     if len(a) == 0:
         return _joined([])
     s = _segments(a, b)
     classes = [(idx, half, cKDTree(0.5 * (a[idx] + b[idx]))) for idx, half in _length_classes(a, b)]
+    limit = None if limit_m is None else np.minimum(np.asarray(limit_m, dtype=np.float64), max_distance_m)
     found = []
     for k, (idx1, half1, tree1) in enumerate(classes):
         within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
-        found.append(_measured(s, idx1[within[:, 0]], s, idx1[within[:, 1]], max_distance_m))
+        found.append(_measured(s, idx1[within[:, 0]], s, idx1[within[:, 1]], max_distance_m, limit))
         for idx2, half2, tree2 in classes[k + 1 :]:
             cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-            found.append(_measured(s, idx1[cand["i"]], s, idx2[cand["j"]], max_distance_m))
+            found.append(_measured(s, idx1[cand["i"]], s, idx2[cand["j"]], max_distance_m, limit))
     i, j, d = _joined(found)
     every = np.arange(len(s.ax))
     found_self = _measured(s, every, s, every, max_distance_m)
@@ -213,12 +223,24 @@ def close_pairs_within(
     )
 
 
-def _measured(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, max_distance_m: float) -> _Found:
-    """(i, j, distance) of the candidates (i, j) within ``max_distance_m``, block by block."""
+def _measured(
+    s1: _Segments,
+    i: np.ndarray,
+    s2: _Segments,
+    j: np.ndarray,
+    max_distance_m: float,
+    limit_m: np.ndarray | None = None,
+) -> _Found:
+    """(i, j, distance) of the candidates (i, j) within ``max_distance_m``, block by block
+    (``limit_m``: see :func:`close_pairs_within`)."""
     found = []
     for block in spans(len(i)):
         ib, jb = i[block], j[block]
-        keep = _may_be_close(s1, ib, s2, jb, max_distance_m + _BOUND_MARGIN_M)
+        if limit_m is None:
+            reach = max_distance_m + _BOUND_MARGIN_M
+        else:
+            reach = np.minimum(limit_m[ib], limit_m[jb]) + _BOUND_MARGIN_M
+        keep = _may_be_close(s1, ib, s2, jb, reach)
         ib, jb = ib[keep], jb[keep]
         d = _pair_distance(s1, ib, s2, jb)
         close = d <= max_distance_m

@@ -289,6 +289,12 @@ def test_close_pairs_find_exactly_the_pairs_all_pairs_measuring_finds():
         want = sorted(zip(*(v.tolist() for v in ref_close_pairs(a1, b1, a1, b1, max_d)), strict=True))
         got = sorted(zip(*(v.tolist() for v in close_pairs_within(a1, b1, max_d)), strict=True))
         assert got == want
+        # per-pair limits: every pair within both limits is kept, none is invented
+        limit = rng.uniform(0.3, 1.0, len(a1)) * max_d
+        got = set(zip(*(v.tolist() for v in close_pairs_within(a1, b1, max_d, limit)), strict=True))
+        assert got <= set(want)
+        assert {(i, j, d) for i, j, d in want if d <= min(limit[i], limit[j])} <= got
+        assert len(got) < len(want)  # the limits do leave pairs out
 
 
 def test_ground_map_matches_the_cell_by_cell_reference(pit_scan):
@@ -327,8 +333,8 @@ def _frames():
     ]
 
 
-def _ref_close_pairs_within(a, b, max_distance_m):
-    return ref_close_pairs(a, b, a, b, max_distance_m)
+def _ref_close_pairs_within(a, b, max_distance_m, limit_m=None):
+    return ref_close_pairs(a, b, a, b, max_distance_m)  # no pair left out: a superset of the limits
 
 
 def test_detector_on_the_references_gives_the_same_detection_bit_for_bit(monkeypatch):
