@@ -21,13 +21,15 @@ pair's A jumps to the next laser: overlapping pairs in one azimuth stay at their
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from negobs_gym.detector.blocks import spans
+from negobs_gym.detector.blocks import BLOCK_ELEMENTS, spans
 from negobs_gym.errors import ScanError
 
 
@@ -181,13 +183,16 @@ def close_pairs(
         return _joined([])
     s1, s2 = _segments(a1, b1), _segments(a2, b2)
     classes2 = [(idx, half, cKDTree(0.5 * (a2[idx] + b2[idx]))) for idx, half in _length_classes(a2, b2)]
-    found = []
-    for idx1, half1 in _length_classes(a1, b1):
-        tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
-        for idx2, half2, tree2 in classes2:
-            cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-            found.append(_measured(s1, idx1[cand["i"]], s2, idx2[cand["j"]], max_distance_m))
-    return _joined(found)
+
+    def candidates() -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        for idx1, half1 in _length_classes(a1, b1):
+            tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
+            for idx2, half2, tree2 in classes2:
+                reach = max_distance_m + half1 + half2
+                cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
+                yield idx1[cand["i"]], idx2[cand["j"]]
+
+    return _measured(s1, s2, candidates(), max_distance_m)
 
 
 def close_pairs_within(
@@ -206,16 +211,19 @@ def close_pairs_within(
     s = _segments(a, b)
     classes = [(idx, half, cKDTree(0.5 * (a[idx] + b[idx]))) for idx, half in _length_classes(a, b)]
     limit = None if limit_m is None else np.minimum(np.asarray(limit_m, dtype=np.float64), max_distance_m)
-    found = []
-    for k, (idx1, half1, tree1) in enumerate(classes):
-        within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
-        found.append(_measured(s, idx1[within[:, 0]], s, idx1[within[:, 1]], max_distance_m, limit))
-        for idx2, half2, tree2 in classes[k + 1 :]:
-            cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
-            found.append(_measured(s, idx1[cand["i"]], s, idx2[cand["j"]], max_distance_m, limit))
-    i, j, d = _joined(found)
+
+    def candidates() -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        for k, (idx1, half1, tree1) in enumerate(classes):
+            within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
+            yield idx1[within[:, 0]], idx1[within[:, 1]]
+            for idx2, half2, tree2 in classes[k + 1 :]:
+                reach = max_distance_m + half1 + half2
+                cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
+                yield idx1[cand["i"]], idx2[cand["j"]]
+
+    i, j, d = _measured(s, s, candidates(), max_distance_m, limit)
     every = np.arange(len(s.ax))
-    found_self = _measured(s, every, s, every, max_distance_m)
+    found_self = _measured(s, s, iter([(every, every)]), max_distance_m)
     return (
         np.concatenate([i, j, found_self[0]]),
         np.concatenate([j, i, found_self[1]]),
@@ -225,26 +233,39 @@ def close_pairs_within(
 
 def _measured(
     s1: _Segments,
-    i: np.ndarray,
     s2: _Segments,
-    j: np.ndarray,
+    candidates: Iterator[tuple[np.ndarray, np.ndarray]],
     max_distance_m: float,
     limit_m: np.ndarray | None = None,
 ) -> _Found:
-    """(i, j, distance) of the candidates (i, j) within ``max_distance_m``, block by block
-    (``limit_m``: see :func:`close_pairs_within`)."""
+    """(i, j, distance) of the candidate (i, j) within ``max_distance_m`` (``limit_m``: see
+    :func:`close_pairs_within`), measured in blocks of about :data:`BLOCK_ELEMENTS` candidates
+    (the many small batches of the length classes are gathered first)."""
     found = []
-    for block in spans(len(i)):
-        ib, jb = i[block], j[block]
-        if limit_m is None:
-            reach = max_distance_m + _BOUND_MARGIN_M
-        else:
-            reach = np.minimum(limit_m[ib], limit_m[jb]) + _BOUND_MARGIN_M
-        keep = _may_be_close(s1, ib, s2, jb, reach)
-        ib, jb = ib[keep], jb[keep]
-        d = _pair_distance(s1, ib, s2, jb)
-        close = d <= max_distance_m
-        found.append((ib[close], jb[close], d[close]))
+    batch: list[tuple[np.ndarray, np.ndarray]] = []
+    n_batch = 0
+    for part in itertools.chain(candidates, [None]):
+        if part is not None:
+            batch.append(part)
+            n_batch += len(part[0])
+            if n_batch < BLOCK_ELEMENTS:
+                continue
+        if not batch:
+            break
+        i = np.concatenate([p[0] for p in batch])
+        j = np.concatenate([p[1] for p in batch])
+        batch, n_batch = [], 0
+        for block in spans(len(i)):
+            ib, jb = i[block], j[block]
+            if limit_m is None:
+                reach = max_distance_m + _BOUND_MARGIN_M
+            else:
+                reach = np.minimum(limit_m[ib], limit_m[jb]) + _BOUND_MARGIN_M
+            keep = _may_be_close(s1, ib, s2, jb, reach)
+            ib, jb = ib[keep], jb[keep]
+            d = _pair_distance(s1, ib, s2, jb)
+            close = d <= max_distance_m
+            found.append((ib[close], jb[close], d[close]))
     return _joined(found)
 
 
