@@ -32,7 +32,10 @@ def convex_overlap_mask(outline_xy_m: np.ndarray, grid: GridSpec) -> np.ndarray:
     c0, c1 = max(int(c0), 0), min(int(c1), grid.cols - 1)
     if r0 > r1 or c0 > c1:
         return mask
-    centres = grid.cell_centres()[r0 : r1 + 1, c0 : c1 + 1]
+    # centres of the window's cells (the values GridSpec.cell_centres gives them)
+    x = -grid.side_m + (np.arange(c0, c1 + 1) + 0.5) * grid.cell_m
+    y = -grid.back_m + (np.arange(r0, r1 + 1) + 0.5) * grid.cell_m
+    centres = np.stack(np.meshgrid(x, y), axis=-1)
     edge = np.roll(poly, -1, axis=0) - poly
     normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # outward for counter-clockwise polygons
     offset = np.einsum("kd,kd->k", normal, poly)

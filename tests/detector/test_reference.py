@@ -8,10 +8,12 @@ and the detector run on the references must give the same Detection.
 import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d
+from scipy.spatial import ConvexHull
 
-from negobs_gym.core import Pose
+from negobs_gym.core import GridSpec, Pose
 from negobs_gym.detector import NegativeObstacleDetector, clustering, fusion, hdl32, hdl64, negative, roi
 from negobs_gym.detector.blocks import BLOCK_ELEMENTS
+from negobs_gym.detector.grid import convex_overlap_mask
 from negobs_gym.detector.pair_test import pair_test
 from negobs_gym.detector.pairs import FeaturePairs, close_pairs, close_pairs_within, overlap_distance
 from negobs_gym.detector.synthetic import Block, Hole, hdl32_side_scan, hdl64_scan
@@ -367,3 +369,23 @@ def test_detector_on_the_references_gives_the_same_detection_bit_for_bit(monkeyp
         for p, q in zip(f.obstacles, s.obstacles, strict=True):
             np.testing.assert_array_equal(p.outline_xy_m, q.outline_xy_m)
             np.testing.assert_array_equal(p.pair_indices, q.pair_indices)
+
+
+def test_overlap_mask_window_uses_the_grid_cell_centres():
+    grid = GridSpec()
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        centre = rng.uniform([-9.0, -4.0], [9.0, 29.0])
+        poly = centre + rng.uniform(-1.5, 1.5, (6, 2))
+        hull = poly[ConvexHull(poly).vertices]
+        # reference: every cell of the grid tested against every edge's normal (separating axes)
+        edge = np.roll(hull, -1, axis=0) - hull
+        normal = np.stack([edge[:, 1], -edge[:, 0]], axis=1)
+        reach = 0.5 * grid.cell_m * np.abs(normal).sum(axis=1)
+        separated = grid.cell_centres() @ normal.T - reach > np.einsum("kd,kd->k", normal, hull)
+        # and the square's own axes: the cells from the one holding the outline's lowest corner to
+        # the one holding its highest
+        (r0, r1), (c0, c1), _ = grid.cell_of(np.stack([hull.min(axis=0), hull.max(axis=0)]))
+        in_box = np.zeros(grid.shape, dtype=bool)
+        in_box[max(r0, 0) : r1 + 1, max(c0, 0) : c1 + 1] = True
+        np.testing.assert_array_equal(convex_overlap_mask(hull, grid), in_box & ~separated.any(axis=-1))
