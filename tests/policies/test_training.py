@@ -98,3 +98,19 @@ def test_two_envs_run_in_subprocesses(tmp_path: Path) -> None:
     )
     result = train(config, tmp_path)
     assert result.steps == 128 and result.model_path.is_file()
+
+
+def test_tensorboard_only_when_installed(monkeypatch) -> None:
+    import importlib.util
+
+    from negobs_gym.policies import training
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda n, *a: None if n == "tensorboard" else real(n, *a)
+    )
+    assert training.logger_formats() == ["csv"]
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda n, *a: object() if n == "tensorboard" else real(n, *a)
+    )
+    assert training.logger_formats() == ["csv", "tensorboard"]
