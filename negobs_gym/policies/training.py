@@ -162,7 +162,8 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
 
     Raises:
         ConfigError: unknown env; ``resume`` without a checkpoint, or with a different env,
-            algorithm, source or filter; nothing left to train.
+            algorithm, source or filter; nothing left to train; a new run into a folder that
+            holds checkpoints.
     """
     import stable_baselines3
     from stable_baselines3.common.logger import configure
@@ -179,9 +180,11 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
     probe = make_env(config.env, config.source, config.filter)  # fails early on a bad env
     grid_shape = probe.grid_shape
     probe.close()
-    checkpoint = latest_checkpoint(out / "checkpoints") if resume else None
+    checkpoint = latest_checkpoint(out / "checkpoints")
     if resume:
         _check_resume(config, out, checkpoint)
+    elif checkpoint is not None:  # a later --resume would mix the two runs
+        raise ConfigError("out", f"{out} holds checkpoints of an earlier run: use --resume or another --out")
     venv = _vec_env(config)
     threads = torch.get_num_threads()
     torch.set_num_threads(config.torch_threads)

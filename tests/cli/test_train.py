@@ -39,6 +39,9 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     assert record["steps"] == 256 and record["config"]["source"] == "oracle"
     assert record["config"]["extractor"]["conv_channels"] == [16, 32, 32]
 
+    assert main(["-q", *args, *SHORT, "--out", str(out)]) == 2  # a new run would mix with this one
+    assert "use --resume or another --out" in capsys.readouterr().err
+
     # the default (detector-grid) env of the id, behind the filter: the flat-grid model runs on it
     evaluation = ["eval", "policy", str(out / "model.zip"), "--env", ENV, "--seeds", "1", "--filter", "on"]
     assert main(["-q", *evaluation, "--out", str(tmp_path / "eval"), "--no-progress"]) == 0
