@@ -4,7 +4,7 @@ Scans are cast up front in the PyBullet world with the fast ray caster (braking 
 1 x 1 x 0.8 m pit and rough ground, vehicle driving at 25 km/h, sensor noise on); the cast is timed
 per frame, then ``NegativeObstacleDetector.update`` (feature pairs of the three sensors, fusion,
 DBSCAN, grid) is timed on the recorded frames. Prints the cast and per-stage medians, cast +
-detector (SPEC §9 goal: <= 100 ms), ``median_ms=<value>`` of ``update`` (goal, issue 10: <= 40 ms)
+detector (goal: <= 100 ms per frame), ``median_ms=<value>`` of ``update`` (goal: <= 40 ms)
 and, as the last line, ``dense_median_ms=<value>``: ``update`` on a dense frame, analytic scans
 (``negobs_gym.detector.synthetic``, 2 cm range noise) of flat ground with a field of 80 pits of
 1 x 1 x 0.8 m between 6 and 20 m ahead, which gives ~2,000 candidate feature pairs per frame

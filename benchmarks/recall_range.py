@@ -9,10 +9,14 @@ frames are binned by the distance to the pit's nearest cell (``negobs_gym.eval.R
 size bin). Prints the table, then ``fused_recall_12_20=<mean of the 12-20 m bins>`` and, last,
 ``fig16_order=<ok|violated>`` (ok: HDL-32 only >= HDL-64 only in every bin beyond 14 m).
 
+``--rig roi`` is the envs' default training observation: paper N's native rig cast only where
+the observation grid (and the features' neighbourhoods) need it (:mod:`negobs_gym.sensors.roi`),
+the rays outside left as no return; its table is compared bin by bin with ``native``'s.
+
 ``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
 run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
 
-Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|reduced] [--cache DIR]
+Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|roi|reduced] [--cache DIR]
 """
 
 from __future__ import annotations
@@ -29,10 +33,12 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import SENSOR_MODES, NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.carving import PAPER_N_PIT_SIZES_M
 from negobs_gym.sim.presets import braking_track
 from negobs_gym.sim.vehicle import Vehicle
@@ -43,15 +49,16 @@ PIT_DEPTH_M = 0.8
 PIT_START_M = 24.0  # near rim ahead of the start: a few frames of history before the 20 m bin
 NEAREST_M = 6.0  # stop once the pit is this close (Table 7's first bin starts at 6 m)
 FRAME_S = 0.1  # 10 Hz
-RIGS = {"native": paper_n_rig, "reduced": paper_n_rig_reduced}
+RIGS = {"native": paper_n_rig, "roi": paper_n_rig, "reduced": paper_n_rig_reduced}
 # paper N Table 7, pits of 25-34 cells, 2 m bins from 6-8 m to 18-20 m
 PAPER_TABLE7 = (0.95, 0.93, 0.85, 0.75, 0.54, 0.31, 0.17)
 EVAL = DetectionEvalConfig(size_bin_edges_cells=(1, 10_000))  # one size bin: every pit counts
 GRID = GridSpec()
 
 
-def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int) -> dict:
-    """Scans (float32 ranges per sensor), INS poses, true poses and the pit outline of one drive."""
+def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int, roi: bool = False) -> dict:
+    """Scans (float32 ranges per sensor), INS poses, true poses and the pit outline of one drive;
+    with ``roi`` only the rays the envs' observation grid needs are cast (as ``rig="roi"``)."""
     length, width = size_m
     terrain = braking_track(
         ditch_distance_m=PIT_START_M,
@@ -66,6 +73,11 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int) -> dict:
     with World(terrain) as world:
         vehicle = Vehicle(world, rng=rng)
         caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
+        selector = heights = None
+        if roi:
+            g = ObservationConfig().grid
+            selector = RoiSelector(rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m)))
+            heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
         steps = round(FRAME_S / world.config.time_step_s)
         while True:
             vehicle.set_speed(SPEED_MPS)
@@ -74,7 +86,8 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int) -> dict:
             near = world_outline_to_vehicle(pit.outline_xy_m, true)[:, 1].min()
             if near < NEAREST_M - 1.0:
                 break
-            for name, s in scan_rig(rig, caster, true, rng=rng).items():
+            subsets = selector.subsets_for_bands(heights.bands(true, selector.tiles)) if roi else None
+            for name, s in scan_rig(rig, caster, true, rng=rng, subsets=subsets).items():
                 drive[name].append(s.ranges_m.astype(np.float32))
             drive["ins"].append(vehicle.pose().as_array())
             drive["truth"].append(true.as_array())
@@ -84,16 +97,18 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int) -> dict:
     return drive
 
 
-def load_or_cast(rig: Rig, size_m: tuple[float, float], seed: int, cache: Path | None) -> dict:
+def load_or_cast(
+    rig: Rig, size_m: tuple[float, float], seed: int, cache: Path | None, roi: bool = False
+) -> dict:
     """One drive, from ``cache`` when there, else cast (and stored atomically when caching)."""
     if cache is None:
-        return cast_drive(rig, size_m, seed)
-    models = "_".join(m.model.name for m in rig.mounts)
+        return cast_drive(rig, size_m, seed, roi)
+    models = "_".join(m.model.name for m in rig.mounts) + ("_roi" if roi else "")
     path = cache / f"{models}_{size_m[0]}x{size_m[1]}_seed{seed}.npz"
     if path.exists():
         with np.load(path) as data:
             return dict(data)
-    drive = cast_drive(rig, size_m, seed)
+    drive = cast_drive(rig, size_m, seed, roi)
     cache.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=cache, suffix=".npz")
     with os.fdopen(fd, "wb") as f:
@@ -147,7 +162,7 @@ def main() -> None:
     args = parser.parse_args()
     rig = RIGS[args.rig]()
     drives = [
-        load_or_cast(rig, size, seed, args.cache)
+        load_or_cast(rig, size, seed, args.cache, roi=args.rig == "roi")
         for seed in range(args.seeds)
         for size in PAPER_N_PIT_SIZES_M
     ]

@@ -71,7 +71,12 @@ def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
         help="run on Ray (pip install 'negobs_gym[ray]'); no ADDRESS starts a local instance",
     )
     group.add_argument("--resume", action="store_true", help="keep finished episodes of a killed run")
-    group.add_argument("--rig", choices=("native", "reduced"), default=None, help="paper N rig resolution")
+    group.add_argument(
+        "--rig",
+        choices=("roi", "native", "reduced"),
+        default=None,
+        help="paper N rig: braking default roi (the envs' observation), detection native or reduced",
+    )
     group.add_argument("--config", metavar="FILE", default=None, help="TOML file of campaign settings")
     group.add_argument("--no-progress", action="store_true", help="no progress bar")
 

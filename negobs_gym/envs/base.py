@@ -20,6 +20,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from negobs_gym.core.geometry import project_onto_polyline, world_to_vehicle_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
@@ -412,28 +413,40 @@ class NegObsEnv(gym.Env):
 
     def _track_position(self, pose: Pose) -> tuple[float, float]:
         """(station along the centre line [m], distance from it [m]) of the nearest centre-line point."""
-        pts = np.asarray(self.terrain.track.centreline_xy_m, dtype=np.float64)
-        a, b = pts[:-1], pts[1:]
-        ab = b - a
-        p = np.array([pose.x, pose.y])
-        t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-12), 0.0, 1.0)
-        d = np.linalg.norm(a + t[:, None] * ab - p, axis=1)
-        k = int(np.argmin(d))
-        return float(self.terrain.track.stations_m[k] + t[k] * np.linalg.norm(ab[k])), float(d[k])
+        station, distance = project_onto_polyline(
+            np.array([pose.x, pose.y]), self.terrain.track.centreline_xy_m
+        )
+        return float(station), float(distance)
 
     def _distance_to_negative_ahead(self, pose: Pose) -> float:
-        """Ground-truth distance from the front bumper to the nearest negative-obstacle vertex ahead."""
+        """Ground-truth distance from the front bumper to the nearest negative-obstacle outline
+        point ahead within the wheels' strip (track width + 1 m each side), inf if none."""
         if not self.terrain.negative_obstacles:
             return math.inf
         cfg = self._vehicle.config
-        fwd = np.array([-math.sin(pose.yaw), math.cos(pose.yaw)])
-        right = np.array([fwd[1], -fwd[0]])
+        half = 0.5 * cfg.track_width_m + 1.0
         best = math.inf
         for ob in self.terrain.negative_obstacles:
-            rel = np.asarray(ob.outline_xy_m) - np.array([pose.x, pose.y])
-            along, across = rel @ fwd, rel @ right
-            ahead = along[np.abs(across) <= 0.5 * cfg.track_width_m + 1.0]
+            outline = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw)
+            ahead = _outline_in_strip(outline, half)
             ahead = ahead[ahead > 0]
             if ahead.size:
                 best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
         return best
+
+
+def _outline_in_strip(outline: np.ndarray, half_width: float) -> np.ndarray:
+    """Along-coordinates (y) of the closed outline's edges clipped to ``|x| <= half_width``: the
+    ends of each clipped edge (an edge's y is linear along it, so its extremes are there)."""
+    p0 = outline
+    d = np.roll(outline, -1, axis=0) - p0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half_width - p0[:, 0]) / d[:, 0]
+        tb = (half_width - p0[:, 0]) / d[:, 0]
+    flat = d[:, 0] == 0  # edge parallel to the strip: all of it inside or none
+    inside_flat = np.abs(p0[:, 0]) <= half_width
+    lo = np.where(flat, np.where(inside_flat, 0.0, 1.0), np.maximum(np.minimum(ta, tb), 0.0))
+    hi = np.where(flat, np.where(inside_flat, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
+    keep = lo <= hi
+    ends = np.concatenate([p0[keep, 1] + lo[keep] * d[keep, 1], p0[keep, 1] + hi[keep] * d[keep, 1]])
+    return ends

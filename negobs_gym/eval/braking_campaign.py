@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.envs.config import RIGS
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
@@ -86,7 +87,7 @@ class BrakingCampaignConfig:
     filters: tuple[bool, ...] = (False, True)
     model_path: str | None = None  # a saved SB3 model: adds the driver "sb3"
     algo: str = "PPO"  # its stable-baselines3 class
-    rig: str = "reduced"  # the envs' training rig; "native" for paper N's full resolution
+    rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -100,7 +101,7 @@ class BrakingCampaignConfig:
             "model_path",
             "driver 'sb3' needs a saved model",
         )
-        require(self.rig in ("native", "reduced"), "rig", f"must be 'native' or 'reduced', got {self.rig!r}")
+        require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         require(bool(self.scenarios) and bool(self.drivers) and bool(self.filters), "scenarios", "empty")
 
     def all_drivers(self) -> tuple[str, ...]:

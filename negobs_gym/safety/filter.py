@@ -29,6 +29,10 @@ class SafetyFilterConfig:
     # two periods of its 10 Hz LiDAR / control loop, so one late frame (jitter) is tolerated and a
     # second is not (at 25 km/h the car covers 1.4 m in 0.2 s that no scan has looked at).
     perception_timeout_s: float = 0.2
+    # Hysteresis after a veto [m]: until an action passes again, it must keep this much more than
+    # R(v'). Not in paper N: without it a driver pushing against the filter creeps on at d ~ R(0) = B,
+    # stop and go every other step (seen in scenario runs), and never stands still before the hazard.
+    release_margin_m: float = 1.0
 
     def __post_init__(self) -> None:
         require(
@@ -40,6 +44,11 @@ class SafetyFilterConfig:
             np.isfinite(self.perception_timeout_s) and self.perception_timeout_s > 0,
             "perception_timeout_s",
             f"must be finite and > 0, got {self.perception_timeout_s!r}",
+        )
+        require(
+            np.isfinite(self.release_margin_m) and self.release_margin_m >= 0,
+            "release_margin_m",
+            f"must be finite and >= 0, got {self.release_margin_m!r}",
         )
         require(
             np.isfinite(self.margin_m) and self.margin_m >= 0,
@@ -57,7 +66,9 @@ class BrakingSafetyFilter(gym.Wrapper):
     Each step it reads ``hazard_state()`` from the env (see :mod:`negobs_gym.safety.protocol`),
     computes the hazard distance d along the arc of the *proposed* steering, predicts the speed v'
     the action leaves after one control period and the distance travelled meanwhile, and vetoes the
-    action when ``d - travelled < R(v')``. ``mode="brake"`` replaces ``action[0]`` by -1;
+    action when ``d - travelled < R(v')``; after a veto, until an action passes again, the test is
+    ``d - travelled < R(v') + release_margin_m`` (hysteresis against stop-and-go at the boundary;
+    cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
     ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is never
     changed; safe actions pass bit-identical.
 
@@ -67,7 +78,8 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
-    ``perception_timeout_s``) over the defaults; passing both is a :class:`ConfigError`.
+    ``perception_timeout_s``, ``release_margin_m``) over the defaults; passing both is a
+    :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
@@ -90,6 +102,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         margin_m: float | None = None,
         mode: Literal["brake", "cap_speed"] | None = None,
         perception_timeout_s: float | None = None,
+        release_margin_m: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -102,7 +115,12 @@ class BrakingSafetyFilter(gym.Wrapper):
             raise InterfaceError(f"BrakingSafetyFilter needs a Box action space of shape (2,), got {space}")
         braking_kw = {"mu": mu, "reaction_time_s": reaction_time_s, "buffer_m": buffer_m, "g_mps2": g}
         braking_kw = {k: v for k, v in braking_kw.items() if v is not None}
-        filter_kw = {"margin_m": margin_m, "mode": mode, "perception_timeout_s": perception_timeout_s}
+        filter_kw = {
+            "margin_m": margin_m,
+            "mode": mode,
+            "perception_timeout_s": perception_timeout_s,
+            "release_margin_m": release_margin_m,
+        }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
             if braking_kw or filter_kw:
@@ -114,6 +132,15 @@ class BrakingSafetyFilter(gym.Wrapper):
         else:
             self.config = SafetyFilterConfig(braking=BrakingConfig(**braking_kw), **filter_kw)
         self.last_decision: SafetyDecision | None = None
+        self._holding = False  # the last decision was a veto: the release margin applies
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and the filter's hysteresis."""
+        self._holding = False
+        self.last_decision = None
+        return self.env.reset(seed=seed, options=options)
 
     def _hazard_state(self) -> HazardState:
         source = self.env.unwrapped if isinstance(self.env.unwrapped, HazardSource) else self.env
@@ -127,14 +154,17 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     def _is_safe(self, state: HazardState, d: float, longitudinal: float) -> bool:
         v_next = state.predicted_speed_mps(longitudinal)
-        return bool(d - state.travelled_m(v_next) >= self._r(v_next))
+        margin = self.config.release_margin_m if self._holding else 0.0
+        return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin)
 
     def _capped_longitudinal(self, state: HazardState, d: float, proposed: float) -> float:
-        """Largest command <= ``proposed`` whose predicted v' satisfies d - travelled >= R(v')."""
+        """Largest command <= ``proposed`` whose predicted v' satisfies d - travelled >= R(v')
+        (plus the release margin while holding)."""
         b = self.config.braking
         a = 1.0 / (2.0 * b.mu * b.g_mps2)
         lin = b.reaction_time_s + 0.5 * state.dt_s
-        const = b.buffer_m + 0.5 * state.dt_s * state.speed_mps - d
+        margin = self.config.release_margin_m if self._holding else 0.0
+        const = b.buffer_m + margin + 0.5 * state.dt_s * state.speed_mps - d
         disc = lin * lin - 4.0 * a * const
         if disc < 0:
             return -1.0
@@ -182,6 +212,7 @@ class BrakingSafetyFilter(gym.Wrapper):
                 proposed,
                 cmd,
             )
+        self._holding = vetoed
         decision = SafetyDecision(
             vetoed=vetoed,
             hazard_distance_m=d,

@@ -158,3 +158,18 @@ def test_grid_sources_share_one_interface() -> None:
 def test_a_scenario_is_required() -> None:
     with pytest.raises(ConfigError, match="scenario"):
         NegObsEnv()
+
+
+def test_distance_ahead_sees_an_obstacle_wider_than_the_wheels_strip():
+    # a 6 m trench across the whole track has no outline vertex in front of the wheels: the distance
+    # comes from its edges clipped to the strip, the same as for a 1 m wide ditch at that station
+    config = dataclasses.replace(BrakingEnv.default_config(), observation=ORACLE)
+    gaps = []
+    for width_m in (1.0, 6.0):
+        scene = STOP_SCENE.replace("width_m = 3.0", f"width_m = {width_m}")
+        env = NegObsEnv(scenario=spec_from_toml(scene), config=config)
+        _, info = env.reset(seed=0)
+        env.close()
+        gaps.append(info["distance_to_negative_ahead_m"])
+    assert 9.0 < gaps[0] < 11.0  # ditch at station 14 m, the bumper ~3.9 m ahead of the start
+    assert gaps[1] == pytest.approx(gaps[0], abs=1e-3)

@@ -274,3 +274,50 @@ def test_invalid_config_names_the_field(kwargs, field):
     with pytest.raises(ConfigError) as err:
         BrakingConfig(reaction_time_s=-1.0)
     assert err.value.field == "reaction_time_s"
+
+
+def _ahead(distance_m: float) -> np.ndarray:
+    """Hazard points straight ahead whose corridor distance is ``distance_m`` (probe-calibrated)."""
+    probe = BrakingSafetyFilter(FixedHazardEnv(make_state(0.0, np.array([[0.0, 10.0]]))))
+    _, decision = probe.filter_action(np.array([0.0, 0.0], np.float32))
+    offset = 10.0 - decision.hazard_distance_m
+    return np.array([[0.0, distance_m + offset]])
+
+
+def test_after_a_veto_an_action_needs_the_release_margin_until_one_passes():
+    env = FixedHazardEnv(make_state(0.0, _ahead(3.0)))
+    f = BrakingSafetyFilter(env)  # release_margin_m = 1.0
+    f.reset(seed=0)
+    throttle = np.array([1.0, 0.0], np.float32)
+    # full throttle from standstill: v' = 0.3 m/s, R(v') = 5.08 m, travelled 0.015 m
+    fresh = BrakingSafetyFilter(FixedHazardEnv(make_state(0.0, _ahead(5.6))))
+    assert not fresh.filter_action(throttle)[1].vetoed  # 5.6 >= 5.10: passes without a veto before
+    f.step(throttle)
+    assert f.last_decision.vetoed  # 3 m: vetoed
+    env.state = make_state(0.0, _ahead(5.6))
+    f.step(throttle)
+    assert f.last_decision.vetoed  # 5.6 < 5.10 + 1.0: still held
+    env.state = make_state(0.0, _ahead(6.2))
+    f.step(throttle)
+    assert not f.last_decision.vetoed  # 6.2 >= 6.10: released
+    env.state = make_state(0.0, _ahead(5.6))
+    f.step(throttle)
+    assert not f.last_decision.vetoed  # no veto before: the plain Eq. 18 test again
+    env.state = make_state(0.0, _ahead(3.0))
+    f.step(throttle)
+    env.state = make_state(0.0, _ahead(5.6))
+    f.reset(seed=1)
+    f.step(throttle)
+    assert not f.last_decision.vetoed  # reset clears the hysteresis
+
+
+def test_release_margin_zero_is_the_stateless_filter_and_negative_is_rejected():
+    env = FixedHazardEnv(make_state(0.0, _ahead(3.0)))
+    f = BrakingSafetyFilter(env, release_margin_m=0.0)
+    throttle = np.array([1.0, 0.0], np.float32)
+    f.step(throttle)
+    env.state = make_state(0.0, _ahead(5.6))
+    f.step(throttle)
+    assert not f.last_decision.vetoed
+    with pytest.raises(ConfigError, match="release_margin_m"):
+        SafetyFilterConfig(release_margin_m=-1.0)
