@@ -56,6 +56,30 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
         train(dataclasses.replace(config, steps=150), out, resume=True)
 
 
+def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    config = TrainConfig(
+        env="negobs_gym/Braking-v1",
+        source="oracle",
+        steps=128,
+        n_steps=64,
+        eval_every=0,
+        eval_episodes=1,
+        checkpoint_every=0,
+        progress=False,
+    )
+    runs = [train(config, tmp_path / str(k)) for k in range(2)]
+    weights = [
+        torch.cat([p.flatten() for p in PPO.load(r.model_path, device="cpu").policy.parameters()])
+        for r in runs
+    ]
+    assert torch.equal(weights[0], weights[1])
+    rows = [r.eval_csv.read_text().splitlines()[1].rsplit(",", 1)[0] for r in runs]  # all but wall_s
+    assert rows[0] == rows[1]
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
