@@ -115,7 +115,7 @@ def logger_formats() -> list[str]:
     """SB3 logger outputs: CSV always, TensorBoard when the ``tensorboard`` package is installed."""
     if importlib.util.find_spec("tensorboard") is not None:
         return ["csv", "tensorboard"]
-    log.info("TensorBoard logs off: pip install tensorboard to get them")
+    log.info('TensorBoard logs off: pip install "negobs_gym[train]" (tensorboard) to get them')
     return ["csv"]
 
 
