@@ -24,6 +24,7 @@ import numpy as np
 from negobs_gym.envs.config import RIGS
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.policies.observation import PolicyDriver
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -161,8 +162,12 @@ def _scenario_env(scenario: str, rig: str, oracle: bool) -> Any:
     return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle))
 
 
-class ModelDriver:
-    """A saved stable-baselines3 model as a driver (deterministic actions)."""
+class ModelDriver(PolicyDriver):
+    """A saved stable-baselines3 model as a driver (deterministic actions).
+
+    Observations are adapted to the model's space (:func:`~negobs_gym.policies.match_observation`),
+    so a model trained by ``negobs train`` (flat grid, or the state alone) runs on the raw env.
+    """
 
     def __init__(self, path: str, algo: str = "PPO") -> None:
         import stable_baselines3
@@ -172,14 +177,7 @@ class ModelDriver:
             raise ConfigError("algo", f"stable_baselines3 has no algorithm {algo!r}")
         if not Path(path).exists() and not Path(f"{path}.zip").exists():
             raise ConfigError("model_path", f"no saved model at {path}")
-        self.model = cls.load(path, device="cpu")
-
-    def reset(self, seed: int | None = None) -> None:
-        """Stateless policy."""
-
-    def act(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
-        action, _ = self.model.predict(obs, deterministic=True)
-        return np.asarray(action, dtype=np.float32)
+        super().__init__(cls.load(path, device="cpu"))
 
 
 def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:

@@ -1,0 +1,125 @@
+"""``negobs train``: train a navigation policy (PPO or SAC) on a negobs env; see docs/training.md.
+
+Runs :func:`negobs_gym.policies.training.train` and prints one line, ``model=<path> steps=<n>
+wall_s=<s> steps_per_s=<r>`` followed by the last evaluation's figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+from negobs_gym.cli.common import non_negative_int, positive_int
+from negobs_gym.policies.config import ALGORITHMS, SOURCES, TrainConfig
+
+log = logging.getLogger("negobs_gym.cli.train")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``train``."""
+    defaults = TrainConfig()
+    parser = subparsers.add_parser(
+        "train",
+        help="train a policy (PPO/SAC, grid CNN) with logs, evaluation on unseen seeds, checkpoints",
+        description="Trains a MultiInputPolicy with the grid CNN extractor on an env id, a shipped "
+        "scenario or a scenario TOML file. Writes model.zip, checkpoints/, eval.csv, logs/ (SB3 CSV, "
+        "TensorBoard when installed) and train.json under --out. The model loads in 'negobs eval policy'.",
+    )
+    parser.add_argument(
+        "--env",
+        default=defaults.env,
+        help="env id, shipped scenario name or scenario TOML path (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--algo",
+        type=str.upper,
+        choices=ALGORITHMS,
+        default=defaults.algo,
+        help="stable-baselines3 algorithm (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--source",
+        choices=SOURCES,
+        default=defaults.source,
+        help="observation: the detectors' grid, the ground-truth grid, or the state vector only "
+        "(default: %(default)s)",
+    )
+    parser.add_argument("--filter", action="store_true", help="train and evaluate behind the Eq. 18 filter")
+    parser.add_argument("--steps", type=positive_int, default=defaults.steps, help="total env steps")
+    parser.add_argument("--envs", type=positive_int, default=defaults.envs, help="parallel envs (processes)")
+    parser.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default: 0)")
+    parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
+    parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
+    group = parser.add_argument_group("evaluation and checkpoints")
+    group.add_argument(
+        "--eval-every",
+        type=non_negative_int,
+        default=defaults.eval_every,
+        help="env steps between evaluations, 0 = only at the end (default: %(default)s)",
+    )
+    group.add_argument(
+        "--eval-episodes",
+        type=positive_int,
+        default=defaults.eval_episodes,
+        help="episodes per evaluation, on unseen seeds (default: %(default)s)",
+    )
+    group.add_argument(
+        "--checkpoint-every",
+        type=non_negative_int,
+        default=defaults.checkpoint_every,
+        help="env steps between checkpoints, 0 = none (default: %(default)s)",
+    )
+    group = parser.add_argument_group("algorithm")
+    group.add_argument(
+        "--n-steps", type=positive_int, default=defaults.n_steps, help="PPO rollout per env (default: 256)"
+    )
+    group.add_argument("--batch-size", type=positive_int, default=defaults.batch_size, help="minibatch size")
+    group.add_argument("--learning-rate", type=float, default=defaults.learning_rate, help="Adam step size")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(handler=run_train)
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The :class:`TrainConfig` of the parsed command line."""
+    return TrainConfig(
+        env=args.env,
+        algo=args.algo,
+        source=args.source,
+        filter=args.filter,
+        steps=args.steps,
+        envs=args.envs,
+        seed=args.seed,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        checkpoint_every=args.checkpoint_every,
+        n_steps=args.n_steps,
+        batch_size=args.batch_size,
+        learning_rate=args.learning_rate,
+        progress=not args.no_progress,
+    )
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """Train; print the result line."""
+    from negobs_gym.policies.training import train
+
+    config = config_from_args(args)
+    log.info(
+        "training %s on %s (%s%s), %d steps, %d env(s) -> %s",
+        config.algo,
+        config.env,
+        config.source,
+        ", filter" if config.filter else "",
+        config.steps,
+        config.envs,
+        args.out,
+    )
+    result = train(config, args.out, resume=args.resume)
+    e = result.last_eval
+    print(
+        f"model={result.model_path} steps={result.steps} wall_s={result.wall_s:.1f} "
+        f"steps_per_s={result.steps_per_s:.1f} eval_goal={int(e['goal'])}/{int(e['episodes'])} "
+        f"eval_entries={int(e['entries'])} eval_collisions={int(e['collisions'])} "
+        f"eval_mean_progress_m={e['mean_progress_m']:.2f} eval_vetoes={int(e['vetoes'])}"
+    )
+    return 0

@@ -1,0 +1,172 @@
+"""SB3 callbacks of :func:`negobs_gym.policies.training.train`: progress bar, evaluation, checkpoints.
+
+SB3's own ``progress_bar=True`` needs ``rich`` besides tqdm, and its ``EvalCallback`` reports the
+return only, so these three are small callbacks of our own. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.callbacks import BaseCallback
+from tqdm.auto import tqdm
+
+from negobs_gym.eval.campaign import format_row, read_csv, write_text_atomic
+
+log = logging.getLogger(__name__)
+
+__all__ = ["EVAL_COLUMNS", "CheckpointCallback", "EvalCallback", "ProgressBarCallback", "latest_checkpoint"]
+
+#: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean).
+EVAL_COLUMNS = (
+    "step",
+    "episodes",
+    "goal",
+    "entries",
+    "collisions",
+    "rollovers",
+    "trapped",
+    "mean_progress_m",
+    "vetoes",
+    "cost",
+    "wall_s",
+)
+
+_CHECKPOINT = re.compile(r"^model_(\d+)\.zip$")
+
+
+class ProgressBarCallback(BaseCallback):
+    """A tqdm bar over env steps (starts at the model's step count when resuming)."""
+
+    def __init__(self, total_steps: int, enabled: bool = True) -> None:
+        super().__init__()
+        self.total_steps = total_steps
+        self.enabled = enabled
+        self._bar: Any = None
+
+    def _on_training_start(self) -> None:
+        self._bar = tqdm(
+            total=self.total_steps, initial=self.num_timesteps, unit="step", disable=not self.enabled
+        )
+
+    def _on_step(self) -> bool:
+        self._bar.update(self.num_timesteps - self._bar.n)
+        return True
+
+    def _on_training_end(self) -> None:
+        self._bar.close()
+
+
+def save_model_atomic(model: Any, path: Path) -> Path:
+    """``model.save`` into a temp file beside ``path``, then ``os.replace`` (never a partial zip)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zip")
+    os.close(fd)
+    try:
+        model.save(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def latest_checkpoint(directory: Path) -> Path | None:
+    """The ``model_<steps>.zip`` with the most steps in ``directory``, or None."""
+    found = [(int(m.group(1)), p) for p in directory.glob("model_*.zip") if (m := _CHECKPOINT.match(p.name))]
+    return max(found)[1] if found else None
+
+
+class CheckpointCallback(BaseCallback):
+    """Saves ``<directory>/model_<steps>.zip`` every ``every`` env steps (atomically)."""
+
+    def __init__(self, directory: Path, every: int) -> None:
+        super().__init__()
+        self.directory = Path(directory)
+        self.every = every
+        self._next = 0
+
+    def _on_training_start(self) -> None:
+        self._next = (self.num_timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            path = save_model_atomic(self.model, self.directory / f"model_{self.num_timesteps}.zip")
+            log.debug("checkpoint %s", path)
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+        return True
+
+
+class EvalCallback(BaseCallback):
+    """Every ``every`` env steps (and at the end) runs ``evaluate(model)`` and appends a row to ``csv``.
+
+    ``evaluate`` returns the per-episode metrics of
+    :func:`~negobs_gym.eval.braking_campaign.run_driven_episode`. Rows of ``csv`` from an earlier
+    run at fewer steps are kept (resume); the file is rewritten atomically each time.
+    """
+
+    def __init__(self, evaluate: Callable[[Any], Sequence[dict[str, Any]]], csv: Path, every: int) -> None:
+        super().__init__()
+        self.evaluate = evaluate
+        self.csv = Path(csv)
+        self.every = every
+        self._next = 0
+        self._last = -1
+        self._rows: list[str] = []
+        self.last: dict[str, float] = {}
+
+    def _on_training_start(self) -> None:
+        self._next = (self.num_timesteps // self.every + 1) * self.every
+        self._rows = []
+        if self.csv.exists():
+            for row in read_csv(self.csv):
+                if int(row["step"]) <= self.num_timesteps:
+                    self._rows.append(format_row(row[c] for c in EVAL_COLUMNS))
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self.run()
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+        return True
+
+    def _on_training_end(self) -> None:
+        if self._last != self.num_timesteps:
+            self.run()
+
+    def run(self) -> dict[str, float]:
+        """Evaluate now; the row written (also kept in :attr:`last`)."""
+        start = time.perf_counter()
+        episodes = self.evaluate(self.model)
+        n = len(episodes)
+        row = {
+            "step": self.num_timesteps,
+            "episodes": n,
+            "goal": sum(bool(e["goal"]) for e in episodes),
+            "entries": sum(bool(e["entered"]) for e in episodes),
+            "collisions": sum(bool(e["collision"]) for e in episodes),
+            "rollovers": sum(bool(e["rollover"]) for e in episodes),
+            "trapped": sum(bool(e["trapped"]) for e in episodes),
+            "mean_progress_m": sum(float(e["progress_m"]) for e in episodes) / max(n, 1),
+            "vetoes": sum(int(e["vetoes"]) for e in episodes),
+            "cost": sum(float(e["cost"]) for e in episodes),
+            "wall_s": time.perf_counter() - start,
+        }
+        self._rows.append(format_row(row[c] for c in EVAL_COLUMNS))
+        write_text_atomic(self.csv, "\n".join([",".join(EVAL_COLUMNS), *self._rows]) + "\n")
+        for key in ("goal", "entries", "collisions", "mean_progress_m", "vetoes", "cost"):
+            self.logger.record(f"eval/{key}", row[key])
+        log.info(
+            "eval at %d steps: goal %d/%d, entries %d, collisions %d, progress %.1f m, vetoes %d",
+            *(row[k] for k in ("step", "goal", "episodes", "entries", "collisions")),
+            *(row[k] for k in ("mean_progress_m", "vetoes")),
+        )
+        self._last = self.num_timesteps
+        self.last = {k: float(v) for k, v in row.items()}
+        return row

@@ -1,0 +1,128 @@
+"""Configs of :mod:`negobs_gym.policies` (no torch here, so the CLI can read the choices cheaply).
+
+Neither paper trains a policy (paper N detects negative obstacles, paper T traversable regions):
+no value below comes from them. Each is a choice, with its reason beside it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from negobs_gym.errors import require
+
+__all__ = ["ALGORITHMS", "SOURCES", "GridCnnConfig", "TrainConfig"]
+
+#: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
+ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
+#: ``state`` drops the grid; the env then runs the oracle grid, the cheapest, whose output is unused.
+SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GridCnnConfig:
+    """Layers of :class:`~negobs_gym.policies.extractor.GridStateExtractor` (papers silent; reasons
+    per field).
+
+    Attributes:
+        conv_channels: Output channels per conv layer. 16-32-32: the input is 4 binary channels,
+            so a few dozen filters suffice, and the network stays fast on 2 CPU cores.
+        kernel_sizes: One odd kernel size per layer; 3 x 3 cells (2.4 m at the default 80 cm
+            cells) sees a pit next to its neighbours without blurring a one-cell pit away.
+        strides: Stride per layer; the first is 1 so a one-cell obstacle still reaches the
+            second layer at full resolution, then 2 and 2 take 36 x 16 to 9 x 4 (a 9-cell,
+            7.2 m receptive field, most of the 10.5 m Eq. 18 braking distance at 25 km/h).
+        grid_features: Width of the linear layer after the convolutions; 128 keeps the
+            flattened 1152 conv outputs to ~150 k weights.
+    """
+
+    conv_channels: tuple[int, ...] = (16, 32, 32)
+    kernel_sizes: tuple[int, ...] = (3, 3, 3)
+    strides: tuple[int, ...] = (1, 2, 2)
+    grid_features: int = 128
+
+    def __post_init__(self) -> None:
+        n = len(self.conv_channels)
+        require(n >= 1, "conv_channels", "needs at least one conv layer")
+        for name in ("kernel_sizes", "strides"):
+            require(len(getattr(self, name)) == n, name, f"needs one value per conv layer ({n})")
+        for name in ("conv_channels", "kernel_sizes", "strides"):
+            values = getattr(self, name)
+            require(
+                all(isinstance(v, int) and v >= 1 for v in values), name, f"must be ints >= 1, got {values}"
+            )
+        require(all(k % 2 == 1 for k in self.kernel_sizes), "kernel_sizes", "must be odd (centred padding)")
+        require(self.grid_features >= 1, "grid_features", f"must be >= 1, got {self.grid_features}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """One training run. The RL papers' defaults are SB3's; the fields that differ say why.
+
+    Attributes:
+        env: A registered negobs env id, a shipped scenario name or a scenario TOML path.
+        algo: ``"PPO"`` or ``"SAC"``.
+        source: ``"detector"`` (the detectors' grid, as on the vehicle), ``"oracle"`` (ground
+            truth grid) or ``"state"`` (no grid).
+        filter: Train behind the braking safety filter (and evaluate with it).
+        steps: Total env steps (over all envs).
+        envs: Parallel envs (``SubprocVecEnv`` when > 1).
+        seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
+        eval_every: Env steps between evaluations (0: only at the end).
+        eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
+        eval_seed: First evaluation seed; far from the training seeds, so the evaluation
+            terrains are unseen.
+        checkpoint_every: Env steps between checkpoints (0: none).
+        n_steps: PPO rollout length per env; 256 instead of SB3's 2048 so a 2-core machine
+            updates every few hundred steps.
+        batch_size: Minibatch size (SB3's PPO default 64).
+        learning_rate: Adam step size (SB3's default 3e-4 for both algorithms).
+        gamma: Discount (SB3's default 0.99: a 10 s horizon at 10 Hz).
+        buffer_size: SAC replay buffer in transitions; 100 k instead of SB3's 1 M because each
+            holds two 2304-byte grids (1 M would need ~4.6 GB).
+        extractor: The CNN's layers.
+        torch_threads: Torch intra-op threads while training. 1: measured on the 2 shared cores,
+            one ``predict`` of the default network took 45 ms with 2 threads (OpenMP waiting for
+            a busy core) and 1.0 ms with 1; the network is too small to gain from more.
+        progress: Show a tqdm progress bar.
+    """
+
+    env: str = "negobs_gym/OffroadNav-v0"
+    algo: str = "PPO"
+    source: str = "detector"
+    filter: bool = False
+    steps: int = 100_000
+    envs: int = 1
+    seed: int = 0
+    eval_every: int = 10_000
+    eval_episodes: int = 5
+    eval_seed: int = 1_000_000
+    checkpoint_every: int = 10_000
+    n_steps: int = 256
+    batch_size: int = 64
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    buffer_size: int = 100_000
+    extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
+    torch_threads: int = 1
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
+        require(self.source in SOURCES, "source", f"unknown source {self.source!r}; one of {SOURCES}")
+        for name in (
+            "steps",
+            "envs",
+            "eval_episodes",
+            "n_steps",
+            "batch_size",
+            "buffer_size",
+            "torch_threads",
+        ):
+            value = getattr(self, name)
+            require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
+        for name in ("seed", "eval_every", "eval_seed", "checkpoint_every"):
+            value = getattr(self, name)
+            require(isinstance(value, int) and value >= 0, name, f"must be an int >= 0, got {value!r}")
+        require(0 < self.learning_rate < 1, "learning_rate", f"must be in (0, 1), got {self.learning_rate}")
+        require(0 < self.gamma <= 1, "gamma", f"must be in (0, 1], got {self.gamma}")
+        require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")

@@ -1,0 +1,252 @@
+"""Train a navigation policy on a negobs env: what ``negobs train`` and ``examples/train_ppo.py`` run.
+
+:func:`train` builds ``envs`` copies of the env (an env id, a shipped scenario or a TOML spec)
+with the observation source asked for, each optionally behind the Eq. 18
+:class:`~negobs_gym.safety.BrakingSafetyFilter` and always behind
+:class:`~negobs_gym.policies.PolicyObservation`; trains PPO or SAC with ``MultiInputPolicy`` and
+:class:`~negobs_gym.policies.extractor.GridStateExtractor`; logs SB3's CSV (and TensorBoard when
+``tensorboard`` is installed); evaluates on unseen seeds every ``eval_every`` steps into
+``eval.csv``; saves checkpoints, and resumes from the latest one.
+
+Output folder::
+
+    model.zip                 final model (loads in ``negobs eval policy``)
+    checkpoints/model_<N>.zip every ``checkpoint_every`` env steps
+    eval.csv                  one row per evaluation (callbacks.EVAL_COLUMNS)
+    logs/<start step>/        SB3 logger: progress.csv (+ TensorBoard events)
+    train.json                the config, steps done, wall time and steps/s of the last session
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib.util
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import torch
+
+import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
+from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.envs.config import EnvConfig
+from negobs_gym.errors import ConfigError
+from negobs_gym.policies.config import TrainConfig
+from negobs_gym.policies.extractor import GridStateExtractor
+from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
+
+log = logging.getLogger(__name__)
+
+__all__ = ["TrainResult", "make_env", "make_task_env", "train"]
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """Where :func:`train` put things and how long it took (this session only when resumed)."""
+
+    model_path: Path
+    eval_csv: Path
+    steps: int
+    wall_s: float
+    steps_per_s: float
+    last_eval: dict[str, float]
+
+
+def make_task_env(env: str, source: str) -> gym.Env:
+    """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source``.
+
+    Raises:
+        ConfigError: ``env`` names no negobs env, scenario or file (field ``env``).
+    """
+    grid_source = "oracle" if source == "state" else source
+    if env in gym.registry:
+        from gymnasium.envs.registration import load_env_creator
+
+        creator = load_env_creator(gym.spec(env).entry_point)
+        if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)):
+            raise ConfigError("env", f"{env!r} is not a negobs_gym env (its observation has no grid)")
+        return gym.make(env, config=_with_source(creator.default_config(), grid_source))
+    from negobs_gym.scenarios.library import load_scenario, scenario_names
+
+    if not (Path(env).is_file() or env in scenario_names()):
+        ids = [i for i in gym.registry if i.startswith("negobs_gym/")]
+        raise ConfigError(
+            "env",
+            f"unknown env {env!r}: not a registered id ({', '.join(ids)}), a shipped scenario "
+            f"({', '.join(scenario_names())}) or an existing scenario TOML file",
+        )
+    spec = load_scenario(env)
+    return NegObsEnv(config=_with_source(spec.env_config(), grid_source), scenario=spec)
+
+
+def _with_source(config: EnvConfig, source: str) -> EnvConfig:
+    return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source=source))
+
+
+def make_env(env: str, source: str, use_filter: bool) -> gym.Env:
+    """One training env: :func:`make_task_env`, the safety filter if asked, :class:`PolicyObservation`."""
+    task = make_task_env(env, source)
+    if use_filter:
+        from negobs_gym.safety import BrakingSafetyFilter
+
+        task = BrakingSafetyFilter(task)
+    return PolicyObservation(task, grid=source != "state")
+
+
+def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
+    """``config.eval_episodes`` episodes of ``model`` on fresh raw envs (as ``negobs eval policy``)."""
+    from negobs_gym.eval.braking_campaign import run_driven_episode
+
+    results = []
+    for k in range(config.eval_episodes):
+        env = make_task_env(config.env, config.source)
+        max_steps = env.unwrapped.scenario.episode.max_episode_steps
+        driver = PolicyDriver(model)
+        results.append(run_driven_episode(env, driver, config.eval_seed + k, config.filter, max_steps))
+    return results
+
+
+def logger_formats() -> list[str]:
+    """SB3 logger outputs: CSV always, TensorBoard when the ``tensorboard`` package is installed."""
+    if importlib.util.find_spec("tensorboard") is not None:
+        return ["csv", "tensorboard"]
+    log.info('TensorBoard logs off: pip install "negobs_gym[train]" (tensorboard) to get them')
+    return ["csv"]
+
+
+def _vec_env(config: TrainConfig):
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+
+    thunk = functools.partial(make_env, config.env, config.source, config.filter)
+    vec_cls = SubprocVecEnv if config.envs > 1 else DummyVecEnv
+    venv = VecMonitor(vec_cls([thunk] * config.envs))
+    venv.seed(config.seed)
+    return venv
+
+
+def _policy_kwargs(config: TrainConfig, grid_shape: tuple[int, int, int]) -> dict[str, Any]:
+    return {
+        "features_extractor_class": GridStateExtractor,
+        "features_extractor_kwargs": {"grid_shape": grid_shape, "config": config.extractor},
+    }
+
+
+def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
+    import stable_baselines3
+
+    common = {
+        "policy_kwargs": _policy_kwargs(config, grid_shape),
+        "learning_rate": config.learning_rate,
+        "gamma": config.gamma,
+        "batch_size": config.batch_size,
+        "seed": config.seed,
+        "device": "cpu",
+        "verbose": 0,
+    }
+    if config.algo == "PPO":
+        return stable_baselines3.PPO("MultiInputPolicy", venv, n_steps=config.n_steps, **common)
+    return stable_baselines3.SAC("MultiInputPolicy", venv, buffer_size=config.buffer_size, **common)
+
+
+#: Fields that must match between a run and the run it resumes.
+_RESUME_FIELDS = ("env", "algo", "source", "filter")
+
+
+def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> TrainResult:
+    """Train (or resume) as ``config`` says; files under ``out_dir`` (module docstring).
+
+    Raises:
+        ConfigError: unknown env; ``resume`` without a checkpoint, or with a different env,
+            algorithm, source or filter; nothing left to train; a new run into a folder that
+            holds checkpoints.
+    """
+    import stable_baselines3
+    from stable_baselines3.common.logger import configure
+
+    from negobs_gym.policies.callbacks import (
+        CheckpointCallback,
+        EvalCallback,
+        ProgressBarCallback,
+        latest_checkpoint,
+        save_model_atomic,
+    )
+
+    out = Path(out_dir)
+    probe = make_env(config.env, config.source, config.filter)  # fails early on a bad env
+    grid_shape = probe.grid_shape
+    probe.close()
+    checkpoint = latest_checkpoint(out / "checkpoints")
+    if resume:
+        _check_resume(config, out, checkpoint)
+    elif checkpoint is not None:  # a later --resume would mix the two runs
+        raise ConfigError("out", f"{out} holds checkpoints of an earlier run: use --resume or another --out")
+    venv = _vec_env(config)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(config.torch_threads)
+    try:
+        if checkpoint is not None:
+            model = getattr(stable_baselines3, config.algo).load(checkpoint, env=venv, device="cpu")
+            log.info("resuming from %s at %d steps", checkpoint, model.num_timesteps)
+        else:
+            model = _new_model(config, venv, grid_shape)
+        start_step = model.num_timesteps
+        if start_step >= config.steps:
+            raise ConfigError(
+                "steps", f"nothing to train: the checkpoint has {start_step} >= {config.steps} steps"
+            )
+        _write_record(out, config, model.num_timesteps, start_step)
+        model.set_logger(configure(str(out / "logs" / str(start_step)), logger_formats()))
+        every = config.eval_every if config.eval_every > 0 else config.steps
+        evaluation = EvalCallback(functools.partial(evaluate, config=config), out / "eval.csv", every)
+        callbacks = [ProgressBarCallback(config.steps, config.progress), evaluation]
+        if config.checkpoint_every > 0:
+            callbacks.append(CheckpointCallback(out / "checkpoints", config.checkpoint_every))
+        begin = time.perf_counter()
+        model.learn(config.steps - start_step, callback=callbacks, reset_num_timesteps=False)
+        wall_s = time.perf_counter() - begin
+    finally:
+        torch.set_num_threads(threads)
+        venv.close()
+    if config.checkpoint_every > 0:  # the end is a checkpoint too: --resume with more --steps goes on from it
+        save_model_atomic(model, out / "checkpoints" / f"model_{model.num_timesteps}.zip")
+    model_path = save_model_atomic(model, out / "model.zip")
+    done = model.num_timesteps - start_step
+    result = TrainResult(
+        model_path, out / "eval.csv", model.num_timesteps, wall_s, done / wall_s, evaluation.last
+    )
+    _write_record(out, config, model.num_timesteps, start_step, wall_s=wall_s, last_eval=evaluation.last)
+    return result
+
+
+def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
+    """``train.json``: the config and progress (written at the start too, for ``--resume``)."""
+    from negobs_gym.eval.campaign import write_text_atomic
+
+    wall_s = session.get("wall_s")
+    record = {
+        "config": dataclasses.asdict(config),
+        "steps": steps,
+        "session_start_step": start_step,
+        "session_wall_s": wall_s,
+        "session_steps_per_s": (steps - start_step) / wall_s if wall_s else None,
+        "last_eval": session.get("last_eval", {}),
+    }
+    write_text_atomic(out / "train.json", json.dumps(record, indent=1, sort_keys=True))
+
+
+def _check_resume(config: TrainConfig, out: Path, checkpoint: Path | None) -> None:
+    if checkpoint is None:
+        raise ConfigError("resume", f"no checkpoint under {out / 'checkpoints'} to resume from")
+    record = out / "train.json"
+    if record.exists():
+        before = json.loads(record.read_text(encoding="utf-8"))["config"]
+        differ = [k for k in _RESUME_FIELDS if before.get(k) != getattr(config, k)]
+        if differ:
+            raise ConfigError(
+                "resume", f"{differ} differ from the run in {out}: {[before[k] for k in differ]}"
+            )

@@ -1,0 +1,73 @@
+"""``negobs train``: a short oracle-grid PPO run whose model ``negobs eval policy`` loads; bad arguments."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.policies.callbacks import EVAL_COLUMNS
+
+ENV = "negobs_gym/Braking-v1"
+SHORT = ["--source", "oracle", "--n-steps", "64", "--eval-episodes", "1", "--no-progress"]
+
+
+def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "run"
+    args = ["train", "--env", ENV, "--steps", "200", "--eval-every", "128", "--checkpoint-every", "100"]
+    assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    fields = dict(item.split("=", 1) for item in line.split())
+    assert fields["model"] == str(out / "model.zip") and int(fields["steps"]) == 256  # 4 rollouts of 64
+    assert float(fields["steps_per_s"]) > 0
+    with (out / "eval.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0]) == EVAL_COLUMNS
+    assert [int(r["step"]) for r in rows] == [128, 256]  # every 128 steps; the last one is the end
+    assert all(int(r["episodes"]) == 1 and float(r["mean_progress_m"]) > 0 for r in rows)
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == [
+        "model_100.zip",
+        "model_200.zip",
+        "model_256.zip",
+    ]
+    header = (out / "logs" / "0" / "progress.csv").read_text().splitlines()[0].split(",")
+    assert {"time/total_timesteps", "train/loss", "eval/goal", "eval/entries"} <= set(header)
+    record = json.loads((out / "train.json").read_text())
+    assert record["steps"] == 256 and record["config"]["source"] == "oracle"
+    assert record["config"]["extractor"]["conv_channels"] == [16, 32, 32]
+
+    assert main(["-q", *args, *SHORT, "--out", str(out)]) == 2  # a new run would mix with this one
+    assert "use --resume or another --out" in capsys.readouterr().err
+
+    # the default (detector-grid) env of the id, behind the filter: the flat-grid model runs on it
+    evaluation = ["eval", "policy", str(out / "model.zip"), "--env", ENV, "--seeds", "1", "--filter", "on"]
+    assert main(["-q", *evaluation, "--out", str(tmp_path / "eval"), "--no-progress"]) == 0
+    (line,) = capsys.readouterr().out.splitlines()
+    assert line.startswith(f"{ENV}/filter success=") and "/1 " in line
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--steps", "0"], "--steps: must be >= 1, got 0"),
+        (["--algo", "dqn"], "invalid choice: 'DQN'"),
+        (["--source", "lidar"], "invalid choice: 'lidar'"),
+        (["--envs", "0"], "--envs: must be >= 1"),
+    ],
+)
+def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", *args])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys) -> None:
+    assert main(["train", "--env", "negobs_gym/Nope-v0", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown env 'negobs_gym/Nope-v0'" in err and "negobs_gym/OffroadNav-v0" in err
+    assert main(["train", "--env", ENV, *SHORT, "--resume", "--out", str(tmp_path)]) == 2
+    assert "no checkpoint" in capsys.readouterr().err

@@ -1,0 +1,140 @@
+"""train(): SAC on the state alone from a scenario TOML, resume, and what a resumed run must match."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+from importlib import resources
+from pathlib import Path
+
+import pytest
+
+from negobs_gym.errors import ConfigError
+from negobs_gym.policies.callbacks import latest_checkpoint
+from negobs_gym.policies.config import TrainConfig
+from negobs_gym.policies.training import make_env, make_task_env, train
+
+
+def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
+    spec = tmp_path / "my_braking.toml"
+    shutil.copy(resources.files("negobs_gym.scenarios").joinpath("scenes/braking_v1.toml"), spec)
+    config = TrainConfig(
+        env=str(spec),
+        algo="SAC",
+        source="state",
+        steps=120,
+        batch_size=32,
+        eval_every=100,
+        eval_episodes=1,
+        checkpoint_every=50,
+        progress=False,
+    )
+    out = tmp_path / "run"
+    first = train(config, out)
+    assert first.steps == 120 and first.model_path.is_file()
+    assert latest_checkpoint(out / "checkpoints").name == "model_120.zip"
+    rows = first.eval_csv.read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["100", "120"]
+
+    second = train(dataclasses.replace(config, steps=180), out, resume=True)
+    assert second.steps == 180
+    rows = second.eval_csv.read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["100", "120", "180"]  # earlier rows kept
+    record = json.loads((out / "train.json").read_text())
+    assert record["session_start_step"] == 120 and record["steps"] == 180
+    assert (out / "logs" / "120" / "progress.csv").is_file()
+
+    from stable_baselines3 import SAC
+
+    model = SAC.load(second.model_path, device="cpu")
+    assert list(model.observation_space.spaces) == ["state"] and model.num_timesteps == 180
+
+    with pytest.raises(ConfigError, match="resume"):
+        train(dataclasses.replace(config, steps=240, source="oracle"), out, resume=True)
+    with pytest.raises(ConfigError, match="nothing to train"):
+        train(dataclasses.replace(config, steps=150), out, resume=True)
+
+
+def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    config = TrainConfig(
+        env="negobs_gym/Braking-v1",
+        source="oracle",
+        steps=128,
+        n_steps=64,
+        eval_every=0,
+        eval_episodes=1,
+        checkpoint_every=0,
+        progress=False,
+    )
+    runs = [train(config, tmp_path / str(k)) for k in range(2)]
+    weights = [
+        torch.cat([p.flatten() for p in PPO.load(r.model_path, device="cpu").policy.parameters()])
+        for r in runs
+    ]
+    assert torch.equal(weights[0], weights[1])
+    rows = [r.eval_csv.read_text().splitlines()[1].rsplit(",", 1)[0] for r in runs]  # all but wall_s
+    assert rows[0] == rows[1]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"algo": "DQN"}, "algo"),
+        ({"source": "lidar"}, "source"),
+        ({"steps": 0}, "steps"),
+        ({"envs": 0}, "envs"),
+        ({"learning_rate": 0.0}, "learning_rate"),
+        ({"eval_every": -1}, "eval_every"),
+    ],
+)
+def test_bad_config_names_its_field(kwargs: dict, field: str) -> None:
+    with pytest.raises(ConfigError, match=field):
+        TrainConfig(**kwargs)
+
+
+def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
+    env = make_env("paper_n_three_pits", "oracle", use_filter=True)
+    assert env.unwrapped.config.observation.source == "oracle" and env.grid_shape == (4, 36, 16)
+    env.close()
+    with pytest.raises(ConfigError, match="unknown env 'nope'"):
+        make_task_env("nope", "oracle")
+    with pytest.raises(ConfigError, match="unknown env"):
+        make_task_env(str(tmp_path / "missing.toml"), "oracle")
+    with pytest.raises(ConfigError, match="not a negobs_gym env"):
+        make_task_env("CartPole-v1", "oracle")
+
+
+@pytest.mark.slow
+def test_two_envs_run_in_subprocesses(tmp_path: Path) -> None:
+    config = TrainConfig(
+        env="negobs_gym/Braking-v1",
+        source="oracle",
+        envs=2,
+        steps=128,
+        n_steps=32,
+        eval_every=0,
+        eval_episodes=1,
+        progress=False,
+    )
+    result = train(config, tmp_path)
+    assert result.steps == 128 and result.model_path.is_file()
+
+
+def test_tensorboard_only_when_installed(monkeypatch) -> None:
+    import importlib.util
+
+    from negobs_gym.policies import training
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda n, *a: None if n == "tensorboard" else real(n, *a)
+    )
+    assert training.logger_formats() == ["csv"]
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda n, *a: object() if n == "tensorboard" else real(n, *a)
+    )
+    assert training.logger_formats() == ["csv", "tensorboard"]
