@@ -19,6 +19,7 @@ __all__ = [
     "pad_polygons",
     "points_in_polygon",
     "points_in_polygons",
+    "polygon_in_strip_y",
     "polyline_stations",
     "project_onto_polyline",
     "vehicle_to_world_xy",
@@ -127,6 +128,24 @@ def points_in_polygon(points_xy: np.ndarray, polygon_xy: np.ndarray) -> np.ndarr
     """Bool mask (...) of points (..., 2) inside one simple polygon (N>=3, 2) (even-odd rule)."""
     poly = _polygon(polygon_xy, "polygon_xy")
     return points_in_polygons(points_xy, poly[None])[..., 0]
+
+
+def polygon_in_strip_y(polygon_xy: np.ndarray, half_width: float) -> np.ndarray:
+    """y of the closed polygon's edges clipped to the strip ``|x| <= half_width``: both ends of every
+    clipped edge (y is linear along an edge, so its extremes inside the strip are there); empty when
+    no edge meets the strip. In the vehicle frame: how far ahead a polygon lies in front of the wheels.
+    """
+    poly = _polygon(polygon_xy, "polygon_xy")
+    d = np.roll(poly, -1, axis=0) - poly
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half_width - poly[:, 0]) / d[:, 0]
+        tb = (half_width - poly[:, 0]) / d[:, 0]
+    flat = d[:, 0] == 0  # edge parallel to the strip: all of it inside or none
+    inside = np.abs(poly[:, 0]) <= half_width
+    lo = np.where(flat, np.where(inside, 0.0, 1.0), np.maximum(np.minimum(ta, tb), 0.0))
+    hi = np.where(flat, np.where(inside, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
+    keep = lo <= hi
+    return np.concatenate([poly[keep, 1] + lo[keep] * d[keep, 1], poly[keep, 1] + hi[keep] * d[keep, 1]])
 
 
 # --- centre lines -----------------------------------------------------------------------------

@@ -20,7 +20,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from negobs_gym.core.geometry import project_onto_polyline, world_to_vehicle_xy
+from negobs_gym.core.geometry import polygon_in_strip_y, project_onto_polyline, world_to_vehicle_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
@@ -428,25 +428,8 @@ class NegObsEnv(gym.Env):
         best = math.inf
         for ob in self.terrain.negative_obstacles:
             outline = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw)
-            ahead = _outline_in_strip(outline, half)
+            ahead = polygon_in_strip_y(outline, half)
             ahead = ahead[ahead > 0]
             if ahead.size:
                 best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
         return best
-
-
-def _outline_in_strip(outline: np.ndarray, half_width: float) -> np.ndarray:
-    """Along-coordinates (y) of the closed outline's edges clipped to ``|x| <= half_width``: the
-    ends of each clipped edge (an edge's y is linear along it, so its extremes are there)."""
-    p0 = outline
-    d = np.roll(outline, -1, axis=0) - p0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ta = (-half_width - p0[:, 0]) / d[:, 0]
-        tb = (half_width - p0[:, 0]) / d[:, 0]
-    flat = d[:, 0] == 0  # edge parallel to the strip: all of it inside or none
-    inside_flat = np.abs(p0[:, 0]) <= half_width
-    lo = np.where(flat, np.where(inside_flat, 0.0, 1.0), np.maximum(np.minimum(ta, tb), 0.0))
-    hi = np.where(flat, np.where(inside_flat, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
-    keep = lo <= hi
-    ends = np.concatenate([p0[keep, 1] + lo[keep] * d[keep, 1], p0[keep, 1] + hi[keep] * d[keep, 1]])
-    return ends

@@ -12,6 +12,7 @@ from negobs_gym.core.geometry import (
     pad_polygons,
     points_in_polygon,
     points_in_polygons,
+    polygon_in_strip_y,
     polyline_stations,
     project_onto_polyline,
     vehicle_to_world_xy,
@@ -155,3 +156,16 @@ def test_points_on_polyline_project_to_their_station(line, frac):
     # the projected station maps back onto the same point (it may differ where the line crosses itself)
     q = np.array([np.interp(station, stations, line[:, 0]), np.interp(station, stations, line[:, 1])])
     np.testing.assert_allclose(q, p, atol=1e-6)
+
+
+def test_polygon_in_strip_y_clips_edges_to_the_strip():
+    wide = np.array([[-3.0, 10.0], [3.0, 10.0], [3.0, 10.4], [-3.0, 10.4]])  # no vertex in the strip
+    assert sorted(set(polygon_in_strip_y(wide, 1.8))) == [10.0, 10.4]
+    inside = np.array([[-0.5, 5.0], [0.5, 5.0], [0.5, 6.0], [-0.5, 6.0]])
+    assert sorted(set(polygon_in_strip_y(inside, 1.8))) == [5.0, 6.0]
+    beside = np.array([[3.0, 5.0], [4.0, 5.0], [4.0, 6.0], [3.0, 6.0]])
+    assert polygon_in_strip_y(beside, 1.8).size == 0
+    slanted = np.array([[-5.0, 20.0], [5.0, 10.0], [6.0, 11.0]])  # long edge crosses at y 13.2-16.8
+    assert min(polygon_in_strip_y(slanted, 1.8)) == pytest.approx(13.2)
+    with pytest.raises(GeometryError):
+        polygon_in_strip_y(np.array([[0.0, 1.0], [np.nan, 2.0], [1.0, 1.0]]), 1.0)
