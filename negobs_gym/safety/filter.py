@@ -179,7 +179,8 @@ class BrakingSafetyFilter(gym.Wrapper):
         return cmd if self._is_safe(state, d, cmd) else -1.0
 
     def filter_action(self, action: Any) -> tuple[np.ndarray, SafetyDecision]:
-        """The action to apply and the decision, without stepping the env."""
+        """The action to apply and the decision, without stepping the env (and without moving the
+        hysteresis: :meth:`step` commits the decision)."""
         try:
             original = np.asarray(action, dtype=np.float32)
         except (TypeError, ValueError) as exc:
@@ -212,7 +213,6 @@ class BrakingSafetyFilter(gym.Wrapper):
                 proposed,
                 cmd,
             )
-        self._holding = vetoed
         decision = SafetyDecision(
             vetoed=vetoed,
             hazard_distance_m=d,
@@ -228,6 +228,7 @@ class BrakingSafetyFilter(gym.Wrapper):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
         applied, decision = self.filter_action(action)
+        self._holding = decision.vetoed
         if isinstance(self.env.unwrapped, DecisionSink):  # negobs envs draw the decision
             self.env.unwrapped.set_render_overlay(decision)
         obs, reward, terminated, truncated, info = self.env.step(applied)

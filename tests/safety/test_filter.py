@@ -321,3 +321,12 @@ def test_release_margin_zero_is_the_stateless_filter_and_negative_is_rejected():
     assert not f.last_decision.vetoed
     with pytest.raises(ConfigError, match="release_margin_m"):
         SafetyFilterConfig(release_margin_m=-1.0)
+
+
+def test_filter_action_alone_does_not_move_the_hysteresis():
+    env = FixedHazardEnv(make_state(0.0, _ahead(3.0)))
+    f = BrakingSafetyFilter(env)
+    throttle = np.array([1.0, 0.0], np.float32)
+    assert f.filter_action(throttle)[1].vetoed  # a look at the decision, no step
+    env.state = make_state(0.0, _ahead(5.6))
+    assert not f.filter_action(throttle)[1].vetoed  # plain Eq. 18 test: nothing was committed
