@@ -82,6 +82,8 @@ class OracleGrid:
             if terrain.positive_obstacles
             else np.zeros((0, 3, 2))
         )
+        self._neg_boxes = _bounding_boxes(self._neg)
+        self._pos_boxes = _bounding_boxes(self._pos)
         self._centres_v = config.grid.cell_centres().reshape(-1, 2)
         self._track_tree = _centreline_tree(np.asarray(terrain.track.centreline_xy_m, dtype=np.float64))
 
@@ -89,8 +91,8 @@ class OracleGrid:
         """Full-resolution bool layers by channel name around ``pose``."""
         cfg = self.config
         pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
-        neg = points_in_polygons(pts, self._neg).any(axis=1)
-        pos = points_in_polygons(pts, self._pos).any(axis=1)
+        neg = _inside_any(pts, self._neg, self._neg_boxes)
+        pos = _inside_any(pts, self._pos, self._pos_boxes)
         hf = self.terrain.heightfield
         observed = np.isfinite(hf.height_at(pts))
         track = self.terrain.track
@@ -107,6 +109,29 @@ class OracleGrid:
     def observe(self, pose: Pose) -> np.ndarray:
         """uint8 (channels, rows, cols) grid around ``pose``."""
         return stack_channels(self.layers(pose), self.config)
+
+
+def _bounding_boxes(polygons: np.ndarray) -> np.ndarray:
+    """(M, 4) xmin, ymin, xmax, ymax of padded polygons (M, N, 2)."""
+    if polygons.shape[0] == 0:
+        return np.zeros((0, 4))
+    return np.concatenate([polygons.min(axis=1), polygons.max(axis=1)], axis=1)
+
+
+def _inside_any(points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Bool (P,): point inside any of the polygons. Only polygons whose box meets the points' box are
+    tested, each against the points inside its own box (a course's obstacles are mostly out of view)."""
+    inside = np.zeros(len(points_xy), dtype=bool)
+    lo, hi = points_xy.min(axis=0), points_xy.max(axis=0)
+    near = np.nonzero(
+        (boxes[:, 0] <= hi[0]) & (boxes[:, 2] >= lo[0]) & (boxes[:, 1] <= hi[1]) & (boxes[:, 3] >= lo[1])
+    )[0]
+    for k in near:  # loop over the few obstacles in view; the points are vectorised
+        x, y = points_xy[:, 0], points_xy[:, 1]
+        idx = np.nonzero((x >= boxes[k, 0]) & (x <= boxes[k, 2]) & (y >= boxes[k, 1]) & (y <= boxes[k, 3]))[0]
+        if idx.size:
+            inside[idx] |= points_in_polygons(points_xy[idx], polygons[k : k + 1])[:, 0]
+    return inside
 
 
 def stack_channels(layers: dict[str, np.ndarray], config: ObservationConfig) -> np.ndarray:

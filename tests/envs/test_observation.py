@@ -1,0 +1,51 @@
+"""The oracle grid: its culled point-in-polygon test equals testing every cell against every obstacle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
+from negobs_gym.core.pose import Pose
+from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.envs.observation import OracleGrid, _footprint
+from negobs_gym.sim.presets import winding_course
+
+
+@pytest.fixture(scope="module")
+def course():
+    return winding_course(120.0, seed=3, resolution_m=0.25)
+
+
+@pytest.mark.parametrize("station_m", [5.0, 25.0, 47.0, 71.0, 96.0])
+def test_oracle_obstacle_layers_equal_the_brute_force_test(course, station_m: float) -> None:
+    config = ObservationConfig(source="oracle")
+    grid = OracleGrid(config, course)
+    line = np.asarray(course.track.centreline_xy_m)
+    stations = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+    k = int(np.searchsorted(stations, station_m))
+    heading = line[k + 1] - line[k]
+    pose = Pose(x=float(line[k, 0]), y=float(line[k, 1]), yaw=float(np.arctan2(-heading[0], heading[1])))
+    layers = grid.layers(pose)
+    cells = vehicle_to_world_xy(config.grid.cell_centres().reshape(-1, 2), (pose.x, pose.y), pose.yaw)
+    negatives = pad_polygons([np.asarray(o.outline_xy_m) for o in course.negative_obstacles])
+    positives = pad_polygons([_footprint(o) for o in course.positive_obstacles])
+    expected_neg = points_in_polygons(cells, negatives).any(axis=1).reshape(config.grid.shape)
+    expected_pos = points_in_polygons(cells, positives).any(axis=1).reshape(config.grid.shape)
+    np.testing.assert_array_equal(layers["negative"], expected_neg)
+    np.testing.assert_array_equal(layers["positive"], expected_pos)
+
+
+def test_some_view_of_the_course_holds_obstacles(course) -> None:
+    """The equality above is not vacuous: the views along the course see obstacles of both kinds."""
+    config = ObservationConfig(source="oracle")
+    grid = OracleGrid(config, course)
+    line = np.asarray(course.track.centreline_xy_m)
+    seen_neg = seen_pos = 0
+    for k in range(0, len(line) - 1, max(1, len(line) // 40)):
+        heading = line[k + 1] - line[k]
+        pose = Pose(x=float(line[k, 0]), y=float(line[k, 1]), yaw=float(np.arctan2(-heading[0], heading[1])))
+        layers = grid.layers(pose)
+        seen_neg += int(layers["negative"].any())
+        seen_pos += int(layers["positive"].any())
+    assert seen_neg > 0 and seen_pos > 0
