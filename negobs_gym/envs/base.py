@@ -65,12 +65,12 @@ class NegObsEnv(gym.Env):
     ``Dict(grid, state)``: ``grid`` uint8 (channels, rows, cols) in {0, 1}, vehicle-centred
     (rows along +Y from the rear, cols along +X from the left), channels from
     ``ObservationConfig.channels``; ``state`` float32 (speed, yaw rate, steering angle, goal x, goal
-    y in the vehicle frame).
+    y in the vehicle frame, then the route points of ``ObservationConfig.route_points_m``).
 
     ## Rewards
     Weighted terms by name in ``info["rewards"]`` (weights: the spec's ``[reward]``): progress
     along the track, negative-obstacle entry, collision/rollover, time, goal, stopped before a
-    hazard.
+    hazard, trapped.
 
     ## Episode End
     Terminates when a rule named in the spec's ``terminations`` fires (``info["termination"]``
@@ -408,8 +408,20 @@ class NegObsEnv(gym.Env):
             self._vehicle.yaw_rate(),
             self._vehicle.steering_angle_rad(),
             np.asarray(self.terrain.goal_xy_m),
+            self._route_points(),
         )
         return {"grid": grid, "state": state}
+
+    def _route_points(self) -> np.ndarray | None:
+        """World xy of the centre-line points ``observation.route_points_m`` ahead of the vehicle's
+        station (None when the observation has none); beyond the track's end they stay at its end."""
+        ahead = self.config.observation.route_points_m
+        if not ahead:
+            return None
+        track = self.terrain.track
+        stations = np.minimum(self._station + np.asarray(ahead), track.stations_m[-1])
+        xy, _ = track.pose_at(stations)
+        return xy
 
     def _track_position(self, pose: Pose) -> tuple[float, float]:
         """(station along the centre line [m], distance from it [m]) of the nearest centre-line point."""

@@ -9,10 +9,14 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.errors import require
 from negobs_gym.sim.world import WorldConfig
 
-__all__ = ["CHANNELS", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
+__all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
 
 #: Rigs of the detector observation (see ``ObservationConfig.rig``).
 RIGS: tuple[str, ...] = ("roi", "native", "reduced")
+
+#: Route-point components are clipped to +- (farthest route distance + this) [m]: the vehicle may
+#: stand this far off the centre line and still see its route inside the bounds.
+ROUTE_MARGIN_M = 10.0
 
 #: Grid channels an observation can carry, in this fixed order.
 CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
@@ -41,6 +45,12 @@ class ObservationConfig:
         downsample: Integer block size for max-pooling the grid (1 = full resolution).
         max_speed_mps: Speed that maps to the top of the ``state`` range [m/s].
         max_goal_distance_m: Goal vector components are clipped to +- this [m].
+        route_points_m: Distances ahead along the track's centre line [m] whose points, in the
+            vehicle frame (x right, y forward), are appended to ``state`` after the goal vector:
+            the route a vehicle's navigation system hands its local planner (neither paper trains
+            a policy; OffroadNav-v1 uses 5, 10 and 15 m, a 1.5 s to 4 s preview at its speeds).
+            Empty (default) keeps the 5-value state. Components are clipped to
+            +- (the farthest distance + ``ROUTE_MARGIN_M``).
     """
 
     source: str = "detector"
@@ -53,6 +63,7 @@ class ObservationConfig:
     downsample: int = 4
     max_speed_mps: float = 15.0
     max_goal_distance_m: float = 300.0
+    route_points_m: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         require(
@@ -95,6 +106,14 @@ class ObservationConfig:
         for name in ("max_speed_mps", "max_goal_distance_m"):
             v = getattr(self, name)
             require(math.isfinite(v) and v > 0, name, f"must be > 0, got {v}")
+        route = self.route_points_m
+        require(
+            isinstance(route, tuple)
+            and all(isinstance(d, (int, float)) and math.isfinite(d) and d > 0 for d in route)
+            and list(route) == sorted(set(route)),
+            "route_points_m",
+            f"must be a tuple of distinct increasing distances > 0 [m], got {route!r}",
+        )
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -115,6 +134,10 @@ class RewardConfig:
         goal: Once, on reaching the goal.
         stopped: Once, on coming to a stop before a negative obstacle (the braking task; see
             ``TaskSpec.stop_window_m`` in :mod:`negobs_gym.scenarios.spec`).
+        trapped: Once, when the vehicle is trapped (stuck with its wheels spinning, e.g. against a
+            bank; ``sim.events``). Default 0: then being trapped costs only the progress not made,
+            which is less than an entry costs, so a learner that cannot pass an obstacle learns to
+            drive into the bank (docs/training.md).
     """
 
     progress: float = 1.0
@@ -123,9 +146,10 @@ class RewardConfig:
     time: float = -0.01
     goal: float = 50.0
     stopped: float = 0.0
+    trapped: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("progress", "negative_entry", "collision", "time", "goal", "stopped"):
+        for name in ("progress", "negative_entry", "collision", "time", "goal", "stopped", "trapped"):
             v = getattr(self, name)
             require(isinstance(v, (int, float)) and math.isfinite(v), name, f"must be finite, got {v!r}")
 

@@ -13,13 +13,22 @@ from negobs_gym.core.geometry import (
     world_to_vehicle_xy,
 )
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.envs.config import ROUTE_MARGIN_M, ObservationConfig
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["STATE_FIELDS", "OracleGrid", "grid_space", "stack_channels", "state_space", "state_vector"]
+__all__ = [
+    "STATE_FIELDS",
+    "OracleGrid",
+    "grid_space",
+    "stack_channels",
+    "state_fields",
+    "state_space",
+    "state_vector",
+]
 
-#: Order of the ``state`` observation: speed, yaw rate, steering angle, goal vector (vehicle frame).
+#: The first ``state`` values: speed, yaw rate, steering angle, goal vector (vehicle frame); route
+#: points follow when the config asks for them (:func:`state_fields`).
 STATE_FIELDS: tuple[str, ...] = ("speed_mps", "yaw_rate_rps", "steering_rad", "goal_x_m", "goal_y_m")
 
 
@@ -28,16 +37,22 @@ def grid_space(config: ObservationConfig) -> spaces.Box:
     return spaces.Box(0, 1, config.shape, dtype=np.uint8)
 
 
+def state_fields(config: ObservationConfig) -> tuple[str, ...]:
+    """Names of the ``state`` values: :data:`STATE_FIELDS`, then ``route_<d>_x_m, route_<d>_y_m``
+    for each of ``config.route_points_m``."""
+    route = tuple(f"route_{d:g}_{axis}_m" for d in config.route_points_m for axis in ("x", "y"))
+    return STATE_FIELDS + route
+
+
 def state_space(config: ObservationConfig) -> spaces.Box:
     """float32 state in physical units, clipped to the declared bounds."""
+    route_bound = (max(config.route_points_m) + ROUTE_MARGIN_M) if config.route_points_m else 0.0
     hi = np.array(
-        [config.max_speed_mps, 3.0, 1.0, config.max_goal_distance_m, config.max_goal_distance_m], np.float32
-    )
-    lo = np.array(
-        [-config.max_speed_mps, -3.0, -1.0, -config.max_goal_distance_m, -config.max_goal_distance_m],
+        [config.max_speed_mps, 3.0, 1.0, config.max_goal_distance_m, config.max_goal_distance_m]
+        + [route_bound] * (2 * len(config.route_points_m)),
         np.float32,
     )
-    return spaces.Box(lo, hi, dtype=np.float32)
+    return spaces.Box(-hi, hi, dtype=np.float32)
 
 
 def state_vector(
@@ -47,11 +62,27 @@ def state_vector(
     yaw_rate_rps: float,
     steering_rad: float,
     goal_xy_m: np.ndarray,
+    route_xy_m: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The ``state`` observation (see :data:`STATE_FIELDS`); goal vector in the vehicle frame."""
-    goal_v = world_to_vehicle_xy(np.asarray(goal_xy_m, dtype=np.float64), (pose.x, pose.y), pose.yaw)
+    """The ``state`` observation (see :func:`state_fields`); goal and route in the vehicle frame.
+
+    ``route_xy_m``: world xy (len(config.route_points_m), 2) of the route points, needed when the
+    config has any.
+    """
+    origin = (pose.x, pose.y)
+    goal_v = world_to_vehicle_xy(np.asarray(goal_xy_m, dtype=np.float64), origin, pose.yaw)
+    n_route = len(config.route_points_m)
+    if n_route:
+        route = np.asarray(route_xy_m, dtype=np.float64) if route_xy_m is not None else None
+        if route is None or route.shape != (n_route, 2):
+            raise ValueError(
+                f"route_xy_m must have shape ({n_route}, 2), got {None if route is None else route.shape}"
+            )
+        route_v = world_to_vehicle_xy(route, origin, pose.yaw).ravel()
+    else:
+        route_v = np.zeros(0)
     space = state_space(config)
-    raw = np.array([speed_mps, yaw_rate_rps, steering_rad, goal_v[0], goal_v[1]], dtype=np.float64)
+    raw = np.concatenate([[speed_mps, yaw_rate_rps, steering_rad, goal_v[0], goal_v[1]], route_v])
     return np.clip(raw, space.low, space.high).astype(np.float32)
 
 

@@ -27,7 +27,14 @@ from __future__ import annotations
 
 from negobs_gym.envs.base import NegObsEnv
 
-__all__ = ["BrakingEnv", "BrakingV0Env", "OffroadNavEnv", "PaperTStraightEnv", "TrenchCrossingEnv"]
+__all__ = [
+    "BrakingEnv",
+    "BrakingV0Env",
+    "OffroadNavEnv",
+    "OffroadNavV1Env",
+    "PaperTStraightEnv",
+    "TrenchCrossingEnv",
+]
 
 
 class BrakingEnv(NegObsEnv):
@@ -116,6 +123,21 @@ class OffroadNavEnv(NegObsEnv):
     """
 
     default_scenario = "offroad_nav_v0"
+
+
+class OffroadNavV1Env(NegObsEnv):
+    """``negobs_gym/OffroadNav-v1`` (spec ``offroad_nav_v1``): :class:`OffroadNavEnv`'s course and
+    task for learned policies.
+
+    Changes against v0: ``state`` gains the route, the centre-line points 5, 10 and 15 m ahead in
+    the vehicle frame (``ObservationConfig.route_points_m``; 11 values: speed, yaw rate, steering,
+    goal x, goal y, then x, y of each route point); ``grid`` keeps the ``negative`` and ``positive``
+    channels, ``Box(0, 1, (2, 36, 16), uint8)``; being trapped costs -50 once
+    (``RewardConfig.trapped``). Terrain draws, other rewards, terminations and the 60 s limit are
+    v0's. Why: docs/training.md.
+    """
+
+    default_scenario = "offroad_nav_v1"
 
 
 class TrenchCrossingEnv(NegObsEnv):
