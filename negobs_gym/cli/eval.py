@@ -59,7 +59,9 @@ def build_config(cls: type, toml_fields: dict[str, Any], cli_fields: dict[str, A
 
 def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
     group = parser.add_argument_group("campaign options")
-    group.add_argument("--seeds", type=positive_int, default=None, help="episodes (seeds 0..N-1)")
+    group.add_argument(
+        "--seeds", type=positive_int, default=None, help="episodes (seeds 0..N-1; policy: from --first-seed)"
+    )
     group.add_argument("--out", default=default_out, help="output directory (default: %(default)s)")
     group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
     group.add_argument(
@@ -118,13 +120,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     pol = commands.add_parser(
         "policy",
         help="a saved SB3 model on an env id: success, entries, collisions, progress, vetoes, cost",
-        description="Evaluates MODEL on seeds 0..N-1 of --env, without and/or with the safety filter.",
+        description="Evaluates MODEL on seeds first_seed..first_seed+N-1 of --env, without and/or with "
+        "the safety filter.",
     )
     pol.add_argument("model", metavar="MODEL", help="saved stable-baselines3 model (.zip)")
     _common(pol, "outputs/eval/policy")
     pol.add_argument("--env", dest="env_id", default=None, help="env id (default negobs_gym/Braking-v0)")
     pol.add_argument("--algo", default=None, help="stable-baselines3 class (default PPO)")
     pol.add_argument("--filter", choices=("off", "on", "both"), default=None, help="default: both")
+    pol.add_argument(
+        "--first-seed",
+        type=int,
+        default=None,
+        help="seeds first_seed.. (default 1000000: unseen in training)",
+    )
+    pol.add_argument(
+        "--source", choices=("detector", "oracle"), default=None, help="grid source (default: the env's own)"
+    )
     pol.set_defaults(handler=run_policy)
 
 
@@ -215,6 +227,8 @@ def run_policy(args: argparse.Namespace) -> int:
         "env_id": args.env_id,
         "algo": args.algo,
         "filters": filters,
+        "first_seed": args.first_seed,
+        "source": args.source,
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
@@ -223,6 +237,7 @@ def run_policy(args: argparse.Namespace) -> int:
     for name, s in summary.items():
         print(
             f"{config.env_id}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
+            f"goal={int(s['goals'])}/{int(s['episodes'])} "
             f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
             f"mean_progress_m={s['mean_progress_m']:.2f} vetoes={int(s['vetoes'])} cost={s['cost']:.1f}"
         )

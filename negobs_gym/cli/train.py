@@ -10,7 +10,7 @@ import argparse
 import logging
 
 from negobs_gym.cli.common import non_negative_int, positive_int
-from negobs_gym.policies.config import ALGORITHMS, SOURCES, TrainConfig
+from negobs_gym.policies.config import ALGORITHMS, SOURCES, TrainConfig, WarmStartConfig
 
 log = logging.getLogger("negobs_gym.cli.train")
 
@@ -75,6 +75,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     group.add_argument("--batch-size", type=positive_int, default=defaults.batch_size, help="minibatch size")
     group.add_argument("--learning-rate", type=float, default=defaults.learning_rate, help="Adam step size")
+    group.add_argument(
+        "--warm-start-steps",
+        type=non_negative_int,
+        default=defaults.warm_start.steps,
+        help="PPO: first behaviour-clone the pure-pursuit driver on this many demonstration steps "
+        "(0 = from scratch; default: %(default)s)",
+    )
+    group.add_argument(
+        "--action-std",
+        type=float,
+        default=defaults.warm_start.action_std,
+        help="action std after the warm start (default: %(default)s)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run_train)
 
@@ -95,6 +108,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
+        warm_start=WarmStartConfig(steps=args.warm_start_steps, action_std=args.action_std),
         progress=not args.no_progress,
     )
 

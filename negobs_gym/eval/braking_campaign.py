@@ -167,10 +167,16 @@ class ModelDriver(PolicyDriver):
 
     Observations are adapted to the model's space (:func:`~negobs_gym.policies.match_observation`),
     so a model trained by ``negobs train`` (flat grid, or the state alone) runs on the raw env.
+    Loading one sets torch to one intra-op thread in this process, as training does
+    (``TrainConfig.torch_threads``: the network is too small to gain from more, and with two
+    threads on busy cores one ``predict`` took 45 ms instead of 1 ms).
     """
 
     def __init__(self, path: str, algo: str = "PPO") -> None:
         import stable_baselines3
+        import torch
+
+        torch.set_num_threads(1)
 
         cls = getattr(stable_baselines3, algo, None)
         if cls is None:

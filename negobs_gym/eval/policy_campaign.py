@@ -3,6 +3,10 @@
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
 rollover or trap during the episode), the failure events, goal reached, progress along the track,
 distance driven, the filter's vetoes and the summed constraint ``cost`` (``info["cost"]``).
+
+Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
+training run's envs reset from seeds ``seed + i`` and then draw their terrains from their own
+generators, so these seeds are terrains the policy has not trained on.
 """
 
 from __future__ import annotations
@@ -38,18 +42,35 @@ COLUMNS = (
 )
 
 
+#: Per filter setting, summed over the episodes in :func:`summarize`.
+SUMMED = ("episodes", "successes", "goals", "entries", "collisions", "progress_m", "vetoes", "cost")
+
+
 @dataclass(frozen=True, kw_only=True)
 class PolicyCampaignConfig:
-    """A saved model, the env id it runs on, the seeds and the filter settings."""
+    """A saved model, the env id it runs on, the seeds and the filter settings.
+
+    ``source`` replaces the env's grid source (``"detector"`` or ``"oracle"``; None keeps the env's
+    own, the detector grid for every registered id), e.g. to evaluate an oracle-trained policy on
+    what the vehicle's detectors see.
+    """
 
     model_path: str
     env_id: str = "negobs_gym/Braking-v0"
     algo: str = "PPO"
     seeds: int = 10
+    first_seed: int = 1_000_000
     filters: tuple[bool, ...] = (False, True)
+    source: str | None = None
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
+        require(self.first_seed >= 0, "first_seed", f"must be >= 0, got {self.first_seed}")
+        require(
+            self.source in (None, "detector", "oracle"),
+            "source",
+            f"must be 'detector', 'oracle' or None (the env's own), got {self.source!r}",
+        )
         require(bool(self.filters), "filters", "needs at least one of off / on")
         if not Path(self.model_path).exists() and not Path(f"{self.model_path}.zip").exists():
             raise ConfigError("model_path", f"no saved model at {self.model_path}")
@@ -58,10 +79,12 @@ class PolicyCampaignConfig:
 def episodes(config: PolicyCampaignConfig) -> list[Episode]:
     """filter x seed."""
     args = {"model_path": config.model_path, "env_id": config.env_id, "algo": config.algo}
+    args["source"] = config.source
+    seeds = range(config.first_seed, config.first_seed + config.seeds)
     return [
-        Episode(f"{int(f)}.{seed:05d}", {**args, "filtered": f, "seed": seed})
+        Episode(f"{int(f)}.{seed:07d}", {**args, "filtered": f, "seed": seed})
         for f in config.filters
-        for seed in range(config.seeds)
+        for seed in seeds
     ]
 
 
@@ -72,7 +95,12 @@ def run_episode(episode: Episode) -> Rows:
     import negobs_gym  # noqa: F401 - registers the env ids
 
     a = episode.args
-    env = gym.make(a["env_id"])
+    if a.get("source") is None:
+        env = gym.make(a["env_id"])
+    else:
+        from negobs_gym.policies.training import make_task_env
+
+        env = make_task_env(a["env_id"], a["source"])
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], a["filtered"], max_steps)
     success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"])
@@ -88,11 +116,13 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s = out.setdefault(
             r["filter"],
             dict.fromkeys(
-                ("episodes", "successes", "entries", "collisions", "progress_m", "vetoes", "cost"), 0.0
+                ("episodes", "successes", "goals", "entries", "collisions", "progress_m", "vetoes", "cost"),
+                0.0,
             ),
         )
         s["episodes"] += 1
         s["successes"] += r["success"] == "1"
+        s["goals"] += r["goal"] == "1"
         s["entries"] += r["entered"] == "1"
         s["collisions"] += r["collision"] == "1"
         s["progress_m"] += float(r["progress_m"])

@@ -6,11 +6,12 @@ no value below comes from them. Each is a choice, with its reason beside it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from negobs_gym.errors import require
 
-__all__ = ["ALGORITHMS", "SOURCES", "GridCnnConfig", "TrainConfig"]
+__all__ = ["ALGORITHMS", "SOURCES", "GridCnnConfig", "TrainConfig", "WarmStartConfig"]
 
 #: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
@@ -55,6 +56,44 @@ class GridCnnConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class WarmStartConfig:
+    """Behaviour cloning of the pure-pursuit driver (:mod:`negobs_gym.policies.pretrain`; the values
+    are choices).
+
+    Attributes:
+        steps: Demonstration env steps (0: no warm start).
+        noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
+            labels stay clean), so the demonstrations include recoveries towards the route.
+        epochs: Passes over the demonstrations.
+        batch_size: Minibatch size of the fit.
+        learning_rate: Adam step size of the fit.
+        action_std: The policy's action standard deviation after the fit (PPO's exploration;
+            SB3 starts at 1.0, which drives a cloned route follower off the track at once).
+    """
+
+    steps: int = 0
+    noise_std: float = 0.3
+    epochs: int = 20
+    batch_size: int = 256
+    learning_rate: float = 1e-3
+    action_std: float = 0.3
+
+    def __post_init__(self) -> None:
+        require(
+            isinstance(self.steps, int) and self.steps >= 0,
+            "steps",
+            f"must be an int >= 0, got {self.steps!r}",
+        )
+        for name in ("epochs", "batch_size"):
+            value = getattr(self, name)
+            require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
+        for name in ("noise_std", "learning_rate", "action_std"):
+            value = getattr(self, name)
+            require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
+        require(self.action_std > 0, "action_std", "must be > 0")
+
+
+@dataclass(frozen=True, kw_only=True)
 class TrainConfig:
     """One training run. The RL papers' defaults are SB3's; the fields that differ say why.
 
@@ -80,6 +119,8 @@ class TrainConfig:
         buffer_size: SAC replay buffer in transitions; 100 k instead of SB3's 1 M because each
             holds two 2304-byte grids (1 M would need ~4.6 GB).
         extractor: The CNN's layers.
+        warm_start: Behaviour cloning of the pure-pursuit driver before training (new PPO runs
+            only; ``steps=0``, the default, trains from scratch).
         torch_threads: Torch intra-op threads while training. 1: measured on the 2 shared cores,
             one ``predict`` of the default network took 45 ms with 2 threads (OpenMP waiting for
             a busy core) and 1.0 ms with 1; the network is too small to gain from more.
@@ -103,6 +144,7 @@ class TrainConfig:
     gamma: float = 0.99
     buffer_size: int = 100_000
     extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
+    warm_start: WarmStartConfig = field(default_factory=WarmStartConfig)
     torch_threads: int = 1
     progress: bool = True
 
@@ -126,3 +168,9 @@ class TrainConfig:
         require(0 < self.learning_rate < 1, "learning_rate", f"must be in (0, 1), got {self.learning_rate}")
         require(0 < self.gamma <= 1, "gamma", f"must be in (0, 1], got {self.gamma}")
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
+        require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")
+        require(
+            self.warm_start.steps == 0 or self.algo == "PPO",
+            "warm_start",
+            "behaviour cloning sets a Gaussian policy's log_std: PPO only",
+        )

@@ -194,12 +194,15 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             log.info("resuming from %s at %d steps", checkpoint, model.num_timesteps)
         else:
             model = _new_model(config, venv, grid_shape)
+            warm = _warm_start(model, config)
         start_step = model.num_timesteps
         if start_step >= config.steps:
             raise ConfigError(
                 "steps", f"nothing to train: the checkpoint has {start_step} >= {config.steps} steps"
             )
-        _write_record(out, config, model.num_timesteps, start_step)
+        if checkpoint is not None:
+            warm = _previous_warm_start(out)
+        _write_record(out, config, model.num_timesteps, start_step, warm_start=warm)
         model.set_logger(configure(str(out / "logs" / str(start_step)), logger_formats()))
         every = config.eval_every if config.eval_every > 0 else config.steps
         evaluation = EvalCallback(functools.partial(evaluate, config=config), out / "eval.csv", every)
@@ -219,8 +222,47 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
     result = TrainResult(
         model_path, out / "eval.csv", model.num_timesteps, wall_s, done / wall_s, evaluation.last
     )
-    _write_record(out, config, model.num_timesteps, start_step, wall_s=wall_s, last_eval=evaluation.last)
+    _write_record(
+        out,
+        config,
+        model.num_timesteps,
+        start_step,
+        wall_s=wall_s,
+        last_eval=evaluation.last,
+        warm_start=warm,
+    )
     return result
+
+
+def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
+    """Behaviour-clone the pure-pursuit driver into a new PPO model (``config.warm_start``); what
+    was done, for ``train.json`` (empty when ``warm_start.steps`` is 0)."""
+    ws = config.warm_start
+    if ws.steps == 0:
+        return {}
+    from negobs_gym.policies.pretrain import collect_demonstrations, warm_start
+
+    begin = time.perf_counter()
+    env = make_env(config.env, config.source, config.filter)
+    try:
+        demos = collect_demonstrations(env, ws.steps, ws.noise_std, config.seed)
+    finally:
+        env.close()
+    losses = warm_start(model, demos, ws, config.seed)
+    record = {
+        "steps": ws.steps,
+        "episodes": demos.episodes,
+        "first_loss": losses[0],
+        "last_loss": losses[-1],
+        "wall_s": time.perf_counter() - begin,
+    }
+    log.info("warm start: %s", record)
+    return record
+
+
+def _previous_warm_start(out: Path) -> dict[str, Any]:
+    record = out / "train.json"
+    return json.loads(record.read_text(encoding="utf-8")).get("warm_start", {}) if record.exists() else {}
 
 
 def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
@@ -235,6 +277,7 @@ def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, *
         "session_wall_s": wall_s,
         "session_steps_per_s": (steps - start_step) / wall_s if wall_s else None,
         "last_eval": session.get("last_eval", {}),
+        "warm_start": session.get("warm_start", {}),
     }
     write_text_atomic(out / "train.json", json.dumps(record, indent=1, sort_keys=True))
 

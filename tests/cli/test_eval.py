@@ -63,9 +63,16 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     args = ["eval", "policy", str(path), "--seeds", "1", "--filter", "on", "--out", str(out), "--no-progress"]
     assert main(["-q", *args]) == 0
     (line,) = capsys.readouterr().out.splitlines()
-    assert line.startswith("negobs_gym/Braking-v0/filter success=")
+    assert line.startswith("negobs_gym/Braking-v0/filter success=") and " goal=0/1 " in line
     rows = (out / "policy.csv").read_text().splitlines()
     assert len(rows) == 2 and rows[0].startswith("episode,env,filter,seed,success")
+    assert rows[1].split(",")[3] == "1000000"  # unseen seeds by default
+    # another first seed, on the oracle grid
+    oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
+    assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.startswith("negobs_gym/Braking-v0/nofilter success=")
+    seeds = [r.split(",")[3] for r in (tmp_path / "oracle" / "policy.csv").read_text().splitlines()[1:]]
+    assert seeds == ["5", "6"]
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
     config = tmp_path / "braking.toml"

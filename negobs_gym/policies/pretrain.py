@@ -1,0 +1,116 @@
+"""Warm start: behaviour cloning of the pure-pursuit driver before reinforcement learning.
+
+PPO from a random Gaussian policy spends its first hundred thousand steps learning to drive along
+the route at all (docs/training.md, "from scratch"). The route follower is a solved problem, the
+pure-pursuit driver, so :func:`warm_start` first fits the policy's action mean to that driver's
+actions (DART-style: the executed action carries Gaussian noise so the demonstrations also show
+how to return to the route, while the labels are the driver's clean actions; Laskey et al. 2017),
+then sets the policy's action standard deviation to ``action_std`` for PPO's exploration. PPO then
+learns what the driver cannot do: leave the route around obstacles.
+
+The demonstrations come from the training env itself (same observation wrapper, source and
+filter), on seeds of their own (``seed + DEMO_SEED_OFFSET + k``), so neither the training seeds
+nor the evaluation seeds are reused.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
+from negobs_gym.errors import ConfigError, require
+from negobs_gym.policies.config import WarmStartConfig
+
+__all__ = ["DEMO_SEED_OFFSET", "Demonstrations", "collect_demonstrations", "warm_start"]
+
+#: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
+#: evaluations 1,000,000 on).
+DEMO_SEED_OFFSET = 500_000
+
+
+@dataclass(frozen=True)
+class Demonstrations:
+    """Observations (the wrapped env's dict, stacked) and the driver's clean actions (N, 2)."""
+
+    observations: dict[str, np.ndarray]
+    actions: np.ndarray
+    episodes: int
+
+
+def collect_demonstrations(env: Any, steps: int, noise_std: float, seed: int) -> Demonstrations:
+    """``steps`` steps of the pure-pursuit driver on ``env`` (a negobs env, possibly wrapped).
+
+    Episodes reset on termination or truncation, each on seed ``seed + DEMO_SEED_OFFSET + k``; the
+    executed action is the driver's plus ``N(0, noise_std)`` noise (from ``default_rng(seed)``),
+    clipped to [-1, 1].
+    """
+    require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
+    rng = np.random.default_rng(seed)
+    observations: dict[str, list[np.ndarray]] = {}
+    actions: list[np.ndarray] = []
+    episodes = 0
+    obs, info, driver = None, None, None
+    while len(actions) < steps:
+        if driver is None:
+            obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + episodes)
+            driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+            episodes += 1
+        label = driver.act(obs, info)
+        for key, value in obs.items():
+            observations.setdefault(key, []).append(np.array(value, copy=True))
+        actions.append(label)
+        executed = np.clip(label + rng.normal(0.0, noise_std, size=2), -1.0, 1.0).astype(np.float32)
+        obs, _, terminated, truncated, info = env.step(executed)
+        if terminated or truncated:
+            driver = None
+    return Demonstrations(
+        {key: np.stack(values) for key, values in observations.items()}, np.stack(actions), episodes
+    )
+
+
+def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed: int = 0) -> list[float]:
+    """Fit ``model.policy``'s action mean to ``demos`` (mean squared error), then set its action std.
+
+    Works on SB3 policies with a diagonal Gaussian head and ``log_std`` (PPO, A2C). Returns the
+    mean loss of each epoch.
+
+    Raises:
+        ConfigError: the policy has no ``log_std`` (SAC's squashed policy is not supported).
+    """
+    policy = model.policy
+    if not hasattr(policy, "log_std"):
+        raise ConfigError(
+            "algo", f"warm start needs a Gaussian policy with log_std (PPO), got {type(policy).__name__}"
+        )
+    obs_tensor, _ = policy.obs_to_tensor(demos.observations)
+    target = torch.as_tensor(demos.actions, dtype=torch.float32)
+    params = [
+        p for name, p in policy.named_parameters() if name != "log_std" and not name.startswith("value_net")
+    ]
+    optimiser = torch.optim.Adam(params, lr=config.learning_rate)
+    generator = torch.Generator().manual_seed(seed)
+    n = len(target)
+    losses = []
+    policy.set_training_mode(True)
+    for _ in range(config.epochs):
+        order = torch.randperm(n, generator=generator)
+        total = 0.0
+        for start in range(0, n, config.batch_size):
+            idx = order[start : start + config.batch_size]
+            batch = {key: value[idx] for key, value in obs_tensor.items()}
+            mean = policy.get_distribution(batch).distribution.mean
+            loss = torch.nn.functional.mse_loss(mean, target[idx])
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            total += loss.item() * len(idx)
+        losses.append(total / n)
+    policy.set_training_mode(False)
+    with torch.no_grad():
+        policy.log_std.fill_(math.log(config.action_std))
+    return losses
