@@ -5,8 +5,10 @@ Drives at 25 km/h toward one pit of each of paper N's four sizes (100x50, 100x80
 seeds, sensor noise on. Every frame's scans go to three detectors (fused, HDL-64 only, HDL-32 only,
 paper N Fig. 16) that each keep their own history. A frame counts as recalled in a mode when one
 of its detected obstacles overlaps the pit on the 20 cm grid (``negobs_gym.eval.match_frame``);
-frames are binned by the distance to the pit's nearest cell (``negobs_gym.eval.RecallTable``, one
-size bin). Prints the table, then ``fused_recall_12_20=<mean of the 12-20 m bins>`` and, last,
+frames are binned by the distance from the vehicle origin (the INS centre) to the centre of the
+pit's cells, paper N §4.2's distance (``negobs_gym.eval.RecallTable``, one size bin;
+``--bin-by nearest`` bins by the pit's nearest cell instead, which reads each bin ~0.5 m closer).
+Prints the table, then ``fused_recall_12_20=<mean of the 12-20 m bins>`` and, last,
 ``fig16_order=<ok|violated>`` (ok: HDL-32 only >= HDL-64 only in every bin beyond 14 m).
 
 ``--rig roi`` is the envs' default training observation: paper N's native rig cast only where
@@ -17,6 +19,7 @@ the rays outside left as no return; its table is compared bin by bin with ``nati
 run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
 
 Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|roi|reduced] [--cache DIR]
+     [--bin-by centre|nearest]
 """
 
 from __future__ import annotations
@@ -52,7 +55,7 @@ FRAME_S = 0.1  # 10 Hz
 RIGS = {"native": paper_n_rig, "roi": paper_n_rig, "reduced": paper_n_rig_reduced}
 # paper N Table 7, pits of 25-34 cells, 2 m bins from 6-8 m to 18-20 m
 PAPER_TABLE7 = (0.95, 0.93, 0.85, 0.75, 0.54, 0.31, 0.17)
-EVAL = DetectionEvalConfig(size_bin_edges_cells=(1, 10_000))  # one size bin: every pit counts
+SIZE_BINS = (1, 10_000)  # one size bin: every pit counts
 GRID = GridSpec()
 
 
@@ -134,10 +137,10 @@ def frame_scans(rig: Rig, drive: dict, k: int) -> dict[str, StructuredScan]:
     }
 
 
-def evaluate(rig: Rig, drives: list[dict]) -> dict[str, RecallTable]:
+def evaluate(rig: Rig, drives: list[dict], matching: DetectionEvalConfig) -> dict[str, RecallTable]:
     """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive)."""
     detectors = {m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m)) for m in SENSOR_MODES}
-    tables = {m: RecallTable(EVAL) for m in SENSOR_MODES}
+    tables = {m: RecallTable(matching) for m in SENSOR_MODES}
     for drive in drives:
         for det in detectors.values():
             det.reset()
@@ -150,7 +153,7 @@ def evaluate(rig: Rig, drives: list[dict]) -> dict[str, RecallTable]:
             for mode, det in detectors.items():
                 detection = det.update(scans, ins)
                 outlines = [o.outline_xy_m for o in detection.obstacles]
-                tables[mode].add(match_frame(outlines, [truth], GRID, EVAL))
+                tables[mode].add(match_frame(outlines, [truth], GRID, matching))
     return tables
 
 
@@ -159,18 +162,28 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=8, help="terrain/noise seeds per pit size (>= 8)")
     parser.add_argument("--rig", choices=sorted(RIGS), default="native", help="sensor rig")
     parser.add_argument("--cache", type=Path, default=None, help="directory keeping the cast scans")
+    parser.add_argument(
+        "--bin-by",
+        choices=("centre", "nearest"),
+        default="centre",
+        help="distance of a pit: its cells' centre (paper N §4.2, default) or its nearest cell",
+    )
     args = parser.parse_args()
+    matching = DetectionEvalConfig(size_bin_edges_cells=SIZE_BINS, bin_distance=args.bin_by)
     rig = RIGS[args.rig]()
     drives = [
         load_or_cast(rig, size, seed, args.cache, roi=args.rig == "roi")
         for seed in range(args.seeds)
         for size in PAPER_N_PIT_SIZES_M
     ]
-    tables = evaluate(rig, drives)
-    edges = EVAL.distance_bin_edges_m
+    tables = evaluate(rig, drives, matching)
+    edges = matching.distance_bin_edges_m
     bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in itertools.pairwise(edges)]
     recall = {m: t.recall()[0] for m, t in tables.items()}
-    print(f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}")
+    print(
+        f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}, "
+        f"distance bins by the pit's {args.bin_by}"
+    )
     print(f"frames per bin: {' '.join(str(n) for n in tables['fused'].seen[0])}")
     print(f"{'mode':<14}" + "".join(f"{b:>9}" for b in bins))
     for mode, label in (("fused", "fused"), ("hdl64", "HDL-64 only"), ("hdl32", "HDL-32 only")):

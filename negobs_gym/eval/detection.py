@@ -33,6 +33,10 @@ class DetectionEvalConfig:
     distance_bin_edges_m: tuple[float, ...] = (6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0)
     min_overlap_cells: int = 1  # "overlaps": at least one shared 20 cm cell
     border_band_m: float = 0.6  # half-width of the track-border face band (not in paper N)
+    # distance a ground truth is binned by: "centre" = its marked cells' centre to the vehicle
+    # origin (paper N §4.2: the marked region's centre to the INS centre); "nearest" = its nearest
+    # cell centre (what a brake needs)
+    bin_distance: str = "centre"
 
     def __post_init__(self) -> None:
         for name in ("size_bin_edges_cells", "distance_bin_edges_m"):
@@ -47,6 +51,11 @@ class DetectionEvalConfig:
             math.isfinite(self.border_band_m) and self.border_band_m >= 0,
             "border_band_m",
             f"must be finite and >= 0, got {self.border_band_m}",
+        )
+        require(
+            self.bin_distance in ("centre", "nearest"),
+            "bin_distance",
+            f"must be 'centre' or 'nearest', got {self.bin_distance!r}",
         )
 
 
@@ -138,6 +147,8 @@ class FrameMatch:
         truth_cells: grid-cell count of each ground-truth obstacle (0 = outside the grid).
         truth_distance_m: distance from the vehicle origin to each ground truth's nearest cell
             centre (NaN when outside the grid).
+        truth_centre_distance_m: distance from the vehicle origin to the centre (mean cell
+            centre) of each ground truth's cells, paper N §4.2's distance (NaN when outside).
         truth_recalled: whether each ground truth overlaps a detected obstacle.
         false_alarms: detected obstacles overlapping neither ground truth nor a track border.
         detections: number of detected obstacles with at least one cell in the grid.
@@ -145,6 +156,7 @@ class FrameMatch:
 
     truth_cells: np.ndarray
     truth_distance_m: np.ndarray
+    truth_centre_distance_m: np.ndarray
     truth_recalled: np.ndarray
     false_alarms: int
     detections: int
@@ -197,12 +209,17 @@ def match_frame(
     truth_dist = np.array(
         [dist_all[m.ravel()].min() if m.any() else np.nan for m in truth_masks], dtype=np.float64
     )
+    centre_dist = np.array(
+        [np.hypot(*centres[m.ravel()].mean(axis=0)) if m.any() else np.nan for m in truth_masks],
+        dtype=np.float64,
+    )
     explained = hits.any(axis=0) if n_t else np.zeros(n_d, dtype=bool)
     if border_mask is not None and n_d:
         explained |= (flat_d @ border_mask.ravel().astype(np.int32)) >= cfg.min_overlap_cells
     return FrameMatch(
         truth_cells=truth_cells,
         truth_distance_m=truth_dist,
+        truth_centre_distance_m=centre_dist,
         truth_recalled=hits.any(axis=1) if n_d else np.zeros(n_t, dtype=bool),
         false_alarms=int(np.count_nonzero(~explained)),
         detections=n_d,
@@ -225,11 +242,15 @@ class RecallTable:
         self.recalled = np.zeros(shape, dtype=np.int64)
 
     def add(self, match: FrameMatch) -> None:
-        """Count one frame; ground truth outside every bin is ignored."""
+        """Count one frame (distance bin by ``config.bin_distance``); ground truth outside every bin
+        is ignored."""
         self.frames += 1
         self.false_alarms += match.false_alarms
         s = np.digitize(match.truth_cells, self.config.size_bin_edges_cells) - 1
-        d = np.digitize(np.nan_to_num(match.truth_distance_m, nan=-1.0), self.config.distance_bin_edges_m) - 1
+        distance = (
+            match.truth_centre_distance_m if self.config.bin_distance == "centre" else match.truth_distance_m
+        )
+        d = np.digitize(np.nan_to_num(distance, nan=-1.0), self.config.distance_bin_edges_m) - 1
         ok = (s >= 0) & (s < self.seen.shape[0]) & (d >= 0) & (d < self.seen.shape[1])
         np.add.at(self.seen, (s[ok], d[ok]), 1)
         np.add.at(self.recalled, (s[ok], d[ok]), match.truth_recalled[ok].astype(np.int64))

@@ -30,7 +30,6 @@ from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,
     match_frame,
-    rasterize_outline,
     track_border_mask,
     world_outline_to_vehicle,
 )
@@ -184,8 +183,9 @@ def _judge_frame(
     track_width_m: float,
     grid: Any,
     matching: DetectionEvalConfig,
-) -> tuple[dict[str, np.ndarray], list[int], np.ndarray]:
-    """Per mode: which truths were recalled; detections, false alarms on and off the track; truth cells."""
+) -> tuple[dict[str, np.ndarray], list[int], tuple[np.ndarray, np.ndarray]]:
+    """Per mode: which truths were recalled; detections, false alarms on and off the track; truth cells
+    and centre distances (paper N §4.2)."""
     border = track_border_mask(centre_line, track_width_m, grid, matching.border_band_m)
     recalled, counts = {}, []
     for m in SENSOR_MODES:
@@ -198,7 +198,7 @@ def _judge_frame(
         )
         recalled[m] = match.truth_recalled
         counts += [match.detections, on.false_alarms, match.false_alarms - on.false_alarms]
-    return recalled, counts, match.truth_cells
+    return recalled, counts, (match.truth_cells, match.truth_centre_distance_m)
 
 
 def run_episode(episode: Episode) -> Rows:
@@ -248,17 +248,16 @@ def run_episode(episode: Episode) -> Rows:
                 for ob in terrain.negative_obstacles
             ]
             centre_line = _centre_line_near_grid(centreline, pose, grid)
-            recalled, counts, truth_cells = _judge_frame(
+            recalled, counts, (truth_cells, centre_m) = _judge_frame(
                 detections, truths, centre_line, terrain.track.width_m, grid, cfg.matching
             )
             row = [episode.key, seed, frame, speed, travelled, _lateral_offset(pose, centreline)]
             frames.append(format_row([*row, *counts]))
-            for k, (ob, truth) in enumerate(zip(terrain.negative_obstacles, truths, strict=True)):
+            for k, ob in enumerate(terrain.negative_obstacles):
                 if int(truth_cells[k]) == 0:
                     continue
-                centre = grid.cell_centres()[rasterize_outline(truth, grid)].mean(axis=0)
                 hits = [bool(recalled[m][k]) for m in SENSOR_MODES]
-                row = [episode.key, seed, frame, ob.obstacle_id, int(truth_cells[k]), math.hypot(*centre)]
+                row = [episode.key, seed, frame, ob.obstacle_id, int(truth_cells[k]), float(centre_m[k])]
                 obstacles.append(format_row([*row, *hits]))
     return {"obstacles": obstacles, "frames": frames}
 

@@ -68,3 +68,19 @@ def test_unsorted_azimuths_and_empty_scans():
         StructuredScan("s", np.ones((1, 3)), [0.0, 0.2, 0.1], [0.0])
     empty = StructuredScan("s", np.empty((4, 0)), [], [0.0, 0.1, 0.2, 0.3])
     assert empty.shape == (4, 0) and empty.points_vehicle.shape == (4, 0, 3)
+
+
+def test_vehicle_points_are_paper_n_eq_9_for_any_rotation_and_nan_stays_nan():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(5)
+    rotation = Rotation.from_euler("xyz", rng.uniform(-np.pi, np.pi, 3)).as_matrix()
+    ranges = rng.uniform(1.0, 60.0, (2, 3))
+    ranges[1, 0] = np.nan
+    scan = _scan(ranges, rotation=rotation, translation_m=[0.3, -1.2, 2.0])
+    expected = scan.points_sensor @ scan.rotation.T + scan.translation_m  # Eq. 9: R p + T
+    np.testing.assert_allclose(scan.points_vehicle, expected, rtol=0, atol=1e-12)
+    assert np.isnan(scan.points_vehicle[1, 0]).all() and np.isfinite(scan.points_vehicle[0]).all()
+    # a second scan of the same geometry (the cached rotated directions) gives the same points
+    again = _scan(ranges, rotation=rotation, translation_m=[0.3, -1.2, 2.0])
+    np.testing.assert_array_equal(again.points_vehicle, scan.points_vehicle)

@@ -97,8 +97,21 @@ def test_match_recall_and_false_alarm() -> None:
     np.testing.assert_array_equal(m.truth_recalled, [True, False])
     assert m.false_alarms == 1 and m.detections == 2
     np.testing.assert_array_equal(m.truth_cells, [25, 25])
-    # nearest cell centre of the 8-9 m square: (0.1, 8.1)
+    # nearest cell centre of the 8-9 m square: (0.1, 8.1); its cells' centre: (0.5, 8.5)
     assert m.truth_distance_m[0] == pytest.approx(math.hypot(0.1, 8.1))
+    assert m.truth_centre_distance_m[0] == pytest.approx(math.hypot(0.5, 8.5))
+
+
+def test_recall_table_bins_by_the_centre_like_paper_n_or_by_the_nearest_cell() -> None:
+    pit = square(0.0, 10.5, 1.0)  # cells from 10.1 m to 10.9 m ahead; centre 10.5 m
+    edges = (9.0, 10.4, 12.0)
+    by_centre = RecallTable(DetectionEvalConfig(distance_bin_edges_m=edges))
+    by_nearest = RecallTable(DetectionEvalConfig(distance_bin_edges_m=edges, bin_distance="nearest"))
+    for table in (by_centre, by_nearest):
+        table.add(match_frame([pit], [pit], GRID))
+    assert by_centre.seen[:, 1].sum() == 1 and by_nearest.seen[:, 0].sum() == 1
+    with pytest.raises(ConfigError, match="bin_distance"):
+        DetectionEvalConfig(bin_distance="rim")
 
 
 def test_touching_but_not_overlapping_is_not_recalled() -> None:
