@@ -48,11 +48,16 @@ class NegativeDetectorConfig:
     mode: SensorMode = "fused"
     hdl64_sensors: tuple[str, ...] = ("hdl64",)
     hdl32_sensors: tuple[str, ...] = ("hdl32_left", "hdl32_right")
-    # pairs whose far point B lies farther than this (ground-plane distance from the vehicle origin)
-    # are dropped: paper N evaluates detection 6-20 m ahead (Table 7); beyond, the HDL-64 rings are
-    # metres apart and every shadow behind a crest passes Eq. 14 (22 m, which would keep B of a pit
-    # whose near rim is at 20 m, gave 12 false obstacles per 100 frames on the rough track)
+    # pairs whose near point A lies farther than this (ground-plane distance from the vehicle origin)
+    # are dropped: paper N detects up to 20 m (§4.2, Table 7, distance = the obstacle's centre)
     max_range_m: float = 20.0
+    # ... and pairs whose B (on the back wall) lies beyond max_range_m + this: 1.5 m, the longest of
+    # paper N's pits (§4.1, 150 x 60 cm), so a pit whose near rim is just inside max_range_m keeps
+    # its pairs. Papers silent (documented deviation, docs/detector_features.md); a bound on B
+    # still matters: beyond ~21 m the HDL-64 rings are metres apart and a shadow behind a crest
+    # passes Eq. 14 (B <= 22 m with no bound on A gave 12 false obstacles per 100 frames on the
+    # rough track)
+    far_wall_margin_m: float = 1.5
     roi: RoiConfig = field(default_factory=RoiConfig)  # Table 1 line 1, ExtractROIPoints (rule: roi.py)
     hdl64: Hdl64FeatureConfig = field(default_factory=Hdl64FeatureConfig)  # §3.1
     hdl32: Hdl32FeatureConfig = field(default_factory=Hdl32FeatureConfig)  # §3.2
@@ -63,6 +68,11 @@ class NegativeDetectorConfig:
     def __post_init__(self) -> None:
         require(
             math.isfinite(self.max_range_m) and self.max_range_m > 0, "max_range_m", "must be finite and > 0"
+        )
+        require(
+            math.isfinite(self.far_wall_margin_m) and self.far_wall_margin_m >= 0,
+            "far_wall_margin_m",
+            "must be finite and >= 0",
         )
         require(self.mode in SENSOR_MODES, "mode", f"must be one of {SENSOR_MODES}, got {self.mode!r}")
         for name in ("hdl64_sensors", "hdl32_sensors"):
@@ -119,10 +129,15 @@ class Detection:
     ground_map: GroundMap | None = None
 
 
-def within_roi(pairs: FeaturePairs, max_range_m: float, ground: GroundMap | None) -> FeaturePairs:
-    """The pairs whose B lies within ``max_range_m`` of the vehicle origin in the ground plane and,
-    given a ground map, whose A and B are ground with no structure between them (:mod:`.roi`)."""
-    keep = np.hypot(pairs.b_m[:, 0], pairs.b_m[:, 1]) <= max_range_m
+def within_roi(
+    pairs: FeaturePairs, max_range_m: float, ground: GroundMap | None, far_wall_margin_m: float = 0.0
+) -> FeaturePairs:
+    """The pairs whose A lies within ``max_range_m`` of the vehicle origin in the ground plane and B
+    within ``max_range_m + far_wall_margin_m`` and, given a ground map, whose A and B are ground
+    with no structure between them (:mod:`.roi`)."""
+    keep = (np.hypot(pairs.a_m[:, 0], pairs.a_m[:, 1]) <= max_range_m) & (
+        np.hypot(pairs.b_m[:, 0], pairs.b_m[:, 1]) <= max_range_m + far_wall_margin_m
+    )
     if ground is not None and len(pairs):
         keep &= ground.keep_pairs(pairs.a_m, pairs.b_m, pairs.c_m)
     return FeaturePairs(pairs.sensor, pairs.a_m[keep], pairs.b_m[keep], pairs.c_m[keep])
@@ -177,7 +192,7 @@ class NegativeObstacleDetector:
                 pairs = extract_hdl64_pairs(scans[name], cfg.hdl64, ground)
             else:
                 pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
-            frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground)
+            frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground, cfg.far_wall_margin_m)
         fused = self._fusion.update(frame_pairs, pose)
         ok = fused.confirmed
         clusters = cluster_obstacles(fused.a_m[ok], fused.b_m[ok], cfg.clustering)

@@ -85,3 +85,23 @@ def test_exclude_own_body(client):
     without = scan(mount, PyBulletCaster(client, exclude_body_ids=[car]), Pose(), noise=OFF)
     assert np.nanmin(with_car.ranges_m) < 2.0
     assert np.nanmin(without.ranges_m) > 2.0
+
+
+def test_row_rotation_and_ray_normalisation_match_the_matrix_forms_row_by_row():
+    from scipy.spatial.transform import Rotation
+
+    from negobs_gym.errors import ScanError
+    from negobs_gym.sensors.lidar import rotate_rows
+    from negobs_gym.sensors.raycast.base import check_rays
+
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(1000, 3))
+    rotation = Rotation.from_euler("xyz", [0.3, -0.2, 1.1]).as_matrix()
+    rotated = rotate_rows(d, rotation)
+    np.testing.assert_allclose(rotated, d @ rotation.T, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(rotate_rows(d[::7], rotation), rotated[::7])  # batch-independent
+    _, unit = check_rays(np.zeros_like(d), d, 100.0)
+    np.testing.assert_array_equal(unit, d / np.linalg.norm(d, axis=1)[:, None])
+    d[4] = 0.0
+    with pytest.raises(ScanError, match="non-zero"):
+        check_rays(np.zeros_like(d), d, 100.0)
