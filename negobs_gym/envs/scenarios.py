@@ -133,8 +133,10 @@ class OffroadNavV1Env(NegObsEnv):
     the vehicle frame (``ObservationConfig.route_points_m``; 11 values: speed, yaw rate, steering,
     goal x, goal y, then x, y of each route point); ``grid`` keeps the ``negative`` and ``positive``
     channels, ``Box(0, 1, (2, 36, 16), uint8)``; being trapped costs -50 once
-    (``RewardConfig.trapped``). Terrain draws, other rewards, terminations and the 60 s limit are
-    v0's. Why: docs/training.md.
+    (``RewardConfig.trapped``); standing still for 1 s ends the episode (rule ``stopped``), and
+    costs -50 when a negative obstacle is at most 11 m ahead (``RewardConfig.stopped``: go around
+    it; stopping is the safety filter's job). Terrain draws, the other rewards and rules and the
+    60 s limit are v0's. Why: docs/training.md.
     """
 
     default_scenario = "offroad_nav_v1"

@@ -60,8 +60,21 @@ def test_v1_keeps_v0_terrain_draws() -> None:
         o.outline_xy_m.tobytes() for o in v1.terrain.negative_obstacles
     ]
     assert v1.scenario.reward.trapped == -50.0 and v0.scenario.reward.trapped == 0.0
+    assert v1.scenario.reward.stopped == -50.0 and "stopped" in v1.scenario.terminations
+    assert "stopped" not in v0.scenario.terminations
     v0.close()
     v1.close()
+
+
+def test_v1_ends_when_the_car_stands_still() -> None:
+    env = OffroadNavV1Env(config=_oracle(OffroadNavV1Env))
+    env.reset(seed=2)
+    steps, terminated = 0, False
+    while not terminated and steps < 40:
+        _, _, terminated, _, info = env.step(np.array([-1.0, 0.0], np.float32))
+        steps += 1
+    assert terminated and info["termination"] == ["stopped"] and steps <= 12  # 1 s at 10 Hz (+ settling)
+    env.close()
 
 
 def test_trapped_costs_its_weight_once_per_event() -> None:
