@@ -51,6 +51,11 @@ class ObservationConfig:
             a policy; OffroadNav-v1 uses 5, 10 and 15 m, a 1.5 s to 4 s preview at its speeds).
             Empty (default) keeps the 5-value state. Components are clipped to
             +- (the farthest distance + ``ROUTE_MARGIN_M``).
+        oracle_range_m: With ``source="oracle"``, obstacle cells (``negative``, ``positive``)
+            farther than this from the vehicle origin stay empty: an oracle that sees as far as
+            the detectors find pits reliably (OffroadNav-v1: 14 m, where paper N's fused recall is
+            still ~0.96 here, docs/detector_features.md), so a policy trained on it does not count
+            on seeing pits 25 m ahead. None: the whole grid. Ignored by the detector source.
     """
 
     source: str = "detector"
@@ -64,6 +69,7 @@ class ObservationConfig:
     max_speed_mps: float = 15.0
     max_goal_distance_m: float = 300.0
     route_points_m: tuple[float, ...] = ()
+    oracle_range_m: float | None = None
 
     def __post_init__(self) -> None:
         require(
@@ -106,6 +112,11 @@ class ObservationConfig:
         for name in ("max_speed_mps", "max_goal_distance_m"):
             v = getattr(self, name)
             require(math.isfinite(v) and v > 0, name, f"must be > 0, got {v}")
+        require(
+            self.oracle_range_m is None or (math.isfinite(self.oracle_range_m) and self.oracle_range_m > 0),
+            "oracle_range_m",
+            f"must be None or finite and > 0, got {self.oracle_range_m!r}",
+        )
         route = self.route_points_m
         require(
             isinstance(route, tuple)

@@ -98,7 +98,7 @@ class OracleGrid:
     """Ground-truth grid for ablations: rasterises the terrain's obstacle records around a pose.
 
     ``negative`` = cell centre inside a negative obstacle outline; ``positive`` = inside a positive
-    obstacle footprint; ``traversable`` = on the track and in neither; ``observed`` = inside the
+    obstacle footprint (both only within ``config.oracle_range_m`` of the vehicle when set); ``traversable`` = on the track and in neither; ``observed`` = inside the
     heightfield (the oracle sees everything).
     """
 
@@ -116,6 +116,11 @@ class OracleGrid:
         self._neg_boxes = _bounding_boxes(self._neg)
         self._pos_boxes = _bounding_boxes(self._pos)
         self._centres_v = config.grid.cell_centres().reshape(-1, 2)
+        self._in_range = (
+            np.hypot(self._centres_v[:, 0], self._centres_v[:, 1]) <= config.oracle_range_m
+            if config.oracle_range_m is not None
+            else np.ones(len(self._centres_v), dtype=bool)
+        )
         self._track_tree = _centreline_tree(np.asarray(terrain.track.centreline_xy_m, dtype=np.float64))
 
     def layers(self, pose: Pose) -> dict[str, np.ndarray]:
@@ -130,8 +135,8 @@ class OracleGrid:
         lateral, _ = self._track_tree.query(pts)
         on_track = lateral <= 0.5 * track.width_m
         layers = {
-            "negative": neg,
-            "positive": pos,
+            "negative": neg & self._in_range,
+            "positive": pos & self._in_range,
             "traversable": on_track & ~neg & ~pos & observed,
             "observed": observed,
         }

@@ -135,7 +135,9 @@ class OffroadNavV1Env(NegObsEnv):
     channels, ``Box(0, 1, (2, 36, 16), uint8)``; being trapped costs -50 once
     (``RewardConfig.trapped``); standing still for 1 s ends the episode (rule ``stopped``), and
     costs -50 when a negative obstacle is at most 11 m ahead (``RewardConfig.stopped``: go around
-    it; stopping is the safety filter's job). Terrain draws, the other rewards and rules and the
+    it; stopping is the safety filter's job); an oracle grid (``source="oracle"``, ablations and
+    training) shows obstacles only within 14 m, as far as the detectors find them reliably
+    (``ObservationConfig.oracle_range_m``). Terrain draws, the other rewards and rules and the
     60 s limit are v0's. Why: docs/training.md.
     """
 

@@ -49,3 +49,22 @@ def test_some_view_of_the_course_holds_obstacles(course) -> None:
         seen_neg += int(layers["negative"].any())
         seen_pos += int(layers["positive"].any())
     assert seen_neg > 0 and seen_pos > 0
+
+
+def test_oracle_range_blanks_obstacles_beyond_it_and_keeps_the_rest(course) -> None:
+    full = OracleGrid(ObservationConfig(source="oracle"), course)
+    near = OracleGrid(ObservationConfig(source="oracle", oracle_range_m=14.0), course)
+    config = ObservationConfig(source="oracle")
+    centres = config.grid.cell_centres()
+    inside = np.hypot(centres[..., 0], centres[..., 1]) <= 14.0
+    line = np.asarray(course.track.centreline_xy_m)
+    cut = 0
+    for k in range(0, len(line) - 1, max(1, len(line) // 40)):
+        heading = line[k + 1] - line[k]
+        pose = Pose(x=float(line[k, 0]), y=float(line[k, 1]), yaw=float(np.arctan2(-heading[0], heading[1])))
+        a, b = full.layers(pose), near.layers(pose)
+        for name in ("negative", "positive"):
+            np.testing.assert_array_equal(b[name], a[name] & inside)
+            cut += int((a[name] & ~inside).any())
+        np.testing.assert_array_equal(b["traversable"], a["traversable"])
+    assert cut > 0  # some obstacle was beyond 14 m in some view

@@ -61,6 +61,7 @@ def test_v1_keeps_v0_terrain_draws() -> None:
     ]
     assert v1.scenario.reward.trapped == -50.0 and v0.scenario.reward.trapped == 0.0
     assert v1.scenario.reward.stopped == -50.0 and "stopped" in v1.scenario.terminations
+    assert v1.scenario.observation.oracle_range_m == 14.0
     assert "stopped" not in v0.scenario.terminations
     v0.close()
     v1.close()
@@ -91,5 +92,8 @@ def test_state_bounds_cover_the_route_and_bad_routes_are_refused() -> None:
     for bad in ((10.0, 5.0), (5.0, 5.0), (-1.0,), (float("nan"),)):
         with pytest.raises(ConfigError, match="route_points_m"):
             ObservationConfig(route_points_m=bad)
+    for bad in (0.0, float("inf")):
+        with pytest.raises(ConfigError, match="oracle_range_m"):
+            ObservationConfig(oracle_range_m=bad)
     with pytest.raises(ConfigError, match="trapped"):
         RewardConfig(trapped=float("inf"))
