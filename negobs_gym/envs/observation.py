@@ -98,7 +98,8 @@ class OracleGrid:
     """Ground-truth grid for ablations: rasterises the terrain's obstacle records around a pose.
 
     ``negative`` = cell centre inside a negative obstacle outline; ``positive`` = inside a positive
-    obstacle footprint (both only within ``config.oracle_range_m`` of the vehicle when set); ``traversable`` = on the track and in neither; ``observed`` = inside the
+    obstacle footprint (both only within ``config.oracle_range_m`` of the vehicle when set);
+    ``traversable`` = on the track and in neither (at any range); ``observed`` = inside the
     heightfield (the oracle sees everything).
     """
 

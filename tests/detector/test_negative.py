@@ -162,7 +162,7 @@ def test_range_limit_bounds_a_and_the_far_wall_margin_lets_b_reach_beyond() -> N
 
     a = np.array([[0.0, 19.0, 0.0], [0.0, 19.5, 0.0], [0.0, 20.5, 0.0]])
     b = np.array([[0.0, 20.2, -0.5], [0.0, 21.2, -0.5], [0.0, 21.3, -0.5]])
-    pairs = FeaturePairs("hdl64", a, b, b + [0.0, 0.2, 0.3])
+    pairs = FeaturePairs("hdl64", a, b, b + np.array([0.0, 0.2, 0.3]))
     assert len(within_roi(pairs, 20.0, None)) == 0  # default: B within 20 m as well
     kept = within_roi(pairs, 20.0, None, far_wall_margin_m=1.5)
     np.testing.assert_array_equal(kept.a_m, a[:2])  # the third pair's A is beyond 20 m
