@@ -127,3 +127,42 @@ def distribution_plot(
     ax.set_title(title)
     ax.grid(axis="x", alpha=0.3)
     return _save(fig, path)
+
+
+def learning_curves_plot(runs: Mapping[str, Path | str], path: str | Path) -> Path:
+    """Training curves of ``negobs train`` runs (label -> output folder): SB3's
+    ``rollout/ep_rew_mean`` against env steps (from every ``logs/*/progress.csv``), and the
+    evaluation's goal share (``eval.csv``) as markers. Runs without logs are skipped."""
+    import csv
+
+    plt = _pyplot()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    for label, folder in runs.items():
+        folder = Path(folder)
+        steps, reward = [], []
+        for log in sorted((folder / "logs").glob("*/progress.csv"), key=lambda p: int(p.parent.name)):
+            with log.open(newline="") as fh:
+                for row in csv.DictReader(fh):
+                    if row.get("rollout/ep_rew_mean"):
+                        steps.append(int(row["time/total_timesteps"]))
+                        reward.append(float(row["rollout/ep_rew_mean"]))
+        (line,) = top.plot(steps, reward, label=label)
+        evaluation = folder / "eval.csv"
+        if evaluation.exists():
+            with evaluation.open(newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            bottom.plot(
+                [int(r["step"]) for r in rows],
+                [int(r["goal"]) / int(r["episodes"]) for r in rows],
+                marker="o",
+                color=line.get_color(),
+                label=label,
+            )
+    top.set_ylabel("training episode return\n(rollout/ep_rew_mean)")
+    top.grid(alpha=0.3)
+    top.legend(fontsize=8)
+    bottom.set_ylabel("goal reached\n(evaluation, unseen seeds)")
+    bottom.set_xlabel("env steps")
+    bottom.set_ylim(-0.05, 1.05)
+    bottom.grid(alpha=0.3)
+    return _save(fig, path)
