@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.errors import ConfigError, require
+from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 
@@ -72,8 +72,9 @@ class PolicyCampaignConfig:
             f"must be 'detector', 'oracle' or None (the env's own), got {self.source!r}",
         )
         require(bool(self.filters), "filters", "needs at least one of off / on")
-        if not Path(self.model_path).exists() and not Path(f"{self.model_path}.zip").exists():
-            raise ConfigError("model_path", f"no saved model at {self.model_path}")
+        from negobs_gym.policies.baselines import resolve_model
+
+        object.__setattr__(self, "model_path", resolve_model(self.model_path))
 
 
 def episodes(config: PolicyCampaignConfig) -> list[Episode]:

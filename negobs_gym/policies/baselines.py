@@ -1,0 +1,53 @@
+"""Trained policies shipped with the package (``negobs_gym/policies/trained/NAME.zip``).
+
+Each ``NAME.zip`` is a stable-baselines3 model saved by ``negobs train``; ``NAME.json`` beside it
+records the exact command, seed, steps, wall time and the evaluation that was measured on it
+(docs/training.md). ``negobs eval policy NAME`` and :func:`resolve_model` accept a baseline's
+name wherever a model path is asked for.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from negobs_gym.errors import ConfigError
+
+__all__ = ["BASELINE_DIR", "baseline_names", "baseline_record", "resolve_model"]
+
+BASELINE_DIR = Path(__file__).with_name("trained")
+
+
+def baseline_names() -> list[str]:
+    """Names of the shipped baselines, sorted."""
+    return sorted(p.stem for p in BASELINE_DIR.glob("*.zip"))
+
+
+def baseline_record(name: str) -> dict[str, Any]:
+    """The ``NAME.json`` record of a shipped baseline (command, seed, steps, wall time, results).
+
+    Raises:
+        ConfigError: no baseline of that name (field ``model_path``).
+    """
+    path = BASELINE_DIR / f"{name}.json"
+    if not path.exists():
+        raise ConfigError("model_path", f"no shipped baseline {name!r}; shipped: {baseline_names()}")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def resolve_model(model: str) -> str:
+    """``model`` if a file exists there (with or without ``.zip``), else the shipped baseline of
+    that name.
+
+    Raises:
+        ConfigError: neither a saved model nor a shipped baseline (field ``model_path``).
+    """
+    if Path(model).exists() or Path(f"{model}.zip").exists():
+        return model
+    shipped = BASELINE_DIR / f"{model}.zip"
+    if shipped.exists():
+        return str(shipped)
+    raise ConfigError(
+        "model_path", f"no saved model at {model} and no shipped baseline of that name ({baseline_names()})"
+    )
