@@ -163,8 +163,8 @@ def _inside_any(points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray) 
     near = np.nonzero(
         (boxes[:, 0] <= hi[0]) & (boxes[:, 2] >= lo[0]) & (boxes[:, 1] <= hi[1]) & (boxes[:, 3] >= lo[1])
     )[0]
+    x, y = points_xy[:, 0], points_xy[:, 1]
     for k in near:  # loop over the few obstacles in view; the points are vectorised
-        x, y = points_xy[:, 0], points_xy[:, 1]
         idx = np.nonzero((x >= boxes[k, 0]) & (x <= boxes[k, 2]) & (y >= boxes[k, 1]) & (y <= boxes[k, 3]))[0]
         if idx.size:
             inside[idx] |= points_in_polygons(points_xy[idx], polygons[k : k + 1])[:, 0]

@@ -79,8 +79,12 @@ class PolicyCampaignConfig:
 
 def episodes(config: PolicyCampaignConfig) -> list[Episode]:
     """filter x seed."""
-    args = {"model_path": config.model_path, "env_id": config.env_id, "algo": config.algo}
-    args["source"] = config.source
+    args = {
+        "model_path": config.model_path,
+        "env_id": config.env_id,
+        "algo": config.algo,
+        "source": config.source,
+    }
     seeds = range(config.first_seed, config.first_seed + config.seeds)
     return [
         Episode(f"{int(f)}.{seed:07d}", {**args, "filtered": f, "seed": seed})
@@ -116,10 +120,7 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
     for r in read_csv(csv_path):
         s = out.setdefault(
             r["filter"],
-            dict.fromkeys(
-                ("episodes", "successes", "goals", "entries", "collisions", "progress_m", "vetoes", "cost"),
-                0.0,
-            ),
+            dict.fromkeys(SUMMED, 0.0),
         )
         s["episodes"] += 1
         s["successes"] += r["success"] == "1"

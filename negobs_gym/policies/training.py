@@ -191,6 +191,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
     try:
         if checkpoint is not None:
             model = getattr(stable_baselines3, config.algo).load(checkpoint, env=venv, device="cpu")
+            warm = _previous_warm_start(out)  # the record of the run this one continues
             log.info("resuming from %s at %d steps", checkpoint, model.num_timesteps)
         else:
             model = _new_model(config, venv, grid_shape)
@@ -200,8 +201,6 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             raise ConfigError(
                 "steps", f"nothing to train: the checkpoint has {start_step} >= {config.steps} steps"
             )
-        if checkpoint is not None:
-            warm = _previous_warm_start(out)
         _write_record(out, config, model.num_timesteps, start_step, warm_start=warm)
         model.set_logger(configure(str(out / "logs" / str(start_step)), logger_formats()))
         every = config.eval_every if config.eval_every > 0 else config.steps
