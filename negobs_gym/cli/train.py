@@ -64,6 +64,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="episodes per evaluation, on unseen seeds (default: %(default)s)",
     )
     group.add_argument(
+        "--eval-seed",
+        type=non_negative_int,
+        default=defaults.eval_seed,
+        help="first evaluation seed; keep it apart from the seeds of a later 'negobs eval policy' "
+        "when you pick a checkpoint by these evaluations (default: %(default)s)",
+    )
+    group.add_argument(
         "--checkpoint-every",
         type=non_negative_int,
         default=defaults.checkpoint_every,
@@ -88,6 +95,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=defaults.warm_start.action_std,
         help="action std after the warm start (default: %(default)s)",
     )
+    group.add_argument(
+        "--init",
+        default="",
+        metavar="MODEL",
+        help="start from this trained model (a .zip or a shipped policy's name) instead of a new "
+        "network, e.g. oracle first, then --source detector --filter; the run counts steps from 0 "
+        "and evaluates once before training",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(handler=run_train)
 
@@ -104,11 +119,13 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         seed=args.seed,
         eval_every=args.eval_every,
         eval_episodes=args.eval_episodes,
+        eval_seed=args.eval_seed,
         checkpoint_every=args.checkpoint_every,
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
         warm_start=WarmStartConfig(steps=args.warm_start_steps, action_std=args.action_std),
+        init_model=args.init,
         progress=not args.no_progress,
     )
 

@@ -43,7 +43,17 @@ COLUMNS = (
 
 
 #: Per filter setting, summed over the episodes in :func:`summarize`.
-SUMMED = ("episodes", "successes", "goals", "entries", "collisions", "progress_m", "vetoes", "cost")
+SUMMED = (
+    "episodes",
+    "successes",
+    "goals",
+    "entries",
+    "collisions",
+    "progress_m",
+    "distance_m",
+    "vetoes",
+    "cost",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,7 +125,8 @@ def run_episode(episode: Episode) -> Rows:
 
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
-    """Per filter setting: episodes, success rate, entries, collisions, mean progress, vetoes, cost."""
+    """Per filter setting: episodes, success rate, entries, collisions, mean progress, distance
+    driven, vetoes (and per km driven), cost."""
     out: dict[str, dict[str, float]] = {}
     for r in read_csv(csv_path):
         s = out.setdefault(
@@ -128,11 +139,13 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["entries"] += r["entered"] == "1"
         s["collisions"] += r["collision"] == "1"
         s["progress_m"] += float(r["progress_m"])
+        s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])
         s["cost"] += float(r["cost"])
     for s in out.values():
         s["success_rate"] = s["successes"] / s["episodes"]
         s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
+        s["vetoes_per_km"] = s["vetoes"] / (s["distance_m"] / 1000.0) if s["distance_m"] > 0 else 0.0
     return out
 
 

@@ -36,12 +36,12 @@ def baseline_record(name: str) -> dict[str, Any]:
     return json.loads(path.read_text(encoding="utf-8"))
 
 
-def resolve_model(model: str) -> str:
+def resolve_model(model: str, field: str = "model_path") -> str:
     """``model`` if a file exists there (with or without ``.zip``), else the shipped baseline of
     that name.
 
     Raises:
-        ConfigError: neither a saved model nor a shipped baseline (field ``model_path``).
+        ConfigError: neither a saved model nor a shipped baseline (named after ``field``).
     """
     if Path(model).exists() or Path(f"{model}.zip").exists():
         return model
@@ -49,5 +49,5 @@ def resolve_model(model: str) -> str:
     if shipped.exists():
         return str(shipped)
     raise ConfigError(
-        "model_path", f"no saved model at {model} and no shipped baseline of that name ({baseline_names()})"
+        field, f"no saved model at {model} and no shipped baseline of that name ({baseline_names()})"
     )

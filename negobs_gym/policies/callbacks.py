@@ -105,15 +105,23 @@ class CheckpointCallback(BaseCallback):
 
 
 class EvalCallback(BaseCallback):
-    """Every ``every`` env steps (and at the end) runs ``evaluate(model)`` and appends a row to ``csv``.
+    """Every ``every`` env steps (and at the end; at the start too with ``at_start``) runs
+    ``evaluate(model)`` and appends a row to ``csv``.
 
     ``evaluate`` returns the per-episode metrics of
     :func:`~negobs_gym.eval.braking_campaign.run_driven_episode`. Rows of ``csv`` from an earlier
     run at fewer steps are kept (resume); the file is rewritten atomically each time.
     """
 
-    def __init__(self, evaluate: Callable[[Any], Sequence[dict[str, Any]]], csv: Path, every: int) -> None:
+    def __init__(
+        self,
+        evaluate: Callable[[Any], Sequence[dict[str, Any]]],
+        csv: Path,
+        every: int,
+        at_start: bool = False,
+    ) -> None:
         super().__init__()
+        self.at_start = at_start
         self.evaluate = evaluate
         self.csv = Path(csv)
         self.every = every
@@ -129,6 +137,8 @@ class EvalCallback(BaseCallback):
             for row in read_csv(self.csv):
                 if int(row["step"]) <= self.num_timesteps:
                     self._rows.append(format_row(row[c] for c in EVAL_COLUMNS))
+        if self.at_start:
+            self.run()
 
     def _on_step(self) -> bool:
         if self.num_timesteps >= self._next:

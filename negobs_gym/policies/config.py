@@ -121,6 +121,11 @@ class TrainConfig:
         extractor: The CNN's layers.
         warm_start: Behaviour cloning of the pure-pursuit driver before training (new PPO runs
             only; ``steps=0``, the default, trains from scratch).
+        init_model: Start a new run from this trained model's weights (a saved ``.zip`` or a
+            shipped baseline's name) instead of a fresh network: a curriculum, e.g. oracle grid
+            first, then the detector grid behind the filter. Its algorithm must be ``algo`` and its
+            observation space the env's; ``learning_rate``, ``n_steps``, ``batch_size``, ``gamma``
+            and ``seed`` are this config's, and the step count starts at 0. ``""``: no init.
         torch_threads: Torch intra-op threads while training. 1: measured on the 2 shared cores,
             one ``predict`` of the default network took 45 ms with 2 threads (OpenMP waiting for
             a busy core) and 1.0 ms with 1; the network is too small to gain from more.
@@ -145,6 +150,7 @@ class TrainConfig:
     buffer_size: int = 100_000
     extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
     warm_start: WarmStartConfig = field(default_factory=WarmStartConfig)
+    init_model: str = ""
     torch_threads: int = 1
     progress: bool = True
 
@@ -173,4 +179,9 @@ class TrainConfig:
             self.warm_start.steps == 0 or self.algo == "PPO",
             "warm_start",
             "behaviour cloning sets a Gaussian policy's log_std: PPO only",
+        )
+        require(
+            not (self.init_model and self.warm_start.steps),
+            "init_model",
+            "starts from trained weights: no warm start with it (warm_start.steps must be 0)",
         )

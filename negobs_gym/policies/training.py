@@ -154,7 +154,7 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
 
 
 #: Fields that must match between a run and the run it resumes.
-_RESUME_FIELDS = ("env", "algo", "source", "filter")
+_RESUME_FIELDS = ("env", "algo", "source", "filter", "init_model")
 
 
 def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> TrainResult:
@@ -193,6 +193,9 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             model = getattr(stable_baselines3, config.algo).load(checkpoint, env=venv, device="cpu")
             warm = _previous_warm_start(out)  # the record of the run this one continues
             log.info("resuming from %s at %d steps", checkpoint, model.num_timesteps)
+        elif config.init_model:
+            model = _init_model(config, venv)
+            warm = {}
         else:
             model = _new_model(config, venv, grid_shape)
             warm = _warm_start(model, config)
@@ -204,7 +207,12 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         _write_record(out, config, model.num_timesteps, start_step, warm_start=warm)
         model.set_logger(configure(str(out / "logs" / str(start_step)), logger_formats()))
         every = config.eval_every if config.eval_every > 0 else config.steps
-        evaluation = EvalCallback(functools.partial(evaluate, config=config), out / "eval.csv", every)
+        evaluation = EvalCallback(
+            functools.partial(evaluate, config=config),
+            out / "eval.csv",
+            every,
+            at_start=bool(config.init_model) and start_step == 0,  # the row the fine-tuning starts from
+        )
         callbacks = [ProgressBarCallback(config.steps, config.progress), evaluation]
         if config.checkpoint_every > 0:
             callbacks.append(CheckpointCallback(out / "checkpoints", config.checkpoint_every))
@@ -231,6 +239,36 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         warm_start=warm,
     )
     return result
+
+
+def _init_model(config: TrainConfig, venv: Any) -> Any:
+    """``config.init_model``'s weights, with this run's hyperparameters and its step count at 0.
+
+    Raises:
+        ConfigError: no such model, or its algorithm or observation space differs (``init_model``).
+    """
+    import stable_baselines3
+
+    from negobs_gym.policies.baselines import resolve_model
+
+    path = resolve_model(config.init_model, field="init_model")
+    try:
+        model = getattr(stable_baselines3, config.algo).load(
+            path,
+            env=venv,
+            device="cpu",
+            learning_rate=config.learning_rate,
+            n_steps=config.n_steps,
+            batch_size=config.batch_size,
+            gamma=config.gamma,
+        )
+    except (ValueError, KeyError) as error:  # SB3: space mismatch (ValueError), other algorithm (KeyError)
+        fit = f"{path} does not fit this run ({config.algo}, {config.env}, source {config.source})"
+        raise ConfigError("init_model", f"{fit}: {error}") from error
+    model.num_timesteps = 0
+    model.set_random_seed(config.seed)
+    log.info("initialised from %s", path)
+    return model
 
 
 def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:

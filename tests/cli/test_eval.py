@@ -67,6 +67,11 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     rows = (out / "policy.csv").read_text().splitlines()
     assert len(rows) == 2 and rows[0].startswith("episode,env,filter,seed,success")
     assert rows[1].split(",")[3] == "1000000"  # unseen seeds by default
+    fields = dict(item.split("=", 1) for item in line.split()[1:])
+    episode = dict(zip(rows[0].split(","), rows[1].split(","), strict=True))
+    km = float(episode["distance_m"]) / 1000
+    per_km = int(episode["vetoes"]) / km if km else 0
+    assert float(fields["vetoes_per_km"]) == pytest.approx(per_km, abs=0.051)
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0

@@ -12,7 +12,7 @@ import pytest
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.callbacks import latest_checkpoint
-from negobs_gym.policies.config import TrainConfig
+from negobs_gym.policies.config import TrainConfig, WarmStartConfig
 from negobs_gym.policies.training import make_env, make_task_env, train
 
 
@@ -78,6 +78,46 @@ def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
     assert torch.equal(weights[0], weights[1])
     rows = [r.eval_csv.read_text().splitlines()[1].rsplit(",", 1)[0] for r in runs]  # all but wall_s
     assert rows[0] == rows[1]
+
+
+def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    def weights(path: Path) -> torch.Tensor:
+        return torch.cat([p.flatten() for p in PPO.load(path, device="cpu").policy.parameters()])
+
+    base = TrainConfig(
+        env="negobs_gym/Braking-v1",
+        source="oracle",
+        steps=64,
+        n_steps=64,
+        eval_every=0,
+        eval_episodes=1,
+        checkpoint_every=0,
+        progress=False,
+    )
+    first = train(base, tmp_path / "oracle")
+    tuned = dataclasses.replace(
+        base, source="state", init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
+    )
+    with pytest.raises(ConfigError, match="init_model"):  # the state-only policy has no grid input
+        train(tuned, tmp_path / "bad")
+
+    tuned = dataclasses.replace(tuned, source="detector", steps=64, n_steps=32)
+    second = train(tuned, tmp_path / "detector")
+    rows = second.eval_csv.read_text().splitlines()[1:]
+    assert [r.split(",")[0] for r in rows] == ["0", "64"]  # the init model's row first; steps from 0
+    model = PPO.load(second.model_path, device="cpu")
+    assert model.num_timesteps == 64 and model.n_steps == 32 and model.learning_rate == 1e-3
+    assert not torch.equal(weights(first.model_path), weights(second.model_path))  # it trained on
+    record = json.loads((tmp_path / "detector" / "train.json").read_text())
+    assert record["config"]["init_model"] == str(first.model_path)
+    assert record["config"]["eval_seed"] == 7
+    with pytest.raises(ConfigError, match="init_model"):
+        train(dataclasses.replace(base, init_model="no_such_policy"), tmp_path / "missing")
+    with pytest.raises(ConfigError, match="init_model"):
+        TrainConfig(init_model=str(first.model_path), warm_start=WarmStartConfig(steps=10))
 
 
 @pytest.mark.parametrize(
