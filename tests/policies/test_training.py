@@ -56,26 +56,32 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
         train(dataclasses.replace(config, steps=150), out, resume=True)
 
 
-def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
+#: A short PPO run on the oracle grid: 64-step rollouts, one evaluation episode at the end.
+SHORT_PPO = TrainConfig(
+    env="negobs_gym/Braking-v1",
+    source="oracle",
+    steps=128,
+    n_steps=64,
+    eval_every=0,
+    eval_episodes=1,
+    checkpoint_every=0,
+    progress=False,
+)
+
+
+def policy_weights(model_path: Path):
+    """All policy parameters of a saved PPO model, as one flat tensor."""
     import torch
     from stable_baselines3 import PPO
 
-    config = TrainConfig(
-        env="negobs_gym/Braking-v1",
-        source="oracle",
-        steps=128,
-        n_steps=64,
-        eval_every=0,
-        eval_episodes=1,
-        checkpoint_every=0,
-        progress=False,
-    )
-    runs = [train(config, tmp_path / str(k)) for k in range(2)]
-    weights = [
-        torch.cat([p.flatten() for p in PPO.load(r.model_path, device="cpu").policy.parameters()])
-        for r in runs
-    ]
-    assert torch.equal(weights[0], weights[1])
+    return torch.cat([p.flatten() for p in PPO.load(model_path, device="cpu").policy.parameters()])
+
+
+def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
+    import torch
+
+    runs = [train(SHORT_PPO, tmp_path / str(k)) for k in range(2)]
+    assert torch.equal(policy_weights(runs[0].model_path), policy_weights(runs[1].model_path))
     rows = [r.eval_csv.read_text().splitlines()[1].rsplit(",", 1)[0] for r in runs]  # all but wall_s
     assert rows[0] == rows[1]
 
@@ -84,19 +90,7 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> No
     import torch
     from stable_baselines3 import PPO
 
-    def weights(path: Path) -> torch.Tensor:
-        return torch.cat([p.flatten() for p in PPO.load(path, device="cpu").policy.parameters()])
-
-    base = TrainConfig(
-        env="negobs_gym/Braking-v1",
-        source="oracle",
-        steps=64,
-        n_steps=64,
-        eval_every=0,
-        eval_episodes=1,
-        checkpoint_every=0,
-        progress=False,
-    )
+    base = dataclasses.replace(SHORT_PPO, steps=64)
     first = train(base, tmp_path / "oracle")
     tuned = dataclasses.replace(
         base, source="state", init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
@@ -110,7 +104,7 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> No
     assert [r.split(",")[0] for r in rows] == ["0", "64"]  # the init model's row first; steps from 0
     model = PPO.load(second.model_path, device="cpu")
     assert model.num_timesteps == 64 and model.n_steps == 32 and model.learning_rate == 1e-3
-    assert not torch.equal(weights(first.model_path), weights(second.model_path))  # it trained on
+    assert not torch.equal(policy_weights(first.model_path), policy_weights(second.model_path))  # trained
     record = json.loads((tmp_path / "detector" / "train.json").read_text())
     assert record["config"]["init_model"] == str(first.model_path)
     assert record["config"]["eval_seed"] == 7
@@ -150,17 +144,7 @@ def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_two_envs_run_in_subprocesses(tmp_path: Path) -> None:
-    config = TrainConfig(
-        env="negobs_gym/Braking-v1",
-        source="oracle",
-        envs=2,
-        steps=128,
-        n_steps=32,
-        eval_every=0,
-        eval_episodes=1,
-        progress=False,
-    )
-    result = train(config, tmp_path)
+    result = train(dataclasses.replace(SHORT_PPO, envs=2, n_steps=32), tmp_path)
     assert result.steps == 128 and result.model_path.is_file()
 
 
