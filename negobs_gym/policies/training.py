@@ -262,7 +262,7 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
             batch_size=config.batch_size,
             gamma=config.gamma,
         )
-    except (ValueError, KeyError) as error:  # SB3: space mismatch (ValueError), other algorithm (KeyError)
+    except (ValueError, TypeError) as error:  # SB3: space mismatch (ValueError), other algorithm (TypeError)
         fit = f"{path} does not fit this run ({config.algo}, {config.env}, source {config.source})"
         raise ConfigError("init_model", f"{fit}: {error}") from error
     model.num_timesteps = 0

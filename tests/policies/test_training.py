@@ -110,6 +110,13 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> No
     assert record["config"]["eval_seed"] == 7
     with pytest.raises(ConfigError, match="init_model"):
         train(dataclasses.replace(base, init_model="no_such_policy"), tmp_path / "missing")
+    from stable_baselines3 import SAC
+
+    env = make_env(base.env, "oracle", use_filter=False)
+    SAC("MultiInputPolicy", env, buffer_size=10, device="cpu").save(tmp_path / "sac.zip")
+    env.close()
+    with pytest.raises(ConfigError, match="init_model"):  # a SAC model as the start of a PPO run
+        train(dataclasses.replace(base, init_model=str(tmp_path / "sac.zip")), tmp_path / "other_algo")
     with pytest.raises(ConfigError, match="init_model"):
         TrainConfig(init_model=str(first.model_path), warm_start=WarmStartConfig(steps=10))
 
