@@ -51,12 +51,17 @@ class NegativeDetectorConfig:
     # pairs whose near point A lies farther than this (ground-plane distance from the vehicle origin)
     # are dropped: paper N detects up to 20 m (§4.2, Table 7, distance = the obstacle's centre)
     max_range_m: float = 20.0
-    # ... and pairs whose B (on the back wall) lies beyond max_range_m + this. 0 (default): B within
-    # max_range_m too, because beyond ~20 m the HDL-64 rings are metres apart and a shadow behind
-    # a crest passes Eq. 14. Measured (docs/detector_features.md): 1.5 m, the longest of paper N's
-    # pits, lifts the 18-20 m recall of benchmarks/recall_range.py from 0.09 to 0.50 but gives 14
-    # false obstacles per 100 frames on the rough track (limit 1). Papers silent.
+    # ... and HDL-64 pairs whose B (on the back wall) lies beyond max_range_m + this. 0 (default): B
+    # within max_range_m too, because beyond ~20 m the HDL-64 rings are metres apart and a shadow
+    # behind a crest passes Eq. 14: 1.5 m on every sensor gave 14 false obstacles per 100 frames on
+    # the rough track (limit 1; docs/detector_features.md). Papers silent.
     far_wall_margin_m: float = 0.0
+    # ... the same for the side HDL-32s' pairs (documented deviation). Their scan lines run radially
+    # and sample the ground behind a rim every d^2 * 0.16 deg / h (0.5 m at 20 m), so their B beyond
+    # max_range_m lies on the back wall just behind the rim, not past a crest metres away as the
+    # HDL-64's can. 1.5 m = the longest of paper N's pits: the B of a pit whose near rim is just
+    # inside max_range_m (measured: 18-20 m fused recall 0.18 -> 0.29, false obstacles unchanged).
+    hdl32_far_wall_margin_m: float = 1.5
     roi: RoiConfig = field(default_factory=RoiConfig)  # Table 1 line 1, ExtractROIPoints (rule: roi.py)
     hdl64: Hdl64FeatureConfig = field(default_factory=Hdl64FeatureConfig)  # §3.1
     hdl32: Hdl32FeatureConfig = field(default_factory=Hdl32FeatureConfig)  # §3.2
@@ -71,6 +76,11 @@ class NegativeDetectorConfig:
         require(
             math.isfinite(self.far_wall_margin_m) and self.far_wall_margin_m >= 0,
             "far_wall_margin_m",
+            "must be finite and >= 0",
+        )
+        require(
+            math.isfinite(self.hdl32_far_wall_margin_m) and self.hdl32_far_wall_margin_m >= 0,
+            "hdl32_far_wall_margin_m",
             "must be finite and >= 0",
         )
         require(self.mode in SENSOR_MODES, "mode", f"must be one of {SENSOR_MODES}, got {self.mode!r}")
@@ -189,9 +199,11 @@ class NegativeObstacleDetector:
         for name in active:
             if name in cfg.hdl64_sensors:
                 pairs = extract_hdl64_pairs(scans[name], cfg.hdl64, ground)
+                margin = cfg.far_wall_margin_m
             else:
                 pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
-            frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground, cfg.far_wall_margin_m)
+                margin = cfg.hdl32_far_wall_margin_m
+            frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground, margin)
         fused = self._fusion.update(frame_pairs, pose)
         ok = fused.confirmed
         clusters = cluster_obstacles(fused.a_m[ok], fused.b_m[ok], cfg.clustering)

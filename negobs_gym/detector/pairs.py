@@ -70,6 +70,15 @@ class FeaturePairs:
         return cls(sensor, z, z, z)
 
 
+def range_scale(a_xy: np.ndarray, b_xy: np.ndarray, full_range_m: float, max_scale: float) -> np.ndarray:
+    """Per pair: 1 up to ``full_range_m`` (distance of its midpoint from the vehicle origin), then
+    range / ``full_range_m``, at most ``max_scale``: how far a distance threshold set for near pairs
+    stretches for a pair at range, where the scan lines that form pairs lie farther apart."""
+    mid = 0.5 * (np.asarray(a_xy, dtype=np.float64)[:, :2] + np.asarray(b_xy, dtype=np.float64)[:, :2])
+    rng = np.sqrt(mid[:, 0] ** 2 + mid[:, 1] ** 2)
+    return np.clip(rng / full_range_m, 1.0, max_scale)
+
+
 _Found = tuple[np.ndarray, np.ndarray, np.ndarray]  # (i, j, distance) of close pairs
 
 

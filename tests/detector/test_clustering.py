@@ -1,8 +1,12 @@
+import warnings
+
 import numpy as np
 import pytest
+from sklearn.exceptions import EfficiencyWarning
 
 from negobs_gym.detector.clustering import (
     ClusteringConfig,
+    _row_value_order,
     cluster_labels,
     cluster_obstacles,
     convex_outline,
@@ -91,3 +95,26 @@ def test_pairs_beyond_full_weight_range_count_more_and_reach_farther():
     np.testing.assert_allclose(pair_weights(far_a[:, :2], far_b[:, :2], cfg), 1.85, atol=0.01)
     far_a2, far_b2 = _radial_pairs(-0.5, 0.5, 40.0, 41.0, 2)
     assert pair_weights(far_a2[:, :2], far_b2[:, :2], cfg).max() == cfg.max_pair_weight
+
+
+def test_dbscan_gets_its_graph_sorted_by_row_values():
+    # scikit-learn re-sorts (one argsort per row) and warns when a precomputed graph's rows are not
+    # stored by increasing distance
+    rng = np.random.default_rng(3)
+    a = np.stack([rng.uniform(-3, 3, 300), rng.uniform(5, 15, 300)], axis=1)
+    b = a + np.array([0.0, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EfficiencyWarning)
+        labels = cluster_labels(a, b, ClusteringConfig())
+    assert labels.max() >= 0
+
+
+def test_row_value_order_is_row_then_distance_then_column():
+    rng = np.random.default_rng(4)
+    i = rng.integers(0, 50, 2000)
+    j = rng.integers(0, 50, 2000)
+    d = rng.choice([1e-9, 0.1, 0.2, 0.3], 2000) + rng.choice([0.0, 1e-16, 1e-15], 2000)  # ties, near-ties
+    for dist in (d, rng.uniform(1e-9, 0.4, 2000)):  # and without ties, where one key sort is exact
+        order, exact = _row_value_order(i, dist, j), np.lexsort((j, dist, i))
+        for v in (i, dist, j):
+            np.testing.assert_array_equal(v[order], v[exact])

@@ -82,3 +82,41 @@ def test_bad_inputs():
     with pytest.raises(ValueError):
         f.update({"hdl64": _pair("hdl64", [np.nan, 0, 0], [0, 0, 0])}, POSE0)
     assert len(f.update({}, POSE0)) == 0
+
+
+def test_far_pairs_match_within_a_range_scaled_d_min():
+    # a pair moved 0.15 m sideways between two frames: at 8 m beyond d_min = 0.10 m, so the first
+    # pair gets a miss (odds 3 -> 1.5); at 18 m within d_min * 18 / 10 = 0.18 m, a second hit
+    # (odds 9). Either way the moved pair enters the history (odds 3): it is not within d_min.
+    for y, first_odds in ((8.0, 1.5), (18.0, 9.0)):
+        f = PairFusion()
+        f.update({"hdl32_left": _pair("hdl32_left", [0.0, y, 0], [0.0, y + 1, -0.5])}, POSE0)
+        r = f.update({"hdl32_left": _pair("hdl32_left", [0.15, y, 0], [0.15, y + 1, -0.5])}, POSE0)
+        np.testing.assert_allclose(r.posterior, [first_odds / (1 + first_odds), 0.75])
+    # within d_min the frame pair is the history pair's hit only
+    f = PairFusion()
+    f.update({"hdl32_left": _pair("hdl32_left", [0.0, 18, 0], [0.0, 19, -0.5])}, POSE0)
+    r = f.update({"hdl32_left": _pair("hdl32_left", [0.05, 18, 0], [0.05, 19, -0.5])}, POSE0)
+    assert len(r) == 1 and r.posterior[0] == pytest.approx(0.9)
+    paper = PairFusion(FusionConfig(match_full_range_m=float("inf")))  # the paper's fixed d_min
+    paper.update({"hdl32_left": _pair("hdl32_left", [0.0, 18, 0], [0.0, 19, -0.5])}, POSE0)
+    r = paper.update({"hdl32_left": _pair("hdl32_left", [0.15, 18, 0], [0.15, 19, -0.5])}, POSE0)
+    np.testing.assert_allclose(r.posterior, [0.6, 0.75])
+
+
+@pytest.mark.parametrize(
+    "field, value", [("match_full_range_m", 0.0), ("max_match_scale", 0.5), ("max_match_scale", np.inf)]
+)
+def test_bad_range_scale_config(field, value):
+    with pytest.raises(ConfigError, match=field):
+        FusionConfig(**{field: value})
+
+
+def test_range_scaled_d_min_applies_to_the_configured_sensors_only():
+    # the HDL-64 keeps the paper's fixed d_min at 18 m: the moved pair is a new one, the first a miss
+    f = PairFusion()
+    f.update({"hdl64": _pair("hdl64", [0.0, 18, 0], [0.0, 19, -0.5])}, POSE0)
+    r = f.update({"hdl64": _pair("hdl64", [0.15, 18, 0], [0.15, 19, -0.5])}, POSE0)
+    np.testing.assert_allclose(r.posterior, [0.6, 0.75])
+    with pytest.raises(ConfigError, match="range_scaled_sensors"):
+        FusionConfig(range_scaled_sensors="hdl32_left")

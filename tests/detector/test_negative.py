@@ -168,3 +168,19 @@ def test_range_limit_bounds_a_and_the_far_wall_margin_lets_b_reach_beyond() -> N
     np.testing.assert_array_equal(kept.a_m, a[:2])  # the third pair's A is beyond 20 m
     with pytest.raises(ConfigError, match="far_wall_margin_m"):
         NegativeDetectorConfig(far_wall_margin_m=-1.0)
+
+
+def test_side_hdl32_pairs_may_end_past_the_range_limit_on_a_pit_at_its_edge() -> None:
+    # near rim at 19.2 m, back wall at 20.2 m: the side HDL-32s' B lies past max_range_m (20 m) and
+    # is kept within hdl32_far_wall_margin_m (1.5 m); the HDL-64's margin stays 0
+    pit = [Hole.ahead(19.2, width_m=1.0, length_m=1.0, depth_m=0.8)]
+    scans = _rig_scans(pit)
+    found = NegativeObstacleDetector().update(scans, POSE0).frame_pairs
+    for side in ("hdl32_left", "hdl32_right"):
+        b_range = np.hypot(found[side].b_m[:, 0], found[side].b_m[:, 1])
+        assert len(b_range) > 0 and b_range.max() > 20.0
+    assert np.all(np.hypot(found["hdl64"].b_m[:, 0], found["hdl64"].b_m[:, 1]) <= 20.0)
+    paper = NegativeObstacleDetector(NegativeDetectorConfig(hdl32_far_wall_margin_m=0.0))
+    assert all(len(paper.update(scans, POSE0).frame_pairs[s]) == 0 for s in ("hdl32_left", "hdl32_right"))
+    with pytest.raises(ConfigError, match="hdl32_far_wall_margin_m"):
+        NegativeDetectorConfig(hdl32_far_wall_margin_m=float("nan"))
