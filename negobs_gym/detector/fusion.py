@@ -162,9 +162,7 @@ class PairFusion:
             reach = np.full(len(fp), cfg.match_distance_m)
             if sensor in cfg.range_scaled_sensors:
                 reach *= range_scale(fp.a_m, fp.b_m, cfg.match_full_range_m, cfg.max_match_scale)
-            i, j, d = close_pairs(a_v[:, :2], b_v[:, :2], fp.a_m[:, :2], fp.b_m[:, :2], float(reach.max()))
-            close = d <= reach[j]
-            i, j, d = i[close], j[close], d[close]
+            i, j, d = close_pairs(a_v[:, :2], b_v[:, :2], fp.a_m[:, :2], fp.b_m[:, :2], reach)
             hit = np.zeros(len(p), dtype=bool)
             hit[i] = True
             p[hit] = bayes_hit(p[hit], lik)

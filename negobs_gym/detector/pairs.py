@@ -22,7 +22,7 @@ pair's A jumps to the next laser: overlapping pairs in one azimuth stay at their
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -173,35 +173,43 @@ _BOUND_MARGIN_M = 1e-6
 
 
 def close_pairs(
-    a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray, max_distance_m: float
+    a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray, max_distance_m: float | np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All (i, j, distance) with :func:`overlap_distance` of pair i of set 1 and pair j of set 2 <= max.
 
-    Inputs are (n, 2) ground-plane points. Two pairs that close have points within ``max_distance_m``
-    of each other, so their midpoints lie within ``max_distance_m`` plus half of each pair's length.
-    Pairs are grouped by length (classes growing by 2^(1/3) from :data:`_SHORTEST_CLASS_M`); for each
-    two classes a KD-tree on the midpoints finds the candidates within ``max_distance_m`` plus the two
-    classes' longest half-lengths. A candidate's midpoints are thus never farther apart than 1.26
-    times what its own lengths allow, so the work grows with the pairs and their near neighbours
-    (n log n), not with all pairs, however long the longest pair is. Candidates one of which lies
-    wholly beyond ``max_distance_m`` on one side of the other's line are dropped unmeasured (a
-    lower bound of the distance, :func:`_may_be_close`); the rest are measured. The order of the
-    returned triples is unspecified.
+    Inputs are (n, 2) ground-plane points; ``max_distance_m`` is one value or one per pair of set 2.
+    Two pairs that close have points within the maximum of each other, so their midpoints lie within
+    it plus half of each pair's length. Pairs are grouped by length (classes growing by 2^(1/3) from
+    :data:`_SHORTEST_CLASS_M`); for each two classes a KD-tree on the midpoints finds the candidates
+    within the class's largest maximum plus the two classes' longest half-lengths. A candidate's
+    midpoints are thus never farther apart than 1.26 times what its own lengths allow, so the work
+    grows with the pairs and their near neighbours (n log n), not with all pairs, however long the
+    longest pair is. Candidates one of which lies wholly beyond their maximum on one side of the
+    other's line are dropped unmeasured (a lower bound of the distance, :func:`_may_be_close`); the
+    rest are measured. The order of the returned triples is unspecified.
     """
     if len(a1) == 0 or len(a2) == 0:
         return _joined([])
     s1, s2 = _segments(a1, b1), _segments(a2, b2)
-    classes2 = [(idx, half, cKDTree(0.5 * (a2[idx] + b2[idx]))) for idx, half in _length_classes(a2, b2)]
+    limit = np.broadcast_to(np.asarray(max_distance_m, dtype=np.float64), (len(a2),))
+    classes2 = [
+        (idx, half, float(limit[idx].max()), cKDTree(0.5 * (a2[idx] + b2[idx])))
+        for idx, half in _length_classes(a2, b2)
+    ]
 
     def candidates() -> Iterator[tuple[np.ndarray, np.ndarray]]:
         for idx1, half1 in _length_classes(a1, b1):
             tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
-            for idx2, half2, tree2 in classes2:
-                reach = max_distance_m + half1 + half2
+            for idx2, half2, limit2, tree2 in classes2:
+                reach = limit2 + half1 + half2
                 cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
                 yield idx1[cand["i"]], idx2[cand["j"]]
 
-    return _measured(s1, s2, candidates(), max_distance_m)
+    if np.ndim(max_distance_m) == 0:
+        return _measured(s1, s2, candidates(), float(max_distance_m))
+    i, j, d = _measured(s1, s2, candidates(), float(limit.max()), lambda ib, jb: limit[jb])
+    close = d <= limit[j]
+    return i[close], j[close], d[close]
 
 
 def close_pairs_within(
@@ -230,7 +238,8 @@ def close_pairs_within(
                 cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
                 yield idx1[cand["i"]], idx2[cand["j"]]
 
-    i, j, d = _measured(s, s, candidates(), max_distance_m, limit)
+    bound = None if limit is None else (lambda ib, jb: np.minimum(limit[ib], limit[jb]))
+    i, j, d = _measured(s, s, candidates(), max_distance_m, bound)
     every = np.arange(len(s.ax))
     found_self = _measured(s, s, iter([(every, every)]), max_distance_m)
     return (
@@ -245,11 +254,12 @@ def _measured(
     s2: _Segments,
     candidates: Iterator[tuple[np.ndarray, np.ndarray]],
     max_distance_m: float,
-    limit_m: np.ndarray | None = None,
+    bound: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> _Found:
-    """(i, j, distance) of the candidate (i, j) within ``max_distance_m`` (``limit_m``: see
-    :func:`close_pairs_within`), measured in blocks of about :data:`BLOCK_ELEMENTS` candidates
-    (the many small batches of the length classes are gathered first)."""
+    """(i, j, distance) of the candidate (i, j) within ``max_distance_m``, measured in blocks of about
+    :data:`BLOCK_ELEMENTS` candidates (the many small batches of the length classes are gathered
+    first). ``bound(i, j)`` (optional, <= ``max_distance_m``): per candidate, a distance beyond which
+    it may be left out unmeasured."""
     found = []
     batch: list[tuple[np.ndarray, np.ndarray]] = []
     n_batch = 0
@@ -266,10 +276,7 @@ def _measured(
         batch, n_batch = [], 0
         for block in spans(len(i)):
             ib, jb = i[block], j[block]
-            if limit_m is None:
-                reach = max_distance_m + _BOUND_MARGIN_M
-            else:
-                reach = np.minimum(limit_m[ib], limit_m[jb]) + _BOUND_MARGIN_M
+            reach = (max_distance_m if bound is None else bound(ib, jb)) + _BOUND_MARGIN_M
             keep = _may_be_close(s1, ib, s2, jb, reach)
             ib, jb = ib[keep], jb[keep]
             d = _pair_distance(s1, ib, s2, jb)

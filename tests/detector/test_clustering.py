@@ -118,3 +118,14 @@ def test_row_value_order_is_row_then_distance_then_column():
         order, exact = _row_value_order(i, dist, j), np.lexsort((j, dist, i))
         for v in (i, dist, j):
             np.testing.assert_array_equal(v[order], v[exact])
+
+
+def test_unique_rows_is_numpys_unique_by_rows():
+    from negobs_gym.detector.clustering import _unique_rows
+
+    rng = np.random.default_rng(5)
+    xy = rng.integers(-3, 3, (200, 2)).astype(float)  # many duplicates
+    xy[0] = [-0.0, 1.0]
+    xy[1] = [0.0, 1.0]  # -0.0 and 0.0 are one point, as for np.unique
+    for pts in (xy, rng.uniform(-1, 1, (50, 2)), np.empty((0, 2))):
+        np.testing.assert_array_equal(_unique_rows(pts), np.unique(pts, axis=0))

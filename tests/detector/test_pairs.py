@@ -45,6 +45,10 @@ def test_close_pairs_matches_brute_force():
     assert set(zip(i.tolist(), j.tolist(), strict=True)) == expected
     assert expected  # the random layout does produce close pairs
     np.testing.assert_allclose(d, full[i, j])
+    limit = rng.uniform(0.1, 0.4, 50)  # one maximum per pair of set 2
+    i, j, d = close_pairs(a1, b1, a2, b2, limit)
+    assert set(zip(i.tolist(), j.tolist(), strict=True)) == set(zip(*np.nonzero(full <= limit), strict=True))
+    np.testing.assert_array_equal(d, full[i, j])
 
 
 def test_close_pairs_of_empty_sets():

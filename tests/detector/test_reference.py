@@ -160,10 +160,10 @@ def ref_overlap_distance(a1, b1, a2, b2):
 
 
 def ref_close_pairs(a1, b1, a2, b2, max_distance_m):
-    """Every pair of pairs measured."""
+    """Every pair of pairs measured (``max_distance_m``: one value or one per pair of set 2)."""
     i, j = (g.ravel() for g in np.meshgrid(np.arange(len(a1)), np.arange(len(a2)), indexing="ij"))
     d = ref_overlap_distance(a1[i], b1[i], a2[j], b2[j])
-    close = d <= max_distance_m
+    close = d <= (max_distance_m if np.ndim(max_distance_m) == 0 else np.asarray(max_distance_m)[j])
     return i[close], j[close], d[close]
 
 
