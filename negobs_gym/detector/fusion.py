@@ -3,9 +3,11 @@
 History pairs are stored in the world frame (INS pose) and moved into the current vehicle frame each
 frame. Pair-to-pair distance: paper N's overlap distance in the ground plane
 (:func:`negobs_gym.detector.pairs.overlap_distance`), which stays put when the rings sweep over the
-rim as the vehicle moves or pitches. A history pair matched (within ``match_distance_m``) by a sensor
-gets that sensor's Bayes hit update (Eq. 15); one matched by no sensor gets the miss update (Eq. 16).
-Current pairs that match no history pair enter with ``prior`` followed by their sensor's hit update.
+rim as the vehicle moves or pitches. A history pair matched (within ``match_distance_m``, d_min; for
+the side HDL-32s' pairs beyond ``match_full_range_m`` a range-scaled d_min, see :class:`FusionConfig`)
+by a sensor gets that sensor's Bayes hit update (Eq. 15); one matched by no sensor gets the miss
+update (Eq. 16). Current pairs farther than d_min from every history pair enter with ``prior``
+followed by their sensor's hit update.
 
 Default arithmetic (odds form, odds = p / (1 - p)): prior 0.5 -> odds 1; hit likelihood ratio
 0.6 / 0.2 = 3; confirm 0.95 -> odds 19. Two hits: 9 < 19 (not confirmed); three hits (three frames of
