@@ -49,10 +49,10 @@ class FusionConfig:
     # paper's d_min is fixed). A pit's pairs run from A (last ground return before it) to B (first on
     # its back wall), where the scan lines cross it; the side HDL-32s sample the ground radially
     # every d^2 * 0.16 deg / h (0.45 m at 18 m), so a far pit's pairs move by more than d_min from
-    # frame to frame (measured: 44 % of them within d_min at 16-18 m, 92 % within twice that) and
-    # Eq. 16's misses prune them before the three hits that confirm them. The HDL-64's far pairs
-    # gained no recall from it, only false obstacles on rough ground (docs/detector_features.md).
-    # inf = the paper's fixed d_min.
+    # frame to frame (measured: 68 % of them within d_min of a history pair at 16-18 m and 37 % at
+    # 18-20 m, against 94 % at 6-14 m) and Eq. 16's misses prune them before the three hits that
+    # confirm them. The HDL-64's far pairs gained no recall from it, only false obstacles on rough
+    # ground (docs/detector_features.md). inf = the paper's fixed d_min.
     match_full_range_m: float = 10.0
     max_match_scale: float = 2.0
     range_scaled_sensors: tuple[str, ...] = ("hdl32_left", "hdl32_right")  # paper N's side HDL-32s
