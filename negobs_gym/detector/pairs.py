@@ -205,8 +205,6 @@ def close_pairs(
                 cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
                 yield idx1[cand["i"]], idx2[cand["j"]]
 
-    if np.ndim(max_distance_m) == 0:
-        return _measured(s1, s2, candidates(), float(max_distance_m))
     i, j, d = _measured(s1, s2, candidates(), float(limit.max()), lambda ib, jb: limit[jb])
     close = d <= limit[j]
     return i[close], j[close], d[close]
