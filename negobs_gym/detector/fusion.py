@@ -153,18 +153,29 @@ class PairFusion:
         p = self._p.copy()
         age = self._age + 1
         matched_any = np.zeros(n_hist, dtype=bool)
-        for sensor, fp in pairs.items():
-            if len(fp) == 0:
-                continue
+        frame = [(sensor, fp) for sensor, fp in pairs.items() if len(fp)]
+        for sensor, fp in frame:
             if not (np.all(np.isfinite(fp.a_m)) and np.all(np.isfinite(fp.b_m))):
                 raise ScanError(f"pairs[{sensor!r}]: A/B contain NaN/inf")
+        reach = [self._reach(sensor, fp) for sensor, fp in frame]
+        # every frame pair against the history this frame started with, in one search
+        found = _search(a_v, b_v, [fp for _, fp in frame], reach)
+        start = 0
+        for (sensor, fp), reach_fp in zip(frame, reach, strict=True):
             lik = cfg.likelihood(sensor)
-            # Pairs created earlier in this frame by another sensor are matched too, so three
-            # sensors seeing a new pair in one frame confirm it at once (paper N §4.2).
-            reach = np.full(len(fp), cfg.match_distance_m)
-            if sensor in cfg.range_scaled_sensors:
-                reach *= range_scale(fp.a_m, fp.b_m, cfg.match_full_range_m, cfg.max_match_scale)
-            i, j, d = close_pairs(a_v[:, :2], b_v[:, :2], fp.a_m[:, :2], fp.b_m[:, :2], reach)
+            stop = start + len(fp)
+            at = (found[1] >= start) & (found[1] < stop)
+            i, j, d = found[0][at], found[1][at] - start, found[2][at]
+            start = stop
+            if len(p) > n_hist:
+                # pairs created earlier in this frame by another sensor are matched too, so three
+                # sensors seeing a new pair in one frame confirm it at once (paper N §4.2)
+                i_new, j_new, d_new = _search(a_v[n_hist:], b_v[n_hist:], [fp], [reach_fp])
+                i, j, d = (
+                    np.concatenate([i, i_new + n_hist]),
+                    np.concatenate([j, j_new]),
+                    np.concatenate([d, d_new]),
+                )
             hit = np.zeros(len(p), dtype=bool)
             hit[i] = True
             p[hit] = bayes_hit(p[hit], lik)
@@ -193,3 +204,25 @@ class PairFusion:
         self._b_w = pose.to_world(b_all) if len(b_all) else np.empty((0, 3))
         self._p, self._age = p_all, age_all
         return FusedPairs(a_all, b_all, p_all, p_all >= cfg.confirm_posterior)
+
+    def _reach(self, sensor: str, fp: FeaturePairs) -> np.ndarray:
+        """Per frame pair: how close a history pair must be to be hit by it (d_min, range-scaled for
+        the ``range_scaled_sensors``)."""
+        cfg = self.config
+        reach = np.full(len(fp), cfg.match_distance_m)
+        if sensor in cfg.range_scaled_sensors:
+            reach *= range_scale(fp.a_m, fp.b_m, cfg.match_full_range_m, cfg.max_match_scale)
+        return reach
+
+
+def _search(
+    a_m: np.ndarray, b_m: np.ndarray, frame: list[FeaturePairs], reach: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(i, j, distance) of history pair i (``a_m``, ``b_m``) and pair j of the concatenated ``frame``
+    pairs within that frame pair's ``reach``, in the ground plane."""
+    if len(a_m) == 0 or not frame:
+        empty = np.empty(0, dtype=np.int64)
+        return empty, empty, np.empty(0)
+    a_f = np.concatenate([fp.a_m[:, :2] for fp in frame])
+    b_f = np.concatenate([fp.b_m[:, :2] for fp in frame])
+    return close_pairs(a_m[:, :2], b_m[:, :2], a_f, b_f, np.concatenate(reach))

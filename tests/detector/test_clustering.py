@@ -10,9 +10,11 @@ from negobs_gym.detector.clustering import (
     cluster_labels,
     cluster_obstacles,
     convex_outline,
+    dbscan_labels,
     pair_weights,
     polygon_area_centroid,
 )
+from negobs_gym.detector.pairs import close_pairs_within
 from negobs_gym.errors import ConfigError
 
 
@@ -73,7 +75,8 @@ def test_no_pairs():
 
 
 @pytest.mark.parametrize(
-    "field, value", [("eps_m", 0.0), ("eps_m", np.nan), ("min_pairs", 0), ("min_pairs", 2.5)]
+    "field, value",
+    [("eps_m", 0.0), ("eps_m", np.nan), ("min_pairs", 0), ("min_pairs", 2.5), ("dbscan_backend", "hdbscan")],
 )
 def test_bad_config(field, value):
     with pytest.raises(ConfigError, match=field):
@@ -105,8 +108,57 @@ def test_dbscan_gets_its_graph_sorted_by_row_values():
     b = a + np.array([0.0, 1.0])
     with warnings.catch_warnings():
         warnings.simplefilter("error", EfficiencyWarning)
-        labels = cluster_labels(a, b, ClusteringConfig())
+        labels = cluster_labels(a, b, ClusteringConfig(dbscan_backend="sklearn"))
     assert labels.max() >= 0
+
+
+def test_graph_dbscan_gives_scikit_learns_labels():
+    # random pair fields at several eps / MinFPs / weightings: clusters numbered alike, border pairs
+    # (not core, next to cores of several clusters) in the same cluster, noise alike
+    rng = np.random.default_rng(6)
+    n_multi = n_border = 0
+    for _ in range(150):
+        n = int(rng.integers(1, 250))
+        a = rng.uniform(-6, 6, (n, 2)) + np.array([0.0, rng.uniform(0, 14)])
+        b = a + rng.normal(0.0, 0.4, (n, 2))
+        kw = {"eps_m": float(rng.uniform(0.2, 1.0)), "min_pairs": int(rng.integers(1, 8))}
+        if rng.random() < 0.3:
+            kw["full_weight_range_m"] = float("inf")
+        graph = cluster_labels(a, b, ClusteringConfig(**kw))
+        np.testing.assert_array_equal(
+            graph, cluster_labels(a, b, ClusteringConfig(dbscan_backend="sklearn", **kw))
+        )
+        n_multi += graph.max() >= 1
+        strict = cluster_labels(a, b, ClusteringConfig(**{**kw, "min_pairs": 10**6}))  # no cores: all noise
+        assert (strict == -1).all()
+        n_border += _has_border(a, b, graph, kw)
+    assert n_multi >= 50 and n_border >= 20  # the comparison covered both
+
+
+def _has_border(a, b, labels, kw):
+    """True when some labelled pair is not core (its own weighted neighbourhood is below MinFPs)."""
+    cfg = ClusteringConfig(**kw)
+    w = pair_weights(a, b, cfg)
+    i, j, d = close_pairs_within(a, b, cfg.eps_m * float(w.max()))
+    close = d / np.minimum(w[i], w[j]) <= cfg.eps_m
+    count = np.bincount(i[close], weights=w[j[close]] * (1 + 1e-9), minlength=len(a))
+    return bool(((labels >= 0) & (count < cfg.min_pairs)).any())
+
+
+def test_dbscan_labels_on_a_hand_made_graph():
+    # 0-1-2 core chain, 3 core alone with 4; 5 borders both clusters, 6 is noise
+    edges = [(0, 1), (1, 2), (0, 2), (3, 4), (2, 5), (3, 5)]
+    i = np.array([e[0] for e in edges] + [e[1] for e in edges] + list(range(7)))
+    j = np.array([e[1] for e in edges] + [e[0] for e in edges] + list(range(7)))
+    labels = dbscan_labels(i, j, np.array([1.0, 1, 1, 1, 2, 0.5, 1]), min_weight=3.0)
+    # weighted neighbourhoods: 0, 1: 3; 2: 3.5; 3: 3.5; 4: 3 (cores); 5: 2.5 (border); 6: 1 (noise)
+    np.testing.assert_array_equal(labels, [0, 0, 0, 1, 1, 0, -1])
+    # numbered by the lowest core index: 0 is a border of {3, 4}, so the {1, 2} cluster comes first
+    edges = [(1, 2), (3, 4), (0, 4)]
+    i = np.array([e[0] for e in edges] + [e[1] for e in edges] + list(range(5)))
+    j = np.array([e[1] for e in edges] + [e[0] for e in edges] + list(range(5)))
+    labels = dbscan_labels(i, j, np.array([0.5, 1, 1, 1.5, 1]), min_weight=2.0)
+    np.testing.assert_array_equal(labels, [1, 0, 0, 1, 1])
 
 
 def test_row_value_order_is_row_then_distance_then_column():
