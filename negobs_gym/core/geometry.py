@@ -15,6 +15,7 @@ import numpy as np
 from negobs_gym.errors import GeometryError
 
 __all__ = [
+    "distance_to_polyline",
     "heading_axes",
     "pad_polygons",
     "points_in_polygon",
@@ -176,3 +177,40 @@ def project_onto_polyline(points_xy: np.ndarray, polyline_xy: np.ndarray) -> tup
     station = stations[k] + t[rows, k] * seg_len[k]
     shape = pts.shape[:-1]
     return station.reshape(shape), dist[rows, k].reshape(shape)
+
+
+_POINT_BLOCK = 1024  # points per block of distance_to_polyline: its bounding box prunes the segments
+
+
+def distance_to_polyline(
+    points_xy: np.ndarray, polyline_xy: np.ndarray, max_distance_m: float = math.inf
+) -> np.ndarray:
+    """Distance of each point (..., 2) to the nearest point of the polyline (N>=2, 2), as
+    :func:`project_onto_polyline` computes it.
+
+    Where the distance exceeds ``max_distance_m`` the result is only known to exceed it (it may be
+    inf): each block of :data:`_POINT_BLOCK` points is measured against the segments whose bounding
+    box, widened by ``max_distance_m``, meets the block's, so a long course beside a grid costs its
+    nearby segments only (a 140 m centre line of 1,400 vertices and a 17,500-cell grid: ~0.1 s
+    instead of ~7 s).
+    """
+    pts = _points(points_xy, "points_xy")
+    line = _polygon(polyline_xy, "polyline_xy", min_vertices=2)
+    if not max_distance_m >= 0:  # NaN too
+        raise GeometryError(f"max_distance_m: must be >= 0, got {max_distance_m}")
+    flat = pts.reshape(-1, 2)
+    seg_lo, seg_hi = np.minimum(line[:-1], line[1:]), np.maximum(line[:-1], line[1:])
+    out = np.full(len(flat), np.inf)
+    for start in range(0, len(flat), _POINT_BLOCK):
+        block = flat[start : start + _POINT_BLOCK]
+        near = np.all(seg_hi >= block.min(axis=0) - max_distance_m, axis=1) & np.all(
+            seg_lo <= block.max(axis=0) + max_distance_m, axis=1
+        )
+        if not near.any():
+            continue
+        k = np.flatnonzero(near)
+        p = block[:, None, :]
+        a, ab = line[k][None], (line[k + 1] - line[k])[None]
+        t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
+        out[start : start + len(block)] = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=1)
+    return out.reshape(pts.shape[:-1])

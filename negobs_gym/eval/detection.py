@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from negobs_gym.core.geometry import points_in_polygon, project_onto_polyline
+from negobs_gym.core.geometry import distance_to_polyline, points_in_polygon
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError, GeometryError, require
@@ -134,9 +134,8 @@ def track_border_mask(
     line = _as_polygon(centreline_vehicle_xy_m, "centreline_vehicle_xy_m")
     require(line.shape[0] >= 2, "centreline_vehicle_xy_m", "needs at least two points")
     require(math.isfinite(width_m) and width_m > 0, "width_m", f"must be > 0, got {width_m}")
-    _, dist = project_onto_polyline(grid.cell_centres().reshape(-1, 2), line)
-    near_border = np.abs(dist - 0.5 * width_m) <= band_m
-    return near_border.reshape(grid.shape)
+    dist = distance_to_polyline(grid.cell_centres(), line, 0.5 * width_m + band_m)
+    return np.abs(dist - 0.5 * width_m) <= band_m
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.geometry import distance_to_polyline
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.eval.detection import (
@@ -156,14 +157,6 @@ def detection_course(config: DetectionCampaignConfig, seed: int, length_m: float
     return generate_terrain(terrain_config, seed)
 
 
-def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
-    a, b = line[:-1][None], line[1:][None]
-    ab = b - a
-    p = points[:, None, :]
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=1)
-
-
 def _lateral_offset(pose: Any, centreline: np.ndarray) -> float:
     """Vehicle x minus the centre line's x at its y (the course runs along +Y)."""
     return pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0]))
@@ -192,7 +185,7 @@ def _judge_frame(
         outlines = [np.asarray(o.outline_xy_m) for o in detections[m].obstacles]
         match = match_frame(outlines, truths, grid, matching, border)
         centres = np.array([o.mean(axis=0) for o in outlines]).reshape(-1, 2)
-        on_track = _distance_to_polyline(centres, centre_line) <= 0.5 * track_width_m
+        on_track = distance_to_polyline(centres, centre_line) <= 0.5 * track_width_m
         on = match_frame(
             [o for o, k in zip(outlines, on_track, strict=True) if k], truths, grid, matching, border
         )

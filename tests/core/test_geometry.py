@@ -8,6 +8,7 @@ from hypothesis.extra.numpy import arrays
 
 from negobs_gym.core import Pose
 from negobs_gym.core.geometry import (
+    distance_to_polyline,
     heading_axes,
     pad_polygons,
     points_in_polygon,
@@ -138,6 +139,23 @@ def test_polyline_stations_and_projection_known():
     assert s0.shape == d0.shape == (0,)
     with pytest.raises(GeometryError, match="polyline_xy"):
         polyline_stations(line[:1])
+
+
+def test_distance_to_polyline_is_the_projections_distance_up_to_its_maximum():
+    rng = np.random.default_rng(2)
+    line = np.cumsum(rng.normal(0.0, 0.3, (1500, 2)) + np.array([0.0, 0.1]), axis=0)  # a long winding line
+    pts = rng.uniform(line.min(axis=0) - 5.0, line.max(axis=0) + 5.0, (3000, 2))
+    _, want = project_onto_polyline(pts, line)
+    np.testing.assert_array_equal(distance_to_polyline(pts, line), want)
+    for max_m in (4.6, 0.5, 0.0):
+        got = distance_to_polyline(pts.reshape(60, 50, 2), line, max_m).ravel()
+        within = want <= max_m
+        np.testing.assert_array_equal(got[within], want[within])
+        assert (got[~within] > max_m).all()
+    assert distance_to_polyline(np.zeros((0, 2)), line).shape == (0,)
+    for bad in (-1.0, math.nan):
+        with pytest.raises(GeometryError, match="max_distance_m"):
+            distance_to_polyline(pts, line, bad)
 
 
 @settings(max_examples=200, deadline=None)
