@@ -76,12 +76,16 @@ def apply_keyed_noise(
     r = np.array(ranges_m, dtype=np.float64)
     if not config.enabled or r.size == 0:
         return r
-    bits = _ray_bits(key, np.asarray(ray_index).reshape(r.shape))
+    index = np.asarray(ray_index).reshape(r.shape).reshape(-1)
+    flat = r.reshape(-1)
+    hit = np.flatnonzero(~np.isnan(flat))  # a miss stays NaN whatever its draw: draw for the hits only
+    bits = _ray_bits(key, index[hit])
     scale = np.float32(1.0 / 2**24)
     u1 = ((bits >> np.uint64(40)).astype(np.float32) + np.float32(0.5)) * scale
     u2 = (((bits >> np.uint64(16)) & np.uint64(0xFFFFFF)).astype(np.float32) + np.float32(0.5)) * scale
     u3 = (bits & np.uint64(0xFFFF)).astype(np.float32) * np.float32(1.0 / 2**16)
     normal = np.sqrt(np.float32(-2.0) * np.log(u1)) * np.cos(np.float32(2.0 * np.pi) * u2)
-    r += config.range_sigma_m * normal
-    r[(u3 < np.float32(config.dropout_prob)) | (r < 0)] = np.nan
+    noisy = flat[hit] + config.range_sigma_m * normal
+    noisy[(u3 < np.float32(config.dropout_prob)) | (noisy < 0)] = np.nan
+    flat[hit] = noisy
     return r

@@ -6,6 +6,7 @@ import pytest
 from negobs_gym.core.pose import Pose
 from negobs_gym.sensors import NoiseConfig, hdl64e_s2, hdl64e_s2_nominal, paper_n_rig
 from negobs_gym.sensors.lidar import scan
+from negobs_gym.sensors.noise import apply_keyed_noise
 from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
 from tests.sensors.helpers import static_box
 
@@ -105,3 +106,20 @@ def test_row_rotation_and_ray_normalisation_match_the_matrix_forms_row_by_row():
     d[4] = 0.0
     with pytest.raises(ScanError, match="non-zero"):
         check_rays(np.zeros_like(d), d, 100.0)
+
+
+def test_keyed_noise_of_a_ray_does_not_depend_on_the_other_rays_hitting():
+    # noise is drawn for the hits only: a ray's draw must come from its key and index alone
+    rng = np.random.default_rng(4)
+    ranges = rng.uniform(2.0, 60.0, 5000)
+    index = rng.permutation(20000)[:5000]
+    cfg = NoiseConfig(dropout_prob=0.05)
+    full = apply_keyed_noise(ranges, index, cfg, key=77)
+    gappy = ranges.copy()
+    gappy[rng.random(5000) < 0.4] = np.nan
+    got = apply_keyed_noise(gappy, index, cfg, key=77)
+    hit = ~np.isnan(gappy)
+    np.testing.assert_array_equal(got[hit], full[hit])
+    assert np.isnan(got[~hit]).all()
+    assert 0.02 < np.isnan(full).mean() < 0.08  # dropout drawn as configured
+    assert 0.005 < np.nanstd(full - ranges) < 0.05  # range noise present, at the configured scale

@@ -25,7 +25,8 @@ def check_rays(
     d = np.asarray(directions, dtype=np.float64)
     if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
         raise ScanError(f"origins and directions must both be (N, 3), got {o.shape} and {d.shape}")
-    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+    # one origin broadcast to every ray (a sensor's scan) is checked once
+    if not (np.isfinite(o[:1] if o.strides[0] == 0 else o).all() and np.isfinite(d).all()):
         raise ScanError("origins and directions must be finite")
     if not (np.isfinite(max_range_m) and max_range_m > 0):
         raise ScanError(f"max_range_m must be finite and > 0, got {max_range_m}")

@@ -268,7 +268,11 @@ class EmbreeCaster:
         o, d = check_rays(origins, directions, max_range_m)
         if self.config.auto_update:
             self.update_dynamic()
-        o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
+        if o.strides[0] == 0:  # one origin for every ray (a sensor's scan): shift it once
+            shifted = (o[0] - self.local_origin_m).astype(np.float32)
+            o32 = np.ascontiguousarray(np.broadcast_to(shifted, o.shape))
+        else:
+            o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
         t = self._cast_static(o32, d32, tmax)

@@ -238,3 +238,16 @@ def test_deterministic_across_builds(flat_world):
     b = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
     np.testing.assert_array_equal(a, b)
     assert np.isfinite(a).sum() > 1000
+
+
+def test_one_origin_for_every_ray_casts_as_the_same_origins_spelled_out(flat_world):
+    world, _ = flat_world
+    caster = EmbreeCaster.from_world(world)
+    d = np.random.default_rng(1).normal(size=(5000, 3)) * [1.0, 1.0, 0.3] - [0.0, 0.0, 0.4]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    origin = np.array([0.3, 2.0, 2.2])
+    shared = caster.cast(np.broadcast_to(origin, d.shape), d, 80.0)
+    np.testing.assert_array_equal(shared, caster.cast(np.tile(origin, (len(d), 1)), d, 80.0))
+    assert np.isfinite(shared).mean() > 0.5
+    with pytest.raises(ScanError, match="finite"):
+        caster.cast(np.broadcast_to([np.nan, 0.0, 2.0], d.shape), d, 80.0)
