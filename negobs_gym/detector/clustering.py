@@ -132,8 +132,9 @@ def dbscan_labels(i: np.ndarray, j: np.ndarray, weights: np.ndarray, min_weight:
     if core_idx.size == 0:
         return labels
     both = core[i] & core[j]
-    graph = sparse.csr_matrix((np.ones(int(both.sum()), dtype=bool), (i[both], j[both])), shape=(n, n))
-    _, component = connected_components(graph, directed=False)
+    i_core, j_core = i[both], j[both]
+    by_row = np.argsort(_narrow(i_core), kind="stable")
+    _, component = connected_components(_csr(i_core, j_core, np.ones(len(i_core)), by_row, n), directed=False)
     core_component = component[core_idx]
     found, first = np.unique(core_component, return_index=True)  # first: lowest core index of each
     number = np.empty(int(component.max()) + 1, dtype=np.int64)
@@ -154,12 +155,22 @@ def _sklearn_labels(
     """scikit-learn's DBSCAN on the precomputed graph of the edges (i, j, d), d <= eps."""
     n = len(weights)
     d = np.maximum(d, _TINY)
-    order = _row_value_order(i, d, j)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(i, minlength=n), out=indptr[1:])
-    graph = sparse.csr_matrix((d[order], j[order], indptr), shape=(n, n))
+    graph = _csr(i, j, d, _row_value_order(i, d, j), n)
     dbscan = DBSCAN(eps=config.eps_m, min_samples=config.min_pairs, metric="precomputed")
     return dbscan.fit_predict(graph, sample_weight=weights).astype(np.int64)
+
+
+def _csr(i: np.ndarray, j: np.ndarray, values: np.ndarray, order: np.ndarray, n: int) -> sparse.csr_matrix:
+    """(n, n) CSR matrix of the edges (i, j, values), stored in ``order`` (which must group them by
+    row i): built directly, without the sort and duplicate check of a COO conversion."""
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(i, minlength=n), out=indptr[1:])
+    return sparse.csr_matrix((values[order], j[order], indptr), shape=(n, n))
+
+
+def _narrow(rows: np.ndarray) -> np.ndarray:
+    """Row indices as uint16 where they fit: a stable sort of them is then a radix sort."""
+    return rows.astype(np.uint16) if rows.size and int(rows.max()) < 2**16 else rows
 
 
 def _row_value_order(i: np.ndarray, d: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -173,8 +184,7 @@ def _row_value_order(i: np.ndarray, d: np.ndarray, j: np.ndarray) -> np.ndarray:
     ``np.lexsort((j, d, i))`` on the dense frame's 96,000 edges, with the same result.
     """
     order = np.argsort(d)
-    rows = i.astype(np.uint16) if i.size and int(i.max()) < 2**16 else i
-    order = order[np.argsort(rows[order], kind="stable")]
+    order = order[np.argsort(_narrow(i)[order], kind="stable")]
     ii, dd = i[order], d[order]
     tie = (ii[1:] == ii[:-1]) & (dd[1:] == dd[:-1])
     if tie.any():

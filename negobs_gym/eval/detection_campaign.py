@@ -162,13 +162,6 @@ def _lateral_offset(pose: Any, centreline: np.ndarray) -> float:
     return pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0]))
 
 
-def _centre_line_near_grid(centreline: np.ndarray, pose: Any, grid: Any) -> np.ndarray:
-    """The vehicle-frame centre line cut to the grid (the border mask is all-cells x all-segments)."""
-    line = world_outline_to_vehicle(centreline, pose)
-    near = np.flatnonzero((line[:, 1] > -grid.back_m - 2.0) & (line[:, 1] < grid.ahead_m + 2.0))
-    return line[max(near[0] - 1, 0) : near[-1] + 2] if near.size else line
-
-
 def _judge_frame(
     detections: dict[str, Any],
     truths: list[np.ndarray],
@@ -240,7 +233,7 @@ def run_episode(episode: Episode) -> Rows:
                 world_outline_to_vehicle(ob.outline_xy_m, pose, ob.floor_z_m + ob.depth_m)
                 for ob in terrain.negative_obstacles
             ]
-            centre_line = _centre_line_near_grid(centreline, pose, grid)
+            centre_line = world_outline_to_vehicle(centreline, pose)
             recalled, counts, (truth_cells, centre_m) = _judge_frame(
                 detections, truths, centre_line, terrain.track.width_m, grid, cfg.matching
             )
