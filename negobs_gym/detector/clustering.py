@@ -10,7 +10,7 @@ border pairs into the first cluster that reaches them. It numbers clusters as sc
 does and gives its labels exactly (``ClusteringConfig.dbscan_backend = "sklearn"`` runs scikit-learn
 on the same graph; ``tests/detector/test_clustering.py`` compares them). scikit-learn sums each
 pair's neighbour weights in a Python loop and wants the graph sorted by row and distance: on a dense
-frame (~2,000 pairs, ~100,000 edges) that is ~20 ms against ~2 ms here (docs/detector_features.md).
+frame (~1,900 pairs, ~100,000 edges) that is 33-42 ms against 4-5 ms here (docs/detector_features.md).
 """
 
 from __future__ import annotations
