@@ -23,6 +23,33 @@ def directions_vehicle(mount: SensorMount) -> np.ndarray:
     return d
 
 
+@lru_cache(maxsize=16)
+def direction_planes(mount: SensorMount) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The x, y and z columns of :func:`directions_vehicle` as contiguous read-only arrays: a
+    subset of rays is gathered and rotated plane by plane without strided access."""
+    d = directions_vehicle(mount)
+    x, y, z = (np.ascontiguousarray(d[:, k]) for k in range(3))
+    for plane in (x, y, z):
+        plane.flags.writeable = False
+    return x, y, z
+
+
+def rotate_planes(x: np.ndarray, y: np.ndarray, z: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(N, 3) rows ``(x, y, z) @ rotation.T`` from the coordinate planes of N directions, computed
+    as :func:`rotate_rows` computes them."""
+    n = len(x)
+    out = np.empty((n, 3))
+    total, term = np.empty(n), np.empty(n)
+    for i in range(3):
+        np.multiply(x, rotation[i, 0], out=total)
+        np.multiply(y, rotation[i, 1], out=term)
+        total += term
+        np.multiply(z, rotation[i, 2], out=term)
+        total += term
+        out[:, i] = total
+    return out
+
+
 def rotate_rows(directions: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """``directions @ rotation.T`` row by row with elementwise arithmetic, so a row's result does not
     depend on which other rows are in the batch (BLAS kernels may round differently by size).
@@ -31,16 +58,7 @@ def rotate_rows(directions: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     time on 1-D arrays (half the cost of broadcasting (N, 1) x (3,) products, profiled).
     """
     d = np.asarray(directions, dtype=np.float64)
-    out = np.empty(d.shape)
-    total, term = np.empty(len(d)), np.empty(len(d))
-    for i in range(3):
-        np.multiply(d[:, 0], rotation[i, 0], out=total)
-        np.multiply(d[:, 1], rotation[i, 1], out=term)
-        total += term
-        np.multiply(d[:, 2], rotation[i, 2], out=term)
-        total += term
-        out[:, i] = total
-    return out
+    return rotate_planes(d[:, 0], d[:, 1], d[:, 2], rotation)
 
 
 def scan_rays_world(mount: SensorMount, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
@@ -77,8 +95,9 @@ def scan(
 ) -> StructuredScan:
     """One structured scan of ``mount`` at vehicle ``pose``; noise on by default (needs ``rng``).
 
-    ``rays`` (flat laser-major indices, with their vehicle-frame directions ``rays_vehicle``) casts only
-    those rays; the others are NaN. Noise is keyed per ray (``noise_key``, else one draw from
+    ``rays`` (flat laser-major indices) casts only those rays; the others are NaN. Their
+    vehicle-frame directions are gathered from the mount's direction table unless given as
+    ``rays_vehicle``. Noise is keyed per ray (``noise_key``, else one draw from
     ``rng``), so a ray gets the same range whether the full scan or a subset is cast.
     """
     m = mount.model
@@ -86,11 +105,13 @@ def scan(
     key = frame_noise_key(rng, cfg) if noise_key is None else noise_key
     if rays is None:
         index = np.arange(m.n_lasers * m.n_columns)
-        dv = directions_vehicle(mount)
+        d = rotate_planes(*direction_planes(mount), pose.rotation)
+    elif rays_vehicle is None:
+        index = np.asarray(rays)
+        d = rotate_planes(*(plane[index] for plane in direction_planes(mount)), pose.rotation)
     else:
         index = np.asarray(rays)
-        dv = rays_vehicle
-    d = rotate_rows(dv, pose.rotation)
+        d = rotate_rows(rays_vehicle, pose.rotation)
     o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
     hit = caster.cast(o, d, m.max_range_m) if index.size else np.empty(0)
     hit[hit < m.min_range_m] = np.nan
@@ -142,7 +163,6 @@ def scan_rig(
             noise=cfg,
             timestamp_s=timestamp_s,
             rays=None if sub is None else sub.index,
-            rays_vehicle=None if sub is None else sub.directions_vehicle,
             noise_key=key,
         )
     return out
