@@ -28,7 +28,7 @@ from negobs_gym.detector.grid import obstacle_grid
 from negobs_gym.detector.hdl32 import extract_hdl32_pairs
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
 from negobs_gym.detector.pairs import FeaturePairs
-from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map
+from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map, ray_sectors
 from negobs_gym.errors import ScanError, require
 
 SensorMode = Literal["fused", "hdl64", "hdl32"]
@@ -194,7 +194,8 @@ class NegativeObstacleDetector:
         ground = None
         if cfg.roi.enabled:
             clouds = [scans[name].points_vehicle for name in active]
-            ground = build_ground_map(clouds, cfg.max_range_m, cfg.roi)
+            sectors = [ray_sectors(scans[name], cfg.roi) for name in active]
+            ground = build_ground_map(clouds, cfg.max_range_m, cfg.roi, sectors)
         frame_pairs = {}
         for name in active:
             if name in cfg.hdl64_sensors:

@@ -30,11 +30,13 @@ Cost: O(n) to bin the points plus one vectorized pass per radial bin over all se
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections import OrderedDict
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.core.scan import StructuredScan, ray_directions
 from negobs_gym.detector.blocks import spans
 from negobs_gym.errors import require
 
@@ -161,8 +163,67 @@ class GroundMap:
         return ~(self.on_structure_cell(a_m) | self.structure_between(a_m, b_m, c_m))
 
 
-def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: RoiConfig) -> GroundMap:
-    """Polar elevation map from vehicle-frame clouds (any shape (..., 3), NaN rows = no return)."""
+# A ray's sector is trusted for its points when its angle lies farther than this (in sectors) from a
+# sector boundary: far above the ~1e-13 sectors by which a point's rounded coordinates can move it.
+_SECTOR_GUARD = 1e-9
+_RAY_SECTORS: OrderedDict[tuple, np.ndarray] = OrderedDict()  # by scan geometry and sector width
+
+
+def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
+    """Ground-map sector of every ray of ``scan`` ((lasers, columns) ints), or None when the sector
+    depends on the range.
+
+    A sensor whose origin lies on the vehicle's z axis (translation x = y = 0, as the HDL-64 above
+    the vehicle origin) sees every return of a ray at the ray's own vehicle-frame azimuth, whatever
+    its range: the sector is computed once per scan geometry instead of once per point (the
+    per-point ``arctan2`` was a quarter of the map's time). Rays whose angle lies within
+    :data:`_SECTOR_GUARD` of a sector boundary, or that point straight up or down, are -1: their
+    points get the per-point rule, so the map is the same as without this table.
+    """
+    if scan.translation_m[0] != 0.0 or scan.translation_m[1] != 0.0:
+        return None
+    key = (
+        scan.elevation_rad.tobytes(),
+        scan.azimuth_rad.tobytes(),
+        np.asarray(scan.rotation, dtype=np.float64).tobytes(),
+        config.sector_deg,
+    )
+    table = _RAY_SECTORS.get(key)
+    if table is None:
+        d = ray_directions(scan.elevation_rad, scan.azimuth_rad) @ np.asarray(scan.rotation).T
+        x, y = d[..., 0], d[..., 1]
+        where = (np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)
+        table = where.astype(np.int64)
+        frac = where - table
+        unsure = (frac < _SECTOR_GUARD) | (frac > 1.0 - _SECTOR_GUARD) | (x * x + y * y < 1e-20)
+        table[unsure] = -1
+        table.flags.writeable = False
+        _RAY_SECTORS[key] = table
+        if len(_RAY_SECTORS) > 16:
+            _RAY_SECTORS.popitem(last=False)
+    return table
+
+
+def _sector_of(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndarray:
+    """Sector (before wrapping) of vehicle-frame points: the angle from -pi, in sectors, truncated
+    (>= 0, so truncation is the floor)."""
+    return ((np.arctan2(y, x) + np.pi) / sector_rad).astype(np.int64)
+
+
+def build_ground_map(
+    clouds: Iterable[np.ndarray],
+    max_range_m: float,
+    config: RoiConfig,
+    sectors: Sequence[np.ndarray | None] | None = None,
+) -> GroundMap:
+    """Polar elevation map from vehicle-frame clouds (any shape (..., 3), NaN rows = no return).
+
+    ``sectors`` (optional, one per cloud: None, or each point's sector as :func:`ray_sectors` gives
+    it, -1 = unknown) spares the per-point angle where it is known beforehand; the map is the same.
+    """
+    clouds = list(clouds)
+    known_sectors = [None] * len(clouds) if sectors is None else list(sectors)
+    require(len(known_sectors) == len(clouds), "sectors", "needs one entry (or None) per cloud")
     n_sectors = math.ceil(360.0 / config.sector_deg)
     n_bins = max(1, math.ceil((max_range_m + config.range_margin_m) / config.bin_m))
     n_cells = n_sectors * n_bins
@@ -170,8 +231,9 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
     z_min = np.full(n_cells, np.inf)
     z_max = np.full(n_cells, -np.inf)
     sector_rad = math.radians(config.sector_deg)
-    for cloud in clouds:
+    for cloud, known in zip(clouds, known_sectors, strict=True):
         p = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
+        known_flat = None if known is None else np.asarray(known).reshape(-1)
         for block in spans(len(p)):
             x, y, z = p[block, 0], p[block, 1], p[block, 2]
             d2 = x * x + y * y
@@ -179,7 +241,13 @@ def build_ground_map(clouds: Iterable[np.ndarray], max_range_m: float, config: R
                 near = np.flatnonzero(d2 < reach * reach)  # NaN (no return) compares False
             near = near[np.isfinite(z[near])]
             x, y, z, dist = x[near], y[near], z[near], np.sqrt(d2[near])
-            sector = ((np.arctan2(y, x) + np.pi) / sector_rad).astype(np.int64)  # >= 0: truncation is floor
+            if known_flat is None:
+                sector = _sector_of(x, y, sector_rad)
+            else:
+                sector = known_flat[block][near]  # a copy (fancy index)
+                unsure = np.flatnonzero(sector < 0)
+                if unsure.size:
+                    sector[unsure] = _sector_of(x[unsure], y[unsure], sector_rad)
             radial = np.minimum((dist / config.bin_m).astype(np.int64), n_bins - 1)
             cell = (sector % n_sectors) * n_bins + radial
             np.minimum.at(z_min, cell, z)

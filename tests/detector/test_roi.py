@@ -5,7 +5,7 @@ import pytest
 
 from negobs_gym.core import Pose
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
-from negobs_gym.detector.roi import RoiConfig, build_ground_map
+from negobs_gym.detector.roi import RoiConfig, build_ground_map, ray_sectors
 from negobs_gym.detector.synthetic import Block, Hole, hdl32_side_scan, hdl64_scan
 from negobs_gym.errors import ConfigError
 
@@ -114,3 +114,25 @@ def test_shadow_behind_a_rock_is_not_a_pair():
 def test_roi_config_rejects_bad_values(field, value):
     with pytest.raises(ConfigError, match=field):
         RoiConfig(**{field: value})
+
+
+def test_ray_sectors_give_the_per_point_ground_map():
+    # the HDL-64 above the vehicle origin gets one sector per ray; the side HDL-32s' sectors depend
+    # on the range (no table); rays on a sector boundary are left to the per-point rule
+    scans = _frame([PIT], STRUCTURE, np.random.default_rng(4))
+    cfg = RoiConfig()
+    table = ray_sectors(scans["hdl64"], cfg)
+    assert table.shape == scans["hdl64"].ranges_m.shape
+    assert ray_sectors(scans["hdl32_left"], cfg) is None
+    assert (table == -1).any() and (table >= 0).mean() > 0.95  # every 50th 0.09 deg column: a boundary
+    assert ray_sectors(scans["hdl64"], cfg) is table  # cached per geometry
+    clouds = [s.points_vehicle for s in scans.values()]
+    plain = build_ground_map(clouds, 20.0, cfg)
+    for sectors in ([table, None, None], [np.full(table.shape, -1), None, None]):
+        fast = build_ground_map(clouds, 20.0, cfg, sectors)
+        np.testing.assert_array_equal(fast.ground_z_m, plain.ground_z_m)
+        np.testing.assert_array_equal(fast.structure_before, plain.structure_before)
+    wrong = build_ground_map(clouds, 20.0, cfg, [(table + 7) * (table >= 0), None, None])
+    assert not np.array_equal(wrong.structure_before, plain.structure_before)  # the table is used
+    with pytest.raises(ConfigError, match="sectors"):
+        build_ground_map(clouds, 20.0, cfg, [table])
