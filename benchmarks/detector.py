@@ -32,7 +32,7 @@ from negobs_gym.detector import (
     extract_hdl64_pairs,
     obstacle_grid,
 )
-from negobs_gym.detector.roi import build_ground_map
+from negobs_gym.detector.roi import build_ground_map, ray_sectors
 from negobs_gym.detector.synthetic import Hole, hdl32_side_scan, hdl64_scan
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
@@ -140,7 +140,8 @@ def main() -> None:
             _ = s.points_vehicle
         stage["cloud"].append((time.perf_counter() - t) * 1e3)
         t = time.perf_counter()
-        build_ground_map([s.points_vehicle for s in scans.values()], cfg.max_range_m, cfg.roi)
+        sectors = [ray_sectors(s, cfg.roi) for s in scans.values()]  # as update does
+        build_ground_map([s.points_vehicle for s in scans.values()], cfg.max_range_m, cfg.roi, sectors)
         stage["roi"].append((time.perf_counter() - t) * 1e3)
         t = time.perf_counter()
         extract_hdl64_pairs(scans["hdl64"], cfg.hdl64)
