@@ -234,6 +234,11 @@ def build_ground_map(
     for cloud, known in zip(clouds, known_sectors, strict=True):
         p = np.asarray(cloud, dtype=np.float64).reshape(-1, 3)
         known_flat = None if known is None else np.asarray(known).reshape(-1)
+        require(
+            known_flat is None or known_flat.size == len(p),
+            "sectors",
+            "each table needs one sector per point of its cloud",
+        )
         for block in spans(len(p)):
             x, y, z = p[block, 0], p[block, 1], p[block, 2]
             d2 = x * x + y * y

@@ -136,3 +136,5 @@ def test_ray_sectors_give_the_per_point_ground_map():
     assert not np.array_equal(wrong.structure_before, plain.structure_before)  # the table is used
     with pytest.raises(ConfigError, match="sectors"):
         build_ground_map(clouds, 20.0, cfg, [table])
+    with pytest.raises(ConfigError, match="one sector per point"):
+        build_ground_map(clouds, 20.0, cfg, [table[:, :-1], None, None])
