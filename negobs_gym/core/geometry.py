@@ -167,10 +167,7 @@ def project_onto_polyline(points_xy: np.ndarray, polyline_xy: np.ndarray) -> tup
     pts = _points(points_xy, "points_xy")
     line = _polygon(polyline_xy, "polyline_xy", min_vertices=2)
     stations = polyline_stations(line)
-    p = pts.reshape(-1, 1, 2)
-    a, ab = line[:-1][None], np.diff(line, axis=0)[None]
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
-    dist = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    t, dist = _segment_projections(pts.reshape(-1, 2), line[:-1], np.diff(line, axis=0))
     k = np.argmin(dist, axis=1)
     rows = np.arange(len(k))
     seg_len = np.diff(stations)
@@ -209,8 +206,15 @@ def distance_to_polyline(
         if not near.any():
             continue
         k = np.flatnonzero(near)
-        p = block[:, None, :]
-        a, ab = line[k][None], (line[k + 1] - line[k])[None]
-        t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
-        out[start : start + len(block)] = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=1)
+        _, dist = _segment_projections(block, line[k], line[k + 1] - line[k])
+        out[start : start + len(block)] = dist.min(axis=1)
     return out.reshape(pts.shape[:-1])
+
+
+def _segment_projections(points: np.ndarray, a: np.ndarray, ab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(points, segments) position t in [0, 1] along each segment a -> a + ab of the point nearest
+    to each of the (n, 2) points, and the distance to it."""
+    p = points[:, None, :]
+    a, ab = a[None], ab[None]
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
+    return t, np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)

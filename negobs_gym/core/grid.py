@@ -47,10 +47,23 @@ class GridSpec:
 
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell (row, col) of vehicle-frame points (..., 2) and a mask of those inside the grid."""
-        xy = np.asarray(xy, dtype=np.float64)
-        col = np.floor((xy[..., 0] + self.side_m) / self.cell_m).astype(np.int64)
-        row = np.floor((xy[..., 1] + self.back_m) / self.cell_m).astype(np.int64)
-        inside = (row >= 0) & (row < self.rows) & (col >= 0) & (col < self.cols)
+        row, col, inside = self._cells(np.asarray(xy, dtype=np.float64))
+        return row.astype(np.int64), col.astype(np.int64), inside
+
+    def occupied(self, xy: np.ndarray) -> np.ndarray:
+        """(rows, cols) bool: the cells holding at least one of the vehicle-frame points (..., 2);
+        NaN points (no return) hold none. Only the points inside are converted to indices."""
+        row, col, inside = self._cells(np.asarray(xy, dtype=np.float64))
+        mask = np.zeros(self.rows * self.cols, dtype=bool)
+        mask[(row[inside] * self.cols + col[inside]).astype(np.int64)] = True
+        return mask.reshape(self.shape)
+
+    def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Floored (row, col) as floats and the inside mask (NaN is outside)."""
+        with np.errstate(invalid="ignore"):
+            col = np.floor((xy[..., 0] + self.side_m) / self.cell_m)
+            row = np.floor((xy[..., 1] + self.back_m) / self.cell_m)
+            inside = (row >= 0) & (row < self.rows) & (col >= 0) & (col < self.cols)
         return row, col, inside
 
     def cell_centres(self) -> np.ndarray:

@@ -160,6 +160,12 @@ class StructuredScan:
         """Points in the sensor frame, (lasers, columns, 3); NaN where there is no return."""
         return _direction_table(self.elevation_rad, self.azimuth_rad) * self.ranges_m[..., None]
 
+    @property
+    def directions_vehicle(self) -> np.ndarray:
+        """Unit ray directions in the vehicle frame, one contiguous (lasers, columns) plane per axis:
+        (3, lasers, columns), cached per rig geometry (read-only: shared between scans)."""
+        return _vehicle_direction_planes(self.elevation_rad, self.azimuth_rad, self.rotation)
+
     @cached_property
     def points_vehicle(self) -> np.ndarray:
         """Points in the vehicle frame (paper N Eq. 9), (lasers, columns, 3); NaN = no return.
@@ -168,7 +174,7 @@ class StructuredScan:
         one axis at a time on contiguous planes: ~5x faster than (range d) R^T + T on a frame
         (profiled: this conversion was ~30 % of the detector's update), equal to rounding.
         """
-        planes = _vehicle_direction_planes(self.elevation_rad, self.azimuth_rad, self.rotation)
+        planes = self.directions_vehicle
         out = np.empty((*self.ranges_m.shape, 3))
         for axis in range(3):
             np.multiply(self.ranges_m, planes[axis], out=out[..., axis])

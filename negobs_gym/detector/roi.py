@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.blocks import spans
 from negobs_gym.errors import require
 
@@ -190,8 +190,7 @@ def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
     )
     table = _RAY_SECTORS.get(key)
     if table is None:
-        d = ray_directions(scan.elevation_rad, scan.azimuth_rad) @ np.asarray(scan.rotation).T
-        x, y = d[..., 0], d[..., 1]
+        x, y = scan.directions_vehicle[0], scan.directions_vehicle[1]  # the points' own directions
         where = (np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)
         table = where.astype(np.int64)
         frac = where - table

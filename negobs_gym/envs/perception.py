@@ -156,15 +156,8 @@ class DetectorGrid:
         return self.config.grid.cell_centres()[self.detection.grid]
 
     def _observed(self) -> np.ndarray:
-        """Cells holding a return: :meth:`GridSpec.cell_of`'s rule on the scans' coordinate planes,
-        converting only the cells inside the grid (3x faster than on the gathered returns)."""
-        grid = self.config.grid
-        mask = np.zeros(grid.rows * grid.cols, dtype=bool)
+        """Cells holding a return, from each scan's points as they are (no gathered copy)."""
+        mask = np.zeros(self.config.grid.shape, dtype=bool)
         for s in self.scans.values():
-            p = s.points_vehicle
-            with np.errstate(invalid="ignore"):  # NaN (no return) is outside
-                col = np.floor((p[..., 0] + grid.side_m) / grid.cell_m)
-                row = np.floor((p[..., 1] + grid.back_m) / grid.cell_m)
-                inside = (row >= 0) & (row < grid.rows) & (col >= 0) & (col < grid.cols)
-            mask[(row[inside] * grid.cols + col[inside]).astype(np.int64)] = True
-        return mask.reshape(grid.shape)
+            mask |= self.config.grid.occupied(s.points_vehicle[..., :2])
+        return mask

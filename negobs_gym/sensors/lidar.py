@@ -90,15 +90,13 @@ def scan(
     rng: np.random.Generator | None = None,
     timestamp_s: float = 0.0,
     rays: np.ndarray | None = None,
-    rays_vehicle: np.ndarray | None = None,
     noise_key: int | None = None,
 ) -> StructuredScan:
     """One structured scan of ``mount`` at vehicle ``pose``; noise on by default (needs ``rng``).
 
-    ``rays`` (flat laser-major indices) casts only those rays; the others are NaN. Their
-    vehicle-frame directions are gathered from the mount's direction table unless given as
-    ``rays_vehicle``. Noise is keyed per ray (``noise_key``, else one draw from
-    ``rng``), so a ray gets the same range whether the full scan or a subset is cast.
+    ``rays`` (flat laser-major indices) casts only those rays; the others are NaN. Noise is keyed
+    per ray (``noise_key``, else one draw from ``rng``), so a ray gets the same range whether the
+    full scan or a subset is cast.
     """
     m = mount.model
     cfg = noise or NoiseConfig()
@@ -106,12 +104,9 @@ def scan(
     if rays is None:
         index = np.arange(m.n_lasers * m.n_columns)
         d = rotate_planes(*direction_planes(mount), pose.rotation)
-    elif rays_vehicle is None:
-        index = np.asarray(rays)
-        d = rotate_planes(*(plane[index] for plane in direction_planes(mount)), pose.rotation)
     else:
         index = np.asarray(rays)
-        d = rotate_rows(rays_vehicle, pose.rotation)
+        d = rotate_planes(*(plane[index] for plane in direction_planes(mount)), pose.rotation)
     o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
     hit = caster.cast(o, d, m.max_range_m) if index.size else np.empty(0)
     hit[hit < m.min_range_m] = np.nan

@@ -99,17 +99,11 @@ class RaySubset:
     """The rays of one sensor to cast: flat (laser-major) indices into its full direction table."""
 
     index: np.ndarray  # (k,) int32, increasing
-    all_directions_vehicle: np.ndarray  # (lasers * columns, 3) unit vectors of the whole scan
 
     @property
     def size(self) -> int:
         """Number of rays."""
         return int(self.index.size)
-
-    @property
-    def directions_vehicle(self) -> np.ndarray:
-        """(k, 3) vehicle-frame unit directions of the rays (gathered on use: masks stay small)."""
-        return self.all_directions_vehicle[self.index]
 
 
 class HeightEnvelope:
@@ -269,10 +263,7 @@ class RoiSelector:
         self.config = config if config is not None else RoiConfig()
         self._directions = {mt.name: directions_vehicle(mt) for mt in rig.mounts}
         self._full = {
-            mt.name: RaySubset(
-                np.arange(len(self._directions[mt.name]), dtype=np.int32), self._directions[mt.name]
-            )
-            for mt in rig.mounts
+            mt.name: RaySubset(np.arange(len(self._directions[mt.name]), dtype=np.int32)) for mt in rig.mounts
         }
         self.tiles = self._tile_boxes()
         self._tile_rays = {
@@ -348,4 +339,4 @@ class RoiSelector:
         if mount.name in self.config.full_sensors:
             return self._full[mount.name]
         index = np.flatnonzero(self.mask(mount, key)).astype(np.int32)
-        return RaySubset(index, self._directions[mount.name])
+        return RaySubset(index)

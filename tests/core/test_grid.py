@@ -29,3 +29,19 @@ def test_cell_of_and_cell_centres_agree():
 def test_invalid_grid_raises_config_error_naming_field(field):
     with pytest.raises(ConfigError, match=field):
         GridSpec(**{field: -1.0})
+
+
+def test_occupied_marks_the_cells_of_the_points_inside_and_ignores_nan():
+    grid = GridSpec(ahead_m=6.0, back_m=1.0, side_m=2.0)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-4.0, 8.0, (40, 30, 2))  # about a quarter inside
+    pts[rng.random((40, 30)) < 0.3] = np.nan
+    want = np.zeros(grid.shape, dtype=bool)
+    ok = ~np.isnan(pts).any(axis=-1)
+    row, col, inside = grid.cell_of(pts[ok])
+    want[row[inside], col[inside]] = True
+    np.testing.assert_array_equal(grid.occupied(pts), want)
+    assert 0 < want.sum() < want.size
+    assert not grid.occupied(np.full((5, 2), np.nan)).any()
+    edge = np.array([[grid.side_m, 0.0], [-grid.side_m, 0.0]])  # the right edge is outside, the left inside
+    assert grid.occupied(edge).sum() == 1
