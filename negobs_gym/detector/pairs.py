@@ -21,15 +21,12 @@ pair's A jumps to the next laser: overlapping pairs in one azimuth stay at their
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from negobs_gym.detector.blocks import BLOCK_ELEMENTS, spans
+from negobs_gym.detector.overlap import measure_candidates, row_distances
 from negobs_gym.errors import ScanError
 
 
@@ -79,92 +76,23 @@ def range_scale(a_xy: np.ndarray, b_xy: np.ndarray, full_range_m: float, max_sca
     return np.clip(rng / full_range_m, 1.0, max_scale)
 
 
-_Found = tuple[np.ndarray, np.ndarray, np.ndarray]  # (i, j, distance) of close pairs
-
-
-class _Segments(NamedTuple):
-    """Per-pair columns of a set of (n, 2) ground-plane pairs, computed once per set."""
-
-    ax: np.ndarray
-    ay: np.ndarray
-    bx: np.ndarray
-    by: np.ndarray
-    ex: np.ndarray  # b - a
-    ey: np.ndarray
-    ux: np.ndarray  # unit A->B direction (1, 0) for a zero-length pair
-    uy: np.ndarray
-    offset: np.ndarray  # signed distance of the pair's line from the origin along (-uy, ux)
-
-
-def _segments(a: np.ndarray, b: np.ndarray) -> _Segments:
+def _segment_table(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, 9) rows of (n, 2) ground-plane pairs A-B, the columns of
+    :data:`negobs_gym.detector.overlap.COLUMNS`, computed once per set."""
     a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
     b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
-    ax, ay, bx, by = (np.ascontiguousarray(v) for v in (a[:, 0], a[:, 1], b[:, 0], b[:, 1]))
+    ax, ay, bx, by = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
     ex, ey = bx - ax, by - ay
     ux, uy = _unit_xy(ex, ey)
-    return _Segments(ax, ay, bx, by, ex, ey, ux, uy, ux * ay - uy * ax)
+    return np.stack([ax, ay, bx, by, ex, ey, ux, uy, ux * ay - uy * ax], axis=1)
 
 
 def overlap_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> np.ndarray:
     """Row-wise pair distance [m] between (n, 2) segments a1-b1 and a2-b2 (see the module docstring)."""
-    s1, s2 = _segments(a1, b1), _segments(a2, b2)
-    n = len(s1.ax)
-    if len(s2.ax) != n:
-        raise ValueError(f"overlap_distance: {n} and {len(s2.ax)} rows")
-    out = np.empty(n)
-    for block in spans(n):
-        rows = np.arange(block.start, block.stop)
-        out[block] = _pair_distance(s1, rows, s2, rows)
-    return out
-
-
-def _pair_distance(s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray) -> np.ndarray:
-    """:func:`overlap_distance` of pair ``i`` of ``s1`` and pair ``j`` of ``s2`` (one block)."""
-    a1x, a1y, b1x, b1y, e1x, e1y, u1x, u1y = (v[i] for v in s1[:8])
-    a2x, a2y, b2x, b2y, e2x, e2y, u2x, u2y = (v[j] for v in s2[:8])
-    sign = np.where(u1x * u2x + u1y * u2y < 0.0, -1.0, 1.0)
-    ax, ay = _unit_xy(u1x + sign * u2x, u1y + sign * u2y)
-    ta1, tb1 = a1x * ax + a1y * ay, b1x * ax + b1y * ay
-    ta2, tb2 = a2x * ax + a2y * ay, b2x * ax + b2y * ay
-    lo = np.maximum(np.minimum(ta1, tb1), np.minimum(ta2, tb2))
-    hi = np.minimum(np.maximum(ta1, tb1), np.maximum(ta2, tb2))
-    gaps = []  # mean gap at the two ends of the overlap (used where there is one: most candidates)
-    for t in (lo, hi):
-        p1x, p1y = _at(a1x, a1y, e1x, e1y, ta1, tb1, t)
-        p2x, p2y = _at(a2x, a2y, e2x, e2y, ta2, tb2, t)
-        gaps.append(_norm(p1x - p2x, p1y - p2y))
-    out = 0.5 * (gaps[0] + gaps[1])
-    k = np.flatnonzero(~(hi >= lo))  # no overlap: nearest end points
-    if k.size:
-        a1x, a1y, b1x, b1y = a1x[k], a1y[k], b1x[k], b1y[k]
-        a2x, a2y, b2x, b2y = a2x[k], a2y[k], b2x[k], b2y[k]
-        out[k] = np.minimum(
-            np.minimum(_norm(a1x - a2x, a1y - a2y), _norm(a1x - b2x, a1y - b2y)),
-            np.minimum(_norm(b1x - a2x, b1y - a2y), _norm(b1x - b2x, b1y - b2y)),
-        )
-    return out
-
-
-def _may_be_close(
-    s1: _Segments, i: np.ndarray, s2: _Segments, j: np.ndarray, reach_m: float | np.ndarray
-) -> np.ndarray:
-    """Ascending indices into (i, j) of the candidates that may lie within ``reach_m`` (one value,
-    or one per candidate).
-
-    A candidate is dropped where pair j of ``s2`` lies wholly on one side of pair i's line farther
-    than ``reach_m`` (or pair i of pair j's line): a lower bound of their distance, since every
-    point pair the overlap distance measures joins the two segments and so crosses the gap between
-    one line and the other segment.
-    """
-    keep = np.arange(len(i))
-    for s_line, s_other, on_line, other in ((s1, s2, i, j), (s2, s1, j, i)):
-        ia, ib = on_line[keep], other[keep]
-        reach = reach_m if np.ndim(reach_m) == 0 else reach_m[keep]
-        ux, uy, off = s_line.ux[ia], s_line.uy[ia], s_line.offset[ia]
-        side_a = ux * s_other.ay[ib] - uy * s_other.ax[ib] - off
-        side_b = ux * s_other.by[ib] - uy * s_other.bx[ib] - off
-        keep = keep[(np.minimum(side_a, side_b) <= reach) & (np.maximum(side_a, side_b) >= -reach)]
-    return keep
+    s1, s2 = _segment_table(a1, b1), _segment_table(a2, b2)
+    if len(s1) != len(s2):
+        raise ValueError(f"overlap_distance: {len(s1)} and {len(s2)} rows")
+    return row_distances(s1, s2)
 
 
 # Margin of the line-side bound: far above the rounding of metre-scale coordinates (~1e-14 m), so a
@@ -185,27 +113,25 @@ def close_pairs(
     midpoints are thus never farther apart than 1.26 times what its own lengths allow, so the work
     grows with the pairs and their near neighbours (n log n), not with all pairs, however long the
     longest pair is. Candidates one of which lies wholly beyond their maximum on one side of the
-    other's line are dropped unmeasured (a lower bound of the distance, :func:`_may_be_close`); the
-    rest are measured. The order of the returned triples is unspecified.
+    other's line are dropped unmeasured (a lower bound of the distance); the rest are measured
+    (:func:`negobs_gym.detector.overlap.measure_candidates`). The order of the returned triples is
+    unspecified.
     """
     if len(a1) == 0 or len(a2) == 0:
         return _joined([])
-    s1, s2 = _segments(a1, b1), _segments(a2, b2)
     limit = np.broadcast_to(np.asarray(max_distance_m, dtype=np.float64), (len(a2),))
     classes2 = [
         (idx, half, float(limit[idx].max()), cKDTree(0.5 * (a2[idx] + b2[idx])))
         for idx, half in _length_classes(a2, b2)
     ]
-
-    def candidates() -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        for idx1, half1 in _length_classes(a1, b1):
-            tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
-            for idx2, half2, limit2, tree2 in classes2:
-                reach = limit2 + half1 + half2
-                cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
-                yield idx1[cand["i"]], idx2[cand["j"]]
-
-    i, j, d = _measured(s1, s2, candidates(), float(limit.max()), lambda ib, jb: limit[jb])
+    found = []
+    for idx1, half1 in _length_classes(a1, b1):
+        tree1 = cKDTree(0.5 * (a1[idx1] + b1[idx1]))
+        for idx2, half2, limit2, tree2 in classes2:
+            cand = tree1.sparse_distance_matrix(tree2, limit2 + half1 + half2, output_type="ndarray")
+            found.append((idx1[cand["i"]], idx2[cand["j"]]))
+    reach1 = np.full(len(a1), np.inf)
+    i, j, d = _measured(_segment_table(a1, b1), _segment_table(a2, b2), found, reach1, limit, limit.max())
     close = d <= limit[j]
     return i[close], j[close], d[close]
 
@@ -223,23 +149,21 @@ def close_pairs_within(
     """
     if len(a) == 0:
         return _joined([])
-    s = _segments(a, b)
     classes = [(idx, half, cKDTree(0.5 * (a[idx] + b[idx]))) for idx, half in _length_classes(a, b)]
-    limit = None if limit_m is None else np.minimum(np.asarray(limit_m, dtype=np.float64), max_distance_m)
-
-    def candidates() -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        for k, (idx1, half1, tree1) in enumerate(classes):
-            within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
-            yield idx1[within[:, 0]], idx1[within[:, 1]]
-            for idx2, half2, tree2 in classes[k + 1 :]:
-                reach = max_distance_m + half1 + half2
-                cand = tree1.sparse_distance_matrix(tree2, reach, output_type="ndarray")
-                yield idx1[cand["i"]], idx2[cand["j"]]
-
-    bound = None if limit is None else (lambda ib, jb: np.minimum(limit[ib], limit[jb]))
-    i, j, d = _measured(s, s, candidates(), max_distance_m, bound)
-    every = np.arange(len(s.ax))
-    found_self = _measured(s, s, iter([(every, every)]), max_distance_m)
+    found = []
+    for k, (idx1, half1, tree1) in enumerate(classes):
+        within = tree1.query_pairs(max_distance_m + half1 + half1, output_type="ndarray")  # i < j
+        found.append((idx1[within[:, 0]], idx1[within[:, 1]]))
+        for idx2, half2, tree2 in classes[k + 1 :]:
+            cand = tree1.sparse_distance_matrix(tree2, max_distance_m + half1 + half2, output_type="ndarray")
+            found.append((idx1[cand["i"]], idx2[cand["j"]]))
+    s = _segment_table(a, b)
+    reach = np.full(len(a), float(max_distance_m))
+    if limit_m is not None:
+        reach = np.minimum(np.asarray(limit_m, dtype=np.float64), reach)
+    i, j, d = _measured(s, s, found, reach, reach, max_distance_m)
+    every = np.arange(len(s))
+    found_self = _measured(s, s, [(every, every)], reach, reach, max_distance_m)
     return (
         np.concatenate([i, j, found_self[0]]),
         np.concatenate([j, i, found_self[1]]),
@@ -248,62 +172,24 @@ def close_pairs_within(
 
 
 def _measured(
-    s1: _Segments,
-    s2: _Segments,
-    candidates: Iterator[tuple[np.ndarray, np.ndarray]],
+    s1: np.ndarray,
+    s2: np.ndarray,
+    candidates: list[tuple[np.ndarray, np.ndarray]],
+    reach1: np.ndarray,
+    reach2: np.ndarray,
     max_distance_m: float,
-    bound: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-) -> _Found:
-    """(i, j, distance) of the candidate (i, j) within ``max_distance_m``. ``bound(i, j)``
-    (optional, <= ``max_distance_m``): per candidate, a distance beyond which it may be left out
-    unmeasured.
-
-    Candidates are bounded in blocks of about :data:`BLOCK_ELEMENTS` (the many small batches of the
-    length classes gathered first) and the survivors measured in blocks of about as many: the bound
-    leaves a sixth of the fusion's candidates, and measuring each bounded block alone spent most of
-    its time in the overhead of ~40 numpy calls on a few thousand elements.
-    """
-    found = []
-    kept: list[tuple[np.ndarray, np.ndarray]] = []
-    n_kept = 0
-    for i, j in _gathered(itertools.chain(candidates, [None])):
-        if i is not None:
-            for block in spans(len(i)):
-                ib, jb = i[block], j[block]
-                reach = (max_distance_m if bound is None else bound(ib, jb)) + _BOUND_MARGIN_M
-                keep = _may_be_close(s1, ib, s2, jb, reach)
-                kept.append((ib[keep], jb[keep]))
-                n_kept += len(keep)
-        if n_kept >= BLOCK_ELEMENTS or (i is None and n_kept):
-            ik = np.concatenate([k[0] for k in kept])
-            jk = np.concatenate([k[1] for k in kept])
-            kept, n_kept = [], 0
-            for block in spans(len(ik)):
-                ib, jb = ik[block], jk[block]
-                d = _pair_distance(s1, ib, s2, jb)
-                close = d <= max_distance_m
-                found.append((ib[close], jb[close], d[close]))
-    return _joined(found)
-
-
-def _gathered(
-    parts: Iterator[tuple[np.ndarray, np.ndarray] | None],
-) -> Iterator[tuple[np.ndarray, np.ndarray] | tuple[None, None]]:
-    """The (i, j) parts joined into batches of at least :data:`BLOCK_ELEMENTS` (the last may be
-    smaller); ``None`` in ``parts`` flushes and is passed on as ``(None, None)``."""
-    batch: list[tuple[np.ndarray, np.ndarray]] = []
-    n_batch = 0
-    for part in parts:
-        if part is not None:
-            batch.append(part)
-            n_batch += len(part[0])
-            if n_batch < BLOCK_ELEMENTS:
-                continue
-        if batch:
-            yield np.concatenate([p[0] for p in batch]), np.concatenate([p[1] for p in batch])
-            batch, n_batch = [], 0
-        if part is None:
-            yield None, None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(i, j, distance) of the candidate (i, j) of segment tables ``s1``, ``s2`` within
+    ``max_distance_m``; a candidate farther than min(reach1[i], reach2[j]) from one pair's line may
+    be left out unmeasured."""
+    if not candidates:
+        return _joined([])
+    i = np.concatenate([c[0] for c in candidates]).astype(np.int64, copy=False)
+    j = np.concatenate([c[1] for c in candidates]).astype(np.int64, copy=False)
+    close, d = measure_candidates(
+        s1, s2, i, j, reach1 + _BOUND_MARGIN_M, reach2 + _BOUND_MARGIN_M, float(max_distance_m)
+    )
+    return i[close], j[close], d[close]
 
 
 def _joined(
@@ -344,20 +230,3 @@ def _unit_xy(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ok = n > 0
     safe = np.where(ok, n, 1.0)
     return np.where(ok, x / safe, 1.0), np.where(ok, y / safe, 0.0)
-
-
-def _at(
-    ax: np.ndarray,
-    ay: np.ndarray,
-    ex: np.ndarray,
-    ey: np.ndarray,
-    ta: np.ndarray,
-    tb: np.ndarray,
-    t: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Point of segment a -> a + e whose projection on the axis is ``t`` (its midpoint if it is
-    perpendicular)."""
-    span = tb - ta
-    s = np.divide(t - ta, span, out=np.full_like(t, 0.5), where=np.abs(span) > 1e-12)
-    s = np.clip(s, 0.0, 1.0)
-    return ax + s * ex, ay + s * ey
