@@ -14,8 +14,8 @@ A, B, C are the raw returns. Density is evaluated only on bump points (the only 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.blocks import row_spans
 from negobs_gym.detector.config import Hdl64FeatureConfig
@@ -177,7 +177,7 @@ def point_density(
     )
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _point_density(
     points_m: np.ndarray,
     rows: np.ndarray,
@@ -237,7 +237,7 @@ def trace_pairs(
     )
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _trace_pairs(
     points_m: np.ndarray,
     valid: np.ndarray,

@@ -16,7 +16,8 @@ Segment table: one row per pair, the columns below (:data:`COLUMNS`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from negobs_gym.core.compiled import kernel
 
 COLUMNS = ("ax", "ay", "bx", "by", "ex", "ey", "ux", "uy", "offset")
 """A, B, e = B - A, the unit A->B direction u ((1, 0) for a zero-length pair) and the signed
@@ -25,7 +26,7 @@ distance of the pair's line from the origin along (-uy, ux)."""
 _PERPENDICULAR = 1e-12  # |projected length| below which a pair is taken as perpendicular to the axis
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _unit(x: float, y: float) -> tuple[float, float]:
     n = np.sqrt(x * x + y * y)
     if n > 0.0:
@@ -33,12 +34,12 @@ def _unit(x: float, y: float) -> tuple[float, float]:
     return 1.0, 0.0
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _norm(x: float, y: float) -> float:
     return np.sqrt(x * x + y * y)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _point_at(s: np.ndarray, k: int, ta: float, tb: float, t: float) -> tuple[float, float]:
     """Point of pair k whose projection on the axis is t (its midpoint if it is perpendicular)."""
     span = tb - ta
@@ -47,7 +48,7 @@ def _point_at(s: np.ndarray, k: int, ta: float, tb: float, t: float) -> tuple[fl
     return s[k, 0] + f * s[k, 4], s[k, 1] + f * s[k, 5]
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _distance(s1: np.ndarray, k: int, s2: np.ndarray, m: int) -> float:
     """Overlap distance of pair k of ``s1`` and pair m of ``s2``."""
     a1x, a1y, b1x, b1y = s1[k, 0], s1[k, 1], s1[k, 2], s1[k, 3]
@@ -72,7 +73,7 @@ def _distance(s1: np.ndarray, k: int, s2: np.ndarray, m: int) -> float:
     )
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _within_reach_of_line(line: np.ndarray, k: int, other: np.ndarray, m: int, reach: float) -> bool:
     """False where pair m lies wholly on one side of pair k's line, farther than ``reach``."""
     ux, uy, offset = line[k, 6], line[k, 7], line[k, 8]
@@ -81,7 +82,7 @@ def _within_reach_of_line(line: np.ndarray, k: int, other: np.ndarray, m: int, r
     return min(side_a, side_b) <= reach and max(side_a, side_b) >= -reach
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def measure_candidates(
     s1: np.ndarray,
     s2: np.ndarray,
@@ -111,7 +112,7 @@ def measure_candidates(
     return close, distance
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def row_distances(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
     """Overlap distance of row k of ``s1`` and row k of ``s2``, for every k."""
     out = np.empty(s1.shape[0])

@@ -35,8 +35,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.errors import require
 
@@ -227,7 +227,7 @@ def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, r
     return sector
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _bin_extremes(
     p: np.ndarray,
     sector: np.ndarray,
@@ -252,7 +252,7 @@ def _bin_extremes(
         z_max[cell] = max(z_max[cell], z)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _ground_levels(z_min: np.ndarray, bin_m: float, slope: float, step: float, fall: float) -> np.ndarray:
     """(sectors, bins) ground level of each cell: each sector walked outward from the vehicle origin
     (on the ground, z = 0) by the rule of the module docstring, on the cells' lowest points."""

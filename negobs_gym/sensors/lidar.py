@@ -7,6 +7,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan, ray_directions
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
@@ -34,19 +35,31 @@ def direction_planes(mount: SensorMount) -> tuple[np.ndarray, np.ndarray, np.nda
     return x, y, z
 
 
-def rotate_planes(x: np.ndarray, y: np.ndarray, z: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """(N, 3) rows ``(x, y, z) @ rotation.T`` from the coordinate planes of N directions, computed
-    as :func:`rotate_rows` computes them."""
-    n = len(x)
+def rotate_planes(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, rotation: np.ndarray, index: np.ndarray | None = None
+) -> np.ndarray:
+    """(N, 3) rows ``(x, y, z) @ rotation.T`` from the coordinate planes of N directions (of the
+    directions ``index`` of them, when given), computed as :func:`rotate_rows` computes them."""
+    planes = [np.asarray(v, dtype=np.float64) for v in (x, y, z)]
+    r = np.ascontiguousarray(rotation, dtype=np.float64)
+    if index is None:
+        return _rotated(*planes, np.empty(0, dtype=np.int64), False, r)
+    return _rotated(*planes, np.asarray(index, dtype=np.int64), True, r)
+
+
+@kernel
+def _rotated(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, index: np.ndarray, use_index: bool, r: np.ndarray
+) -> np.ndarray:
+    """Coordinate i of each output row is ``(x R[i,0] + y R[i,1]) + z R[i,2]`` (compiled: a frame's
+    ~260,000 native rays in one pass instead of nine numpy passes)."""
+    n = index.size if use_index else x.size
     out = np.empty((n, 3))
-    total, term = np.empty(n), np.empty(n)
-    for i in range(3):
-        np.multiply(x, rotation[i, 0], out=total)
-        np.multiply(y, rotation[i, 1], out=term)
-        total += term
-        np.multiply(z, rotation[i, 2], out=term)
-        total += term
-        out[:, i] = total
+    for k in range(n):
+        m = index[k] if use_index else k
+        xm, ym, zm = x[m], y[m], z[m]
+        for i in range(3):
+            out[k, i] = xm * r[i, 0] + ym * r[i, 1] + zm * r[i, 2]
     return out
 
 
@@ -54,8 +67,7 @@ def rotate_rows(directions: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """``directions @ rotation.T`` row by row with elementwise arithmetic, so a row's result does not
     depend on which other rows are in the batch (BLAS kernels may round differently by size).
 
-    Output coordinate i is ``(d0 R[i,0] + d1 R[i,1]) + d2 R[i,2]``, computed one coordinate at a
-    time on 1-D arrays (half the cost of broadcasting (N, 1) x (3,) products, profiled).
+    Output coordinate i is ``(d0 R[i,0] + d1 R[i,1]) + d2 R[i,2]``.
     """
     d = np.asarray(directions, dtype=np.float64)
     return rotate_planes(d[:, 0], d[:, 1], d[:, 2], rotation)
@@ -106,7 +118,7 @@ def scan(
         d = rotate_planes(*direction_planes(mount), pose.rotation)
     else:
         index = np.asarray(rays)
-        d = rotate_planes(*(plane[index] for plane in direction_planes(mount)), pose.rotation)
+        d = rotate_planes(*direction_planes(mount), pose.rotation, index)
     o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
     hit = caster.cast(o, d, m.max_range_m) if index.size else np.empty(0)
     hit[hit < m.min_range_m] = np.nan

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.errors import InterfaceError, require
 
 
@@ -45,21 +46,31 @@ def apply_noise(ranges_m: np.ndarray, config: NoiseConfig, rng: np.random.Genera
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
 
 
-def _splitmix64(x: np.ndarray) -> np.ndarray:
-    """SplitMix64 finaliser (Steele et al. 2014): a bijective 64-bit mix, uint64 in and out."""
-    with np.errstate(over="ignore"):
-        z = x + _GOLDEN
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        return z ^ (z >> np.uint64(31))
+@kernel
+def _splitmix64(x: np.uint64) -> np.uint64:
+    """SplitMix64 finaliser (Steele et al. 2014): a bijective 64-bit mix (arithmetic mod 2^64)."""
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    return z ^ (z >> np.uint64(31))
+
+
+@kernel
+def _keyed_bits(key: np.uint64, index: np.ndarray) -> np.ndarray:
+    seed = _splitmix64(key)
+    out = np.empty(index.size, dtype=np.uint64)
+    for k in range(index.size):
+        out[k] = _splitmix64(np.uint64(index[k]) ^ seed)
+    return out
 
 
 def _ray_bits(key: int, index: np.ndarray) -> np.ndarray:
     """64 random bits per ray that depend only on (key, index): a counter-based generator."""
-    with np.errstate(over="ignore"):
-        return _splitmix64(index.astype(np.uint64) ^ _splitmix64(np.uint64(key)))
+    return _keyed_bits(np.uint64(key), np.asarray(index, dtype=np.int64).reshape(-1))
 
 
 def apply_keyed_noise(

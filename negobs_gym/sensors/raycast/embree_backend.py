@@ -268,15 +268,14 @@ class EmbreeCaster:
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
         """Ranges [m] of the first hit along each ray; NaN where nothing is hit within range."""
-        o, d = check_rays(origins, directions, max_range_m)
+        o, d32 = check_rays(origins, directions, max_range_m, dtype=np.float32)
         if self.config.auto_update:
             self.update_dynamic()
         if o.strides[0] == 0:  # one origin for every ray (a sensor's scan): shift it once
             shifted = (o[0] - self.local_origin_m).astype(np.float32)
-            o32 = np.ascontiguousarray(np.broadcast_to(shifted, o.shape))
+            o32 = np.tile(shifted, (o.shape[0], 1))  # contiguous; ~2x faster than copying a broadcast
         else:
             o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
-        d32 = np.ascontiguousarray(d, dtype=np.float32)
         tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
         t = self._cast_static(o32, d32, tmax)
         if self._dynamic is not None:
