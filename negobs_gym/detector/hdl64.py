@@ -252,19 +252,25 @@ def _trace_pairs(
     n_l = points_m.shape[0]
     a_m = np.full((rows.size, 3), np.nan)
     c_m = np.full((rows.size, 3), np.nan)
+    window = np.empty(max(int((hi - lo).max()), 1), dtype=np.int64)
+    cost = np.empty(window.size)
     for q in range(rows.size):
-        window = np.arange(lo[q], hi[q])
-        window = window[np.argsort(np.abs(azimuth_rad[window] - az_b[q]), kind="mergesort")]
+        # the window's columns nearest in azimuth first (insertion sort: stable, a few columns)
+        width = hi[q] - lo[q]
+        for w in range(width):
+            col, c = lo[q] + w, abs(azimuth_rad[lo[q] + w] - az_b[q])
+            k = w
+            while k > 0 and cost[k - 1] > c:
+                window[k], cost[k] = window[k - 1], cost[k - 1]
+                k -= 1
+            window[k], cost[k] = col, c
         for out, start, stop, step in ((a_m, rows[q] - 1, -1, -1), (c_m, rows[q] + 1, n_l, 1)):
             found = False
             for laser in range(start, stop, step):
-                for col in window:
-                    if valid[laser, col]:
-                        out[q, 0], out[q, 1], out[q, 2] = (
-                            points_m[laser, col, 0],
-                            points_m[laser, col, 1],
-                            points_m[laser, col, 2],
-                        )
+                for w in range(width):
+                    if valid[laser, window[w]]:
+                        for i in range(3):
+                            out[q, i] = points_m[laser, window[w], i]
                         found = True
                         break
                 if found:
