@@ -18,7 +18,10 @@ Per-stage milliseconds per control step (one process, the default rig) are measu
 the stages' functions with timers: physics (``World.step``, of which the event checks), scan
 synthesis, paper N's detector, paper T's detector, the rest of the step (observation stacking,
 info, Python glue) and the reset. The default rig also runs vectorized with SB3 ``SubprocVecEnv``
-(``--envs`` processes; steps/s counts the steps of all of them). A constant half-throttle action
+(``--envs`` processes; steps/s counts the steps of all of them; each worker casts with one thread).
+Its ``ratio`` is against the one process above, whose Embree cast runs on 2 threads (the default
+outside workers), and ``ratio_to_one_thread`` against one process casting with one thread, as
+each worker does: the scaling over processes alone. A constant half-throttle action
 drives; finished episodes are reset (their cost included). The last line is
 ``train_steps_per_s=<v>``: the default observation in one process.
 """
@@ -44,7 +47,7 @@ from negobs_gym.sim.world import World
 ACTION = np.array([0.5, 0.0], np.float32)
 
 
-def _make(env_id: str, source: str, rig: str):
+def _make(env_id: str, source: str, rig: str, threads: int | None = None):
     def thunk():
         # "module:id" makes gymnasium import negobs_gym (and so register) inside a subprocess
         spec_id = f"negobs_gym:{env_id}"
@@ -52,6 +55,8 @@ def _make(env_id: str, source: str, rig: str):
         cfg = probe.unwrapped.default_config()
         probe.close()
         obs = dataclasses.replace(cfg.observation, source=source, rig=rig)
+        if threads is not None:
+            obs = dataclasses.replace(obs, raycast_threads=threads)
         return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs))
 
     return thunk
@@ -206,8 +211,13 @@ def main() -> None:
     ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
     print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
+    one_thread, _ = _drive(_make(args.env_id, "detector", default_rig, threads=1)(), args.steps)
+    print(f"obs=detector rig={default_rig} processes=1 raycast_threads=1 steps_per_s={one_thread:.1f}")
     vec = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
-    print(f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f}")
+    print(
+        f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f} "
+        f"ratio_to_one_thread={vec / one_thread:.2f}"
+    )
     print(f"train_steps_per_s={sps:.1f}")
 
 
