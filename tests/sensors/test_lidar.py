@@ -92,7 +92,7 @@ def test_row_rotation_and_ray_normalisation_match_the_matrix_forms_row_by_row():
     from scipy.spatial.transform import Rotation
 
     from negobs_gym.errors import ScanError
-    from negobs_gym.sensors.lidar import rotate_rows
+    from negobs_gym.sensors.lidar import rotate_planes, rotate_rows
     from negobs_gym.sensors.raycast.base import check_rays
 
     rng = np.random.default_rng(3)
@@ -103,9 +103,18 @@ def test_row_rotation_and_ray_normalisation_match_the_matrix_forms_row_by_row():
     np.testing.assert_array_equal(rotate_rows(d[::7], rotation), rotated[::7])  # batch-independent
     _, unit = check_rays(np.zeros_like(d), d, 100.0)
     np.testing.assert_array_equal(unit, d / np.linalg.norm(d, axis=1)[:, None])
+    _, unit32 = check_rays(np.zeros_like(d), d, 100.0, dtype=np.float32)
+    assert unit32.dtype == np.float32
+    np.testing.assert_array_equal(unit32, unit.astype(np.float32))  # rounded once, from float64
+    x, y, z = (np.ascontiguousarray(d[:, k]) for k in range(3))
+    index = rng.permutation(1000)[:300]
+    np.testing.assert_array_equal(rotate_planes(x, y, z, rotation, index), rotated[index])
     d[4] = 0.0
     with pytest.raises(ScanError, match="non-zero"):
         check_rays(np.zeros_like(d), d, 100.0)
+    d[9] = np.nan  # a NaN anywhere is named even after a zero row
+    with pytest.raises(ScanError, match="finite"):
+        check_rays(np.zeros_like(d), d, 100.0, dtype=np.float32)
 
 
 def test_keyed_noise_of_a_ray_does_not_depend_on_the_other_rays_hitting():
