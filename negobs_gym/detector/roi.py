@@ -24,7 +24,7 @@ ground level of its cell. Drops are never structure, and a steep drop does not l
 level: the back wall of a pit (and C beyond B, paper N Fig. 5) lies at or below the near rim's
 level, so it stays ground, while anything rising above the ground in front of it is structure.
 
-Cost: O(n) to bin the points plus one vectorized pass per radial bin over all sectors.
+Cost: O(n): one compiled pass bins the points, a compiled walk per sector sets the ground levels.
 """
 
 from __future__ import annotations
