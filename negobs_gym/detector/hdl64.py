@@ -152,6 +152,7 @@ def ring_gap_threshold(elevation_rad: np.ndarray, height_m: float, factor: float
     return factor * np.maximum(dr_n, dr_next)
 
 
+@kernel
 def point_density(
     points_m: np.ndarray,
     rows: np.ndarray,
@@ -163,31 +164,9 @@ def point_density(
     """Number of lasers (own included) with a point within ``radius_m`` of each query point.
 
     Neighbour lasers ``rows +- 1..laser_window`` at columns ``cols +- column_window`` are
-    searched; ``radius_m`` is per query point.
+    searched; ``radius_m`` is per query point. Compiled: a laser's search stops at its first point
+    in reach (numpy measured every point of every query's window: 7 ms of a dense frame).
     """
-    if rows.size == 0:
-        return np.zeros(0)
-    return _point_density(
-        np.ascontiguousarray(points_m, dtype=np.float64),
-        np.asarray(rows, dtype=np.int64),
-        np.asarray(cols, dtype=np.int64),
-        np.asarray(radius_m, dtype=np.float64),
-        int(laser_window),
-        int(column_window),
-    )
-
-
-@kernel
-def _point_density(
-    points_m: np.ndarray,
-    rows: np.ndarray,
-    cols: np.ndarray,
-    radius_m: np.ndarray,
-    laser_window: int,
-    column_window: int,
-) -> np.ndarray:
-    """:func:`point_density`, compiled: a laser's search stops at its first point in reach (numpy
-    measured every point of the (lasers x columns) window of every query: 7 ms of a dense frame)."""
     n_l, n_c, _ = points_m.shape
     out = np.empty(rows.size)
     for q in range(rows.size):
