@@ -8,8 +8,9 @@ docs/performance.md). The settings hold the package's rules:
   operation order gives numpy's results bit for bit (each kernel is tested against a numpy
   reference);
 - ``error_model="numpy"``: a division by zero gives inf/NaN as in numpy instead of raising;
-- ``cache=True``: compiled once per machine into ``__pycache__`` (the first call in a fresh
-  install compiles, ~1-2 s per module; later processes load it in milliseconds);
+- ``cache=True``: compiled once per machine into ``__pycache__`` beside the module, or the user's
+  cache directory where the install is read-only (``NUMBA_CACHE_DIR`` overrides both); the first
+  call in a fresh install compiles, ~1-2 s per module, later processes load it in milliseconds;
 - ``nogil=True``: a kernel lets other threads run (the Embree cast threads, vector-env threads).
 """
 
