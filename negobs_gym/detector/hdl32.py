@@ -18,8 +18,8 @@ import functools
 
 import numpy as np
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.scan import StructuredScan, ray_directions
-from negobs_gym.detector.blocks import row_spans
 from negobs_gym.detector.config import Hdl32FeatureConfig
 from negobs_gym.detector.hdl64 import sensor_height
 from negobs_gym.detector.pair_test import pair_test
@@ -69,30 +69,34 @@ def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
     """Fill a missing return from the neighbouring laser(s) at the same column (same emission
     angle of the sweep), only where the estimate lies between the row's neighbours (the range
     sequence is ordered there). Used only to judge range jumps, never as a detection."""
-    r = np.asarray(ranges_m, dtype=np.float64)
+    r = np.ascontiguousarray(ranges_m, dtype=np.float64)
     n_l, n_c = r.shape
     if n_c < 3 or n_l < 2:
         return r.copy()
-    return _compensated_rows(r, slice(0, n_l))
+    return _compensated(r)
 
 
-def _compensated_rows(r: np.ndarray, rows: slice) -> np.ndarray:
-    """``compensate_missing(r)[rows]`` (``r`` at least 2 x 3), from the block and its neighbour rows."""
-    n_l = r.shape[0]
-    block = r[rows]
-    up = np.full(block.shape, np.nan)  # the next laser at the same column
-    up[: min(rows.stop + 1, n_l) - rows.start - 1] = r[rows.start + 1 : rows.stop + 1]
-    dn = np.full(block.shape, np.nan)  # the previous laser
-    dn[1 if rows.start == 0 else 0 :] = r[max(rows.start - 1, 0) : rows.stop - 1]
-    est = np.where(np.isnan(up), dn, np.where(np.isnan(dn), up, 0.5 * (up + dn)))
-    left = np.full(block.shape, np.nan)
-    left[:, 1:] = block[:, :-1]
-    right = np.full(block.shape, np.nan)
-    right[:, :-1] = block[:, 1:]
-    lo, hi = np.fmin(left, right), np.fmax(left, right)
-    with np.errstate(invalid="ignore"):
-        ordered = (est >= lo) & (est <= hi)
-    return np.where(np.isnan(block) & ordered, est, block)
+@kernel
+def _compensated(r: np.ndarray) -> np.ndarray:
+    """:func:`compensate_missing` of an image of at least 2 x 3: the estimate is the mean of the
+    lasers above and below (the one there is, where the other has no return or does not exist),
+    ordered when it lies within the NaN-skipping min and max of the row's left and right returns."""
+    n_l, n_c = r.shape
+    out = r.copy()
+    for laser in range(n_l):
+        for col in range(n_c):
+            if not np.isnan(r[laser, col]):
+                continue
+            up = r[laser + 1, col] if laser + 1 < n_l else np.nan
+            dn = r[laser - 1, col] if laser > 0 else np.nan
+            est = dn if np.isnan(up) else (up if np.isnan(dn) else 0.5 * (up + dn))
+            left = r[laser, col - 1] if col > 0 else np.nan
+            right = r[laser, col + 1] if col + 1 < n_c else np.nan
+            lo = right if np.isnan(left) else (left if np.isnan(right) else min(left, right))
+            hi = right if np.isnan(left) else (left if np.isnan(right) else max(left, right))
+            if est >= lo and est <= hi:  # NaN compares False
+                out[laser, col] = est
+    return out
 
 
 def same_laser_density(
@@ -150,14 +154,22 @@ def _near_to_far(ground_m: np.ndarray, step: int) -> np.ndarray:
 
 def _jumps(ranges_m: np.ndarray, far: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
     """:func:`range_jumps` given its near-to-far mask."""
-    r = ranges_m if step == 1 else ranges_m[:, ::-1]
-    out = np.zeros(r.shape, dtype=bool)
-    if r.shape[1] >= 3:
-        rd = (r[:, 2:] - r[:, 1:-1]) - (r[:, 1:-1] - r[:, :-2])
-        with np.errstate(invalid="ignore"):
-            out[:, 2:] = rd > threshold_m
-    out &= far if step == 1 else far[:, ::-1]
-    return out if step == 1 else out[:, ::-1]
+    r = np.ascontiguousarray(ranges_m, dtype=np.float64)
+    return _jump_mask(r, np.ascontiguousarray(far, dtype=np.bool_), float(threshold_m), int(step))
+
+
+@kernel
+def _jump_mask(r: np.ndarray, far: np.ndarray, threshold_m: float, step: int) -> np.ndarray:
+    """At column i, walking ``step``: ``(r[i] - r[i-s]) - (r[i-s] - r[i-2s]) > threshold_m`` and
+    ``far[i]``; columns without two before them in the walk are False."""
+    n_l, n_c = r.shape
+    out = np.zeros((n_l, n_c), dtype=np.bool_)
+    first, stop = (2, n_c) if step == 1 else (0, n_c - 2)
+    for laser in range(n_l):
+        for col in range(first, stop):
+            r1, r2 = r[laser, col - step], r[laser, col - 2 * step]
+            out[laser, col] = far[laser, col] and (r[laser, col] - r1) - (r1 - r2) > threshold_m
+    return out
 
 
 def next_point(
@@ -200,17 +212,11 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
         return FeaturePairs.empty(scan.sensor)
     pts = scan.points_vehicle
     _, far_forward, far_backward = _ray_tables(scan, h)
-    compensate = config.compensate_missing and n_c >= 3 and n_l >= 2
-    jumps: dict[int, list[np.ndarray]] = {1: [], -1: []}
-    for block in row_spans(n_l, n_c):  # range jumps of a block of lasers at a time
-        r_c = _compensated_rows(ranges, block) if compensate else ranges[block]
-        valid = ~np.isnan(ranges[block])
-        for step, far in ((1, far_forward), (-1, far_backward)):
-            at = _jumps(r_c, far[block], config.jump_threshold_m, step) & valid
-            jumps[step].append(np.flatnonzero(at) + block.start * n_c)
+    r_c = compensate_missing(ranges) if config.compensate_missing else ranges
+    valid = ~np.isnan(ranges)
     a_all, b_all, c_all = [], [], []
-    for step in (1, -1):
-        rows, cols = np.divmod(np.concatenate(jumps[step]), n_c)
+    for step, far in ((1, far_forward), (-1, far_backward)):
+        rows, cols = np.divmod(np.flatnonzero(_jumps(r_c, far, config.jump_threshold_m, step) & valid), n_c)
         # density only where it is used: at the jump points
         dens = same_laser_density(pts, config.density_radius_m, config.density_half_window, rows, cols)
         dense = dens > density_threshold(pts[rows, cols], scan.translation_m, config)
