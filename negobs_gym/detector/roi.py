@@ -191,7 +191,7 @@ def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
     table = _RAY_SECTORS.get(key)
     if table is None:
         x, y = scan.directions_vehicle[0], scan.directions_vehicle[1]  # the points' own directions
-        where = (np.arctan2(y, x) + np.pi) / math.radians(config.sector_deg)
+        where = _sector_position(x, y, math.radians(config.sector_deg))
         table = where.astype(np.int64)
         frac = where - table
         unsure = (frac < _SECTOR_GUARD) | (frac > 1.0 - _SECTOR_GUARD) | (x * x + y * y < 1e-20)
@@ -203,10 +203,15 @@ def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
     return table
 
 
+def _sector_position(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndarray:
+    """Angle of vehicle-frame directions or points from -pi, in sectors (>= 0)."""
+    return (np.arctan2(y, x) + np.pi) / sector_rad
+
+
 def _sector_of(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndarray:
-    """Sector (before wrapping) of vehicle-frame points: the angle from -pi, in sectors, truncated
-    (>= 0, so truncation is the floor)."""
-    return ((np.arctan2(y, x) + np.pi) / sector_rad).astype(np.int64)
+    """Sector (before wrapping) of vehicle-frame points: :func:`_sector_position` truncated (>= 0, so
+    truncation is the floor)."""
+    return _sector_position(x, y, sector_rad).astype(np.int64)
 
 
 def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, reach_m: float) -> np.ndarray:
