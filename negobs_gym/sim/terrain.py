@@ -32,6 +32,7 @@ from negobs_gym.sim.carving import (
     carve_negative_obstacle,
     place_positive_obstacle,
 )
+from negobs_gym.sim.spline import cubic_spline_grid
 from negobs_gym.sim.types import HeightField, Terrain, Track
 
 logger = logging.getLogger(__name__)
@@ -278,15 +279,14 @@ def value_noise(
 ) -> np.ndarray:
     """Smooth noise of feature size ``wavelength_m``, peak-normalised to max |value| = 1.
 
-    Gaussian lattice values every half wavelength, cubic-spline interpolated to the grid.
+    Gaussian lattice values every half wavelength, cubic-spline interpolated to the grid
+    (scipy's ``map_coordinates(order=3, mode="nearest")`` bit for bit, :mod:`~negobs_gym.sim.spline`).
     """
     ny, nx = shape
     cell = max(0.5 * wavelength_m / resolution_m, 1.0)  # lattice spacing in samples
     lat_shape = (math.ceil((ny - 1) / cell) + 4, math.ceil((nx - 1) / cell) + 4)
     lattice = rng.standard_normal(lat_shape)
-    jj = (np.arange(ny) / cell + 1.0)[:, None]
-    ii = (np.arange(nx) / cell + 1.0)[None, :]
-    out = ndimage.map_coordinates(lattice, np.broadcast_arrays(jj, ii), order=3, mode="nearest")
+    out = cubic_spline_grid(lattice, np.arange(ny) / cell + 1.0, np.arange(nx) / cell + 1.0)
     peak = float(np.max(np.abs(out)))
     return out / peak if peak > 0 else out
 
