@@ -22,8 +22,12 @@ info, Python glue) and the reset. The default rig also runs vectorized with SB3 
 Its ``ratio`` is against the one process above, whose Embree cast runs on 2 threads (the default
 outside workers), and ``ratio_to_one_thread`` against one process casting with one thread, as
 each worker does: the scaling over processes alone. A constant half-throttle action
-drives; finished episodes are reset (their cost included). The last line is
-``train_steps_per_s=<v>``: the default observation in one process.
+drives; finished episodes are reset (their cost included). Where the 2-process run loses
+against twice one process, per lockstep step (SB3 waits for every worker at each step): the
+workers' own step time (CPU, against the one-thread process alone: what the shared machine
+costs), the wait for the slower worker, the auto-resets (a worker resets while the other waits)
+and the rest (pipes, the main process). The last line is ``train_steps_per_s=<v>``: the default
+observation in one process.
 """
 
 from __future__ import annotations
@@ -60,6 +64,38 @@ def _make(env_id: str, source: str, rig: str, threads: int | None = None):
         return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs))
 
     return thunk
+
+
+class StepClock(gym.Wrapper):
+    """Puts each step's wall and process-CPU seconds, and the wall seconds of the resets since the
+    step before (0 when none), into ``info`` (``step_wall_s``, ``step_cpu_s``, ``reset_wall_s``);
+    ``steps`` and ``cpu_s`` sum them."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._reset_s = 0.0
+        self.steps = 0
+        self.cpu_s = 0.0
+
+    def reset(self, **kwargs):
+        t0 = time.perf_counter()
+        out = self.env.reset(**kwargs)
+        self._reset_s += time.perf_counter() - t0
+        return out
+
+    def step(self, action):
+        t0, c0 = time.perf_counter(), time.process_time()
+        obs, reward, term, trunc, info = self.env.step(action)
+        cpu = time.process_time() - c0
+        self.steps += 1
+        self.cpu_s += cpu
+        info = dict(info, step_wall_s=time.perf_counter() - t0, step_cpu_s=cpu)
+        info["reset_wall_s"], self._reset_s = self._reset_s, 0.0
+        return obs, reward, term, trunc, info
+
+
+def _clocked(thunk: Callable[[], gym.Env]) -> Callable[[], gym.Env]:
+    return lambda: StepClock(thunk())
 
 
 def _drive(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int]:
@@ -169,20 +205,37 @@ def _fmt(ms: dict[str, float]) -> str:
     return " ".join(f"{k}={v:.2f}" for k, v in ms.items())
 
 
-def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> float:
+def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> tuple[float, dict[str, float]]:
+    """Steps/s of ``n_envs`` SubprocVecEnv workers (all their steps), and milliseconds per lockstep
+    step: ``total``, ``slowest_step`` (the slower worker's step), ``mean_step`` and ``mean_step_cpu``
+    (one worker's), ``resets`` (auto-resets, summed over workers), ``rest``."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = SubprocVecEnv([_make(env_id, source, rig) for _ in range(n_envs)])
+    venv = SubprocVecEnv([_clocked(_make(env_id, source, rig)) for _ in range(n_envs)])
     venv.seed(0)
     venv.reset()
     actions = np.tile(ACTION[None], (n_envs, 1))
     venv.step(actions)  # first step outside the timing (workers warm)
+    wall, cpu, resets = [], [], 0.0
     t0 = time.perf_counter()
     for _ in range(steps):
-        venv.step(actions)  # SB3 auto-resets finished envs
+        _, _, _, infos = venv.step(actions)  # SB3 auto-resets finished envs
+        wall.append([i["step_wall_s"] for i in infos])
+        cpu.append([i["step_cpu_s"] for i in infos])
+        resets += sum(i["reset_wall_s"] for i in infos)
     dt = time.perf_counter() - t0
+    # the last step's auto-resets are reported by no later step; they are in "rest"
     venv.close()
-    return steps * n_envs / dt
+    w = np.asarray(wall)
+    ms = {
+        "total": 1e3 * dt / steps,
+        "slowest_step": 1e3 * float(w.max(axis=1).mean()),
+        "mean_step": 1e3 * float(w.mean()),
+        "mean_step_cpu": 1e3 * float(np.mean(cpu)),
+        "resets": 1e3 * resets / steps,
+    }
+    ms["rest"] = ms["total"] - ms["slowest_step"] - ms["resets"]
+    return steps * n_envs / dt, ms
 
 
 def main() -> None:
@@ -211,13 +264,20 @@ def main() -> None:
     ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
     print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
-    one_thread, _ = _drive(_make(args.env_id, "detector", default_rig, threads=1)(), args.steps)
-    print(f"obs=detector rig={default_rig} processes=1 raycast_threads=1 steps_per_s={one_thread:.1f}")
-    vec = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
+    alone = _clocked(_make(args.env_id, "detector", default_rig, threads=1))()
+    one_thread, _ = _drive(alone, args.steps)
+    alone_cpu_ms = 1e3 * alone.cpu_s / max(1, alone.steps)
+    print(
+        f"obs=detector rig={default_rig} processes=1 raycast_threads=1 steps_per_s={one_thread:.1f} "
+        f"step_cpu_ms={alone_cpu_ms:.1f}"
+    )
+    vec, lockstep = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
     print(
         f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f} "
         f"ratio_to_one_thread={vec / one_thread:.2f}"
     )
+    alone_note = f"one process alone: step_cpu {alone_cpu_ms:.1f}"
+    print(f"lockstep_ms processes={args.envs} ({alone_note}): {_fmt(lockstep)}")
     print(f"train_steps_per_s={sps:.1f}")
 
 
