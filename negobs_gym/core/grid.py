@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.errors import require
 
 
@@ -52,10 +53,13 @@ class GridSpec:
 
     def occupied(self, xy: np.ndarray) -> np.ndarray:
         """(rows, cols) bool: the cells holding at least one of the vehicle-frame points (..., 2);
-        NaN points (no return) hold none. Only the points inside are converted to indices."""
-        row, col, inside = self._cells(np.asarray(xy, dtype=np.float64))
+        NaN points (no return) hold none. One compiled pass over the points, with the cell
+        arithmetic of :meth:`cell_of`."""
+        pts = np.asarray(xy, dtype=np.float64)
+        if pts.shape[-1:] != (2,):
+            raise ValueError(f"xy must have shape (..., 2), got {pts.shape}")
         mask = np.zeros(self.rows * self.cols, dtype=bool)
-        mask[(row[inside] * self.cols + col[inside]).astype(np.int64)] = True
+        _mark_cells(pts.reshape(-1, 2), self.side_m, self.back_m, self.cell_m, self.rows, self.cols, mask)
         return mask.reshape(self.shape)
 
     def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -72,3 +76,15 @@ class GridSpec:
         y = -self.back_m + (np.arange(self.rows) + 0.5) * self.cell_m
         xx, yy = np.meshgrid(x, y)
         return np.stack([xx, yy], axis=-1)
+
+
+@kernel
+def _mark_cells(
+    xy: np.ndarray, side_m: float, back_m: float, cell_m: float, rows: int, cols: int, mask: np.ndarray
+) -> None:
+    """Set ``mask[row * cols + col]`` for every point inside the grid (NaN compares outside)."""
+    for k in range(xy.shape[0]):
+        col = np.floor((xy[k, 0] + side_m) / cell_m)
+        row = np.floor((xy[k, 1] + back_m) / cell_m)
+        if row >= 0 and row < rows and col >= 0 and col < cols:
+            mask[int(row) * cols + int(col)] = True

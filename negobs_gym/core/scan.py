@@ -24,6 +24,7 @@ from functools import cached_property
 
 import numpy as np
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ScanError
 
@@ -170,17 +171,26 @@ class StructuredScan:
     def points_vehicle(self) -> np.ndarray:
         """Points in the vehicle frame (paper N Eq. 9), (lasers, columns, 3); NaN = no return.
 
-        Computed as range x (R d) + T with the rotated directions R d cached per rig geometry,
-        one axis at a time on contiguous planes: ~5x faster than (range d) R^T + T on a frame
-        (profiled: this conversion was ~30 % of the detector's update), equal to rounding.
+        Computed as range x (R d) + T with the rotated directions R d cached per rig geometry, in
+        one compiled pass (a product, then a sum, each rounded as numpy rounds them): ~5x faster
+        than (range d) R^T + T on a frame (profiled: this conversion was ~30 % of the detector's
+        update), equal to rounding.
         """
-        planes = self.directions_vehicle
-        out = np.empty((*self.ranges_m.shape, 3))
-        for axis in range(3):
-            np.multiply(self.ranges_m, planes[axis], out=out[..., axis])
-            out[..., axis] += self.translation_m[axis]
-        return out
+        return _vehicle_points(self.ranges_m, self.directions_vehicle, self.translation_m)
 
     def points_world(self) -> np.ndarray:
         """Points in the world frame through the INS pose, (lasers, columns, 3)."""
         return self.pose.to_world(self.points_vehicle)
+
+
+@kernel
+def _vehicle_points(ranges: np.ndarray, planes: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """(lasers, columns, 3): ``range * plane[axis] + translation[axis]`` per axis."""
+    n_lasers, n_columns = ranges.shape
+    out = np.empty((n_lasers, n_columns, 3))
+    for i in range(n_lasers):
+        for j in range(n_columns):
+            r = ranges[i, j]
+            for axis in range(3):
+                out[i, j, axis] = r * planes[axis, i, j] + translation[axis]
+    return out

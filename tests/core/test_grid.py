@@ -45,3 +45,18 @@ def test_occupied_marks_the_cells_of_the_points_inside_and_ignores_nan():
     assert not grid.occupied(np.full((5, 2), np.nan)).any()
     edge = np.array([[grid.side_m, 0.0], [-grid.side_m, 0.0]])  # the right edge is outside, the left inside
     assert grid.occupied(edge).sum() == 1
+
+
+def test_occupied_reads_a_strided_view_of_scan_points_and_names_a_wrong_shape():
+    grid = GridSpec(ahead_m=6.0, back_m=1.0, side_m=2.0)
+    rng = np.random.default_rng(1)
+    points = rng.uniform(-3.0, 7.0, (16, 50, 3))  # (lasers, columns, xyz) as a scan gives them
+    points[rng.random((16, 50)) < 0.2] = np.nan
+    view = points[..., :2]
+    np.testing.assert_array_equal(grid.occupied(view), grid.occupied(np.ascontiguousarray(view)))
+    row, col, inside = grid.cell_of(view.reshape(-1, 2))
+    want = np.zeros(grid.shape, dtype=bool)
+    want[row[inside], col[inside]] = True
+    np.testing.assert_array_equal(grid.occupied(view), want)
+    with pytest.raises(ValueError, match=r"\(\.\.\., 2\)"):
+        grid.occupied(points)

@@ -84,3 +84,17 @@ def test_vehicle_points_are_paper_n_eq_9_for_any_rotation_and_nan_stays_nan():
     # a second scan of the same geometry (the cached rotated directions) gives the same points
     again = _scan(ranges, rotation=rotation, translation_m=[0.3, -1.2, 2.0])
     np.testing.assert_array_equal(again.points_vehicle, scan.points_vehicle)
+
+
+def test_points_vehicle_equal_range_times_rotated_direction_plus_translation_bit_for_bit():
+    rng = np.random.default_rng(4)
+    el = np.radians(np.linspace(-25.0, 2.0, 7))
+    az = np.radians(np.linspace(-180.0, 179.0, 40))
+    ranges = rng.uniform(0.5, 80.0, (7, 40))
+    ranges[rng.random((7, 40)) < 0.2] = np.nan
+    c, s = math.cos(0.3), math.sin(0.3)
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    scan = StructuredScan("s", ranges, az, el, rotation=rot, translation_m=[0.4, -1.1, 2.2])
+    planes = scan.directions_vehicle
+    want = np.stack([ranges * planes[a] + scan.translation_m[a] for a in range(3)], axis=-1)
+    assert np.array_equal(scan.points_vehicle, want, equal_nan=True)
