@@ -208,28 +208,32 @@ def _sector_position(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndar
     return (np.arctan2(y, x) + np.pi) / sector_rad
 
 
-def _sector_of(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndarray:
-    """Sector (before wrapping) of vehicle-frame points: :func:`_sector_position` truncated (>= 0, so
-    truncation is the floor)."""
-    return _sector_position(x, y, sector_rad).astype(np.int64)
-
-
 def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, reach_m: float) -> np.ndarray:
     """Sector (before wrapping) of every point of (n, 3) ``p`` that the map bins (finite, nearer than
     ``reach_m``): from ``known`` (per point, -1 = unknown) where given, else from its angle."""
     if known is None:
-        sector, need = np.full(len(p), -1, dtype=np.int64), None
+        sector, need = np.full(len(p), -1, dtype=np.int64), np.arange(len(p))
     else:
         sector, need = known, np.flatnonzero(known < 0)
         if need.size == 0:
             return sector
         sector = sector.copy()
-    x, y, z = (p[:, k] if need is None else p[need, k] for k in range(3))
-    with np.errstate(invalid="ignore"):
-        binned = np.flatnonzero((x * x + y * y < reach_m * reach_m) & np.isfinite(z))  # NaN: False
-    rows = binned if need is None else need[binned]
-    sector[rows] = _sector_of(x[binned], y[binned], sector_rad)
+    _angle_sectors(p, need, sector, sector_rad, reach_m * reach_m)
     return sector
+
+
+@kernel
+def _angle_sectors(
+    p: np.ndarray, rows: np.ndarray, sector: np.ndarray, sector_rad: float, reach2: float
+) -> None:
+    """:func:`_sector_position` truncated (>= 0, so truncation is the floor) for the ``rows`` of
+    ``p`` nearer than the reach with a finite z (NaN compares False); the others keep their sector.
+    Same arithmetic as the numpy helper (libm's ``atan2`` in both)."""
+    for k in range(rows.size):
+        i = rows[k]
+        x, y = p[i, 0], p[i, 1]
+        if x * x + y * y < reach2 and np.isfinite(p[i, 2]):
+            sector[i] = np.int64((np.arctan2(y, x) + np.pi) / sector_rad)
 
 
 @kernel
