@@ -14,20 +14,23 @@ Reset cost: the mean over an episode stream with a new seed each, with a new ter
 episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
 then kept worlds restored instead of built). A reset includes the first observation.
 
-Per-stage milliseconds per control step (one process, the default rig) are measured by wrapping
-the stages' functions with timers: physics (``World.step``, of which the event checks), scan
-synthesis, paper N's detector, paper T's detector, the rest of the step (observation stacking,
-info, Python glue) and the reset. The default rig also runs vectorized with SB3 ``SubprocVecEnv``
-(``--envs`` processes; steps/s counts the steps of all of them; each worker casts with one thread).
-Its ``ratio`` is against the one process above, whose Embree cast runs on 2 threads (the default
-outside workers), and ``ratio_to_one_thread`` against one process casting with one thread, as
-each worker does: the scaling over processes alone. A constant half-throttle action
-drives; finished episodes are reset (their cost included). Where the 2-process run loses
-against twice one process, per lockstep step (SB3 waits for every worker at each step): the
-workers' own step time (CPU, against the one-thread process alone: what the shared machine
-costs), the wait for the slower worker, the auto-resets (a worker resets while the other waits)
-and the rest (pipes, the main process). The last line is ``train_steps_per_s=<v>``: the default
-observation in one process.
+A constant half-throttle action drives; finished episodes are reset, their cost included (the
+car leaves the winding track after ~100 steps, so resets weigh as they do early in training). The
+default rig runs over the same episodes, those of a ``PrefetchVecEnv`` seeded 0 (slot ``i``'s
+episode ``k`` seeded ``episode_seed(0, i, k)``, ``--steps / --envs`` steps per slot): in one
+process, one env after the other, with per-stage timers (physics = ``World.step``, of which the
+event checks; scan synthesis; paper N's detector; paper T's detector; the rest of the step:
+observation stacking, info, Python glue; the reset); in one process casting with one thread, as
+each worker does; and vectorized (``--envs`` slots; steps/s counts the steps of all of them) with
+``negobs_gym.envs.vector.PrefetchVecEnv`` (a spare process per slot resets the next episode) and,
+for comparison, SB3's ``SubprocVecEnv`` (seeded 0; its workers reset inside the lockstep, from
+their env's generator, so their later episodes differ). ``ratio`` is a vector rate against the
+first one-process run (whose Embree cast runs on 2 threads, the default outside workers),
+``ratio_to_one_thread`` against the second: the scaling over processes alone. ``lockstep_ms``
+says where a vector run loses against that, per lockstep step (both wait for every slot at each
+step): the slots' own step time (CPU, against the one-thread process: what the shared machine
+costs), the wait for the slower slot, the resets and the rest (pipes, the main process, waits for
+a spare). The last line is ``train_steps_per_s=<v>``: the default observation in one process.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import negobs_gym
 from negobs_gym.detector import NegativeObstacleDetector, TraversableRegionDetector
 from negobs_gym.envs import base as env_base
 from negobs_gym.envs import perception
+from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
 from negobs_gym.sim.events import EventMonitor
 from negobs_gym.sim.world import World
 
@@ -98,17 +102,40 @@ def _clocked(thunk: Callable[[], gym.Env]) -> Callable[[], gym.Env]:
     return lambda: StepClock(thunk())
 
 
-def _drive(env: gym.Env, steps: int, seed: int = 0) -> tuple[float, int]:
-    """Steps/s over ``steps`` control steps (resets included) and the number of resets."""
-    env.reset(seed=seed)
+def _episodes(thunk: Callable[[], gym.Env], n_envs: int) -> list[gym.Env]:
+    """``n_envs`` envs as the vector run's slots start: env ``i`` reset with ``episode_seed(0, i,
+    0)`` and stepped once (the vector run's first step is outside its timing too)."""
+    envs = []
+    for i in range(n_envs):
+        env = thunk()
+        env.reset(seed=episode_seed(0, i, 0))
+        env.step(ACTION)
+        if isinstance(env, StepClock):
+            env.steps, env.cpu_s = 0, 0.0
+        envs.append(env)
+    return envs
+
+
+def _drive(envs: list[gym.Env], steps_each: int) -> tuple[float, int]:
+    """Steps/s of driving each env ``steps_each`` steps, one env after the other, and the number of
+    resets (their cost included): env ``i``'s episode ``k`` is seeded ``episode_seed(0, i, k)``,
+    so one process drives exactly the episodes of ``PrefetchVecEnv`` seeded 0."""
     resets = 0
     t0 = time.perf_counter()
-    for k in range(steps):
-        _, _, term, trunc, _ = env.step(ACTION)
-        if term or trunc:
-            env.reset(seed=seed + k + 1)
-            resets += 1
-    return steps / (time.perf_counter() - t0), resets
+    for i, env in enumerate(envs):
+        episode = 0
+        for _ in range(steps_each):
+            _, _, term, trunc, _ = env.step(ACTION)
+            if term or trunc:
+                episode += 1
+                env.reset(seed=episode_seed(0, i, episode))
+                resets += 1
+    return len(envs) * steps_each / (time.perf_counter() - t0), resets
+
+
+def _close(envs: list[gym.Env]) -> None:
+    for env in envs:
+        env.close()
 
 
 class StageTimer:
@@ -150,10 +177,10 @@ class StageTimer:
 Stages = dict[str, float]
 
 
-def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[Stages, Stages, float, int]:
-    """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s, resets."""
-    env = _make(env_id, "detector", rig)()
-    env.reset(seed=0)  # first make/reset (imports, first masks) outside the timing
+def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tuple[Stages, Stages, float, int]:
+    """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s and resets
+    over the vector run's episodes (``n_envs`` seeds, ``steps_each`` steps each)."""
+    envs = _episodes(_make(env_id, "detector", rig), n_envs)  # first make/reset outside the timing
     with StageTimer() as timer:
         timer.wrap(World, "step", "physics")
         timer.wrap(EventMonitor, "_check", "events")
@@ -162,18 +189,17 @@ def stage_breakdown(env_id: str, rig: str, steps: int) -> tuple[Stages, Stages, 
         timer.wrap(TraversableRegionDetector, "update", "paper_t")
         timer.wrap(env_base.NegObsEnv, "step", "step")
         timer.wrap(env_base.NegObsEnv, "reset", "reset")
-        sps, resets = _drive(env, steps, seed=1)
-    env.close()
-    resets_timed = max(0, timer.calls["reset"] - 1)  # _drive's first reset is not a step's
-    wall = _per_step(timer.total_s, steps, resets_timed)
-    return wall, _per_step(timer.cpu_s, steps, resets_timed), sps, resets
+        sps, resets = _drive(envs, steps_each)
+    _close(envs)
+    steps = steps_each * n_envs
+    return _per_step(timer.total_s, steps, resets), _per_step(timer.cpu_s, steps, resets), sps, resets
 
 
 def _per_step(t: dict[str, float], steps: int, resets: int) -> dict[str, float]:
     ms = {k: 1e3 * t[k] / steps for k in ("physics", "events", "scan", "paper_n", "paper_t")}
     inner = t["physics"] + t["scan"] + t["paper_n"] + t["paper_t"]
     ms["other"] = 1e3 * (t["step"] - inner) / steps
-    ms["reset_per_reset"] = 1e3 * t["reset"] / max(1, resets + 1) if resets else float("nan")
+    ms["reset_per_reset"] = 1e3 * t["reset"] / resets if resets else float("nan")
     return ms
 
 
@@ -205,13 +231,21 @@ def _fmt(ms: dict[str, float]) -> str:
     return " ".join(f"{k}={v:.2f}" for k, v in ms.items())
 
 
-def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> tuple[float, dict[str, float]]:
-    """Steps/s of ``n_envs`` SubprocVecEnv workers (all their steps), and milliseconds per lockstep
-    step: ``total``, ``slowest_step`` (the slower worker's step), ``mean_step`` and ``mean_step_cpu``
-    (one worker's), ``resets`` (auto-resets, summed over workers), ``rest``."""
+def _run_vec(
+    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str
+) -> tuple[float, dict[str, float]]:
+    """Steps/s of an ``n_envs``-slot vector env (all its steps), ``kind`` ``"prefetch"``
+    (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`, seeded 0: the episodes of :func:`_drive`) or
+    ``"subproc"`` (SB3 ``SubprocVecEnv``, seeded 0: worker ``i`` starts on seed ``i``, then resets
+    from its env's generator), and milliseconds per lockstep step: ``total``, ``slowest_step`` (the
+    slower slot's step), ``mean_step`` and ``mean_step_cpu`` (one slot's), ``resets`` (the resets'
+    wall time, summed over slots: in the lockstep for ``subproc``, beside it in the spare
+    processes for ``prefetch``), ``rest`` (``total`` less the slower step, less the resets for
+    ``subproc``: waits for a spare, pipes, the main process)."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = SubprocVecEnv([_clocked(_make(env_id, source, rig)) for _ in range(n_envs)])
+    thunks = [_clocked(_make(env_id, source, rig)) for _ in range(n_envs)]
+    venv = PrefetchVecEnv(thunks) if kind == "prefetch" else SubprocVecEnv(thunks)
     venv.seed(0)
     venv.reset()
     actions = np.tile(ACTION[None], (n_envs, 1))
@@ -219,12 +253,12 @@ def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> tup
     wall, cpu, resets = [], [], 0.0
     t0 = time.perf_counter()
     for _ in range(steps):
-        _, _, _, infos = venv.step(actions)  # SB3 auto-resets finished envs
+        _, _, _, infos = venv.step(actions)  # finished episodes are replaced by the vector env
         wall.append([i["step_wall_s"] for i in infos])
         cpu.append([i["step_cpu_s"] for i in infos])
         resets += sum(i["reset_wall_s"] for i in infos)
     dt = time.perf_counter() - t0
-    # the last step's auto-resets are reported by no later step; they are in "rest"
+    # resets no later step reports (the last ones) are in "rest"
     venv.close()
     w = np.asarray(wall)
     ms = {
@@ -234,7 +268,7 @@ def _run_vec(env_id: str, source: str, rig: str, steps: int, n_envs: int) -> tup
         "mean_step_cpu": 1e3 * float(np.mean(cpu)),
         "resets": 1e3 * resets / steps,
     }
-    ms["rest"] = ms["total"] - ms["slowest_step"] - ms["resets"]
+    ms["rest"] = ms["total"] - ms["slowest_step"] - (ms["resets"] if kind == "subproc" else 0.0)
     return steps * n_envs / dt, ms
 
 
@@ -256,28 +290,33 @@ def main() -> None:
     if not args.skip_others:
         for source, rig in (("detector", "native"), ("detector", "reduced"), ("oracle", default_rig)):
             label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
-            sps, _ = _drive(_make(args.env_id, source, rig)(), max(20, args.steps // 4))
+            envs = _episodes(_make(args.env_id, source, rig), 1)
+            sps, _ = _drive(envs, max(20, args.steps // 4))
+            _close(envs)
             print(f"{label} processes=1 steps_per_s={sps:.1f}")
     for pool, episodes in ((None, 10), (8, 100)):
         wall_s, cpu_s = reset_stream_s(args.env_id, episodes, pool)
         print(f"reset_s_mean terrain_pool={pool} over {episodes} episodes: {wall_s:.3f} (cpu {cpu_s:.3f})")
-    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, args.steps)
-    print(f"stage_ms rig={default_rig} steps={args.steps} resets={resets}: {_fmt(ms)}")
+    each = max(1, args.steps // args.envs)  # every run below drives the same episodes
+    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, each, args.envs)
+    print(f"stage_ms rig={default_rig} steps={each * args.envs} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
-    alone = _clocked(_make(args.env_id, "detector", default_rig, threads=1))()
-    one_thread, _ = _drive(alone, args.steps)
-    alone_cpu_ms = 1e3 * alone.cpu_s / max(1, alone.steps)
+    alone = _episodes(_clocked(_make(args.env_id, "detector", default_rig, threads=1)), args.envs)
+    one_thread, _ = _drive(alone, each)
+    alone_cpu_ms = 1e3 * sum(e.cpu_s for e in alone) / max(1, sum(e.steps for e in alone))
+    _close(alone)
     print(
         f"obs=detector rig={default_rig} processes=1 raycast_threads=1 steps_per_s={one_thread:.1f} "
         f"step_cpu_ms={alone_cpu_ms:.1f}"
     )
-    vec, lockstep = _run_vec(args.env_id, "detector", default_rig, max(1, args.steps // args.envs), args.envs)
-    print(
-        f"obs=detector rig={default_rig} processes={args.envs} steps_per_s={vec:.1f} ratio={vec / sps:.2f} "
-        f"ratio_to_one_thread={vec / one_thread:.2f}"
-    )
-    alone_note = f"one process alone: step_cpu {alone_cpu_ms:.1f}"
-    print(f"lockstep_ms processes={args.envs} ({alone_note}): {_fmt(lockstep)}")
+    for kind in ("prefetch", "subproc"):
+        vec, lockstep = _run_vec(args.env_id, "detector", default_rig, each, args.envs, kind)
+        print(
+            f"obs=detector rig={default_rig} processes={args.envs} vec={kind} steps_per_s={vec:.1f} "
+            f"ratio={vec / sps:.2f} ratio_to_one_thread={vec / one_thread:.2f}"
+        )
+        alone_note = f"one process alone: step_cpu {alone_cpu_ms:.1f}"
+        print(f"lockstep_ms vec={kind} ({alone_note}): {_fmt(lockstep)}")
     print(f"train_steps_per_s={sps:.1f}")
 
 

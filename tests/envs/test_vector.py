@@ -60,3 +60,69 @@ def test_sb3_subproc_vec_env_runs() -> None:
     obs, reward, _, _ = venv.step(np.zeros((2, 2), np.float32))
     assert reward.shape == (2,)
     venv.close()
+
+
+def _make_short_braking() -> gym.Env:
+    """Braking-v0 (default observation: detector grid, ROI rig) cut to 3-step episodes."""
+    return gym.make("negobs_gym:negobs_gym/Braking-v0", max_episode_steps=3)
+
+
+def _actions(k: int) -> np.ndarray:
+    return np.array([[0.5, 0.2 * (-1) ** k], [0.3, -0.1]], np.float32)
+
+
+def _same(a, b) -> bool:
+    return all(np.array_equal(a[key], b[key]) for key in a)
+
+
+def test_prefetch_vec_env_episodes_equal_single_envs_reset_with_their_seeds() -> None:
+    from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
+
+    venv = PrefetchVecEnv([_make_short_braking, _make_short_braking])
+    venv.seed(11)
+    first = venv.reset()
+    steps = []
+    for k in range(7):  # episodes 0 and 1 end on steps 2 and 5; episode 2 has begun
+        steps.append(venv.step(_actions(k)))
+    assert venv.episode_seeds() == [episode_seed(11, i, 2) for i in range(2)]
+    venv.close()
+    for slot in range(2):
+        env = _make_short_braking()
+        for episode in range(3):
+            obs, _ = env.reset(seed=episode_seed(11, slot, episode))
+            start = 3 * episode
+            if episode == 0:
+                assert _same(obs, {key: v[slot] for key, v in first.items()})
+            else:  # the step that ended the previous episode returned this episode's first observation
+                assert _same(obs, {key: v[slot] for key, v in steps[start - 1][0].items()})
+            for k in range(start, min(start + 3, len(steps))):
+                obs, reward, terminated, truncated, _ = env.step(_actions(k)[slot])
+                vec_obs, vec_reward, vec_done, vec_info = steps[k]
+                assert vec_reward[slot] == reward and vec_done[slot] == (terminated or truncated)
+                if vec_done[slot]:
+                    assert _same(obs, vec_info[slot]["terminal_observation"])
+                    assert vec_info[slot]["TimeLimit.truncated"] == (truncated and not terminated)
+                else:
+                    assert _same(obs, {key: v[slot] for key, v in vec_obs.items()})
+        env.close()
+
+
+def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> None:
+    import pytest
+
+    from negobs_gym.envs.vector import PrefetchVecEnv
+
+    venv = PrefetchVecEnv([_make_short_braking])
+    venv.seed(0)
+    venv.reset()
+    venv.set_attr("probe_value", 7)
+    assert venv.get_attr("probe_value") == [7]
+    venv.step(_actions(0)[:1])
+    venv.step(_actions(1)[:1])
+    venv.step(_actions(2)[:1])  # the episode ends: the spare, which also got the attribute, steps on
+    assert venv.get_attr("probe_value") == [7]
+    with pytest.raises(RuntimeError, match="worker failed"):
+        venv.env_method("no_such_method")
+    venv.close()
+    with pytest.raises(ValueError, match="at least one"):
+        PrefetchVecEnv([])
