@@ -10,7 +10,7 @@ import argparse
 import logging
 
 from negobs_gym.cli.common import non_negative_int, positive_int
-from negobs_gym.policies.config import ALGORITHMS, SOURCES, TrainConfig, WarmStartConfig
+from negobs_gym.policies.config import ALGORITHMS, SOURCES, VEC_ENVS, TrainConfig, WarmStartConfig
 
 log = logging.getLogger("negobs_gym.cli.train")
 
@@ -47,6 +47,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--filter", action="store_true", help="train and evaluate behind the Eq. 18 filter")
     parser.add_argument("--steps", type=positive_int, default=defaults.steps, help="total env steps")
     parser.add_argument("--envs", type=positive_int, default=defaults.envs, help="parallel envs (processes)")
+    parser.add_argument(
+        "--vec-env",
+        choices=VEC_ENVS,
+        default=defaults.vec_env,
+        help="vector env with --envs > 1: SB3's subproc, or prefetch (spare processes reset the next "
+        "episodes beforehand; docs/performance.md) (default: %(default)s)",
+    )
     parser.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default: 0)")
     parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
@@ -116,6 +123,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         filter=args.filter,
         steps=args.steps,
         envs=args.envs,
+        vec_env=args.vec_env,
         seed=args.seed,
         eval_every=args.eval_every,
         eval_episodes=args.eval_episodes,

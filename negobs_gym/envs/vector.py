@@ -43,8 +43,6 @@ class _Failure:
 
 
 def _worker(remote: Any, parent_remote: Any, env_fn: CloudpickleWrapper) -> None:
-    from stable_baselines3.common.env_util import is_wrapped
-
     parent_remote.close()
     env = env_fn.var()
     while True:
@@ -64,6 +62,8 @@ def _worker(remote: Any, parent_remote: Any, env_fn: CloudpickleWrapper) -> None
             elif cmd == "set_attr":
                 out = setattr(env, data[0], data[1])
             elif cmd == "is_wrapped":
+                from stable_baselines3.common.env_util import is_wrapped  # imports torch: only here
+
                 out = is_wrapped(env, data)
             elif cmd == "spaces":
                 out = (env.observation_space, env.action_space)

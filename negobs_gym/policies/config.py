@@ -17,6 +17,8 @@ __all__ = ["ALGORITHMS", "SOURCES", "GridCnnConfig", "TrainConfig", "WarmStartCo
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
 #: ``state`` drops the grid; the env then runs the oracle grid, the cheapest, whose output is unused.
 SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
+#: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
+VEC_ENVS: tuple[str, ...] = ("subproc", "prefetch")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -104,7 +106,13 @@ class TrainConfig:
             truth grid) or ``"state"`` (no grid).
         filter: Train behind the braking safety filter (and evaluate with it).
         steps: Total env steps (over all envs).
-        envs: Parallel envs (``SubprocVecEnv`` when > 1).
+        envs: Parallel envs (processes when > 1, see ``vec_env``).
+        vec_env: With ``envs`` > 1: ``"subproc"`` (SB3's ``SubprocVecEnv``: a finished episode
+            resets inside the lockstep while the other envs wait) or ``"prefetch"``
+            (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process per env resets the
+            next episode beforehand; 11 % more steps/s with 2 envs on 2 cores and ~100-step
+            episodes, docs/performance.md; twice the processes and memory). The two draw
+            different episode streams from the same seed.
         seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
         eval_every: Env steps between evaluations (0: only at the end).
         eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
@@ -138,6 +146,7 @@ class TrainConfig:
     filter: bool = False
     steps: int = 100_000
     envs: int = 1
+    vec_env: str = "subproc"
     seed: int = 0
     eval_every: int = 10_000
     eval_episodes: int = 5
@@ -157,6 +166,9 @@ class TrainConfig:
     def __post_init__(self) -> None:
         require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
         require(self.source in SOURCES, "source", f"unknown source {self.source!r}; one of {SOURCES}")
+        require(
+            self.vec_env in VEC_ENVS, "vec_env", f"unknown vector env {self.vec_env!r}; one of {VEC_ENVS}"
+        )
         for name in (
             "steps",
             "envs",

@@ -123,7 +123,14 @@ def _vec_env(config: TrainConfig):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     thunk = functools.partial(make_env, config.env, config.source, config.filter)
-    vec_cls = SubprocVecEnv if config.envs > 1 else DummyVecEnv
+    if config.envs == 1:
+        vec_cls: Any = DummyVecEnv
+    elif config.vec_env == "prefetch":
+        from negobs_gym.envs.vector import PrefetchVecEnv
+
+        vec_cls = PrefetchVecEnv
+    else:
+        vec_cls = SubprocVecEnv
     venv = VecMonitor(vec_cls([thunk] * config.envs))
     venv.seed(config.seed)
     return venv

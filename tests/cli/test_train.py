@@ -56,6 +56,7 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
         (["--algo", "dqn"], "invalid choice: 'DQN'"),
         (["--source", "lidar"], "invalid choice: 'lidar'"),
         (["--envs", "0"], "--envs: must be >= 1"),
+        (["--vec-env", "async"], "invalid choice: 'async'"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:

@@ -128,6 +128,7 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> No
         ({"source": "lidar"}, "source"),
         ({"steps": 0}, "steps"),
         ({"envs": 0}, "envs"),
+        ({"vec_env": "async"}, "vec_env"),
         ({"learning_rate": 0.0}, "learning_rate"),
         ({"eval_every": -1}, "eval_every"),
     ],
@@ -150,8 +151,9 @@ def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_two_envs_run_in_subprocesses(tmp_path: Path) -> None:
-    result = train(dataclasses.replace(SHORT_PPO, envs=2, n_steps=32), tmp_path)
+@pytest.mark.parametrize("vec_env", ["subproc", "prefetch"])
+def test_two_envs_run_in_subprocesses(tmp_path: Path, vec_env: str) -> None:
+    result = train(dataclasses.replace(SHORT_PPO, envs=2, n_steps=32, vec_env=vec_env), tmp_path)
     assert result.steps == 128 and result.model_path.is_file()
 
 
