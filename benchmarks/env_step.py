@@ -72,19 +72,22 @@ def _make(env_id: str, source: str, rig: str, threads: int | None = None):
 
 class StepClock(gym.Wrapper):
     """Puts each step's wall and process-CPU seconds, and the wall seconds of the resets since the
-    step before (0 when none), into ``info`` (``step_wall_s``, ``step_cpu_s``, ``reset_wall_s``);
+    step before (0 when none), into ``info`` (``step_wall_s``, ``step_cpu_s``, ``reset_wall_s``,
+    ``reset_cpu_s``);
     ``steps`` and ``cpu_s`` sum them."""
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
         self._reset_s = 0.0
+        self._reset_cpu_s = 0.0
         self.steps = 0
         self.cpu_s = 0.0
 
     def reset(self, **kwargs):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = self.env.reset(**kwargs)
         self._reset_s += time.perf_counter() - t0
+        self._reset_cpu_s += time.process_time() - c0
         return out
 
     def step(self, action):
@@ -95,6 +98,7 @@ class StepClock(gym.Wrapper):
         self.cpu_s += cpu
         info = dict(info, step_wall_s=time.perf_counter() - t0, step_cpu_s=cpu)
         info["reset_wall_s"], self._reset_s = self._reset_s, 0.0
+        info["reset_cpu_s"], self._reset_cpu_s = self._reset_cpu_s, 0.0
         return obs, reward, term, trunc, info
 
 
@@ -238,9 +242,9 @@ def _run_vec(
     (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`, seeded 0: the episodes of :func:`_drive`) or
     ``"subproc"`` (SB3 ``SubprocVecEnv``, seeded 0: worker ``i`` starts on seed ``i``, then resets
     from its env's generator), and milliseconds per lockstep step: ``total``, ``slowest_step`` (the
-    slower slot's step), ``mean_step`` and ``mean_step_cpu`` (one slot's), ``resets`` (the resets'
-    wall time, summed over slots: in the lockstep for ``subproc``, beside it in the spare
-    processes for ``prefetch``), ``rest`` (``total`` less the slower step, less the resets for
+    slower slot's step), ``mean_step`` and ``mean_step_cpu`` (one slot's), ``resets`` (summed over
+    slots: for ``subproc`` their wall time, in the lockstep; for ``prefetch`` the CPU time they
+    took beside it, in the spares), ``rest`` (``total`` less the slower step, less the resets for
     ``subproc``: waits for a spare, pipes, the main process)."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
@@ -250,13 +254,16 @@ def _run_vec(
     venv.reset()
     actions = np.tile(ACTION[None], (n_envs, 1))
     venv.step(actions)  # first step outside the timing (workers warm)
+    if isinstance(venv, PrefetchVecEnv):
+        venv.wait_for_spares()  # their first episodes: start-up, not the steady state timed here
     wall, cpu, resets = [], [], 0.0
     t0 = time.perf_counter()
     for _ in range(steps):
         _, _, _, infos = venv.step(actions)  # finished episodes are replaced by the vector env
         wall.append([i["step_wall_s"] for i in infos])
         cpu.append([i["step_cpu_s"] for i in infos])
-        resets += sum(i["reset_wall_s"] for i in infos)
+        # in the lockstep a reset's wall time counts; beside it (spares), the CPU it took
+        resets += sum(i["reset_wall_s" if kind == "subproc" else "reset_cpu_s"] for i in infos)
     dt = time.perf_counter() - t0
     # resets no later step reports (the last ones) are in "rest"
     venv.close()

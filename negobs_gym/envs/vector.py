@@ -117,6 +117,10 @@ class _Process:
             raise RuntimeError("no reset was started on this process")
         return reply
 
+    def wait_for_reset(self) -> None:
+        """Block until a started reset has finished (its reply is kept for :meth:`finish_reset`)."""
+        self._collect_reset()
+
     def _collect_reset(self) -> None:
         if self._reset_pending:
             self._reset_pending = False
@@ -226,6 +230,12 @@ class PrefetchVecEnv(VecEnv):
             dones.append(done)
             infos.append(info)
         return _stack(obs, self.observation_space), np.asarray(rewards), np.asarray(dones), infos
+
+    def wait_for_spares(self) -> None:
+        """Block until every spare process has reset its episode (e.g. before timing a run: right
+        after :meth:`reset` the spares are still building their first episodes)."""
+        for proc in self._spare:
+            proc.wait_for_reset()
 
     def episode_seeds(self) -> list[int]:
         """Seed of each slot's current episode."""

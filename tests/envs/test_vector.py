@@ -115,6 +115,7 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
     venv = PrefetchVecEnv([_make_short_braking])
     venv.seed(0)
     venv.reset()
+    venv.wait_for_spares()
     venv.set_attr("probe_value", 7)
     assert venv.get_attr("probe_value") == [7]
     venv.step(_actions(0)[:1])
