@@ -133,6 +133,8 @@ class _Process:
         return reply
 
     def close(self) -> None:
+        if self._reset_pending and self.remote.poll(60):  # a reply larger than the pipe's buffer
+            self.remote.recv()  # would block the worker before it reads "close"
         try:
             self.remote.send(("close", None))
         except (BrokenPipeError, EOFError, OSError):

@@ -127,3 +127,13 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
     venv.close()
     with pytest.raises(ValueError, match="at least one"):
         PrefetchVecEnv([])
+
+
+def test_prefetch_vec_env_closes_while_spares_still_reset() -> None:
+    from negobs_gym.envs.vector import PrefetchVecEnv
+
+    venv = PrefetchVecEnv([_make_short_braking])
+    venv.seed(1)
+    venv.reset()  # the spare is still building its first episode
+    venv.close()
+    assert all(not p.process.is_alive() for p in venv._active + venv._spare)
