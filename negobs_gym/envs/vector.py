@@ -18,14 +18,15 @@ resets without a seed, from the env's generator, so the two give different episo
 from __future__ import annotations
 
 import multiprocessing as mp
-import traceback
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper, VecEnv, VecEnvIndices
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+
+from negobs_gym.envs.worker import EnvFactory, WorkerFailure, serve
 
 __all__ = ["PrefetchVecEnv", "episode_seed"]
 
@@ -35,56 +36,13 @@ def episode_seed(base_seed: int, slot: int, episode: int) -> int:
     return int(np.random.SeedSequence([base_seed, slot, episode]).generate_state(1, np.uint32)[0])
 
 
-class _Failure:
-    """An exception raised in a worker, carried to the main process with its traceback."""
-
-    def __init__(self, exc: BaseException) -> None:
-        self.text = "".join(traceback.format_exception(exc))
-
-
-def _worker(remote: Any, parent_remote: Any, env_fn: CloudpickleWrapper) -> None:
-    parent_remote.close()
-    env = env_fn.var()
-    while True:
-        try:
-            cmd, data = remote.recv()
-        except (EOFError, KeyboardInterrupt):
-            break
-        try:
-            if cmd == "step":
-                out: Any = env.step(data)
-            elif cmd == "reset":
-                out = env.reset(seed=data[0], options=data[1])
-            elif cmd == "method":
-                out = env.get_wrapper_attr(data[0])(*data[1], **data[2])
-            elif cmd == "get_attr":
-                out = env.get_wrapper_attr(data)
-            elif cmd == "set_attr":
-                out = setattr(env, data[0], data[1])
-            elif cmd == "is_wrapped":
-                from stable_baselines3.common.env_util import is_wrapped  # imports torch: only here
-
-                out = is_wrapped(env, data)
-            elif cmd == "spaces":
-                out = (env.observation_space, env.action_space)
-            elif cmd == "close":
-                env.close()
-                remote.close()
-                break
-            else:
-                raise ValueError(f"unknown command {cmd!r}")
-        except Exception as exc:  # carried to the main process, which raises it there
-            out = _Failure(exc)
-        remote.send(out)
-
-
 class _Process:
     """One worker process and its pipe; at most one reset may be outstanding."""
 
     def __init__(self, ctx: Any, env_fn: Callable[[], gym.Env]) -> None:
         self.remote, work_remote = ctx.Pipe()
         self.process = ctx.Process(
-            target=_worker, args=(work_remote, self.remote, CloudpickleWrapper(env_fn)), daemon=True
+            target=serve, args=(work_remote, self.remote, EnvFactory(env_fn)), daemon=True
         )
         self.process.start()
         work_remote.close()
@@ -128,7 +86,7 @@ class _Process:
 
     def _receive(self) -> Any:
         reply = self.remote.recv()
-        if isinstance(reply, _Failure):
+        if isinstance(reply, WorkerFailure):
             raise RuntimeError(f"a PrefetchVecEnv worker failed:\n{reply.text}")
         return reply
 
@@ -180,8 +138,12 @@ class PrefetchVecEnv(VecEnv):
         self._base = 0  # base seed of the running episodes
         self._started = False
         self.closed = False
-        observation_space, action_space = self._active[0].request("spaces")
-        super().__init__(len(env_fns), observation_space, action_space)
+        try:
+            observation_space, action_space = self._active[0].request("spaces")
+            super().__init__(len(env_fns), observation_space, action_space)
+        except BaseException:
+            self.close()
+            raise
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Base seed of the next :meth:`reset`; returns the seeds of the slots' first episodes."""

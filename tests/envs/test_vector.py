@@ -137,3 +137,16 @@ def test_prefetch_vec_env_closes_while_spares_still_reset() -> None:
     venv.reset()  # the spare is still building its first episode
     venv.close()
     assert all(not p.process.is_alive() for p in venv._active + venv._spare)
+
+
+def _make_broken() -> gym.Env:
+    raise ValueError("this env cannot be built")
+
+
+def test_prefetch_vec_env_reports_an_env_that_cannot_be_built() -> None:
+    import pytest
+
+    from negobs_gym.envs.vector import PrefetchVecEnv
+
+    with pytest.raises(RuntimeError, match="this env cannot be built"):
+        PrefetchVecEnv([_make_broken])

@@ -1,0 +1,91 @@
+"""The process side of :class:`~negobs_gym.envs.vector.PrefetchVecEnv`: one env served over a pipe.
+
+Kept apart from the vector env so that a worker imports neither stable-baselines3 nor torch
+(~190 MB of resident memory per process, and seconds of start-up, measured): the env constructor
+travels with cloudpickle, and a failure travels back as text.
+"""
+
+from __future__ import annotations
+
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+import cloudpickle
+import gymnasium as gym
+
+__all__ = ["EnvFactory", "WorkerFailure", "serve"]
+
+
+class EnvFactory:
+    """An env constructor pickled with cloudpickle (lambdas and closures work too)."""
+
+    def __init__(self, make: Callable[[], gym.Env]) -> None:
+        self.make = make
+
+    def __getstate__(self) -> bytes:
+        return cloudpickle.dumps(self.make)
+
+    def __setstate__(self, state: bytes) -> None:
+        self.make = cloudpickle.loads(state)
+
+
+class WorkerFailure:
+    """An exception raised in a worker, carried to the main process with its traceback."""
+
+    def __init__(self, exc: BaseException) -> None:
+        self.text = "".join(traceback.format_exception(exc))
+
+
+def _is_wrapped(env: gym.Env, wrapper_class: type) -> bool:
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, wrapper_class):
+            return True
+        env = env.env
+    return False
+
+
+def serve(remote: Any, parent_remote: Any, factory: EnvFactory) -> None:
+    """Build the env, then answer commands until ``close``: ``step`` (no automatic reset),
+    ``reset`` (seed, options), ``method``, ``get_attr``, ``set_attr``, ``is_wrapped``, ``spaces``.
+    An exception is sent back as a :class:`WorkerFailure`; an env that cannot be built answers
+    every command with its failure."""
+    parent_remote.close()
+    broken: WorkerFailure | None = None
+    try:
+        env = factory.make()
+    except Exception as exc:
+        broken = WorkerFailure(exc)
+    while True:
+        try:
+            cmd, data = remote.recv()
+        except (EOFError, KeyboardInterrupt):
+            break
+        if cmd == "close":
+            if broken is None:
+                env.close()
+            remote.close()
+            break
+        if broken is not None:
+            remote.send(broken)
+            continue
+        try:
+            if cmd == "step":
+                out: Any = env.step(data)
+            elif cmd == "reset":
+                out = env.reset(seed=data[0], options=data[1])
+            elif cmd == "method":
+                out = env.get_wrapper_attr(data[0])(*data[1], **data[2])
+            elif cmd == "get_attr":
+                out = env.get_wrapper_attr(data)
+            elif cmd == "set_attr":
+                out = setattr(env, data[0], data[1])
+            elif cmd == "is_wrapped":
+                out = _is_wrapped(env, data)
+            elif cmd == "spaces":
+                out = (env.observation_space, env.action_space)
+            else:
+                raise ValueError(f"unknown command {cmd!r}")
+        except Exception as exc:  # carried to the main process, which raises it there
+            out = WorkerFailure(exc)
+        remote.send(out)
