@@ -26,7 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from negobs_gym.envs.worker import EnvFactory, WorkerFailure, serve
+from negobs_gym.envs.worker import EnvFactory, WorkerFailure, class_name, serve
 
 __all__ = ["PrefetchVecEnv", "episode_seed"]
 
@@ -147,6 +147,8 @@ class PrefetchVecEnv(VecEnv):
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Base seed of the next :meth:`reset`; returns the seeds of the slots' first episodes."""
+        if seed is not None and not (isinstance(seed, (int, np.integer)) and seed >= 0):
+            raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
         self._base_seed = None if seed is None else int(seed)
         if seed is None:
             return [None] * self.num_envs
@@ -230,7 +232,8 @@ class PrefetchVecEnv(VecEnv):
         return out
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
-        return [self._active[i].request("is_wrapped", wrapper_class) for i in self._get_indices(indices)]
+        name = class_name(wrapper_class)
+        return [self._active[i].request("is_wrapped", name) for i in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [self._active[i].request("method", ("render", (), {})) for i in range(self.num_envs)]

@@ -14,7 +14,7 @@ from typing import Any
 import cloudpickle
 import gymnasium as gym
 
-__all__ = ["EnvFactory", "WorkerFailure", "serve"]
+__all__ = ["EnvFactory", "WorkerFailure", "class_name", "serve"]
 
 
 class EnvFactory:
@@ -37,9 +37,16 @@ class WorkerFailure:
         self.text = "".join(traceback.format_exception(exc))
 
 
-def _is_wrapped(env: gym.Env, wrapper_class: type) -> bool:
+def class_name(cls: type) -> str:
+    """``module.qualname`` of a class: how a wrapper class is named to a worker (sending the class
+    itself would make the worker import its module, e.g. stable-baselines3's ``Monitor``)."""
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def _is_wrapped(env: gym.Env, wrapper_name: str) -> bool:
+    """Whether a wrapper of ``env`` is an instance of the class named ``wrapper_name``."""
     while isinstance(env, gym.Wrapper):
-        if isinstance(env, wrapper_class):
+        if any(class_name(c) == wrapper_name for c in type(env).__mro__):
             return True
         env = env.env
     return False
@@ -47,7 +54,8 @@ def _is_wrapped(env: gym.Env, wrapper_class: type) -> bool:
 
 def serve(remote: Any, parent_remote: Any, factory: EnvFactory) -> None:
     """Build the env, then answer commands until ``close``: ``step`` (no automatic reset),
-    ``reset`` (seed, options), ``method``, ``get_attr``, ``set_attr``, ``is_wrapped``, ``spaces``.
+    ``reset`` (seed, options), ``method``, ``get_attr``, ``set_attr``, ``is_wrapped`` (a
+    :func:`class_name`), ``spaces``.
     An exception is sent back as a :class:`WorkerFailure`; an env that cannot be built answers
     every command with its failure."""
     parent_remote.close()

@@ -124,6 +124,9 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
     assert venv.get_attr("probe_value") == [7]
     with pytest.raises(RuntimeError, match="worker failed"):
         venv.env_method("no_such_method")
+    assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [True]
+    with pytest.raises(ValueError, match="seed must be"):
+        venv.seed(-1)
     venv.close()
     with pytest.raises(ValueError, match="at least one"):
         PrefetchVecEnv([])
