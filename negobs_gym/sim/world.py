@@ -40,6 +40,11 @@ class WorldConfig:
             bodies' coefficients, so 1.0 here leaves the tyre's mu = 0.65 (paper N §4) effective.
         gravity_mps2: Gravity [m/s^2] (paper N Eq. 18 uses g = 9.81).
         solver_iterations: Constraint solver iterations per step.
+        pybullet_renderer: Keep PyBullet's built-in software renderer (TinyRenderer, behind
+            ``p.getCameraImage`` and ``p.getVisualShapeData``) in a DIRECT client. negobs renders
+            with matplotlib and casts its own rays, so it is dropped by default: it copies every
+            visual shape, the terrain's ~0.2 M triangles included, at 0.1-0.4 s per world
+            (docs/physics.md, "Building a world"). The GUI keeps its renderer either way.
     """
 
     time_step_s: float = 1.0 / 240.0
@@ -48,6 +53,7 @@ class WorldConfig:
     terrain_friction: float = 1.0
     gravity_mps2: float = 9.81  # paper N Eq. 18
     solver_iterations: int = 50
+    pybullet_renderer: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -76,6 +82,20 @@ class WorldConfig:
             "solver_iterations",
             f"must be an int >= 1, got {self.solver_iterations!r}",
         )
+        require(
+            isinstance(self.pybullet_renderer, bool),
+            "pybullet_renderer",
+            f"must be a bool, got {self.pybullet_renderer!r}",
+        )
+
+
+def _drop_software_renderer(client: int) -> None:
+    """Unloads the TinyRenderer plugin that PyBullet links into every client: asking to load it by
+    name returns the loaded one's id. Without an active renderer PyBullet skips building the render
+    copies of visual shapes; physics is unchanged (episodes bit-identical, tests/sim/test_world.py)."""
+    plugin = p.loadPlugin("tinyRendererPlugin", physicsClientId=client)
+    if plugin >= 0:
+        p.unloadPlugin(plugin, physicsClientId=client)
 
 
 def physics_heightfield(heightfield: HeightField, resolution_m: float) -> HeightField:
@@ -145,6 +165,8 @@ class World:
         if self._client < 0:
             raise SimulationError("could not connect to PyBullet (a GUI may already be open)")
         try:
+            if not (self.config.gui or self.config.pybullet_renderer):
+                _drop_software_renderer(self._client)
             self._setup_physics()
             self._build_terrain(terrain)
         except BaseException:

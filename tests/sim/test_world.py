@@ -117,6 +117,7 @@ def test_physics_heightfield_subsamples_or_interpolates():
         ("terrain_friction", -1.0),
         ("gravity_mps2", 0.0),
         ("solver_iterations", 0),
+        ("pybullet_renderer", 1),
     ],
 )
 def test_bad_world_config_names_the_field(field, value):
@@ -144,3 +145,33 @@ def test_vehicle_and_monitor_on_a_closed_world_raise():
             call()
     with pytest.raises(SimulationError):
         vehicle.apply(0.0, 0.0, 0.0)
+
+
+def test_software_renderer_is_dropped_unless_asked_for():
+    terrain = flat_terrain(10, 6)
+    with World(terrain) as world:
+        with pytest.raises(p.error, match="visual shape"):
+            p.getVisualShapeData(world.terrain_body_id, physicsClientId=world.client_id)
+    with World(terrain, WorldConfig(pybullet_renderer=True)) as world:
+        shapes = p.getVisualShapeData(world.terrain_body_id, physicsClientId=world.client_id)
+        assert len(shapes) == 1
+
+
+def test_dropping_the_renderer_leaves_the_drive_bit_identical():
+    from negobs_gym.sim.vehicle import Vehicle
+
+    terrain = flat_terrain(30, 8, roughness_m=0.1, pits=(("p", -0.4, 8.0, 2.0, 0.6, 0.3),))
+    drives = []
+    for renderer in (False, True):
+        with World(terrain, WorldConfig(pybullet_renderer=renderer)) as world:
+            vehicle = Vehicle(world)
+            vehicle.set_speed(5.0)
+            poses = []
+            for k in range(120):
+                vehicle.apply(0.6, 0.0, 0.2 * np.sin(k / 10))
+                world.step(4)
+                pose = vehicle.true_pose()
+                poses.append((pose.x, pose.y, pose.z, pose.roll, pose.pitch, pose.yaw, vehicle.speed_mps()))
+            drives.append(np.array(poses))
+    assert drives[0][-1, 1] > 10.0  # it drove over the rough ground, across the pit's row
+    np.testing.assert_array_equal(drives[0], drives[1])
