@@ -117,8 +117,11 @@ class PrefetchVecEnv(VecEnv):
     ``seed(s)`` sets the base seed of the next :meth:`reset` (without it a random base is drawn).
     ``info`` follows ``SubprocVecEnv``: ``terminal_observation`` on finished steps,
     ``TimeLimit.truncated``; ``reset_infos`` holds each slot's latest reset info. ``set_attr`` and
-    ``env_method`` reach both processes of a slot (the spare applies them to its next episode),
-    ``get_attr`` the stepping one. Memory and start-up are those of ``2 * len(env_fns)`` envs.
+    ``env_method`` reach both processes of a slot, and the spare then resets its prefetched episode
+    again, so that (as with ``SubprocVecEnv``) the slot's next episode starts after the change; that
+    costs a reset beside the steps per call and slot, so call them between updates (a curriculum
+    step), not every step. ``get_attr`` asks the stepping process. Memory and start-up are those of
+    ``2 * len(env_fns)`` envs.
 
     Raises:
         ValueError: ``env_fns`` is empty.
@@ -221,6 +224,7 @@ class PrefetchVecEnv(VecEnv):
         for i in self._get_indices(indices):
             for proc in (self._active[i], self._spare[i]):
                 proc.request("set_attr", (attr_name, value))
+            self._reprefetch(i)
 
     def env_method(
         self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
@@ -229,7 +233,14 @@ class PrefetchVecEnv(VecEnv):
         for i in self._get_indices(indices):
             self._spare[i].request("method", (method_name, method_args, method_kwargs))
             out.append(self._active[i].request("method", (method_name, method_args, method_kwargs)))
+            self._reprefetch(i)
         return out
+
+    def _reprefetch(self, slot: int) -> None:
+        """Reset slot ``slot``'s next episode again in its spare (same seed), after a change that the
+        episode's reset may read."""
+        if self._started:
+            self._spare[slot].start_reset(episode_seed(self._base, slot, self._episode[slot] + 1))
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         name = class_name(wrapper_class)

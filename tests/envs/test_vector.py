@@ -132,6 +132,39 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
         PrefetchVecEnv([])
 
 
+class _ResetProbe(gym.Wrapper):
+    """Reports in its reset info the ``probe_value`` attribute it had when it reset."""
+
+    probe_value = None
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        return obs, {**info, "probe_at_reset": self.probe_value}
+
+
+def _make_probed_braking() -> gym.Env:
+    return _ResetProbe(_make_short_braking())
+
+
+def test_prefetch_vec_env_next_episode_starts_after_set_attr_and_env_method() -> None:
+    from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
+
+    venv = PrefetchVecEnv([_make_probed_braking])
+    venv.seed(4)
+    venv.reset()
+    venv.wait_for_spares()  # the spare has reset episode 1 before the change below
+    venv.set_attr("probe_value", 7)
+    for k in range(3):
+        venv.step(_actions(k)[:1])
+    assert venv.reset_infos[0]["probe_at_reset"] == 7  # episode 1 was reset again after the change
+    venv.env_method("__setattr__", "probe_value", 8)
+    for k in range(3):
+        venv.step(_actions(k)[:1])
+    assert venv.reset_infos[0]["probe_at_reset"] == 8
+    assert venv.episode_seeds() == [episode_seed(4, 0, 2)]  # the same seeds as without the changes
+    venv.close()
+
+
 def test_prefetch_vec_env_closes_while_spares_still_reset() -> None:
     from negobs_gym.envs.vector import PrefetchVecEnv
 
