@@ -1,11 +1,16 @@
 """Physics speed on a 200 m course: terrain build time, physics steps/s and peak RSS.
 
 Run: ``python benchmarks/sim_step.py [--length 200] [--physics-resolution 0.2] [--seconds 20]``
+
+Also (``--renderer-builds N``): the world build of one course with PyBullet's software renderer
+dropped (the default, ``WorldConfig.pybullet_renderer=False``) and kept, alternately, N times each
+in this process: mean build and close seconds and the resident memory a kept world adds.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import resource
 import time
 
@@ -22,6 +27,9 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="simulated drive [s]")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--resets", type=int, default=5, help="episode resets with a new winding course")
+    parser.add_argument(
+        "--renderer-builds", type=int, default=5, help="world builds with and without the renderer, each"
+    )
     args = parser.parse_args()
 
     t0 = time.perf_counter()
@@ -70,6 +78,29 @@ def main() -> None:
         )
         print(f"rss_after_resets_mb={_current_rss_mb():.0f}")
         print(f"peak_rss_mb={resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f}")
+    if args.renderer_builds > 0:
+        _renderer_builds(terrain, config, args.renderer_builds)
+
+
+def _renderer_builds(terrain, config: WorldConfig, n: int) -> None:
+    """World build and close with PyBullet's software renderer dropped and kept, alternately."""
+    stats: dict[bool, list[tuple[float, float, float]]] = {False: [], True: []}
+    for k in range(2 * n):
+        kept = bool(k % 2)
+        rss0 = _current_rss_mb()
+        t0 = time.perf_counter()
+        world = World(terrain, dataclasses.replace(config, pybullet_renderer=kept))
+        t_build = time.perf_counter() - t0
+        rss = _current_rss_mb() - rss0
+        t0 = time.perf_counter()
+        world.close()
+        stats[kept].append((t_build, time.perf_counter() - t0, rss))
+    for kept, name in ((False, "dropped"), (True, "kept")):
+        build, close, rss = (sum(col) / n for col in zip(*stats[kept], strict=True))
+        print(
+            f"world_build_renderer_{name}_s={build:.3f} close_s={close:.3f} world_rss_mb={rss:.0f} "
+            f"({n} builds)"
+        )
 
 
 def _current_rss_mb() -> float:
