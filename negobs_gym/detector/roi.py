@@ -114,8 +114,7 @@ class GroundMap:
     def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(sector, bin, inside) of (n, 2) vehicle-frame points."""
         n_sectors = self.ground_z_m.shape[0]
-        ang = np.arctan2(xy[:, 1], xy[:, 0])
-        sector = np.floor((ang + np.pi) / math.radians(self.config.sector_deg)).astype(np.int64) % n_sectors
+        sector = _xy_sectors(np.ascontiguousarray(xy), math.radians(self.config.sector_deg)) % n_sectors
         dist = np.hypot(xy[:, 0], xy[:, 1])
         b = np.floor(dist / self.config.bin_m).astype(np.int64)
         return sector, np.minimum(b, self.n_bins - 1), b < self.n_bins
@@ -222,18 +221,34 @@ def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, r
     return sector
 
 
+# The per-point sector rule, floor((atan2(y, x) + pi) / sector), is compiled wherever a point's own
+# sector is taken (binning the map, looking a point up), so both use the C library's atan2 on every
+# machine. numpy's float64 arctan2 is that same function on CPUs without AVX-512; with AVX-512 it
+# is numpy's own SIMD routine, which can differ in the last bit and so move a point lying within
+# ~1e-15 of a sector boundary into the neighbour sector. (Ray tables, :func:`ray_sectors`, keep
+# numpy: their guard band leaves such rays to this rule.)
+
+
 @kernel
 def _angle_sectors(
     p: np.ndarray, rows: np.ndarray, sector: np.ndarray, sector_rad: float, reach2: float
 ) -> None:
-    """:func:`_sector_position` truncated (>= 0, so truncation is the floor) for the ``rows`` of
-    ``p`` nearer than the reach with a finite z (NaN compares False); the others keep their sector.
-    Same arithmetic as the numpy helper (libm's ``atan2`` in both)."""
+    """The per-point sector (>= 0, so truncation is the floor) of the ``rows`` of ``p`` nearer
+    than the reach with a finite z (NaN compares False); the others keep their sector."""
     for k in range(rows.size):
         i = rows[k]
         x, y = p[i, 0], p[i, 1]
         if x * x + y * y < reach2 and np.isfinite(p[i, 2]):
             sector[i] = np.int64((np.arctan2(y, x) + np.pi) / sector_rad)
+
+
+@kernel
+def _xy_sectors(xy: np.ndarray, sector_rad: float) -> np.ndarray:
+    """The per-point sector (before wrapping) of (n, 2) finite points."""
+    sector = np.empty(xy.shape[0], dtype=np.int64)
+    for i in range(xy.shape[0]):
+        sector[i] = np.int64((np.arctan2(xy[i, 1], xy[i, 0]) + np.pi) / sector_rad)
+    return sector
 
 
 @kernel

@@ -5,6 +5,8 @@ general max filter): the block-wise, sparse and bounded code paths must give the
 and the detector run on the references must give the same Detection.
 """
 
+import math
+
 import numpy as np
 import pytest
 from scipy.ndimage import maximum_filter1d
@@ -167,6 +169,12 @@ def ref_close_pairs(a1, b1, a2, b2, max_distance_m):
     return i[close], j[close], d[close]
 
 
+def _c_atan2(y, x):
+    """The C library's atan2, element by element: the map's per-point rule on every machine (numpy's
+    arctan2 is its own SIMD routine on AVX-512 CPUs, which can differ in the last bit)."""
+    return np.frompyfunc(math.atan2, 2, 1)(y, x).astype(np.float64)
+
+
 def ref_ground_cells(clouds, max_range_m, config):
     """Lowest and highest z per polar cell, one cloud at a time as a whole."""
     n_sectors = int(np.ceil(360.0 / config.sector_deg))
@@ -177,7 +185,7 @@ def ref_ground_cells(clouds, max_range_m, config):
         with np.errstate(invalid="ignore"):
             p = p[np.isfinite(p[:, 2]) & (p[:, 0] ** 2 + p[:, 1] ** 2 < (n_bins * config.bin_m) ** 2)]
         dist = np.sqrt(p[:, 0] * p[:, 0] + p[:, 1] * p[:, 1])
-        sector = np.floor((np.arctan2(p[:, 1], p[:, 0]) + np.pi) / np.radians(config.sector_deg))
+        sector = np.floor((_c_atan2(p[:, 1], p[:, 0]) + np.pi) / np.radians(config.sector_deg))
         cell = (sector.astype(np.int64) % n_sectors) * n_bins + np.minimum(
             (dist / config.bin_m).astype(np.int64), n_bins - 1
         )
