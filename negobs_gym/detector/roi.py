@@ -230,24 +230,30 @@ def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, r
 
 
 @kernel
+def _sector_of(x: float, y: float, sector_rad: float) -> int:
+    """The per-point sector (before wrapping; >= 0, so truncation is the floor)."""
+    return np.int64((np.arctan2(y, x) + np.pi) / sector_rad)
+
+
+@kernel
 def _angle_sectors(
     p: np.ndarray, rows: np.ndarray, sector: np.ndarray, sector_rad: float, reach2: float
 ) -> None:
-    """The per-point sector (>= 0, so truncation is the floor) of the ``rows`` of ``p`` nearer
-    than the reach with a finite z (NaN compares False); the others keep their sector."""
+    """The per-point sector of the ``rows`` of ``p`` nearer than the reach with a finite z (NaN
+    compares False); the others keep their sector."""
     for k in range(rows.size):
         i = rows[k]
         x, y = p[i, 0], p[i, 1]
         if x * x + y * y < reach2 and np.isfinite(p[i, 2]):
-            sector[i] = np.int64((np.arctan2(y, x) + np.pi) / sector_rad)
+            sector[i] = _sector_of(x, y, sector_rad)
 
 
 @kernel
 def _xy_sectors(xy: np.ndarray, sector_rad: float) -> np.ndarray:
-    """The per-point sector (before wrapping) of (n, 2) finite points."""
+    """The per-point sector of (n, 2) finite points."""
     sector = np.empty(xy.shape[0], dtype=np.int64)
     for i in range(xy.shape[0]):
-        sector[i] = np.int64((np.arctan2(xy[i, 1], xy[i, 0]) + np.pi) / sector_rad)
+        sector[i] = _sector_of(xy[i, 0], xy[i, 1], sector_rad)
     return sector
 
 

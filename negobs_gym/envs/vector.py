@@ -2,11 +2,12 @@
 the slot's next episode while the current one runs.
 
 SB3's ``SubprocVecEnv`` steps its workers in lockstep and resets a finished env inside its step,
-so while one worker builds a new terrain and world (1.3-1.7 s on OffroadNav) every other worker
-waits: with ~100-step episodes that is about a fifth of a 2-process run (docs/performance.md,
-"Where the 2-process run loses"). :class:`PrefetchVecEnv` runs two processes per slot. One steps
-the current episode; the other has already reset the next one, so a finished episode is replaced
-at once and the process that ran it starts resetting the episode after, beside the others' steps.
+so while one worker builds a new terrain and world (0.8-1.7 s on OffroadNav, by the machine's
+speed) every other worker waits: with ~100-step episodes that is about a fifth of a 2-process run
+(docs/performance.md, "Where the 2-process run loses"). :class:`PrefetchVecEnv` runs two processes
+per slot. One steps the current episode; the other has already reset the next one, so a finished
+episode is replaced at once and the process that ran it starts resetting the episode after, beside
+the others' steps.
 
 Episodes are seeded explicitly so that the spare can start early: episode ``k`` of slot ``i`` is
 reset with :func:`episode_seed` ``(base, i, k)``, ``base`` from :meth:`PrefetchVecEnv.seed`. A

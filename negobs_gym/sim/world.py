@@ -43,8 +43,8 @@ class WorldConfig:
         pybullet_renderer: Keep PyBullet's built-in software renderer (TinyRenderer, behind
             ``p.getCameraImage`` and ``p.getVisualShapeData``) in a DIRECT client. negobs renders
             with matplotlib and casts its own rays, so it is dropped by default: it copies every
-            visual shape, the terrain's ~0.2 M triangles included, at 0.1-0.4 s per world
-            (docs/physics.md, "Building a world"). The GUI keeps its renderer either way.
+            visual shape, the terrain's ~0.2 M triangles included, at ~0.1 s and ~115 MB per world
+            (docs/physics.md, "Design choices"). The GUI keeps its renderer either way.
     """
 
     time_step_s: float = 1.0 / 240.0
