@@ -105,6 +105,7 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
     subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
     roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets)
     native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9))
+    p_remove(world, vehicle)  # the module's world is shared: leave it as it was
     for name, full in native.items():
         cast = np.zeros(full.ranges_m.size, bool)
         cast[subsets[name].index] = True
@@ -118,14 +119,19 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
 
 
 def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
-    """Approach a 0.6 m ditch from 20 m to 6 m: the detector's grid is the same on both scans."""
+    """Approach a 0.6 m ditch from 20 m to 6 m: the detector's grid is the same on both scans.
+
+    The in-grid pairs are the same but for the bumps (paper N §3.1: a rise then a fall along one
+    laser) that run past the cast window: a laser whose ring follows the ditch sees it as one bump
+    hundreds of columns long, which the ROI scan cuts, so it finds none of its pairs.
+    """
     world = ditch_world
     outline = np.asarray(world.terrain.negative_obstacles[0].outline_xy_m)
     near_y = float(outline[:, 1].min())
     config = NegativeDetectorConfig(grid=GRID)
     det_roi, det_native = NegativeObstacleDetector(config), NegativeObstacleDetector(config)
     sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
-    seen = pairs_seen = 0
+    seen = pairs_seen = native_pairs = missing = 0
     vehicle = None
     for k, distance in enumerate(np.arange(20.0, 5.9, -0.7)):  # 7 m/s at 10 Hz
         if vehicle is not None:
@@ -142,13 +148,17 @@ def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
         b = det_native.update(native, pose)
         np.testing.assert_array_equal(a.grid, b.grid, err_msg=f"frame at {distance} m")
         for name in a.frame_pairs:  # pairs outside the grid (B up to 20 m to the side) are not read
-            np.testing.assert_array_equal(
-                _in_grid(a.frame_pairs[name].b_m), _in_grid(b.frame_pairs[name].b_m)
-            )
+            got = {tuple(p) for p in _in_grid(a.frame_pairs[name].b_m)}
+            want = {tuple(p) for p in _in_grid(b.frame_pairs[name].b_m)}
+            assert got <= want, f"{name} at {distance} m: the ROI scan found pairs the native scan has not"
+            native_pairs += len(want)
+            missing += len(want - got)
         seen += int(a.grid.any())
         pairs_seen += int(any(len(_in_grid(p.b_m)) for p in a.frame_pairs.values()))
     # the comparison means something only if the ditch is found
     assert pairs_seen >= 8 and seen >= 3, (pairs_seen, seen)
+    assert native_pairs > 1000 and missing <= 0.01 * native_pairs, (missing, native_pairs)
+    p_remove(world, vehicle)
 
 
 def _in_grid(points_m: np.ndarray) -> np.ndarray:
