@@ -5,6 +5,10 @@ pit, a trench, a rock, a pedestrian, a parked car and a mound) plus a second veh
 body; the sensors ride on the own vehicle, which both backends exclude. One revolution of every
 sensor: HDL-64E S2 (64 x 4000), two HDL-32E (32 x 2250 each) and the IBEO LUX (4 x 341).
 
+Embree runs twice, on one thread each: the default 16-ray packets over shared buffers
+(``EmbreeConfig(ray_packets=True)``) and embreex's single-ray loop, with their scene builds, the
+dynamic scene's rebuild after the other vehicle moved, and whether their ranges are equal bit for bit.
+
 The last two lines are ``speedup_vs_pybullet=<ratio>`` (best-of-N time of PyBullet / Embree)
 and ``agreement=<fraction>`` (share of rays with the same hit/miss and, for hits, |dr| <= 1 cm).
 
@@ -22,7 +26,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.sensors import paper_n_rig, paper_t_rig
 from negobs_gym.sensors.lidar import scan_rays_world
 from negobs_gym.sensors.raycast.agreement import agreement_terrain, compare_ranges
-from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster
+from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
 from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -52,17 +56,33 @@ def main() -> None:
     with World(terrain) as world:
         own = Vehicle(world)
         xy, yaw = terrain.track.pose_at(9.0, 2.2)
-        Vehicle(world, start_pose=Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw)))
-        t0 = time.perf_counter()
-        embree = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
-        t_build = time.perf_counter() - t0
+        other = Vehicle(world, start_pose=Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw)))
+        casters, t_build, t_rebuild = {}, {}, {}
+        for name, packets in (("packets", True), ("single_ray", False)):
+            t0 = time.perf_counter()
+            casters[name] = EmbreeCaster.from_world(
+                world,
+                exclude_body_ids=[own.body_id],
+                config=EmbreeConfig(ray_packets=packets, auto_update=False),
+            )
+            t_build[name] = time.perf_counter() - t0
+        pose0 = other.true_pose()
+        other.reset(
+            Pose(pose0.x + 0.5, pose0.y, 0.0, 0.0, 0.0, pose0.yaw)
+        )  # moved: rebuild the dynamic scene
+        for name, caster in casters.items():
+            t0 = time.perf_counter()
+            caster.update_dynamic()
+            t_rebuild[name] = time.perf_counter() - t0
+        embree = casters["packets"]
         bullet = PyBulletCaster(
             world.client_id, exclude_body_ids=[own.body_id], num_threads=args.pybullet_threads
         )
         mounts = [*paper_n_rig().mounts, *paper_t_rig().mounts]
-        t_e = t_b = 0.0
+        t_e = t_b = t_single = 0.0
         refs, fasts = [], []
         n_rays = 0
+        same = True
         for station in args.stations:
             sxy, syaw = terrain.track.pose_at(station)
             own.reset(Pose(float(sxy[0]), float(sxy[1]), 0.0, 0.0, 0.0, float(syaw)))
@@ -71,21 +91,32 @@ def main() -> None:
             o = np.concatenate([r[0] for r in rays])
             d = np.concatenate([r[1] for r in rays])
             n_rays += len(o)
-            embree.update_dynamic()
             te, fast = _best_time(lambda o=o, d=d: embree.cast(o, d, MAX_RANGE_M), args.repeats)
+            single = casters["single_ray"]
+            ts, slow = _best_time(lambda o=o, d=d, c=single: c.cast(o, d, MAX_RANGE_M), args.repeats)
             tb, ref = _best_time(lambda o=o, d=d: bullet.cast(o, d, MAX_RANGE_M), args.pybullet_repeats)
+            same &= bool(np.array_equal(fast, slow, equal_nan=True))
             t_e += te
+            t_single += ts
             t_b += tb
             refs.append(ref)
             fasts.append(fast)
             print(
-                f"station {station:5.1f} m: {len(o)} rays, "
-                f"embree {te * 1e3:.1f} ms, pybullet {tb * 1e3:.0f} ms"
+                f"station {station:5.1f} m: {len(o)} rays, embree {te * 1e3:.1f} ms "
+                f"(single-ray {ts * 1e3:.1f} ms), pybullet {tb * 1e3:.0f} ms"
             )
     a = compare_ranges(np.concatenate(refs), np.concatenate(fasts), tol_m=0.01)
     print(f"rig: {', '.join(f'{m.name} {m.model.n_lasers}x{m.model.n_columns}' for m in mounts)}")
-    print(f"embree_scene_build_s={t_build:.3f} ({embree.n_static_triangles} static triangles)")
-    print(f"embree_rays_per_s={n_rays / t_e:.3e}")
+    print(
+        f"embree_scene_build_s={t_build['packets']:.3f} (single-ray: {t_build['single_ray']:.3f}; "
+        f"{embree.n_static_triangles} static triangles)"
+    )
+    print(
+        f"embree_dynamic_rebuild_ms={t_rebuild['packets'] * 1e3:.1f} "
+        f"(single-ray: {t_rebuild['single_ray'] * 1e3:.1f}; the other vehicle moved)"
+    )
+    print(f"embree_rays_per_s={n_rays / t_e:.3e} (single-ray: {n_rays / t_single:.3e})")
+    print(f"packet_speedup={t_single / t_e:.2f} packets_equal_single_ray={same}")
     print(f"pybullet_rays_per_s={n_rays / t_b:.3e} (numThreads={args.pybullet_threads})")
     print(f"hit_miss_agreement={a.hit_miss:.6f}")
     print(

@@ -22,6 +22,7 @@ import numpy as np
 
 from negobs_gym.errors import ConfigError, MissingDependencyError, require
 from negobs_gym.sensors.raycast.base import check_rays
+from negobs_gym.sensors.raycast.embree_packets import PacketScene, packets_available
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
 if TYPE_CHECKING:
@@ -59,12 +60,17 @@ class EmbreeConfig:
         threads: Threads one :meth:`EmbreeCaster.cast` splits its rays over (Embree traverses
             without the GIL; every ray's result is the same whatever the split). 1 in processes
             that share the cores with others (vector-env workers).
+        ray_packets: Build scenes over shared buffers and cast 16-ray packets through Embree's C
+            API (``embree_packets``: same distances bit for bit, scene builds 3-4x and casts
+            1.24-1.32x faster); False, or where embreex's library is not found, uses embreex's
+            single-ray loop.
     """
 
     max_chord_error_m: float = 1e-4  # docs/sensors.md: agree with PyBullet to 1 cm; 100x margin
     ground: Literal["physics", "terrain"] = "physics"
     auto_update: bool = True
     threads: int = 1
+    ray_packets: bool = True
 
     def __post_init__(self) -> None:
         require(
@@ -83,6 +89,7 @@ class EmbreeConfig:
             "threads",
             f"must be an int in [1, 64], got {self.threads!r}",
         )
+        require(isinstance(self.ray_packets, bool), "ray_packets", "must be a bool")
 
 
 _POOLS: dict[int, tuple[int, ThreadPoolExecutor]] = {}
@@ -101,14 +108,19 @@ def _thread_pool(n_threads: int) -> ThreadPoolExecutor:
 class _Scene:
     """One committed Embree scene of one triangle mesh (float32, local coordinates)."""
 
-    def __init__(self, mesh: Mesh, robust: bool = True) -> None:
-        rtcs, triangle_mesh = _embree()
+    def __init__(self, mesh: Mesh, robust: bool = True, packets: bool = True) -> None:
         v, f = mesh
         self.n_triangles = int(f.shape[0])
-        self.scene = rtcs.EmbreeScene(robust=robust)
+        self._packets: PacketScene | None = None
+        self._embreex: Any = None
+        if packets and packets_available():
+            self._packets = PacketScene(v, f, robust=robust)
+            return
+        rtcs, triangle_mesh = _embree()
+        self._embreex = rtcs.EmbreeScene(robust=robust)
         if self.n_triangles:
             triangle_mesh(
-                self.scene, np.ascontiguousarray(v, dtype=np.float32), np.ascontiguousarray(f, np.int32)
+                self._embreex, np.ascontiguousarray(v, dtype=np.float32), np.ascontiguousarray(f, np.int32)
             )
 
     def cast(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
@@ -118,7 +130,10 @@ class _Scene:
         # a distance query returns tfar alone (no hit records: ~7 % faster); a miss keeps its limit,
         # so the limit is one float32 step past tmax, where a hit would lie beyond tmax anyway
         limit = np.nextafter(tmax.astype(np.float32), np.float32(np.inf))
-        t = np.asarray(self.scene.run(o, d, dists=limit.copy(), query="DISTANCE"))
+        if self._packets is not None:
+            t = self._packets.cast(o, d, limit)
+        else:
+            t = np.asarray(self._embreex.run(o, d, dists=limit.copy(), query="DISTANCE"))
         return np.where(t < limit, t.astype(np.float64), np.inf)
 
 
@@ -155,7 +170,7 @@ class EmbreeCaster:
         self.local_origin_m = np.asarray(tuple(local_origin_m), dtype=np.float64)
         if self.local_origin_m.shape != (3,) or not np.isfinite(self.local_origin_m).all():
             raise ConfigError("local_origin_m", "must be 3 finite values")
-        self._static = _Scene((v - self.local_origin_m, f.astype(np.int32)))
+        self._static = _Scene((v - self.local_origin_m, f.astype(np.int32)), packets=self.config.ray_packets)
         self._dynamic: _Scene | None = None
         self._world: World | None = None
         self._exclude: frozenset[int] = frozenset()
@@ -224,7 +239,11 @@ class EmbreeCaster:
         """Replace the dynamic scene by a mesh in world coordinates (empty arrays clear it)."""
         v = np.asarray(vertices_m, dtype=np.float64).reshape(-1, 3)
         f = np.asarray(triangles).reshape(-1, 3)
-        self._dynamic = _Scene((v - self.local_origin_m, f.astype(np.int32))) if f.size else None
+        self._dynamic = (
+            _Scene((v - self.local_origin_m, f.astype(np.int32)), packets=self.config.ray_packets)
+            if f.size
+            else None
+        )
 
     def update_dynamic(self) -> bool:
         """Re-read the world's dynamic bodies and rebuild their scene if any moved; True if rebuilt."""
@@ -247,7 +266,9 @@ class EmbreeCaster:
         if self._dyn_poses is not None and np.array_equal(poses, self._dyn_poses):
             return False
         self._dyn_poses = poses
-        self._dynamic = _Scene(world_mesh(self._dyn_links, poses, self.local_origin_m))
+        self._dynamic = _Scene(
+            world_mesh(self._dyn_links, poses, self.local_origin_m), packets=self.config.ray_packets
+        )
         return True
 
     def _cast_static(self, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> np.ndarray:
