@@ -77,6 +77,7 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int, roi: bool = Fal
         vehicle = Vehicle(world, rng=rng)
         caster = make_caster(world, "auto", exclude_body_ids=(vehicle.body_id,))
         selector = heights = None
+        recent: list = []  # the drive's band sets (RoiSelector.subsets_for_bands)
         if roi:
             g = ObservationConfig().grid
             selector = RoiSelector(rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m)))
@@ -89,7 +90,7 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int, roi: bool = Fal
             near = world_outline_to_vehicle(pit.outline_xy_m, true)[:, 1].min()
             if near < NEAREST_M - 1.0:
                 break
-            subsets = selector.subsets_for_bands(heights.bands(true, selector.tiles)) if roi else None
+            subsets = selector.subsets_for_bands(heights.bands(true, selector.tiles), recent) if roi else None
             for name, s in scan_rig(rig, caster, true, rng=rng, subsets=subsets).items():
                 drive[name].append(s.ranges_m.astype(np.float32))
             drive["ins"].append(vehicle.pose().as_array())

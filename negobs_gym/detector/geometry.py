@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from negobs_gym.core import libm
 from negobs_gym.errors import ConfigError
 
 
@@ -39,7 +40,7 @@ def ring_radius(height_m: ArrayLike, beta_rad: ArrayLike) -> np.ndarray:
     h = _pos("height_m", height_m)
     b = np.asarray(beta_rad, dtype=np.float64)
     hits = (b >= 0) & (b < np.pi / 2)
-    return np.where(hits, h * np.tan(np.where(hits, b, 0.0)), np.inf)
+    return np.where(hits, h * libm.tan(np.where(hits, b, 0.0)), np.inf)
 
 
 def radial_resolution(height_m: ArrayLike, beta_rad: ArrayLike, dbeta_rad: ArrayLike) -> np.ndarray:
@@ -61,7 +62,7 @@ def subtended_angle(height_m: ArrayLike, distance_m: ArrayLike, width_m: ArrayLi
     h = _pos("height_m", height_m)
     d = np.asarray(distance_m, dtype=np.float64)
     w = np.asarray(width_m, dtype=np.float64)
-    return np.arctan(h * w / (h * h + d * (d + w)))
+    return libm.arctan(h * w / (h * h + d * (d + w)))
 
 
 def subtended_angle_approx(height_m: ArrayLike, distance_m: ArrayLike, width_m: ArrayLike) -> np.ndarray:

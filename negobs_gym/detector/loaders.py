@@ -34,6 +34,7 @@ from typing import Literal
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.errors import ScanError
@@ -103,7 +104,7 @@ def cloud_to_scan(
         if inten.shape[0] != keep.size:
             raise ScanError(f"{sensor}: intensity must have one entry per point")
         inten = inten[keep]
-    az = np.arctan2(xyz[:, 0], xyz[:, 1])  # clockwise from +Y
+    az = libm.arctan2(xyz[:, 0], xyz[:, 1])  # clockwise from +Y
     col = np.clip(np.floor((az + np.pi) / res).astype(np.int64), 0, n_cols - 1)
     order_rows = np.argsort(el, kind="stable")
     row_of_ring = np.empty(el.size, dtype=np.int64)
@@ -150,7 +151,7 @@ def recover_rings(xyz_m: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
     el = np.asarray(elevation_rad, dtype=np.float64).reshape(-1)
     if el.size == 0:
         raise ScanError("elevation table is empty")
-    e = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
+    e = libm.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
     order = np.argsort(el)
     es = el[order]
     i = np.clip(np.searchsorted(es, e), 1, max(es.size - 1, 1))
@@ -182,7 +183,7 @@ class RingAssignment:
 
 def point_elevation(xyz_m: np.ndarray) -> np.ndarray:
     """Elevation of each point above the sensor's XY plane [rad]."""
-    return np.arctan2(xyz_m[:, 2], np.hypot(xyz_m[:, 0], xyz_m[:, 1]))
+    return libm.arctan2(xyz_m[:, 2], np.hypot(xyz_m[:, 0], xyz_m[:, 1]))
 
 
 def measured_ring_elevations(xyz_m: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -219,7 +220,7 @@ def rings_from_point_order(xyz_m: np.ndarray, elevation_rad: np.ndarray) -> np.n
     if xyz.shape[0] < 2 or table.size < 2:
         return None
     table_spacing = float(np.median(np.diff(table)))
-    az = np.arctan2(xyz[:, 0], xyz[:, 1])
+    az = libm.arctan2(xyz[:, 0], xyz[:, 1])
     step = np.diff(az)
     inside = step[np.abs(step) < np.pi]  # steps across the +-180 deg seam say nothing about direction
     if inside.size == 0 or np.median(inside) == 0:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from negobs_gym.core import libm
 from negobs_gym.detector.overlap import measure_candidates, row_distances
 from negobs_gym.errors import ScanError
 
@@ -212,7 +213,7 @@ _CLASSES_PER_OCTAVE = 3
 def _length_classes(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, float]]:
     """(indices, longest half-length) of the pairs in each non-empty length class."""
     length = _norm(*(b - a).T)
-    octaves = np.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)
+    octaves = libm.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)
     cls = np.ceil(_CLASSES_PER_OCTAVE * octaves).astype(np.int64)
     order = np.argsort(cls, kind="stable")
     bounds = np.flatnonzero(np.diff(cls[order])) + 1

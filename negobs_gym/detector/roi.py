@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.compiled import kernel
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.errors import require
@@ -204,7 +205,7 @@ def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
 
 def _sector_position(x: np.ndarray, y: np.ndarray, sector_rad: float) -> np.ndarray:
     """Angle of vehicle-frame directions or points from -pi, in sectors (>= 0)."""
-    return (np.arctan2(y, x) + np.pi) / sector_rad
+    return (libm.arctan2(y, x) + np.pi) / sector_rad
 
 
 def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, reach_m: float) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -81,6 +82,6 @@ class PurePursuitDriver:
         x_v, y_v = world_to_vehicle_xy(target, xy, yaw)  # X right, Y forward
         ld2 = max(x_v * x_v + y_v * y_v, 1e-6)
         curvature = 2.0 * (-x_v) / ld2  # left (towards -X) positive
-        steer = np.arctan(self.config.wheelbase_m * curvature)
+        steer = math.atan(self.config.wheelbase_m * curvature)
         cmd = speed_command(read_speed_mps(info), self.config.target_speed_mps, self.config.gain_per_mps)
         return np.array([cmd, np.clip(steer / self.config.max_steer_rad, -1.0, 1.0)], dtype=np.float32)

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.errors import require
+from negobs_gym.sensors.raycast.embree_packets import ISAS
 from negobs_gym.sim.world import WorldConfig
 
 __all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
@@ -39,6 +40,8 @@ class ObservationConfig:
         raycast_threads: Threads per Embree cast; None = 2 (at most the CPU count) in a main
             process and 1 in a worker process of a vector env, whose processes already share the
             cores (workers also pin numpy's BLAS to 1 thread; see docs/performance.md).
+        raycast_isa: Embree's kernels: ``"native"`` (the CPU's widest, fastest) or one instruction
+            set (``"avx2"``: the same scans on every AVX2 or AVX-512 CPU; docs/determinism.md).
         sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
@@ -62,6 +65,7 @@ class ObservationConfig:
     rig: str = "roi"
     raycast_backend: str = "auto"
     raycast_threads: int | None = None
+    raycast_isa: str = "native"
     sensor_noise: bool = True
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
@@ -83,6 +87,7 @@ class ObservationConfig:
             "raycast_backend",
             f"must be 'auto', 'embree' or 'pybullet', got {self.raycast_backend!r}",
         )
+        require(self.raycast_isa in ISAS, "raycast_isa", f"must be one of {ISAS}, got {self.raycast_isa!r}")
         require(
             self.raycast_threads is None
             or (isinstance(self.raycast_threads, int) and 1 <= self.raycast_threads <= 64),

@@ -96,13 +96,18 @@ class DetectorGrid:
         self._noise = NoiseConfig(enabled=config.sensor_noise)
         cache = {} if cache is None else cache
         threads = cast_threads(config)
-        key = ("caster", config.raycast_backend, threads)
+        key = ("caster", config.raycast_backend, threads, config.raycast_isa)
         if key not in cache:
             cache[key] = make_caster(
-                world, config.raycast_backend, exclude_body_ids=(vehicle.body_id,), threads=threads
+                world,
+                config.raycast_backend,
+                exclude_body_ids=(vehicle.body_id,),
+                threads=threads,
+                isa=config.raycast_isa,
             )
         self._caster = cache[key]
         self._roi: RoiSelector | None = None
+        self._roi_recent: list = []  # this episode's band sets: its casts depend on nothing else
         if config.rig == "roi":
             g = config.grid
             self._roi = roi_selector(
@@ -124,7 +129,9 @@ class DetectorGrid:
         ins_pose: Pose = self._vehicle.pose()
         subsets = None
         if self._roi is not None:
-            subsets = self._roi.subsets_for_bands(self._heights.bands(true_pose, self._roi.tiles))
+            subsets = self._roi.subsets_for_bands(
+                self._heights.bands(true_pose, self._roi.tiles), self._roi_recent
+            )
         self.scans = scan_rig(
             self.rig,
             self._caster,

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from negobs_gym.core import libm
 
 # Below this curvature [1/m] the path is treated as straight (radius > 1e9 m).
 STRAIGHT_CURVATURE_PER_M = 1e-9
@@ -23,7 +27,7 @@ def hazard_distance_m(
     if pts.shape[0] == 0:
         return float("inf")
     x, y = pts[:, 0], pts[:, 1]
-    kappa = np.tan(steer_rad) / wheelbase_m
+    kappa = math.tan(float(steer_rad)) / wheelbase_m
     if abs(kappa) < STRAIGHT_CURVATURE_PER_M:
         inside = (np.abs(x) <= half_width_m) & (y >= 0.0)
         return float(np.min(y[inside])) if np.any(inside) else float("inf")
@@ -34,5 +38,5 @@ def hazard_distance_m(
     inside = np.abs(r - radius) <= half_width_m
     if not np.any(inside):
         return float("inf")
-    theta = np.mod(np.arctan2(y[inside], cx[inside]), 2.0 * np.pi)
+    theta = np.mod(libm.arctan2(y[inside], cx[inside]), 2.0 * np.pi)
     return float(radius * np.min(theta))

@@ -63,7 +63,8 @@ class RoiConfig:
             silent; 4 x 4 = boxes of 3.2 m x 7.2 m on the envs' grid: 23 % fewer rays than one box on
             OffroadNav, finer splits gain < 2 % more).
         full_sensors: Sensors always cast in full (paper T reads the whole LUX frame; it is small).
-        cache_size: Masks kept (least recently used dropped first).
+        cache_size: Band sets whose masks are kept (least recently used dropped first), and
+            the length of a caller's ``recent`` list (:meth:`RoiSelector.subsets_for_bands`).
     """
 
     region_xy_m: tuple[float, float, float, float] = (-6.4, 6.4, -3.2, 25.6)
@@ -213,6 +214,8 @@ class HeightEnvelope:
 
 
 _EMPTY = (10**9, -(10**9))  # band key of a tile with nothing to hit: contained in any band
+#: Quantised (low, high) height band of every tile, in ``height_step_m`` units.
+BandKey = tuple[tuple[int, int], ...]
 
 
 @dataclass(frozen=True)
@@ -274,7 +277,7 @@ class RoiSelector:
             for mt in rig.mounts
             if mt.name not in self.config.full_sensors
         }
-        self._cache: OrderedDict[tuple[tuple[int, int], ...], dict[str, RaySubset]] = OrderedDict()
+        self._cache: OrderedDict[BandKey, dict[str, RaySubset]] = OrderedDict()
 
     def _tile_boxes(self) -> list[tuple[float, float, float, float]]:
         x0, x1, y0, y1 = self.config.region_xy_m
@@ -293,32 +296,52 @@ class RoiSelector:
         step = self.config.height_step_m
         return math.floor(band[0] / step), math.ceil(band[1] / step)
 
-    def subsets(self, z_min_m: float, z_max_m: float) -> dict[str, RaySubset]:
+    def subsets(
+        self, z_min_m: float, z_max_m: float, recent: list[BandKey] | None = None
+    ) -> dict[str, RaySubset]:
         """Rays to cast per sensor when every surface in the region lies in [z_min_m, z_max_m]."""
-        return self.subsets_for_bands([(z_min_m, z_max_m)] * len(self.tiles))
+        return self.subsets_for_bands([(z_min_m, z_max_m)] * len(self.tiles), recent)
 
-    def subsets_for_bands(self, bands: list[tuple[float, float] | None]) -> dict[str, RaySubset]:
+    def subsets_for_bands(
+        self, bands: list[tuple[float, float] | None], recent: list[BandKey] | None = None
+    ) -> dict[str, RaySubset]:
         """Rays to cast per sensor given each tile's height band (see :meth:`HeightEnvelope.bands`).
 
-        A cached set of bands that contains the asked ones tile by tile serves them (its rays are a
-        superset, so the scan inside the region is the same); otherwise bands one step wider each
-        way are computed, so that small height changes along a drive keep hitting the cache.
+        ``recent`` is the caller's own list of the band sets it cast with (most recent last; this
+        call updates it). A recent set that contains the asked bands tile by tile serves them (its
+        rays are a superset, so the scan inside the region is the same); otherwise the bands one
+        step wider each way are cast, so that small height changes along a drive keep hitting.
+        Which rays are cast is then a function of the caller's own bands only: one list per
+        episode makes an episode's scans independent of what else ran in the process (the masks
+        themselves are kept, LRU, across callers). Without ``recent`` every call casts the
+        widened asked bands.
         """
         if len(bands) != len(self.tiles):
             raise ValueError(f"need one band per tile ({len(self.tiles)}), got {len(bands)}")
         asked = [self.band_key(b) for b in bands]
-        for key in reversed(self._cache):  # most recently used first
+        history = recent if recent is not None else []
+        for i in range(len(history) - 1, -1, -1):  # most recently used first
+            key = history[i]
             if all(c[0] <= a[0] and c[1] >= a[1] for c, a in zip(key, asked, strict=True)):
-                self._cache.move_to_end(key)
-                return self._cache[key]
+                history.append(history.pop(i))
+                return self._masks_for(key)
         key = tuple(a if a == _EMPTY else (a[0] - 1, a[1] + 1) for a in asked)
-        out = {mt.name: self._subset(mt, key) for mt in self.rig.mounts}
-        self._cache[key] = out
-        if len(self._cache) > self.config.cache_size:
-            self._cache.popitem(last=False)
+        history.append(key)
+        del history[: -self.config.cache_size]
+        return self._masks_for(key)
+
+    def _masks_for(self, key: BandKey) -> dict[str, RaySubset]:
+        out = self._cache.get(key)
+        if out is None:
+            out = {mt.name: self._subset(mt, key) for mt in self.rig.mounts}
+            self._cache[key] = out
+            if len(self._cache) > self.config.cache_size:
+                self._cache.popitem(last=False)
+        else:
+            self._cache.move_to_end(key)
         return out
 
-    def mask(self, mount: SensorMount, key: tuple[tuple[int, int], ...]) -> np.ndarray:
+    def mask(self, mount: SensorMount, key: BandKey) -> np.ndarray:
         """(lasers, columns) bool: the rays of ``mount`` cast for the tiles' quantised bands."""
         m = mount.model
         step = self.config.height_step_m
@@ -335,7 +358,7 @@ class RoiSelector:
             meets.reshape(m.n_lasers, m.n_columns), size=size, mode=("constant", wrap), cval=False
         )
 
-    def _subset(self, mount: SensorMount, key: tuple[tuple[int, int], ...]) -> RaySubset:
+    def _subset(self, mount: SensorMount, key: BandKey) -> RaySubset:
         if mount.name in self.config.full_sensors:
             return self._full[mount.name]
         index = np.flatnonzero(self.mask(mount, key)).astype(np.int32)

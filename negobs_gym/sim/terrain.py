@@ -25,6 +25,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from negobs_gym.core import libm
 from negobs_gym.errors import ConfigError, GeometryError, require
 from negobs_gym.sim.carving import (
     NegativeObstacleSpec,
@@ -365,7 +366,7 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
     t = np.clip(beyond / rough.track_blend_m, 0.0, 1.0)
     weight = rough.track_scale + (1.0 - rough.track_scale) * t * t * (3.0 - 2.0 * t)
     sigma = rough.rut_width_m / 2.3548  # full width at half depth -> Gaussian sigma
-    ruts = -rough.rut_depth_m * np.exp(-0.5 * ((np.abs(lateral) - 0.5 * rough.rut_spacing_m) / sigma) ** 2)
+    ruts = -rough.rut_depth_m * libm.exp(-0.5 * ((np.abs(lateral) - 0.5 * rough.rut_spacing_m) / sigma) ** 2)
     border = np.where(
         lateral < 0, config.left_border.profile_m(beyond), config.right_border.profile_m(beyond)
     )

@@ -11,6 +11,7 @@ from typing import Literal
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.geometry import polyline_stations
 from negobs_gym.errors import GeometryError
 
@@ -141,7 +142,7 @@ class Track:
         xy = pts[k] + t * (s - st[k])[..., None]
         right = np.stack([t[..., 1], -t[..., 0]], axis=-1)
         xy = xy + right * lat[..., None]
-        yaw = np.arctan2(-t[..., 0], t[..., 1])
+        yaw = libm.arctan2(-t[..., 0], t[..., 1])
         return xy, yaw
 
 

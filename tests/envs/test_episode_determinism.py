@@ -1,14 +1,18 @@
-"""Same seed, same episode bit for bit: fresh or kept worlds, ROI casting, across processes."""
+"""Same seed, same episode bit for bit: fresh or kept worlds, ROI casting, across processes and CPUs."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
+import platform
 import subprocess
 import sys
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
 
@@ -23,23 +27,43 @@ def _actions() -> np.ndarray:
 
 
 def _rollout(env: gym.Env, seed: int) -> dict[str, np.ndarray]:
-    obs, info = env.reset(seed=seed)
-    grids, states, poses = [obs["grid"]], [obs["state"]], [info["pose"]]
-    for a in _actions():
-        obs, _, term, trunc, info = env.step(a)
-        grids.append(obs["grid"])
-        states.append(obs["state"])
-        poses.append(info["pose"])
-        if term or trunc:
-            break
-    return {"grid": np.stack(grids), "state": np.stack(states), "pose": np.stack(poses)}
+    """Observations, poses and the raw scans of every frame (the rays cast, ranges and noise)."""
+    scans = []
+    base = env.unwrapped
+    observe = base._observe
+
+    def observe_and_keep_scans():
+        out = observe()
+        perception = base._grid_source.perception
+        scans.append(np.concatenate([s.ranges_m.ravel() for s in perception.scans.values()]))
+        return out
+
+    base._observe = observe_and_keep_scans
+    try:
+        obs, info = env.reset(seed=seed)
+        grids, states, poses = [obs["grid"]], [obs["state"]], [info["pose"]]
+        for a in _actions():
+            obs, _, term, trunc, info = env.step(a)
+            grids.append(obs["grid"])
+            states.append(obs["state"])
+            poses.append(info["pose"])
+            if term or trunc:
+                break
+    finally:
+        del base._observe  # back to the class's method
+    return {
+        "grid": np.stack(grids),
+        "state": np.stack(states),
+        "pose": np.stack(poses),
+        "scans": np.stack(scans),
+    }
 
 
 def _assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
     assert a.keys() == b.keys()
     for k in a:
         assert a[k].shape == b[k].shape, k
-        assert np.array_equal(a[k], b[k]), f"{k} differs"
+        assert np.array_equal(a[k], b[k], equal_nan=True), f"{k} differs"
 
 
 def test_default_observation_uses_the_roi_rig():
@@ -77,6 +101,53 @@ def test_same_seed_same_episode_in_another_process(tmp_path):
     env = gym.make(ENV_ID)
     here = _rollout(env, seed=11)
     env.close()
+    with np.load(out) as there:
+        _assert_same(here, dict(there))
+
+
+def _pinned_rollout(seed: int) -> dict[str, np.ndarray]:
+    """An episode with Embree's kernels pinned to AVX2, after another episode in the same env."""
+    probe = gym.make(ENV_ID)
+    cfg = probe.unwrapped.default_config()
+    probe.close()
+    cfg = dataclasses.replace(cfg, observation=dataclasses.replace(cfg.observation, raycast_isa="avx2"))
+    env = gym.make(ENV_ID, config=cfg)
+    _rollout(env, seed=seed + 1)
+    episode = _rollout(env, seed=seed)
+    env.close()
+    return episode
+
+
+# numpy's AVX-512 dispatch targets (numpy >= 2.3); without them numpy runs what an AVX2 CPU runs
+_NO_AVX512 = {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR", "OPENBLAS_CORETYPE": "Haswell"}
+
+
+def _numpy_takes_avx512_paths() -> bool:
+    y, x = np.random.default_rng(0).uniform(-10.0, 10.0, (2, 1000))  # contiguous: SIMD paths take these
+    return not np.array_equal(np.arctan2(y, x), [math.atan2(a, b) for a, b in zip(y, x, strict=True)])
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86 instruction sets")
+@pytest.mark.skipif(not _numpy_takes_avx512_paths(), reason="numpy runs no AVX-512 routines on this CPU")
+def test_same_seed_same_scans_on_an_avx2_cpu(tmp_path):
+    """With ``raycast_isa="avx2"`` an AVX-512 machine casts, detects and observes as an AVX2 one.
+
+    The other process runs numpy (and OpenBLAS) as on an AVX2 CPU: the routines numpy picks by CPU
+    differ there (checked), so any of them left on the episode's path would show.
+    """
+    out = tmp_path / "episode.npz"
+    code = (
+        "import math, sys, numpy as np\n"
+        f"sys.path.insert(0, {str(ROOT)!r})\n"
+        "from tests.envs.test_episode_determinism import _numpy_takes_avx512_paths, _pinned_rollout\n"
+        "assert not _numpy_takes_avx512_paths(), 'numpy still takes its AVX-512 routines'\n"
+        f"np.savez({str(out)!r}, **_pinned_rollout(seed=13))\n"
+    )
+    subprocess.run(
+        [sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300, env={**os.environ, **_NO_AVX512}
+    )
+    here = _pinned_rollout(seed=13)
+    assert np.isfinite(here["scans"]).mean() > 0.2
     with np.load(out) as there:
         _assert_same(here, dict(there))
 

@@ -65,7 +65,8 @@ def test_config_rejects_bad_region_and_margins():
 
 def test_upper_lasers_are_skipped_and_the_lux_is_cast_in_full():
     sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
-    subsets = sel.subsets(-0.5, 0.5)
+    recent: list = []
+    subsets = sel.subsets(-0.5, 0.5, recent)
     hdl64 = RIG.mount("hdl64").model
     mask = np.zeros(hdl64.n_lasers * hdl64.n_columns, bool)
     mask[subsets["hdl64"].index] = True
@@ -73,9 +74,13 @@ def test_upper_lasers_are_skipped_and_the_lux_is_cast_in_full():
     assert per_laser[-1] == 0 and per_laser[0] > 0  # above the horizon: nothing in the region
     assert subsets["hdl64"].size < 0.6 * mask.size
     assert subsets["lux"].size == RIG.mount("lux").model.n_lasers * RIG.mount("lux").model.n_columns
-    assert sel.subsets(-0.4, 0.4) is subsets  # a cached band containing the asked one serves it
-    wider = sel.subsets(-1.5, 0.5)
+    assert sel.subsets(-0.4, 0.4, recent) is subsets  # a recent band containing the asked one serves it
+    wider = sel.subsets(-1.5, 0.5, recent)
     assert wider is not subsets and wider["hdl64"].size >= subsets["hdl64"].size
+    assert sel.subsets(-0.4, 0.4, recent) is wider  # the most recent set containing the asked one
+    # another caller's history does not serve this one: without its own, it casts its own bands
+    assert sel.subsets(-0.4, 0.4, []) is subsets  # the same widened bands, from the kept masks
+    assert sel.subsets(-0.4, 0.4) is subsets
 
 
 def _vehicle_at(world: World, distance_m: float, ditch_y_m: float) -> Vehicle:

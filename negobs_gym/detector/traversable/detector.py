@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
@@ -134,7 +135,7 @@ class TraversableRegionDetector:
         key = (float(origin[0]), float(origin[1]))
         if self._polar_origin != key:
             d = self._centres - origin
-            self._cell_bearing = np.arctan2(d[..., 0], d[..., 1])
+            self._cell_bearing = libm.arctan2(d[..., 0], d[..., 1])
             self._cell_range = np.hypot(d[..., 0], d[..., 1])
             self._polar_origin = key
         return self._cell_bearing, self._cell_range

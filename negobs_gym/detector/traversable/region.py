@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.detector.traversable.boundaries import BoundaryLine
 from negobs_gym.detector.traversable.obstacles import ObstacleCluster
@@ -47,7 +48,7 @@ def region_mask(
 def _near_face(cluster: ObstacleCluster, origin_xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bearings (clockwise from +Y) and ranges of a cluster's points from O, sorted by bearing."""
     d = cluster.points_m[:, :2] - origin_xy_m
-    bearing = np.arctan2(d[:, 0], d[:, 1])
+    bearing = libm.arctan2(d[:, 0], d[:, 1])
     rng = np.hypot(d[:, 0], d[:, 1])
     order = np.argsort(bearing, kind="stable")
     return bearing[order], rng[order]
@@ -81,7 +82,7 @@ def shadow_mask(
     """
     bearing, rng = _near_face(cluster, origin_xy_m)
     # Widen the sector by the angle a cell subtends so the sector edge cells are cut too.
-    pad = np.arcsin(np.clip(slack_m / np.maximum(cell_range_m, slack_m), -1.0, 1.0))
+    pad = libm.arcsin(np.clip(slack_m / np.maximum(cell_range_m, slack_m), -1.0, 1.0))
     in_sector = (cell_bearing_rad >= bearing[0] - pad) & (cell_bearing_rad <= bearing[-1] + pad)
     face_range = np.interp(cell_bearing_rad, bearing, rng)
     return in_sector & (cell_range_m >= face_range - slack_m)

@@ -15,6 +15,7 @@ from typing import Literal
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.pose import Pose, rotation_from_rpy
 from negobs_gym.core.scan import StructuredScan, ray_directions
 from negobs_gym.errors import ConfigError, require
@@ -151,7 +152,7 @@ class TrackScene:
         half = np.where(e < 0, self.left_half_width_m, self.right_half_width_m)
         crown = self.crown_m * np.clip(1.0 - (e / half) ** 2, 0.0, 1.0)
         if self.rut_depth_m > 0:
-            crown = crown - self.rut_depth_m * np.exp(
+            crown = crown - self.rut_depth_m * libm.exp(
                 -0.5 * ((np.abs(e) - self.rut_spacing_m / 2) / 0.17) ** 2
             )
         if self.bumps:

@@ -26,11 +26,16 @@ BACKENDS: tuple[str, ...] = ("auto", "embree", "pybullet")
 
 
 def make_caster(
-    world: World, backend: Backend = "auto", exclude_body_ids: Iterable[int] = (), threads: int = 1
+    world: World,
+    backend: Backend = "auto",
+    exclude_body_ids: Iterable[int] = (),
+    threads: int = 1,
+    isa: str = "native",
 ) -> RayCaster:
     """A ray caster over ``world`` that never sees the bodies in ``exclude_body_ids``.
 
-    ``threads`` > 1 splits each Embree cast over that many threads (the PyBullet backend ignores it).
+    ``threads`` > 1 splits each Embree cast over that many threads; ``isa`` pins Embree's kernels
+    (``EmbreeConfig.isa``). The PyBullet backend ignores both.
 
     Raises:
         ConfigError: Unknown ``backend``.
@@ -44,7 +49,7 @@ def make_caster(
 
         try:
             return EmbreeCaster.from_world(
-                world, exclude_body_ids=exclude, config=EmbreeConfig(threads=threads)
+                world, exclude_body_ids=exclude, config=EmbreeConfig(threads=threads, isa=isa)
             )
         except MissingDependencyError:
             if backend == "embree":

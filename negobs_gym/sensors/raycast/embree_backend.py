@@ -22,7 +22,7 @@ import numpy as np
 
 from negobs_gym.errors import ConfigError, MissingDependencyError, require
 from negobs_gym.sensors.raycast.base import check_rays
-from negobs_gym.sensors.raycast.embree_packets import PacketScene, packets_available
+from negobs_gym.sensors.raycast.embree_packets import ISAS, PacketScene, packets_available
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
 if TYPE_CHECKING:
@@ -64,6 +64,10 @@ class EmbreeConfig:
             API (``embree_packets``: same distances bit for bit, scene builds 3-4x and casts
             1.24-1.32x faster); False, or where embreex's library is not found, uses embreex's
             single-ray loop.
+        isa: Embree's kernels (packet path only): ``"native"`` (the CPU's widest, fastest) or one
+            instruction set, ``"avx2"`` etc. AVX2 and AVX-512 kernels differ in the last float32
+            bit on ~10 % of a frame's rays; a pinned set gives the same ranges on every CPU that
+            has it (docs/determinism.md; ``"avx2"`` costs ~20 % of the cast on an AVX-512 CPU).
     """
 
     max_chord_error_m: float = 1e-4  # docs/sensors.md: agree with PyBullet to 1 cm; 100x margin
@@ -71,6 +75,7 @@ class EmbreeConfig:
     auto_update: bool = True
     threads: int = 1
     ray_packets: bool = True
+    isa: str = "native"
 
     def __post_init__(self) -> None:
         require(
@@ -90,6 +95,12 @@ class EmbreeConfig:
             f"must be an int in [1, 64], got {self.threads!r}",
         )
         require(isinstance(self.ray_packets, bool), "ray_packets", "must be a bool")
+        require(self.isa in ISAS, "isa", f"must be one of {ISAS}, got {self.isa!r}")
+        require(
+            self.isa == "native" or self.ray_packets,
+            "isa",
+            f"{self.isa!r} needs ray_packets=True (embreex's own loop always runs native kernels)",
+        )
 
 
 _POOLS: dict[int, tuple[int, ThreadPoolExecutor]] = {}
@@ -108,14 +119,18 @@ def _thread_pool(n_threads: int) -> ThreadPoolExecutor:
 class _Scene:
     """One committed Embree scene of one triangle mesh (float32, local coordinates)."""
 
-    def __init__(self, mesh: Mesh, robust: bool = True, packets: bool = True) -> None:
+    def __init__(self, mesh: Mesh, robust: bool = True, packets: bool = True, isa: str = "native") -> None:
         v, f = mesh
         self.n_triangles = int(f.shape[0])
         self._packets: PacketScene | None = None
         self._embreex: Any = None
         if packets and packets_available():
-            self._packets = PacketScene(v, f, robust=robust)
+            self._packets = PacketScene(v, f, robust=robust, isa=isa)
             return
+        if isa != "native":
+            raise MissingDependencyError(
+                "embreex", f"Embree kernels pinned to isa={isa!r} (libembree4 not found)"
+            )
         rtcs, triangle_mesh = _embree()
         self._embreex = rtcs.EmbreeScene(robust=robust)
         if self.n_triangles:
@@ -170,7 +185,11 @@ class EmbreeCaster:
         self.local_origin_m = np.asarray(tuple(local_origin_m), dtype=np.float64)
         if self.local_origin_m.shape != (3,) or not np.isfinite(self.local_origin_m).all():
             raise ConfigError("local_origin_m", "must be 3 finite values")
-        self._static = _Scene((v - self.local_origin_m, f.astype(np.int32)), packets=self.config.ray_packets)
+        self._static = _Scene(
+            (v - self.local_origin_m, f.astype(np.int32)),
+            packets=self.config.ray_packets,
+            isa=self.config.isa,
+        )
         self._dynamic: _Scene | None = None
         self._world: World | None = None
         self._exclude: frozenset[int] = frozenset()
@@ -240,7 +259,11 @@ class EmbreeCaster:
         v = np.asarray(vertices_m, dtype=np.float64).reshape(-1, 3)
         f = np.asarray(triangles).reshape(-1, 3)
         self._dynamic = (
-            _Scene((v - self.local_origin_m, f.astype(np.int32)), packets=self.config.ray_packets)
+            _Scene(
+                (v - self.local_origin_m, f.astype(np.int32)),
+                packets=self.config.ray_packets,
+                isa=self.config.isa,
+            )
             if f.size
             else None
         )
@@ -267,7 +290,9 @@ class EmbreeCaster:
             return False
         self._dyn_poses = poses
         self._dynamic = _Scene(
-            world_mesh(self._dyn_links, poses, self.local_origin_m), packets=self.config.ray_packets
+            world_mesh(self._dyn_links, poses, self.local_origin_m),
+            packets=self.config.ray_packets,
+            isa=self.config.isa,
         )
         return True
 

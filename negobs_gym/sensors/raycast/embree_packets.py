@@ -33,6 +33,7 @@ _FORMAT_UINT3 = 0x5003
 _FORMAT_FLOAT3 = 0x9003
 _SCENE_FLAG_ROBUST = 1 << 2
 _PACKET = 16  # rays per rtcIntersect16 call
+ISAS = ("native", "sse4.2", "avx", "avx2", "avx512")  # Embree device config ``isa=...``
 # RTCRayHit16, 64-byte aligned: the ray's 12 fields of 16 lanes (org_x, org_y, org_z, tnear, dir_x,
 # dir_y, dir_z, time, tfar, mask, id, flags), then the hit's (Ng_x, Ng_y, Ng_z, u, v, primID, geomID,
 # instID and, in some builds, instPrimID): at most 1,408 bytes
@@ -92,17 +93,23 @@ class _Library:
         self.lib = lib
         self.path = path
         self.intersect16 = _INTERSECT16(("rtcIntersect16", lib))
-        self._device: tuple[int, int] | None = None
+        self._devices: dict[str, tuple[int, int]] = {}
 
-    def device(self) -> int:
-        """One Embree device per process (a forked child must not use its parent's threads)."""
+    def device(self, isa: str = "native") -> int:
+        """One Embree device per process and instruction set (a forked child must not use its
+        parent's threads); ``isa="native"`` lets Embree pick the CPU's widest kernels."""
         pid = os.getpid()
-        if self._device is None or self._device[0] != pid:
-            handle = self.lib.rtcNewDevice(None)
-            if not handle:
-                raise SimulationError(f"Embree: rtcNewDevice failed in {self.path}")
-            self._device = (pid, handle)
-        return self._device[1]
+        entry = self._devices.get(isa)
+        if entry is None or entry[0] != pid:
+            handle = self.lib.rtcNewDevice(None if isa == "native" else f"isa={isa}".encode())
+            error = self.lib.rtcGetDeviceError(handle) if handle else -1
+            if not handle or error:
+                raise SimulationError(
+                    f"Embree: no device with isa={isa!r} (error {error}); the CPU may lack it, use 'native'"
+                )
+            entry = (pid, handle)
+            self._devices[isa] = entry
+        return entry[1]
 
 
 _LIBRARY: list[_Library | None] = []
@@ -174,13 +181,19 @@ class PacketScene:
         vertices: (V, 3) float32 vertices (local coordinates: Embree works in float32).
         triangles: (F, 3) vertex indices.
         robust: Embree's robust mode (watertight edges: no ray slips between two triangles).
+        isa: Embree's kernels: ``"native"`` (the CPU's widest) or one instruction set
+            (``"sse4.2"``, ``"avx"``, ``"avx2"``, ``"avx512"``). Kernels of different widths
+            round some hits differently in the last float32 bit, so only a pinned set gives the
+            same ranges on every CPU that has it (docs/determinism.md).
 
     Raises:
         MissingDependencyError: embreex's ``libembree4`` was not found (:func:`packets_available`).
         SimulationError: Embree reported an error while building the scene.
     """
 
-    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, robust: bool = True) -> None:
+    def __init__(
+        self, vertices: np.ndarray, triangles: np.ndarray, robust: bool = True, isa: str = "native"
+    ) -> None:
         lib = _library()
         if lib is None:
             raise MissingDependencyError("embreex", "Embree packet queries (libembree4 not found)")
@@ -192,7 +205,7 @@ class PacketScene:
         self._vertices = np.zeros((v.shape[0] + 1, 3), dtype=np.float32)
         self._vertices[:-1] = v
         self._triangles = f
-        device = lib.device()
+        device = lib.device(isa)
         c = lib.lib
         scene = c.rtcNewScene(device)
         self._scene = scene

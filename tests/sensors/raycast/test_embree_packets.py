@@ -1,3 +1,5 @@
+import platform
+
 import numpy as np
 import pytest
 
@@ -134,3 +136,27 @@ def test_without_the_library_the_caster_falls_back_to_embreex(monkeypatch, rough
 def test_ray_packets_must_be_a_bool():
     with pytest.raises(ConfigError, match="ray_packets"):
         EmbreeConfig(ray_packets=1)
+
+
+def test_isa_config_is_checked():
+    with pytest.raises(ConfigError, match="isa"):
+        EmbreeConfig(isa="avx9")
+    with pytest.raises(ConfigError, match="ray_packets"):
+        EmbreeConfig(isa="avx2", ray_packets=False)
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86 instruction sets")
+def test_pinned_kernels_cast_the_same_scene_within_float32_rounding(rough_world):
+    world, own = rough_world
+    o, d = _lidar_rays(np.array([0.0, 0.0, 2.2]), n_azimuth=900)
+    native = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
+    for isa in ("avx2", "sse4.2"):
+        pinned = [
+            EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(isa=isa)).cast(
+                o, d, 120.0
+            )
+            for _ in range(2)
+        ]
+        np.testing.assert_array_equal(pinned[0], pinned[1])
+        np.testing.assert_array_equal(np.isnan(pinned[0]), np.isnan(native))
+        np.testing.assert_allclose(pinned[0], native, rtol=1e-5, atol=1e-4)
