@@ -36,8 +36,9 @@ _PACKET = 16  # rays per rtcIntersect16 call
 ISAS = ("native", "sse4.2", "avx", "avx2", "avx512")  # Embree device config ``isa=...``
 # RTCRayHit16, 64-byte aligned: the ray's 12 fields of 16 lanes (org_x, org_y, org_z, tnear, dir_x,
 # dir_y, dir_z, time, tfar, mask, id, flags), then the hit's (Ng_x, Ng_y, Ng_z, u, v, primID, geomID,
-# instID and, in some builds, instPrimID): at most 1,408 bytes
-_PACKET_BYTES = 2048
+# then instID and, in some builds, instPrimID per instance level): 1,344 bytes in embreex's build
+# (1 level), 2,240 with 8 levels and instPrimID; the buffer holds either
+_PACKET_BYTES = 4096
 
 _u64 = ctypes.c_uint64  # handles and pointers are passed as 64-bit integers (same ABI as a pointer)
 _INTERSECT16 = ctypes.CFUNCTYPE(None, _u64, _u64, _u64, _u64)
