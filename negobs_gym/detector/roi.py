@@ -224,10 +224,9 @@ def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, r
 
 # The per-point sector rule, floor((atan2(y, x) + pi) / sector), is compiled wherever a point's own
 # sector is taken (binning the map, looking a point up), so both use the C library's atan2 on every
-# machine. numpy's float64 arctan2 is that same function on CPUs without AVX-512; with AVX-512 it
-# is numpy's own SIMD routine, which can differ in the last bit and so move a point lying within
-# ~1e-15 of a sector boundary into the neighbour sector. (Ray tables, :func:`ray_sectors`, keep
-# numpy: their guard band leaves such rays to this rule.)
+# machine, as the ray tables (:func:`ray_sectors`, through ``core.libm``) do. numpy's float64
+# arctan2 is a SIMD routine on AVX-512 CPUs, which can differ in the last bit and so move a point
+# lying within ~1e-15 of a sector boundary into the neighbour sector.
 
 
 @kernel

@@ -67,7 +67,8 @@ class EmbreeConfig:
         isa: Embree's kernels (packet path only): ``"native"`` (the CPU's widest, fastest) or one
             instruction set, ``"avx2"`` etc. AVX2 and AVX-512 kernels differ in the last float32
             bit on ~10 % of a frame's rays; a pinned set gives the same ranges on every CPU that
-            has it (docs/determinism.md; ``"avx2"`` costs ~20 % of the cast on an AVX-512 CPU).
+            has it (docs/determinism.md; ``"avx2"`` makes the cast 1.10-1.23x as long on an
+            AVX-512 CPU).
     """
 
     max_chord_error_m: float = 1e-4  # docs/sensors.md: agree with PyBullet to 1 cm; 100x margin
@@ -185,17 +186,17 @@ class EmbreeCaster:
         self.local_origin_m = np.asarray(tuple(local_origin_m), dtype=np.float64)
         if self.local_origin_m.shape != (3,) or not np.isfinite(self.local_origin_m).all():
             raise ConfigError("local_origin_m", "must be 3 finite values")
-        self._static = _Scene(
-            (v - self.local_origin_m, f.astype(np.int32)),
-            packets=self.config.ray_packets,
-            isa=self.config.isa,
-        )
+        self._static = self._scene((v - self.local_origin_m, f.astype(np.int32)))
         self._dynamic: _Scene | None = None
         self._world: World | None = None
         self._exclude: frozenset[int] = frozenset()
         self._dyn_links: list[LinkMesh] = []
         self._dyn_ids: tuple[int, ...] = ()
         self._dyn_poses: np.ndarray | None = None
+
+    def _scene(self, mesh: Mesh) -> _Scene:
+        """A scene of ``mesh`` (local coordinates) built the way the config asks."""
+        return _Scene(mesh, packets=self.config.ray_packets, isa=self.config.isa)
 
     @classmethod
     def from_world(
@@ -258,15 +259,7 @@ class EmbreeCaster:
         """Replace the dynamic scene by a mesh in world coordinates (empty arrays clear it)."""
         v = np.asarray(vertices_m, dtype=np.float64).reshape(-1, 3)
         f = np.asarray(triangles).reshape(-1, 3)
-        self._dynamic = (
-            _Scene(
-                (v - self.local_origin_m, f.astype(np.int32)),
-                packets=self.config.ray_packets,
-                isa=self.config.isa,
-            )
-            if f.size
-            else None
-        )
+        self._dynamic = self._scene((v - self.local_origin_m, f.astype(np.int32))) if f.size else None
 
     def update_dynamic(self) -> bool:
         """Re-read the world's dynamic bodies and rebuild their scene if any moved; True if rebuilt."""
@@ -289,11 +282,7 @@ class EmbreeCaster:
         if self._dyn_poses is not None and np.array_equal(poses, self._dyn_poses):
             return False
         self._dyn_poses = poses
-        self._dynamic = _Scene(
-            world_mesh(self._dyn_links, poses, self.local_origin_m),
-            packets=self.config.ray_packets,
-            isa=self.config.isa,
-        )
+        self._dynamic = self._scene(world_mesh(self._dyn_links, poses, self.local_origin_m))
         return True
 
     def _cast_static(self, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> np.ndarray:
