@@ -79,8 +79,7 @@ def cast_drive(rig: Rig, size_m: tuple[float, float], seed: int, roi: bool = Fal
         selector = heights = None
         recent: list = []  # the drive's band sets (RoiSelector.subsets_for_bands)
         if roi:
-            g = ObservationConfig().grid
-            selector = RoiSelector(rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m)))
+            selector = RoiSelector(rig, RoiConfig(region_xy_m=ObservationConfig().grid.extent_xy_m))
             heights = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
         steps = round(FRAME_S / world.config.time_step_s)
         while True:

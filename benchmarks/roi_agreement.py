@@ -48,15 +48,13 @@ class _Episode:
         u = env.unwrapped
         self.vehicle = u.vehicle
         self.grid = u.config.observation.grid
-        g = self.grid
         self.rig = env_rig("roi")
-        region = (-g.side_m, g.side_m, -g.back_m, g.ahead_m)
-        self.selector = RoiSelector(self.rig, RoiConfig(region_xy_m=region))
+        self.selector = RoiSelector(self.rig, RoiConfig(region_xy_m=self.grid.extent_xy_m))
         world, exclude = self.vehicle.world, (self.vehicle.body_id,)
         self.caster = make_caster(world, "auto", exclude_body_ids=exclude)
         self.heights = HeightEnvelope(world, exclude_body_ids=exclude)
         self.recent: list = []
-        config = NegativeDetectorConfig(grid=g)
+        config = NegativeDetectorConfig(grid=self.grid)
         self.roi_detector = NegativeObstacleDetector(config)
         self.native_detector = NegativeObstacleDetector(config)
 

@@ -46,6 +46,11 @@ class GridSpec:
         """(rows, cols)."""
         return self.rows, self.cols
 
+    @property
+    def extent_xy_m(self) -> tuple[float, float, float, float]:
+        """Vehicle-frame box ``(x_min, x_max, y_min, y_max)`` the grid covers [m]."""
+        return -self.side_m, self.side_m, -self.back_m, self.ahead_m
+
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell (row, col) of vehicle-frame points (..., 2) and a mask of those inside the grid."""
         row, col, inside = self._cells(np.asarray(xy, dtype=np.float64))

@@ -109,10 +109,7 @@ class DetectorGrid:
         self._roi: RoiSelector | None = None
         self._roi_recent: list = []  # this episode's band sets: its casts depend on nothing else
         if config.rig == "roi":
-            g = config.grid
-            self._roi = roi_selector(
-                self.rig, RoiConfig(region_xy_m=(-g.side_m, g.side_m, -g.back_m, g.ahead_m))
-            )
+            self._roi = roi_selector(self.rig, RoiConfig(region_xy_m=config.grid.extent_xy_m))
             if "heights" not in cache:
                 cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
             self._heights = cache["heights"]

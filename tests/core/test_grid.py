@@ -60,3 +60,14 @@ def test_occupied_reads_a_strided_view_of_scan_points_and_names_a_wrong_shape():
     np.testing.assert_array_equal(grid.occupied(view), want)
     with pytest.raises(ValueError, match=r"\(\.\.\., 2\)"):
         grid.occupied(points)
+
+
+def test_extent_is_the_box_whose_points_fall_in_cells():
+    grid = GridSpec(cell_m=0.2, ahead_m=4.0, back_m=1.0, side_m=2.0)
+    x0, x1, y0, y1 = grid.extent_xy_m
+    assert (x0, x1, y0, y1) == (-2.0, 2.0, -1.0, 4.0)
+    eps = 1e-9
+    inside = np.array([[x0, y0], [x1 - eps, y1 - eps], [0.5 * (x0 + x1), 0.5 * (y0 + y1)]])
+    outside = np.array([[x0 - eps, 0.0], [x1, 0.0], [0.0, y0 - eps], [0.0, y1]])
+    assert grid.cell_of(inside)[2].all()
+    assert not grid.cell_of(outside)[2].any()
