@@ -42,6 +42,7 @@ import negobs_gym  # noqa: F401  (registers the envs)
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.drivers import PurePursuitDriver
 from negobs_gym.envs.perception import env_rig
+from negobs_gym.eval.detection_campaign import BRAKING_SPEED_MPS
 from negobs_gym.safety import SafetyFilterConfig, braking_distance_m, hazard_distance_m
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
@@ -49,7 +50,6 @@ from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 
 ACTION = np.array([0.5, 0.0], np.float32)
 STEER_FAN = np.linspace(-1.0, 1.0, 21)  # action[1] values whose corridors are compared
-FAST_MPS = 25.0 / 3.6  # paper N's test speed
 
 
 class _Episode:
@@ -165,7 +165,7 @@ def main() -> None:
             f"cells_differ={t['cells_differ']} pairs_in_grid={t['pairs']} missing={t['missing']} "
             f"({share:.1f} %) extra={t['extra']} corridor_differ={t['corridor_differ']} "
             f"nearest_differing_m={t['nearest_differing_m']:.1f} "
-            f"r_25kmh_m={braking_distance_m(FAST_MPS):.1f} "
+            f"r_25kmh_m={braking_distance_m(BRAKING_SPEED_MPS):.1f} "
             f"rays_per_frame roi={t['rays_roi'] / n:.0f} native={t['rays_native'] / n:.0f} "
             f"in_grid={t['rays_in_grid'] / n:.0f} "
             f"wall_s={time.perf_counter() - t0:.0f}"
