@@ -110,9 +110,9 @@ class TrainConfig:
         vec_env: With ``envs`` > 1: ``"subproc"`` (SB3's ``SubprocVecEnv``: a finished episode
             resets inside the lockstep while the other envs wait) or ``"prefetch"``
             (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process per env resets the
-            next episode beforehand; 11 % more steps/s with 2 envs on 2 cores and ~100-step
-            episodes, docs/performance.md; twice the processes and memory). The two draw
-            different episode streams from the same seed.
+            next episode beforehand; pays off with short episodes and many envs, see
+            docs/performance.md, "Where the 2-process run loses"; twice the processes and
+            memory). The two draw different episode streams from the same seed.
         seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
         eval_every: Env steps between evaluations (0: only at the end).
         eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
