@@ -205,7 +205,9 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
     """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``); its metrics.
 
     Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
-    ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead).
+    ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
+    ``off_track_steps`` counts the steps that ended off the track (``info["off_track"]``: farther
+    from the centre line than half the track width).
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -217,7 +219,7 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
-    goal, was_vetoed, done = False, False, False
+    goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
     while not done and steps < max_steps:
         gap = float(info["distance_to_negative_ahead_m"])
@@ -229,6 +231,7 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
         for k in events:
             events[k] |= bool(info["events"][k])
         goal |= bool(info.get("goal_reached", False))
+        off_track_steps += bool(info.get("off_track", False))
         vetoed = bool(filtered and info["safety"]["vetoed"])
         if vetoed:
             vetoes += 1
@@ -248,6 +251,7 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
         "rollover": events["rollover"],
         "trapped": events["trapped"],
         "goal": goal,
+        "off_track_steps": off_track_steps,
         "stopped": still_s >= STANDSTILL_S,
         "start_gap_m": start_gap,
         "final_gap_m": float(info["distance_to_negative_ahead_m"]),

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.errors import ConfigError, MissingDependencyError
+from negobs_gym.errors import ConfigError, MissingDependencyError, require
 
 log = logging.getLogger(__name__)
 
@@ -222,10 +222,23 @@ def run_episodes(
 def assemble_csv(
     results: Mapping[str, Rows], table: str, header: Sequence[str], out_path: str | Path
 ) -> Path:
-    """Write ``table``'s rows of every episode, episodes sorted by key, under ``header``, atomically."""
+    """Write ``table``'s rows of every episode, episodes sorted by key, under ``header``, atomically.
+
+    Raises:
+        ConfigError: a row whose field count is not the header's (a part kept by ``resume`` from a
+            campaign whose table had other columns, e.g. written by another version).
+    """
     lines = [",".join(header)]
     for key in sorted(results):
-        lines.extend(results[key].get(table, []))
+        for row in results[key].get(table, []):
+            fields = row.count(",") + 1
+            require(
+                fields == len(header),
+                f"{table}[{key}]",
+                f"has {fields} fields, the table's header {len(header)}: a kept part from a campaign "
+                "with other columns; rerun without resume",
+            )
+            lines.append(row)
     return write_text_atomic(out_path, "\n".join(lines) + "\n")
 
 

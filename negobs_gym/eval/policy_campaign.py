@@ -2,7 +2,9 @@
 
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
 rollover or trap during the episode), the failure events, goal reached, progress along the track,
-distance driven, the filter's vetoes and the summed constraint ``cost`` (``info["cost"]``).
+distance driven, the filter's vetoes, the summed constraint ``cost`` (``info["cost"]``) and the
+steps that ended off the track (farther from the centre line than half the track width: the
+obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none).
 
 Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
 training run's envs reset from seeds ``seed + i`` and then draw their terrains from their own
@@ -39,6 +41,7 @@ COLUMNS = (
     "steps",
     "vetoes",
     "cost",
+    "off_track_steps",
 )
 
 
@@ -53,6 +56,8 @@ SUMMED = (
     "distance_m",
     "vetoes",
     "cost",
+    "steps",
+    "off_track_steps",
 )
 
 
@@ -126,7 +131,8 @@ def run_episode(episode: Episode) -> Rows:
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
     """Per filter setting: episodes, success rate, entries, collisions, mean progress, distance
-    driven, vetoes (and per km driven), cost."""
+    driven, vetoes (and per km driven), cost, steps, and the share of them that ended off the
+    track."""
     out: dict[str, dict[str, float]] = {}
     for r in read_csv(csv_path):
         s = out.setdefault(
@@ -142,10 +148,13 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])
         s["cost"] += float(r["cost"])
+        s["steps"] += int(r["steps"])
+        s["off_track_steps"] += int(r["off_track_steps"])
     for s in out.values():
         s["success_rate"] = s["successes"] / s["episodes"]
         s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
         s["vetoes_per_km"] = s["vetoes"] / (s["distance_m"] / 1000.0) if s["distance_m"] > 0 else 0.0
+        s["off_track_share"] = s["off_track_steps"] / s["steps"] if s["steps"] > 0 else 0.0
     return out
 
 

@@ -47,6 +47,7 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     assert main(["-q", *evaluation, "--out", str(tmp_path / "eval"), "--no-progress"]) == 0
     (line,) = capsys.readouterr().out.splitlines()
     assert line.startswith(f"{ENV}/filter success=") and "/1 " in line
+    assert 0.0 <= float(line.rsplit("off_track_share=", 1)[1]) <= 1.0
 
 
 @pytest.mark.parametrize(

@@ -106,3 +106,11 @@ def test_missing_ray_is_a_clear_error(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(MissingDependencyError, match=r"negobs_gym\[ray\]"):
         import_ray()
+
+
+def test_a_kept_part_with_other_columns_is_a_clear_error(tmp_path) -> None:
+    # a part resumed from a campaign whose table had one column fewer (another version)
+    results = {"e000": {"rows": ["e000,0,0.5"]}, "e001": {"rows": ["e001,0"]}}
+    with pytest.raises(ConfigError, match=r"rows\[e001\].*2 fields, the table's header 3.*without resume"):
+        assemble_csv(results, "rows", ["episode", "k", "x"], tmp_path / "out.csv")
+    assert not (tmp_path / "out.csv").exists()

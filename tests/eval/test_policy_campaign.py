@@ -1,0 +1,51 @@
+"""Policy evaluation: episode metrics from a real episode, the summary from hand-made rows."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from negobs_gym.eval.braking_campaign import run_driven_episode
+from negobs_gym.eval.campaign import format_row
+from negobs_gym.eval.policy_campaign import COLUMNS, summarize
+from negobs_gym.policies.training import make_task_env
+
+
+class FixedAction:
+    """A driver that always sends one action (throttle, steering)."""
+
+    def __init__(self, throttle: float, steering: float) -> None:
+        self.action = np.array([throttle, steering], np.float32)
+
+    def reset(self, seed: int) -> None:
+        pass
+
+    def act(self, obs, info) -> np.ndarray:
+        return self.action
+
+
+@pytest.mark.parametrize(("steering", "leaves_the_track"), [(0.0, False), (1.0, True)])
+def test_off_track_steps_count_the_steps_beside_the_track(steering: float, leaves_the_track: bool) -> None:
+    env = make_task_env("negobs_gym/Braking-v1", "oracle")
+    m = run_driven_episode(env, FixedAction(0.3, steering), seed=0, filtered=False, max_steps=30)
+    assert 0 <= m["off_track_steps"] <= m["steps"]
+    # straight on from the centre line stays on the 6 m track; full lock leaves it within 3 s
+    assert (m["off_track_steps"] > 0) is leaves_the_track
+
+
+def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
+    def row(flt: str, seed: int, goal: int, steps: int, off: int) -> str:
+        values = {c: 0 for c in COLUMNS}
+        values.update(episode=f"{flt}.{seed}", env="e", filter=flt, seed=seed, success=1, goal=goal)
+        values.update(progress_m=10.0, distance_m=20.0, steps=steps, off_track_steps=off)
+        return format_row([values[c] for c in COLUMNS])
+
+    rows = [row("filter", 0, 1, 100, 30), row("filter", 1, 0, 50, 0), row("nofilter", 0, 1, 10, 10)]
+    path = tmp_path / "policy.csv"
+    path.write_text(",".join(COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    s = summarize(path)
+    assert s["filter"]["off_track_share"] == pytest.approx(30 / 150)
+    assert s["filter"]["goals"] == 1 and s["filter"]["steps"] == 150
+    assert s["nofilter"]["off_track_share"] == 1.0
