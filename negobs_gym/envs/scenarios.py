@@ -32,6 +32,7 @@ __all__ = [
     "BrakingV0Env",
     "OffroadNavEnv",
     "OffroadNavV1Env",
+    "OffroadNavV2Env",
     "PaperTStraightEnv",
     "TrenchCrossingEnv",
 ]
@@ -142,6 +143,22 @@ class OffroadNavV1Env(NegObsEnv):
     """
 
     default_scenario = "offroad_nav_v1"
+
+
+class OffroadNavV2Env(NegObsEnv):
+    """``negobs_gym/OffroadNav-v2`` (spec ``offroad_nav_v2``): :class:`OffroadNavV1Env` where leaving
+    the track ends the episode.
+
+    Changes against v1: rule ``off_track`` terminates the episode when the car's centre is farther
+    from the centre line than half the 6 m track width. On v1 the right side is open ground and
+    the obstacles lie within 2 m of the centre line, so a policy could reach the goal driving
+    beside the track without meeting one (the policies trained on v1 do: docs/training.md). Every
+    obstacle a car cannot drive over leaves at least 1.5 m between its side and one edge of the
+    track (200 courses measured), so the 2 m wide car passes it with its centre on the track.
+    Terrain draws, observation, rewards, the other rules and the 60 s limit are v1's.
+    """
+
+    default_scenario = "offroad_nav_v2"
 
 
 class TrenchCrossingEnv(NegObsEnv):

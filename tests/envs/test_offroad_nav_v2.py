@@ -1,0 +1,86 @@
+"""OffroadNav-v2: v1's course where leaving the track ends the episode; every obstacle passable on it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from negobs_gym.core.geometry import project_onto_polyline
+from negobs_gym.envs.scenarios import OffroadNavV1Env, OffroadNavV2Env
+from negobs_gym.sim.presets import winding_course
+from negobs_gym.sim.vehicle import VehicleConfig
+
+SPARE_M = 0.5  # clearance beside the car when it passes an obstacle with its centre on the track
+
+
+def _oracle(env_cls):
+    config = env_cls.default_config()
+    return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source="oracle"))
+
+
+def _signed_lateral(track, xy: np.ndarray) -> np.ndarray:
+    """Signed offset from the centre line (+ right) of each point (N, 2)."""
+    station, _ = project_onto_polyline(xy, track.centreline_xy_m)
+    centre, _ = track.pose_at(station, 0.0)
+    right = track.pose_at(station, 1.0)[0] - centre  # unit vector to the right of the track
+    return np.sum((xy - centre) * right, axis=1)
+
+
+def _footprints(terrain) -> list[np.ndarray]:
+    """Outline points (N, 2) of every obstacle a car cannot drive over (mounds are part of the
+    heightfield and drivable)."""
+    shapes = [ob.outline_xy_m for ob in terrain.negative_obstacles]
+    for ob in terrain.positive_obstacles:
+        if ob.in_heightfield:
+            continue
+        forward = np.array([-np.sin(ob.yaw_rad), np.cos(ob.yaw_rad)])  # yaw 0 faces +Y
+        right = np.array([forward[1], -forward[0]])
+        hx, hy = ob.half_extents_m[:2]  # along the heading, across it
+        corners = [ob.centre_m[:2] + a * hx * forward + b * hy * right for a in (-1, 1) for b in (-1, 1)]
+        shapes.append(np.array(corners))
+    return shapes
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_every_obstacle_can_be_passed_on_the_track(seed: int) -> None:
+    terrain = winding_course(120.0, seed=seed)
+    half_track = 0.5 * terrain.track.width_m
+    need = 0.5 * VehicleConfig().width_m + SPARE_M  # car centre to the obstacle's side
+    for outline in _footprints(terrain):
+        lateral = _signed_lateral(terrain.track, np.asarray(outline, dtype=np.float64))
+        left_gap = lateral.min() + half_track  # room between the track's left edge and the obstacle
+        right_gap = half_track - lateral.max()
+        assert max(left_gap, right_gap) >= need, (seed, lateral.min(), lateral.max())
+
+
+def test_v2_is_v1_with_the_off_track_rule() -> None:
+    v1 = OffroadNavV1Env(config=_oracle(OffroadNavV1Env))
+    v2 = OffroadNavV2Env(config=_oracle(OffroadNavV2Env))
+    assert set(v2.scenario.terminations) - set(v1.scenario.terminations) == {"off_track"}
+    assert v2.scenario.reward == v1.scenario.reward and v2.scenario.observation == v1.scenario.observation
+    v1.reset(seed=11)
+    v2.reset(seed=11)
+    assert [o.outline_xy_m.tobytes() for o in v1.terrain.negative_obstacles] == [
+        o.outline_xy_m.tobytes() for o in v2.terrain.negative_obstacles
+    ]
+    v1.close()
+    v2.close()
+
+
+def test_leaving_the_track_ends_a_v2_episode_only() -> None:
+    ends = {}
+    for env_cls in (OffroadNavV1Env, OffroadNavV2Env):
+        env = env_cls(config=_oracle(env_cls))
+        env.reset(seed=0)
+        steps, terminated = 0, False
+        while not terminated and steps < 60:  # steering half right: a ~9 m radius circle, off the track
+            _, _, terminated, _, info = env.step(np.array([0.8, -0.5], np.float32))
+            steps += 1
+        ends[env_cls] = (steps, info["termination"], info["off_track"])
+        env.close()
+    steps, rules, off = ends[OffroadNavV2Env]
+    assert rules == ["off_track"] and off and steps < 60
+    assert ends[OffroadNavV1Env][:2] == (60, [])  # v1 drives on beside the track
+    assert ends[OffroadNavV1Env][2]
