@@ -7,8 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from negobs_gym.core.geometry import project_onto_polyline
+from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.envs.scenarios import OffroadNavV1Env, OffroadNavV2Env
+from negobs_gym.sim import track_coordinates
 from negobs_gym.sim.presets import winding_course
 from negobs_gym.sim.vehicle import VehicleConfig
 
@@ -20,26 +21,15 @@ def _oracle(env_cls):
     return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source="oracle"))
 
 
-def _signed_lateral(track, xy: np.ndarray) -> np.ndarray:
-    """Signed offset from the centre line (+ right) of each point (N, 2)."""
-    station, _ = project_onto_polyline(xy, track.centreline_xy_m)
-    centre, _ = track.pose_at(station, 0.0)
-    right = track.pose_at(station, 1.0)[0] - centre  # unit vector to the right of the track
-    return np.sum((xy - centre) * right, axis=1)
-
-
 def _footprints(terrain) -> list[np.ndarray]:
     """Outline points (N, 2) of every obstacle a car cannot drive over (mounds are part of the
     heightfield and drivable)."""
     shapes = [ob.outline_xy_m for ob in terrain.negative_obstacles]
     for ob in terrain.positive_obstacles:
-        if ob.in_heightfield:
-            continue
-        forward = np.array([-np.sin(ob.yaw_rad), np.cos(ob.yaw_rad)])  # yaw 0 faces +Y
-        right = np.array([forward[1], -forward[0]])
-        hx, hy = ob.half_extents_m[:2]  # along the heading, across it
-        corners = [ob.centre_m[:2] + a * hx * forward + b * hy * right for a in (-1, 1) for b in (-1, 1)]
-        shapes.append(np.array(corners))
+        if not ob.in_heightfield:
+            hx, hy = ob.half_extents_m[:2]  # body frame: x right, y forward
+            local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+            shapes.append(vehicle_to_world_xy(local, ob.centre_m[:2], ob.yaw_rad))
     return shapes
 
 
@@ -49,7 +39,7 @@ def test_every_obstacle_can_be_passed_on_the_track(seed: int) -> None:
     half_track = 0.5 * terrain.track.width_m
     need = 0.5 * VehicleConfig().width_m + SPARE_M  # car centre to the obstacle's side
     for outline in _footprints(terrain):
-        lateral = _signed_lateral(terrain.track, np.asarray(outline, dtype=np.float64))
+        _, lateral = track_coordinates(terrain.track, np.asarray(outline, dtype=np.float64))
         left_gap = lateral.min() + half_track  # room between the track's left edge and the obstacle
         right_gap = half_track - lateral.max()
         assert max(left_gap, right_gap) >= need, (seed, lateral.min(), lateral.max())
