@@ -10,7 +10,14 @@ import argparse
 import logging
 
 from negobs_gym.cli.common import non_negative_int, positive_int
-from negobs_gym.policies.config import ALGORITHMS, SOURCES, VEC_ENVS, TrainConfig, WarmStartConfig
+from negobs_gym.policies.config import (
+    ALGORITHMS,
+    DEMONSTRATORS,
+    SOURCES,
+    VEC_ENVS,
+    TrainConfig,
+    WarmStartConfig,
+)
 
 log = logging.getLogger("negobs_gym.cli.train")
 
@@ -93,8 +100,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--warm-start-steps",
         type=non_negative_int,
         default=defaults.warm_start.steps,
-        help="PPO: first behaviour-clone the pure-pursuit driver on this many demonstration steps "
+        help="PPO: first behaviour-clone a scripted driver on this many demonstration steps "
         "(0 = from scratch; default: %(default)s)",
+    )
+    group.add_argument(
+        "--warm-start-driver",
+        choices=DEMONSTRATORS,
+        default=defaults.warm_start.driver,
+        help="the demonstrator: pure_pursuit follows the centre line; track_planner passes the "
+        "ground-truth obstacles on the track (OffroadNav-v2) (default: %(default)s)",
+    )
+    group.add_argument(
+        "--dagger-rounds",
+        type=non_negative_int,
+        default=defaults.warm_start.dagger_rounds,
+        help="after the clone, rounds of DAgger: the policy drives --warm-start-steps more steps, "
+        "the driver labels them, the policy is refitted on all (default: %(default)s)",
     )
     group.add_argument(
         "--action-std",
@@ -132,7 +153,12 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
-        warm_start=WarmStartConfig(steps=args.warm_start_steps, action_std=args.action_std),
+        warm_start=WarmStartConfig(
+            steps=args.warm_start_steps,
+            driver=args.warm_start_driver,
+            dagger_rounds=args.dagger_rounds,
+            action_std=args.action_std,
+        ),
         init_model=args.init,
         progress=not args.no_progress,
     )

@@ -1,9 +1,14 @@
-"""Deterministic scripted drivers sharing one protocol: ``reset(seed)``, ``act(obs, info)``."""
+"""Deterministic scripted drivers sharing one protocol: ``reset(seed)``, ``act(obs, info)``.
+
+All but :class:`TrackPlannerDriver` read only the env's info; it reads the course's ground truth
+(an expert for demonstrations, not a sensor-driven baseline).
+"""
 
 from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
+from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 
 __all__ = [
     "ConstantSpeedConfig",
@@ -13,4 +18,6 @@ __all__ = [
     "PurePursuitDriver",
     "RecklessConfig",
     "RecklessDriver",
+    "TrackPlannerConfig",
+    "TrackPlannerDriver",
 ]

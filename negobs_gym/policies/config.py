@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from negobs_gym.errors import require
 
-__all__ = ["ALGORITHMS", "SOURCES", "GridCnnConfig", "TrainConfig", "WarmStartConfig"]
+__all__ = ["ALGORITHMS", "DEMONSTRATORS", "SOURCES", "GridCnnConfig", "TrainConfig", "WarmStartConfig"]
 
 #: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
@@ -19,6 +19,8 @@ ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
 SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
 VEC_ENVS: tuple[str, ...] = ("subproc", "prefetch")
+#: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
+DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -59,11 +61,18 @@ class GridCnnConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class WarmStartConfig:
-    """Behaviour cloning of the pure-pursuit driver (:mod:`negobs_gym.policies.pretrain`; the values
+    """Behaviour cloning of a scripted driver (:mod:`negobs_gym.policies.pretrain`; the values
     are choices).
 
     Attributes:
         steps: Demonstration env steps (0: no warm start).
+        driver: The demonstrator: ``"pure_pursuit"`` follows the centre line (and drives into the
+            first obstacle); ``"track_planner"`` (:mod:`negobs_gym.drivers.track_planner`) passes
+            the ground-truth obstacles on the track, which OffroadNav-v2 needs.
+        dagger_rounds: Rounds of DAgger after the first fit (Ross et al. 2011): the cloned policy
+            drives ``steps`` more steps (with the same noise), the driver labels the states it
+            visits, and the policy is refitted on everything so far. Cloning alone drifts into
+            states the driver never showed (on OffroadNav-v2 the car leaves the track).
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -74,6 +83,8 @@ class WarmStartConfig:
     """
 
     steps: int = 0
+    driver: str = "pure_pursuit"
+    dagger_rounds: int = 0
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
@@ -89,10 +100,20 @@ class WarmStartConfig:
         for name in ("epochs", "batch_size"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
+        require(
+            isinstance(self.dagger_rounds, int) and self.dagger_rounds >= 0,
+            "dagger_rounds",
+            f"must be an int >= 0, got {self.dagger_rounds!r}",
+        )
         for name in ("noise_std", "learning_rate", "action_std"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.action_std > 0, "action_std", "must be > 0")
+        require(
+            self.driver in DEMONSTRATORS,
+            "driver",
+            f"unknown demonstrator {self.driver!r}; expected one of {DEMONSTRATORS}",
+        )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,4 +1,4 @@
-"""Warm start: behaviour cloning of the pure-pursuit driver before reinforcement learning.
+"""Warm start: behaviour cloning of a scripted driver before reinforcement learning.
 
 PPO from a random Gaussian policy first has to learn to drive along the route at all: on
 OffroadNav-v1 its training return fell from +6 to -50 over the first 16 k steps
@@ -9,6 +9,11 @@ how to return to the route, while the labels are the driver's clean actions; Las
 then sets the policy's action standard deviation to ``action_std`` for PPO's exploration. PPO then
 learns what the driver cannot do: leave the route around obstacles.
 
+On OffroadNav-v2, where leaving the track ends the episode, the demonstrator is the
+:class:`~negobs_gym.drivers.track_planner.TrackPlannerDriver` instead: it reads the course's
+ground-truth obstacles and passes them on the track, which the policy then has to learn from its
+grid (``WarmStartConfig.driver``; docs/training.md).
+
 The demonstrations come from the training env itself (same observation wrapper, source and
 filter), on seeds of their own (``seed + DEMO_SEED_OFFSET + k``), so neither the training seeds
 nor the evaluation seeds are reused.
@@ -17,17 +22,21 @@ nor the evaluation seeds are reused.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
+from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
+from negobs_gym.drivers.track_planner import TrackPlannerDriver
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.policies.config import WarmStartConfig
+from negobs_gym.policies.config import DEMONSTRATORS, WarmStartConfig
+from negobs_gym.sim.types import Terrain
 
-__all__ = ["DEMO_SEED_OFFSET", "Demonstrations", "collect_demonstrations", "warm_start"]
+__all__ = ["DEMO_SEED_OFFSET", "Demonstrations", "collect_demonstrations", "demonstrator", "warm_start"]
 
 #: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
 #: evaluations 1,000,000 on).
@@ -42,33 +51,60 @@ class Demonstrations:
     actions: np.ndarray
     episodes: int
 
+    def __add__(self, other: Demonstrations) -> Demonstrations:
+        """Both sets, this one's first (DAgger's aggregate)."""
+        observations = {k: np.concatenate([v, other.observations[k]]) for k, v in self.observations.items()}
+        return Demonstrations(
+            observations, np.concatenate([self.actions, other.actions]), self.episodes + other.episodes
+        )
 
-def collect_demonstrations(env: Any, steps: int, noise_std: float, seed: int) -> Demonstrations:
-    """``steps`` steps of the pure-pursuit driver on ``env`` (a negobs env, possibly wrapped).
 
-    Episodes reset on termination or truncation, each on seed ``seed + DEMO_SEED_OFFSET + k``; the
-    executed action is the driver's plus ``N(0, noise_std)`` noise (from ``default_rng(seed)``),
-    clipped to [-1, 1].
+def demonstrator(name: str, terrain: Terrain) -> Driver:
+    """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
+    one course."""
+    if name == "pure_pursuit":
+        return PurePursuitDriver(terrain.track.centreline_xy_m)
+    if name == "track_planner":
+        return TrackPlannerDriver(terrain)
+    raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
+
+
+def collect_demonstrations(
+    env: Any,
+    steps: int,
+    noise_std: float,
+    seed: int,
+    driver: str = "pure_pursuit",
+    policy: Callable[[dict[str, np.ndarray]], np.ndarray] | None = None,
+    first_episode: int = 0,
+) -> Demonstrations:
+    """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
+
+    Episodes reset on termination or truncation, each on seed ``seed + DEMO_SEED_OFFSET + k`` for
+    k = ``first_episode``, ``first_episode + 1``, ...; the executed action is the driver's, or with
+    ``policy`` that policy's (DAgger: the learner drives, the driver labels the states it visits),
+    plus ``N(0, noise_std)`` noise (from ``default_rng(seed + first_episode)``), clipped to [-1, 1].
     """
     require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(seed + first_episode)
     observations: dict[str, list[np.ndarray]] = {}
     actions: list[np.ndarray] = []
     episodes = 0
-    obs, info, driver = None, None, None
+    obs, info, expert = None, None, None
     while len(actions) < steps:
-        if driver is None:
-            obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + episodes)
-            driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+        if expert is None:
+            obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + first_episode + episodes)
+            expert = demonstrator(driver, env.unwrapped.terrain)
             episodes += 1
-        label = driver.act(obs, info)
+        label = expert.act(obs, info)
         for key, value in obs.items():
             observations.setdefault(key, []).append(np.array(value, copy=True))
         actions.append(label)
-        executed = np.clip(label + rng.normal(0.0, noise_std, size=2), -1.0, 1.0).astype(np.float32)
+        action = label if policy is None else np.asarray(policy(obs), dtype=np.float64)
+        executed = np.clip(action + rng.normal(0.0, noise_std, size=2), -1.0, 1.0).astype(np.float32)
         obs, _, terminated, truncated, info = env.step(executed)
         if terminated or truncated:
-            driver = None
+            expert = None
     return Demonstrations(
         {key: np.stack(values) for key, values in observations.items()}, np.stack(actions), episodes
     )

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 import torch
 
 import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
@@ -218,7 +219,8 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             functools.partial(evaluate, config=config),
             out / "eval.csv",
             every,
-            at_start=bool(config.init_model) and start_step == 0,  # the row the fine-tuning starts from
+            # the row the fine-tuning or the cloned policy starts from
+            at_start=bool(config.init_model or warm) and start_step == 0,
         )
         callbacks = [ProgressBarCallback(config.steps, config.progress), evaluation]
         if config.checkpoint_every > 0:
@@ -279,7 +281,7 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
 
 
 def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
-    """Behaviour-clone the pure-pursuit driver into a new PPO model (``config.warm_start``); what
+    """Behaviour-clone a scripted driver into a new PPO model (``config.warm_start``); what
     was done, for ``train.json`` (empty when ``warm_start.steps`` is 0)."""
     ws = config.warm_start
     if ws.steps == 0:
@@ -289,12 +291,21 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
     begin = time.perf_counter()
     env = make_env(config.env, config.source, config.filter)
     try:
-        demos = collect_demonstrations(env, ws.steps, ws.noise_std, config.seed)
+        demos = collect_demonstrations(env, ws.steps, ws.noise_std, config.seed, ws.driver)
+        losses = warm_start(model, demos, ws, config.seed)
+        for _ in range(ws.dagger_rounds):
+            learner = functools.partial(_deterministic_action, model)
+            demos += collect_demonstrations(
+                env, ws.steps, ws.noise_std, config.seed, ws.driver, learner, first_episode=demos.episodes
+            )
+            losses = warm_start(model, demos, ws, config.seed)
     finally:
         env.close()
-    losses = warm_start(model, demos, ws, config.seed)
     record = {
         "steps": ws.steps,
+        "driver": ws.driver,
+        "dagger_rounds": ws.dagger_rounds,
+        "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
         "first_loss": losses[0],
         "last_loss": losses[-1],
@@ -302,6 +313,10 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
     }
     log.info("warm start: %s", record)
     return record
+
+
+def _deterministic_action(model: Any, obs: dict[str, np.ndarray]) -> np.ndarray:
+    return model.predict(obs, deterministic=True)[0]
 
 
 def _previous_warm_start(out: Path) -> dict[str, Any]:

@@ -50,6 +50,20 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     assert 0.0 <= float(line.rsplit("off_track_share=", 1)[1]) <= 1.0
 
 
+def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "run"
+    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
+    args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
+    assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
+    capsys.readouterr()
+    warm = json.loads((out / "train.json").read_text())["warm_start"]
+    assert warm["driver"] == "track_planner" and warm["dagger_rounds"] == 1
+    assert warm["demonstration_steps"] == 80 and warm["episodes"] >= 2  # the clone drove a new course
+    with (out / "eval.csv").open() as fh:
+        steps = [int(r["step"]) for r in csv.DictReader(fh)]
+    assert steps == [0, 64]  # the cloned policy, then after PPO
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -58,6 +72,7 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
         (["--source", "lidar"], "invalid choice: 'lidar'"),
         (["--envs", "0"], "--envs: must be >= 1"),
         (["--vec-env", "async"], "invalid choice: 'async'"),
+        (["--warm-start-driver", "reckless"], "invalid choice: 'reckless'"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:

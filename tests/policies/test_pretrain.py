@@ -1,4 +1,4 @@
-"""Warm start: demonstrations of the pure-pursuit driver and behaviour cloning into a PPO policy."""
+"""Warm start: demonstrations of a scripted driver and behaviour cloning into a PPO policy."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
+from negobs_gym.drivers.track_planner import TrackPlannerDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
 from negobs_gym.policies.pretrain import DEMO_SEED_OFFSET, collect_demonstrations, warm_start
@@ -61,3 +62,41 @@ def test_warm_start_is_ppo_only_and_validated() -> None:
         WarmStartConfig(action_std=0.0)
     with pytest.raises(ConfigError, match="steps"):
         WarmStartConfig(steps=-1)
+    with pytest.raises(ConfigError, match="driver"):
+        WarmStartConfig(driver="reckless")
+
+
+def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2() -> None:
+    env = make_env("negobs_gym/OffroadNav-v2", "oracle", use_filter=False)
+    try:
+        demos = collect_demonstrations(env, 120, noise_std=0.0, seed=0, driver="track_planner")
+        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+        first = TrackPlannerDriver(env.unwrapped.terrain).act(obs, info)
+    finally:
+        env.close()
+    np.testing.assert_array_equal(demos.actions[0], first)
+    # the first obstacle of every winding course is at ~25 m, where the centre-line driver enters
+    # it (tests/drivers/test_track_planner.py): 120 steps of the planner drive past it in one episode
+    assert demos.episodes == 1
+    assert np.abs(demos.actions[:, 1]).max() > 0.1  # it steered around
+
+
+def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
+    full_throttle = np.array([1.0, 0.0], dtype=np.float32)
+    env = make_env(ENV, "oracle", use_filter=False)
+    try:
+        demos = collect_demonstrations(env, 30, 0.0, seed=3, policy=lambda obs: full_throttle, first_episode=5)
+        # replay: the same course (episode 5), the policy's action executed, the driver's as labels
+        obs, info = env.reset(seed=3 + DEMO_SEED_OFFSET + 5)
+        driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+        labels = []
+        for _ in range(30):
+            labels.append(driver.act(obs, info))
+            obs, _, _, _, info = env.step(full_throttle)
+    finally:
+        env.close()
+    np.testing.assert_array_equal(demos.actions, np.stack(labels))
+    assert not np.allclose(demos.actions[:, 0], 1.0)  # the driver would have eased off at cruise speed
+    both = demos + demos
+    assert both.actions.shape == (60, 2) and both.episodes == 2
+    np.testing.assert_array_equal(both.observations["grid"][30:], demos.observations["grid"])

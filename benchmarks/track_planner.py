@@ -1,0 +1,57 @@
+"""The track planner against centre-line pure pursuit on OffroadNav-v2 courses (ground-truth expert).
+
+Drives ``TrackPlannerDriver`` (:mod:`negobs_gym.drivers.track_planner`: a path planned around the
+course's ground-truth obstacles, on the track, followed by pure pursuit at 15 km/h) and
+``PurePursuitDriver`` on the centre line through the same courses, seeds 1,000,000 on (the
+evaluation seeds of ``negobs eval policy``), on the range-limited oracle grid (the drivers read
+``info``, not the grid, so the grid source only sets the cost). Prints one line per episode and per
+driver ``<driver> goal=<k>/<n> ends=<termination counts> mean_progress_m=<m> wall_s=<s>``; the
+planner's line is last.
+
+Run: python benchmarks/track_planner.py [--seeds 60] [--first-seed 1000000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+
+from negobs_gym.drivers import PurePursuitDriver, TrackPlannerDriver
+from negobs_gym.policies.training import make_task_env
+
+DRIVERS = {
+    "pure_pursuit": lambda terrain: PurePursuitDriver(terrain.track.centreline_xy_m),
+    "track_planner": TrackPlannerDriver,
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=60, help="courses")
+    parser.add_argument("--first-seed", type=int, default=1_000_000)
+    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    args = parser.parse_args()
+    env = make_task_env(args.env, "oracle")
+    for name, make_driver in DRIVERS.items():
+        begin, ends, progress = time.perf_counter(), collections.Counter(), []
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
+            obs, info = env.reset(seed=seed)
+            driver = make_driver(env.unwrapped.terrain)
+            terminated = truncated = False
+            while not (terminated or truncated):
+                obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
+            end = "+".join(info["termination"]) or "time_limit"
+            ends[end] += 1
+            progress.append(info["station_m"])
+            print(f"{name} seed={seed} end={end} station_m={info['station_m']:.1f}", flush=True)
+        counts = ",".join(f"{k}:{v}" for k, v in sorted(ends.items()))
+        print(
+            f"{name} goal={ends['goal']}/{args.seeds} ends={counts} "
+            f"mean_progress_m={sum(progress) / len(progress):.1f} wall_s={time.perf_counter() - begin:.0f}"
+        )
+    env.close()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,174 @@
+"""A privileged expert: pure pursuit along a path planned around the ground-truth obstacles.
+
+The pure-pursuit driver follows the centre line and so drives into the first obstacle of every
+``winding_course`` (~25 m). :class:`TrackPlannerDriver` reads the terrain's ground truth instead of
+any sensor: each obstacle the car cannot drive over is passed on the side of the track with the
+wider gap, at the middle of that gap, and the path returns to the centre line between obstacles.
+It is the demonstrator for OffroadNav-v2's warm start (:mod:`negobs_gym.policies.pretrain`) and a
+reference for what staying on the track while passing every obstacle takes; it is not a
+perception-driven baseline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
+from negobs_gym.errors import require
+from negobs_gym.sim.terrain import track_coordinates
+from negobs_gym.sim.types import PositiveObstacle, Terrain
+
+__all__ = ["TrackPlannerConfig", "TrackPlannerDriver", "obstacle_footprints_xy", "planned_lateral_m"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrackPlannerConfig:
+    """Car body, clearances and lattice of the planner (papers silent).
+
+    The body defaults are the envs' car (:class:`~negobs_gym.sim.vehicle.VehicleConfig`: 4.5 x 2 m,
+    0.85 m rear overhang); the path is the rear axle's, as pure pursuit steers it.
+    """
+
+    length_m: float = 4.5  # body length [m]
+    half_width_m: float = 1.0  # half the body's width [m]
+    rear_overhang_m: float = 0.85  # rear bumper behind the rear axle [m]
+    wheelbase_m: float = 2.8  # rear to front axle [m]
+    half_track_m: float = 0.8  # axle centre to a wheel's contact patch, sideways [m]
+    clearance_m: float = 0.3  # kept between the body's side and a positive obstacle [m]
+    wheel_clearance_m: float = 0.4  # kept between a wheel and a negative obstacle's rim [m]
+    lead_m: float = 0.5  # bands start this far before an obstacle, for the follower's lag [m]
+    soft_margin_m: float = 1.0  # beyond a band, closeness costs up to soft_cost over this width [m]
+    soft_cost: float = 50.0  # cost per point at a band's edge, falling quadratically to 0
+    mound_cost: float = 1000.0  # per wheel on a mound: drivable, but the car may stall on top
+    edge_margin_m: float = 0.2  # the rear axle's centre stays this far inside the track edge [m]
+    max_slope: float = 0.7  # largest lateral change per metre of station (~35 degrees)
+    smoothness: float = 20.0  # cost per (lateral change [m])^2 between lattice stations
+    centring: float = 0.05  # cost per m^2 of lateral offset at each lattice station
+    station_step_m: float = 0.5  # lattice spacing along the track [m]
+    lateral_step_m: float = 0.1  # lattice spacing across the track [m]
+    pursuit: PurePursuitConfig = field(default_factory=PurePursuitConfig)
+
+    def __post_init__(self) -> None:
+        positive = ("length_m", "half_width_m", "wheelbase_m", "half_track_m", "max_slope")
+        for name in (*positive, "station_step_m", "lateral_step_m"):
+            value = getattr(self, name)
+            require(np.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value!r}")
+        non_negative = ("rear_overhang_m", "clearance_m", "wheel_clearance_m", "lead_m", "soft_margin_m")
+        for name in (*non_negative, "soft_cost", "mound_cost", "edge_margin_m", "smoothness", "centring"):
+            value = getattr(self, name)
+            require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
+        require(self.rear_overhang_m < self.length_m, "rear_overhang_m", "must be < length_m")
+
+
+def _box_corners_xy(obstacle: PositiveObstacle) -> np.ndarray:
+    hx, hy = float(obstacle.half_extents_m[0]), float(obstacle.half_extents_m[1])
+    body = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    c, s = np.cos(obstacle.yaw_rad), np.sin(obstacle.yaw_rad)
+    return body @ np.array([[c, s], [-s, c]]) + np.asarray(obstacle.centre_m[:2])
+
+
+def obstacle_footprints_xy(terrain: Terrain) -> list[np.ndarray]:
+    """World xy outlines (N, 2) of the obstacles a car cannot drive over.
+
+    Every negative obstacle's rim and every positive obstacle's footprint (cylinders as their
+    bounding square). Mounds are part of the heightfield, but the car stalls on one at pure
+    pursuit's cruise speed, so they are passed like the rest.
+    """
+    outlines = [np.asarray(o.outline_xy_m, dtype=np.float64) for o in terrain.negative_obstacles]
+    outlines += [_box_corners_xy(o) for o in terrain.positive_obstacles]
+    return outlines
+
+
+def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead_m: float) -> np.ndarray:
+    """(s0, s1, l0, l1): the station and lateral extent of a world outline, widened."""
+    s, lat = track_coordinates(terrain.track, outline_xy_m)
+    return np.array([s.min() - lead_m, s.max(), lat.min() - widen_m, lat.max() + widen_m])
+
+
+def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,).
+
+    A lattice planner in track coordinates: dynamic programming over stations every
+    ``station_step_m`` and lateral offsets every ``lateral_step_m`` within the track (less
+    ``edge_margin_m``), moving at most ``max_slope`` sideways per metre. A lattice point costs
+    ``centring * lateral^2`` and a move ``smoothness * change^2``. Each move also places the car
+    along its heading and costs 1e6 per hit: a point of the body's centre line (every 0.25 m) in a
+    positive obstacle's track band widened by ``half_width_m + clearance_m``, or an axle centre
+    in a negative obstacle's band widened by ``half_track_m + wheel_clearance_m`` (a wheel in the
+    pit; the body may overhang it). A course without a free path gets the least blocked one.
+    """
+    track = terrain.track
+    edge = track.width_m / 2.0 - config.edge_margin_m
+    stations = np.arange(0.0, track.length_m + config.station_step_m, config.station_step_m)
+    n_lat = int(np.floor(edge / config.lateral_step_m + 1e-9))
+    laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
+    body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
+    axles = np.array([0.0, config.wheelbase_m])
+    # (points along the car, bands it must keep out of): body vs positive, axles vs negative
+    body_widen = config.half_width_m + config.clearance_m
+    wheel_widen = config.half_track_m + config.wheel_clearance_m
+    bodies = [o for o in terrain.positive_obstacles if not o.in_heightfield]
+    mounds = [o for o in terrain.positive_obstacles if o.in_heightfield]
+    # (points along the car, their bands, the cost of a point inside one)
+    checks = [
+        (body, [_track_band(terrain, _box_corners_xy(o), body_widen, config.lead_m) for o in bodies], 1e6),
+        (
+            axles,
+            [
+                _track_band(terrain, o.outline_xy_m, wheel_widen, config.lead_m)
+                for o in terrain.negative_obstacles
+            ],
+            1e6,
+        ),
+        (
+            axles,
+            [_track_band(terrain, _box_corners_xy(o), wheel_widen, config.lead_m) for o in mounds],
+            config.mound_cost,
+        ),
+    ]
+    slope = (laterals[None, :] - laterals[:, None]) / config.station_step_m  # [from, to]
+    step = slope * config.station_step_m
+    move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * step**2, np.inf)
+    cost = np.where(laterals == 0.0, 0.0, np.inf)  # the car starts on the centre line
+    back = np.zeros((stations.size, laterals.size), dtype=np.intp)
+    for i in range(1, stations.size):
+        hits = np.zeros(slope.shape)
+        for points, bands, inside_cost in checks:
+            points_s = stations[i] + points
+            points_lat = laterals[None, :, None] + slope[:, :, None] * points  # [from, to, point]
+            for s0, s1, l0, l1 in bands:
+                along = (points_s >= s0) & (points_s <= s1)
+                if along.any():
+                    outside = np.maximum(l0 - points_lat, points_lat - l1)  # < 0 inside the band
+                    near = np.clip(1.0 - outside / max(config.soft_margin_m, 1e-9), 0.0, 1.0) ** 2
+                    penalty = np.where(outside <= 0.0, inside_cost, config.soft_cost * near)
+                    hits += np.sum(along * penalty, axis=-1)
+        total = cost[:, None] + move + hits
+        back[i] = np.argmin(total, axis=0)
+        cost = total[back[i], np.arange(laterals.size)] + config.centring * laterals**2
+    path = np.empty(stations.size, dtype=np.intp)
+    path[-1] = int(np.argmin(cost))
+    for i in range(stations.size - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    return stations, laterals[path]
+
+
+class TrackPlannerDriver:
+    """Pure pursuit along :func:`planned_lateral_m`'s path for ``terrain`` (reads ground truth)."""
+
+    def __init__(self, terrain: Terrain, config: TrackPlannerConfig | None = None) -> None:
+        self.config = config or TrackPlannerConfig()
+        stations, lateral = planned_lateral_m(terrain, self.config)
+        self.route_xy_m, _ = terrain.track.pose_at(stations, lateral)
+        self._pursuit = PurePursuitDriver(self.route_xy_m, self.config.pursuit)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Restart at the beginning of the path."""
+        self._pursuit.reset(seed)
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        """Pure pursuit's ``[longitudinal, steering]`` towards the planned path."""
+        return self._pursuit.act(obs, info)

@@ -1,0 +1,92 @@
+"""The track planner: a path around ground-truth obstacles, on the track, that the car drives."""
+
+import numpy as np
+import pytest
+
+from negobs_gym.drivers import Driver, PurePursuitDriver, TrackPlannerConfig, TrackPlannerDriver
+from negobs_gym.drivers.track_planner import planned_lateral_m
+from negobs_gym.errors import ConfigError
+from negobs_gym.policies.training import make_task_env
+from negobs_gym.sim.carving import PositiveObstacleSpec
+from negobs_gym.sim.presets import braking_track, trench_crossing
+from negobs_gym.sim.terrain import TerrainConfig, generate_terrain, track_coordinates
+
+CONFIG = TrackPlannerConfig()
+
+
+def _points_lateral(stations, lateral, offsets_m):
+    """Lateral offsets (M-1, P) of points ``offsets_m`` ahead of the rear axle, along its heading."""
+    slope = np.diff(lateral) / np.diff(stations)
+    return lateral[1:, None] + slope[:, None] * offsets_m, stations[1:, None] + offsets_m
+
+
+def _band(terrain, outline):
+    s, lat = track_coordinates(terrain.track, outline)
+    return s.min(), s.max(), lat.min(), lat.max()
+
+
+def test_path_keeps_the_wheels_off_a_ditch_on_the_right_half() -> None:
+    # a 3 m wide ditch covering lateral 0..3 m (the track's right half), 20 m ahead
+    terrain = braking_track(20.0, ditch_width_m=3.0, lateral_offset_m=1.5, rough=False, length_m=50.0)
+    stations, lateral = planned_lateral_m(terrain, CONFIG)
+    edge = terrain.track.width_m / 2 - CONFIG.edge_margin_m
+    assert lateral[0] == 0.0 and np.all(np.abs(lateral) <= edge + 1e-9)
+    s0, s1, l0, _ = _band(terrain, terrain.negative_obstacles[0].outline_xy_m)
+    wheels_lat, wheels_s = _points_lateral(stations, lateral, np.array([0.0, CONFIG.wheelbase_m]))
+    over = (wheels_s >= s0) & (wheels_s <= s1)
+    assert over.any()
+    # every wheel over the ditch's stations runs left of it with the clearance kept
+    assert np.all(wheels_lat[over] + CONFIG.half_track_m + CONFIG.wheel_clearance_m <= l0 + 1e-9)
+    assert abs(lateral[-1]) < 0.5 * np.abs(lateral).max()  # and heads back to the centre line
+
+
+def test_path_keeps_the_body_off_a_box_on_the_left() -> None:
+    box = PositiveObstacleSpec(kind="box", station_m=20.0, lateral_m=-1.0)
+    terrain = generate_terrain(TerrainConfig(length_m=50.0, positive_obstacles=(box,)), seed=0)
+    stations, lateral = planned_lateral_m(terrain, CONFIG)
+    obstacle = terrain.positive_obstacles[0]
+    hx, hy = obstacle.half_extents_m[:2]
+    corners = np.asarray(obstacle.centre_m[:2]) + np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+    s0, s1, _, l1 = _band(terrain, corners)
+    body = np.arange(-CONFIG.rear_overhang_m, CONFIG.length_m - CONFIG.rear_overhang_m + 1e-9, 0.25)
+    body_lat, body_s = _points_lateral(stations, lateral, body)
+    over = (body_s >= s0) & (body_s <= s1)
+    assert over.any()
+    assert np.all(body_lat[over] - CONFIG.half_width_m - CONFIG.clearance_m >= l1 - 1e-9)
+
+
+def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
+    terrain = trench_crossing(20.0, rough=False)  # the trench spans the track: no way around
+    stations, lateral = planned_lateral_m(terrain, CONFIG)
+    assert stations.shape == lateral.shape and np.all(np.isfinite(lateral))
+    assert np.all(np.abs(lateral) <= terrain.track.width_m / 2 - CONFIG.edge_margin_m + 1e-9)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("half_width_m", 0.0), ("max_slope", float("nan")), ("clearance_m", -0.1), ("rear_overhang_m", 5.0)],
+)
+def test_config_rejects_bad_values(field, value) -> None:
+    with pytest.raises(ConfigError, match=field):
+        TrackPlannerConfig(**{field: value})
+
+
+def _drive(env, driver_for, seed):
+    obs, info = env.reset(seed=seed)
+    driver = driver_for(env.unwrapped.terrain)
+    while True:
+        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
+        if terminated or truncated:
+            return info
+
+
+def test_it_reaches_the_goal_of_an_offroad_nav_v2_course_where_pure_pursuit_enters_a_pit() -> None:
+    env = make_task_env("negobs_gym/OffroadNav-v2", "oracle")
+    try:
+        planner = _drive(env, TrackPlannerDriver, 1_000_000)
+        pursuit = _drive(env, lambda t: PurePursuitDriver(t.track.centreline_xy_m), 1_000_000)
+    finally:
+        env.close()
+    assert isinstance(TrackPlannerDriver(env.unwrapped.terrain), Driver)
+    assert planner["termination"] == ["goal"]
+    assert pursuit["termination"] == ["entered_negative_obstacle"] and pursuit["station_m"] < 30.0
