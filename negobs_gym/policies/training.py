@@ -207,6 +207,8 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         else:
             model = _new_model(config, venv, grid_shape)
             warm = _warm_start(model, config)
+            if warm:  # the cloned policy before any PPO update, for `negobs eval policy`
+                save_model_atomic(model, out / "warm_start.zip")
         start_step = model.num_timesteps
         if start_step >= config.steps:
             raise ConfigError(

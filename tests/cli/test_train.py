@@ -62,6 +62,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     with (out / "eval.csv").open() as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
     assert steps == [0, 64]  # the cloned policy, then after PPO
+    assert (out / "warm_start.zip").is_file() and (out / "model.zip").is_file()
 
 
 @pytest.mark.parametrize(

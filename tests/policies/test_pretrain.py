@@ -85,7 +85,7 @@ def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
     full_throttle = np.array([1.0, 0.0], dtype=np.float32)
     env = make_env(ENV, "oracle", use_filter=False)
     try:
-        demos = collect_demonstrations(env, 30, 0.0, seed=3, policy=lambda obs: full_throttle, first_episode=5)
+        demos = collect_demonstrations(env, 30, 0.0, 3, policy=lambda obs: full_throttle, first_episode=5)
         # replay: the same course (episode 5), the policy's action executed, the driver's as labels
         obs, info = env.reset(seed=3 + DEMO_SEED_OFFSET + 5)
         driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
