@@ -12,7 +12,12 @@ from pathlib import Path
 
 from negobs_gym.cli.common import non_negative_int, positive_int
 
-DRIVER_CHOICES = ("reckless", "constant_speed", "pure_pursuit")  # negobs_gym.scenarios.runner.DRIVERS
+DRIVER_CHOICES = (
+    "reckless",
+    "constant_speed",
+    "pure_pursuit",
+    "track_planner",
+)  # negobs_gym.scenarios.runner.DRIVERS
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

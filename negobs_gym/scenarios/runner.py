@@ -22,6 +22,8 @@ from negobs_gym.drivers import (
     PurePursuitDriver,
     RecklessConfig,
     RecklessDriver,
+    TrackPlannerConfig,
+    TrackPlannerDriver,
 )
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.errors import ConfigError
@@ -46,7 +48,7 @@ __all__ = [
 FALSE_VETO_TOLERANCE_M = 2.0
 
 #: Driver names a spec's ``run.driver`` or ``negobs scenario run --driver`` accepts.
-DRIVERS: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit")
+DRIVERS: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "track_planner")
 
 
 @dataclass(frozen=True)
@@ -145,7 +147,8 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
 
 
 def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
-    """The scripted driver ``name`` at the spec's target speed (pure pursuit follows the track)."""
+    """The scripted driver ``name`` at the spec's target speed (pure pursuit follows the track; the
+    track planner passes the terrain's ground-truth obstacles on it)."""
     target = spec.run.target_speed_mps
     if name == "reckless":
         return RecklessDriver(RecklessConfig(target_speed_mps=target))
@@ -155,6 +158,10 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
         track = terrain.track
         route, _ = track.pose_at(np.arange(0.0, track.length_m, 0.5), spec.run.lane_offset_m)
         return PurePursuitDriver(route, PurePursuitConfig(target_speed_mps=target))
+    if name == "track_planner":
+        return TrackPlannerDriver(
+            terrain, TrackPlannerConfig(pursuit=PurePursuitConfig(target_speed_mps=target))
+        )
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVERS)}")
 
 

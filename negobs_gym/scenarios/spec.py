@@ -57,7 +57,7 @@ TerminationRule = Literal[
 ]
 #: Names a spec's ``terminations`` may list (see :mod:`negobs_gym.envs.hooks`).
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
-DriverName = Literal["reckless", "constant_speed", "pure_pursuit"]
+DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner"]
 
 
 def _draw(value: Number, rng: np.random.Generator) -> float:

@@ -98,3 +98,17 @@ def test_criteria_check_each_named_bound() -> None:
         "min_stop_margin_m",
     )
     assert "margin_m=-" in none.line() and math.isfinite(result.time_s)
+
+
+def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
+    from negobs_gym.drivers import TrackPlannerDriver
+    from negobs_gym.scenarios.library import load_scenario
+    from negobs_gym.scenarios.runner import make_driver
+    from negobs_gym.sim.presets import braking_track
+
+    spec = load_scenario("offroad_nav_v2")
+    run = dataclasses.replace(spec.run, driver="track_planner", target_speed_mps=3.0)
+    spec = dataclasses.replace(spec, run=run)
+    driver = make_driver(spec.run.driver, spec, braking_track(20.0, rough=False))
+    assert isinstance(driver, TrackPlannerDriver)
+    assert driver.config.pursuit.target_speed_mps == 3.0
