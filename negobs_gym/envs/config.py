@@ -154,6 +154,10 @@ class RewardConfig:
             bank; ``sim.events``). Default 0: then being trapped costs only the progress not made,
             which is less than an entry costs, so a learner that cannot pass an obstacle learns to
             drive into the bank (docs/training.md).
+        off_track: Per step that ends with the car's centre off the track (``StepOutcome.off_track``;
+            once on OffroadNav-v2, where that ends the episode). Default 0: then leaving the track
+            costs only the progress not made, and PPO on v2 learns to leave it rather than risk
+            an entry (docs/training.md).
     """
 
     progress: float = 1.0
@@ -163,9 +167,11 @@ class RewardConfig:
     goal: float = 50.0
     stopped: float = 0.0
     trapped: float = 0.0
+    off_track: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("progress", "negative_entry", "collision", "time", "goal", "stopped", "trapped"):
+        terms = ("progress", "negative_entry", "collision", "time", "goal", "stopped", "trapped", "off_track")
+        for name in terms:
             v = getattr(self, name)
             require(isinstance(v, (int, float)) and math.isfinite(v), name, f"must be finite, got {v!r}")
 

@@ -155,7 +155,9 @@ class OffroadNavV2Env(NegObsEnv):
     beside the track without meeting one (the policies trained on v1 do: docs/training.md). Every
     obstacle a car cannot drive over leaves at least 1.5 m between its side and one edge of the
     track (200 courses measured), so the 2 m wide car passes it with its centre on the track.
-    Terrain draws, observation, rewards, the other rules and the 60 s limit are v1's.
+    Leaving the track costs 100 (``RewardConfig.off_track``), as an entry does: without it PPO
+    learns to leave the track rather than risk an obstacle (docs/training.md). Terrain draws,
+    observation, the other rewards and rules and the 60 s limit are v1's.
     """
 
     default_scenario = "offroad_nav_v2"

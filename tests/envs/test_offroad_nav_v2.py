@@ -45,11 +45,12 @@ def test_every_obstacle_can_be_passed_on_the_track(seed: int) -> None:
         assert max(left_gap, right_gap) >= need, (seed, lateral.min(), lateral.max())
 
 
-def test_v2_is_v1_with_the_off_track_rule() -> None:
+def test_v2_is_v1_with_the_off_track_rule_and_its_cost() -> None:
     v1 = OffroadNavV1Env(config=_oracle(OffroadNavV1Env))
     v2 = OffroadNavV2Env(config=_oracle(OffroadNavV2Env))
     assert set(v2.scenario.terminations) - set(v1.scenario.terminations) == {"off_track"}
-    assert v2.scenario.reward == v1.scenario.reward and v2.scenario.observation == v1.scenario.observation
+    assert v2.scenario.reward == dataclasses.replace(v1.scenario.reward, off_track=-100.0)
+    assert v2.scenario.observation == v1.scenario.observation
     v1.reset(seed=11)
     v2.reset(seed=11)
     assert [o.outline_xy_m.tobytes() for o in v1.terrain.negative_obstacles] == [
@@ -68,9 +69,9 @@ def test_leaving_the_track_ends_a_v2_episode_only() -> None:
         while not terminated and steps < 60:  # steering half right: a ~9 m radius circle, off the track
             _, _, terminated, _, info = env.step(np.array([0.8, -0.5], np.float32))
             steps += 1
-        ends[env_cls] = (steps, info["termination"], info["off_track"])
+        ends[env_cls] = (steps, info["termination"], info["off_track"], info["rewards"]["off_track"])
         env.close()
-    steps, rules, off = ends[OffroadNavV2Env]
-    assert rules == ["off_track"] and off and steps < 60
-    assert ends[OffroadNavV1Env][:2] == (60, [])  # v1 drives on beside the track
+    steps, rules, off, cost = ends[OffroadNavV2Env]
+    assert rules == ["off_track"] and off and steps < 60 and cost == -100.0
+    assert ends[OffroadNavV1Env] == (60, [], True, 0.0)  # v1 drives on beside the track, at no cost
     assert ends[OffroadNavV1Env][2]
