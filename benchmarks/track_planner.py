@@ -17,13 +17,9 @@ import argparse
 import collections
 import time
 
-from negobs_gym.drivers import PurePursuitDriver, TrackPlannerDriver
+from negobs_gym.policies.config import DEMONSTRATORS
+from negobs_gym.policies.pretrain import demonstrator
 from negobs_gym.policies.training import make_task_env
-
-DRIVERS = {
-    "pure_pursuit": lambda terrain: PurePursuitDriver(terrain.track.centreline_xy_m),
-    "track_planner": TrackPlannerDriver,
-}
 
 
 def main() -> None:
@@ -33,11 +29,11 @@ def main() -> None:
     parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
     args = parser.parse_args()
     env = make_task_env(args.env, "oracle")
-    for name, make_driver in DRIVERS.items():
+    for name in DEMONSTRATORS:
         begin, ends, progress = time.perf_counter(), collections.Counter(), []
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             obs, info = env.reset(seed=seed)
-            driver = make_driver(env.unwrapped.terrain)
+            driver = demonstrator(name, env.unwrapped.terrain)
             terminated = truncated = False
             while not (terminated or truncated):
                 obs, _, terminated, truncated, info = env.step(driver.act(obs, info))

@@ -2,8 +2,9 @@
 
 The pure-pursuit driver follows the centre line and so drives into the first obstacle of every
 ``winding_course`` (~25 m). :class:`TrackPlannerDriver` reads the terrain's ground truth instead of
-any sensor: each obstacle the car cannot drive over is passed on the side of the track with the
-wider gap, at the middle of that gap, and the path returns to the centre line between obstacles.
+any sensor: :func:`planned_lateral_m` finds, by dynamic programming over track stations and
+lateral offsets, a path on the track that keeps the car's body off the positive obstacles and its
+wheels out of the negative ones (docs/training.md, "Towards a policy for OffroadNav-v2").
 It is the demonstrator for OffroadNav-v2's warm start (:mod:`negobs_gym.policies.pretrain`) and a
 reference for what staying on the track while passing every obstacle takes; it is not a
 perception-driven baseline.
@@ -19,9 +20,9 @@ import numpy as np
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.errors import require
 from negobs_gym.sim.terrain import track_coordinates
-from negobs_gym.sim.types import PositiveObstacle, Terrain
+from negobs_gym.sim.types import Terrain
 
-__all__ = ["TrackPlannerConfig", "TrackPlannerDriver", "obstacle_footprints_xy", "planned_lateral_m"]
+__all__ = ["TrackPlannerConfig", "TrackPlannerDriver", "planned_lateral_m"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,25 +64,6 @@ class TrackPlannerConfig:
         require(self.rear_overhang_m < self.length_m, "rear_overhang_m", "must be < length_m")
 
 
-def _box_corners_xy(obstacle: PositiveObstacle) -> np.ndarray:
-    hx, hy = float(obstacle.half_extents_m[0]), float(obstacle.half_extents_m[1])
-    body = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-    c, s = np.cos(obstacle.yaw_rad), np.sin(obstacle.yaw_rad)
-    return body @ np.array([[c, s], [-s, c]]) + np.asarray(obstacle.centre_m[:2])
-
-
-def obstacle_footprints_xy(terrain: Terrain) -> list[np.ndarray]:
-    """World xy outlines (N, 2) of the obstacles a car cannot drive over.
-
-    Every negative obstacle's rim and every positive obstacle's footprint (cylinders as their
-    bounding square). Mounds are part of the heightfield, but the car stalls on one at pure
-    pursuit's cruise speed, so they are passed like the rest.
-    """
-    outlines = [np.asarray(o.outline_xy_m, dtype=np.float64) for o in terrain.negative_obstacles]
-    outlines += [_box_corners_xy(o) for o in terrain.positive_obstacles]
-    return outlines
-
-
 def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead_m: float) -> np.ndarray:
     """(s0, s1, l0, l1): the station and lateral extent of a world outline, widened."""
     s, lat = track_coordinates(terrain.track, outline_xy_m)
@@ -107,14 +89,13 @@ def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
     body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
     axles = np.array([0.0, config.wheelbase_m])
-    # (points along the car, bands it must keep out of): body vs positive, axles vs negative
     body_widen = config.half_width_m + config.clearance_m
     wheel_widen = config.half_track_m + config.wheel_clearance_m
     bodies = [o for o in terrain.positive_obstacles if not o.in_heightfield]
     mounds = [o for o in terrain.positive_obstacles if o.in_heightfield]
     # (points along the car, their bands, the cost of a point inside one)
     checks = [
-        (body, [_track_band(terrain, _box_corners_xy(o), body_widen, config.lead_m) for o in bodies], 1e6),
+        (body, [_track_band(terrain, o.footprint_xy_m, body_widen, config.lead_m) for o in bodies], 1e6),
         (
             axles,
             [
@@ -125,20 +106,24 @@ def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.
         ),
         (
             axles,
-            [_track_band(terrain, _box_corners_xy(o), wheel_widen, config.lead_m) for o in mounds],
+            [_track_band(terrain, o.footprint_xy_m, wheel_widen, config.lead_m) for o in mounds],
             config.mound_cost,
         ),
     ]
-    slope = (laterals[None, :] - laterals[:, None]) / config.station_step_m  # [from, to]
-    step = slope * config.station_step_m
-    move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * step**2, np.inf)
+    change = laterals[None, :] - laterals[:, None]  # [from, to]
+    slope = change / config.station_step_m
+    move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * change**2, np.inf)
+    # each check's points across the track for every move: [from, to, point]
+    checks = [
+        (points, laterals[None, :, None] + slope[:, :, None] * points, bands, c)
+        for points, bands, c in checks
+    ]
     cost = np.where(laterals == 0.0, 0.0, np.inf)  # the car starts on the centre line
     back = np.zeros((stations.size, laterals.size), dtype=np.intp)
     for i in range(1, stations.size):
         hits = np.zeros(slope.shape)
-        for points, bands, inside_cost in checks:
+        for points, points_lat, bands, inside_cost in checks:
             points_s = stations[i] + points
-            points_lat = laterals[None, :, None] + slope[:, :, None] * points  # [from, to, point]
             for s0, s1, l0, l1 in bands:
                 along = (points_s >= s0) & (points_s <= s1)
                 if along.any():

@@ -110,7 +110,7 @@ class OracleGrid:
         self.terrain = terrain
         self._neg = pad_polygons([np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles])
         self._pos = (
-            pad_polygons([_footprint(o) for o in terrain.positive_obstacles])
+            pad_polygons([o.footprint_xy_m for o in terrain.positive_obstacles])
             if terrain.positive_obstacles
             else np.zeros((0, 3, 2))
         )
@@ -175,18 +175,6 @@ def stack_channels(layers: dict[str, np.ndarray], config: ObservationConfig) -> 
     """uint8 (channels, rows, cols) observation from full-resolution layers, max-pooled."""
     grid = np.stack([layers[name] for name in config.channels]).astype(np.uint8)
     return _max_pool(grid, config.downsample)
-
-
-def _footprint(obstacle) -> np.ndarray:
-    """Footprint polygon (4 corners, or a 16-gon for cylinders) of a positive obstacle."""
-    cx, cy = float(obstacle.centre_m[0]), float(obstacle.centre_m[1])
-    hx, hy = float(obstacle.half_extents_m[0]), float(obstacle.half_extents_m[1])
-    if obstacle.shape == "box":
-        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-    else:
-        t = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
-        local = np.stack([hx * np.cos(t), hx * np.sin(t)], axis=1)
-    return vehicle_to_world_xy(local, (cx, cy), obstacle.yaw_rad)
 
 
 def _centreline_tree(polyline: np.ndarray, spacing_m: float = 0.05):

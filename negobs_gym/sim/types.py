@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 
 from negobs_gym.core import libm
-from negobs_gym.core.geometry import polyline_stations
+from negobs_gym.core.geometry import polyline_stations, vehicle_to_world_xy
 from negobs_gym.errors import GeometryError
 
 NegativeKind = Literal["pit", "ditch", "trench", "crater"]
@@ -95,6 +95,18 @@ class PositiveObstacle:
     # True when the obstacle is already part of the heightfield (e.g. a mound): the world must not
     # build a body for it; the record is ground truth only.
     in_heightfield: bool = False
+
+    @property
+    def footprint_xy_m(self) -> np.ndarray:
+        """World xy footprint polygon: the box's 4 corners (body X right, Y forward, yawed), or a
+        16-gon for a cylinder."""
+        hx, hy = float(self.half_extents_m[0]), float(self.half_extents_m[1])
+        if self.shape == "box":
+            local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        else:
+            t = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+            local = np.stack([hx * np.cos(t), hx * np.sin(t)], axis=1)
+        return vehicle_to_world_xy(local, (float(self.centre_m[0]), float(self.centre_m[1])), self.yaw_rad)
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,7 +8,7 @@ import pytest
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.envs.observation import OracleGrid, _footprint
+from negobs_gym.envs.observation import OracleGrid
 from negobs_gym.sim.presets import winding_course
 
 
@@ -29,7 +29,7 @@ def test_oracle_obstacle_layers_equal_the_brute_force_test(course, station_m: fl
     layers = grid.layers(pose)
     cells = vehicle_to_world_xy(config.grid.cell_centres().reshape(-1, 2), (pose.x, pose.y), pose.yaw)
     negatives = pad_polygons([np.asarray(o.outline_xy_m) for o in course.negative_obstacles])
-    positives = pad_polygons([_footprint(o) for o in course.positive_obstacles])
+    positives = pad_polygons([o.footprint_xy_m for o in course.positive_obstacles])
     expected_neg = points_in_polygons(cells, negatives).any(axis=1).reshape(config.grid.shape)
     expected_pos = points_in_polygons(cells, positives).any(axis=1).reshape(config.grid.shape)
     np.testing.assert_array_equal(layers["negative"], expected_neg)

@@ -16,7 +16,7 @@ from negobs_gym.sim.terrain import (
     generate_terrain,
     track_coordinates,
 )
-from negobs_gym.sim.types import Track
+from negobs_gym.sim.types import PositiveObstacle, Track
 
 SMALL = dict(length_m=30.0, corridor_width_m=20.0, lead_in_m=5.0, run_out_m=5.0)
 
@@ -190,3 +190,14 @@ def test_track_pose_extrapolates_straight_and_rejects_bad_centreline() -> None:
     np.testing.assert_allclose(yaw, [0.0, -np.pi / 2])  # yaw -90 deg faces world +X
     with pytest.raises(GeometryError, match="centreline_xy_m"):
         Track(centreline_xy_m=np.zeros((1, 2)), width_m=4.0).pose_at(0.0)
+
+
+def test_positive_obstacle_footprint_follows_the_body_frame_and_yaw() -> None:
+    box = PositiveObstacle("b", "box", "box", np.array([1.0, 2.0, 0.5]), np.array([0.5, 1.0, 0.5]), np.pi / 2)
+    # body X (right) turned 90 deg left points along world +Y, body Y (forward) along world -X
+    corners = box.footprint_xy_m
+    np.testing.assert_allclose(corners.min(axis=0), [0.0, 1.5], atol=1e-12)
+    np.testing.assert_allclose(corners.max(axis=0), [2.0, 2.5], atol=1e-12)
+    pole = PositiveObstacle("p", "pole", "cylinder", np.array([0.0, 0.0, 1.0]), np.array([0.2, 0.2, 1.0]))
+    np.testing.assert_allclose(np.hypot(*pole.footprint_xy_m.T), 0.2)
+    assert pole.footprint_xy_m.shape == (16, 2)
