@@ -124,6 +124,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="action std after the warm start (default: %(default)s)",
     )
     group.add_argument(
+        "--critic-warmup-steps",
+        type=non_negative_int,
+        default=defaults.critic_warmup_steps,
+        help="PPO: only the value function learns for this many env steps, the actor stays as "
+        "cloned or initialised (default: %(default)s)",
+    )
+    group.add_argument(
+        "--target-kl",
+        type=float,
+        default=defaults.target_kl,
+        help="PPO: stop an update's epochs once the KL to the rollout's policy passes 1.5x this "
+        "(0 = no limit; default: %(default)s)",
+    )
+    group.add_argument(
         "--init",
         default="",
         metavar="MODEL",
@@ -160,6 +174,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             action_std=args.action_std,
         ),
         init_model=args.init,
+        critic_warmup_steps=args.critic_warmup_steps,
+        target_kl=args.target_kl,
         progress=not args.no_progress,
     )
 
@@ -185,6 +201,7 @@ def run_train(args: argparse.Namespace) -> int:
         f"model={result.model_path} steps={result.steps} wall_s={result.wall_s:.1f} "
         f"steps_per_s={result.steps_per_s:.1f} eval_goal={int(e['goal'])}/{int(e['episodes'])} "
         f"eval_entries={int(e['entries'])} eval_collisions={int(e['collisions'])} "
+        f"eval_off_track={int(e['off_track'])} "
         f"eval_mean_progress_m={e['mean_progress_m']:.2f} eval_vetoes={int(e['vetoes'])}"
     )
     return 0

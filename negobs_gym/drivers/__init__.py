@@ -5,12 +5,14 @@ All but :class:`TrackPlannerDriver` read only the env's info; it reads the cours
 """
 
 from negobs_gym.drivers.base import Driver
+from negobs_gym.drivers.by_name import DRIVER_NAMES, make_driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 
 __all__ = [
+    "DRIVER_NAMES",
     "ConstantSpeedConfig",
     "ConstantSpeedDriver",
     "Driver",
@@ -20,4 +22,5 @@ __all__ = [
     "RecklessDriver",
     "TrackPlannerConfig",
     "TrackPlannerDriver",
+    "make_driver",
 ]

@@ -22,9 +22,17 @@ from negobs_gym.eval.campaign import format_row, read_csv, write_text_atomic
 
 log = logging.getLogger(__name__)
 
-__all__ = ["EVAL_COLUMNS", "CheckpointCallback", "EvalCallback", "ProgressBarCallback", "latest_checkpoint"]
+__all__ = [
+    "EVAL_COLUMNS",
+    "CheckpointCallback",
+    "CriticWarmupCallback",
+    "EvalCallback",
+    "ProgressBarCallback",
+    "latest_checkpoint",
+]
 
-#: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean).
+#: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean);
+#: ``off_track`` counts the episodes with a step off the track (on OffroadNav-v2 the rule ends them).
 EVAL_COLUMNS = (
     "step",
     "episodes",
@@ -33,6 +41,7 @@ EVAL_COLUMNS = (
     "collisions",
     "rollovers",
     "trapped",
+    "off_track",
     "mean_progress_m",
     "vetoes",
     "cost",
@@ -135,8 +144,8 @@ class EvalCallback(BaseCallback):
         self._rows = []
         if self.csv.exists():
             for row in read_csv(self.csv):
-                if int(row["step"]) <= self.num_timesteps:
-                    self._rows.append(format_row(row[c] for c in EVAL_COLUMNS))
+                if int(row["step"]) <= self.num_timesteps:  # a column the run's version lacked stays empty
+                    self._rows.append(format_row(row.get(c, "") for c in EVAL_COLUMNS))
         if self.at_start:
             self.run()
 
@@ -163,6 +172,7 @@ class EvalCallback(BaseCallback):
             "collisions": sum(bool(e["collision"]) for e in episodes),
             "rollovers": sum(bool(e["rollover"]) for e in episodes),
             "trapped": sum(bool(e["trapped"]) for e in episodes),
+            "off_track": sum(int(e["off_track_steps"]) > 0 for e in episodes),
             "mean_progress_m": sum(float(e["progress_m"]) for e in episodes) / max(n, 1),
             "vetoes": sum(int(e["vetoes"]) for e in episodes),
             "cost": sum(float(e["cost"]) for e in episodes),
@@ -170,7 +180,7 @@ class EvalCallback(BaseCallback):
         }
         self._rows.append(format_row(row[c] for c in EVAL_COLUMNS))
         write_text_atomic(self.csv, "\n".join([",".join(EVAL_COLUMNS), *self._rows]) + "\n")
-        for key in ("goal", "entries", "collisions", "mean_progress_m", "vetoes", "cost"):
+        for key in ("goal", "entries", "collisions", "off_track", "mean_progress_m", "vetoes", "cost"):
             self.logger.record(f"eval/{key}", row[key])
         log.info(
             "eval at %d steps: goal %d/%d, entries %d, collisions %d, progress %.1f m, vetoes %d",
@@ -180,3 +190,31 @@ class EvalCallback(BaseCallback):
         self._last = self.num_timesteps
         self.last = {k: float(v) for k, v in row.items()}
         return row
+
+
+class CriticWarmupCallback(BaseCallback):
+    """Freezes everything but the value function for the updates of the first ``steps`` env steps.
+
+    SB3's PPO updates right after each rollout, so the choice is made at each rollout's end from
+    the step count: a resumed run inside the warm-up freezes again, one past it does not. Frozen
+    parameters get no gradient, so Adam leaves them (and their moments) as they are.
+    """
+
+    #: Parameter name prefixes of an SB3 ``ActorCriticPolicy`` that make up the value function.
+    VALUE_PARAMETERS = ("mlp_extractor.value_net.", "value_net.")
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.steps = steps
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        frozen = self.num_timesteps <= self.steps
+        for name, parameter in self.model.policy.named_parameters():
+            parameter.requires_grad_(not frozen or name.startswith(self.VALUE_PARAMETERS))
+
+    def _on_training_end(self) -> None:
+        for parameter in self.model.policy.parameters():
+            parameter.requires_grad_(True)

@@ -155,6 +155,14 @@ class TrainConfig:
             first, then the detector grid behind the filter. Its algorithm must be ``algo`` and its
             observation space the env's; ``learning_rate``, ``n_steps``, ``batch_size``, ``gamma``
             and ``seed`` are this config's, and the step count starts at 0. ``""``: no init.
+        critic_warmup_steps: PPO: for the first this many env steps only the value function
+            learns; the features extractor, the actor and its log_std stay frozen. A cloned or
+            ``init_model`` actor otherwise takes its first updates from a random critic's
+            advantages, which on OffroadNav-v2 undid the clone within 10 k steps
+            (docs/training.md). 0: none.
+        target_kl: PPO: stop an update's epochs once the approximate KL divergence to the
+            rollout's policy exceeds 1.5 x this (SB3's ``target_kl``); keeps a fine-tuned actor
+            near the one that collected the data. 0: no limit (SB3's default).
         torch_threads: Torch intra-op threads while training. 1: measured on the 2 shared cores,
             one ``predict`` of the default network took 45 ms with 2 threads (OpenMP waiting for
             a busy core) and 1.0 ms with 1; the network is too small to gain from more.
@@ -181,6 +189,8 @@ class TrainConfig:
     extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
     warm_start: WarmStartConfig = field(default_factory=WarmStartConfig)
     init_model: str = ""
+    critic_warmup_steps: int = 0
+    target_kl: float = 0.0
     torch_threads: int = 1
     progress: bool = True
 
@@ -201,11 +211,18 @@ class TrainConfig:
         ):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
-        for name in ("seed", "eval_every", "eval_seed", "checkpoint_every"):
+        for name in ("seed", "eval_every", "eval_seed", "checkpoint_every", "critic_warmup_steps"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 0, name, f"must be an int >= 0, got {value!r}")
         require(0 < self.learning_rate < 1, "learning_rate", f"must be in (0, 1), got {self.learning_rate}")
         require(0 < self.gamma <= 1, "gamma", f"must be in (0, 1], got {self.gamma}")
+        require(
+            math.isfinite(self.target_kl) and self.target_kl >= 0,
+            "target_kl",
+            f"must be finite and >= 0, got {self.target_kl!r}",
+        )
+        for name in ("critic_warmup_steps", "target_kl"):
+            require(not getattr(self, name) or self.algo == "PPO", name, "is a PPO option")
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
         require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")
         require(

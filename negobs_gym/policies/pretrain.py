@@ -29,9 +29,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from negobs_gym.drivers.base import Driver
-from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
-from negobs_gym.drivers.track_planner import TrackPlannerDriver
+from negobs_gym.drivers import Driver, make_driver
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.policies.config import DEMONSTRATORS, WarmStartConfig
 from negobs_gym.sim.types import Terrain
@@ -61,12 +59,10 @@ class Demonstrations:
 
 def demonstrator(name: str, terrain: Terrain) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
-    one course."""
-    if name == "pure_pursuit":
-        return PurePursuitDriver(terrain.track.centreline_xy_m)
-    if name == "track_planner":
-        return TrackPlannerDriver(terrain)
-    raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
+    one course, with the driver's own defaults (pure pursuit on the centre line)."""
+    if name not in DEMONSTRATORS:
+        raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
+    return make_driver(name, terrain)
 
 
 def collect_demonstrations(

@@ -157,7 +157,9 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
         "verbose": 0,
     }
     if config.algo == "PPO":
-        return stable_baselines3.PPO("MultiInputPolicy", venv, n_steps=config.n_steps, **common)
+        return stable_baselines3.PPO(
+            "MultiInputPolicy", venv, n_steps=config.n_steps, target_kl=config.target_kl or None, **common
+        )
     return stable_baselines3.SAC("MultiInputPolicy", venv, buffer_size=config.buffer_size, **common)
 
 
@@ -178,6 +180,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
 
     from negobs_gym.policies.callbacks import (
         CheckpointCallback,
+        CriticWarmupCallback,
         EvalCallback,
         ProgressBarCallback,
         latest_checkpoint,
@@ -225,6 +228,8 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             at_start=bool(config.init_model or warm) and start_step == 0,
         )
         callbacks = [ProgressBarCallback(config.steps, config.progress), evaluation]
+        if config.critic_warmup_steps > 0:
+            callbacks.append(CriticWarmupCallback(config.critic_warmup_steps))
         if config.checkpoint_every > 0:
             callbacks.append(CheckpointCallback(out / "checkpoints", config.checkpoint_every))
         begin = time.perf_counter()
@@ -272,6 +277,7 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
             n_steps=config.n_steps,
             batch_size=config.batch_size,
             gamma=config.gamma,
+            **({"target_kl": config.target_kl or None} if config.algo == "PPO" else {}),
         )
     except (ValueError, TypeError) as error:  # SB3: space mismatch (ValueError), other algorithm (TypeError)
         fit = f"{path} does not fit this run ({config.algo}, {config.env}, source {config.source})"

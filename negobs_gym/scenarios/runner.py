@@ -14,19 +14,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from negobs_gym.drivers import (
-    ConstantSpeedConfig,
-    ConstantSpeedDriver,
-    Driver,
-    PurePursuitConfig,
-    PurePursuitDriver,
-    RecklessConfig,
-    RecklessDriver,
-    TrackPlannerConfig,
-    TrackPlannerDriver,
-)
+from negobs_gym.drivers import DRIVER_NAMES, Driver
+from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
-from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -48,7 +38,7 @@ __all__ = [
 FALSE_VETO_TOLERANCE_M = 2.0
 
 #: Driver names a spec's ``run.driver`` or ``negobs scenario run --driver`` accepts.
-DRIVERS: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "track_planner")
+DRIVERS: tuple[str, ...] = DRIVER_NAMES
 
 
 @dataclass(frozen=True)
@@ -147,22 +137,11 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
 
 
 def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
-    """The scripted driver ``name`` at the spec's target speed (pure pursuit follows the track; the
-    track planner passes the terrain's ground-truth obstacles on it)."""
-    target = spec.run.target_speed_mps
-    if name == "reckless":
-        return RecklessDriver(RecklessConfig(target_speed_mps=target))
-    if name == "constant_speed":
-        return ConstantSpeedDriver(ConstantSpeedConfig(target_speed_mps=target))
-    if name == "pure_pursuit":
-        track = terrain.track
-        route, _ = track.pose_at(np.arange(0.0, track.length_m, 0.5), spec.run.lane_offset_m)
-        return PurePursuitDriver(route, PurePursuitConfig(target_speed_mps=target))
-    if name == "track_planner":
-        return TrackPlannerDriver(
-            terrain, TrackPlannerConfig(pursuit=PurePursuitConfig(target_speed_mps=target))
-        )
-    raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVERS)}")
+    """The scripted driver ``name`` at the spec's target speed and lane offset
+    (:func:`negobs_gym.drivers.make_driver`)."""
+    return make_named_driver(
+        name, terrain, target_speed_mps=spec.run.target_speed_mps, lane_offset_m=spec.run.lane_offset_m
+    )
 
 
 def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig) -> gym.Env:

@@ -54,9 +54,12 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     out = tmp_path / "run"
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
+    args += ["--critic-warmup-steps", "64", "--target-kl", "0.02"]
     assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
     capsys.readouterr()
-    warm = json.loads((out / "train.json").read_text())["warm_start"]
+    record = json.loads((out / "train.json").read_text())
+    assert record["config"]["critic_warmup_steps"] == 64 and record["config"]["target_kl"] == 0.02
+    warm = record["warm_start"]
     assert warm["driver"] == "track_planner" and warm["dagger_rounds"] == 1
     assert warm["demonstration_steps"] == 80 and warm["episodes"] >= 2  # the clone drove a new course
     with (out / "eval.csv").open() as fh:
@@ -89,3 +92,5 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "unknown env 'negobs_gym/Nope-v0'" in err and "negobs_gym/OffroadNav-v0" in err
     assert main(["train", "--env", ENV, *SHORT, "--resume", "--out", str(tmp_path)]) == 2
     assert "no checkpoint" in capsys.readouterr().err
+    assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
+    assert "critic_warmup_steps" in capsys.readouterr().err

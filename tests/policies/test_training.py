@@ -37,10 +37,15 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
     rows = first.eval_csv.read_text().splitlines()
     assert [r.split(",")[0] for r in rows[1:]] == ["100", "120"]
 
+    # an eval.csv written before the off_track column: its rows are kept with that cell empty
+    table = [line.split(",") for line in rows]
+    drop = table[0].index("off_track")
+    first.eval_csv.write_text("\n".join(",".join(r[:drop] + r[drop + 1 :]) for r in table) + "\n")
     second = train(dataclasses.replace(config, steps=180), out, resume=True)
     assert second.steps == 180
     rows = second.eval_csv.read_text().splitlines()
     assert [r.split(",")[0] for r in rows[1:]] == ["100", "120", "180"]  # earlier rows kept
+    assert [r.split(",")[drop] for r in rows[1:]] == ["", "", "0"]
     record = json.loads((out / "train.json").read_text())
     assert record["session_start_step"] == 120 and record["steps"] == 180
     assert (out / "logs" / "120" / "progress.csv").is_file()
@@ -121,10 +126,46 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> No
         TrainConfig(init_model=str(first.model_path), warm_start=WarmStartConfig(steps=10))
 
 
+def split_weights(model_path: Path) -> tuple[dict, dict]:
+    """A saved PPO model's parameters: (value function, everything else)."""
+    from stable_baselines3 import PPO
+
+    from negobs_gym.policies.callbacks import CriticWarmupCallback
+
+    named = dict(PPO.load(model_path, device="cpu").policy.named_parameters())
+    value = {n: p for n, p in named.items() if n.startswith(CriticWarmupCallback.VALUE_PARAMETERS)}
+    return value, {n: p for n, p in named.items() if n not in value}
+
+
+def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: Path) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    first = train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path / "init")
+    tuned = dataclasses.replace(
+        SHORT_PPO, init_model=str(first.model_path), critic_warmup_steps=64, target_kl=0.05, steps=64
+    )
+    warm = train(tuned, tmp_path / "warmup")  # one update, inside the warm-up
+    (value0, actor0), (value1, actor1) = split_weights(first.model_path), split_weights(warm.model_path)
+    assert actor0.keys() >= {"log_std", "action_net.weight", "mlp_extractor.policy_net.0.weight"}
+    assert any(n.startswith("features_extractor.") for n in actor0)
+    assert all(torch.equal(actor0[n], actor1[n]) for n in actor0)
+    assert not all(torch.equal(value0[n], value1[n]) for n in value0)
+    assert PPO.load(warm.model_path, device="cpu").target_kl == 0.05
+
+    after = train(dataclasses.replace(tuned, steps=128), tmp_path / "after")  # the second update moves all
+    actor2 = split_weights(after.model_path)[1]
+    assert not torch.equal(actor0["action_net.weight"], actor2["action_net.weight"])
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
         ({"algo": "DQN"}, "algo"),
+        ({"algo": "SAC", "critic_warmup_steps": 100}, "critic_warmup_steps"),
+        ({"critic_warmup_steps": -1}, "critic_warmup_steps"),
+        ({"target_kl": float("nan")}, "target_kl"),
+        ({"algo": "SAC", "target_kl": 0.01}, "target_kl"),
         ({"source": "lidar"}, "source"),
         ({"steps": 0}, "steps"),
         ({"envs": 0}, "envs"),

@@ -1,0 +1,43 @@
+"""Scripted drivers by name: what a scenario's ``run.driver``, ``negobs scenario run --driver`` and
+the warm start's demonstrator name."""
+
+from __future__ import annotations
+
+from negobs_gym.drivers.base import Driver
+from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
+from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
+from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
+from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
+from negobs_gym.errors import ConfigError
+from negobs_gym.sim.types import Terrain
+
+__all__ = ["DRIVER_NAMES", "make_driver"]
+
+#: Names :func:`make_driver` knows.
+DRIVER_NAMES: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "track_planner")
+
+
+def make_driver(
+    name: str, terrain: Terrain, *, target_speed_mps: float | None = None, lane_offset_m: float = 0.0
+) -> Driver:
+    """The scripted driver ``name`` for one course.
+
+    ``target_speed_mps`` replaces the driver's default cruise speed (None: keep it). Pure pursuit
+    follows the centre line shifted by ``lane_offset_m`` (+ right), sampled at the track's own
+    stations; the track planner passes the terrain's ground-truth obstacles on the track.
+
+    Raises:
+        ConfigError: unknown ``name`` (field ``driver``).
+    """
+    speed = {} if target_speed_mps is None else {"target_speed_mps": target_speed_mps}
+    if name == "reckless":
+        return RecklessDriver(RecklessConfig(**speed))
+    if name == "constant_speed":
+        return ConstantSpeedDriver(ConstantSpeedConfig(**speed))
+    if name == "pure_pursuit":
+        track = terrain.track
+        route = track.pose_at(track.stations_m, lane_offset_m)[0] if lane_offset_m else track.centreline_xy_m
+        return PurePursuitDriver(route, PurePursuitConfig(**speed))
+    if name == "track_planner":
+        return TrackPlannerDriver(terrain, TrackPlannerConfig(pursuit=PurePursuitConfig(**speed)))
+    raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVER_NAMES)}")

@@ -1,0 +1,52 @@
+"""make_driver: every scripted driver by name, at a target speed, pure pursuit in a lane."""
+
+import numpy as np
+import pytest
+
+from negobs_gym.drivers import (
+    DRIVER_NAMES,
+    ConstantSpeedDriver,
+    PurePursuitDriver,
+    RecklessDriver,
+    TrackPlannerDriver,
+    make_driver,
+)
+from negobs_gym.errors import ConfigError
+from negobs_gym.sim.presets import braking_track
+
+CLASSES = {
+    "reckless": RecklessDriver,
+    "constant_speed": ConstantSpeedDriver,
+    "pure_pursuit": PurePursuitDriver,
+    "track_planner": TrackPlannerDriver,
+}
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return braking_track(ditch_distance_m=20.0, seed=0, rough=False)
+
+
+@pytest.mark.parametrize("name", DRIVER_NAMES)
+def test_each_name_builds_its_driver_at_the_target_speed(terrain, name: str) -> None:
+    assert set(CLASSES) == set(DRIVER_NAMES)
+    default = make_driver(name, terrain)
+    driver = make_driver(name, terrain, target_speed_mps=3.0)
+    assert type(driver) is CLASSES[name]
+    config = driver.config.pursuit if name == "track_planner" else driver.config
+    default_config = default.config.pursuit if name == "track_planner" else default.config
+    assert config.target_speed_mps == 3.0 != default_config.target_speed_mps
+
+
+def test_pure_pursuit_follows_the_centre_line_or_a_lane_beside_it(terrain) -> None:
+    track = terrain.track
+    centre = make_driver("pure_pursuit", terrain).route_xy_m
+    assert np.array_equal(centre, track.centreline_xy_m)
+    right = make_driver("pure_pursuit", terrain, lane_offset_m=1.5).route_xy_m
+    assert right.shape == centre.shape
+    assert np.allclose(np.linalg.norm(right - centre, axis=1), 1.5)
+
+
+def test_an_unknown_name_names_the_field() -> None:
+    with pytest.raises(ConfigError, match="driver.*unknown driver 'sunday'"):
+        make_driver("sunday", braking_track(ditch_distance_m=20.0, seed=0, rough=False))
