@@ -120,8 +120,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     group.add_argument(
         "--action-std",
         type=float,
-        default=defaults.warm_start.action_std,
-        help="action std after the warm start (default: %(default)s)",
+        default=None,
+        help=f"action std after the warm start (default: {defaults.warm_start.action_std}), or of the "
+        "--init model (default: the model's)",
     )
     group.add_argument(
         "--critic-warmup-steps",
@@ -151,6 +152,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The :class:`TrainConfig` of the parsed command line."""
+    defaults = WarmStartConfig()
     return TrainConfig(
         env=args.env,
         algo=args.algo,
@@ -171,9 +173,10 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             steps=args.warm_start_steps,
             driver=args.warm_start_driver,
             dagger_rounds=args.dagger_rounds,
-            action_std=args.action_std,
+            action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),
         init_model=args.init,
+        init_action_std=args.action_std if args.init and args.action_std is not None else 0.0,
         critic_warmup_steps=args.critic_warmup_steps,
         target_kl=args.target_kl,
         progress=not args.no_progress,

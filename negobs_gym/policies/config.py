@@ -155,6 +155,9 @@ class TrainConfig:
             first, then the detector grid behind the filter. Its algorithm must be ``algo`` and its
             observation space the env's; ``learning_rate``, ``n_steps``, ``batch_size``, ``gamma``
             and ``seed`` are this config's, and the step count starts at 0. ``""``: no init.
+        init_action_std: PPO with ``init_model``: set the policy's action standard deviation to
+            this before training (its exploration; a cloned policy's deterministic action can
+            reach goals that its std-0.3 samples do not). 0: keep the model's.
         critic_warmup_steps: PPO: for the first this many env steps only the value function
             learns; the features extractor, the actor and its log_std stay frozen. A cloned or
             ``init_model`` actor otherwise takes its first updates from a random critic's
@@ -189,6 +192,7 @@ class TrainConfig:
     extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
     warm_start: WarmStartConfig = field(default_factory=WarmStartConfig)
     init_model: str = ""
+    init_action_std: float = 0.0
     critic_warmup_steps: int = 0
     target_kl: float = 0.0
     torch_threads: int = 1
@@ -221,7 +225,17 @@ class TrainConfig:
             "target_kl",
             f"must be finite and >= 0, got {self.target_kl!r}",
         )
-        for name in ("critic_warmup_steps", "target_kl"):
+        require(
+            math.isfinite(self.init_action_std) and self.init_action_std >= 0,
+            "init_action_std",
+            f"must be finite and >= 0, got {self.init_action_std!r}",
+        )
+        require(
+            not self.init_action_std or self.init_model,
+            "init_action_std",
+            "needs init_model (the model it sets)",
+        )
+        for name in ("critic_warmup_steps", "target_kl", "init_action_std"):
             require(not getattr(self, name) or self.algo == "PPO", name, "is a PPO option")
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
         require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")

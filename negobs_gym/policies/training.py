@@ -24,6 +24,7 @@ import functools
 import importlib.util
 import json
 import logging
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -284,6 +285,9 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
         raise ConfigError("init_model", f"{fit}: {error}") from error
     model.num_timesteps = 0
     model.set_random_seed(config.seed)
+    if config.init_action_std:
+        with torch.no_grad():
+            model.policy.log_std.fill_(math.log(config.init_action_std))
     log.info("initialised from %s", path)
     return model
 

@@ -94,3 +94,17 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "no checkpoint" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
     assert "critic_warmup_steps" in capsys.readouterr().err
+
+
+def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.train import config_from_args
+
+    def config(*args: str):
+        return config_from_args(build_parser().parse_args(["train", *args]))
+
+    assert config().warm_start.action_std == 0.3 and config().init_action_std == 0.0
+    assert config("--action-std", "0.2").warm_start.action_std == 0.2
+    assert config("--action-std", "0.2").init_action_std == 0.0  # no model to set
+    assert config("--init", "m.zip").init_action_std == 0.0  # keeps the model's
+    assert config("--init", "m.zip", "--action-std", "0.1").init_action_std == 0.1

@@ -150,12 +150,18 @@ def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: P
     assert actor0.keys() >= {"log_std", "action_net.weight", "mlp_extractor.policy_net.0.weight"}
     assert any(n.startswith("features_extractor.") for n in actor0)
     assert all(torch.equal(actor0[n], actor1[n]) for n in actor0)
+    assert all(not n.startswith(("features_extractor", "action_net", "log_std")) for n in value0)
     assert not all(torch.equal(value0[n], value1[n]) for n in value0)
     assert PPO.load(warm.model_path, device="cpu").target_kl == 0.05
 
     after = train(dataclasses.replace(tuned, steps=128), tmp_path / "after")  # the second update moves all
     actor2 = split_weights(after.model_path)[1]
     assert not torch.equal(actor0["action_net.weight"], actor2["action_net.weight"])
+
+    narrow = train(dataclasses.replace(tuned, init_action_std=0.1), tmp_path / "narrow")
+    (_, actor3) = split_weights(narrow.model_path)  # frozen by the warm-up: the std as set
+    assert torch.allclose(actor3["log_std"].exp(), torch.full_like(actor3["log_std"], 0.1))
+    assert torch.equal(actor3["action_net.weight"], actor0["action_net.weight"])
 
 
 @pytest.mark.parametrize(
@@ -166,6 +172,8 @@ def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: P
         ({"critic_warmup_steps": -1}, "critic_warmup_steps"),
         ({"target_kl": float("nan")}, "target_kl"),
         ({"algo": "SAC", "target_kl": 0.01}, "target_kl"),
+        ({"init_action_std": 0.1}, "init_action_std"),  # without init_model
+        ({"init_model": "m.zip", "init_action_std": -0.1}, "init_action_std"),
         ({"source": "lidar"}, "source"),
         ({"steps": 0}, "steps"),
         ({"envs": 0}, "envs"),
