@@ -48,5 +48,5 @@ def test_pure_pursuit_follows_the_centre_line_or_a_lane_beside_it(terrain) -> No
 
 
 def test_an_unknown_name_names_the_field() -> None:
-    with pytest.raises(ConfigError, match="driver.*unknown driver 'sunday'"):
+    with pytest.raises(ConfigError, match=r"driver.*unknown driver 'sunday'"):
         make_driver("sunday", braking_track(ditch_distance_m=20.0, seed=0, rough=False))
