@@ -51,6 +51,9 @@ class TrackPlannerConfig:
     centring: float = 0.05  # cost per m^2 of lateral offset at each lattice station
     station_step_m: float = 0.5  # lattice spacing along the track [m]
     lateral_step_m: float = 0.1  # lattice spacing across the track [m]
+    # plan again from the car's own station and offset once it is this far off the path [m]
+    # (0: plan once); DAgger needs labels from states the path never visits
+    replan_deviation_m: float = 0.5
     pursuit: PurePursuitConfig = field(default_factory=PurePursuitConfig)
 
     def __post_init__(self) -> None:
@@ -59,7 +62,15 @@ class TrackPlannerConfig:
             value = getattr(self, name)
             require(np.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value!r}")
         non_negative = ("rear_overhang_m", "clearance_m", "wheel_clearance_m", "lead_m", "soft_margin_m")
-        for name in (*non_negative, "soft_cost", "mound_cost", "edge_margin_m", "smoothness", "centring"):
+        non_negative += (
+            "soft_cost",
+            "mound_cost",
+            "edge_margin_m",
+            "smoothness",
+            "centring",
+            "replan_deviation_m",
+        )
+        for name in non_negative:
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.rear_overhang_m < self.length_m, "rear_overhang_m", "must be < length_m")
@@ -71,8 +82,11 @@ def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead
     return np.array([s.min() - lead_m, s.max(), lat.min() - widen_m, lat.max() + widen_m])
 
 
-def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,).
+def planned_lateral_m(
+    terrain: Terrain, config: TrackPlannerConfig, start_m: tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,), from
+    ``start_m`` = (station, lateral offset) to the end of the track.
 
     A lattice planner in track coordinates: dynamic programming over stations every
     ``station_step_m`` and lateral offsets every ``lateral_step_m`` within the track (less
@@ -81,11 +95,13 @@ def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.
     along its heading and costs 1e6 per hit: a point of the body's centre line (every 0.25 m) in a
     positive obstacle's track band widened by ``half_width_m + clearance_m``, or an axle centre
     in a negative obstacle's band widened by ``half_track_m + wheel_clearance_m`` (a wheel in the
-    pit; the body may overhang it). A course without a free path gets the least blocked one.
+    pit; the body may overhang it). A course without a free path gets the least blocked one. The
+    path starts at the lattice point nearest ``start_m`` (the station rounded down).
     """
     track = terrain.track
     edge = track.width_m / 2.0 - config.edge_margin_m
-    stations = np.arange(0.0, track.length_m + config.station_step_m, config.station_step_m)
+    first = np.floor(np.clip(start_m[0], 0.0, track.length_m) / config.station_step_m) * config.station_step_m
+    stations = np.arange(first, track.length_m + config.station_step_m, config.station_step_m)
     n_lat = int(np.floor(edge / config.lateral_step_m + 1e-9))
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
     body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
@@ -119,7 +135,8 @@ def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.
         (points, laterals[None, :, None] + slope[:, :, None] * points, bands, c)
         for points, bands, c in checks
     ]
-    cost = np.where(laterals == 0.0, 0.0, np.inf)  # the car starts on the centre line
+    start = int(np.argmin(np.abs(laterals - np.clip(start_m[1], -edge, edge))))
+    cost = np.where(np.arange(laterals.size) == start, 0.0, np.inf)
     back = np.zeros((stations.size, laterals.size), dtype=np.intp)
     for i in range(1, stations.size):
         hits = np.zeros(slope.shape)
@@ -143,18 +160,39 @@ def planned_lateral_m(terrain: Terrain, config: TrackPlannerConfig) -> tuple[np.
 
 
 class TrackPlannerDriver:
-    """Pure pursuit along :func:`planned_lateral_m`'s path for ``terrain`` (reads ground truth)."""
+    """Pure pursuit along :func:`planned_lateral_m`'s path for ``terrain`` (reads ground truth).
+
+    Once the rear axle is more than ``replan_deviation_m`` off the path (a noisy or a learner's
+    drive, DAgger), it plans again from where the car is: following the old path from the wrong
+    side of a pit would steer back across the pit.
+    """
 
     def __init__(self, terrain: Terrain, config: TrackPlannerConfig | None = None) -> None:
         self.config = config or TrackPlannerConfig()
-        stations, lateral = planned_lateral_m(terrain, self.config)
-        self.route_xy_m, _ = terrain.track.pose_at(stations, lateral)
+        self.terrain = terrain
+        self.replans = 0
+        self._initial = planned_lateral_m(terrain, self.config)
+        self._follow(*self._initial)
+
+    def _follow(self, stations: np.ndarray, lateral: np.ndarray) -> None:
+        self._stations, self._lateral = stations, lateral
+        self.route_xy_m, _ = self.terrain.track.pose_at(stations, lateral)
         self._pursuit = PurePursuitDriver(self.route_xy_m, self.config.pursuit)
 
     def reset(self, seed: int | None = None) -> None:
-        """Restart at the beginning of the path."""
-        self._pursuit.reset(seed)
+        """Restart at the beginning of the first path."""
+        self.replans = 0
+        self._follow(*self._initial)
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
-        """Pure pursuit's ``[longitudinal, steering]`` towards the planned path."""
+        """Pure pursuit's ``[longitudinal, steering]`` towards the planned path (planned again
+        from the car's position when it is off the path)."""
+        if self.config.replan_deviation_m > 0 and "pose" in info:
+            xy = np.asarray(info["pose"], dtype=np.float64)[:2]
+            if np.all(np.isfinite(xy)):
+                station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, xy[None]))
+                planned = float(np.interp(station, self._stations, self._lateral))
+                if abs(lateral - planned) > self.config.replan_deviation_m:
+                    self._follow(*planned_lateral_m(self.terrain, self.config, (station, lateral)))
+                    self.replans += 1
         return self._pursuit.act(obs, info)

@@ -55,6 +55,35 @@ def test_path_keeps_the_body_off_a_box_on_the_left() -> None:
     assert np.all(body_lat[over] - CONFIG.half_width_m - CONFIG.clearance_m >= l1 - 1e-9)
 
 
+def test_off_the_path_it_plans_again_from_where_the_car_is() -> None:
+    # a 1 m pit across the centre line, 20-21 m: room on both sides
+    terrain = braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0)
+    _, first = planned_lateral_m(terrain, CONFIG)
+    side = np.sign(first[np.argmax(np.abs(first))])  # the side the first path passes on (+ right)
+    start = (14.2, -2.0 * side)  # 6 m before the pit, on the other side
+    stations, lateral = planned_lateral_m(terrain, CONFIG, start)
+    assert stations[0] == 14.0 and lateral[0] == pytest.approx(start[1])
+    s0, s1, l0, l1 = _band(terrain, terrain.negative_obstacles[0].outline_xy_m)
+    wheels_lat, wheels_s = _points_lateral(stations, lateral, np.array([0.0, CONFIG.wheelbase_m]))
+    over = (wheels_s >= s0) & (wheels_s <= s1)
+    wheel_widen = CONFIG.half_track_m + CONFIG.wheel_clearance_m
+    assert over.any()
+    if side < 0:  # the first path went left, the new one passes right of the pit
+        assert np.all(wheels_lat[over] - wheel_widen >= l1 - 1e-9)
+    else:
+        assert np.all(wheels_lat[over] + wheel_widen <= l0 - 1e-9)
+
+    xy, yaw = terrain.track.pose_at(start[0], start[1])
+    info = {"pose": np.array([*xy, 0.0, 0.0, 0.0, float(yaw)]), "speed_mps": 4.0}
+    replanning = TrackPlannerDriver(terrain)
+    fixed = TrackPlannerDriver(terrain, TrackPlannerConfig(replan_deviation_m=0.0))
+    towards_old_path = fixed.act(None, info)[1]  # steering, + left
+    assert fixed.replans == 0 and towards_old_path == pytest.approx(side * -1.0)  # full lock across the pit
+    assert abs(replanning.act(None, info)[1]) < 0.5 and replanning.replans == 1
+    replanning.reset()
+    assert replanning.replans == 0 and np.array_equal(replanning.route_xy_m, fixed.route_xy_m)
+
+
 def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
     terrain = trench_crossing(20.0, rough=False)  # the trench spans the track: no way around
     stations, lateral = planned_lateral_m(terrain, CONFIG)
@@ -64,7 +93,13 @@ def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("half_width_m", 0.0), ("max_slope", float("nan")), ("clearance_m", -0.1), ("rear_overhang_m", 5.0)],
+    [
+        ("half_width_m", 0.0),
+        ("max_slope", float("nan")),
+        ("clearance_m", -0.1),
+        ("rear_overhang_m", 5.0),
+        ("replan_deviation_m", -0.1),
+    ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
     with pytest.raises(ConfigError, match=field):
