@@ -3,13 +3,14 @@
 Drives ``TrackPlannerDriver`` (:mod:`negobs_gym.drivers.track_planner`: a path planned around the
 course's ground-truth obstacles, on the track, followed by pure pursuit at 15 km/h) and
 ``PurePursuitDriver`` on the centre line through the same courses (``--speed-kmh`` sets both
-drivers' cruise speed; a scenario runs them at its spec's), seeds 1,000,000 on (the
-evaluation seeds of ``negobs eval policy``), on the range-limited oracle grid (the drivers read
-``info``, not the grid, so the grid source only sets the cost). Prints one line per episode and per
-driver ``<driver> goal=<k>/<n> ends=<termination counts> mean_progress_m=<m> wall_s=<s>``; the
-planner's line is last.
+drivers' cruise speed; a scenario runs them at its spec's; ``--planner-sight-m`` limits what the
+planner sees ahead), seeds 1,000,000 on (the evaluation seeds of ``negobs eval policy``), on the
+range-limited oracle grid (the drivers read ``info``, not the grid, so the grid source only sets
+the cost). Prints one line per episode and per driver ``<driver> goal=<k>/<n> ends=<termination
+counts> mean_progress_m=<m> wall_s=<s>``; the planner's line is last.
 
 Run: python benchmarks/track_planner.py [--seeds 60] [--first-seed 1000000] [--speed-kmh 25]
+[--planner-sight-m 14]
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=1_000_000)
     parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
     parser.add_argument("--speed-kmh", type=float, default=None, help="cruise speed (default: the drivers')")
+    parser.add_argument(
+        "--planner-sight-m", type=float, default=0.0, help="planner's sight ahead (0: the whole course)"
+    )
     args = parser.parse_args()
     env = make_task_env(args.env, "oracle")
     for name in DEMONSTRATORS:
@@ -36,7 +40,9 @@ def main() -> None:
         for seed in range(args.first_seed, args.first_seed + args.seeds):
             obs, info = env.reset(seed=seed)
             speed = None if args.speed_kmh is None else args.speed_kmh / 3.6
-            driver = make_driver(name, env.unwrapped.terrain, target_speed_mps=speed)
+            driver = make_driver(
+                name, env.unwrapped.terrain, target_speed_mps=speed, planner_sight_m=args.planner_sight_m
+            )
             terminated = truncated = False
             while not (terminated or truncated):
                 obs, _, terminated, truncated, info = env.step(driver.act(obs, info))

@@ -118,6 +118,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the driver labels them, the policy is refitted on all (default: %(default)s)",
     )
     group.add_argument(
+        "--planner-sight-m",
+        type=float,
+        default=defaults.warm_start.planner_sight_m,
+        help="with --warm-start-driver track_planner: how far ahead it sees obstacles, planning "
+        "again as each comes into sight (0 = the whole course; 14 = OffroadNav-v2's oracle range; "
+        "default: %(default)s)",
+    )
+    group.add_argument(
         "--action-std",
         type=float,
         default=None,
@@ -173,6 +181,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             steps=args.warm_start_steps,
             driver=args.warm_start_driver,
             dagger_rounds=args.dagger_rounds,
+            planner_sight_m=args.planner_sight_m,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),
         init_model=args.init,

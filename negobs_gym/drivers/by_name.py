@@ -18,13 +18,19 @@ DRIVER_NAMES: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "
 
 
 def make_driver(
-    name: str, terrain: Terrain, *, target_speed_mps: float | None = None, lane_offset_m: float = 0.0
+    name: str,
+    terrain: Terrain,
+    *,
+    target_speed_mps: float | None = None,
+    lane_offset_m: float = 0.0,
+    planner_sight_m: float = 0.0,
 ) -> Driver:
     """The scripted driver ``name`` for one course.
 
     ``target_speed_mps`` replaces the driver's default cruise speed (None: keep it). Pure pursuit
     follows the centre line shifted by ``lane_offset_m`` (+ right), sampled at the track's own
-    stations; the track planner passes the terrain's ground-truth obstacles on the track.
+    stations; the track planner passes the terrain's ground-truth obstacles on the track, with
+    ``planner_sight_m`` > 0 only those within that distance ahead (``TrackPlannerConfig.sight_m``).
 
     Raises:
         ConfigError: unknown ``name`` (field ``driver``).
@@ -39,5 +45,7 @@ def make_driver(
         route = track.pose_at(track.stations_m, lane_offset_m)[0] if lane_offset_m else track.centreline_xy_m
         return PurePursuitDriver(route, PurePursuitConfig(**speed))
     if name == "track_planner":
-        return TrackPlannerDriver(terrain, TrackPlannerConfig(pursuit=PurePursuitConfig(**speed)))
+        return TrackPlannerDriver(
+            terrain, TrackPlannerConfig(sight_m=planner_sight_m, pursuit=PurePursuitConfig(**speed))
+        )
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVER_NAMES)}")

@@ -54,6 +54,10 @@ class TrackPlannerConfig:
     # plan again from the car's own station and offset once it is this far off the path [m]
     # (0: plan once); DAgger needs labels from states the path never visits
     replan_deviation_m: float = 0.5
+    # plan with only the obstacles that begin within this distance ahead of the rear axle, and
+    # again as each new one comes into sight (0: the whole course); 14 m is the range-limited
+    # oracle grid's, so the expert knows no more than the policy it labels for [m]
+    sight_m: float = 0.0
     pursuit: PurePursuitConfig = field(default_factory=PurePursuitConfig)
 
     def __post_init__(self) -> None:
@@ -69,6 +73,7 @@ class TrackPlannerConfig:
             "smoothness",
             "centring",
             "replan_deviation_m",
+            "sight_m",
         )
         for name in non_negative:
             value = getattr(self, name)
@@ -83,10 +88,14 @@ def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead
 
 
 def planned_lateral_m(
-    terrain: Terrain, config: TrackPlannerConfig, start_m: tuple[float, float] = (0.0, 0.0)
+    terrain: Terrain,
+    config: TrackPlannerConfig,
+    start_m: tuple[float, float] = (0.0, 0.0),
+    sight_until_m: float = np.inf,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,), from
-    ``start_m`` = (station, lateral offset) to the end of the track.
+    ``start_m`` = (station, lateral offset) to the end of the track, around the obstacles that
+    begin at or before station ``sight_until_m`` (all by default).
 
     A lattice planner in track coordinates: dynamic programming over stations every
     ``station_step_m`` and lateral offsets every ``lateral_step_m`` within the track (less
@@ -127,6 +136,10 @@ def planned_lateral_m(
             config.mound_cost,
         ),
     ]
+    checks = [
+        (points, [b for b in bands if b[0] + config.lead_m <= sight_until_m], c)
+        for points, bands, c in checks
+    ]
     change = laterals[None, :] - laterals[:, None]  # [from, to]
     slope = change / config.station_step_m
     move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * change**2, np.inf)
@@ -159,20 +172,42 @@ def planned_lateral_m(
     return stations, laterals[path]
 
 
+def _obstacle_starts_m(terrain: Terrain) -> np.ndarray:
+    """Sorted station at which each obstacle on the course begins [m]."""
+    outlines = [o.footprint_xy_m for o in terrain.positive_obstacles]
+    outlines += [o.outline_xy_m for o in terrain.negative_obstacles]
+    starts = [float(track_coordinates(terrain.track, xy)[0].min()) for xy in outlines]
+    return np.sort(np.asarray(starts, dtype=np.float64))
+
+
 class TrackPlannerDriver:
     """Pure pursuit along :func:`planned_lateral_m`'s path for ``terrain`` (reads ground truth).
 
     Once the rear axle is more than ``replan_deviation_m`` off the path (a noisy or a learner's
     drive, DAgger), it plans again from where the car is: following the old path from the wrong
-    side of a pit would steer back across the pit.
+    side of a pit would steer back across the pit. With ``sight_m`` > 0 it also plans again from
+    where the car is whenever an obstacle comes within ``sight_m`` ahead, and ignores those beyond.
     """
 
     def __init__(self, terrain: Terrain, config: TrackPlannerConfig | None = None) -> None:
         self.config = config or TrackPlannerConfig()
         self.terrain = terrain
         self.replans = 0
-        self._initial = planned_lateral_m(terrain, self.config)
+        self._starts_m = _obstacle_starts_m(terrain) if self.config.sight_m > 0 else np.empty(0)
+        self._initial = planned_lateral_m(terrain, self.config, sight_until_m=self._sight_until(0.0))
+        self._sighted = self._in_sight(0.0)
         self._follow(*self._initial)
+
+    @property
+    def path_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """The path it follows now: stations and lateral offsets of the rear axle [m]."""
+        return self._stations, self._lateral
+
+    def _sight_until(self, station_m: float) -> float:
+        return station_m + self.config.sight_m if self.config.sight_m > 0 else np.inf
+
+    def _in_sight(self, station_m: float) -> int:
+        return int(np.searchsorted(self._starts_m, self._sight_until(station_m), side="right"))
 
     def _follow(self, stations: np.ndarray, lateral: np.ndarray) -> None:
         self._stations, self._lateral = stations, lateral
@@ -182,17 +217,23 @@ class TrackPlannerDriver:
     def reset(self, seed: int | None = None) -> None:
         """Restart at the beginning of the first path."""
         self.replans = 0
+        self._sighted = self._in_sight(0.0)
         self._follow(*self._initial)
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         """Pure pursuit's ``[longitudinal, steering]`` towards the planned path (planned again
-        from the car's position when it is off the path)."""
-        if self.config.replan_deviation_m > 0 and "pose" in info:
+        from the car's position when it is off the path or a new obstacle is in sight)."""
+        replanning = self.config.replan_deviation_m > 0 or self.config.sight_m > 0
+        if replanning and "pose" in info:
             xy = np.asarray(info["pose"], dtype=np.float64)[:2]
             if np.all(np.isfinite(xy)):
                 station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, xy[None]))
                 planned = float(np.interp(station, self._stations, self._lateral))
-                if abs(lateral - planned) > self.config.replan_deviation_m:
-                    self._follow(*planned_lateral_m(self.terrain, self.config, (station, lateral)))
+                deviation = self.config.replan_deviation_m
+                sighted = self._in_sight(station)
+                if sighted > self._sighted or (deviation > 0 and abs(lateral - planned) > deviation):
+                    until = self._sight_until(station)
+                    self._follow(*planned_lateral_m(self.terrain, self.config, (station, lateral), until))
+                    self._sighted = max(sighted, self._sighted)
                     self.replans += 1
         return self._pursuit.act(obs, info)

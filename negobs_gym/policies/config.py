@@ -73,6 +73,9 @@ class WarmStartConfig:
             drives ``steps`` more steps (with the same noise), the driver labels the states it
             visits, and the policy is refitted on everything so far. Cloning alone drifts into
             states the driver never showed (on OffroadNav-v2 the car leaves the track).
+        planner_sight_m: With ``driver="track_planner"``: how far ahead the planner sees
+            obstacles (``TrackPlannerConfig.sight_m``; 0: the whole course). 14 m, the range of
+            OffroadNav-v2's oracle grid, labels with no more than the policy can see.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -85,6 +88,7 @@ class WarmStartConfig:
     steps: int = 0
     driver: str = "pure_pursuit"
     dagger_rounds: int = 0
+    planner_sight_m: float = 0.0
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
@@ -105,7 +109,7 @@ class WarmStartConfig:
             "dagger_rounds",
             f"must be an int >= 0, got {self.dagger_rounds!r}",
         )
-        for name in ("noise_std", "learning_rate", "action_std"):
+        for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.action_std > 0, "action_std", "must be > 0")

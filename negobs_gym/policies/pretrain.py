@@ -57,12 +57,13 @@ class Demonstrations:
         )
 
 
-def demonstrator(name: str, terrain: Terrain) -> Driver:
+def demonstrator(name: str, terrain: Terrain, planner_sight_m: float = 0.0) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
-    one course, with the driver's own defaults (pure pursuit on the centre line)."""
+    one course, with the driver's own defaults (pure pursuit on the centre line; the track planner
+    sees ``planner_sight_m`` ahead, 0: the whole course)."""
     if name not in DEMONSTRATORS:
         raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
-    return make_driver(name, terrain)
+    return make_driver(name, terrain, planner_sight_m=planner_sight_m)
 
 
 def collect_demonstrations(
@@ -73,6 +74,7 @@ def collect_demonstrations(
     driver: str = "pure_pursuit",
     policy: Callable[[dict[str, np.ndarray]], np.ndarray] | None = None,
     first_episode: int = 0,
+    planner_sight_m: float = 0.0,
 ) -> Demonstrations:
     """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
 
@@ -90,7 +92,7 @@ def collect_demonstrations(
     while len(actions) < steps:
         if expert is None:
             obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + first_episode + episodes)
-            expert = demonstrator(driver, env.unwrapped.terrain)
+            expert = demonstrator(driver, env.unwrapped.terrain, planner_sight_m)
             episodes += 1
         label = expert.act(obs, info)
         for key, value in obs.items():

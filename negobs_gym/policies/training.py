@@ -303,12 +303,21 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
     begin = time.perf_counter()
     env = make_env(config.env, config.source, config.filter)
     try:
-        demos = collect_demonstrations(env, ws.steps, ws.noise_std, config.seed, ws.driver)
+        demos = collect_demonstrations(
+            env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
+        )
         losses = warm_start(model, demos, ws, config.seed)
         for _ in range(ws.dagger_rounds):
             learner = functools.partial(_deterministic_action, model)
             demos += collect_demonstrations(
-                env, ws.steps, ws.noise_std, config.seed, ws.driver, learner, first_episode=demos.episodes
+                env,
+                ws.steps,
+                ws.noise_std,
+                config.seed,
+                ws.driver,
+                learner,
+                first_episode=demos.episodes,
+                planner_sight_m=ws.planner_sight_m,
             )
             losses = warm_start(model, demos, ws, config.seed)
     finally:
@@ -317,6 +326,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
         "steps": ws.steps,
         "driver": ws.driver,
         "dagger_rounds": ws.dagger_rounds,
+        "planner_sight_m": ws.planner_sight_m,
         "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
         "first_loss": losses[0],

@@ -54,13 +54,14 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     out = tmp_path / "run"
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
-    args += ["--critic-warmup-steps", "64", "--target-kl", "0.02"]
+    args += ["--critic-warmup-steps", "64", "--target-kl", "0.02", "--planner-sight-m", "14"]
     assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
     capsys.readouterr()
     record = json.loads((out / "train.json").read_text())
     assert record["config"]["critic_warmup_steps"] == 64 and record["config"]["target_kl"] == 0.02
     warm = record["warm_start"]
     assert warm["driver"] == "track_planner" and warm["dagger_rounds"] == 1
+    assert warm["planner_sight_m"] == 14.0 and record["config"]["warm_start"]["planner_sight_m"] == 14.0
     assert warm["demonstration_steps"] == 80 and warm["episodes"] >= 2  # the clone drove a new course
     with (out / "eval.csv").open() as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]

@@ -84,6 +84,34 @@ def test_off_the_path_it_plans_again_from_where_the_car_is() -> None:
     assert replanning.replans == 0 and np.array_equal(replanning.route_xy_m, fixed.route_xy_m)
 
 
+def test_with_a_sight_limit_it_plans_around_an_obstacle_once_it_comes_into_sight() -> None:
+    # a 3 m wide ditch on the track's right half at 20-23 m
+    terrain = braking_track(20.0, ditch_width_m=3.0, lateral_offset_m=1.5, rough=False, length_m=50.0)
+    _, blind = planned_lateral_m(terrain, CONFIG, sight_until_m=19.0)
+    _, seen = planned_lateral_m(terrain, CONFIG, sight_until_m=20.5)
+    assert np.all(blind == 0.0)  # nothing in sight: the centre line
+    assert seen.min() < -1.0  # the ditch begins at 20 m: the path passes left of it
+
+    config = TrackPlannerConfig(sight_m=10.0)
+    driver = TrackPlannerDriver(terrain, config)
+    assert np.all(driver.path_m[1] == 0.0) and driver.replans == 0
+
+    def at(station_m: float) -> dict:
+        xy, yaw = terrain.track.pose_at(station_m, 0.0)
+        return {"pose": np.array([*xy, 0.0, 0.0, 0.0, float(yaw)]), "speed_mps": 4.0}
+
+    driver.act(None, at(9.0))
+    assert driver.replans == 0  # the ditch is 11 m ahead
+    driver.act(None, at(10.6))
+    assert driver.replans == 1 and driver.path_m[1].min() < -1.0
+    driver.act(None, at(11.0))
+    assert driver.replans == 1  # no new obstacle, still on the path
+    driver.reset()
+    assert driver.replans == 0 and np.all(driver.path_m[1] == 0.0)
+    # without a limit the first path already passes the ditch
+    assert planned_lateral_m(terrain, CONFIG)[1].min() < -1.0
+
+
 def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
     terrain = trench_crossing(20.0, rough=False)  # the trench spans the track: no way around
     stations, lateral = planned_lateral_m(terrain, CONFIG)
@@ -99,6 +127,7 @@ def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
         ("clearance_m", -0.1),
         ("rear_overhang_m", 5.0),
         ("replan_deviation_m", -0.1),
+        ("sight_m", float("inf")),
     ],
 )
 def test_config_rejects_bad_values(field, value) -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
-from negobs_gym.drivers.track_planner import TrackPlannerDriver
+from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
 from negobs_gym.policies.pretrain import DEMO_SEED_OFFSET, collect_demonstrations, warm_start
@@ -64,6 +64,8 @@ def test_warm_start_is_ppo_only_and_validated() -> None:
         WarmStartConfig(steps=-1)
     with pytest.raises(ConfigError, match="driver"):
         WarmStartConfig(driver="reckless")
+    with pytest.raises(ConfigError, match="planner_sight_m"):
+        WarmStartConfig(planner_sight_m=float("nan"))
 
 
 def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2() -> None:
@@ -100,3 +102,21 @@ def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
     both = demos + demos
     assert both.actions.shape == (60, 2) and both.episodes == 2
     np.testing.assert_array_equal(both.observations["grid"][30:], demos.observations["grid"])
+
+
+def test_a_sight_limited_planner_labels_what_it_sees() -> None:
+    env = make_env("negobs_gym/OffroadNav-v2", "oracle", use_filter=False)
+    try:
+        full = collect_demonstrations(env, 80, noise_std=0.0, seed=0, driver="track_planner")
+        near = collect_demonstrations(env, 80, 0.0, 0, "track_planner", planner_sight_m=14.0)
+        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+        driver = TrackPlannerDriver(env.unwrapped.terrain, TrackPlannerConfig(sight_m=14.0))
+        labels = []
+        for _ in range(80):
+            labels.append(driver.act(obs, info))
+            obs, _, _, _, info = env.step(labels[-1])
+    finally:
+        env.close()
+    np.testing.assert_array_equal(near.actions, np.stack(labels))
+    assert driver.replans >= 1  # the first obstacle came into sight on the way
+    assert not np.array_equal(near.actions, full.actions)  # the whole course's path starts earlier
