@@ -126,6 +126,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "default: %(default)s)",
     )
     group.add_argument(
+        "--mirror-demonstrations",
+        action="store_true",
+        help="also fit each demonstrated step's mirror image (grid flipped left-right, steering "
+        "and lateral state negated)",
+    )
+    group.add_argument(
+        "--hold-out-every",
+        type=non_negative_int,
+        default=defaults.warm_start.hold_out_every,
+        metavar="K",
+        help="leave every K-th demonstration episode out of the fit, score it each epoch and keep "
+        "the epoch where its loss is lowest (0 = fit on all; default: %(default)s)",
+    )
+    group.add_argument(
         "--action-std",
         type=float,
         default=None,
@@ -182,6 +196,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             driver=args.warm_start_driver,
             dagger_rounds=args.dagger_rounds,
             planner_sight_m=args.planner_sight_m,
+            mirror=args.mirror_demonstrations,
+            hold_out_every=args.hold_out_every,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),
         init_model=args.init,

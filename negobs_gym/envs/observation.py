@@ -21,6 +21,7 @@ __all__ = [
     "STATE_FIELDS",
     "OracleGrid",
     "grid_space",
+    "mirror_signs",
     "stack_channels",
     "state_fields",
     "state_space",
@@ -42,6 +43,18 @@ def state_fields(config: ObservationConfig) -> tuple[str, ...]:
     for each of ``config.route_points_m``."""
     route = tuple(f"route_{d:g}_{axis}_m" for d in config.route_points_m for axis in ("x", "y"))
     return STATE_FIELDS + route
+
+
+def mirror_signs(config: ObservationConfig) -> np.ndarray:
+    """float32 sign of each ``state`` value when the scene is mirrored about the vehicle's heading
+    line: the lateral values (yaw rate, steering, and the x of the goal and route points, x right)
+    change sign, the rest keep it. The grid's mirror image is its columns reversed (the grid is
+    centred on the vehicle: ``GridSpec.side_m`` each side)."""
+    lateral = ("yaw_rate_rps", "steering_rad")
+    return np.array(
+        [-1.0 if name in lateral or name.endswith("_x_m") else 1.0 for name in state_fields(config)],
+        np.float32,
+    )
 
 
 def state_space(config: ObservationConfig) -> spaces.Box:

@@ -76,6 +76,14 @@ class WarmStartConfig:
         planner_sight_m: With ``driver="track_planner"``: how far ahead the planner sees
             obstacles (``TrackPlannerConfig.sight_m``; 0: the whole course). 14 m, the range of
             OffroadNav-v2's oracle grid, labels with no more than the policy can see.
+        mirror: Also fit every demonstrated step's mirror image (grid columns reversed, lateral
+            state and steering negated; :meth:`~negobs_gym.policies.pretrain.Demonstrations.mirrored`):
+            the car and the rules are left-right symmetric, so this doubles the data for free and
+            shows each obstacle layout passed on both sides.
+        hold_out_every: K > 1: the steps of every K-th demonstration episode are left out of the
+            fit and scored after each epoch, and the policy keeps the epoch with the lowest
+            held-out loss (early stopping on courses the fit never saw); 0: fit on all, keep the
+            last epoch.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -89,6 +97,8 @@ class WarmStartConfig:
     driver: str = "pure_pursuit"
     dagger_rounds: int = 0
     planner_sight_m: float = 0.0
+    mirror: bool = False
+    hold_out_every: int = 0
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
@@ -109,6 +119,12 @@ class WarmStartConfig:
             "dagger_rounds",
             f"must be an int >= 0, got {self.dagger_rounds!r}",
         )
+        require(
+            isinstance(self.hold_out_every, int) and (self.hold_out_every == 0 or self.hold_out_every >= 2),
+            "hold_out_every",
+            f"must be 0 (no hold-out) or an int >= 2, got {self.hold_out_every!r}",
+        )
+        require(isinstance(self.mirror, bool), "mirror", f"must be a bool, got {self.mirror!r}")
         for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")

@@ -14,6 +14,10 @@ On OffroadNav-v2, where leaving the track ends the episode, the demonstrator is 
 ground-truth obstacles and passes them on the track, which the policy then has to learn from its
 grid (``WarmStartConfig.driver``; docs/training.md).
 
+Two options make a fit carry to courses it never saw (``WarmStartConfig``): ``mirror`` also fits
+each step's left-right mirror image (:meth:`Demonstrations.mirrored`), and ``hold_out_every`` scores
+every K-th demonstration episode instead of fitting it and keeps the epoch that scores best.
+
 The demonstrations come from the training env itself (same observation wrapper, source and
 filter), on seeds of their own (``seed + DEMO_SEED_OFFSET + k``), so neither the training seeds
 nor the evaluation seeds are reused.
@@ -21,40 +25,97 @@ nor the evaluation seeds are reused.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import torch
 
 from negobs_gym.drivers import Driver, make_driver
+from negobs_gym.envs.observation import mirror_signs
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.policies.config import DEMONSTRATORS, WarmStartConfig
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["DEMO_SEED_OFFSET", "Demonstrations", "collect_demonstrations", "demonstrator", "warm_start"]
+__all__ = [
+    "DEMO_SEED_OFFSET",
+    "Demonstrations",
+    "FitResult",
+    "collect_demonstrations",
+    "demonstrator",
+    "warm_start",
+]
 
 #: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
 #: evaluations 1,000,000 on).
 DEMO_SEED_OFFSET = 500_000
+#: Sign of (throttle, steering) in a mirror image: steering changes side.
+MIRROR_ACTION_SIGNS = np.array([1.0, -1.0], np.float32)
 
 
 @dataclass(frozen=True)
 class Demonstrations:
-    """Observations (the wrapped env's dict, stacked) and the driver's clean actions (N, 2)."""
+    """Observations (the wrapped env's dict, stacked) and the driver's clean actions (N, 2).
+
+    Attributes:
+        observations: Each observation key stacked over the N steps.
+        actions: The driver's labels (N, 2): throttle/brake, steering.
+        episodes: Episodes driven to collect them (a mirrored copy drove none).
+        episode_ids: (N,) the demonstration episode ``k`` of each step (its seed is
+            ``seed + DEMO_SEED_OFFSET + k``); held-out sets are drawn by episode.
+        grid_shape: (channels, rows, cols) of the env's grid, to mirror a flattened one.
+        state_signs: (S,) sign of each ``state`` value in a mirror image
+            (:func:`~negobs_gym.envs.observation.mirror_signs`).
+    """
 
     observations: dict[str, np.ndarray]
     actions: np.ndarray
     episodes: int
+    episode_ids: np.ndarray
+    grid_shape: tuple[int, int, int]
+    state_signs: np.ndarray
 
     def __add__(self, other: Demonstrations) -> Demonstrations:
         """Both sets, this one's first (DAgger's aggregate)."""
+        if other.grid_shape != self.grid_shape or not np.array_equal(other.state_signs, self.state_signs):
+            raise ValueError("demonstrations of different observation layouts cannot be joined")
         observations = {k: np.concatenate([v, other.observations[k]]) for k, v in self.observations.items()}
-        return Demonstrations(
-            observations, np.concatenate([self.actions, other.actions]), self.episodes + other.episodes
+        return replace(
+            self,
+            observations=observations,
+            actions=np.concatenate([self.actions, other.actions]),
+            episodes=self.episodes + other.episodes,
+            episode_ids=np.concatenate([self.episode_ids, other.episode_ids]),
         )
+
+    def mirrored(self) -> Demonstrations:
+        """The same steps seen in a mirror about the vehicle's heading line: grid columns reversed,
+        lateral state values and the steering label negated. The car and the rules are left-right
+        symmetric, so each mirrored step is a state the driver could meet with its mirrored label."""
+        observations = dict(self.observations)
+        if "grid" in observations:
+            grid = observations["grid"]
+            flipped = grid.reshape(len(grid), *self.grid_shape)[..., ::-1]
+            observations["grid"] = np.ascontiguousarray(flipped).reshape(grid.shape)
+        observations["state"] = (self.observations["state"] * self.state_signs).astype(
+            self.observations["state"].dtype
+        )
+        actions = (self.actions * MIRROR_ACTION_SIGNS).astype(self.actions.dtype)
+        return replace(self, observations=observations, actions=actions, episodes=0)
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """What :func:`warm_start` did: the mean loss of each epoch on the fitted steps and, with a
+    hold-out, on the held-out ones; ``best_epoch`` (0-based) is the epoch whose weights the policy
+    keeps (the lowest held-out loss; without a hold-out, the last)."""
+
+    losses: list[float]
+    held_out_losses: list[float]
+    best_epoch: int
 
 
 def demonstrator(name: str, terrain: Terrain, planner_sight_m: float = 0.0) -> Driver:
@@ -87,6 +148,7 @@ def collect_demonstrations(
     rng = np.random.default_rng(seed + first_episode)
     observations: dict[str, list[np.ndarray]] = {}
     actions: list[np.ndarray] = []
+    episode_ids: list[int] = []
     episodes = 0
     obs, info, expert = None, None, None
     while len(actions) < steps:
@@ -98,54 +160,97 @@ def collect_demonstrations(
         for key, value in obs.items():
             observations.setdefault(key, []).append(np.array(value, copy=True))
         actions.append(label)
+        episode_ids.append(first_episode + episodes - 1)
         action = label if policy is None else np.asarray(policy(obs), dtype=np.float64)
         executed = np.clip(action + rng.normal(0.0, noise_std, size=2), -1.0, 1.0).astype(np.float32)
         obs, _, terminated, truncated, info = env.step(executed)
         if terminated or truncated:
             expert = None
+    layout = env.unwrapped.config.observation
     return Demonstrations(
-        {key: np.stack(values) for key, values in observations.items()}, np.stack(actions), episodes
+        {key: np.stack(values) for key, values in observations.items()},
+        np.stack(actions),
+        episodes,
+        np.asarray(episode_ids, dtype=np.int64),
+        layout.shape,
+        mirror_signs(layout),
     )
 
 
-def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed: int = 0) -> list[float]:
+def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed: int = 0) -> FitResult:
     """Fit ``model.policy``'s action mean to ``demos`` (mean squared error), then set its action std.
 
-    Works on SB3 policies with a diagonal Gaussian head and ``log_std`` (PPO, A2C). Returns the
-    mean loss of each epoch.
+    With ``config.mirror`` the fit also sees every step's mirror image. With
+    ``config.hold_out_every`` = K, the steps of every K-th episode (``episode_ids % K == K - 1``,
+    and their mirror images) are left out of the fit and scored after each epoch; the policy keeps
+    the weights of the epoch where that held-out loss was lowest (early stopping). Works on SB3
+    policies with a diagonal Gaussian head and ``log_std`` (PPO, A2C).
 
     Raises:
-        ConfigError: the policy has no ``log_std`` (SAC's squashed policy is not supported).
+        ConfigError: the policy has no ``log_std`` (SAC's squashed policy is not supported), or the
+            hold-out leaves no episode to fit or none to score.
     """
     policy = model.policy
     if not hasattr(policy, "log_std"):
         raise ConfigError(
             "algo", f"warm start needs a Gaussian policy with log_std (PPO), got {type(policy).__name__}"
         )
-    obs_tensor, _ = policy.obs_to_tensor(demos.observations)
-    target = torch.as_tensor(demos.actions, dtype=torch.float32)
+    k = config.hold_out_every
+    held = demos.episode_ids % k == k - 1 if k else np.zeros(len(demos.actions), dtype=bool)
+    if k and (held.all() or not held.any()):
+        raise ConfigError(
+            "hold_out_every",
+            f"{k} holds out every {k}-th demonstration episode, which leaves "
+            f"{'nothing to fit' if held.all() else 'none held out'} among the "
+            f"{len(np.unique(demos.episode_ids))} episodes collected: collect more episodes "
+            "(more steps) or lower it",
+        )
+    data = demos + demos.mirrored() if config.mirror else demos
+    held = np.concatenate([held, held]) if config.mirror else held
+    obs_tensor, _ = policy.obs_to_tensor(data.observations)
+    target = torch.as_tensor(data.actions, dtype=torch.float32)
+    fit_idx = torch.as_tensor(np.flatnonzero(~held))
+    held_idx = torch.as_tensor(np.flatnonzero(held))
     params = [
         p for name, p in policy.named_parameters() if name != "log_std" and not name.startswith("value_net")
     ]
     optimiser = torch.optim.Adam(params, lr=config.learning_rate)
     generator = torch.Generator().manual_seed(seed)
-    n = len(target)
-    losses = []
-    policy.set_training_mode(True)
-    for _ in range(config.epochs):
-        order = torch.randperm(n, generator=generator)
+    losses: list[float] = []
+    held_out_losses: list[float] = []
+    best_state, best_epoch = None, config.epochs - 1
+    for epoch in range(config.epochs):
+        policy.set_training_mode(True)
+        order = fit_idx[torch.randperm(len(fit_idx), generator=generator)]
         total = 0.0
-        for start in range(0, n, config.batch_size):
+        for start in range(0, len(order), config.batch_size):
             idx = order[start : start + config.batch_size]
-            batch = {key: value[idx] for key, value in obs_tensor.items()}
-            mean = policy.get_distribution(batch).distribution.mean
-            loss = torch.nn.functional.mse_loss(mean, target[idx])
+            loss = _action_loss(policy, obs_tensor, target, idx)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
             total += loss.item() * len(idx)
-        losses.append(total / n)
+        losses.append(total / len(order))
+        if len(held_idx):
+            policy.set_training_mode(False)
+            with torch.no_grad():
+                total = sum(
+                    _action_loss(policy, obs_tensor, target, idx).item() * len(idx)
+                    for idx in torch.split(held_idx, config.batch_size)
+                )
+            held_out_losses.append(total / len(held_idx))
+            if held_out_losses[-1] == min(held_out_losses):
+                best_state, best_epoch = copy.deepcopy(policy.state_dict()), epoch
+    if best_state is not None:
+        policy.load_state_dict(best_state)
     policy.set_training_mode(False)
     with torch.no_grad():
         policy.log_std.fill_(math.log(config.action_std))
-    return losses
+    return FitResult(losses, held_out_losses, best_epoch)
+
+
+def _action_loss(policy: Any, obs_tensor: dict[str, torch.Tensor], target: torch.Tensor, idx: torch.Tensor):
+    """Mean squared error of the policy's action mean on the steps ``idx``."""
+    batch = {key: value[idx] for key, value in obs_tensor.items()}
+    mean = policy.get_distribution(batch).distribution.mean
+    return torch.nn.functional.mse_loss(mean, target[idx])

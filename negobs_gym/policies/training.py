@@ -306,7 +306,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
         demos = collect_demonstrations(
             env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
         )
-        losses = warm_start(model, demos, ws, config.seed)
+        fit = warm_start(model, demos, ws, config.seed)
         for _ in range(ws.dagger_rounds):
             learner = functools.partial(_deterministic_action, model)
             demos += collect_demonstrations(
@@ -319,7 +319,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
                 first_episode=demos.episodes,
                 planner_sight_m=ws.planner_sight_m,
             )
-            losses = warm_start(model, demos, ws, config.seed)
+            fit = warm_start(model, demos, ws, config.seed)
     finally:
         env.close()
     record = {
@@ -327,10 +327,14 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
         "driver": ws.driver,
         "dagger_rounds": ws.dagger_rounds,
         "planner_sight_m": ws.planner_sight_m,
+        "mirror": ws.mirror,
+        "hold_out_every": ws.hold_out_every,
         "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
-        "first_loss": losses[0],
-        "last_loss": losses[-1],
+        "first_loss": fit.losses[0],
+        "last_loss": fit.losses[-1],
+        "held_out_losses": fit.held_out_losses,
+        "best_epoch": fit.best_epoch,
         "wall_s": time.perf_counter() - begin,
     }
     log.info("warm start: %s", record)

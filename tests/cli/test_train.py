@@ -10,6 +10,7 @@ import pytest
 
 from negobs_gym.cli import main
 from negobs_gym.policies.callbacks import EVAL_COLUMNS
+from negobs_gym.policies.config import WarmStartConfig
 
 ENV = "negobs_gym/Braking-v1"
 SHORT = ["--source", "oracle", "--n-steps", "64", "--eval-episodes", "1", "--no-progress"]
@@ -55,6 +56,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
     args += ["--critic-warmup-steps", "64", "--target-kl", "0.02", "--planner-sight-m", "14"]
+    args += ["--mirror-demonstrations"]
     assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
     capsys.readouterr()
     record = json.loads((out / "train.json").read_text())
@@ -63,6 +65,8 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     assert warm["driver"] == "track_planner" and warm["dagger_rounds"] == 1
     assert warm["planner_sight_m"] == 14.0 and record["config"]["warm_start"]["planner_sight_m"] == 14.0
     assert warm["demonstration_steps"] == 80 and warm["episodes"] >= 2  # the clone drove a new course
+    assert warm["mirror"] and record["config"]["warm_start"]["mirror"]
+    assert warm["held_out_losses"] == [] and warm["best_epoch"] == WarmStartConfig().epochs - 1
     with (out / "eval.csv").open() as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
     assert steps == [0, 64]  # the cloned policy, then after PPO
@@ -109,3 +113,18 @@ def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
     assert config("--action-std", "0.2").init_action_std == 0.0  # no model to set
     assert config("--init", "m.zip").init_action_std == 0.0  # keeps the model's
     assert config("--init", "m.zip", "--action-std", "0.1").init_action_std == 0.1
+
+
+def test_a_hold_out_is_parsed_and_needs_episodes_to_hold_out(tmp_path: Path, capsys) -> None:
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.train import config_from_args
+
+    parsed = config_from_args(build_parser().parse_args(["train", "--hold-out-every", "5"]))
+    assert parsed.warm_start.hold_out_every == 5 and not parsed.warm_start.mirror
+    assert main(["train", "--hold-out-every", "1", "--out", str(tmp_path)]) == 2
+    assert "hold_out_every: must be 0 (no hold-out) or an int >= 2" in capsys.readouterr().err
+    # 20 demonstration steps are one episode: nothing to hold out, said in one line before training
+    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--warm-start-steps", "20", "--hold-out-every", "2"]
+    assert main([*args, *SHORT, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "none held out among the 1 episodes collected: collect more episodes" in err

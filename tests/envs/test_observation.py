@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.envs.observation import OracleGrid
+from negobs_gym.envs.observation import OracleGrid, mirror_signs, state_fields, state_vector
 from negobs_gym.sim.presets import winding_course
 
 
@@ -68,3 +70,57 @@ def test_oracle_range_blanks_obstacles_beyond_it_and_keeps_the_rest(course) -> N
             cut += int((a[name] & ~inside).any())
         np.testing.assert_array_equal(b["traversable"], a["traversable"])
     assert cut > 0  # some obstacle was beyond 14 m in some view
+
+
+def _mirror_about_heading(points: np.ndarray, pose: Pose) -> np.ndarray:
+    """World points mirrored about the line through the vehicle along its heading."""
+    origin = np.array([pose.x, pose.y])
+    right = vehicle_to_world_xy(np.array([[1.0, 0.0]]), origin, pose.yaw)[0] - origin
+    return points - 2.0 * np.outer((points - origin) @ right, right)
+
+
+def test_a_mirrored_scene_reverses_the_grid_columns(course) -> None:
+    """Obstacles mirrored about the heading line show up in the same rows, columns reversed: the
+    left-right mirror of an observation (policies' demonstration mirroring) is a column flip."""
+    config = ObservationConfig(source="oracle")
+    line = np.asarray(course.track.centreline_xy_m)
+    checked = 0
+    for k in range(0, len(line) - 1, max(1, len(line) // 20)):
+        heading = line[k + 1] - line[k]
+        pose = Pose(x=float(line[k, 0]), y=float(line[k, 1]), yaw=float(np.arctan2(-heading[0], heading[1])))
+        mirror = SimpleNamespace(
+            negative_obstacles=[
+                SimpleNamespace(outline_xy_m=_mirror_about_heading(np.asarray(o.outline_xy_m), pose)[::-1])
+                for o in course.negative_obstacles
+            ],
+            positive_obstacles=[
+                SimpleNamespace(footprint_xy_m=_mirror_about_heading(o.footprint_xy_m, pose)[::-1])
+                for o in course.positive_obstacles
+            ],
+            heightfield=course.heightfield,
+            track=course.track,
+        )
+        seen, mirrored = OracleGrid(config, course).layers(pose), OracleGrid(config, mirror).layers(pose)
+        for name in ("negative", "positive"):
+            np.testing.assert_array_equal(mirrored[name], seen[name][:, ::-1])
+            checked += int(seen[name].any())
+    assert checked > 0
+
+
+def test_mirror_signs_negate_the_lateral_state_values() -> None:
+    config = ObservationConfig(route_points_m=(5.0, 10.0, 15.0))
+    signs = mirror_signs(config)
+    fields = state_fields(config)
+    assert dict(zip(fields, signs, strict=True)) == {
+        "speed_mps": 1, "yaw_rate_rps": -1, "steering_rad": -1, "goal_x_m": -1, "goal_y_m": 1,
+        "route_5_x_m": -1, "route_5_y_m": 1, "route_10_x_m": -1, "route_10_y_m": 1,
+        "route_15_x_m": -1, "route_15_y_m": 1,
+    }  # fmt: skip
+    # the state of a mirrored world: goal and route mirrored about the heading, turning the other way
+    pose = Pose(x=3.0, y=-2.0, yaw=0.7)
+    goal = np.array([40.0, 55.0])
+    route = np.array([[6.0, 2.0], [9.0, 6.5], [11.0, 12.0]])
+    seen = state_vector(config, pose, 5.0, 0.4, 0.2, goal, route)
+    goal_m, route_m = _mirror_about_heading(goal[None], pose)[0], _mirror_about_heading(route, pose)
+    mirrored = state_vector(config, pose, 5.0, -0.4, -0.2, goal_m, route_m)
+    np.testing.assert_allclose(mirrored, seen * signs, atol=1e-5)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+import torch
 
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
@@ -26,6 +29,8 @@ def demos():
 
 def test_demonstrations_label_the_drivers_clean_actions(demos) -> None:
     assert demos.actions.shape == (160, 2) and demos.episodes >= 1
+    assert demos.episode_ids[0] == 0 and demos.episode_ids[-1] == demos.episodes - 1
+    assert (np.diff(demos.episode_ids) >= 0).all()
     assert demos.observations["grid"].shape == (160, 2 * 36 * 16)
     assert demos.observations["state"].shape == (160, 11)
     # replay the first episode: the labels are the driver's actions on the recorded observations
@@ -46,11 +51,12 @@ def test_behaviour_cloning_fits_the_driver_and_sets_the_exploration(demos) -> No
     venv.close()
     before, _ = model.predict(demos.observations, deterministic=True)
     ws = WarmStartConfig(steps=160, epochs=30, action_std=0.25)
-    losses = warm_start(model, demos, ws, seed=0)
+    fit = warm_start(model, demos, ws, seed=0)
     after, _ = model.predict(demos.observations, deterministic=True)
     error_before = np.mean((before - demos.actions) ** 2)
     error_after = np.mean((after - demos.actions) ** 2)
-    assert losses[-1] < 0.5 * losses[0]
+    assert fit.losses[-1] < 0.5 * fit.losses[0]
+    assert fit.held_out_losses == [] and fit.best_epoch == 29
     assert error_after < 0.25 * error_before
     np.testing.assert_allclose(model.policy.log_std.detach().numpy(), np.log(0.25), rtol=1e-6)
 
@@ -66,6 +72,10 @@ def test_warm_start_is_ppo_only_and_validated() -> None:
         WarmStartConfig(driver="reckless")
     with pytest.raises(ConfigError, match="planner_sight_m"):
         WarmStartConfig(planner_sight_m=float("nan"))
+    with pytest.raises(ConfigError, match="hold_out_every"):
+        WarmStartConfig(hold_out_every=1)
+    with pytest.raises(ConfigError, match="mirror"):
+        WarmStartConfig(mirror="yes")
 
 
 def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2() -> None:
@@ -98,6 +108,7 @@ def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
     finally:
         env.close()
     np.testing.assert_array_equal(demos.actions, np.stack(labels))
+    np.testing.assert_array_equal(demos.episode_ids, 5)  # one episode, numbered from first_episode
     assert not np.allclose(demos.actions[:, 0], 1.0)  # the driver would have eased off at cruise speed
     both = demos + demos
     assert both.actions.shape == (60, 2) and both.episodes == 2
@@ -120,3 +131,71 @@ def test_a_sight_limited_planner_labels_what_it_sees() -> None:
     np.testing.assert_array_equal(near.actions, np.stack(labels))
     assert driver.replans >= 1  # the first obstacle came into sight on the way
     assert not np.array_equal(near.actions, full.actions)  # the whole course's path starts earlier
+
+
+def _fresh_model():
+    config = TrainConfig(env=ENV, source="oracle", n_steps=64)
+    venv = _vec_env(config)
+    model = _new_model(config, venv, (2, 36, 16))
+    venv.close()
+    return model
+
+
+def test_mirrored_demonstrations_flip_the_grid_and_the_lateral_values(demos) -> None:
+    mirror = demos.mirrored()
+    grid = demos.observations["grid"].reshape(-1, 2, 36, 16)
+    assert grid.any()  # the demonstrations saw obstacles: the flip is not of empty grids
+    np.testing.assert_array_equal(mirror.observations["grid"].reshape(-1, 2, 36, 16), grid[..., ::-1])
+    state = demos.observations["state"]
+    np.testing.assert_array_equal(mirror.observations["state"], state * demos.state_signs)
+    np.testing.assert_array_equal(mirror.actions[:, 0], demos.actions[:, 0])
+    np.testing.assert_array_equal(mirror.actions[:, 1], -demos.actions[:, 1])
+    assert mirror.episodes == 0 and np.array_equal(mirror.episode_ids, demos.episode_ids)
+    twice = mirror.mirrored()
+    for key, value in demos.observations.items():
+        np.testing.assert_array_equal(twice.observations[key], value)
+    np.testing.assert_array_equal(twice.actions, demos.actions)
+
+
+def _mirror_gap(model, demos) -> float:
+    """How far the policy is from acting as the mirror image of itself on mirrored states."""
+    seen, _ = model.predict(demos.observations, deterministic=True)
+    mirrored, _ = model.predict(demos.mirrored().observations, deterministic=True)
+    return float(np.abs(mirrored[:, 1] + seen[:, 1]).mean())
+
+
+def test_a_mirrored_fit_steers_symmetrically(demos) -> None:
+    """The pure-pursuit demonstrations on one course turn mostly one way; fitted with their mirror
+    images, the policy steers the other way on the mirrored states."""
+    plain, mirrored = _fresh_model(), _fresh_model()
+    warm_start(plain, demos, WarmStartConfig(steps=160, epochs=30), seed=0)
+    warm_start(mirrored, demos, WarmStartConfig(steps=160, epochs=30, mirror=True), seed=0)
+    assert _mirror_gap(mirrored, demos) < 0.5 * _mirror_gap(plain, demos)
+
+
+def test_the_hold_out_is_left_out_of_the_fit_and_picks_the_best_epoch(demos) -> None:
+    split = replace(demos, episode_ids=np.arange(160) // 20)  # 8 "episodes" of 20 steps
+    kept = ~np.isin(split.episode_ids, (2, 5))  # every 3rd: ids 2 and 5
+    fitted_only = replace(
+        split,
+        observations={k: v[kept] for k, v in split.observations.items()},
+        actions=split.actions[kept],
+        episode_ids=split.episode_ids[kept],
+    )
+    torch.manual_seed(0)
+    a = _fresh_model()
+    torch.manual_seed(0)
+    b = _fresh_model()
+    held = warm_start(a, split, WarmStartConfig(steps=160, epochs=12, hold_out_every=3), seed=0)
+    plain = warm_start(b, fitted_only, WarmStartConfig(steps=160, epochs=12), seed=0)
+    # the same minibatches of the same steps: the held-out ones never entered the fit
+    np.testing.assert_allclose(held.losses, plain.losses, rtol=1e-5)
+    assert len(held.held_out_losses) == 12
+    assert held.best_epoch == int(np.argmin(held.held_out_losses))
+    # the policy kept that epoch's weights: its held-out error is the lowest one recorded
+    predicted, _ = a.predict({k: v[~kept] for k, v in split.observations.items()}, deterministic=True)
+    clipped = np.clip(split.actions[~kept], -1, 1)
+    assert np.mean((predicted - clipped) ** 2) <= min(held.held_out_losses) + 1e-4
+    one_episode = replace(demos, episode_ids=np.zeros(160, dtype=np.int64))
+    with pytest.raises(ConfigError, match="hold_out_every"):
+        warm_start(_fresh_model(), one_episode, WarmStartConfig(steps=160, hold_out_every=2), seed=0)
