@@ -307,7 +307,8 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
             env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
         )
         fit = warm_start(model, demos, ws, config.seed)
-        for _ in range(ws.dagger_rounds):
+        _log_fit(0, ws.dagger_rounds, demos, fit)
+        for round_ in range(1, ws.dagger_rounds + 1):
             learner = functools.partial(_deterministic_action, model)
             demos += collect_demonstrations(
                 env,
@@ -320,6 +321,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
                 planner_sight_m=ws.planner_sight_m,
             )
             fit = warm_start(model, demos, ws, config.seed)
+            _log_fit(round_, ws.dagger_rounds, demos, fit)
     finally:
         env.close()
     record = {
@@ -339,6 +341,25 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
     }
     log.info("warm start: %s", record)
     return record
+
+
+def _log_fit(round_: int, rounds: int, demos: Any, fit: Any) -> None:
+    """One line per fit: a warm start with DAgger runs for half an hour before PPO's first line."""
+    held_out = (
+        f", held-out {min(fit.held_out_losses):.4f} (epoch {fit.best_epoch + 1} kept)"
+        if fit.held_out_losses
+        else ""
+    )
+    log.info(
+        "warm start fit %d/%d: %d steps, %d episodes, loss %.4f -> %.4f%s",
+        round_,
+        rounds,
+        len(demos.actions),
+        demos.episodes,
+        fit.losses[0],
+        fit.losses[-1],
+        held_out,
+    )
 
 
 def _deterministic_action(model: Any, obs: dict[str, np.ndarray]) -> np.ndarray:
