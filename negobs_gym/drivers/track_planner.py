@@ -23,7 +23,7 @@ from negobs_gym.errors import require
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["TrackPlannerConfig", "TrackPlannerDriver", "planned_lateral_m"]
+__all__ = ["ObstacleBands", "TrackPlannerConfig", "TrackPlannerDriver", "planned_lateral_m"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,11 +87,61 @@ def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead
     return np.array([s.min() - lead_m, s.max(), lat.min() - widen_m, lat.max() + widen_m])
 
 
+@dataclass(frozen=True)
+class ObstacleBands:
+    """Every obstacle of a course in track coordinates, widened for the car: rows (s0, s1, l0, l1)
+    of station and lateral extent, s0 ``lead_m`` before the obstacle begins. Computed once per
+    course and config; every plan of a drive reuses them.
+
+    Attributes:
+        bodies: Positive obstacles with a body, widened by ``half_width_m + clearance_m``.
+        pits: Negative obstacles, widened by ``half_track_m + wheel_clearance_m``.
+        mounds: Positive obstacles in the heightfield (drivable at a cost), widened as pits.
+        lead_m: How far before its obstacle each band starts [m].
+    """
+
+    bodies: np.ndarray
+    pits: np.ndarray
+    mounds: np.ndarray
+    lead_m: float
+
+    @classmethod
+    def of(cls, terrain: Terrain, config: TrackPlannerConfig) -> ObstacleBands:
+        """The bands of ``terrain``'s obstacles for ``config``'s car and clearances."""
+        body_widen = config.half_width_m + config.clearance_m
+        wheel_widen = config.half_track_m + config.wheel_clearance_m
+
+        def bands(outlines: list[np.ndarray], widen_m: float) -> np.ndarray:
+            rows = [_track_band(terrain, xy, widen_m, config.lead_m) for xy in outlines]
+            return np.array(rows).reshape(-1, 4)
+
+        positives = terrain.positive_obstacles
+        return cls(
+            bodies=bands([o.footprint_xy_m for o in positives if not o.in_heightfield], body_widen),
+            pits=bands([np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles], wheel_widen),
+            mounds=bands([o.footprint_xy_m for o in positives if o.in_heightfield], wheel_widen),
+            lead_m=config.lead_m,
+        )
+
+    def starts_m(self) -> np.ndarray:
+        """Sorted stations at which the obstacles begin [m]."""
+        return np.sort(np.concatenate([self.bodies, self.pits, self.mounds])[:, 0] + self.lead_m)
+
+    def seen(self, sight_until_m: float) -> ObstacleBands:
+        """Only the obstacles that begin at or before station ``sight_until_m``."""
+
+        def kept(bands: np.ndarray) -> np.ndarray:
+            return bands[bands[:, 0] + self.lead_m <= sight_until_m]
+
+        return ObstacleBands(kept(self.bodies), kept(self.pits), kept(self.mounds), self.lead_m)
+
+
 def planned_lateral_m(
     terrain: Terrain,
     config: TrackPlannerConfig,
     start_m: tuple[float, float] = (0.0, 0.0),
     sight_until_m: float = np.inf,
+    bands: ObstacleBands | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,), from
     ``start_m`` = (station, lateral offset) to the end of the track, around the obstacles that
@@ -105,7 +155,8 @@ def planned_lateral_m(
     positive obstacle's track band widened by ``half_width_m + clearance_m``, or an axle centre
     in a negative obstacle's band widened by ``half_track_m + wheel_clearance_m`` (a wheel in the
     pit; the body may overhang it). A course without a free path gets the least blocked one. The
-    path starts at the lattice point nearest ``start_m`` (the station rounded down).
+    path starts at the lattice point nearest ``start_m`` (the station rounded down). ``bands``:
+    ``ObstacleBands.of(terrain, config)``, passed in when one course is planned many times.
     """
     track = terrain.track
     edge = track.width_m / 2.0 - config.edge_margin_m
@@ -115,47 +166,25 @@ def planned_lateral_m(
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
     body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
     axles = np.array([0.0, config.wheelbase_m])
-    body_widen = config.half_width_m + config.clearance_m
-    wheel_widen = config.half_track_m + config.wheel_clearance_m
-    bodies = [o for o in terrain.positive_obstacles if not o.in_heightfield]
-    mounds = [o for o in terrain.positive_obstacles if o.in_heightfield]
+    seen = (bands or ObstacleBands.of(terrain, config)).seen(sight_until_m)
     # (points along the car, their bands, the cost of a point inside one)
-    checks = [
-        (body, [_track_band(terrain, o.footprint_xy_m, body_widen, config.lead_m) for o in bodies], 1e6),
-        (
-            axles,
-            [
-                _track_band(terrain, o.outline_xy_m, wheel_widen, config.lead_m)
-                for o in terrain.negative_obstacles
-            ],
-            1e6,
-        ),
-        (
-            axles,
-            [_track_band(terrain, o.footprint_xy_m, wheel_widen, config.lead_m) for o in mounds],
-            config.mound_cost,
-        ),
-    ]
-    checks = [
-        (points, [b for b in bands if b[0] + config.lead_m <= sight_until_m], c)
-        for points, bands, c in checks
-    ]
+    checks = [(body, seen.bodies, 1e6), (axles, seen.pits, 1e6), (axles, seen.mounds, config.mound_cost)]
     change = laterals[None, :] - laterals[:, None]  # [from, to]
     slope = change / config.station_step_m
     move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * change**2, np.inf)
     # each check's points across the track for every move: [from, to, point]
     checks = [
-        (points, laterals[None, :, None] + slope[:, :, None] * points, bands, c)
-        for points, bands, c in checks
+        (points, laterals[None, :, None] + slope[:, :, None] * points, obstacle_bands, c)
+        for points, obstacle_bands, c in checks
     ]
     start = int(np.argmin(np.abs(laterals - np.clip(start_m[1], -edge, edge))))
     cost = np.where(np.arange(laterals.size) == start, 0.0, np.inf)
     back = np.zeros((stations.size, laterals.size), dtype=np.intp)
     for i in range(1, stations.size):
         hits = np.zeros(slope.shape)
-        for points, points_lat, bands, inside_cost in checks:
+        for points, points_lat, obstacle_bands, inside_cost in checks:
             points_s = stations[i] + points
-            for s0, s1, l0, l1 in bands:
+            for s0, s1, l0, l1 in obstacle_bands:
                 along = (points_s >= s0) & (points_s <= s1)
                 if along.any():
                     outside = np.maximum(l0 - points_lat, points_lat - l1)  # < 0 inside the band
@@ -172,14 +201,6 @@ def planned_lateral_m(
     return stations, laterals[path]
 
 
-def _obstacle_starts_m(terrain: Terrain) -> np.ndarray:
-    """Sorted station at which each obstacle on the course begins [m]."""
-    outlines = [o.footprint_xy_m for o in terrain.positive_obstacles]
-    outlines += [o.outline_xy_m for o in terrain.negative_obstacles]
-    starts = [float(track_coordinates(terrain.track, xy)[0].min()) for xy in outlines]
-    return np.sort(np.asarray(starts, dtype=np.float64))
-
-
 class TrackPlannerDriver:
     """Pure pursuit along :func:`planned_lateral_m`'s path for ``terrain`` (reads ground truth).
 
@@ -193,8 +214,11 @@ class TrackPlannerDriver:
         self.config = config or TrackPlannerConfig()
         self.terrain = terrain
         self.replans = 0
-        self._starts_m = _obstacle_starts_m(terrain) if self.config.sight_m > 0 else np.empty(0)
-        self._initial = planned_lateral_m(terrain, self.config, sight_until_m=self._sight_until(0.0))
+        self._bands = ObstacleBands.of(terrain, self.config)
+        self._starts_m = self._bands.starts_m() if self.config.sight_m > 0 else np.empty(0)
+        self._initial = planned_lateral_m(
+            terrain, self.config, sight_until_m=self._sight_until(0.0), bands=self._bands
+        )
         self._sighted = self._in_sight(0.0)
         self._follow(*self._initial)
 
@@ -233,7 +257,8 @@ class TrackPlannerDriver:
                 sighted = self._in_sight(station)
                 if sighted > self._sighted or (deviation > 0 and abs(lateral - planned) > deviation):
                     until = self._sight_until(station)
-                    self._follow(*planned_lateral_m(self.terrain, self.config, (station, lateral), until))
+                    start = (station, lateral)
+                    self._follow(*planned_lateral_m(self.terrain, self.config, start, until, self._bands))
                     self._sighted = max(sighted, self._sighted)
                     self.replans += 1
         return self._pursuit.act(obs, info)

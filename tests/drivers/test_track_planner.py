@@ -154,3 +154,25 @@ def test_it_reaches_the_goal_of_an_offroad_nav_v2_course_where_pure_pursuit_ente
     assert isinstance(TrackPlannerDriver(env.unwrapped.terrain), Driver)
     assert planner["termination"] == ["goal"]
     assert pursuit["termination"] == ["entered_negative_obstacle"] and pursuit["station_m"] < 30.0
+
+
+def test_obstacle_bands_begin_where_their_obstacles_do_and_filter_by_sight() -> None:
+    from negobs_gym.drivers.track_planner import ObstacleBands
+    from negobs_gym.sim.presets import winding_course
+
+    terrain = winding_course(120.0, seed=3)
+    bands = ObstacleBands.of(terrain, CONFIG)
+    outlines = [np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles]
+    outlines += [o.footprint_xy_m for o in terrain.positive_obstacles]
+    begins = np.sort([_band(terrain, xy)[0] for xy in outlines])
+    np.testing.assert_allclose(bands.starts_m(), begins, atol=1e-9)
+    assert len(bands.pits) == len(terrain.negative_obstacles) and len(begins) >= 4
+    until = float(begins[1])  # the first two obstacles in sight
+    seen = bands.seen(until)
+    assert len(seen.starts_m()) == 2 and np.all(seen.starts_m() <= until)
+    # precomputed bands plan as the terrain's own
+    for sight in (until, np.inf):
+        expected = planned_lateral_m(terrain, CONFIG, (4.0, 0.5), sight)
+        np.testing.assert_array_equal(
+            planned_lateral_m(terrain, CONFIG, (4.0, 0.5), sight, bands)[1], expected[1]
+        )
