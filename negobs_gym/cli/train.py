@@ -140,6 +140,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the epoch where its loss is lowest (0 = fit on all; default: %(default)s)",
     )
     group.add_argument(
+        "--demonstrations",
+        default="",
+        metavar="FILE",
+        help="start the warm start from an earlier run's OUT/demonstrations.npz instead of "
+        "collecting --warm-start-steps new steps (DAgger rounds still collect that many each)",
+    )
+    group.add_argument(
         "--action-std",
         type=float,
         default=None,
@@ -198,6 +205,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             planner_sight_m=args.planner_sight_m,
             mirror=args.mirror_demonstrations,
             hold_out_every=args.hold_out_every,
+            demonstrations=args.demonstrations,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),
         init_model=args.init,

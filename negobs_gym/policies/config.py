@@ -84,6 +84,10 @@ class WarmStartConfig:
             fit and scored after each epoch, and the policy keeps the epoch with the lowest
             held-out loss (early stopping on courses the fit never saw); 0: fit on all, keep the
             last epoch.
+        demonstrations: A ``demonstrations.npz`` an earlier run wrote (``OUT/demonstrations.npz``):
+            the first fit uses its labelled steps instead of collecting ``steps`` new ones, and
+            DAgger rounds add to them (episodes numbered after its own). Refitting a saved
+            aggregate with other fit settings takes minutes; collecting it took most of an hour.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -99,11 +103,17 @@ class WarmStartConfig:
     planner_sight_m: float = 0.0
     mirror: bool = False
     hold_out_every: int = 0
+    demonstrations: str = ""
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
     learning_rate: float = 1e-3
     action_std: float = 0.3
+
+    @property
+    def enabled(self) -> bool:
+        """Whether there is a warm start: demonstration steps to collect or a file to start from."""
+        return self.steps > 0 or bool(self.demonstrations)
 
     def __post_init__(self) -> None:
         require(
@@ -125,6 +135,11 @@ class WarmStartConfig:
             f"must be 0 (no hold-out) or an int >= 2, got {self.hold_out_every!r}",
         )
         require(isinstance(self.mirror, bool), "mirror", f"must be a bool, got {self.mirror!r}")
+        require(
+            self.steps > 0 or self.dagger_rounds == 0,
+            "dagger_rounds",
+            "each DAgger round collects `steps` new steps (--warm-start-steps): set it >= 1",
+        )
         for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
@@ -260,12 +275,12 @@ class TrainConfig:
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
         require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")
         require(
-            self.warm_start.steps == 0 or self.algo == "PPO",
+            not self.warm_start.enabled or self.algo == "PPO",
             "warm_start",
             "behaviour cloning sets a Gaussian policy's log_std: PPO only",
         )
         require(
-            not (self.init_model and self.warm_start.steps),
+            not (self.init_model and self.warm_start.enabled),
             "init_model",
-            "starts from trained weights: no warm start with it (warm_start.steps must be 0)",
+            "starts from trained weights: no warm start with it (no warm_start steps or demonstrations)",
         )

@@ -26,9 +26,12 @@ nor the evaluation seeds are reused.
 from __future__ import annotations
 
 import copy
+import io
 import math
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,6 +40,7 @@ import torch
 from negobs_gym.drivers import Driver, make_driver
 from negobs_gym.envs.observation import mirror_signs
 from negobs_gym.errors import ConfigError, require
+from negobs_gym.eval.campaign import write_bytes_atomic
 from negobs_gym.policies.config import DEMONSTRATORS, WarmStartConfig
 from negobs_gym.sim.types import Terrain
 
@@ -90,6 +94,51 @@ class Demonstrations:
             episodes=self.episodes + other.episodes,
             episode_ids=np.concatenate([self.episode_ids, other.episode_ids]),
         )
+
+    def save(self, path: str | Path) -> Path:
+        """Write to ``path`` as a compressed ``.npz``, atomically (``negobs train`` keeps every
+        warm start's labelled steps in ``OUT/demonstrations.npz``)."""
+        arrays = {f"obs_{key}": value for key, value in self.observations.items()}
+        buffer = io.BytesIO()
+        np.savez_compressed(
+            buffer,
+            actions=self.actions,
+            episodes=np.int64(self.episodes),
+            episode_ids=self.episode_ids,
+            grid_shape=np.asarray(self.grid_shape, dtype=np.int64),
+            state_signs=self.state_signs,
+            **arrays,
+        )
+        return write_bytes_atomic(path, buffer.getvalue())
+
+    @classmethod
+    def load(cls, path: str | Path) -> Demonstrations:
+        """Demonstrations written by :meth:`save`.
+
+        Raises:
+            ConfigError: ``path`` is missing or not such a file.
+        """
+        keys = ("actions", "episodes", "episode_ids", "grid_shape", "state_signs")
+        try:
+            with np.load(path) as data:
+                missing = [key for key in keys if key not in data.files]
+                if missing or not any(key.startswith("obs_") for key in data.files):
+                    raise ConfigError(
+                        "demonstrations", f"{path} is not a demonstrations file (no {missing or 'obs_*'})"
+                    )
+                observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
+                return cls(
+                    observations,
+                    data["actions"],
+                    int(data["episodes"]),
+                    data["episode_ids"],
+                    tuple(int(v) for v in data["grid_shape"]),  # type: ignore[arg-type]
+                    data["state_signs"],
+                )
+        except (OSError, ValueError, zipfile.BadZipFile) as error:
+            if isinstance(error, ConfigError):
+                raise
+            raise ConfigError("demonstrations", f"cannot read {path}: {error}") from error
 
     def mirrored(self) -> Demonstrations:
         """The same steps seen in a mirror about the vehicle's heading line: grid columns reversed,

@@ -210,7 +210,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             warm = {}
         else:
             model = _new_model(config, venv, grid_shape)
-            warm = _warm_start(model, config)
+            warm = _warm_start(model, config, out)
             if warm:  # the cloned policy before any PPO update, for `negobs eval policy`
                 save_model_atomic(model, out / "warm_start.zip")
         start_step = model.num_timesteps
@@ -292,20 +292,31 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
     return model
 
 
-def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
+def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
     """Behaviour-clone a scripted driver into a new PPO model (``config.warm_start``); what
-    was done, for ``train.json`` (empty when ``warm_start.steps`` is 0)."""
+    was done, for ``train.json`` (empty without a warm start). All labelled steps are kept in
+    ``out/demonstrations.npz``."""
     ws = config.warm_start
-    if ws.steps == 0:
+    if not ws.enabled:
         return {}
-    from negobs_gym.policies.pretrain import collect_demonstrations, warm_start
+    from negobs_gym.policies.pretrain import Demonstrations, collect_demonstrations, warm_start
 
     begin = time.perf_counter()
     env = make_env(config.env, config.source, config.filter)
     try:
-        demos = collect_demonstrations(
-            env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
-        )
+        if ws.demonstrations:
+            demos = Demonstrations.load(ws.demonstrations)
+            _check_layout(demos, env, ws.demonstrations)
+            log.info(
+                "warm start from %s: %d steps, %d episodes",
+                ws.demonstrations,
+                len(demos.actions),
+                demos.episodes,
+            )
+        else:
+            demos = collect_demonstrations(
+                env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
+            )
         fit = warm_start(model, demos, ws, config.seed)
         _log_fit(0, ws.dagger_rounds, demos, fit)
         for round_ in range(1, ws.dagger_rounds + 1):
@@ -324,6 +335,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
             _log_fit(round_, ws.dagger_rounds, demos, fit)
     finally:
         env.close()
+    demos.save(out / "demonstrations.npz")
     record = {
         "steps": ws.steps,
         "driver": ws.driver,
@@ -331,6 +343,7 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
         "planner_sight_m": ws.planner_sight_m,
         "mirror": ws.mirror,
         "hold_out_every": ws.hold_out_every,
+        "demonstrations": ws.demonstrations,
         "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
         "first_loss": fit.losses[0],
@@ -341,6 +354,25 @@ def _warm_start(model: Any, config: TrainConfig) -> dict[str, Any]:
     }
     log.info("warm start: %s", record)
     return record
+
+
+def _check_layout(demos: Any, env: Any, path: str) -> None:
+    """Saved demonstrations must have this env's observation: the same keys, grid and state."""
+    space = env.observation_space
+    layout = env.unwrapped.config.observation
+    same = (
+        set(demos.observations) == set(space.spaces)
+        and demos.grid_shape == layout.shape
+        and all(demos.observations[k].shape[1:] == space[k].shape for k in space.spaces)
+    )
+    if not same:
+        recorded = {k: v.shape[1:] for k, v in demos.observations.items()}
+        wanted = {k: s.shape for k, s in space.spaces.items()}
+        raise ConfigError(
+            "demonstrations",
+            f"{path} holds observations {recorded} (grid {demos.grid_shape}); this env gives "
+            f"{wanted} (grid {layout.shape})",
+        )
 
 
 def _log_fit(round_: int, rounds: int, demos: Any, fit: Any) -> None:

@@ -71,6 +71,16 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
     assert steps == [0, 64]  # the cloned policy, then after PPO
     assert (out / "warm_start.zip").is_file() and (out / "model.zip").is_file()
+    # every labelled step is kept, and a new run can fit them again without collecting any
+    saved = out / "demonstrations.npz"
+    refit = tmp_path / "refit"
+    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--demonstrations", str(saved)]
+    assert main(["-q", *args, "--hold-out-every", "2", *SHORT, "--out", str(refit)]) == 0
+    capsys.readouterr()
+    again = json.loads((refit / "train.json").read_text())["warm_start"]
+    assert again["demonstrations"] == str(saved) and again["steps"] == 0
+    assert again["demonstration_steps"] == 80 and again["episodes"] == warm["episodes"]
+    assert len(again["held_out_losses"]) == WarmStartConfig().epochs  # the clone's episode, scored
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,7 @@ from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
-from negobs_gym.policies.pretrain import DEMO_SEED_OFFSET, collect_demonstrations, warm_start
+from negobs_gym.policies.pretrain import DEMO_SEED_OFFSET, Demonstrations, collect_demonstrations, warm_start
 from negobs_gym.policies.training import _new_model, _vec_env, make_env
 
 ENV = "negobs_gym/OffroadNav-v1"
@@ -199,3 +199,22 @@ def test_the_hold_out_is_left_out_of_the_fit_and_picks_the_best_epoch(demos) -> 
     one_episode = replace(demos, episode_ids=np.zeros(160, dtype=np.int64))
     with pytest.raises(ConfigError, match="hold_out_every"):
         warm_start(_fresh_model(), one_episode, WarmStartConfig(steps=160, hold_out_every=2), seed=0)
+
+
+def test_demonstrations_survive_a_round_trip_to_disk(demos, tmp_path) -> None:
+    path = demos.save(tmp_path / "demos.npz")
+    loaded = Demonstrations.load(path)
+    assert loaded.observations.keys() == demos.observations.keys()
+    for key, value in demos.observations.items():
+        assert loaded.observations[key].dtype == value.dtype
+        np.testing.assert_array_equal(loaded.observations[key], value)
+    np.testing.assert_array_equal(loaded.actions, demos.actions)
+    np.testing.assert_array_equal(loaded.episode_ids, demos.episode_ids)
+    np.testing.assert_array_equal(loaded.state_signs, demos.state_signs)
+    assert loaded.episodes == demos.episodes and loaded.grid_shape == demos.grid_shape
+    assert [p.name for p in tmp_path.iterdir()] == ["demos.npz"]  # no temp file left behind
+    with pytest.raises(ConfigError, match="cannot read"):
+        Demonstrations.load(tmp_path / "missing.npz")
+    np.savez(tmp_path / "other.npz", actions=demos.actions)
+    with pytest.raises(ConfigError, match="not a demonstrations file"):
+        Demonstrations.load(tmp_path / "other.npz")
