@@ -4,13 +4,14 @@ Drives ``TrackPlannerDriver`` (:mod:`negobs_gym.drivers.track_planner`: a path p
 course's ground-truth obstacles, on the track, followed by pure pursuit at 15 km/h) and
 ``PurePursuitDriver`` on the centre line through the same courses (``--speed-kmh`` sets both
 drivers' cruise speed; a scenario runs them at its spec's; ``--planner-sight-m`` limits what the
-planner sees ahead), seeds 1,000,000 on (the evaluation seeds of ``negobs eval policy``), on the
-range-limited oracle grid (the drivers read ``info``, not the grid, so the grid source only sets
-the cost). Prints one line per episode and per driver ``<driver> goal=<k>/<n> ends=<termination
-counts> mean_progress_m=<m> wall_s=<s>``; the planner's line is last.
+planner sees ahead; ``--planner-horizon-m`` makes it plan again at every step), seeds 1,000,000
+on (the evaluation seeds of ``negobs eval policy``), on the range-limited oracle grid (the drivers
+read ``info``, not the grid, so the grid source only sets the cost). Prints one line per episode
+and per driver ``<driver> goal=<k>/<n> ends=<termination counts> mean_progress_m=<m>
+wall_s=<s>``; the planner's line is last.
 
 Run: python benchmarks/track_planner.py [--seeds 60] [--first-seed 1000000] [--speed-kmh 25]
-[--planner-sight-m 14]
+[--planner-sight-m 14] [--planner-horizon-m 30]
 """
 
 from __future__ import annotations
@@ -33,6 +34,12 @@ def main() -> None:
     parser.add_argument(
         "--planner-sight-m", type=float, default=0.0, help="planner's sight ahead (0: the whole course)"
     )
+    parser.add_argument(
+        "--planner-horizon-m",
+        type=float,
+        default=0.0,
+        help="> 0: the planner plans again at every step this far ahead (0: one path, replanned)",
+    )
     args = parser.parse_args()
     env = make_task_env(args.env, "oracle")
     for name in DEMONSTRATORS:
@@ -41,7 +48,11 @@ def main() -> None:
             obs, info = env.reset(seed=seed)
             speed = None if args.speed_kmh is None else args.speed_kmh / 3.6
             driver = make_driver(
-                name, env.unwrapped.terrain, target_speed_mps=speed, planner_sight_m=args.planner_sight_m
+                name,
+                env.unwrapped.terrain,
+                target_speed_mps=speed,
+                planner_sight_m=args.planner_sight_m,
+                planner_horizon_m=args.planner_horizon_m,
             )
             terminated = truncated = False
             while not (terminated or truncated):

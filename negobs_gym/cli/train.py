@@ -126,6 +126,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "default: %(default)s)",
     )
     group.add_argument(
+        "--planner-horizon-m",
+        type=float,
+        default=defaults.warm_start.planner_horizon_m,
+        help="with --warm-start-driver track_planner: > 0 plans again at every step from the car, "
+        "this far ahead, so each label depends only on what the policy can know (e.g. 30 with "
+        "--planner-sight-m 14; 0 = one path, replanned when the car strays; default: %(default)s)",
+    )
+    group.add_argument(
         "--mirror-demonstrations",
         action="store_true",
         help="also fit each demonstrated step's mirror image (grid flipped left-right, steering "
@@ -203,6 +211,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             driver=args.warm_start_driver,
             dagger_rounds=args.dagger_rounds,
             planner_sight_m=args.planner_sight_m,
+            planner_horizon_m=args.planner_horizon_m,
             mirror=args.mirror_demonstrations,
             hold_out_every=args.hold_out_every,
             demonstrations=args.demonstrations,

@@ -24,13 +24,16 @@ def make_driver(
     target_speed_mps: float | None = None,
     lane_offset_m: float = 0.0,
     planner_sight_m: float = 0.0,
+    planner_horizon_m: float = 0.0,
 ) -> Driver:
     """The scripted driver ``name`` for one course.
 
     ``target_speed_mps`` replaces the driver's default cruise speed (None: keep it). Pure pursuit
     follows the centre line shifted by ``lane_offset_m`` (+ right), sampled at the track's own
     stations; the track planner passes the terrain's ground-truth obstacles on the track, with
-    ``planner_sight_m`` > 0 only those within that distance ahead (``TrackPlannerConfig.sight_m``).
+    ``planner_sight_m`` > 0 only those within that distance ahead (``TrackPlannerConfig.sight_m``),
+    with ``planner_horizon_m`` > 0 planning again at every step that far ahead
+    (``TrackPlannerConfig.plan_horizon_m``).
 
     Raises:
         ConfigError: unknown ``name`` (field ``driver``).
@@ -46,6 +49,9 @@ def make_driver(
         return PurePursuitDriver(route, PurePursuitConfig(**speed))
     if name == "track_planner":
         return TrackPlannerDriver(
-            terrain, TrackPlannerConfig(sight_m=planner_sight_m, pursuit=PurePursuitConfig(**speed))
+            terrain,
+            TrackPlannerConfig(
+                sight_m=planner_sight_m, plan_horizon_m=planner_horizon_m, pursuit=PurePursuitConfig(**speed)
+            ),
         )
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVER_NAMES)}")

@@ -58,6 +58,11 @@ class TrackPlannerConfig:
     # again as each new one comes into sight (0: the whole course); 14 m is the range-limited
     # oracle grid's, so the expert knows no more than the policy it labels for [m]
     sight_m: float = 0.0
+    # > 0: plan again at every step from the car's station and offset, this far ahead (0: one
+    # path to the end of the track, planned again only as above). The label is then a function of
+    # where the car is and what is in sight, which is all a clone can learn (DAgger's expert);
+    # a whole-course path remembers the state it was planned from [m]
+    plan_horizon_m: float = 0.0
     pursuit: PurePursuitConfig = field(default_factory=PurePursuitConfig)
 
     def __post_init__(self) -> None:
@@ -74,6 +79,7 @@ class TrackPlannerConfig:
             "centring",
             "replan_deviation_m",
             "sight_m",
+            "plan_horizon_m",
         )
         for name in non_negative:
             value = getattr(self, name)
@@ -142,10 +148,12 @@ def planned_lateral_m(
     start_m: tuple[float, float] = (0.0, 0.0),
     sight_until_m: float = np.inf,
     bands: ObstacleBands | None = None,
+    horizon_m: float = np.inf,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,), from
-    ``start_m`` = (station, lateral offset) to the end of the track, around the obstacles that
-    begin at or before station ``sight_until_m`` (all by default).
+    ``start_m`` = (station, lateral offset) to the end of the track or ``horizon_m`` beyond the
+    start, around the obstacles that begin at or before station ``sight_until_m`` (all by
+    default).
 
     A lattice planner in track coordinates: dynamic programming over stations every
     ``station_step_m`` and lateral offsets every ``lateral_step_m`` within the track (less
@@ -161,7 +169,8 @@ def planned_lateral_m(
     track = terrain.track
     edge = track.width_m / 2.0 - config.edge_margin_m
     first = np.floor(np.clip(start_m[0], 0.0, track.length_m) / config.station_step_m) * config.station_step_m
-    stations = np.arange(first, track.length_m + config.station_step_m, config.station_step_m)
+    last = min(track.length_m, first + horizon_m)
+    stations = np.arange(first, last + config.station_step_m, config.station_step_m)
     n_lat = int(np.floor(edge / config.lateral_step_m + 1e-9))
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
     body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
@@ -246,12 +255,23 @@ class TrackPlannerDriver:
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         """Pure pursuit's ``[longitudinal, steering]`` towards the planned path (planned again
-        from the car's position when it is off the path or a new obstacle is in sight)."""
-        replanning = self.config.replan_deviation_m > 0 or self.config.sight_m > 0
+        from the car's position at every step with ``plan_horizon_m``, else when it is off the
+        path or a new obstacle is in sight)."""
+        config = self.config
+        replanning = config.replan_deviation_m > 0 or config.sight_m > 0 or config.plan_horizon_m > 0
         if replanning and "pose" in info:
             xy = np.asarray(info["pose"], dtype=np.float64)[:2]
             if np.all(np.isfinite(xy)):
                 station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, xy[None]))
+                if config.plan_horizon_m > 0:
+                    until = self._sight_until(station)
+                    start = (station, lateral)
+                    path = planned_lateral_m(
+                        self.terrain, config, start, until, self._bands, config.plan_horizon_m
+                    )
+                    self._follow(*path)
+                    self.replans += 1
+                    return self._pursuit.act(obs, info)
                 planned = float(np.interp(station, self._stations, self._lateral))
                 deviation = self.config.replan_deviation_m
                 sighted = self._in_sight(station)

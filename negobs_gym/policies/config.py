@@ -76,6 +76,11 @@ class WarmStartConfig:
         planner_sight_m: With ``driver="track_planner"``: how far ahead the planner sees
             obstacles (``TrackPlannerConfig.sight_m``; 0: the whole course). 14 m, the range of
             OffroadNav-v2's oracle grid, labels with no more than the policy can see.
+        planner_horizon_m: With ``driver="track_planner"``: > 0 plans again at every step from
+            where the car is, this far ahead (``TrackPlannerConfig.plan_horizon_m``), so each label
+            depends only on the car's state and the obstacles in sight, as the policy's action
+            must; 0: one path, planned again only when the car strays or an obstacle comes into
+            sight (its labels also depend on where the path was planned from).
         mirror: Also fit every demonstrated step's mirror image (grid columns reversed, lateral
             state and steering negated; :meth:`~negobs_gym.policies.pretrain.Demonstrations.mirrored`):
             the car and the rules are left-right symmetric, so this doubles the data for free and
@@ -101,6 +106,7 @@ class WarmStartConfig:
     driver: str = "pure_pursuit"
     dagger_rounds: int = 0
     planner_sight_m: float = 0.0
+    planner_horizon_m: float = 0.0
     mirror: bool = False
     hold_out_every: int = 0
     demonstrations: str = ""
@@ -140,7 +146,7 @@ class WarmStartConfig:
             "dagger_rounds",
             "each DAgger round collects `steps` new steps (--warm-start-steps): set it >= 1",
         )
-        for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m"):
+        for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m", "planner_horizon_m"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.action_std > 0, "action_std", "must be > 0")

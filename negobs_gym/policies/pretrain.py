@@ -167,13 +167,16 @@ class FitResult:
     best_epoch: int
 
 
-def demonstrator(name: str, terrain: Terrain, planner_sight_m: float = 0.0) -> Driver:
+def demonstrator(
+    name: str, terrain: Terrain, planner_sight_m: float = 0.0, planner_horizon_m: float = 0.0
+) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
     one course, with the driver's own defaults (pure pursuit on the centre line; the track planner
-    sees ``planner_sight_m`` ahead, 0: the whole course)."""
+    sees ``planner_sight_m`` ahead, 0: the whole course; with ``planner_horizon_m`` > 0 it plans
+    again at every step that far ahead)."""
     if name not in DEMONSTRATORS:
         raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
-    return make_driver(name, terrain, planner_sight_m=planner_sight_m)
+    return make_driver(name, terrain, planner_sight_m=planner_sight_m, planner_horizon_m=planner_horizon_m)
 
 
 def collect_demonstrations(
@@ -185,6 +188,7 @@ def collect_demonstrations(
     policy: Callable[[dict[str, np.ndarray]], np.ndarray] | None = None,
     first_episode: int = 0,
     planner_sight_m: float = 0.0,
+    planner_horizon_m: float = 0.0,
 ) -> Demonstrations:
     """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
 
@@ -203,7 +207,7 @@ def collect_demonstrations(
     while len(actions) < steps:
         if expert is None:
             obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + first_episode + episodes)
-            expert = demonstrator(driver, env.unwrapped.terrain, planner_sight_m)
+            expert = demonstrator(driver, env.unwrapped.terrain, planner_sight_m, planner_horizon_m)
             episodes += 1
         label = expert.act(obs, info)
         for key, value in obs.items():

@@ -315,7 +315,13 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
             )
         else:
             demos = collect_demonstrations(
-                env, ws.steps, ws.noise_std, config.seed, ws.driver, planner_sight_m=ws.planner_sight_m
+                env,
+                ws.steps,
+                ws.noise_std,
+                config.seed,
+                ws.driver,
+                planner_sight_m=ws.planner_sight_m,
+                planner_horizon_m=ws.planner_horizon_m,
             )
         fit = warm_start(model, demos, ws, config.seed)
         _log_fit(0, ws.dagger_rounds, demos, fit)
@@ -330,6 +336,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
                 learner,
                 first_episode=demos.episodes,
                 planner_sight_m=ws.planner_sight_m,
+                planner_horizon_m=ws.planner_horizon_m,
             )
             fit = warm_start(model, demos, ws, config.seed)
             _log_fit(round_, ws.dagger_rounds, demos, fit)
@@ -341,6 +348,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
         "driver": ws.driver,
         "dagger_rounds": ws.dagger_rounds,
         "planner_sight_m": ws.planner_sight_m,
+        "planner_horizon_m": ws.planner_horizon_m,
         "mirror": ws.mirror,
         "hold_out_every": ws.hold_out_every,
         "demonstrations": ws.demonstrations,

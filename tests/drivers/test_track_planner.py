@@ -128,6 +128,7 @@ def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
         ("rear_overhang_m", 5.0),
         ("replan_deviation_m", -0.1),
         ("sight_m", float("inf")),
+        ("plan_horizon_m", -1.0),
     ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
@@ -176,3 +177,35 @@ def test_obstacle_bands_begin_where_their_obstacles_do_and_filter_by_sight() -> 
         np.testing.assert_array_equal(
             planned_lateral_m(terrain, CONFIG, (4.0, 0.5), sight, bands)[1], expected[1]
         )
+
+
+def test_planning_at_every_step_makes_the_label_a_function_of_where_the_car_is() -> None:
+    # a 1 m pit across the centre line, 20-21 m: room on both sides
+    terrain = braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0)
+    stations, lateral = planned_lateral_m(terrain, CONFIG, (3.3, 0.0), horizon_m=12.0)
+    assert stations[0] == 3.0 and stations[-1] == pytest.approx(15.0) and lateral.shape == stations.shape
+
+    def at(station_m: float, lateral_m: float) -> dict:
+        xy, yaw = terrain.track.pose_at(station_m, lateral_m)
+        return {"pose": np.array([*xy, 0.0, 0.0, 0.0, float(yaw)]), "speed_mps": 4.0}
+
+    here = at(15.0, 0.3)
+    # two histories: one car came along the centre line, the other from 1.2 m left of it
+    for config in (
+        TrackPlannerConfig(plan_horizon_m=20.0),
+        TrackPlannerConfig(sight_m=14.0, plan_horizon_m=20.0),
+    ):
+        along, beside, fresh = (TrackPlannerDriver(terrain, config) for _ in range(3))
+        for station in (5.0, 10.0):
+            along.act(None, at(station, 0.0))
+            beside.act(None, at(station, -1.2))
+        actions = [driver.act(None, here) for driver in (along, beside, fresh)]
+        np.testing.assert_array_equal(actions[0], actions[1])
+        np.testing.assert_array_equal(actions[0], actions[2])
+        assert fresh.replans == 1 and along.replans == 3
+    # the default planner keeps the path it planned from where it was: its label remembers
+    along, beside = TrackPlannerDriver(terrain), TrackPlannerDriver(terrain)
+    along.act(None, at(5.0, 0.0))
+    beside.act(None, at(5.0, -1.2))  # 1.2 m off its first path: it plans again from here
+    assert beside.replans == 1 and along.replans == 0
+    assert not np.array_equal(along.path_m[1], beside.path_m[1])
