@@ -148,6 +148,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the epoch where its loss is lowest (0 = fit on all; default: %(default)s)",
     )
     group.add_argument(
+        "--clone-weight-decay",
+        type=float,
+        default=defaults.warm_start.weight_decay,
+        help="weight decay of the behaviour-cloning fit (AdamW; default: %(default)s)",
+    )
+    group.add_argument(
         "--demonstrations",
         default="",
         metavar="FILE",
@@ -215,6 +221,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             mirror=args.mirror_demonstrations,
             hold_out_every=args.hold_out_every,
             demonstrations=args.demonstrations,
+            weight_decay=args.clone_weight_decay,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),
         init_model=args.init,

@@ -98,6 +98,8 @@ class WarmStartConfig:
         epochs: Passes over the demonstrations.
         batch_size: Minibatch size of the fit.
         learning_rate: Adam step size of the fit.
+        weight_decay: Decoupled weight decay of the fit (AdamW; 0: plain Adam), a regulariser
+            against fitting the demonstration courses instead of what carries to new ones.
         action_std: The policy's action standard deviation after the fit (PPO's exploration;
             SB3 starts at 1.0, which drives a cloned route follower off the track at once).
     """
@@ -114,6 +116,7 @@ class WarmStartConfig:
     epochs: int = 20
     batch_size: int = 256
     learning_rate: float = 1e-3
+    weight_decay: float = 0.0
     action_std: float = 0.3
 
     @property
@@ -146,7 +149,14 @@ class WarmStartConfig:
             "dagger_rounds",
             "each DAgger round collects `steps` new steps (--warm-start-steps): set it >= 1",
         )
-        for name in ("noise_std", "learning_rate", "action_std", "planner_sight_m", "planner_horizon_m"):
+        for name in (
+            "noise_std",
+            "learning_rate",
+            "weight_decay",
+            "action_std",
+            "planner_sight_m",
+            "planner_horizon_m",
+        ):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.action_std > 0, "action_std", "must be > 0")

@@ -267,7 +267,7 @@ def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed:
     params = [
         p for name, p in policy.named_parameters() if name != "log_std" and not name.startswith("value_net")
     ]
-    optimiser = torch.optim.Adam(params, lr=config.learning_rate)
+    optimiser = torch.optim.AdamW(params, lr=config.learning_rate, weight_decay=config.weight_decay)
     generator = torch.Generator().manual_seed(seed)
     losses: list[float] = []
     held_out_losses: list[float] = []

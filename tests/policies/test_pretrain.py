@@ -218,3 +218,21 @@ def test_demonstrations_survive_a_round_trip_to_disk(demos, tmp_path) -> None:
     np.savez(tmp_path / "other.npz", actions=demos.actions)
     with pytest.raises(ConfigError, match="not a demonstrations file"):
         Demonstrations.load(tmp_path / "other.npz")
+
+
+def test_weight_decay_shrinks_the_fitted_weights(demos) -> None:
+    def fitted_norm(weight_decay: float) -> float:
+        torch.manual_seed(0)
+        model = _fresh_model()
+        warm_start(
+            model,
+            demos,
+            WarmStartConfig(steps=160, epochs=10, batch_size=16, weight_decay=weight_decay),
+            seed=0,
+        )
+        actor = [p for n, p in model.policy.named_parameters() if "action_net" in n or "policy_net" in n]
+        return float(sum((p.detach() ** 2).sum() for p in actor))
+
+    assert fitted_norm(5.0) < 0.8 * fitted_norm(0.0)
+    with pytest.raises(ConfigError, match="weight_decay"):
+        WarmStartConfig(weight_decay=-0.1)
