@@ -169,7 +169,8 @@ def planned_lateral_m(
     track = terrain.track
     edge = track.width_m / 2.0 - config.edge_margin_m
     first = np.floor(np.clip(start_m[0], 0.0, track.length_m) / config.station_step_m) * config.station_step_m
-    last = min(track.length_m, first + horizon_m)
+    # at least one move, so a car at or past the end still has a path to pursue
+    last = max(min(track.length_m, first + horizon_m), first + config.station_step_m)
     stations = np.arange(first, last + config.station_step_m, config.station_step_m)
     n_lat = int(np.floor(edge / config.lateral_step_m + 1e-9))
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m

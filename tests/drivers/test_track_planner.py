@@ -184,6 +184,8 @@ def test_planning_at_every_step_makes_the_label_a_function_of_where_the_car_is()
     terrain = braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0)
     stations, lateral = planned_lateral_m(terrain, CONFIG, (3.3, 0.0), horizon_m=12.0)
     assert stations[0] == 3.0 and stations[-1] == pytest.approx(15.0) and lateral.shape == stations.shape
+    for beyond in (terrain.track.length_m, terrain.track.length_m + 3.0):  # a car past the end
+        assert len(planned_lateral_m(terrain, CONFIG, (beyond, 0.0), horizon_m=12.0)[0]) == 2
 
     def at(station_m: float, lateral_m: float) -> dict:
         xy, yaw = terrain.track.pose_at(station_m, lateral_m)
