@@ -226,8 +226,9 @@ class TrackPlannerDriver:
         self.replans = 0
         self._bands = ObstacleBands.of(terrain, self.config)
         self._starts_m = self._bands.starts_m() if self.config.sight_m > 0 else np.empty(0)
+        self._horizon_m = self.config.plan_horizon_m or np.inf
         self._initial = planned_lateral_m(
-            terrain, self.config, sight_until_m=self._sight_until(0.0), bands=self._bands
+            terrain, self.config, (0.0, 0.0), self._sight_until(0.0), self._bands, self._horizon_m
         )
         self._sighted = self._in_sight(0.0)
         self._follow(*self._initial)
@@ -264,22 +265,17 @@ class TrackPlannerDriver:
             xy = np.asarray(info["pose"], dtype=np.float64)[:2]
             if np.all(np.isfinite(xy)):
                 station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, xy[None]))
-                if config.plan_horizon_m > 0:
-                    until = self._sight_until(station)
-                    start = (station, lateral)
-                    path = planned_lateral_m(
-                        self.terrain, config, start, until, self._bands, config.plan_horizon_m
-                    )
-                    self._follow(*path)
-                    self.replans += 1
-                    return self._pursuit.act(obs, info)
-                planned = float(np.interp(station, self._stations, self._lateral))
-                deviation = self.config.replan_deviation_m
                 sighted = self._in_sight(station)
-                if sighted > self._sighted or (deviation > 0 and abs(lateral - planned) > deviation):
-                    until = self._sight_until(station)
-                    start = (station, lateral)
-                    self._follow(*planned_lateral_m(self.terrain, self.config, start, until, self._bands))
+                off_path = abs(lateral - float(np.interp(station, self._stations, self._lateral)))
+                deviation = config.replan_deviation_m
+                if (
+                    config.plan_horizon_m > 0
+                    or sighted > self._sighted
+                    or (deviation > 0 and off_path > deviation)
+                ):
+                    start, until = (station, lateral), self._sight_until(station)
+                    path = planned_lateral_m(self.terrain, config, start, until, self._bands, self._horizon_m)
+                    self._follow(*path)
                     self._sighted = max(sighted, self._sighted)
                     self.replans += 1
         return self._pursuit.act(obs, info)

@@ -118,27 +118,27 @@ class Demonstrations:
         Raises:
             ConfigError: ``path`` is missing or not such a file.
         """
-        keys = ("actions", "episodes", "episode_ids", "grid_shape", "state_signs")
         try:
             with np.load(path) as data:
-                missing = [key for key in keys if key not in data.files]
-                if missing or not any(key.startswith("obs_") for key in data.files):
-                    raise ConfigError(
-                        "demonstrations", f"{path} is not a demonstrations file (no {missing or 'obs_*'})"
-                    )
-                observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
-                return cls(
-                    observations,
-                    data["actions"],
-                    int(data["episodes"]),
-                    data["episode_ids"],
-                    tuple(int(v) for v in data["grid_shape"]),  # type: ignore[arg-type]
-                    data["state_signs"],
-                )
+                arrays = {key: data[key] for key in data.files}
         except (OSError, ValueError, zipfile.BadZipFile) as error:
-            if isinstance(error, ConfigError):
-                raise
             raise ConfigError("demonstrations", f"cannot read {path}: {error}") from error
+        missing = [
+            k for k in ("actions", "episodes", "episode_ids", "grid_shape", "state_signs") if k not in arrays
+        ]
+        observations = {key[4:]: value for key, value in arrays.items() if key.startswith("obs_")}
+        if missing or not observations:
+            raise ConfigError(
+                "demonstrations", f"{path} is not a demonstrations file (no {missing or 'obs_*'})"
+            )
+        return cls(
+            observations,
+            arrays["actions"],
+            int(arrays["episodes"]),
+            arrays["episode_ids"],
+            tuple(int(v) for v in arrays["grid_shape"]),  # type: ignore[arg-type]
+            arrays["state_signs"],
+        )
 
     def mirrored(self) -> Demonstrations:
         """The same steps seen in a mirror about the vehicle's heading line: grid columns reversed,
