@@ -161,6 +161,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "collecting --warm-start-steps new steps (DAgger rounds still collect that many each)",
     )
     group.add_argument(
+        "--warm-start-workers",
+        type=positive_int,
+        default=defaults.warm_start.workers,
+        metavar="N",
+        help="processes that drive the demonstration episodes, each with its own env; the "
+        "steps are the same for any N (default: %(default)s)",
+    )
+    group.add_argument(
         "--action-std",
         type=float,
         default=None,
@@ -221,6 +229,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             mirror=args.mirror_demonstrations,
             hold_out_every=args.hold_out_every,
             demonstrations=args.demonstrations,
+            workers=args.warm_start_workers,
             weight_decay=args.clone_weight_decay,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),

@@ -93,6 +93,8 @@ class WarmStartConfig:
             the first fit uses its labelled steps instead of collecting ``steps`` new ones, and
             DAgger rounds add to them (episodes numbered after its own). Refitting a saved
             aggregate with other fit settings takes minutes; collecting it took most of an hour.
+        workers: Processes that drive the demonstration episodes, each with its own env (and copy
+            of the policy in DAgger rounds); the steps are the same for any count.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -112,6 +114,7 @@ class WarmStartConfig:
     mirror: bool = False
     hold_out_every: int = 0
     demonstrations: str = ""
+    workers: int = 1
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
@@ -130,7 +133,7 @@ class WarmStartConfig:
             "steps",
             f"must be an int >= 0, got {self.steps!r}",
         )
-        for name in ("epochs", "batch_size"):
+        for name in ("epochs", "batch_size", "workers"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
         require(

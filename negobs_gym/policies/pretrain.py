@@ -26,10 +26,13 @@ nor the evaluation seeds are reused.
 from __future__ import annotations
 
 import copy
+import functools
 import io
 import math
+import multiprocessing
 import zipfile
 from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -48,6 +51,7 @@ __all__ = [
     "DEMO_SEED_OFFSET",
     "Demonstrations",
     "FitResult",
+    "PolicyActor",
     "collect_demonstrations",
     "demonstrator",
     "warm_start",
@@ -58,6 +62,8 @@ __all__ = [
 DEMO_SEED_OFFSET = 500_000
 #: Sign of (throttle, steering) in a mirror image: steering changes side.
 MIRROR_ACTION_SIGNS = np.array([1.0, -1.0], np.float32)
+#: Second word of each episode's noise seed ``[seed + DEMO_SEED_OFFSET + k, NOISE_STREAM]``.
+NOISE_STREAM = 1
 
 
 @dataclass(frozen=True)
@@ -189,42 +195,166 @@ def collect_demonstrations(
     first_episode: int = 0,
     planner_sight_m: float = 0.0,
     planner_horizon_m: float = 0.0,
+    *,
+    workers: int = 1,
+    env_factory: Callable[[], Any] | None = None,
 ) -> Demonstrations:
     """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
 
     Episodes reset on termination or truncation, each on seed ``seed + DEMO_SEED_OFFSET + k`` for
     k = ``first_episode``, ``first_episode + 1``, ...; the executed action is the driver's, or with
     ``policy`` that policy's (DAgger: the learner drives, the driver labels the states it visits),
-    plus ``N(0, noise_std)`` noise (from ``default_rng(seed + first_episode)``), clipped to [-1, 1].
+    plus ``N(0, noise_std)`` noise from a generator of episode k's own, clipped to [-1, 1]. The
+    last episode is cut at ``steps``.
+
+    With ``workers`` > 1, episodes run in that many processes, each on its own env from
+    ``env_factory`` (``env`` is not used) and its own copy of ``policy``, which must then pickle
+    (:class:`PolicyActor`). Each episode depends on its number alone, so the steps are the same as
+    one process collects, in the same order.
     """
     require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
-    rng = np.random.default_rng(seed + first_episode)
-    observations: dict[str, list[np.ndarray]] = {}
+    require(isinstance(workers, int) and workers >= 1, "workers", f"must be an int >= 1, got {workers!r}")
+    require(workers == 1 or env_factory is not None, "env_factory", "workers > 1 need an env factory")
+    expert = functools.partial(
+        demonstrator, driver, planner_sight_m=planner_sight_m, planner_horizon_m=planner_horizon_m
+    )
+    if workers == 1:
+        parts: list[_Episode] = []
+        collected = 0
+        while collected < steps:
+            episode, left = first_episode + len(parts), steps - collected
+            parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
+            collected += len(parts[-1].actions)
+        layout = env.unwrapped.config.observation
+    else:
+        parts, layout = _episodes_in_processes(
+            (env_factory, expert, policy), workers, first_episode, steps, noise_std, seed
+        )
+    return _join(parts, steps, first_episode, layout)
+
+
+class PolicyActor:
+    """A picklable learner for :func:`collect_demonstrations`: the SB3 policy's deterministic
+    action. A worker process gets the policy's class, constructor arguments and weights (what
+    SB3's ``BasePolicy.save`` keeps), not the model, its envs or its autograd state."""
+
+    def __init__(self, policy: Any) -> None:
+        self.policy = policy
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return self.policy.predict(obs, deterministic=True)[0]
+
+    def __getstate__(self) -> dict[str, Any]:
+        # the constructor's lr_schedule is a bound method of the policy; acting needs none
+        arguments = {**self.policy._get_constructor_parameters(), "lr_schedule": _no_schedule}
+        return {"cls": type(self.policy), "arguments": arguments, "weights": self.policy.state_dict()}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.policy = state["cls"](**state["arguments"])
+        self.policy.load_state_dict(state["weights"])
+        self.policy.set_training_mode(False)
+
+
+def _no_schedule(_progress: float) -> float:
+    return 0.0
+
+
+@dataclass(frozen=True)
+class _Episode:
+    """One demonstration episode's observations (stacked per key) and labels."""
+
+    observations: dict[str, np.ndarray]
+    actions: np.ndarray
+
+
+def _demonstrate_episode(
+    env: Any,
+    expert: Callable[[Terrain], Driver],
+    policy: Callable[[dict[str, np.ndarray]], np.ndarray] | None,
+    episode: int,
+    max_steps: int,
+    noise_std: float,
+    seed: int,
+) -> _Episode:
+    """Demonstration episode ``episode``, at most ``max_steps`` steps: a function of its number alone."""
+    course_seed = seed + DEMO_SEED_OFFSET + episode
+    # the noise draws a stream of its own: gymnasium seeds the env's np_random from course_seed
+    rng = np.random.default_rng([course_seed, NOISE_STREAM])
+    obs, info = env.reset(seed=course_seed)
+    driver = expert(env.unwrapped.terrain)
+    observations: dict[str, list[np.ndarray]] = {key: [] for key in obs}
     actions: list[np.ndarray] = []
-    episode_ids: list[int] = []
-    episodes = 0
-    obs, info, expert = None, None, None
-    while len(actions) < steps:
-        if expert is None:
-            obs, info = env.reset(seed=seed + DEMO_SEED_OFFSET + first_episode + episodes)
-            expert = demonstrator(driver, env.unwrapped.terrain, planner_sight_m, planner_horizon_m)
-            episodes += 1
-        label = expert.act(obs, info)
+    while len(actions) < max_steps:
+        label = driver.act(obs, info)
         for key, value in obs.items():
-            observations.setdefault(key, []).append(np.array(value, copy=True))
+            observations[key].append(np.array(value, copy=True))
         actions.append(label)
-        episode_ids.append(first_episode + episodes - 1)
         action = label if policy is None else np.asarray(policy(obs), dtype=np.float64)
         executed = np.clip(action + rng.normal(0.0, noise_std, size=2), -1.0, 1.0).astype(np.float32)
         obs, _, terminated, truncated, info = env.step(executed)
         if terminated or truncated:
-            expert = None
-    layout = env.unwrapped.config.observation
+            break
+    return _Episode({key: np.stack(values) for key, values in observations.items()}, np.stack(actions))
+
+
+#: Per-process state of a demonstration worker: its env, expert and policy.
+_worker: dict[str, Any] = {}
+
+
+def _start_worker(env_factory: Callable[[], Any], expert: Callable, policy: Any) -> None:
+    torch.set_num_threads(1)  # one process per core; torch's own threads would oversubscribe them
+    _worker.update(env=env_factory(), expert=expert, policy=policy)
+
+
+def _worker_episode(episode: int, max_steps: int, noise_std: float, seed: int) -> tuple[_Episode, Any]:
+    env, expert, policy = _worker["env"], _worker["expert"], _worker["policy"]
+    part = _demonstrate_episode(env, expert, policy, episode, max_steps, noise_std, seed)
+    return part, env.unwrapped.config.observation
+
+
+def _episodes_in_processes(
+    initargs: tuple, workers: int, first_episode: int, steps: int, noise_std: float, seed: int
+) -> tuple[list[_Episode], Any]:
+    """Episodes first_episode, ... in ``workers`` processes until those in order hold ``steps``
+    steps; at most ``workers - 1`` episodes beyond them are driven and dropped."""
+    context = multiprocessing.get_context("spawn")  # no inherited PyBullet state
+    done: dict[int, _Episode] = {}
+    pending: dict[Future, int] = {}
+    layout = None
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=initargs)
+    try:
+        episode = first_episode
+        while _steps_in_order(done, first_episode) < steps:
+            while len(pending) < workers and sum(len(p.actions) for p in done.values()) < steps:
+                pending[pool.submit(_worker_episode, episode, steps, noise_std, seed)] = episode
+                episode += 1
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                done[pending.pop(future)], layout = future.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return [done[k] for k in sorted(done)], layout
+
+
+def _steps_in_order(done: dict[int, _Episode], first_episode: int) -> int:
+    """Steps in the episodes first_episode, first_episode + 1, ... finished without a gap."""
+    total, episode = 0, first_episode
+    while episode in done:
+        total, episode = total + len(done[episode].actions), episode + 1
+    return total
+
+
+def _join(parts: list[_Episode], steps: int, first_episode: int, layout: Any) -> Demonstrations:
+    """The episodes in order, cut at ``steps`` steps."""
+    lengths = np.cumsum([len(p.actions) for p in parts])
+    kept = int(np.searchsorted(lengths, steps)) + 1  # episodes holding the first ``steps`` steps
+    parts = parts[:kept]
+    episode_ids = np.concatenate([np.full(len(p.actions), first_episode + i) for i, p in enumerate(parts)])
     return Demonstrations(
-        {key: np.stack(values) for key, values in observations.items()},
-        np.stack(actions),
-        episodes,
-        np.asarray(episode_ids, dtype=np.int64),
+        {key: np.concatenate([p.observations[key] for p in parts])[:steps] for key in parts[0].observations},
+        np.concatenate([p.actions for p in parts])[:steps],
+        len(parts),
+        episode_ids[:steps].astype(np.int64),
         layout.shape,
         mirror_signs(layout),
     )

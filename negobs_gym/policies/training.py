@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 import torch
 
 import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
@@ -299,10 +298,17 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
     ws = config.warm_start
     if not ws.enabled:
         return {}
-    from negobs_gym.policies.pretrain import Demonstrations, collect_demonstrations, warm_start
+    from negobs_gym.policies.pretrain import Demonstrations, PolicyActor, collect_demonstrations, warm_start
 
     begin = time.perf_counter()
     env = make_env(config.env, config.source, config.filter)
+    collect = functools.partial(
+        collect_demonstrations,
+        planner_sight_m=ws.planner_sight_m,
+        planner_horizon_m=ws.planner_horizon_m,
+        workers=ws.workers,
+        env_factory=functools.partial(make_env, config.env, config.source, config.filter),
+    )
     try:
         if ws.demonstrations:
             demos = Demonstrations.load(ws.demonstrations)
@@ -314,29 +320,13 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
                 demos.episodes,
             )
         else:
-            demos = collect_demonstrations(
-                env,
-                ws.steps,
-                ws.noise_std,
-                config.seed,
-                ws.driver,
-                planner_sight_m=ws.planner_sight_m,
-                planner_horizon_m=ws.planner_horizon_m,
-            )
+            demos = collect(env, ws.steps, ws.noise_std, config.seed, ws.driver)
         fit = warm_start(model, demos, ws, config.seed)
         _log_fit(0, ws.dagger_rounds, demos, fit)
         for round_ in range(1, ws.dagger_rounds + 1):
-            learner = functools.partial(_deterministic_action, model)
-            demos += collect_demonstrations(
-                env,
-                ws.steps,
-                ws.noise_std,
-                config.seed,
-                ws.driver,
-                learner,
-                first_episode=demos.episodes,
-                planner_sight_m=ws.planner_sight_m,
-                planner_horizon_m=ws.planner_horizon_m,
+            learner = PolicyActor(model.policy)
+            demos += collect(
+                env, ws.steps, ws.noise_std, config.seed, ws.driver, learner, first_episode=demos.episodes
             )
             fit = warm_start(model, demos, ws, config.seed)
             _log_fit(round_, ws.dagger_rounds, demos, fit)
@@ -352,6 +342,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
         "mirror": ws.mirror,
         "hold_out_every": ws.hold_out_every,
         "demonstrations": ws.demonstrations,
+        "workers": ws.workers,
         "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
         "first_loss": fit.losses[0],
@@ -400,10 +391,6 @@ def _log_fit(round_: int, rounds: int, demos: Any, fit: Any) -> None:
         fit.losses[-1],
         held_out,
     )
-
-
-def _deterministic_action(model: Any, obs: dict[str, np.ndarray]) -> np.ndarray:
-    return model.predict(obs, deterministic=True)[0]
 
 
 def _previous_warm_start(out: Path) -> dict[str, Any]:

@@ -56,7 +56,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
     args += ["--critic-warmup-steps", "64", "--target-kl", "0.02", "--planner-sight-m", "14"]
-    args += ["--mirror-demonstrations", "--planner-horizon-m", "30"]
+    args += ["--mirror-demonstrations", "--planner-horizon-m", "30", "--warm-start-workers", "2"]
     assert main(["-q", *args, *SHORT, "--out", str(out)]) == 0
     capsys.readouterr()
     record = json.loads((out / "train.json").read_text())
@@ -66,6 +66,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     assert warm["planner_sight_m"] == 14.0 and record["config"]["warm_start"]["planner_sight_m"] == 14.0
     assert warm["demonstration_steps"] == 80 and warm["episodes"] >= 2  # the clone drove a new course
     assert warm["mirror"] and record["config"]["warm_start"]["mirror"]
+    assert warm["workers"] == 2  # the clone drove its DAgger round in other processes
     assert warm["planner_horizon_m"] == 30.0 == record["config"]["warm_start"]["planner_horizon_m"]
     assert warm["held_out_losses"] == [] and warm["best_epoch"] == WarmStartConfig().epochs - 1
     with (out / "eval.csv").open() as fh:

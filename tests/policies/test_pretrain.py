@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -12,7 +13,13 @@ from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
-from negobs_gym.policies.pretrain import DEMO_SEED_OFFSET, Demonstrations, collect_demonstrations, warm_start
+from negobs_gym.policies.pretrain import (
+    DEMO_SEED_OFFSET,
+    Demonstrations,
+    PolicyActor,
+    collect_demonstrations,
+    warm_start,
+)
 from negobs_gym.policies.training import _new_model, _vec_env, make_env
 
 ENV = "negobs_gym/OffroadNav-v1"
@@ -131,6 +138,44 @@ def test_a_sight_limited_planner_labels_what_it_sees() -> None:
     np.testing.assert_array_equal(near.actions, np.stack(labels))
     assert driver.replans >= 1  # the first obstacle came into sight on the way
     assert not np.array_equal(near.actions, full.actions)  # the whole course's path starts earlier
+
+
+def test_each_episode_depends_on_its_number_alone(demos) -> None:
+    """The noise of episode k comes from k's own generator: collecting from episode 1 on gives the
+    same steps as episode 1 of a collection from episode 0 (what lets workers share episodes)."""
+    assert demos.episodes >= 2
+    env = make_env(ENV, "oracle", use_filter=False)
+    try:
+        later = collect_demonstrations(env, 40, noise_std=0.3, seed=7, first_episode=1)
+    finally:
+        env.close()
+    first = np.flatnonzero(demos.episode_ids == 1)[:40]
+    np.testing.assert_array_equal(later.actions, demos.actions[first])
+    np.testing.assert_array_equal(later.observations["grid"], demos.observations["grid"][first])
+    np.testing.assert_array_equal(later.episode_ids, 1)
+
+
+def test_two_worker_processes_collect_the_steps_one_process_does() -> None:
+    """DAgger on OffroadNav-v2 with an untrained policy: short episodes, so several run at once."""
+    factory = functools.partial(make_env, "negobs_gym/OffroadNav-v2", "oracle", False)
+    learner = PolicyActor(_fresh_model().policy)
+    env = factory()
+    try:
+        one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
+    finally:
+        env.close()
+    two = collect_demonstrations(
+        None, 150, 0.3, 3, policy=learner, first_episode=2, workers=2, env_factory=factory
+    )
+    assert one.episodes >= 3 and two.episodes == one.episodes
+    np.testing.assert_array_equal(two.episode_ids, one.episode_ids)
+    np.testing.assert_array_equal(two.actions, one.actions)
+    for key, value in one.observations.items():
+        np.testing.assert_array_equal(two.observations[key], value)
+    with pytest.raises(ConfigError, match="env_factory"):
+        collect_demonstrations(env, 10, 0.3, 3, workers=2)
+    with pytest.raises(ConfigError, match="workers"):
+        WarmStartConfig(steps=10, workers=0)
 
 
 def _fresh_model():
