@@ -14,6 +14,8 @@ __all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvConfig", "EnvPhysicsConfig", "Obser
 
 #: Rigs of the detector observation (see ``ObservationConfig.rig``).
 RIGS: tuple[str, ...] = ("roi", "native", "reduced")
+#: How ``ObservationConfig.downsample`` pools each block of fine cells.
+POOLINGS: tuple[str, ...] = ("max", "count")
 
 #: Route-point components are clipped to +- (farthest route distance + this) [m]: the vehicle may
 #: stand this far off the centre line and still see its route inside the bounds.
@@ -45,7 +47,11 @@ class ObservationConfig:
         sensor_noise: Range noise and dropout on the simulated scans.
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
-        downsample: Integer block size for max-pooling the grid (1 = full resolution).
+        downsample: Integer block size for pooling the grid (1 = full resolution).
+        pooling: How each ``downsample`` x ``downsample`` block becomes one cell: ``"max"`` (1 when
+            any of its fine cells is set, so a one-cell obstacle survives) or ``"count"`` (how
+            many are set, 0 to ``downsample**2``: where in the block an obstacle lies, which the
+            maximum hides, at the same input size).
         max_speed_mps: Speed that maps to the top of the ``state`` range [m/s].
         max_goal_distance_m: Goal vector components are clipped to +- this [m].
         route_points_m: Distances ahead along the track's centre line [m] whose points, in the
@@ -70,6 +76,7 @@ class ObservationConfig:
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
     downsample: int = 4
+    pooling: str = "max"
     max_speed_mps: float = 15.0
     max_goal_distance_m: float = 300.0
     route_points_m: tuple[float, ...] = ()
@@ -114,6 +121,12 @@ class ObservationConfig:
             "downsample",
             f"must divide the grid shape {rows}x{cols}",
         )
+        require(self.pooling in POOLINGS, "pooling", f"must be one of {POOLINGS}, got {self.pooling!r}")
+        require(
+            self.grid_max <= 255,
+            "downsample",
+            f"a count of {self.downsample}x{self.downsample} cells does not fit the uint8 grid",
+        )
         for name in ("max_speed_mps", "max_goal_distance_m"):
             v = getattr(self, name)
             require(math.isfinite(v) and v > 0, name, f"must be > 0, got {v}")
@@ -130,6 +143,11 @@ class ObservationConfig:
             "route_points_m",
             f"must be a tuple of distinct increasing distances > 0 [m], got {route!r}",
         )
+
+    @property
+    def grid_max(self) -> int:
+        """The largest value of an observed grid cell: 1, or ``downsample**2`` when counting."""
+        return self.downsample**2 if self.pooling == "count" else 1
 
     @property
     def shape(self) -> tuple[int, int, int]:

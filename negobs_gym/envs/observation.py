@@ -34,8 +34,9 @@ STATE_FIELDS: tuple[str, ...] = ("speed_mps", "yaw_rate_rps", "steering_rad", "g
 
 
 def grid_space(config: ObservationConfig) -> spaces.Box:
-    """uint8 grid, 0 = no / 1 = yes per channel, shape (channels, rows, cols)."""
-    return spaces.Box(0, 1, config.shape, dtype=np.uint8)
+    """uint8 grid per channel, shape (channels, rows, cols): 0 = no / 1 = yes, or with
+    ``pooling="count"`` the number of fine cells set in each block."""
+    return spaces.Box(0, config.grid_max, config.shape, dtype=np.uint8)
 
 
 def state_fields(config: ObservationConfig) -> tuple[str, ...]:
@@ -99,12 +100,16 @@ def state_vector(
     return np.clip(raw, space.low, space.high).astype(np.float32)
 
 
-def _max_pool(grid: np.ndarray, k: int) -> np.ndarray:
-    """Max-pool (C, R, W) by k x k blocks, so a one-cell obstacle survives down-sampling."""
+def _pool(grid: np.ndarray, k: int, pooling: str) -> np.ndarray:
+    """Pool (C, R, W) 0/1 cells by k x k blocks: their maximum (a one-cell obstacle survives
+    down-sampling) or, with ``pooling="count"``, how many are set."""
     if k == 1:
         return grid
     c, r, w = grid.shape
-    return grid.reshape(c, r // k, k, w // k, k).max(axis=(2, 4))
+    blocks = grid.reshape(c, r // k, k, w // k, k)
+    if pooling == "count":
+        return blocks.sum(axis=(2, 4), dtype=np.uint8)
+    return blocks.max(axis=(2, 4))
 
 
 class OracleGrid:
@@ -157,7 +162,7 @@ class OracleGrid:
         return {name: layer.reshape(cfg.grid.shape) for name, layer in layers.items()}
 
     def observe(self, pose: Pose) -> np.ndarray:
-        """uint8 (channels, rows, cols) grid around ``pose``."""
+        """uint8 (channels, rows, cols) grid around ``pose`` (:func:`stack_channels`)."""
         return stack_channels(self.layers(pose), self.config)
 
 
@@ -185,9 +190,9 @@ def _inside_any(points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray) 
 
 
 def stack_channels(layers: dict[str, np.ndarray], config: ObservationConfig) -> np.ndarray:
-    """uint8 (channels, rows, cols) observation from full-resolution layers, max-pooled."""
+    """uint8 (channels, rows, cols) observation from full-resolution layers, pooled."""
     grid = np.stack([layers[name] for name in config.channels]).astype(np.uint8)
-    return _max_pool(grid, config.downsample)
+    return _pool(grid, config.downsample, config.pooling)
 
 
 def _centreline_tree(polyline: np.ndarray, spacing_m: float = 0.05):

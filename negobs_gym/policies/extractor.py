@@ -8,6 +8,8 @@ wide and skip most 80 cm cells, in which a single pit can be one cell.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 from gymnasium import spaces
@@ -54,6 +56,10 @@ class GridStateExtractor(BaseFeaturesExtractor):
         if not np.all(np.isfinite(bound)) or np.any(bound <= 0):
             raise ConfigError("observation_space", f"'state' needs finite non-zero bounds, got {state_space}")
         self.register_buffer("state_scale", torch.as_tensor(bound))
+        # a counting grid's cells reach downsample**2; the CNN sees every grid in [0, 1]
+        self.grid_scale = float(np.max(grid_space.high)) if grid_space is not None else 1.0
+        if not (math.isfinite(self.grid_scale) and self.grid_scale > 0):
+            raise ConfigError("observation_space", f"'grid' needs a finite bound > 0, got {grid_space}")
         self.cnn: nn.Module | None = None
         if shape is not None:
             layers: list[nn.Module] = []
@@ -71,7 +77,7 @@ class GridStateExtractor(BaseFeaturesExtractor):
         state = observations["state"].reshape(observations["state"].shape[0], -1) / self.state_scale
         if self.cnn is None:
             return state
-        grid = observations["grid"].float().reshape(-1, *self.grid_shape)
+        grid = observations["grid"].float().reshape(-1, *self.grid_shape) / self.grid_scale
         return torch.cat([self.cnn(grid), state], dim=1)
 
 
