@@ -79,6 +79,8 @@ class Demonstrations:
         grid_shape: (channels, rows, cols) of the env's grid, to mirror a flattened one.
         state_signs: (S,) sign of each ``state`` value in a mirror image
             (:func:`~negobs_gym.envs.observation.mirror_signs`).
+        grid_max: The largest grid value (``ObservationConfig.grid_max``: 1, or a counting
+            grid's ``downsample**2``); files written before it existed hold 0/1 grids.
     """
 
     observations: dict[str, np.ndarray]
@@ -87,10 +89,15 @@ class Demonstrations:
     episode_ids: np.ndarray
     grid_shape: tuple[int, int, int]
     state_signs: np.ndarray
+    grid_max: int = 1
 
     def __add__(self, other: Demonstrations) -> Demonstrations:
         """Both sets, this one's first (DAgger's aggregate)."""
-        if other.grid_shape != self.grid_shape or not np.array_equal(other.state_signs, self.state_signs):
+        if (
+            other.grid_shape != self.grid_shape
+            or other.grid_max != self.grid_max
+            or not np.array_equal(other.state_signs, self.state_signs)
+        ):
             raise ValueError("demonstrations of different observation layouts cannot be joined")
         observations = {k: np.concatenate([v, other.observations[k]]) for k, v in self.observations.items()}
         return replace(
@@ -113,6 +120,7 @@ class Demonstrations:
             episode_ids=self.episode_ids,
             grid_shape=np.asarray(self.grid_shape, dtype=np.int64),
             state_signs=self.state_signs,
+            grid_max=np.int64(self.grid_max),
             **arrays,
         )
         return write_bytes_atomic(path, buffer.getvalue())
@@ -144,6 +152,7 @@ class Demonstrations:
             arrays["episode_ids"],
             tuple(int(v) for v in arrays["grid_shape"]),  # type: ignore[arg-type]
             arrays["state_signs"],
+            int(arrays.get("grid_max", 1)),
         )
 
     def mirrored(self) -> Demonstrations:
@@ -357,6 +366,7 @@ def _join(parts: list[_Episode], steps: int, first_episode: int, layout: Any) ->
         episode_ids[:steps].astype(np.int64),
         layout.shape,
         mirror_signs(layout),
+        layout.grid_max,
     )
 
 

@@ -362,6 +362,7 @@ def _check_layout(demos: Any, env: Any, path: str) -> None:
     same = (
         set(demos.observations) == set(space.spaces)
         and demos.grid_shape == layout.shape
+        and demos.grid_max == layout.grid_max
         and all(demos.observations[k].shape[1:] == space[k].shape for k in space.spaces)
     )
     if not same:
@@ -369,8 +370,8 @@ def _check_layout(demos: Any, env: Any, path: str) -> None:
         wanted = {k: s.shape for k, s in space.spaces.items()}
         raise ConfigError(
             "demonstrations",
-            f"{path} holds observations {recorded} (grid {demos.grid_shape}); this env gives "
-            f"{wanted} (grid {layout.shape})",
+            f"{path} holds observations {recorded} (grid {demos.grid_shape}, values up to "
+            f"{demos.grid_max}); this env gives {wanted} (grid {layout.shape}, up to {layout.grid_max})",
         )
 
 

@@ -10,7 +10,15 @@ import pytest
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.envs.observation import OracleGrid, mirror_signs, state_fields, state_vector
+from negobs_gym.envs.observation import (
+    OracleGrid,
+    grid_space,
+    mirror_signs,
+    stack_channels,
+    state_fields,
+    state_vector,
+)
+from negobs_gym.errors import ConfigError
 from negobs_gym.sim.presets import winding_course
 
 
@@ -124,3 +132,23 @@ def test_mirror_signs_negate_the_lateral_state_values() -> None:
     goal_m, route_m = _mirror_about_heading(goal[None], pose)[0], _mirror_about_heading(route, pose)
     mirrored = state_vector(config, pose, 5.0, -0.4, -0.2, goal_m, route_m)
     np.testing.assert_allclose(mirrored, seen * signs, atol=1e-5)
+
+
+def test_a_counting_grid_keeps_how_many_fine_cells_each_block_holds() -> None:
+    rng = np.random.default_rng(0)
+    config = ObservationConfig(source="oracle", channels=("negative", "positive"), pooling="count")
+    layers = {name: rng.random(config.grid.shape) < 0.1 for name in config.channels}
+    counted = stack_channels(layers, config)
+    most = stack_channels(layers, ObservationConfig(source="oracle", channels=config.channels))
+    rows, cols = config.grid.shape
+    fine = np.stack([layers[name] for name in config.channels]).astype(int)
+    expected = fine.reshape(2, rows // 4, 4, cols // 4, 4).sum(axis=(2, 4))
+    np.testing.assert_array_equal(counted, expected)
+    assert counted.max() > 1  # some block holds more than one set cell
+    np.testing.assert_array_equal(most, counted > 0)  # the maximum is whether any is set
+    assert counted.dtype == np.uint8 and grid_space(config).high.max() == 16 == config.grid_max
+    assert grid_space(config).contains(counted)
+    with pytest.raises(ConfigError, match="pooling"):
+        ObservationConfig(pooling="mean")
+    with pytest.raises(ConfigError, match="uint8"):
+        ObservationConfig(downsample=16, pooling="count")

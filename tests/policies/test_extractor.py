@@ -39,6 +39,20 @@ def test_a_three_d_grid_space_and_state_only() -> None:
     assert state_only.features_dim == 5 and state_only.cnn is None
 
 
+def test_a_counting_grid_reaches_the_cnn_scaled_to_one() -> None:
+    binary = flat_space()
+    counting = spaces.Dict(
+        {"grid": spaces.Box(0, 16, binary["grid"].shape, np.uint8), "state": binary["state"]}
+    )
+    torch.manual_seed(0)
+    one = GridStateExtractor(binary, grid_shape=(4, 36, 16))
+    other = GridStateExtractor(counting, grid_shape=(4, 36, 16))
+    other.load_state_dict(one.state_dict())  # the scale is no weight: models saved before load as they were
+    state = torch.zeros(2, 5)
+    full = other({"grid": torch.full((2, 4 * 36 * 16), 16.0), "state": state})
+    torch.testing.assert_close(full, one({"grid": torch.ones(2, 4 * 36 * 16), "state": state}))
+
+
 def test_gradient_reaches_every_layer_and_the_grid_matters() -> None:
     torch.manual_seed(0)
     extractor = GridStateExtractor(flat_space(), grid_shape=(4, 36, 16))

@@ -20,7 +20,7 @@ from negobs_gym.policies.pretrain import (
     collect_demonstrations,
     warm_start,
 )
-from negobs_gym.policies.training import _new_model, _vec_env, make_env
+from negobs_gym.policies.training import _check_layout, _new_model, _vec_env, make_env
 
 ENV = "negobs_gym/OffroadNav-v1"
 
@@ -257,7 +257,20 @@ def test_demonstrations_survive_a_round_trip_to_disk(demos, tmp_path) -> None:
     np.testing.assert_array_equal(loaded.episode_ids, demos.episode_ids)
     np.testing.assert_array_equal(loaded.state_signs, demos.state_signs)
     assert loaded.episodes == demos.episodes and loaded.grid_shape == demos.grid_shape
+    assert loaded.grid_max == demos.grid_max == 1
     assert [p.name for p in tmp_path.iterdir()] == ["demos.npz"]  # no temp file left behind
+    counting = replace(demos, grid_max=16)  # a pooling="count" env's grid
+    assert Demonstrations.load(counting.save(tmp_path / "counting.npz")).grid_max == 16
+    with pytest.raises(ValueError, match="layouts"):
+        demos + counting
+    env = make_env(ENV, "oracle", use_filter=False)
+    try:
+        _check_layout(demos, env, "binary.npz")
+        with pytest.raises(ConfigError, match="values up to 16"):
+            _check_layout(counting, env, "counting.npz")
+    finally:
+        env.close()
+    (tmp_path / "counting.npz").unlink()
     with pytest.raises(ConfigError, match="cannot read"):
         Demonstrations.load(tmp_path / "missing.npz")
     np.savez(tmp_path / "other.npz", actions=demos.actions)
