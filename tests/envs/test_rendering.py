@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -184,3 +186,27 @@ def test_record_video_writes_a_non_empty_file(tmp_path) -> None:
     env.close()
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
+
+
+def test_a_counting_grid_draws_the_cells_a_maximum_draws() -> None:
+    """The local panel shows the cells that hold anything: counting changes the values, not the frame."""
+    frames = []
+    for pooling in ("max", "count"):
+        env = gym.make("negobs_gym/OffroadNav-v2", render_mode="rgb_array")
+        config = env.unwrapped.config
+        observation = dataclasses.replace(config.observation, source="oracle", pooling=pooling)
+        env = gym.make(
+            "negobs_gym/OffroadNav-v2",
+            render_mode="rgb_array",
+            config=dataclasses.replace(config, observation=observation),
+        )
+        obs, _ = env.reset(seed=4)
+        for _ in range(80):  # drive until obstacles are in sight (the same step for both)
+            obs, *_ = env.step(np.array([0.6, 0.0], np.float32))
+            if np.count_nonzero(obs["grid"]) >= 3:
+                break
+        frames.append((obs["grid"], env.render()))
+        env.close()
+    (most, frame_max), (count, frame_count) = frames
+    assert count.max() > 1 and np.array_equal(most, count > 0)  # obstacles in sight, counted
+    np.testing.assert_array_equal(frame_max, frame_count)
