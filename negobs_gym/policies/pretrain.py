@@ -217,7 +217,8 @@ def collect_demonstrations(
     last episode is cut at ``steps``.
 
     With ``workers`` > 1, episodes run in that many processes, each on its own env from
-    ``env_factory`` (``env`` is not used) and its own copy of ``policy``, which must then pickle
+    ``env_factory`` (``env`` only gives the observation layout) and its own copy of ``policy``,
+    which must then pickle
     (:class:`PolicyActor`). Each episode depends on its number alone, so the steps are the same as
     one process collects, in the same order.
     """
@@ -234,12 +235,10 @@ def collect_demonstrations(
             episode, left = first_episode + len(parts), steps - collected
             parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
             collected += len(parts[-1].actions)
-        layout = env.unwrapped.config.observation
     else:
-        parts, layout = _episodes_in_processes(
-            (env_factory, expert, policy), workers, first_episode, steps, noise_std, seed
-        )
-    return _join(parts, steps, first_episode, layout)
+        initargs = (env_factory, expert, policy)
+        parts = _episodes_in_processes(initargs, workers, first_episode, steps, noise_std, seed)
+    return _join(parts, steps, first_episode, env.unwrapped.config.observation)
 
 
 class PolicyActor:
@@ -315,21 +314,19 @@ def _start_worker(env_factory: Callable[[], Any], expert: Callable, policy: Any)
     _worker.update(env=env_factory(), expert=expert, policy=policy)
 
 
-def _worker_episode(episode: int, max_steps: int, noise_std: float, seed: int) -> tuple[_Episode, Any]:
+def _worker_episode(episode: int, max_steps: int, noise_std: float, seed: int) -> _Episode:
     env, expert, policy = _worker["env"], _worker["expert"], _worker["policy"]
-    part = _demonstrate_episode(env, expert, policy, episode, max_steps, noise_std, seed)
-    return part, env.unwrapped.config.observation
+    return _demonstrate_episode(env, expert, policy, episode, max_steps, noise_std, seed)
 
 
 def _episodes_in_processes(
     initargs: tuple, workers: int, first_episode: int, steps: int, noise_std: float, seed: int
-) -> tuple[list[_Episode], Any]:
+) -> list[_Episode]:
     """Episodes first_episode, ... in ``workers`` processes until those in order hold ``steps``
     steps; at most ``workers - 1`` episodes beyond them are driven and dropped."""
     context = multiprocessing.get_context("spawn")  # no inherited PyBullet state
     done: dict[int, _Episode] = {}
     pending: dict[Future, int] = {}
-    layout = None
     pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=initargs)
     try:
         episode = first_episode
@@ -339,10 +336,10 @@ def _episodes_in_processes(
                 episode += 1
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
-                done[pending.pop(future)], layout = future.result()
+                done[pending.pop(future)] = future.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return [done[k] for k in sorted(done)], layout
+    return [done[k] for k in sorted(done)]
 
 
 def _steps_in_order(done: dict[int, _Episode], first_episode: int) -> int:

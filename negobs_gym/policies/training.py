@@ -26,6 +26,7 @@ import json
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -120,10 +121,15 @@ def logger_formats() -> list[str]:
     return ["csv"]
 
 
+def _env_factory(config: TrainConfig) -> Callable[[], gym.Env]:
+    """A picklable maker of the run's training env, for worker processes."""
+    return functools.partial(make_env, config.env, config.source, config.filter)
+
+
 def _vec_env(config: TrainConfig):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    thunk = functools.partial(make_env, config.env, config.source, config.filter)
+    thunk = _env_factory(config)
     if config.envs == 1:
         vec_cls: Any = DummyVecEnv
     elif config.vec_env == "prefetch":
@@ -301,13 +307,13 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
     from negobs_gym.policies.pretrain import Demonstrations, PolicyActor, collect_demonstrations, warm_start
 
     begin = time.perf_counter()
-    env = make_env(config.env, config.source, config.filter)
+    env = _env_factory(config)()
     collect = functools.partial(
         collect_demonstrations,
         planner_sight_m=ws.planner_sight_m,
         planner_horizon_m=ws.planner_horizon_m,
         workers=ws.workers,
-        env_factory=functools.partial(make_env, config.env, config.source, config.filter),
+        env_factory=_env_factory(config),
     )
     try:
         if ws.demonstrations:

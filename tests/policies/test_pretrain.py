@@ -162,11 +162,11 @@ def test_two_worker_processes_collect_the_steps_one_process_does() -> None:
     env = factory()
     try:
         one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
+        two = collect_demonstrations(
+            env, 150, 0.3, 3, policy=learner, first_episode=2, workers=2, env_factory=factory
+        )
     finally:
         env.close()
-    two = collect_demonstrations(
-        None, 150, 0.3, 3, policy=learner, first_episode=2, workers=2, env_factory=factory
-    )
     assert one.episodes >= 3 and two.episodes == one.episodes
     np.testing.assert_array_equal(two.episode_ids, one.episode_ids)
     np.testing.assert_array_equal(two.actions, one.actions)
