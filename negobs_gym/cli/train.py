@@ -169,6 +169,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "steps are the same for any N (default: %(default)s)",
     )
     group.add_argument(
+        "--strong-steer-repeats",
+        type=positive_int,
+        default=defaults.warm_start.strong_steer_repeats,
+        metavar="N",
+        help="fit each demonstrated step that steers harder than --strong-steer (a pass) N times "
+        "per epoch (default: %(default)s)",
+    )
+    group.add_argument(
+        "--strong-steer",
+        type=float,
+        default=defaults.warm_start.strong_steer,
+        help="|steering label| above which a demonstrated step counts as a pass (default: %(default)s)",
+    )
+    group.add_argument(
         "--action-std",
         type=float,
         default=None,
@@ -230,6 +244,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             hold_out_every=args.hold_out_every,
             demonstrations=args.demonstrations,
             workers=args.warm_start_workers,
+            strong_steer=args.strong_steer,
+            strong_steer_repeats=args.strong_steer_repeats,
             weight_decay=args.clone_weight_decay,
             action_std=defaults.action_std if args.action_std is None else args.action_std,
         ),

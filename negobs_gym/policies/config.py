@@ -95,6 +95,12 @@ class WarmStartConfig:
             aggregate with other fit settings takes minutes; collecting it took most of an hour.
         workers: Processes that drive the demonstration episodes, each with its own env (and copy
             of the policy in DAgger rounds); the steps are the same for any count.
+        strong_steer: A demonstrated step whose steering label exceeds this in magnitude counts
+            as a pass (0.3: where the clones fall short of the expert, docs/training.md, "Where
+            the clones' drives leave the expert's").
+        strong_steer_repeats: How often each pass step enters every epoch of the fit (1: once,
+            like any step). Passes are a fifth of the steps; a mean-squared fit averages them with
+            the straight driving around them and steers them too late or too gently.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
         epochs: Passes over the demonstrations.
@@ -115,6 +121,8 @@ class WarmStartConfig:
     hold_out_every: int = 0
     demonstrations: str = ""
     workers: int = 1
+    strong_steer: float = 0.3
+    strong_steer_repeats: int = 1
     noise_std: float = 0.3
     epochs: int = 20
     batch_size: int = 256
@@ -133,7 +141,7 @@ class WarmStartConfig:
             "steps",
             f"must be an int >= 0, got {self.steps!r}",
         )
-        for name in ("epochs", "batch_size", "workers"):
+        for name in ("epochs", "batch_size", "workers", "strong_steer_repeats"):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value!r}")
         require(
@@ -159,6 +167,7 @@ class WarmStartConfig:
             "action_std",
             "planner_sight_m",
             "planner_horizon_m",
+            "strong_steer",
         ):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")

@@ -60,6 +60,8 @@ __all__ = [
 #: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
 #: evaluations 1,000,000 on).
 DEMO_SEED_OFFSET = 500_000
+#: Column of the steering command in an action (throttle, steering).
+STEERING = 1
 #: Sign of (throttle, steering) in a mirror image: steering changes side.
 MIRROR_ACTION_SIGNS = np.array([1.0, -1.0], np.float32)
 #: Second word of each episode's noise seed ``[seed + DEMO_SEED_OFFSET + k, NOISE_STREAM]``.
@@ -370,8 +372,10 @@ def _join(parts: list[_Episode], steps: int, first_episode: int, layout: Any) ->
 def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed: int = 0) -> FitResult:
     """Fit ``model.policy``'s action mean to ``demos`` (mean squared error), then set its action std.
 
-    With ``config.mirror`` the fit also sees every step's mirror image. With
-    ``config.hold_out_every`` = K, the steps of every K-th episode (``episode_ids % K == K - 1``,
+    With ``config.mirror`` the fit also sees every step's mirror image. Steps whose steering label
+    exceeds ``config.strong_steer`` in magnitude (the passes) enter each epoch
+    ``config.strong_steer_repeats`` times, which weights their squared error that much; the
+    held-out loss counts every step once. With ``config.hold_out_every`` = K, the steps of every K-th episode (``episode_ids % K == K - 1``,
     and their mirror images) are left out of the fit and scored after each epoch; the policy keeps
     the weights of the epoch where that held-out loss was lowest (early stopping). Works on SB3
     policies with a diagonal Gaussian head and ``log_std`` (PPO, A2C).
@@ -399,7 +403,10 @@ def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed:
     held = np.concatenate([held, held]) if config.mirror else held
     obs_tensor, _ = policy.obs_to_tensor(data.observations)
     target = torch.as_tensor(data.actions, dtype=torch.float32)
-    fit_idx = torch.as_tensor(np.flatnonzero(~held))
+    strong = np.abs(data.actions[:, STEERING]) > config.strong_steer
+    fit_idx = torch.as_tensor(
+        np.repeat(np.flatnonzero(~held), np.where(strong, config.strong_steer_repeats, 1)[~held])
+    )
     held_idx = torch.as_tensor(np.flatnonzero(held))
     params = [
         p for name, p in policy.named_parameters() if name != "log_std" and not name.startswith("value_net")

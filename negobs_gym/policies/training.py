@@ -349,6 +349,8 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
         "hold_out_every": ws.hold_out_every,
         "demonstrations": ws.demonstrations,
         "workers": ws.workers,
+        "strong_steer": ws.strong_steer,
+        "strong_steer_repeats": ws.strong_steer_repeats,
         "demonstration_steps": len(demos.actions),
         "episodes": demos.episodes,
         "first_loss": fit.losses[0],

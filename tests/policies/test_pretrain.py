@@ -294,3 +294,38 @@ def test_weight_decay_shrinks_the_fitted_weights(demos) -> None:
     assert fitted_norm(5.0) < 0.8 * fitted_norm(0.0)
     with pytest.raises(ConfigError, match="weight_decay"):
         WarmStartConfig(weight_decay=-0.1)
+
+
+def test_strong_steering_steps_enter_the_fit_as_often_as_asked(demos) -> None:
+    """Repeating the passes is a fit on the demonstrations with those steps copied: with one
+    minibatch per epoch the order cannot tell them apart."""
+    strong = np.flatnonzero(np.abs(demos.actions[:, 1]) > 0.1)
+    assert 0 < len(strong) < len(demos.actions)
+    copies = replace(
+        demos,
+        observations={k: v[strong] for k, v in demos.observations.items()},
+        actions=demos.actions[strong],
+        episode_ids=demos.episode_ids[strong],
+        episodes=0,
+    )
+    whole_batch = {"steps": 160, "epochs": 6, "batch_size": 1024}
+    torch.manual_seed(0)
+    repeated = _fresh_model()
+    torch.manual_seed(0)
+    copied = _fresh_model()
+    fit = warm_start(
+        repeated, demos, WarmStartConfig(**whole_batch, strong_steer=0.1, strong_steer_repeats=3), seed=0
+    )
+    reference = warm_start(copied, demos + copies + copies, WarmStartConfig(**whole_batch), seed=0)
+    np.testing.assert_allclose(fit.losses, reference.losses, rtol=1e-4)
+    a, _ = repeated.predict(demos.observations, deterministic=True)
+    b, _ = copied.predict(demos.observations, deterministic=True)
+    np.testing.assert_allclose(a, b, atol=1e-4)
+    torch.manual_seed(0)
+    plain = _fresh_model()
+    plain_fit = warm_start(plain, demos, WarmStartConfig(**whole_batch), seed=0)
+    assert plain_fit.losses != fit.losses  # the repeats changed the fit
+    with pytest.raises(ConfigError, match="strong_steer_repeats"):
+        WarmStartConfig(strong_steer_repeats=0)
+    with pytest.raises(ConfigError, match="strong_steer"):
+        WarmStartConfig(strong_steer=float("inf"))
