@@ -375,10 +375,11 @@ def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed:
     With ``config.mirror`` the fit also sees every step's mirror image. Steps whose steering label
     exceeds ``config.strong_steer`` in magnitude (the passes) enter each epoch
     ``config.strong_steer_repeats`` times, which weights their squared error that much; the
-    held-out loss counts every step once. With ``config.hold_out_every`` = K, the steps of every K-th episode (``episode_ids % K == K - 1``,
-    and their mirror images) are left out of the fit and scored after each epoch; the policy keeps
-    the weights of the epoch where that held-out loss was lowest (early stopping). Works on SB3
-    policies with a diagonal Gaussian head and ``log_std`` (PPO, A2C).
+    held-out loss counts every step once. With ``config.hold_out_every`` = K, the steps of every
+    K-th episode (``episode_ids % K == K - 1``, and their mirror images) are left out of the fit
+    and scored after each epoch; the policy keeps the weights of the epoch where that held-out loss
+    was lowest (early stopping). Works on SB3 policies with a diagonal Gaussian head and
+    ``log_std`` (PPO, A2C).
 
     Raises:
         ConfigError: the policy has no ``log_std`` (SAC's squashed policy is not supported), or the
