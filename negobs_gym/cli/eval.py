@@ -239,7 +239,8 @@ def run_policy(args: argparse.Namespace) -> int:
             f"{config.env_id}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
             f"goal={int(s['goals'])}/{int(s['episodes'])} "
             f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
-            f"mean_progress_m={s['mean_progress_m']:.2f} vetoes={int(s['vetoes'])} "
+            f"left_track={int(s['left_track'])} mean_progress_m={s['mean_progress_m']:.2f} "
+            f"vetoes={int(s['vetoes'])} "
             f"vetoes_per_km={s['vetoes_per_km']:.1f} cost={s['cost']:.1f} "
             f"off_track_share={s['off_track_share']:.3f}"
         )

@@ -207,7 +207,8 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
     Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
     ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
     ``off_track_steps`` counts the steps that ended off the track (``info["off_track"]``: farther
-    from the centre line than half the track width).
+    from the centre line than half the track width); ``left_track`` is whether that ended the
+    episode (the env's ``off_track`` termination rule, OffroadNav-v2).
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -252,6 +253,7 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
         "trapped": events["trapped"],
         "goal": goal,
         "off_track_steps": off_track_steps,
+        "left_track": "off_track" in info.get("termination", ()),
         "stopped": still_s >= STANDSTILL_S,
         "start_gap_m": start_gap,
         "final_gap_m": float(info["distance_to_negative_ahead_m"]),

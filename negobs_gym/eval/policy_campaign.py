@@ -1,10 +1,12 @@
 """Evaluate a saved stable-baselines3 model on a registered env over seeds, with and without the filter.
 
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
-rollover or trap during the episode), the failure events, goal reached, progress along the track,
-distance driven, the filter's vetoes, the summed constraint ``cost`` (``info["cost"]``) and the
-steps that ended off the track (farther from the centre line than half the track width: the
-obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none).
+rollover or trap during the episode, and it did not end by leaving the track), the failure events,
+whether leaving the track ended it (OffroadNav-v2's ``off_track`` rule), goal reached, progress
+along the track, distance driven, the filter's vetoes, the summed constraint ``cost``
+(``info["cost"]``) and the steps that ended off the track (farther from the centre line than half
+the track width: the obstacles of OffroadNav lie on the track, so a policy that drives beside it
+meets none).
 
 Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
 training run's envs reset from seeds ``seed + i`` and then draw their terrains from their own
@@ -35,6 +37,7 @@ COLUMNS = (
     "collision",
     "rollover",
     "trapped",
+    "left_track",
     "goal",
     "progress_m",
     "distance_m",
@@ -52,6 +55,7 @@ SUMMED = (
     "goals",
     "entries",
     "collisions",
+    "left_track",
     "progress_m",
     "distance_m",
     "vetoes",
@@ -123,16 +127,16 @@ def run_episode(episode: Episode) -> Rows:
         env = make_task_env(a["env_id"], a["source"])
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], a["filtered"], max_steps)
-    success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"])
+    success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"] or m["left_track"])
     row: list[Any] = [episode.key, a["env_id"], "filter" if a["filtered"] else "nofilter", a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
     return {"policy": [format_row(row)]}
 
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
-    """Per filter setting: episodes, success rate, entries, collisions, mean progress, distance
-    driven, vetoes (and per km driven), cost, steps, and the share of them that ended off the
-    track."""
+    """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
+    track ended, mean progress, distance driven, vetoes (and per km driven), cost, steps, and the
+    share of them that ended off the track."""
     out: dict[str, dict[str, float]] = {}
     for r in read_csv(csv_path):
         s = out.setdefault(
@@ -144,6 +148,7 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["goals"] += r["goal"] == "1"
         s["entries"] += r["entered"] == "1"
         s["collisions"] += r["collision"] == "1"
+        s["left_track"] += r["left_track"] == "1"
         s["progress_m"] += float(r["progress_m"])
         s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])

@@ -35,17 +35,30 @@ def test_off_track_steps_count_the_steps_beside_the_track(steering: float, leave
     assert (m["off_track_steps"] > 0) is leaves_the_track
 
 
+@pytest.mark.parametrize(("steering", "leaves_the_track"), [(0.0, False), (1.0, True)])
+def test_leaving_the_track_ends_an_offroad_nav_v2_episode_and_is_recorded(steering, leaves_the_track) -> None:
+    env = make_task_env("negobs_gym/OffroadNav-v2", "oracle")
+    m = run_driven_episode(env, FixedAction(1.0, steering), seed=0, filtered=False, max_steps=40)
+    assert m["left_track"] is leaves_the_track
+    # the rule ends the episode at the first step beside the track, before the step limit
+    assert (m["steps"] < 40 and m["off_track_steps"] == 1) if leaves_the_track else m["off_track_steps"] == 0
+
+
 def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     def row(flt: str, seed: int, goal: int, steps: int, off: int) -> str:
         values = {c: 0 for c in COLUMNS}
-        values.update(episode=f"{flt}.{seed}", env="e", filter=flt, seed=seed, success=1, goal=goal)
+        left = int(off > 0 and not goal)
+        values.update(episode=f"{flt}.{seed}", env="e", filter=flt, seed=seed, success=1 - left, goal=goal)
+        values.update(left_track=left)
         values.update(progress_m=10.0, distance_m=20.0, steps=steps, off_track_steps=off)
         return format_row([values[c] for c in COLUMNS])
 
-    rows = [row("filter", 0, 1, 100, 30), row("filter", 1, 0, 50, 0), row("nofilter", 0, 1, 10, 10)]
+    rows = [row("filter", 0, 1, 100, 30), row("filter", 1, 0, 50, 0), row("nofilter", 0, 0, 10, 10)]
     path = tmp_path / "policy.csv"
     path.write_text(",".join(COLUMNS) + "\n" + "\n".join(rows) + "\n")
     s = summarize(path)
     assert s["filter"]["off_track_share"] == pytest.approx(30 / 150)
     assert s["filter"]["goals"] == 1 and s["filter"]["steps"] == 150
+    assert s["filter"]["left_track"] == 0 and s["filter"]["successes"] == 2
     assert s["nofilter"]["off_track_share"] == 1.0
+    assert s["nofilter"]["left_track"] == 1 and s["nofilter"]["success_rate"] == 0.0
