@@ -77,10 +77,12 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     saved = out / "demonstrations.npz"
     refit = tmp_path / "refit"
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--demonstrations", str(saved)]
+    args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2"]
     assert main(["-q", *args, "--hold-out-every", "2", *SHORT, "--out", str(refit)]) == 0
     capsys.readouterr()
     again = json.loads((refit / "train.json").read_text())["warm_start"]
     assert again["demonstrations"] == str(saved) and again["steps"] == 0
+    assert again["strong_steer_repeats"] == 3 and again["strong_steer"] == 0.2
     assert again["demonstration_steps"] == 80 and again["episodes"] == warm["episodes"]
     assert len(again["held_out_losses"]) == WarmStartConfig().epochs  # the clone's episode, scored
 
@@ -94,6 +96,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
         (["--envs", "0"], "--envs: must be >= 1"),
         (["--vec-env", "async"], "invalid choice: 'async'"),
         (["--warm-start-driver", "reckless"], "invalid choice: 'reckless'"),
+        (["--strong-steer-repeats", "0"], "--strong-steer-repeats: must be >= 1"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:
@@ -111,6 +114,8 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "no checkpoint" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
     assert "critic_warmup_steps" in capsys.readouterr().err
+    assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
+    assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
 
 
 def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
