@@ -99,7 +99,7 @@ class WarmStartConfig:
             as a pass (0.3: where the clones fall short of the expert, docs/training.md, "Where
             the clones' drives leave the expert's").
         strong_steer_repeats: How often each pass step enters every epoch of the fit (1: once,
-            like any step). Passes are a fifth of the steps; a mean-squared fit averages them with
+            like any step). Passes are a third of the steps; a mean-squared fit averages them with
             the straight driving around them and steers them too late or too gently.
         noise_std: Std of the Gaussian noise added to the executed steering and throttle (the
             labels stay clean), so the demonstrations include recoveries towards the route.
