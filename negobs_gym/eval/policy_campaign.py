@@ -136,9 +136,16 @@ def run_episode(episode: Episode) -> Rows:
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
     track ended, mean progress, distance driven, vetoes (and per km driven), cost, steps, and the
-    share of them that ended off the track."""
+    share of them that ended off the track.
+
+    Raises:
+        ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
+    """
     out: dict[str, dict[str, float]] = {}
-    for r in read_csv(csv_path):
+    rows = read_csv(csv_path)
+    missing = [c for c in COLUMNS if rows and c not in rows[0]]
+    require(not missing, "csv_path", f"{csv_path} lacks the columns {missing}: written by an older version")
+    for r in rows:
         s = out.setdefault(
             r["filter"],
             dict.fromkeys(SUMMED, 0.0),

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import run_driven_episode
 from negobs_gym.eval.campaign import format_row
 from negobs_gym.eval.policy_campaign import COLUMNS, summarize
@@ -62,3 +63,8 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     assert s["filter"]["left_track"] == 0 and s["filter"]["successes"] == 2
     assert s["nofilter"]["off_track_share"] == 1.0
     assert s["nofilter"]["left_track"] == 1 and s["nofilter"]["success_rate"] == 0.0
+    old = tmp_path / "old.csv"  # written before the left_track column
+    kept = [c for c in COLUMNS if c != "left_track"]
+    old.write_text(",".join(kept) + "\n" + ",".join("0" for _ in kept) + "\n")
+    with pytest.raises(ConfigError, match=r"lacks the columns \['left_track'\]"):
+        summarize(old)
