@@ -13,8 +13,8 @@ recorded settings are the ones asked for (else the script stops and names the di
 A fit of 40,000 mirrored steps takes 5-10 min on the 2 cores, its 60-seed evaluation 2-3 min.
 
 Run: python benchmarks/refit_seeds.py DEMOS.npz --out DIR [--fit-seeds 1 2 3]
-[--strong-steer-repeats 1] [--strong-steer 0.3] [--eval-seeds 60] [--first-seed 1000000] [--workers 2]
-[--env negobs_gym/OffroadNav-v2]
+[--strong-steer-repeats 1] [--strong-steer 0.3] [--steering-modes 1] [--eval-seeds 60]
+[--first-seed 1000000] [--workers 2] [--env negobs_gym/OffroadNav-v2]
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from negobs_gym.eval.campaign import Backend, RunOptions
 from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
-from negobs_gym.policies.config import TrainConfig, WarmStartConfig
+from negobs_gym.policies.config import SteeringHeadConfig, TrainConfig, WarmStartConfig
 from negobs_gym.policies.training import train
 
 
@@ -46,6 +46,7 @@ def fit(demos: str, seed: int, args: argparse.Namespace, out: Path) -> Path:
         checkpoint_every=0,
         seed=seed,
         progress=False,
+        head=SteeringHeadConfig(modes=args.steering_modes),
         warm_start=WarmStartConfig(
             demonstrations=demos,
             mirror=True,
@@ -55,15 +56,25 @@ def fit(demos: str, seed: int, args: argparse.Namespace, out: Path) -> Path:
     )
     if model.exists():
         recorded = json.loads((out / "train.json").read_text(encoding="utf-8"))["config"]
-        _same(json.loads(json.dumps(dataclasses.asdict(config))), recorded, out / "train.json")
+        _same(_as_json(config), recorded, out / "train.json", _as_json(TrainConfig()))
         return model
     train(config, out)
     return model
 
 
-def _same(asked: dict, recorded: dict, path: Path) -> None:
-    """Stop if a result read back was made with other settings than the ones asked for."""
-    differ = {k: (recorded.get(k), v) for k, v in asked.items() if recorded.get(k) != v}
+def _as_json(config: object) -> dict:
+    """A config as its JSON record reads back."""
+    return json.loads(json.dumps(dataclasses.asdict(config)))
+
+
+def _same(asked: dict, recorded: dict, path: Path, defaults: dict) -> None:
+    """Stop if a result read back was made with other settings than the ones asked for (a setting
+    that a record written before it existed lacks had its default)."""
+    differ = {
+        k: (recorded.get(k, defaults.get(k)), v)
+        for k, v in asked.items()
+        if recorded.get(k, defaults.get(k)) != v
+    }
     if differ:
         raise SystemExit(f"{path} was made with other settings (recorded, asked): {differ}")
 
@@ -81,8 +92,8 @@ def evaluate(model: Path, args: argparse.Namespace, out: Path) -> dict[str, floa
     summary = out / "summary.json"
     if summary.exists():
         recorded = json.loads(summary.read_text(encoding="utf-8"))
-        asked = {k: v for k, v in dataclasses.asdict(config).items() if k != "model_path"}
-        _same(json.loads(json.dumps(asked)), recorded["config"], summary)
+        asked = {k: v for k, v in _as_json(config).items() if k != "model_path"}
+        _same(asked, recorded["config"], summary, {})
         return recorded["summary"]["nofilter"]
     options = RunOptions(backend=Backend(workers=args.workers), progress=False)
     return run_policy_campaign(config, out, options)[2]["nofilter"]
@@ -100,6 +111,7 @@ def main() -> None:
     parser.add_argument("--fit-seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--strong-steer-repeats", type=int, default=1)
     parser.add_argument("--strong-steer", type=float, default=WarmStartConfig().strong_steer)
+    parser.add_argument("--steering-modes", type=int, default=SteeringHeadConfig().modes)
     parser.add_argument("--eval-seeds", type=int, default=60)
     parser.add_argument("--first-seed", type=int, default=PolicyCampaignConfig.first_seed)
     parser.add_argument("--workers", type=int, default=2)

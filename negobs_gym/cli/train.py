@@ -15,6 +15,7 @@ from negobs_gym.policies.config import (
     DEMONSTRATORS,
     SOURCES,
     VEC_ENVS,
+    SteeringHeadConfig,
     TrainConfig,
     WarmStartConfig,
 )
@@ -62,6 +63,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "episodes beforehand; docs/performance.md) (default: %(default)s)",
     )
     parser.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default: 0)")
+    parser.add_argument(
+        "--steering-modes",
+        type=positive_int,
+        default=defaults.head.modes,
+        metavar="K",
+        help="PPO: the policy proposes K scored steering values and drives the best-scored one, "
+        "so a clone keeps a pass to the left and one to the right apart (1: one Gaussian mean; "
+        "default: %(default)s)",
+    )
     parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
     group = parser.add_argument_group("evaluation and checkpoints")
@@ -234,6 +244,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
+        head=SteeringHeadConfig(modes=args.steering_modes),
         warm_start=WarmStartConfig(
             steps=args.warm_start_steps,
             driver=args.warm_start_driver,

@@ -11,7 +11,16 @@ from dataclasses import dataclass, field
 
 from negobs_gym.errors import require
 
-__all__ = ["ALGORITHMS", "DEMONSTRATORS", "SOURCES", "GridCnnConfig", "TrainConfig", "WarmStartConfig"]
+__all__ = [
+    "ALGORITHMS",
+    "DEMONSTRATORS",
+    "SOURCES",
+    "STEERING",
+    "GridCnnConfig",
+    "SteeringHeadConfig",
+    "TrainConfig",
+    "WarmStartConfig",
+]
 
 #: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
@@ -21,6 +30,8 @@ SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
 VEC_ENVS: tuple[str, ...] = ("subproc", "prefetch")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
 DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner")
+#: Column of the steering command in an env action (throttle/brake, steering).
+STEERING = 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +68,44 @@ class GridCnnConfig:
             )
         require(all(k % 2 == 1 for k in self.kernel_sizes), "kernel_sizes", "must be odd (centred padding)")
         require(self.grid_features >= 1, "grid_features", f"must be >= 1, got {self.grid_features}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SteeringHeadConfig:
+    """The policy's steering head (:mod:`negobs_gym.policies.modes`; the values are choices).
+
+    Attributes:
+        modes: Steering candidates the head proposes (1: SB3's single Gaussian mean). With K > 1
+            it outputs K steering values and a score for each, and drives the best-scored one:
+            a pass to the left and one to the right stay two candidates instead of being
+            averaged into a drive straight on, which a mean-squared fit does where the
+            demonstrator's choice of side is a sharp function of the grid (docs/training.md,
+            "Where the clones' drives leave the expert's").
+        choice_weight: Weight, in the behaviour-cloning loss, of the scores' cross-entropy
+            against the candidate nearest the label. 0.1: the squared steering errors are
+            ~0.01, a cross-entropy of ~0.1-1 at full weight would swamp them in the shared layers.
+        other_modes_weight: Share of the squared error of all candidates in the fit (the rest is
+            the nearest one's; Rupprecht et al. 2017, relaxed winner-takes-all), so that a
+            candidate no label is nearest to still moves towards the data instead of dying.
+    """
+
+    modes: int = 1
+    choice_weight: float = 0.1
+    other_modes_weight: float = 0.05
+
+    def __post_init__(self) -> None:
+        modes = self.modes
+        require(isinstance(modes, int) and modes >= 1, "modes", f"must be an int >= 1, got {modes!r}")
+        require(
+            math.isfinite(self.choice_weight) and self.choice_weight > 0,
+            "choice_weight",
+            f"must be finite and > 0, got {self.choice_weight!r}",
+        )
+        require(
+            math.isfinite(self.other_modes_weight) and 0 <= self.other_modes_weight < 1,
+            "other_modes_weight",
+            f"must be in [0, 1), got {self.other_modes_weight!r}",
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -211,6 +260,7 @@ class TrainConfig:
         buffer_size: SAC replay buffer in transitions; 100 k instead of SB3's 1 M because each
             holds two 2304-byte grids (1 M would need ~4.6 GB).
         extractor: The CNN's layers.
+        head: The steering head: one Gaussian mean (SB3's), or K scored candidates (PPO only).
         warm_start: Behaviour cloning of the pure-pursuit driver before training (new PPO runs
             only; ``steps=0``, the default, trains from scratch).
         init_model: Start a new run from this trained model's weights (a saved ``.zip`` or a
@@ -253,6 +303,7 @@ class TrainConfig:
     gamma: float = 0.99
     buffer_size: int = 100_000
     extractor: GridCnnConfig = field(default_factory=GridCnnConfig)
+    head: SteeringHeadConfig = field(default_factory=SteeringHeadConfig)
     warm_start: WarmStartConfig = field(default_factory=WarmStartConfig)
     init_model: str = ""
     init_action_std: float = 0.0
@@ -301,11 +352,22 @@ class TrainConfig:
         for name in ("critic_warmup_steps", "target_kl", "init_action_std"):
             require(not getattr(self, name) or self.algo == "PPO", name, "is a PPO option")
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
+        require(isinstance(self.head, SteeringHeadConfig), "head", "must be a SteeringHeadConfig")
+        require(
+            self.head.modes == 1 or self.algo == "PPO",
+            "head",
+            "steering candidates replace a Gaussian policy's mean: PPO only",
+        )
         require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")
         require(
             not self.warm_start.enabled or self.algo == "PPO",
             "warm_start",
             "behaviour cloning sets a Gaussian policy's log_std: PPO only",
+        )
+        require(
+            not (self.init_model and self.head.modes > 1),
+            "head",
+            "init_model brings its own head: leave modes at 1 with it",
         )
         require(
             not (self.init_model and self.warm_start.enabled),

@@ -44,7 +44,8 @@ from negobs_gym.drivers import Driver, make_driver
 from negobs_gym.envs.observation import mirror_signs
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import write_bytes_atomic
-from negobs_gym.policies.config import DEMONSTRATORS, WarmStartConfig
+from negobs_gym.policies.config import DEMONSTRATORS, STEERING, WarmStartConfig
+from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.sim.types import Terrain
 
 __all__ = [
@@ -60,8 +61,6 @@ __all__ = [
 #: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
 #: evaluations 1,000,000 on).
 DEMO_SEED_OFFSET = 500_000
-#: Column of the steering command in an action (throttle, steering).
-STEERING = 1
 #: Sign of (throttle, steering) in a mirror image: steering changes side.
 MIRROR_ACTION_SIGNS = np.array([1.0, -1.0], np.float32)
 #: Second word of each episode's noise seed ``[seed + DEMO_SEED_OFFSET + k, NOISE_STREAM]``.
@@ -175,9 +174,10 @@ class Demonstrations:
 
 @dataclass(frozen=True)
 class FitResult:
-    """What :func:`warm_start` did: the mean loss of each epoch on the fitted steps and, with a
-    hold-out, on the held-out ones; ``best_epoch`` (0-based) is the epoch whose weights the policy
-    keeps (the lowest held-out loss; without a hold-out, the last)."""
+    """What :func:`warm_start` did: the mean loss of each epoch on the fitted steps (the head's
+    fitted loss) and, with a hold-out, on the held-out ones (the action mean's squared error);
+    ``best_epoch`` (0-based) is the epoch whose weights the policy keeps (the lowest held-out
+    loss; without a hold-out, the last)."""
 
     losses: list[float]
     held_out_losses: list[float]
@@ -372,6 +372,11 @@ def _join(parts: list[_Episode], steps: int, first_episode: int, layout: Any) ->
 def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed: int = 0) -> FitResult:
     """Fit ``model.policy``'s action mean to ``demos`` (mean squared error), then set its action std.
 
+    A :class:`~negobs_gym.policies.modes.SteeringModesPolicy` is fitted with its own
+    :meth:`~negobs_gym.policies.modes.SteeringModesPolicy.imitation_loss` (the losses of the
+    result are that loss); its held-out loss is still the squared error of the action it drives,
+    comparable with a single-mean policy's.
+
     With ``config.mirror`` the fit also sees every step's mirror image. Steps whose steering label
     exceeds ``config.strong_steer`` in magnitude (the passes) enter each epoch
     ``config.strong_steer_repeats`` times, which weights their squared error that much; the
@@ -423,7 +428,7 @@ def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed:
         total = 0.0
         for start in range(0, len(order), config.batch_size):
             idx = order[start : start + config.batch_size]
-            loss = _action_loss(policy, obs_tensor, target, idx)
+            loss = _fit_loss(policy, obs_tensor, target, idx)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -445,6 +450,14 @@ def warm_start(model: Any, demos: Demonstrations, config: WarmStartConfig, seed:
     with torch.no_grad():
         policy.log_std.fill_(math.log(config.action_std))
     return FitResult(losses, held_out_losses, best_epoch)
+
+
+def _fit_loss(policy: Any, obs_tensor: dict[str, torch.Tensor], target: torch.Tensor, idx: torch.Tensor):
+    """The fitted loss on the steps ``idx``: a candidates head's own, else the action mean's
+    squared error."""
+    if isinstance(policy, SteeringModesPolicy):
+        return policy.imitation_loss({key: value[idx] for key, value in obs_tensor.items()}, target[idx])
+    return _action_loss(policy, obs_tensor, target, idx)
 
 
 def _action_loss(policy: Any, obs_tensor: dict[str, torch.Tensor], target: torch.Tensor, idx: torch.Tensor):

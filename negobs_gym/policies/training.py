@@ -143,18 +143,25 @@ def _vec_env(config: TrainConfig):
     return venv
 
 
-def _policy_kwargs(config: TrainConfig, grid_shape: tuple[int, int, int]) -> dict[str, Any]:
-    return {
+def _policy(config: TrainConfig, grid_shape: tuple[int, int, int]) -> tuple[Any, dict[str, Any]]:
+    """SB3's policy (class or name) and its keyword arguments: the grid CNN, and the steering head."""
+    kwargs: dict[str, Any] = {
         "features_extractor_class": GridStateExtractor,
         "features_extractor_kwargs": {"grid_shape": grid_shape, "config": config.extractor},
     }
+    if config.head.modes == 1:
+        return "MultiInputPolicy", kwargs
+    from negobs_gym.policies.modes import SteeringModesPolicy
+
+    return SteeringModesPolicy, {**kwargs, "head": config.head}
 
 
 def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
     import stable_baselines3
 
+    policy, policy_kwargs = _policy(config, grid_shape)
     common = {
-        "policy_kwargs": _policy_kwargs(config, grid_shape),
+        "policy_kwargs": policy_kwargs,
         "learning_rate": config.learning_rate,
         "gamma": config.gamma,
         "batch_size": config.batch_size,
@@ -164,9 +171,9 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
     }
     if config.algo == "PPO":
         return stable_baselines3.PPO(
-            "MultiInputPolicy", venv, n_steps=config.n_steps, target_kl=config.target_kl or None, **common
+            policy, venv, n_steps=config.n_steps, target_kl=config.target_kl or None, **common
         )
-    return stable_baselines3.SAC("MultiInputPolicy", venv, buffer_size=config.buffer_size, **common)
+    return stable_baselines3.SAC(policy, venv, buffer_size=config.buffer_size, **common)
 
 
 #: Fields that must match between a run and the run it resumes.

@@ -7,10 +7,12 @@ import json
 from pathlib import Path
 
 import pytest
+from stable_baselines3 import PPO
 
 from negobs_gym.cli import main
 from negobs_gym.policies.callbacks import EVAL_COLUMNS
 from negobs_gym.policies.config import WarmStartConfig
+from negobs_gym.policies.modes import SteeringModesPolicy
 
 ENV = "negobs_gym/Braking-v1"
 SHORT = ["--source", "oracle", "--n-steps", "64", "--eval-episodes", "1", "--no-progress"]
@@ -77,10 +79,14 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     saved = out / "demonstrations.npz"
     refit = tmp_path / "refit"
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--demonstrations", str(saved)]
-    args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2"]
+    args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-modes", "2"]
     assert main(["-q", *args, "--hold-out-every", "2", *SHORT, "--out", str(refit)]) == 0
     capsys.readouterr()
-    again = json.loads((refit / "train.json").read_text())["warm_start"]
+    record = json.loads((refit / "train.json").read_text())
+    assert record["config"]["head"]["modes"] == 2
+    for name in ("warm_start.zip", "model.zip"):  # the clone, then after PPO's update through the head
+        assert isinstance(PPO.load(refit / name, device="cpu").policy, SteeringModesPolicy)
+    again = record["warm_start"]
     assert again["demonstrations"] == str(saved) and again["steps"] == 0
     assert again["strong_steer_repeats"] == 3 and again["strong_steer"] == 0.2
     assert again["demonstration_steps"] == 80 and again["episodes"] == warm["episodes"]
@@ -97,6 +103,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
         (["--vec-env", "async"], "invalid choice: 'async'"),
         (["--warm-start-driver", "reckless"], "invalid choice: 'reckless'"),
         (["--strong-steer-repeats", "0"], "--strong-steer-repeats: must be >= 1"),
+        (["--steering-modes", "0"], "--steering-modes: must be >= 1"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:
@@ -116,6 +123,8 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "critic_warmup_steps" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
+    assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2
+    assert "head: steering candidates replace a Gaussian policy's mean: PPO only" in capsys.readouterr().err
 
 
 def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
