@@ -72,6 +72,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "so a clone keeps a pass to the left and one to the right apart (1: one Gaussian mean; "
         "default: %(default)s)",
     )
+    parser.add_argument(
+        "--steering-bins",
+        type=float,
+        nargs="+",
+        default=(),
+        metavar="EDGE",
+        help="with the K candidates of --steering-modes (or K = edges + 1 without it): candidate k "
+        "learns the steering labels between edges k-1 and k (e.g. -0.3 0.3: pass left, straight "
+        "on, pass right) instead of those nearest to it",
+    )
     parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
     group = parser.add_argument_group("evaluation and checkpoints")
@@ -244,7 +254,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
-        head=SteeringHeadConfig(modes=args.steering_modes),
+        head=_head(args),
         warm_start=WarmStartConfig(
             steps=args.warm_start_steps,
             driver=args.warm_start_driver,
@@ -266,6 +276,13 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         target_kl=args.target_kl,
         progress=not args.no_progress,
     )
+
+
+def _head(args: argparse.Namespace) -> SteeringHeadConfig:
+    """The steering head: bin edges alone give their number of candidates."""
+    edges = tuple(args.steering_bins)
+    modes = len(edges) + 1 if edges and args.steering_modes == 1 else args.steering_modes
+    return SteeringHeadConfig(modes=modes, bin_edges=edges)
 
 
 def run_train(args: argparse.Namespace) -> int:

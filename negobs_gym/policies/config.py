@@ -81,21 +81,40 @@ class SteeringHeadConfig:
             averaged into a drive straight on, which a mean-squared fit does where the
             demonstrator's choice of side is a sharp function of the grid (docs/training.md,
             "Where the clones' drives leave the expert's").
+        bin_edges: Which candidate learns a label in the behaviour-cloning fit. Empty: the
+            candidate nearest the label (multiple-choice learning). K - 1 increasing steering
+            values: candidate k learns the labels between edges k - 1 and k, so each stands for
+            one kind of manoeuvre (with (-0.3, 0.3): pass left, straight on, pass right; 0.3 is
+            ``WarmStartConfig.strong_steer``) and the scores learn which, a question with an
+            answer even where the candidates' values are alike.
         choice_weight: Weight, in the behaviour-cloning loss, of the scores' cross-entropy
-            against the candidate nearest the label. 0.1: the squared steering errors are
+            against the candidate that learns the label. 0.1: the squared steering errors are
             ~0.01, a cross-entropy of ~0.1-1 at full weight would swamp them in the shared layers.
-        other_modes_weight: Share of the squared error of all candidates in the fit (the rest is
-            the nearest one's; Rupprecht et al. 2017, relaxed winner-takes-all), so that a
-            candidate no label is nearest to still moves towards the data instead of dying.
+        other_modes_weight: Without ``bin_edges``: share of the squared error of all candidates
+            in the fit (the rest is the nearest one's; Rupprecht et al. 2017, relaxed
+            winner-takes-all), so that a candidate no label is nearest to still moves towards
+            the data instead of dying.
     """
 
     modes: int = 1
+    bin_edges: tuple[float, ...] = ()
     choice_weight: float = 0.1
     other_modes_weight: float = 0.05
 
     def __post_init__(self) -> None:
         modes = self.modes
         require(isinstance(modes, int) and modes >= 1, "modes", f"must be an int >= 1, got {modes!r}")
+        edges = tuple(self.bin_edges)
+        require(
+            not edges or len(edges) == modes - 1,
+            "bin_edges",
+            f"needs one edge between each two of the {modes} candidates, got {edges}",
+        )
+        require(
+            all(math.isfinite(e) and -1 < e < 1 for e in edges) and list(edges) == sorted(set(edges)),
+            "bin_edges",
+            f"must be increasing steering values in (-1, 1), got {edges}",
+        )
         require(
             math.isfinite(self.choice_weight) and self.choice_weight > 0,
             "choice_weight",

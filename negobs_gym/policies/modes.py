@@ -7,10 +7,11 @@ learns to steer half as hard, or straight on (docs/training.md, "Where the clone
 the expert's"). :class:`SteeringModesPolicy` outputs K steering candidates and a score for each;
 its action mean is the best-scored candidate (with the other action values as SB3 computes them),
 so PPO, ``predict`` and ``negobs eval policy`` use it as any ``MultiInputPolicy``. Behaviour
-cloning fits it with :meth:`SteeringModesPolicy.imitation_loss`: the candidate nearest each
-label learns that label and the scores learn which candidate that was (multiple-choice learning,
-Guzman-Rivera et al. 2012; relaxed as in Rupprecht et al. 2017). PPO's gradient reaches the
-chosen candidate, not the scores.
+cloning fits it with :meth:`SteeringModesPolicy.imitation_loss`: one candidate learns each
+label, the one whose steering bin holds it (``SteeringHeadConfig.bin_edges``) or else the nearest
+(multiple-choice learning, Guzman-Rivera et al. 2012; relaxed as in Rupprecht et al. 2017), and
+the scores learn which candidate that was. PPO's gradient reaches the chosen candidate, not the
+scores.
 """
 
 from __future__ import annotations
@@ -29,8 +30,8 @@ from negobs_gym.policies.config import STEERING, SteeringHeadConfig
 
 __all__ = ["SteeringModesPolicy"]
 
-#: The candidates' initial steering values span this much of each side, so that each starts
-#: nearest to other labels (identical candidates would stay identical).
+#: Without bin edges, the candidates' initial steering values span this much of each side, so
+#: that each starts nearest to other labels (identical candidates would stay identical).
 INITIAL_SPREAD = 0.5
 
 
@@ -59,7 +60,7 @@ class SteeringModesPolicy(MultiInputActorCriticPolicy):
         if self.ortho_init:
             self.init_weights(self.action_net, gain=0.01)  # SB3's gain for the action mean
         with torch.no_grad():
-            self.action_net.bias[k : 2 * k] = torch.linspace(-INITIAL_SPREAD, INITIAL_SPREAD, k)
+            self.action_net.bias[k : 2 * k] = _initial_candidates(self.head)
         # the base class built the optimiser over the replaced layer's parameters
         self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
 
@@ -84,13 +85,25 @@ class SteeringModesPolicy(MultiInputActorCriticPolicy):
     def imitation_loss(self, obs: PyTorchObs, target: torch.Tensor) -> torch.Tensor:
         """Behaviour-cloning loss on labels ``target`` (B, A), on the scale of a mean squared error
         over the A action values, plus ``head.choice_weight`` x the scores' cross-entropy against
-        the candidate nearest each steering label."""
+        the candidate that learns each steering label (its bin, or the nearest)."""
         scores, steering, others = self.candidates(obs)
-        error = (steering - target[:, STEERING : STEERING + 1]) ** 2
-        nearest = error.argmin(dim=1)
-        w = self.head.other_modes_weight
-        steering_error = (1 - w) * error.gather(1, nearest[:, None]).squeeze(1) + w * error.mean(dim=1)
+        label = target[:, STEERING]
+        error = (steering - label[:, None]) ** 2
+        if self.head.bin_edges:
+            edges = torch.tensor(self.head.bin_edges, dtype=label.dtype)
+            learner, w = torch.bucketize(label.contiguous(), edges), 0.0
+        else:
+            learner, w = error.argmin(dim=1), self.head.other_modes_weight
+        steering_error = (1 - w) * error.gather(1, learner[:, None]).squeeze(1) + w * error.mean(dim=1)
         other_targets = torch.cat([target[:, :STEERING], target[:, STEERING + 1 :]], dim=1)
         squared = steering_error + ((others - other_targets) ** 2).sum(dim=1)
-        choice = nn.functional.cross_entropy(scores, nearest)
+        choice = nn.functional.cross_entropy(scores, learner)
         return squared.mean() / target.shape[1] + self.head.choice_weight * choice
+
+
+def _initial_candidates(head: SteeringHeadConfig) -> torch.Tensor:
+    """The candidates' steering before the fit: the middle of each bin of [-1, 1], or spread."""
+    if not head.bin_edges:
+        return torch.linspace(-INITIAL_SPREAD, INITIAL_SPREAD, head.modes)
+    bounds = torch.tensor([-1.0, *head.bin_edges, 1.0])
+    return (bounds[:-1] + bounds[1:]) / 2

@@ -79,11 +79,11 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     saved = out / "demonstrations.npz"
     refit = tmp_path / "refit"
     args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--demonstrations", str(saved)]
-    args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-modes", "2"]
+    args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-bins", "0"]
     assert main(["-q", *args, "--hold-out-every", "2", *SHORT, "--out", str(refit)]) == 0
     capsys.readouterr()
     record = json.loads((refit / "train.json").read_text())
-    assert record["config"]["head"]["modes"] == 2
+    assert record["config"]["head"]["modes"] == 2 and record["config"]["head"]["bin_edges"] == [0.0]
     for name in ("warm_start.zip", "model.zip"):  # the clone, then after PPO's update through the head
         assert isinstance(PPO.load(refit / name, device="cpu").policy, SteeringModesPolicy)
     again = record["warm_start"]
@@ -104,6 +104,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
         (["--warm-start-driver", "reckless"], "invalid choice: 'reckless'"),
         (["--strong-steer-repeats", "0"], "--strong-steer-repeats: must be >= 1"),
         (["--steering-modes", "0"], "--steering-modes: must be >= 1"),
+        (["--steering-bins", "x"], "--steering-bins: invalid float value: 'x'"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:
@@ -125,6 +126,8 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2
     assert "head: steering candidates replace a Gaussian policy's mean: PPO only" in capsys.readouterr().err
+    assert main(["train", "--env", ENV, "--steering-modes", "3", "--steering-bins", "0"]) == 2
+    assert "bin_edges: needs one edge between each two of the 3 candidates" in capsys.readouterr().err
 
 
 def test_action_std_sets_the_warm_start_or_the_init_model() -> None:

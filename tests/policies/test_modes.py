@@ -29,8 +29,9 @@ def demos():
         env.close()
 
 
-def _model(modes: int):
-    config = TrainConfig(env=ENV, source="oracle", n_steps=64, head=SteeringHeadConfig(modes=modes))
+def _model(modes: int, bin_edges: tuple[float, ...] = ()):
+    head = SteeringHeadConfig(modes=modes, bin_edges=bin_edges)
+    config = TrainConfig(env=ENV, source="oracle", n_steps=64, head=head)
     venv = _vec_env(config)
     try:
         return _new_model(config, venv, (2, 36, 16))
@@ -76,6 +77,20 @@ def test_candidates_keep_two_sides_apart_where_one_mean_averages_them(demos) -> 
     assert np.mean((throttle - demos.actions[:, 1 - STEERING]) ** 2) < 0.05
 
 
+def test_with_bin_edges_each_candidate_learns_the_labels_of_its_bin(demos) -> None:
+    model = _model(3, bin_edges=(-0.3, 0.3))
+    warm_start(model, _two_sides(demos), WarmStartConfig(steps=1, epochs=30), seed=0)
+    obs, _ = model.policy.obs_to_tensor(demos.observations)
+    with torch.no_grad():
+        scores, steering, _ = model.policy.candidates(obs)
+    # the left bin's candidate learnt -0.7, the right one's +0.7; no label was straight on
+    assert steering[:, 0].mean() == pytest.approx(-0.7, abs=0.1)
+    assert steering[:, 2].mean() == pytest.approx(0.7, abs=0.1)
+    assert (scores.argmax(dim=1) != 1).all()
+    driven = model.predict(demos.observations, deterministic=True)[0][:, STEERING]
+    assert np.abs(driven).min() > 0.5
+
+
 def test_the_fit_lowers_the_head_loss_and_scores_the_held_out_drive(demos) -> None:
     model = _model(2)
     demos = replace(demos, episode_ids=np.arange(len(demos.actions)) // 20)  # six short "episodes"
@@ -111,6 +126,9 @@ def test_bad_heads_are_refused() -> None:
     for bad in (1.0, -0.1, float("inf")):
         with pytest.raises(ConfigError, match="other_modes_weight"):
             SteeringHeadConfig(other_modes_weight=bad)
+    for modes, edges in ((3, (0.0,)), (3, (0.3, -0.3)), (2, (1.0,)), (3, (0.1, 0.1)), (2, (float("nan"),))):
+        with pytest.raises(ConfigError, match="bin_edges"):
+            SteeringHeadConfig(modes=modes, bin_edges=edges)
     with pytest.raises(ConfigError, match="PPO only"):
         TrainConfig(algo="SAC", head=SteeringHeadConfig(modes=2))
     with pytest.raises(ConfigError, match="init_model"):
