@@ -30,6 +30,7 @@ import functools
 import io
 import math
 import multiprocessing
+import multiprocessing.util
 import zipfile
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -313,7 +314,10 @@ _worker: dict[str, Any] = {}
 
 def _start_worker(env_factory: Callable[[], Any], expert: Callable, policy: Any) -> None:
     torch.set_num_threads(1)  # one process per core; torch's own threads would oversubscribe them
-    _worker.update(env=env_factory(), expert=expert, policy=policy)
+    env = env_factory()
+    # closed when the pool shuts the worker down (multiprocessing runs its finalizers at exit)
+    multiprocessing.util.Finalize(env, env.close, exitpriority=0)
+    _worker.update(env=env, expert=expert, policy=policy)
 
 
 def _worker_episode(episode: int, max_steps: int, noise_std: float, seed: int) -> _Episode:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import functools
 from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -155,11 +157,26 @@ def test_each_episode_depends_on_its_number_alone(demos) -> None:
     np.testing.assert_array_equal(later.episode_ids, 1)
 
 
-def test_two_worker_processes_collect_the_steps_one_process_does() -> None:
+def _env_noting_its_close(marks: Path) -> Any:
+    """An OffroadNav-v2 env that appends a line to ``marks`` when it is closed."""
+    env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
+    close = env.close
+
+    def close_and_note() -> None:
+        close()
+        with marks.open("a") as fh:
+            fh.write("closed\n")
+
+    env.close = close_and_note
+    return env
+
+
+def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path) -> None:
     """DAgger on OffroadNav-v2 with an untrained policy: short episodes, so several run at once."""
-    factory = functools.partial(make_env, "negobs_gym/OffroadNav-v2", "oracle", False)
+    marks = tmp_path / "closed.txt"
+    factory = functools.partial(_env_noting_its_close, marks)
     learner = PolicyActor(_fresh_model().policy)
-    env = factory()
+    env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
     try:
         one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
         two = collect_demonstrations(
@@ -167,6 +184,7 @@ def test_two_worker_processes_collect_the_steps_one_process_does() -> None:
         )
     finally:
         env.close()
+    assert marks.read_text().splitlines() == ["closed", "closed"]  # each worker closed its env
     assert one.episodes >= 3 and two.episodes == one.episodes
     np.testing.assert_array_equal(two.episode_ids, one.episode_ids)
     np.testing.assert_array_equal(two.actions, one.actions)
