@@ -13,7 +13,7 @@ recorded settings are the ones asked for (else the script stops and names the di
 A fit of 40,000 mirrored steps takes 5-10 min on the 2 cores, its 60-seed evaluation 2-3 min.
 
 Run: python benchmarks/refit_seeds.py DEMOS.npz --out DIR [--fit-seeds 1 2 3]
-[--strong-steer-repeats 1] [--strong-steer 0.3] [--steering-modes 1] [--steering-bins EDGE ...]
+[--strong-steer-repeats 1] [--strong-steer 0.3] [--steering-modes K] [--steering-bins EDGE ...]
 [--eval-seeds 60] [--first-seed 1000000] [--workers 2] [--env negobs_gym/OffroadNav-v2]
 """
 
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from negobs_gym.eval.campaign import Backend, RunOptions
 from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
-from negobs_gym.policies.config import SteeringHeadConfig, TrainConfig, WarmStartConfig
+from negobs_gym.policies.config import SteeringHeadConfig, TrainConfig, WarmStartConfig, steering_head
 from negobs_gym.policies.training import train
 
 
@@ -46,7 +46,7 @@ def fit(demos: str, seed: int, args: argparse.Namespace, out: Path) -> Path:
         checkpoint_every=0,
         seed=seed,
         progress=False,
-        head=SteeringHeadConfig(modes=args.steering_modes, bin_edges=tuple(args.steering_bins)),
+        head=steering_head(args.steering_modes, args.steering_bins),
         warm_start=WarmStartConfig(
             demonstrations=demos,
             mirror=True,
@@ -112,7 +112,7 @@ def main() -> None:
     parser.add_argument("--strong-steer-repeats", type=int, default=1)
     parser.add_argument("--strong-steer", type=float, default=WarmStartConfig().strong_steer)
     parser.add_argument("--steering-modes", type=int, default=SteeringHeadConfig().modes)
-    parser.add_argument("--steering-bins", type=float, nargs="+", default=[], help="with --steering-modes")
+    parser.add_argument("--steering-bins", type=float, nargs="+", default=[])
     parser.add_argument("--eval-seeds", type=int, default=60)
     parser.add_argument("--first-seed", type=int, default=PolicyCampaignConfig.first_seed)
     parser.add_argument("--workers", type=int, default=2)

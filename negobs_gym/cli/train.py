@@ -15,9 +15,9 @@ from negobs_gym.policies.config import (
     DEMONSTRATORS,
     SOURCES,
     VEC_ENVS,
-    SteeringHeadConfig,
     TrainConfig,
     WarmStartConfig,
+    steering_head,
 )
 
 log = logging.getLogger("negobs_gym.cli.train")
@@ -254,7 +254,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         n_steps=args.n_steps,
         batch_size=args.batch_size,
         learning_rate=args.learning_rate,
-        head=_head(args),
+        head=steering_head(args.steering_modes, args.steering_bins),
         warm_start=WarmStartConfig(
             steps=args.warm_start_steps,
             driver=args.warm_start_driver,
@@ -276,13 +276,6 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         target_kl=args.target_kl,
         progress=not args.no_progress,
     )
-
-
-def _head(args: argparse.Namespace) -> SteeringHeadConfig:
-    """The steering head: bin edges alone give their number of candidates."""
-    edges = tuple(args.steering_bins)
-    modes = len(edges) + 1 if edges and args.steering_modes == 1 else args.steering_modes
-    return SteeringHeadConfig(modes=modes, bin_edges=edges)
 
 
 def run_train(args: argparse.Namespace) -> int:

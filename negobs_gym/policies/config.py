@@ -20,6 +20,7 @@ __all__ = [
     "SteeringHeadConfig",
     "TrainConfig",
     "WarmStartConfig",
+    "steering_head",
 ]
 
 #: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
@@ -125,6 +126,13 @@ class SteeringHeadConfig:
             "other_modes_weight",
             f"must be in [0, 1), got {self.other_modes_weight!r}",
         )
+
+
+def steering_head(modes: int = 1, bin_edges: tuple[float, ...] = ()) -> SteeringHeadConfig:
+    """The steering head of ``negobs train --steering-modes K --steering-bins E...``: bin edges
+    alone (``modes`` left at 1) give their number of candidates, ``len(bin_edges) + 1``."""
+    edges = tuple(bin_edges)
+    return SteeringHeadConfig(modes=len(edges) + 1 if edges and modes == 1 else modes, bin_edges=edges)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -12,7 +12,13 @@ import stable_baselines3
 import torch
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.config import STEERING, SteeringHeadConfig, TrainConfig, WarmStartConfig
+from negobs_gym.policies.config import (
+    STEERING,
+    SteeringHeadConfig,
+    TrainConfig,
+    WarmStartConfig,
+    steering_head,
+)
 from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.policies.pretrain import PolicyActor, collect_demonstrations, warm_start
 from negobs_gym.policies.training import _new_model, _vec_env, make_env
@@ -117,6 +123,13 @@ def test_a_candidates_policy_survives_saving_and_pickling(demos, tmp_path) -> No
     np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0], action, atol=1e-6)
     actor = pickle.loads(pickle.dumps(PolicyActor(model.policy)))  # what a DAgger worker gets
     np.testing.assert_allclose(actor(obs), action, atol=1e-6)
+
+
+def test_bin_edges_alone_give_their_number_of_candidates() -> None:
+    assert steering_head(1, [-0.3, 0.3]) == SteeringHeadConfig(modes=3, bin_edges=(-0.3, 0.3))
+    assert steering_head(2) == SteeringHeadConfig(modes=2)
+    with pytest.raises(ConfigError, match="bin_edges"):
+        steering_head(3, [0.0])  # two candidates' worth of edges for three
 
 
 def test_bad_heads_are_refused() -> None:
