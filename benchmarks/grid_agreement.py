@@ -1,0 +1,123 @@
+"""How closely the detectors' observation grid follows the ground truth, by distance ahead.
+
+Drives the track planner (ground truth, ``--planner-sight-m`` of sight, planning again at every
+step; the expert the OffroadNav-v2 clones learn from) through ``--seeds`` courses of ``--env`` in
+two envs at once: one with the detector grid (the env's default observation: the LiDAR rig cast
+every step, paper N's negative cells and paper T's obstacle cells) and one with the oracle grid
+without a range limit. Both get the planner's actions, so both drive the same path (checked each
+step). Each step, each obstacle channel of the observation grid (pooled as the policy sees it)
+is compared cell by cell in bands of ``--band-m`` metres ahead of the vehicle origin:
+``recall`` = share of the oracle's cells the detector grid also sets, ``precision`` = share of
+the detector grid's cells the oracle sets. A policy cloned on the oracle grid meets the
+difference only when it is evaluated on the detector grid.
+
+Prints one line per course, one per channel and band, then, last,
+``negative_recall_4_14=<r> positive_recall_4_14=<r>`` (cells from 4 to 14 m ahead, pooled over
+all steps).
+
+Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
+[--env negobs_gym/OffroadNav-v2] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+
+import numpy as np
+
+from negobs_gym.drivers import make_driver
+from negobs_gym.policies.training import make_task_env
+
+OBSTACLE_CHANNELS = ("negative", "positive")
+SUMMARY_BAND_M = (4.0, 14.0)  # OffroadNav-v1/-v2's oracle range is 14 m; the nearest 4 m is the car
+
+
+def oracle_twin(env: object) -> object:
+    """An env like ``env`` (same scenario and config) whose grid is the oracle's, with no range limit."""
+    raw = env.unwrapped
+    observation = dataclasses.replace(raw.config.observation, source="oracle", oracle_range_m=None)
+    return type(raw)(config=dataclasses.replace(raw.config, observation=observation), scenario=raw.scenario)
+
+
+def row_distances_m(env: object) -> np.ndarray:
+    """Forward distance of each observation-grid row's centre from the vehicle origin [m] (row 0
+    is the rearmost)."""
+    observation = env.unwrapped.config.observation
+    cell_m = observation.grid.cell_m * observation.downsample
+    rows = observation.grid.rows // observation.downsample
+    return -observation.grid.back_m + (np.arange(rows) + 0.5) * cell_m
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5, help="courses")
+    parser.add_argument("--first-seed", type=int, default=1_000_000)
+    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    parser.add_argument("--band-m", type=float, default=2.0, help="width of a distance band")
+    parser.add_argument("--planner-sight-m", type=float, default=14.0)
+    parser.add_argument("--planner-horizon-m", type=float, default=30.0)
+    args = parser.parse_args()
+    if args.seeds < 1 or not args.band_m > 0:
+        parser.error("--seeds must be >= 1 and --band-m > 0")
+
+    detector_env = make_task_env(args.env, "detector")
+    oracle_env = oracle_twin(detector_env)
+    channels = detector_env.unwrapped.config.observation.channels
+    compared = [(channels.index(c), c) for c in OBSTACLE_CHANNELS if c in channels]
+    if not compared:
+        parser.error(f"{args.env}'s grid has no obstacle channel ({', '.join(OBSTACLE_CHANNELS)})")
+    distance = row_distances_m(detector_env)
+    # oracle cells, detector cells, cells in both: per channel and grid row, summed over all steps
+    counts = np.zeros((len(compared), 3, distance.size), dtype=np.int64)
+    begin = time.perf_counter()
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        det_obs, _ = detector_env.reset(seed=seed)
+        obs, info = oracle_env.reset(seed=seed)
+        driver = make_driver(
+            "track_planner",
+            oracle_env.terrain,
+            planner_sight_m=args.planner_sight_m,
+            planner_horizon_m=args.planner_horizon_m,
+        )
+        done, steps = False, 0
+        while not done:
+            for k, (index, _) in enumerate(compared):
+                truth, seen = obs["grid"][index] > 0, det_obs["grid"][index] > 0
+                counts[k] += np.stack([truth.sum(1), seen.sum(1), (truth & seen).sum(1)])
+            action = driver.act(obs, info)
+            obs, _, terminated, truncated, info = oracle_env.step(action)
+            det_obs, _, _, _, det_info = detector_env.step(action)
+            if det_info["station_m"] != info["station_m"]:
+                raise RuntimeError(f"seed {seed}: the two envs' drives parted at step {steps}")
+            done, steps = terminated or truncated, steps + 1
+        end = "+".join(info["termination"]) or "time_limit"
+        print(f"seed={seed} steps={steps} end={end} station_m={info['station_m']:.1f}", flush=True)
+    detector_env.close()
+    oracle_env.close()
+
+    first, last = np.floor(distance[0] / args.band_m), np.ceil(distance[-1] / args.band_m)
+    edges = np.arange(first, last + 1) * args.band_m
+    band = np.digitize(distance, edges) - 1
+    summary = {}
+    for k, (_, name) in enumerate(compared):
+        for b in range(edges.size - 1):
+            truth, seen, both = counts[k][:, band == b].sum(1)
+            if truth == 0 and seen == 0:
+                continue
+            recall = f"{both / truth:.2f}" if truth else "-"
+            precision = f"{both / seen:.2f}" if seen else "-"
+            print(
+                f"{name} {edges[b]:+5.1f}..{edges[b + 1]:+5.1f} m: oracle_cells={truth} "
+                f"detector_cells={seen} recall={recall} precision={precision}"
+            )
+        rows = (distance >= SUMMARY_BAND_M[0]) & (distance < SUMMARY_BAND_M[1])
+        truth, _, both = counts[k][:, rows].sum(1)
+        summary[name] = both / truth if truth else float("nan")
+    print(f"wall_s={time.perf_counter() - begin:.0f}")
+    print(" ".join(f"{name}_recall_4_14={value:.2f}" for name, value in summary.items()))
+
+
+if __name__ == "__main__":
+    main()
