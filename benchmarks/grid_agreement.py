@@ -15,8 +15,12 @@ Prints one line per course, one per channel and band, then, last,
 ``negative_recall_4_14=<r> positive_recall_4_14=<r>`` (cells from 4 to 14 m ahead, pooled over
 all steps).
 
+``--positive-hold-s S`` keeps paper T's obstacle points on the detector grid for S seconds after
+the LUX last saw them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame).
+
 Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
 [--env negobs_gym/OffroadNav-v2] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
+[--positive-hold-s 0]
 """
 
 from __future__ import annotations
@@ -34,11 +38,11 @@ OBSTACLE_CHANNELS = ("negative", "positive")
 SUMMARY_BAND_M = (4.0, 14.0)  # OffroadNav-v1/-v2's oracle range is 14 m; the nearest 4 m is the car
 
 
-def oracle_twin(env: object) -> object:
-    """An env like ``env`` (same scenario and config) whose grid is the oracle's, with no range limit."""
+def twin(env: object, **observation: object) -> object:
+    """An env like ``env`` (same scenario and config) with these observation fields changed."""
     raw = env.unwrapped
-    observation = dataclasses.replace(raw.config.observation, source="oracle", oracle_range_m=None)
-    return type(raw)(config=dataclasses.replace(raw.config, observation=observation), scenario=raw.scenario)
+    changed = dataclasses.replace(raw.config.observation, **observation)
+    return type(raw)(config=dataclasses.replace(raw.config, observation=changed), scenario=raw.scenario)
 
 
 def row_distances_m(env: object) -> np.ndarray:
@@ -58,12 +62,20 @@ def main() -> None:
     parser.add_argument("--band-m", type=float, default=2.0, help="width of a distance band")
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
+    parser.add_argument(
+        "--positive-hold-s",
+        type=float,
+        default=0.0,
+        help="keep paper T's obstacles this long on the detector grid (ObservationConfig.positive_hold_s)",
+    )
     args = parser.parse_args()
-    if args.seeds < 1 or not args.band_m > 0:
-        parser.error("--seeds must be >= 1 and --band-m > 0")
+    if args.seeds < 1 or not args.band_m > 0 or not args.positive_hold_s >= 0:
+        parser.error("--seeds must be >= 1, --band-m > 0 and --positive-hold-s >= 0")
 
-    detector_env = make_task_env(args.env, "detector")
-    oracle_env = oracle_twin(detector_env)
+    named = make_task_env(args.env, "detector")
+    detector_env = twin(named, positive_hold_s=args.positive_hold_s)
+    named.close()
+    oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)
     channels = detector_env.unwrapped.config.observation.channels
     compared = [(channels.index(c), c) for c in OBSTACLE_CHANNELS if c in channels]
     if not compared:

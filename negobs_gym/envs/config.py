@@ -65,6 +65,11 @@ class ObservationConfig:
             the detectors find pits reliably (OffroadNav-v1: 14 m, where paper N's fused recall is
             still ~0.96 here, docs/detector_features.md), so a policy trained on it does not count
             on seeing pits 25 m ahead. None: the whole grid. Ignored by the detector source.
+        positive_hold_s: With ``source="detector"``, how long paper T's obstacle points stay in
+            the ``positive`` channel after the LUX last saw them [s]
+            (``TraversableConfig.obstacle_hold_s``: a rock within ~4 m passes under its layers
+            and would vanish from the grid). 0 (default): per frame, as paper T. Ignored by the
+            oracle source.
     """
 
     source: str = "detector"
@@ -81,6 +86,7 @@ class ObservationConfig:
     max_goal_distance_m: float = 300.0
     route_points_m: tuple[float, ...] = ()
     oracle_range_m: float | None = None
+    positive_hold_s: float = 0.0
 
     def __post_init__(self) -> None:
         require(
@@ -134,6 +140,13 @@ class ObservationConfig:
             self.oracle_range_m is None or (math.isfinite(self.oracle_range_m) and self.oracle_range_m > 0),
             "oracle_range_m",
             f"must be None or finite and > 0, got {self.oracle_range_m!r}",
+        )
+        require(
+            isinstance(self.positive_hold_s, (int, float))
+            and math.isfinite(self.positive_hold_s)
+            and self.positive_hold_s >= 0,
+            "positive_hold_s",
+            f"must be finite and >= 0 [s], got {self.positive_hold_s!r}",
         )
         route = self.route_points_m
         require(

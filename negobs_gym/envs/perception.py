@@ -25,6 +25,7 @@ from negobs_gym.detector import (
     Detection,
     NegativeDetectorConfig,
     NegativeObstacleDetector,
+    TraversableConfig,
     TraversableRegion,
     TraversableRegionDetector,
 )
@@ -114,7 +115,9 @@ class DetectorGrid:
                 cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
             self._heights = cache["heights"]
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
-        self.traversable = TraversableRegionDetector(grid=config.grid)
+        self.traversable = TraversableRegionDetector(
+            TraversableConfig(obstacle_hold_s=config.positive_hold_s), grid=config.grid
+        )
         self.scans: dict[str, StructuredScan] = {}
         self.detection: Detection | None = None
         self.region: TraversableRegion | None = None

@@ -1,7 +1,12 @@
-import numpy as np
+from dataclasses import replace
 
-from negobs_gym.envs.config import EnvConfig
-from negobs_gym.envs.scenarios import BrakingEnv
+import numpy as np
+import pytest
+
+from negobs_gym.drivers import make_driver
+from negobs_gym.envs.config import EnvConfig, ObservationConfig
+from negobs_gym.envs.scenarios import BrakingEnv, OffroadNavV2Env
+from negobs_gym.errors import ConfigError
 
 
 def test_observed_layer_is_the_cells_of_the_frames_returns() -> None:
@@ -17,3 +22,39 @@ def test_observed_layer_is_the_cells_of_the_frames_returns() -> None:
     np.testing.assert_array_equal(layers["observed"], want)
     assert 0.3 < want.mean() < 1.0  # a real frame: much of the grid seen, not all of it
     env.close()
+
+
+def test_positive_hold_keeps_paper_t_obstacles_on_the_grid_after_the_lux_loses_them() -> None:
+    """Same seed and actions: the held grid holds every cell of the per-frame grid, and more once
+    an obstacle has left the LUX's view; the rest of the observation is the same."""
+    base = OffroadNavV2Env.default_config()
+    envs = [
+        OffroadNavV2Env(
+            replace(base, observation=replace(base.observation, source="detector", positive_hold_s=s))
+        )
+        for s in (0.0, 2.0)
+    ]
+    (per_frame, info), (held, _) = (env.reset(seed=1_000_000) for env in envs)
+    driver = make_driver("track_planner", envs[0].terrain, planner_sight_m=14.0, planner_horizon_m=30.0)
+    seen = extra = 0
+    for _ in range(150):
+        now, kept = per_frame["grid"][1] > 0, held["grid"][1] > 0
+        assert np.array_equal(per_frame["grid"][0], held["grid"][0])  # negative: untouched
+        assert np.array_equal(per_frame["state"], held["state"])
+        assert not (now & ~kept).any()
+        seen += int(now.any())
+        extra += int((kept & ~now).any())
+        if seen and extra >= 3:
+            break
+        action = driver.act(per_frame, info)
+        per_frame, _, _, _, info = envs[0].step(action)
+        held = envs[1].step(action)[0]
+    for env in envs:
+        env.close()
+    assert seen and extra >= 3
+
+
+def test_bad_positive_hold_is_refused() -> None:
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match="positive_hold_s"):
+            ObservationConfig(positive_hold_s=bad)

@@ -86,6 +86,10 @@ class TraversableConfig:
     # Not in paper T: obstacle points must lie this far inside the boundary lines, so earth banks
     # (which also have closely stacked layers) are borders, not obstacles.
     obstacle_inside_margin_m: float = 0.30
+    # Not in paper T (its obstacles are per frame): keep each frame's obstacle points this long
+    # [s] in the world frame (INS pose) and mark them in ``positive_obstacles`` while the LUX no
+    # longer sees them (a rock within ~4 m passes under its layers). 0 = per frame, as the paper.
+    obstacle_hold_s: float = 0.0
 
     # --- §3.5 reachability ---
     vehicle_width_m: float = 2.0  # docs/physics.md: d_c, a 4.5 x 2.0 m vehicle
@@ -135,7 +139,7 @@ class TraversableConfig:
         for name in positive:
             value = getattr(self, name)
             require(math.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value}")
-        for name in ("safety_margin_m", "obstacle_inside_margin_m"):
+        for name in ("safety_margin_m", "obstacle_inside_margin_m", "obstacle_hold_s"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value}")
         require(

@@ -3,7 +3,9 @@
 Pipeline (paper T §3): boundary points per layer (tears.py) -> Kalman filters (kalman.py) ->
 least-squares boundary lines (boundaries.py) -> obstacle clusters (obstacles.py) -> region minus
 obstacles and shadows (region.py) -> Eq. 12 feasibility and Eq. 13 reachability (reachability.py).
-State lives only in the Kalman filters, as in the paper.
+State lives only in the Kalman filters, as in the paper, and (with ``config.obstacle_hold_s`` > 0,
+not in the paper) in the obstacle points of the last ``obstacle_hold_s`` seconds, kept in the
+world frame of the INS pose.
 
 Bad input: a scan that is not a :class:`StructuredScan`, has a laser count other than
 ``config.n_layers`` or elevations not in ascending (detector) order, or a pose that is not a finite
@@ -57,7 +59,8 @@ class TraversableRegion:
         polygon_m: (4, 2) region between the boundaries (A1 on the LiDAR X axis), or (0, 2).
         shadow_polygons_m: Per obstacle, its near face plus the unseen sector behind it (cut out).
         traversable: (rows, cols) region minus obstacles and shadows.
-        positive_obstacles: (rows, cols) cells holding obstacle-cluster points.
+        positive_obstacles: (rows, cols) cells holding obstacle-cluster points (this frame's, and
+            with ``obstacle_hold_s`` > 0 those of the frames held).
         feasible: (rows, cols) Eq. 12 holds (vehicle width + margin fits).
         reachable: (rows, cols) feasible and reachable under the steering limit (Eq. 13).
         pose: The pose given with the scan.
@@ -113,10 +116,27 @@ class TraversableRegionDetector:
         self._polar_origin: tuple[float, float] | None = None
         self._cell_bearing = np.zeros(self.grid.shape)
         self._cell_range = np.zeros(self.grid.shape)
+        self._held: list[tuple[float, np.ndarray]] = []  # (scan time, world-frame obstacle points)
 
     def reset(self) -> None:
-        """Forget the filtered boundary points (start of a new run)."""
+        """Forget the filtered boundary points and the held obstacle points (start of a new run)."""
         self._kalman.reset()
+        self._held = []
+
+    def _hold(self, obstacles: list[ObstacleCluster], pose: Pose, stamp_s: float) -> np.ndarray:
+        """(N, 2) vehicle-frame points of the obstacles held from earlier frames; keeps this
+        frame's for the next ones. Frames older than ``obstacle_hold_s`` (or stamped after this
+        scan: a new run without :meth:`reset`) are dropped, so memory stays bounded."""
+        hold_s = self.config.obstacle_hold_s
+        self._held = [(t, p) for t, p in self._held if 0.0 <= stamp_s - t <= hold_s]
+        earlier = (
+            pose.to_vehicle(np.concatenate([p for _, p in self._held]))[:, :2]
+            if self._held
+            else np.zeros((0, 2))
+        )
+        if obstacles:
+            self._held.append((stamp_s, pose.to_world(np.concatenate([c.points_m for c in obstacles]))))
+        return earlier
 
     def _validate(self, scan: object) -> StructuredScan:
         if not isinstance(scan, StructuredScan):
@@ -180,6 +200,8 @@ class TraversableRegionDetector:
         obstacle_xy = (
             np.concatenate([c.points_m[:, :2] for c in obstacles]) if obstacles else np.zeros((0, 2))
         )
+        if cfg.obstacle_hold_s > 0:
+            obstacle_xy = np.concatenate([obstacle_xy, self._hold(obstacles, pose, float(scan.timestamp_s))])
         positive = points_mask(self.grid, obstacle_xy)
         shadows: list[np.ndarray] = []
         if obstacles:
@@ -189,7 +211,7 @@ class TraversableRegionDetector:
             for c in obstacles:
                 shadows.append(shadow_polygon(c, origin, far_range))
                 traversable &= ~shadow_mask(bearing, rng, c, origin, slack)
-            traversable &= ~positive
+        traversable &= ~positive
         feasible = feasible_mask(self._centres, traversable, left, right, obstacles, cfg)
         reachable = reachable_mask(feasible, self._paths, exempt_below_y_m=near_y)
         return TraversableRegion(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -317,3 +318,38 @@ def test_random_structured_scans_never_crash(detector, cols, data) -> None:
         assert np.isfinite(c.points_m).all() and c.points_m.shape[0] >= detector.config.min_cluster_points
     for side in (res.left_points_m, res.right_points_m):
         assert side.shape == (len(TraversableConfig().boundary_layers), 2)
+
+
+def test_held_obstacles_stay_in_the_positive_grid_where_they_are_then_expire() -> None:
+    """With ``obstacle_hold_s`` the car seen at 10 m stays marked after the LUX loses it (an empty
+    frame), moved into the new vehicle frame by the pose, until the hold runs out."""
+    seen = synthetic_scan(TrackScene(boxes=(CAR,)))
+    empty = make_scan(np.full((4, 441), np.nan))
+    det = TraversableRegionDetector(TraversableConfig(obstacle_hold_s=0.5))
+    first = det.update(seen, Pose())
+    assert first.positive_obstacles[grid_cell(det, 0.0, 10.0)]
+    moved = Pose(y=2.0)  # 2 m on along the world's +Y (the vehicle's forward axis at yaw 0)
+    held = det.update(dataclasses.replace(empty, timestamp_s=0.3), moved)
+    assert held.obstacles == []
+    assert held.positive_obstacles[grid_cell(det, 0.0, 8.0)]  # the near face, 2 m nearer
+    assert not held.positive_obstacles[grid_cell(det, 0.0, 10.0)]
+    assert held.positive_obstacles.sum() == first.positive_obstacles.sum()
+    assert not det.update(dataclasses.replace(empty, timestamp_s=0.9), moved).positive_obstacles.any()
+    # Per frame (the paper's, the default): nothing held.
+    per_frame = TraversableRegionDetector()
+    per_frame.update(seen, Pose())
+    later = per_frame.update(dataclasses.replace(empty, timestamp_s=0.3), moved)
+    assert not later.positive_obstacles.any()
+
+
+def test_reset_forgets_held_obstacles() -> None:
+    det = TraversableRegionDetector(TraversableConfig(obstacle_hold_s=5.0))
+    det.update(synthetic_scan(TrackScene(boxes=(CAR,))), Pose())
+    det.reset()
+    assert not det.update(make_scan(np.full((4, 441), np.nan)), Pose()).positive_obstacles.any()
+
+
+@pytest.mark.parametrize("hold", [-0.1, math.nan, math.inf])
+def test_bad_obstacle_hold_is_refused(hold) -> None:
+    with pytest.raises(ValueError, match="obstacle_hold_s"):
+        TraversableConfig(obstacle_hold_s=hold)
