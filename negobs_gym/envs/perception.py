@@ -6,7 +6,8 @@ detectors get the INS pose, exactly as on a real vehicle. Channels on the observ
 
 - ``negative``: cells of paper N's detector (:class:`~negobs_gym.detector.NegativeObstacleDetector`);
 - ``positive``: obstacle cells of paper T's detector
-  (:class:`~negobs_gym.detector.TraversableRegionDetector`);
+  (:class:`~negobs_gym.detector.TraversableRegionDetector`; this frame's, or with
+  ``ObservationConfig.positive_hold_s`` > 0 also those seen within that many seconds);
 - ``traversable``: paper T's traversable region;
 - ``observed``: cells holding at least one LiDAR return this frame (the rest is unknown).
 """
