@@ -35,7 +35,8 @@ from negobs_gym.drivers import make_driver
 from negobs_gym.policies.training import make_task_env
 
 OBSTACLE_CHANNELS = ("negative", "positive")
-SUMMARY_BAND_M = (4.0, 14.0)  # OffroadNav-v1/-v2's oracle range is 14 m; the nearest 4 m is the car
+# to 14 m: OffroadNav-v1/-v2's oracle range; from 4 m: nearer, the LUX's layers pass over a low rock
+SUMMARY_BAND_M = (4.0, 14.0)
 
 
 def twin(env: object, **observation: object) -> object:
