@@ -11,16 +11,24 @@ is compared cell by cell in bands of ``--band-m`` metres ahead of the vehicle or
 the detector grid's cells the oracle sets. A policy cloned on the oracle grid meets the
 difference only when it is evaluated on the detector grid.
 
-Prints one line per course, one per channel and band, then, last,
-``negative_recall_4_14=<r> positive_recall_4_14=<r>`` (cells from 4 to 14 m ahead, pooled over
-all steps).
+Cell counts weigh an obstacle by its area: a 4 x 3 m mound (a smooth bump of the heightfield that
+neither detector calls an obstacle) outweighs a dozen rocks. So positive obstacles are also counted
+one by one: at each step, each obstacle whose footprint reaches into the grid, binned by the
+distance of its nearest footprint corner ahead, is *seen* when the detector grid sets at least one
+of the pooled cells its footprint covers; one line per kind and band.
 
-``--positive-hold-s S`` keeps paper T's obstacle points on the detector grid for S seconds after
-the LUX last saw them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame).
+Prints one line per course, one per channel and band, one per positive kind and band, then, last,
+``negative_recall_4_14=<r> positive_recall_4_14=<r> rock_box_seen_4_14=<r>`` (cells, and rocks and
+boxes, from 4 to 14 m ahead, pooled over all steps).
+
+``--positive-detector structure`` fills the detector grid's ``positive`` channel from paper N's rig
+(returns above its ground map, ``ObservationConfig.positive_detector``) instead of paper T's LUX;
+``--positive-hold-s S`` keeps its obstacle points on the grid for S seconds after the rig last saw
+them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame).
 
 Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
 [--env negobs_gym/OffroadNav-v2] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
-[--positive-hold-s 0]
+[--positive-detector traversable|structure] [--positive-hold-s 0]
 """
 
 from __future__ import annotations
@@ -31,7 +39,10 @@ import time
 
 import numpy as np
 
+from negobs_gym.core.pose import Pose
+from negobs_gym.detector import convex_overlap_mask
 from negobs_gym.drivers import make_driver
+from negobs_gym.envs.config import POSITIVE_DETECTORS
 from negobs_gym.policies.training import make_task_env
 
 OBSTACLE_CHANNELS = ("negative", "positive")
@@ -55,6 +66,28 @@ def row_distances_m(env: object) -> np.ndarray:
     return -observation.grid.back_m + (np.arange(rows) + 0.5) * cell_m
 
 
+def obstacles_in_view(env: object, pose: Pose) -> list[tuple[str, float, np.ndarray]]:
+    """(kind, distance of the nearest footprint corner ahead [m], pooled cells its footprint covers)
+    of each positive obstacle whose footprint reaches into the observation grid at ``pose``."""
+    raw = env.unwrapped
+    observation = raw.config.observation
+    grid, k = observation.grid, observation.downsample
+    x_min, x_max, y_min, y_max = grid.extent_xy_m
+    found = []
+    for obstacle in raw.terrain.positive_obstacles:
+        corners = np.asarray(obstacle.footprint_xy_m)
+        local = pose.to_vehicle(np.c_[corners, np.zeros(len(corners))])[:, :2]
+        if (local[:, 0].max() < x_min or local[:, 0].min() > x_max) or (
+            local[:, 1].max() < y_min or local[:, 1].min() > y_max
+        ):
+            continue
+        fine = convex_overlap_mask(local, grid)
+        pooled = fine.reshape(grid.rows // k, k, grid.cols // k, k).any(axis=(1, 3))
+        if pooled.any():
+            found.append((obstacle.kind, float(local[:, 1].min()), pooled))
+    return found
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="courses")
@@ -64,17 +97,23 @@ def main() -> None:
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
     parser.add_argument(
+        "--positive-detector",
+        choices=POSITIVE_DETECTORS,
+        default="traversable",
+        help="what fills the detector grid's positive channel (ObservationConfig.positive_detector)",
+    )
+    parser.add_argument(
         "--positive-hold-s",
         type=float,
         default=0.0,
-        help="keep paper T's obstacles this long on the detector grid (ObservationConfig.positive_hold_s)",
+        help="keep positive obstacles this long on the detector grid (ObservationConfig.positive_hold_s)",
     )
     args = parser.parse_args()
     if args.seeds < 1 or not args.band_m > 0 or not args.positive_hold_s >= 0:
         parser.error("--seeds must be >= 1, --band-m > 0 and --positive-hold-s >= 0")
 
     named = make_task_env(args.env, "detector")
-    detector_env = twin(named, positive_hold_s=args.positive_hold_s)
+    detector_env = twin(named, positive_detector=args.positive_detector, positive_hold_s=args.positive_hold_s)
     named.close()
     oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)
     channels = detector_env.unwrapped.config.observation.channels
@@ -84,6 +123,8 @@ def main() -> None:
     distance = row_distances_m(detector_env)
     # oracle cells, detector cells, cells in both: per channel and grid row, summed over all steps
     counts = np.zeros((len(compared), 3, distance.size), dtype=np.int64)
+    positive = channels.index("positive") if "positive" in channels else None
+    sightings: list[tuple[str, float, bool]] = []  # (kind, distance ahead, seen) per obstacle and step
     begin = time.perf_counter()
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         det_obs, _ = detector_env.reset(seed=seed)
@@ -99,6 +140,10 @@ def main() -> None:
             for k, (index, _) in enumerate(compared):
                 truth, seen = obs["grid"][index] > 0, det_obs["grid"][index] > 0
                 counts[k] += np.stack([truth.sum(1), seen.sum(1), (truth & seen).sum(1)])
+            if positive is not None:
+                marked = det_obs["grid"][positive] > 0
+                for kind, ahead_m, cells in obstacles_in_view(oracle_env, Pose.from_array(info["pose"])):
+                    sightings.append((kind, ahead_m, bool((marked & cells).any())))
             action = driver.act(obs, info)
             obs, _, terminated, truncated, info = oracle_env.step(action)
             det_obs, _, _, _, det_info = detector_env.step(action)
@@ -128,8 +173,24 @@ def main() -> None:
         rows = (distance >= SUMMARY_BAND_M[0]) & (distance < SUMMARY_BAND_M[1])
         truth, _, both = counts[k][:, rows].sum(1)
         summary[name] = both / truth if truth else float("nan")
+    kinds = np.array([kind for kind, _, _ in sightings], dtype=str)
+    ahead = np.array([d for _, d, _ in sightings], dtype=float)
+    hit = np.array([seen for _, _, seen in sightings], dtype=bool)
+    for kind in sorted(set(kinds.tolist())):
+        for b in range(edges.size - 1):
+            sel = (kinds == kind) & (ahead >= edges[b]) & (ahead < edges[b + 1])
+            if sel.any():
+                print(
+                    f"positive objects {kind} {edges[b]:+5.1f}..{edges[b + 1]:+5.1f} m: "
+                    f"sightings={sel.sum()} seen={hit[sel].mean():.2f}"
+                )
+    solid = np.isin(kinds, ("rock", "box")) & (ahead >= SUMMARY_BAND_M[0]) & (ahead < SUMMARY_BAND_M[1])
+    summary_objects = f"{hit[solid].mean():.2f}" if solid.any() else "-"
     print(f"wall_s={time.perf_counter() - begin:.0f}")
-    print(" ".join(f"{name}_recall_4_14={value:.2f}" for name, value in summary.items()))
+    print(
+        " ".join(f"{name}_recall_4_14={value:.2f}" for name, value in summary.items())
+        + f" rock_box_seen_4_14={summary_objects}"
+    )
 
 
 if __name__ == "__main__":

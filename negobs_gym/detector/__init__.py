@@ -10,6 +10,8 @@ run on recorded scans from a real vehicle (see :mod:`negobs_gym.detector.loaders
   DBSCAN (:mod:`~negobs_gym.detector.clustering`), the grid (:mod:`~negobs_gym.detector.grid`), all
   behind :class:`NegativeObstacleDetector`.
 - Paper T, traversable region from a 4-layer LiDAR: :mod:`negobs_gym.detector.traversable`.
+- Positive obstacles from paper N's rig (in neither paper): returns standing above the ROI ground
+  map, :class:`StructureDetector` (:mod:`~negobs_gym.detector.structure`).
 """
 
 from negobs_gym.detector.clustering import ClusteringConfig, DetectedObstacle, cluster_obstacles
@@ -26,6 +28,7 @@ from negobs_gym.detector.negative import (
 )
 from negobs_gym.detector.pairs import FeaturePairs
 from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map
+from negobs_gym.detector.structure import StructureConfig, StructureDetector, structure_points
 from negobs_gym.detector.traversable import (
     TraversableConfig,
     TraversableRegion,
@@ -49,6 +52,8 @@ __all__ = [
     "PairTestConfig",
     "RoiConfig",
     "SensorLikelihood",
+    "StructureConfig",
+    "StructureDetector",
     "TraversableConfig",
     "TraversableRegion",
     "TraversableRegionDetector",
@@ -58,4 +63,5 @@ __all__ = [
     "extract_hdl32_pairs",
     "extract_hdl64_pairs",
     "obstacle_grid",
+    "structure_points",
 ]

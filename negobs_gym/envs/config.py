@@ -21,6 +21,9 @@ POOLINGS: tuple[str, ...] = ("max", "count")
 #: stand this far off the centre line and still see its route inside the bounds.
 ROUTE_MARGIN_M = 10.0
 
+#: What can fill the ``positive`` channel of the detector grid (``ObservationConfig.positive_detector``).
+POSITIVE_DETECTORS: tuple[str, ...] = ("traversable", "structure")
+
 #: Grid channels an observation can carry, in this fixed order.
 CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
 
@@ -65,11 +68,16 @@ class ObservationConfig:
             the detectors find pits reliably (OffroadNav-v1: 14 m, where paper N's fused recall is
             still ~0.96 here, docs/detector_features.md), so a policy trained on it does not count
             on seeing pits 25 m ahead. None: the whole grid. Ignored by the detector source.
-        positive_hold_s: With ``source="detector"``, how long paper T's obstacle points stay in
-            the ``positive`` channel after the LUX last saw them [s]
-            (``TraversableConfig.obstacle_hold_s``: a rock within ~4 m passes under its layers
-            and would vanish from the grid). 0 (default): per frame, as paper T. Ignored by the
-            oracle source.
+        positive_detector: With ``source="detector"``, what fills the ``positive`` channel:
+            ``"traversable"`` (default: paper T's obstacle clusters from the bumper LUX, a rock's
+            near face between ~4 and 12 m) or ``"structure"`` (paper N's rig's returns standing
+            above its ROI ground map, tops and faces to ~22 m;
+            :mod:`negobs_gym.detector.structure`, docs/detector_structure.md).
+        positive_hold_s: With ``source="detector"``, how long obstacle points stay in the
+            ``positive`` channel after the rig last saw them [s] (``TraversableConfig.obstacle_hold_s``
+            or ``StructureConfig.hold_s``: a rock within ~4 m passes under the LUX's layers and
+            the HDL-64's, and would vanish from the grid). 0 (default): per frame, as the papers.
+            Ignored by the oracle source.
     """
 
     source: str = "detector"
@@ -86,6 +94,7 @@ class ObservationConfig:
     max_goal_distance_m: float = 300.0
     route_points_m: tuple[float, ...] = ()
     oracle_range_m: float | None = None
+    positive_detector: str = "traversable"
     positive_hold_s: float = 0.0
 
     def __post_init__(self) -> None:
@@ -140,6 +149,11 @@ class ObservationConfig:
             self.oracle_range_m is None or (math.isfinite(self.oracle_range_m) and self.oracle_range_m > 0),
             "oracle_range_m",
             f"must be None or finite and > 0, got {self.oracle_range_m!r}",
+        )
+        require(
+            self.positive_detector in POSITIVE_DETECTORS,
+            "positive_detector",
+            f"must be one of {POSITIVE_DETECTORS}, got {self.positive_detector!r}",
         )
         require(
             isinstance(self.positive_hold_s, (int, float))

@@ -6,8 +6,10 @@ detectors get the INS pose, exactly as on a real vehicle. Channels on the observ
 
 - ``negative``: cells of paper N's detector (:class:`~negobs_gym.detector.NegativeObstacleDetector`);
 - ``positive``: obstacle cells of paper T's detector
-  (:class:`~negobs_gym.detector.TraversableRegionDetector`; this frame's, or with
-  ``ObservationConfig.positive_hold_s`` > 0 also those seen within that many seconds);
+  (:class:`~negobs_gym.detector.TraversableRegionDetector`), or with
+  ``ObservationConfig.positive_detector = "structure"`` the cells of paper N's rig's returns that
+  stand above its ground map (:class:`~negobs_gym.detector.StructureDetector`); this frame's, or
+  with ``ObservationConfig.positive_hold_s`` > 0 also those seen within that many seconds;
 - ``traversable``: paper T's traversable region;
 - ``observed``: cells holding at least one LiDAR return this frame (the rest is unknown).
 """
@@ -26,6 +28,8 @@ from negobs_gym.detector import (
     Detection,
     NegativeDetectorConfig,
     NegativeObstacleDetector,
+    StructureConfig,
+    StructureDetector,
     TraversableConfig,
     TraversableRegion,
     TraversableRegionDetector,
@@ -116,8 +120,15 @@ class DetectorGrid:
                 cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
             self._heights = cache["heights"]
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
+        by_structure = config.positive_detector == "structure"
         self.traversable = TraversableRegionDetector(
-            TraversableConfig(obstacle_hold_s=config.positive_hold_s), grid=config.grid
+            TraversableConfig(obstacle_hold_s=0.0 if by_structure else config.positive_hold_s),
+            grid=config.grid,
+        )
+        self.structure = (
+            StructureDetector(StructureConfig(hold_s=config.positive_hold_s), grid=config.grid)
+            if by_structure
+            else None
         )
         self.scans: dict[str, StructuredScan] = {}
         self.detection: Detection | None = None
@@ -145,9 +156,13 @@ class DetectorGrid:
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
         self.stamp_s = float(timestamp_s)
+        if self.structure is not None:
+            positive = self.structure.update(self.scans, ins_pose, self.detection.ground_map)
+        else:
+            positive = np.asarray(self.region.positive_obstacles, dtype=bool)
         return {
             "negative": self.detection.grid,
-            "positive": np.asarray(self.region.positive_obstacles, dtype=bool),
+            "positive": positive,
             "traversable": np.asarray(self.region.traversable, dtype=bool),
             "observed": self._observed(),
         }

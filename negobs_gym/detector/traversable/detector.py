@@ -26,6 +26,7 @@ from negobs_gym.core import libm
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.memory import PointHold
 from negobs_gym.detector.traversable.boundaries import BoundaryLine, drop_inconsistent, fit_boundary
 from negobs_gym.detector.traversable.config import TraversableConfig
 from negobs_gym.detector.traversable.kalman import BoundaryKalman
@@ -116,27 +117,12 @@ class TraversableRegionDetector:
         self._polar_origin: tuple[float, float] | None = None
         self._cell_bearing = np.zeros(self.grid.shape)
         self._cell_range = np.zeros(self.grid.shape)
-        self._held: list[tuple[float, np.ndarray]] = []  # (scan time, world-frame obstacle points)
+        self._held = PointHold(self.config.obstacle_hold_s)  # obstacle points of recent frames
 
     def reset(self) -> None:
         """Forget the filtered boundary points and the held obstacle points (start of a new run)."""
         self._kalman.reset()
-        self._held = []
-
-    def _hold(self, obstacles: list[ObstacleCluster], pose: Pose, stamp_s: float) -> np.ndarray:
-        """(N, 2) vehicle-frame points of the obstacles held from earlier frames; keeps this
-        frame's for the next ones. Frames older than ``obstacle_hold_s`` (or stamped after this
-        scan: a new run without :meth:`reset`) are dropped, so memory stays bounded."""
-        hold_s = self.config.obstacle_hold_s
-        self._held = [(t, p) for t, p in self._held if 0.0 <= stamp_s - t <= hold_s]
-        earlier = (
-            pose.to_vehicle(np.concatenate([p for _, p in self._held]))[:, :2]
-            if self._held
-            else np.zeros((0, 2))
-        )
-        if obstacles:
-            self._held.append((stamp_s, pose.to_world(np.concatenate([c.points_m for c in obstacles]))))
-        return earlier
+        self._held.reset()
 
     def _validate(self, scan: object) -> StructuredScan:
         if not isinstance(scan, StructuredScan):
@@ -201,7 +187,9 @@ class TraversableRegionDetector:
             np.concatenate([c.points_m[:, :2] for c in obstacles]) if obstacles else np.zeros((0, 2))
         )
         if cfg.obstacle_hold_s > 0:
-            obstacle_xy = np.concatenate([obstacle_xy, self._hold(obstacles, pose, float(scan.timestamp_s))])
+            points = np.concatenate([c.points_m for c in obstacles]) if obstacles else np.zeros((0, 3))
+            earlier = self._held.recall_and_keep(points, pose, float(scan.timestamp_s))
+            obstacle_xy = np.concatenate([obstacle_xy, earlier[:, :2]])
         positive = points_mask(self.grid, obstacle_xy)
         shadows: list[np.ndarray] = []
         if obstacles:
