@@ -3,7 +3,9 @@
 Drives the vehicle along a winding course at ~7 m/s (10 Hz frames) and times, per frame, the
 Embree cast of paper N's native rig plus paper T's LUX (sensor noise on), paper N's detector
 (pairs, fusion, DBSCAN, grid) and paper T's detector on the LUX scan. Also times the same frame
-with ROI casting (the envs' default rig). Prints per-part medians and the native frame's process
+with ROI casting (the envs' default rig), and the structure channel on the ROI frame
+(``ObservationConfig.positive_detector = "structure"``: returns above paper N's ground map, which it
+takes from paper N's detection). Prints per-part medians and the native frame's process
 CPU time (steadier than wall time on a loaded machine); the last line is
 ``median_ms=<v>`` of the full native frame (cast + paper N + paper T).
 
@@ -18,7 +20,12 @@ import time
 import numpy as np
 
 from negobs_gym.core.grid import GridSpec
-from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector, TraversableRegionDetector
+from negobs_gym.detector import (
+    NegativeDetectorConfig,
+    NegativeObstacleDetector,
+    StructureDetector,
+    TraversableRegionDetector,
+)
 from negobs_gym.envs.perception import LUX_NAME, env_rig
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
@@ -40,7 +47,9 @@ def main() -> None:
         parser.error("--frames and --threads must be >= 1")
     rig = env_rig("native")
     rng = np.random.default_rng(args.seed)
-    times: dict[str, list[float]] = {k: [] for k in ("cast", "paper_n", "paper_t", "roi_cast", "roi_paper_n")}
+    times: dict[str, list[float]] = {
+        k: [] for k in ("cast", "paper_n", "paper_t", "roi_cast", "roi_paper_n", "roi_structure")
+    }
     cpu: list[float] = []  # process CPU time of the native frame (all threads)
     with World(presets.winding_course(seed=args.seed, length_m=120.0)) as world:
         vehicle = Vehicle(world)
@@ -52,6 +61,7 @@ def main() -> None:
         det_n = NegativeObstacleDetector(NegativeDetectorConfig(grid=GRID))
         det_n_roi = NegativeObstacleDetector(NegativeDetectorConfig(grid=GRID))
         det_t = TraversableRegionDetector(grid=GRID)
+        det_s = StructureDetector(grid=GRID)
         world.step(60)
         vehicle.set_speed(7.0)
         for k in range(args.frames + 1):
@@ -70,12 +80,14 @@ def main() -> None:
             subsets = roi.subsets_for_bands(heights.bands(pose, roi.tiles), recent)
             roi_scans = scan_rig(rig, caster, pose, rng=rng, subsets=subsets, timestamp_s=world.sim_time_s)
             t4 = time.perf_counter()
-            det_n_roi.update(roi_scans, pose)
+            detection = det_n_roi.update(roi_scans, pose)
             t5 = time.perf_counter()
+            det_s.update(roi_scans, pose, detection.ground_map)
+            t6 = time.perf_counter()
             if k == 0:
                 cpu.clear()
                 continue  # first frame: caches and imports
-            for name, dt in zip(times, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4), strict=True):
+            for name, dt in zip(times, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t6 - t5), strict=True):
                 times[name].append(1e3 * dt)
     med = {k: float(np.median(v)) for k, v in times.items()}
     print(

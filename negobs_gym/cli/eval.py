@@ -125,7 +125,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     pol.add_argument("model", metavar="MODEL", help="saved stable-baselines3 model (.zip)")
     _common(pol, "outputs/eval/policy")
-    pol.add_argument("--env", dest="env_id", default=None, help="env id (default negobs_gym/Braking-v0)")
+    pol.add_argument(
+        "--env",
+        dest="env_id",
+        default=None,
+        help="env id, shipped scenario or scenario TOML file (default negobs_gym/Braking-v0)",
+    )
     pol.add_argument("--algo", default=None, help="stable-baselines3 class (default PPO)")
     pol.add_argument("--filter", choices=("off", "on", "both"), default=None, help="default: both")
     pol.add_argument(

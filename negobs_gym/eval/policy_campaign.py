@@ -113,13 +113,14 @@ def episodes(config: PolicyCampaignConfig) -> list[Episode]:
 
 
 def run_episode(episode: Episode) -> Rows:
-    """One episode of the model on ``gym.make(env_id)``."""
+    """One episode of the model on ``gym.make(env_id)``, or on the scenario ``env_id`` names (a
+    shipped scenario or a TOML file)."""
     import gymnasium as gym
 
     import negobs_gym  # noqa: F401 - registers the env ids
 
     a = episode.args
-    if a.get("source") is None:
+    if a.get("source") is None and a["env_id"] in gym.registry:
         env = gym.make(a["env_id"])
     else:
         from negobs_gym.policies.training import make_task_env

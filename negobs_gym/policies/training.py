@@ -59,8 +59,9 @@ class TrainResult:
     last_eval: dict[str, float]
 
 
-def make_task_env(env: str, source: str) -> gym.Env:
-    """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source``.
+def make_task_env(env: str, source: str | None) -> gym.Env:
+    """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source`` (None:
+    the env's own).
 
     Raises:
         ConfigError: ``env`` names no negobs env, scenario or file (field ``env``).
@@ -86,7 +87,9 @@ def make_task_env(env: str, source: str) -> gym.Env:
     return NegObsEnv(config=_with_source(spec.env_config(), grid_source), scenario=spec)
 
 
-def _with_source(config: EnvConfig, source: str) -> EnvConfig:
+def _with_source(config: EnvConfig, source: str | None) -> EnvConfig:
+    if source is None:
+        return config
     return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source=source))
 
 

@@ -78,6 +78,13 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert capsys.readouterr().out.startswith("negobs_gym/Braking-v0/nofilter success=")
     seeds = [r.split(",")[3] for r in (tmp_path / "oracle" / "policy.csv").read_text().splitlines()[1:]]
     assert seeds == ["5", "6"]
+    # a scenario TOML file as the env: Braking-v0's scene with the structure channel, its own grid
+    scene = tmp_path / "braking_structure.toml"
+    shipped = Path(negobs_gym.__file__).parent / "scenarios" / "scenes" / "braking_v0.toml"
+    scene.write_text(shipped.read_text() + '\n[observation]\npositive_detector = "structure"\n')
+    toml_run = ["eval", "policy", str(path), "--env", str(scene), "--seeds", "1", "--filter", "off"]
+    assert main(["-q", *toml_run, "--out", str(tmp_path / "toml"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.startswith(f"{scene}/nofilter success=")
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
     config = tmp_path / "braking.toml"
