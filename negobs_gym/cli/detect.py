@@ -4,8 +4,10 @@ Reads each FILE (see :mod:`negobs_gym.detector.io`), runs one
 :class:`~negobs_gym.detector.NegativeObstacleDetector` over all frames in order (a bag or pcap is a
 sequence, several files are one sequence) and writes, for frame ``n`` of the sequence,
 ``<n>_<stem>_<frame>.json`` (this frame's pairs, the fused pairs, the obstacles, the grid's occupied
-cells) and ``<n>_<stem>_<frame>.png`` (top-down: points coloured by height, pairs and outlines
-drawn), plus ``summary.json``; every file is written atomically.
+cells, and the cells of the structure channel: returns above paper N's ground map, walls, vehicles,
+rocks; :mod:`negobs_gym.detector.structure`) and ``<n>_<stem>_<frame>.png`` (top-down: points
+coloured by height, structure cells, pairs and outlines drawn), plus ``summary.json``; every file
+is written atomically.
 """
 
 from __future__ import annotations
@@ -72,7 +74,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="paper N's negative-obstacle detector on recorded scans; writes PNG + JSON per frame",
         description="Runs paper N's negative-obstacle detector on recorded LiDAR files and writes, "
         "per frame, a top-down PNG (points coloured by height, this frame's pairs, fused pairs, "
-        "obstacle outlines, grid cells) and a JSON with the grid, the pairs and the obstacles. "
+        "obstacle outlines, grid cells, structure cells) and a JSON with the grid, the pairs, the "
+        "obstacles and the structure cells (returns standing 0.25-2.5 m above paper N's ground map: "
+        "walls, vehicles, rocks). "
         "Formats: .bin (KITTI float32 x,y,z,intensity; --bin-fields xyzir for a ring column), .pcd, "
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
@@ -136,12 +140,13 @@ def run(args: argparse.Namespace) -> int:
 
     from negobs_gym.cli.detect_report import detection_record, plot_detection
     from negobs_gym.core.pose import Pose
-    from negobs_gym.detector import NegativeObstacleDetector
+    from negobs_gym.detector import NegativeObstacleDetector, StructureDetector
     from negobs_gym.detector.io import read_recording
 
     setup = scan_setup(args)
     out = Path(args.out)
     detector = NegativeObstacleDetector()
+    structure = StructureDetector(grid=detector.config.grid)
     summary = []
     frames = (
         f
@@ -149,14 +154,22 @@ def run(args: argparse.Namespace) -> int:
         for f in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic)
     )
     for n, frame in enumerate(tqdm(frames, desc="negobs detect", unit="frame", disable=None)):
-        detection = detector.update({frame.scan.sensor: frame.scan}, Pose())
+        scans = {frame.scan.sensor: frame.scan}
+        detection = detector.update(scans, Pose())
+        cells = structure.update(scans, Pose(), detection.ground_map)
         stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
-        record = detection_record(frame, detection, args.sensor)
+        record = detection_record(frame, detection, args.sensor, cells)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:
-            write_atomic(out / f"{stem}.png", lambda tmp, f=frame, d=detection: plot_detection(f, d, tmp))
+            write_atomic(
+                out / f"{stem}.png", lambda tmp, f=frame, d=detection, c=cells: plot_detection(f, d, c, tmp)
+            )
         summary.append(
-            {"frame": stem, **{k: record[k] for k in ("n_points", "n_frame_pairs", "n_obstacles")}}
+            {
+                "frame": stem,
+                **{k: record[k] for k in ("n_points", "n_frame_pairs", "n_obstacles")},
+                "n_structure_cells": len(record["structure_cells"]),
+            }
         )
         log.debug("%s: %d pairs, %d obstacles", stem, record["n_frame_pairs"], record["n_obstacles"])
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))

@@ -15,8 +15,12 @@ def _xyz(a: np.ndarray) -> list[list[float]]:
     return np.round(np.asarray(a, dtype=np.float64), 4).tolist()
 
 
-def detection_record(frame: RecordedFrame, detection: Detection, sensor: str) -> dict[str, Any]:
-    """JSON-ready record of one frame: provenance, this frame's pairs, fused pairs, obstacles, grid.
+def detection_record(
+    frame: RecordedFrame, detection: Detection, sensor: str, structure: np.ndarray
+) -> dict[str, Any]:
+    """JSON-ready record of one frame: provenance, this frame's pairs, fused pairs, obstacles, grid,
+    and the structure channel's cells (``structure``, a bool grid of the same spec; returns above
+    paper N's ground map, :mod:`negobs_gym.detector.structure`).
 
     Coordinates are metres in the vehicle frame (X right, Y forward, Z up); the grid is given by
     its spec and the ``[row, col]`` of every occupied cell (row 0 = rear edge, col 0 = left edge).
@@ -61,13 +65,14 @@ def detection_record(frame: RecordedFrame, detection: Detection, sensor: str) ->
             "shape": list(detection.grid.shape),
             "occupied_cells": np.argwhere(detection.grid).tolist(),
         },
+        "structure_cells": np.argwhere(structure).tolist(),
     }
 
 
-def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -> None:
+def plot_detection(frame: RecordedFrame, detection: Detection, structure: np.ndarray, out_path: Path) -> None:
     """Top-down PNG of one frame over the grid's extent: returns coloured by height above ground,
-    grid cells (magenta), this frame's pairs A->B (red), confirmed fused pairs (orange), obstacle
-    outlines (cyan)."""
+    structure cells (grey), grid cells (magenta), this frame's pairs A->B (red), confirmed fused
+    pairs (orange), obstacle outlines (cyan)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -84,6 +89,8 @@ def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -
     sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.6, cmap="viridis", vmin=-1.0, vmax=1.5, lw=0)
     fig.colorbar(sc, ax=ax, shrink=0.6, label="height above ground [m] (vehicle frame)")
     extent = (-spec.side_m, spec.side_m, -spec.back_m, spec.ahead_m)
+    walls = np.ma.masked_where(~structure, structure.astype(float))
+    ax.imshow(walls, origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1.5, alpha=0.5)
     cells = np.ma.masked_where(~detection.grid, detection.grid.astype(float))
     ax.imshow(cells, origin="lower", extent=extent, cmap="spring", alpha=0.6, interpolation="nearest")
     ok = np.asarray(detection.pairs.confirmed, dtype=bool)
@@ -109,8 +116,8 @@ def plot_detection(frame: RecordedFrame, detection: Detection, out_path: Path) -
     n_pairs = sum(len(p) for p in detection.frame_pairs.values())
     ax.set_title(
         f"{Path(frame.source).name} frame {frame.index}: {n_pairs} pairs (red), "
-        f"{int(ok.sum())} confirmed (orange),\n{len(detection.obstacles)} obstacles (cyan); "
-        f"rings from {frame.ring_source}",
+        f"{int(ok.sum())} confirmed (orange),\n{len(detection.obstacles)} obstacles (cyan), "
+        f"{int(structure.sum())} structure cells (grey); rings from {frame.ring_source}",
         fontsize=9,
     )
     fig.savefig(out_path, format="png")

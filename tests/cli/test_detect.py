@@ -10,7 +10,7 @@ import pytest
 
 from negobs_gym.cli import main
 from negobs_gym.core.pose import Pose
-from negobs_gym.detector import NegativeObstacleDetector
+from negobs_gym.detector import NegativeObstacleDetector, StructureDetector
 from negobs_gym.detector.io import ScanSetup, read_recording
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
@@ -46,8 +46,14 @@ def test_detect_writes_png_and_json_that_round_trip(tmp_path):
         grid = np.zeros(record["grid"]["shape"], dtype=bool)
         grid[tuple(np.array(record["grid"]["occupied_cells"], dtype=int).reshape(-1, 2).T)] = True
         np.testing.assert_array_equal(grid, det.grid)
+        structure = np.zeros(record["grid"]["shape"], dtype=bool)
+        structure[tuple(np.array(record["structure_cells"], dtype=int).reshape(-1, 2).T)] = True
+        want = StructureDetector(grid=detector.config.grid).update({"hdl64": frame.scan}, Pose())
+        np.testing.assert_array_equal(structure, want)
+        assert 0 < structure.sum() < structure.size // 4  # walls and cars, not the whole ground
     summary = json.loads((out / "summary.json").read_text())
     assert [s["frame"] for s in summary] == stems
+    assert all(s["n_structure_cells"] > 0 for s in summary)
 
 
 @pytest.mark.parametrize(
