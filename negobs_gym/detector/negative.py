@@ -27,6 +27,7 @@ from negobs_gym.detector.fusion import FusedPairs, FusionConfig, PairFusion
 from negobs_gym.detector.grid import obstacle_grid
 from negobs_gym.detector.hdl32 import extract_hdl32_pairs
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
+from negobs_gym.detector.inputs import check_frame
 from negobs_gym.detector.pairs import FeaturePairs
 from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map, ray_sectors
 from negobs_gym.errors import ScanError, require
@@ -178,15 +179,7 @@ class NegativeObstacleDetector:
         :class:`~negobs_gym.errors.ScanError` (a ``ValueError``).
         """
         cfg = self.config
-        if not isinstance(pose, Pose):
-            raise ScanError(f"pose must be a Pose, got {type(pose).__name__}")
-        if not np.isfinite(pose.as_array()).all():
-            raise ScanError(f"pose contains NaN/inf: {pose}")
-        if not isinstance(scans, Mapping):
-            raise ScanError(f"scans must map sensor names to StructuredScan, got {type(scans).__name__}")
-        for name, s in scans.items():
-            if not isinstance(s, StructuredScan):
-                raise ScanError(f"scans[{name!r}] must be a StructuredScan, got {type(s).__name__}")
+        check_frame(scans, pose)
         known = cfg.hdl64_sensors + cfg.hdl32_sensors
         if scans and not set(scans) & set(known):
             raise ScanError(f"scans has sensors {sorted(scans)}, none of the configured {list(known)}")

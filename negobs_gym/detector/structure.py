@@ -27,9 +27,10 @@ from negobs_gym.core.compiled import kernel
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.inputs import check_frame
 from negobs_gym.detector.memory import PointHold
 from negobs_gym.detector.roi import GroundMap, RoiConfig, _sector_of, build_ground_map, ray_sectors
-from negobs_gym.errors import ScanError, require
+from negobs_gym.errors import require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,13 +155,7 @@ class StructureDetector:
         :class:`~negobs_gym.errors.ScanError` on a pose that is not a finite :class:`Pose` or a value
         that is not a :class:`StructuredScan`; an empty mapping gives this frame no points.
         """
-        if not isinstance(pose, Pose):
-            raise ScanError(f"pose must be a Pose, got {type(pose).__name__}")
-        if not isinstance(scans, Mapping):
-            raise ScanError(f"scans must map sensor names to StructuredScan, got {type(scans).__name__}")
-        for name, s in scans.items():
-            if not isinstance(s, StructuredScan):
-                raise ScanError(f"scans[{name!r}] must be a StructuredScan, got {type(s).__name__}")
+        check_frame(scans, pose)
         cfg = self.config
         if ground is None:
             clouds = [s.points_vehicle for s in scans.values()]
