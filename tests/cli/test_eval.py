@@ -51,7 +51,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     import gymnasium as gym
     from stable_baselines3 import PPO
 
-    import negobs_gym  # noqa: F401 - registers the envs
+    import negobs_gym  # registers the envs; its folder holds the shipped scenes
 
     env = gym.make("negobs_gym/Braking-v0")
     model = PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
