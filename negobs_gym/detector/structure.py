@@ -82,8 +82,9 @@ def structure_points(
     :func:`~negobs_gym.detector.roi.ray_sectors` gives them (-1 = unknown), or None;
     ``extent_xy_m``: (x_min, x_max, y_min, y_max), only points inside it are judged (a grid's)."""
     p = np.ascontiguousarray(np.asarray(cloud, dtype=np.float64).reshape(-1, 3))
-    known = np.full(len(p), -1, dtype=np.int64) if sectors is None else np.asarray(sectors).reshape(-1)
-    require(known.size == len(p), "sectors", "needs one sector per point of the cloud")
+    # no table: an empty one (the kernel takes each point's own sector), not n entries of -1 a frame
+    known = np.zeros(0, dtype=np.int64) if sectors is None else np.asarray(sectors).reshape(-1)
+    require(sectors is None or known.size == len(p), "sectors", "needs one sector per point of the cloud")
     cfg = ground.config
     keep = np.zeros(len(p), dtype=bool)
     _mark_structure(
@@ -113,7 +114,8 @@ def _mark_structure(
     keep: np.ndarray,
 ) -> None:
     """``keep[k]`` for the finite points of ``p`` inside the map and the ``extent`` box with
-    low < z - ground <= high (the map's cell rule, as
+    low < z - ground <= high, each in its sector from ``known`` (empty: none known) or its angle
+    (the map's cell rule, as
     :func:`~negobs_gym.detector.roi.build_ground_map` bins)."""
     n_sectors, n_bins = ground_z.shape
     reach = n_bins * bin_m
@@ -124,7 +126,7 @@ def _mark_structure(
         d2 = x * x + y * y
         if not (d2 < reach * reach) or not np.isfinite(z):
             continue
-        s = known[k] if known[k] >= 0 else _sector_of(x, y, sector_rad)
+        s = known[k] if known.size and known[k] >= 0 else _sector_of(x, y, sector_rad)
         b = min(int(np.sqrt(d2) / bin_m), n_bins - 1)
         rise = z - ground_z[s % n_sectors, b]
         keep[k] = rise > low and rise <= high
