@@ -1,7 +1,8 @@
 """Where a cloned policy's drive leaves its expert's: the expert labels every state the clone visits.
 
 Drives a saved model (deterministic) through OffroadNav-v2 courses on the range-limited oracle
-grid, seeds 1,000,000 on (``negobs eval policy``'s), and at every step asks the track planner
+grid (``--source detector``: the detector grid), seeds 1,000,000 on (``negobs eval policy``'s),
+and at every step asks the track planner
 (``--planner-sight-m``, ``--planner-horizon-m``: the expert the clone was fitted to; with a
 horizon its label depends only on the car's state and what is in sight) what it would steer
 there. Prints one line per episode, then for the failed episodes, in three windows before their
@@ -11,7 +12,8 @@ expert steers more than ``--strong`` to one side, the share where the clone stee
 side but less, to the other side, and the clone's mean steering towards the expert's side as a
 fraction of the expert's (``follows=``). Last line: ``goal=<k>/<n>``.
 
-Run: python benchmarks/clone_divergence.py MODEL [--seeds 30] [--planner-sight-m 14]
+Run: python benchmarks/clone_divergence.py MODEL [--seeds 30] [--env ENV] [--source oracle|detector]
+[--planner-sight-m 14]
 [--planner-horizon-m 30] [--strong 0.3]
 """
 
@@ -65,12 +67,15 @@ def main() -> None:
     parser.add_argument("model", help="a saved SB3 model (e.g. RUN/warm_start.zip)")
     parser.add_argument("--seeds", type=int, default=30, help="courses")
     parser.add_argument("--first-seed", type=int, default=1_000_000)
-    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2", help="env id, shipped scenario or TOML")
+    parser.add_argument(
+        "--source", choices=("oracle", "detector"), default="oracle", help="the grid the clone drives on"
+    )
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
     parser.add_argument("--strong", type=float, default=0.3, help="|expert steering| that counts as strong")
     args = parser.parse_args()
-    env = make_task_env(args.env, "oracle")
+    env = make_task_env(args.env, args.source)
     model = ModelDriver(args.model)
     episodes = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):

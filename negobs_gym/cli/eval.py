@@ -134,6 +134,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     pol.add_argument("--algo", default=None, help="stable-baselines3 class (default PPO)")
     pol.add_argument("--filter", choices=("off", "on", "both"), default=None, help="default: both")
     pol.add_argument(
+        "--stop-for-positive",
+        action="store_true",
+        default=None,
+        help="the filter also stops for the grid's positive-obstacle cells (rows say filter_positive)",
+    )
+    pol.add_argument(
         "--first-seed",
         type=int,
         default=None,
@@ -234,6 +240,7 @@ def run_policy(args: argparse.Namespace) -> int:
         "filters": filters,
         "first_seed": args.first_seed,
         "source": args.source,
+        "stop_for_positive": args.stop_for_positive,
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")

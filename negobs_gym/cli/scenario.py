@@ -7,6 +7,7 @@ the spec's ``[criteria]``; ``render`` writes the first frame of an episode to a 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -52,6 +53,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--filter", dest="filter", action="store_true", default=None, help="guard with the safety filter"
     )
     filt.add_argument("--no-filter", dest="filter", action="store_false", help="no safety filter")
+    p_run.add_argument(
+        "--stop-for-positive",
+        action="store_true",
+        help="the filter also stops for the grid's positive-obstacle cells (run.stop_for_positive)",
+    )
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
     p_run.set_defaults(handler=_run)
@@ -84,6 +90,8 @@ def _run(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import load_scenario, run_scenario
 
     spec = load_scenario(args.spec)
+    if args.stop_for_positive:
+        spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
     failed = 0
     for seed in range(args.seed, args.seed + args.seeds):
         result = run_scenario(spec, args.driver, filter=args.filter, seed=seed)

@@ -365,7 +365,7 @@ class NegObsEnv(gym.Env):
     def hazard_state(self) -> HazardState:
         """Hazards for :class:`~negobs_gym.safety.BrakingSafetyFilter` (protocol in ``safety.protocol``).
 
-        The negative-obstacle points are the detector's cells, never the ground truth: with an
+        The negative- and positive-obstacle points are the detector's cells, never the ground truth: with an
         oracle observation the first call starts the sensors and detectors, which then run every
         step of the episode.
         """
@@ -377,6 +377,7 @@ class NegObsEnv(gym.Env):
         return HazardState(
             speed_mps=max(0.0, self._vehicle.speed_mps()),
             negative_obstacles_xy_m=self._detector.perception.negative_cells_xy_m(),
+            positive_obstacles_xy_m=self._detector.perception.positive_cells_xy_m(),
             vehicle_width_m=cfg.width_m,
             wheelbase_m=cfg.wheelbase_m,
             max_steer_rad=math.radians(cfg.max_steer_deg),

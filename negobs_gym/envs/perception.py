@@ -22,6 +22,7 @@ import os
 
 import numpy as np
 
+from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import (
@@ -134,6 +135,7 @@ class DetectorGrid:
         self.detection: Detection | None = None
         self.region: TraversableRegion | None = None
         self.stamp_s: float | None = None  # sensing time of the last frame (None before the first)
+        self.positive: np.ndarray | None = None  # the last frame's positive-obstacle layer
 
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
@@ -160,6 +162,7 @@ class DetectorGrid:
             positive = self.structure.update(self.scans, ins_pose, self.detection.ground_map)
         else:
             positive = np.asarray(self.region.positive_obstacles, dtype=bool)
+        self.positive = positive
         return {
             "negative": self.detection.grid,
             "positive": positive,
@@ -176,7 +179,14 @@ class DetectorGrid:
         """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells."""
         if self.detection is None:
             return np.empty((0, 2))
-        return self.config.grid.cell_centres()[self.detection.grid]
+        return _cell_centres_xy_m(self.config.grid, self.detection.grid)
+
+    def positive_cells_xy_m(self) -> np.ndarray:
+        """(N, 2) vehicle-frame centres of the last frame's positive-obstacle cells (the channel
+        ``config.positive_detector`` fills: paper T's obstacles or the structure channel)."""
+        if self.positive is None:
+            return np.empty((0, 2))
+        return _cell_centres_xy_m(self.config.grid, self.positive)
 
     def _observed(self) -> np.ndarray:
         """Cells holding a return, from each scan's points as they are (no gathered copy)."""
@@ -184,3 +194,11 @@ class DetectorGrid:
         for s in self.scans.values():
             mask |= self.config.grid.occupied(s.points_vehicle[..., :2])
         return mask
+
+
+def _cell_centres_xy_m(grid: GridSpec, mask: np.ndarray) -> np.ndarray:
+    """(N, 2) vehicle-frame centres of the set cells of ``mask``, in row-major order."""
+    row, col = np.nonzero(mask)
+    x = -grid.side_m + (col + 0.5) * grid.cell_m
+    y = -grid.back_m + (row + 0.5) * grid.cell_m
+    return np.stack([x, y], axis=1).astype(float)

@@ -25,6 +25,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
+from negobs_gym.safety.filter import SafetyFilterConfig
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -201,8 +202,11 @@ def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> 
     raise ConfigError("driver", f"unknown driver {name!r}")
 
 
-def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_steps: int) -> dict[str, Any]:
-    """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``); its metrics.
+def run_driven_episode(
+    env: Any, driver: Any, seed: int, filtered: bool | SafetyFilterConfig, max_steps: int
+) -> dict[str, Any]:
+    """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``: True for the
+    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics.
 
     Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
     ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
@@ -212,8 +216,11 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
-    if filtered:
-        env = BrakingSafetyFilter(env)
+    guard = filtered if isinstance(filtered, SafetyFilterConfig) else None
+    if filtered is True:
+        guard = SafetyFilterConfig()
+    if guard is not None:
+        env = BrakingSafetyFilter(env, config=guard)
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
     dt = 1.0 / env.unwrapped.config.control_hz
@@ -233,7 +240,7 @@ def run_driven_episode(env: Any, driver: Any, seed: int, filtered: bool, max_ste
             events[k] |= bool(info["events"][k])
         goal |= bool(info.get("goal_reached", False))
         off_track_steps += bool(info.get("off_track", False))
-        vetoed = bool(filtered and info["safety"]["vetoed"])
+        vetoed = bool(guard is not None and info["safety"]["vetoed"])
         if vetoed:
             vetoes += 1
             veto_events += not was_vetoed

@@ -24,6 +24,7 @@ from typing import Any
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.safety.filter import SafetyFilterConfig
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
 
@@ -71,7 +72,9 @@ class PolicyCampaignConfig:
 
     ``source`` replaces the env's grid source (``"detector"`` or ``"oracle"``; None keeps the env's
     own, the detector grid for every registered id), e.g. to evaluate an oracle-trained policy on
-    what the vehicle's detectors see.
+    what the vehicle's detectors see. ``stop_for_positive``: the filtered episodes' filter also
+    stops for the grid's positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`);
+    their rows say ``filter_positive`` instead of ``filter``.
     """
 
     model_path: str
@@ -81,6 +84,7 @@ class PolicyCampaignConfig:
     first_seed: int = 1_000_000
     filters: tuple[bool, ...] = (False, True)
     source: str | None = None
+    stop_for_positive: bool = False
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -91,9 +95,21 @@ class PolicyCampaignConfig:
             f"must be 'detector', 'oracle' or None (the env's own), got {self.source!r}",
         )
         require(bool(self.filters), "filters", "needs at least one of off / on")
+        require(
+            isinstance(self.stop_for_positive, bool),
+            "stop_for_positive",
+            f"must be a bool, got {self.stop_for_positive!r}",
+        )
         from negobs_gym.policies.baselines import resolve_model
 
         object.__setattr__(self, "model_path", resolve_model(self.model_path))
+
+
+def filter_label(filtered: bool, stop_for_positive: bool) -> str:
+    """The ``filter`` column: ``nofilter``, ``filter`` or ``filter_positive``."""
+    if not filtered:
+        return "nofilter"
+    return "filter_positive" if stop_for_positive else "filter"
 
 
 def episodes(config: PolicyCampaignConfig) -> list[Episode]:
@@ -103,10 +119,12 @@ def episodes(config: PolicyCampaignConfig) -> list[Episode]:
         "env_id": config.env_id,
         "algo": config.algo,
         "source": config.source,
+        "stop_for_positive": config.stop_for_positive,
     }
     seeds = range(config.first_seed, config.first_seed + config.seeds)
+    code = {False: 0, True: 2 if config.stop_for_positive else 1}  # keys of filter_label's rows
     return [
-        Episode(f"{int(f)}.{seed:07d}", {**args, "filtered": f, "seed": seed})
+        Episode(f"{code[bool(f)]}.{seed:07d}", {**args, "filtered": f, "seed": seed})
         for f in config.filters
         for seed in seeds
     ]
@@ -127,9 +145,11 @@ def run_episode(episode: Episode) -> Rows:
 
         env = make_task_env(a["env_id"], a["source"])
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
-    m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], a["filtered"], max_steps)
+    guard = SafetyFilterConfig(stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
+    m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], guard, max_steps)
     success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"] or m["left_track"])
-    row: list[Any] = [episode.key, a["env_id"], "filter" if a["filtered"] else "nofilter", a["seed"], success]
+    label = filter_label(a["filtered"], a["stop_for_positive"])
+    row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
     return {"policy": [format_row(row)]}
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -22,6 +22,8 @@ class SafetyDecision:
         perception_age_s: Age of the hazard data at the decision [s] (inf = no perception).
         perception_stale: The hazard data was missing or older than the filter's timeout, so the
             filter braked whatever the distance.
+        hazard_channel: Which grid channel the nearest hazard came from: ``"negative"``,
+            ``"positive"`` (only with ``stop_for_positive``), or None when the corridor is clear.
     """
 
     vetoed: bool
@@ -32,6 +34,7 @@ class SafetyDecision:
     applied_action: np.ndarray
     perception_age_s: float
     perception_stale: bool
+    hazard_channel: Literal["negative", "positive"] | None = None
 
     @property
     def cost(self) -> float:
@@ -49,4 +52,5 @@ class SafetyDecision:
             "applied_action": self.applied_action.copy(),
             "perception_age_s": self.perception_age_s,
             "perception_stale": self.perception_stale,
+            "hazard_channel": self.hazard_channel,
         }

@@ -33,6 +33,10 @@ class SafetyFilterConfig:
     # R(v'). Not in paper N: without it a driver pushing against the filter creeps on at d ~ R(0) = B,
     # stop and go every other step (seen in scenario runs), and never stands still before the hazard.
     release_margin_m: float = 1.0
+    # Also stop for the grid's positive-obstacle cells (rocks, boxes, vehicles) with the same
+    # Eq. 18 test. Not in paper N, whose filter guards negative obstacles; off by default. Useful
+    # with the structure channel, which sees rocks and boxes 2-20 m ahead (docs/detector_structure.md).
+    stop_for_positive: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -58,17 +62,23 @@ class SafetyFilterConfig:
         require(
             self.mode in ("brake", "cap_speed"), "mode", f"must be 'brake' or 'cap_speed', got {self.mode!r}"
         )
+        require(
+            isinstance(self.stop_for_positive, bool),
+            "stop_for_positive",
+            f"must be a bool, got {self.stop_for_positive!r}",
+        )
 
 
 class BrakingSafetyFilter(gym.Wrapper):
     """Replaces unsafe longitudinal commands so that d - travelled >= R(v') holds after each step.
 
     Each step it reads ``hazard_state()`` from the env (see :mod:`negobs_gym.safety.protocol`),
-    computes the hazard distance d along the arc of the *proposed* steering, predicts the speed v'
-    the action leaves after one control period and the distance travelled meanwhile, and vetoes the
-    action when ``d - travelled < R(v')``; after a veto, until an action passes again, the test is
-    ``d - travelled < R(v') + release_margin_m`` (hysteresis against stop-and-go at the boundary;
-    cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
+    computes the hazard distance d along the arc of the *proposed* steering (to the nearest
+    detected negative-obstacle cell; with ``stop_for_positive`` also positive-obstacle cells),
+    predicts the speed v' the action leaves after one control period and the distance travelled
+    meanwhile, and vetoes the action when ``d - travelled < R(v')``; after a veto, until an action
+    passes again, the test is ``d - travelled < R(v') + release_margin_m`` (hysteresis against
+    stop-and-go at the boundary; cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
     ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is never
     changed; safe actions pass bit-identical.
 
@@ -78,12 +88,12 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
-    ``perception_timeout_s``, ``release_margin_m``) over the defaults; passing both is a
-    :class:`ConfigError`.
+    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``) over the defaults;
+    passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
-    original_action, applied_action, perception_age_s, perception_stale).
+    original_action, applied_action, perception_age_s, perception_stale, hazard_channel).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
     at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
     step is :attr:`last_decision`; an env implementing :class:`DecisionSink` receives it before
@@ -103,6 +113,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         mode: Literal["brake", "cap_speed"] | None = None,
         perception_timeout_s: float | None = None,
         release_margin_m: float | None = None,
+        stop_for_positive: bool | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -120,6 +131,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "mode": mode,
             "perception_timeout_s": perception_timeout_s,
             "release_margin_m": release_margin_m,
+            "stop_for_positive": stop_for_positive,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -193,6 +205,12 @@ class BrakingSafetyFilter(gym.Wrapper):
         steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
         half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
         d = hazard_distance_m(state.negative_obstacles_xy_m, steer, state.wheelbase_m, half_width)
+        channel = "negative" if np.isfinite(d) else None
+        if self.config.stop_for_positive:
+            positive = state.positive_obstacles_xy_m
+            d_positive = hazard_distance_m(positive, steer, state.wheelbase_m, half_width)
+            if d_positive < d:
+                d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s
@@ -222,6 +240,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             applied_action=applied.copy(),
             perception_age_s=age,
             perception_stale=stale,
+            hazard_channel=channel,
         )
         return (action if not vetoed else applied), decision
 

@@ -11,7 +11,9 @@ Conventions every negobs env follows (and any other env must follow to be filter
   ``accel(a0) = a0 * max_accel_mps2`` for ``a0 >= 0`` and ``a0 * max_brake_decel_mps2`` for
   ``a0 < 0``.
 * ``negative_obstacles_xy_m`` holds the vehicle-frame xy of the DETECTED negative-obstacle cells
-  (negobs envs fill it from the detector grid, never from ground truth).
+  (negobs envs fill it from the detector grid, never from ground truth);
+  ``positive_obstacles_xy_m`` the same for the grid's positive-obstacle channel (rocks, boxes,
+  vehicles), which the filter reads only when ``SafetyFilterConfig.stop_for_positive`` is set.
 * Time: ``time_s`` is the env's clock at the decision, ``perception_time_s`` the time the
   sensor data behind ``negative_obstacles_xy_m`` was taken (None when there is no perception
   yet). The filter brakes when that data is missing or older than its
@@ -20,7 +22,7 @@ Conventions every negobs env follows (and any other env must follow to be filter
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -43,6 +45,8 @@ class HazardState:
     max_brake_decel_mps2: float  # deceleration at action[0] = -1 [m/s^2], > 0
     time_s: float  # env clock at this decision [s]
     perception_time_s: float | None  # when the hazard points were sensed [s]; None = no perception
+    # (M, 2) detected positive-obstacle points [m], sensed with the negative ones; empty = none
+    positive_obstacles_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def __post_init__(self) -> None:
         require(
@@ -50,18 +54,8 @@ class HazardState:
             "speed_mps",
             f"must be finite and >= 0, got {self.speed_mps!r}",
         )
-        pts = np.asarray(self.negative_obstacles_xy_m, dtype=float)
-        if pts.size == 0:
-            pts = np.zeros((0, 2))
-        require(
-            pts.ndim == 2 and pts.shape[1] == 2,
-            "negative_obstacles_xy_m",
-            f"must have shape (N, 2), got {pts.shape}",
-        )
-        require(
-            bool(np.all(np.isfinite(pts))), "negative_obstacles_xy_m", "must be finite (drop unknown cells)"
-        )
-        object.__setattr__(self, "negative_obstacles_xy_m", pts)
+        for name in ("negative_obstacles_xy_m", "positive_obstacles_xy_m"):
+            object.__setattr__(self, name, _points_xy(getattr(self, name), name))
         for name in (
             "vehicle_width_m",
             "wheelbase_m",
@@ -101,6 +95,16 @@ class HazardState:
         distance, which the trapezoid over-estimates (conservative).
         """
         return 0.5 * self.dt_s * (self.speed_mps + v_next_mps)
+
+
+def _points_xy(points: np.ndarray, name: str) -> np.ndarray:
+    """``points`` as a finite (N, 2) float array; a ConfigError naming ``name`` otherwise."""
+    pts = np.asarray(points, dtype=float)
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    require(pts.ndim == 2 and pts.shape[1] == 2, name, f"must have shape (N, 2), got {pts.shape}")
+    require(bool(np.all(np.isfinite(pts))), name, "must be finite (drop unknown cells)")
+    return pts
 
 
 @runtime_checkable

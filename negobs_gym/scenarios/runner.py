@@ -20,7 +20,7 @@ from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
-from negobs_gym.scenarios.spec import CriteriaSpec, ScenarioSpec
+from negobs_gym.scenarios.spec import CriteriaSpec, RunSpec, ScenarioSpec
 from negobs_gym.sim.types import Terrain
 
 __all__ = [
@@ -144,20 +144,12 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
     )
 
 
-def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig) -> gym.Env:
+def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig, run: RunSpec) -> gym.Env:
     if filter is False:
         return env
-    config = filter if isinstance(filter, SafetyFilterConfig) else SafetyFilterConfig()
-    b = config.braking
-    return BrakingSafetyFilter(
-        env,
-        mu=b.mu,
-        reaction_time_s=b.reaction_time_s,
-        buffer_m=b.buffer_m,
-        g=b.g_mps2,
-        margin_m=config.margin_m,
-        mode=config.mode,
-    )
+    if not isinstance(filter, SafetyFilterConfig):
+        filter = SafetyFilterConfig(stop_for_positive=run.stop_for_positive)
+    return BrakingSafetyFilter(env, config=filter)
 
 
 def _vetoed(record: Any) -> tuple[bool, float]:
@@ -181,8 +173,9 @@ def run_scenario(
         spec: The scenario.
         driver: A driver name (:data:`DRIVERS`), a :class:`~negobs_gym.drivers.Driver`, or None
             for the spec's ``run.driver``.
-        filter: True (the Eq. 18 defaults), a :class:`SafetyFilterConfig`, False, or None for the
-            spec's ``run.filter``.
+        filter: True (the Eq. 18 defaults, stopping for positive obstacles when the spec's
+            ``run.stop_for_positive`` says so), a :class:`SafetyFilterConfig` (used as it is),
+            False, or None for the spec's ``run.filter``.
         seed: Episode seed (terrain draws, sensor noise, the driver's ``reset``).
         render_mode: Passed to the env (e.g. to keep frames for a failing test).
 
@@ -192,7 +185,7 @@ def run_scenario(
     spec = load_scenario(spec)
     filter = spec.run.filter if filter is None else filter
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
-    env = _wrap(base, filter)
+    env = _wrap(base, filter, spec.run)
     try:
         obs, info = env.reset(seed=seed)
         name = (

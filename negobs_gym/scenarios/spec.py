@@ -287,6 +287,8 @@ class RunSpec:
 
     driver: DriverName = "reckless"
     filter: bool = True
+    # the filter also stops for the grid's positive-obstacle cells (SafetyFilterConfig.stop_for_positive)
+    stop_for_positive: bool = False
     target_speed_mps: float = 25.0 / 3.6  # paper N §4: 25 km/h
     lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
 
