@@ -83,8 +83,8 @@ class NegObsEnv(gym.Env):
     :class:`ScenarioSpec`, a shipped scenario's name or a TOML path (subclasses name their own).
 
     ## Info
-    ``events`` (dict), ``distance_to_negative_ahead_m`` (ground truth from the front bumper, inf if
-    none), ``speed_mps``, ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array``
+    ``events`` (dict), ``distance_to_negative_ahead_m`` and ``distance_to_positive_ahead_m``
+    (ground truth from the front bumper, in the wheels' strip; inf if none), ``speed_mps``, ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array``
     restores it), ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``off_track``, ``termination``.
     """
 
@@ -255,6 +255,7 @@ class NegObsEnv(gym.Env):
                 "rollover": events.rollover,
             },
             "distance_to_negative_ahead_m": self._distance_to_negative_ahead(pose),
+            "distance_to_positive_ahead_m": self._distance_to_positive_ahead(pose),
             "speed_mps": self._vehicle.speed_mps(),
             "pose": pose.as_array(),
             "station_m": self._station,
@@ -434,13 +435,21 @@ class NegObsEnv(gym.Env):
     def _distance_to_negative_ahead(self, pose: Pose) -> float:
         """Ground-truth distance from the front bumper to the nearest negative-obstacle outline
         point ahead within the wheels' strip (track width + 1 m each side), inf if none."""
-        if not self.terrain.negative_obstacles:
-            return math.inf
+        return self._distance_ahead([ob.outline_xy_m for ob in self.terrain.negative_obstacles], pose)
+
+    def _distance_to_positive_ahead(self, pose: Pose) -> float:
+        """The same for the footprints of the positive obstacles the car can hit (bodies; mounds,
+        part of the ground, are not)."""
+        bodies = [ob.footprint_xy_m for ob in self.terrain.positive_obstacles if not ob.in_heightfield]
+        return self._distance_ahead(bodies, pose)
+
+    def _distance_ahead(self, polygons: list[np.ndarray], pose: Pose) -> float:
+        """Front bumper to the nearest point of ``polygons`` (world xy) ahead in the wheels' strip."""
         cfg = self._vehicle.config
         half = 0.5 * cfg.track_width_m + 1.0
         best = math.inf
-        for ob in self.terrain.negative_obstacles:
-            outline = world_to_vehicle_xy(ob.outline_xy_m, (pose.x, pose.y), pose.yaw)
+        for polygon in polygons:
+            outline = world_to_vehicle_xy(polygon, (pose.x, pose.y), pose.yaw)
             ahead = polygon_in_strip_y(outline, half)
             ahead = ahead[ahead > 0]
             if ahead.size:

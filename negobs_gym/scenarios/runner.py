@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,8 +33,8 @@ __all__ = [
     "run_scenario",
 ]
 
-#: A veto is false when the true negative obstacle ahead is farther than the distance the filter
-#: acted on plus this [m] (the detected near edge may lie up to a ring gap before the rim; the
+#: A veto is false when the true obstacle ahead (negative, or positive when the filter stopped for
+#: the positive channel) is farther than the distance the filter acted on plus this [m] (the detected near edge may lie up to a ring gap before the rim; the
 #: paper gives no such figure, 2 m is the braking benchmark's tolerance).
 FALSE_VETO_TOLERANCE_M = 2.0
 
@@ -66,8 +67,11 @@ class ScenarioResult:
             reached without leaving the track.
         max_decel_mps2: Largest speed drop over one control period, per second [m/s^2].
         vetoes: Steps whose action the filter replaced.
-        false_vetoes: Vetoes with no true negative obstacle within the filter's hazard distance
-            plus :data:`FALSE_VETO_TOLERANCE_M`.
+        false_vetoes: Vetoes with no true obstacle of the vetoing channel (negative, or positive
+            with ``stop_for_positive``) within the filter's hazard distance plus
+            :data:`FALSE_VETO_TOLERANCE_M`.
+        positive_gap_m: Gap left at the end to the nearest positive obstacle ahead in the wheels'
+            strip (inf: none) [m].
         termination: Termination rules that ended the episode (empty: truncated).
         truncated: Ended by the time limit.
         failures: Names of the spec's criteria this run failed (empty: passed).
@@ -92,6 +96,7 @@ class ScenarioResult:
     max_decel_mps2: float
     vetoes: int
     false_vetoes: int
+    positive_gap_m: float
     termination: tuple[str, ...]
     truncated: bool
     failures: tuple[str, ...] = ()
@@ -104,6 +109,7 @@ class ScenarioResult:
     def line(self) -> str:
         """One-line summary (what ``negobs scenario run`` prints per seed)."""
         margin = f"{self.stop_margin_m:.2f}" if self.stop_margin_m is not None else "-"
+        positive_gap = f"{self.positive_gap_m:.2f}" if math.isfinite(self.positive_gap_m) else "-"
         end = ",".join(self.termination) or ("time_limit" if self.truncated else "-")
         verdict = "PASS" if self.passed else "FAIL " + ",".join(self.failures)
         filtered = "on" if self.filtered else "off"
@@ -111,7 +117,8 @@ class ScenarioResult:
             f"{self.scenario} seed={self.seed} driver={self.driver} filter={filtered} "
             f"task_done={int(self.task_done)} "
             f"entered={int(self.entered_negative_obstacle)} stopped_before={int(self.stopped_before)} "
-            f"margin_m={margin} collision={int(self.collision)} goal={int(self.goal_reached)} "
+            f"margin_m={margin} collision={int(self.collision)} positive_gap_m={positive_gap} "
+            f"goal={int(self.goal_reached)} "
             f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
             f"time_s={self.time_s:.1f} end={end} {verdict}"
         )
@@ -126,6 +133,7 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
         "stopped_before": lambda v: result.stopped_before == v,
         "min_stop_margin_m": lambda v: margin is not None and margin >= v,
         "max_stop_margin_m": lambda v: margin is not None and margin <= v,
+        "min_positive_gap_m": lambda v: result.positive_gap_m >= v,
         "collision": lambda v: result.collision == v,
         "goal_reached": lambda v: result.goal_reached == v,
         "max_decel_mps2": lambda v: result.max_decel_mps2 <= v,
@@ -152,11 +160,11 @@ def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig, run: RunSpec) -> gym.
     return BrakingSafetyFilter(env, config=filter)
 
 
-def _vetoed(record: Any) -> tuple[bool, float]:
-    """(vetoed, hazard distance) of the filter's decision record for one step."""
+def _vetoed(record: Any) -> tuple[bool, float, str | None]:
+    """(vetoed, hazard distance, hazard channel) of the filter's decision record for one step."""
     if isinstance(record, dict):
-        return bool(record["vetoed"]), float(record["hazard_distance_m"])
-    return bool(record.vetoed), float(record.hazard_distance_m)
+        return bool(record["vetoed"]), float(record["hazard_distance_m"]), record.get("hazard_channel")
+    return bool(record.vetoed), float(record.hazard_distance_m), getattr(record, "hazard_channel", None)
 
 
 def run_scenario(
@@ -206,11 +214,16 @@ def run_scenario(
         max_decel = 0.0
         terminated = truncated = False
         while not (terminated or truncated):
-            gap_before, speed_before = info["distance_to_negative_ahead_m"], info["speed_mps"]
+            gaps_before = {
+                "negative": info["distance_to_negative_ahead_m"],
+                "positive": info["distance_to_positive_ahead_m"],
+            }
+            speed_before = info["speed_mps"]
             obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
             steps += 1
             if "safety" in info:
-                vetoed, hazard_m = _vetoed(info["safety"])
+                vetoed, hazard_m, channel = _vetoed(info["safety"])
+                gap_before = gaps_before[channel or "negative"]
                 vetoes += vetoed
                 false_vetoes += vetoed and gap_before + bumper_m > hazard_m + FALSE_VETO_TOLERANCE_M
             max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
@@ -249,6 +262,7 @@ def run_scenario(
             max_decel_mps2=float(max_decel),
             vetoes=int(vetoes),
             false_vetoes=int(false_vetoes),
+            positive_gap_m=float(info["distance_to_positive_ahead_m"]),
             termination=tuple(info["termination"]),
             truncated=bool(truncated and not terminated),
         )

@@ -316,6 +316,7 @@ class CriteriaSpec:
     stopped_before: bool | None = None
     min_stop_margin_m: float | None = None
     max_stop_margin_m: float | None = None
+    min_positive_gap_m: float | None = None
     collision: bool | None = None
     goal_reached: bool | None = None
     max_decel_mps2: float | None = None

@@ -93,6 +93,14 @@ def test_structure_positive_channel_marks_rocks_and_boxes_on_their_footprint() -
         action = driver.act(paper_t, info)
         paper_t, _, _, _, info = envs[0].step(action)
         structure = envs[1].step(action)[0]
+        if len(checked) == 1:  # the box in view: the filter's positive points are the channel's cells
+            hazards = envs[1].hazard_state().positive_obstacles_xy_m
+            assert len(hazards) > 0
+            cells = grid.occupied(hazards)
+            assert cells.sum() == len(hazards)
+            assert np.array_equal(
+                cells.reshape(grid.rows // k, k, -1, k).any(axis=(1, 3)), structure["grid"][1] > 0
+            )
     for env in envs:
         env.close()
     assert len(checked) >= 2  # a box at 72 steps, a rock at 120 on this course

@@ -1,3 +1,5 @@
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -330,3 +332,65 @@ def test_filter_action_alone_does_not_move_the_hysteresis():
     assert f.filter_action(throttle)[1].vetoed  # a look at the decision, no step
     env.state = make_state(0.0, _ahead(5.6))
     assert not f.filter_action(throttle)[1].vetoed  # plain Eq. 18 test: nothing was committed
+
+
+def _with_positive(state: HazardState, points: np.ndarray) -> HazardState:
+    return dataclasses.replace(state, positive_obstacles_xy_m=points)
+
+
+def test_positive_obstacles_are_ignored_unless_stop_for_positive():
+    rock_ahead = np.array([[0.0, 6.0]])  # a rock 6 m ahead; R(25 km/h) = 10.5 m
+    state = _with_positive(make_state(25 / 3.6, np.zeros((0, 2))), rock_ahead)
+    action = np.array([0.5, 0.0], np.float32)
+    paper = BrakingSafetyFilter(FixedHazardEnv(state))
+    applied, decision = paper.filter_action(action)
+    assert not decision.vetoed and applied is action
+    assert decision.hazard_distance_m == np.inf and decision.hazard_channel is None
+
+    for guard in (
+        BrakingSafetyFilter(FixedHazardEnv(state), stop_for_positive=True),
+        BrakingSafetyFilter(FixedHazardEnv(state), config=SafetyFilterConfig(stop_for_positive=True)),
+    ):
+        applied, decision = guard.filter_action(action)
+        assert decision.vetoed and applied[0] == -1.0 and applied[1] == action[1]
+        assert decision.hazard_channel == "positive"
+        assert decision.hazard_distance_m == pytest.approx(6.0, abs=0.3)
+        assert decision.as_dict()["hazard_channel"] == "positive"
+
+
+def test_the_nearer_channel_decides_and_is_named():
+    ditch, rock = np.array([[0.0, 20.0]]), np.array([[0.0, 30.0]])
+    guard = BrakingSafetyFilter(
+        FixedHazardEnv(_with_positive(make_state(5.0, ditch), rock)), stop_for_positive=True
+    )
+    _, decision = guard.filter_action(np.array([0.0, 0.0], np.float32))
+    assert decision.hazard_channel == "negative" and decision.hazard_distance_m < 21.0
+    guard = BrakingSafetyFilter(
+        FixedHazardEnv(_with_positive(make_state(5.0, rock), ditch)), stop_for_positive=True
+    )
+    _, decision = guard.filter_action(np.array([0.0, 0.0], np.float32))
+    assert decision.hazard_channel == "positive" and decision.hazard_distance_m < 21.0
+
+
+def test_a_rock_beside_the_corridor_does_not_stop_the_car():
+    beside = np.array([[3.0, 6.0], [-3.0, 6.0]])  # 3 m either side, the corridor is 1.1 m half-wide
+    state = _with_positive(make_state(25 / 3.6, np.zeros((0, 2))), beside)
+    _, decision = BrakingSafetyFilter(FixedHazardEnv(state), stop_for_positive=True).filter_action(
+        np.array([0.5, 0.0], np.float32)
+    )
+    assert not decision.vetoed and decision.hazard_channel is None
+
+
+@pytest.mark.parametrize(
+    "points", [np.array([[np.nan, 5.0]]), np.array([[0.0, np.inf]]), np.zeros((3, 3)), np.zeros(4)]
+)
+def test_hazard_state_rejects_bad_positive_points_by_name(points):
+    with pytest.raises(ConfigError) as err:
+        _with_positive(make_state(1.0, np.zeros((0, 2))), points)
+    assert err.value.field == "positive_obstacles_xy_m"
+
+
+def test_stop_for_positive_must_be_a_bool():
+    with pytest.raises(ConfigError) as err:
+        SafetyFilterConfig(stop_for_positive="yes")
+    assert err.value.field == "stop_for_positive"

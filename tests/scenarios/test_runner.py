@@ -78,7 +78,7 @@ def test_criteria_check_each_named_bound() -> None:
         entered_negative_obstacle=False, stopped_before=True, stop_margin_m=2.0, start_gap_m=20.0,
         collision=False, trapped=False, rollover=False, goal_reached=False, left_track=False,
         task_done=True, max_decel_mps2=6.0,
-        vetoes=3, false_vetoes=1, termination=("stopped",), truncated=False,
+        vetoes=3, false_vetoes=1, positive_gap_m=3.0, termination=("stopped",), truncated=False,
     )  # fmt: skip
     assert check_criteria(CriteriaSpec(), result) == ()
     assert check_criteria(CriteriaSpec(task_done=False), result) == ("task_done",)
@@ -93,11 +93,14 @@ def test_criteria_check_each_named_bound() -> None:
         "goal_reached",
         "max_decel_mps2",
     )
-    none = dataclasses.replace(result, stop_margin_m=None, stopped_before=False)
+    assert check_criteria(CriteriaSpec(min_positive_gap_m=3.5), result) == ("min_positive_gap_m",)
+    assert check_criteria(CriteriaSpec(min_positive_gap_m=3.0), result) == ()
+    assert "positive_gap_m=3.00" in result.line()
+    none = dataclasses.replace(result, stop_margin_m=None, stopped_before=False, positive_gap_m=math.inf)
     assert check_criteria(CriteriaSpec(min_stop_margin_m=0.0, stopped_before=False), none) == (
         "min_stop_margin_m",
     )
-    assert "margin_m=-" in none.line() and math.isfinite(result.time_s)
+    assert "margin_m=-" in none.line() and "positive_gap_m=-" in none.line()
 
 
 def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
@@ -112,3 +115,16 @@ def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
     driver = make_driver(spec.run.driver, spec, braking_track(20.0, rough=False))
     assert isinstance(driver, TrackPlannerDriver)
     assert driver.config.pursuit.target_speed_mps == 3.0
+
+
+def test_the_filter_stops_for_a_rock_only_when_told() -> None:
+    from negobs_gym.safety import SafetyFilterConfig
+
+    told = run_scenario("rock_on_track_25kmh", seed=0)  # the spec's run: reckless, stop_for_positive
+    assert told.passed, told.line()
+    assert not told.collision and told.termination == ("stopped",)
+    assert 1.0 < told.positive_gap_m < 6.0  # B = 5 m from the rear axle, ~3.4 m behind the bumper
+    assert told.vetoes > 0 and told.false_vetoes == 0 and told.max_decel_mps2 > 4.0
+
+    papers = run_scenario("rock_on_track_25kmh", filter=SafetyFilterConfig(), seed=0)  # used as it is
+    assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
