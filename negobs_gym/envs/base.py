@@ -84,8 +84,9 @@ class NegObsEnv(gym.Env):
 
     ## Info
     ``events`` (dict), ``distance_to_negative_ahead_m`` and ``distance_to_positive_ahead_m``
-    (ground truth from the front bumper, in the wheels' strip; inf if none), ``speed_mps``, ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array``
-    restores it), ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``off_track``, ``termination``.
+    (ground truth from the front bumper, in the wheels' strip; inf if none), ``speed_mps``,
+    ``pose`` (float64 array x, y, z, roll, pitch, yaw; ``Pose.from_array`` restores it),
+    ``rewards``, ``station_m``, ``goal_reached``, ``stopped``, ``off_track``, ``termination``.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"], "render_fps": 10}  # noqa: RUF012 - gymnasium API

@@ -34,8 +34,9 @@ __all__ = [
 ]
 
 #: A veto is false when the true obstacle ahead (negative, or positive when the filter stopped for
-#: the positive channel) is farther than the distance the filter acted on plus this [m] (the detected near edge may lie up to a ring gap before the rim; the
-#: paper gives no such figure, 2 m is the braking benchmark's tolerance).
+#: the positive channel) is farther than the distance the filter acted on plus this [m] (the
+#: detected near edge may lie up to a ring gap before the rim; the paper gives no such figure,
+#: 2 m is the braking benchmark's tolerance).
 FALSE_VETO_TOLERANCE_M = 2.0
 
 #: Driver names a spec's ``run.driver`` or ``negobs scenario run --driver`` accepts.
