@@ -53,6 +53,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: %(default)s)",
     )
     parser.add_argument("--filter", action="store_true", help="train and evaluate behind the Eq. 18 filter")
+    parser.add_argument(
+        "--stop-for-positive",
+        action="store_true",
+        help="with --filter: the filter also stops for the grid's positive-obstacle cells",
+    )
     parser.add_argument("--steps", type=positive_int, default=defaults.steps, help="total env steps")
     parser.add_argument("--envs", type=positive_int, default=defaults.envs, help="parallel envs (processes)")
     parser.add_argument(
@@ -243,6 +248,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         algo=args.algo,
         source=args.source,
         filter=args.filter,
+        stop_for_positive=args.stop_for_positive,
         steps=args.steps,
         envs=args.envs,
         vec_env=args.vec_env,
@@ -288,7 +294,7 @@ def run_train(args: argparse.Namespace) -> int:
         config.algo,
         config.env,
         config.source,
-        ", filter" if config.filter else "",
+        (", filter" + (" + positive" if config.stop_for_positive else "")) if config.filter else "",
         config.steps,
         config.envs,
         args.out,

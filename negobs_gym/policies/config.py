@@ -265,6 +265,8 @@ class TrainConfig:
         source: ``"detector"`` (the detectors' grid, as on the vehicle), ``"oracle"`` (ground
             truth grid) or ``"state"`` (no grid).
         filter: Train behind the braking safety filter (and evaluate with it).
+        stop_for_positive: With ``filter``: the filter also stops for the grid's positive-obstacle
+            cells (:class:`~negobs_gym.safety.SafetyFilterConfig`).
         steps: Total env steps (over all envs).
         envs: Parallel envs (processes when > 1, see ``vec_env``).
         vec_env: With ``envs`` > 1: ``"subproc"`` (SB3's ``SubprocVecEnv``: a finished episode
@@ -316,6 +318,7 @@ class TrainConfig:
     algo: str = "PPO"
     source: str = "detector"
     filter: bool = False
+    stop_for_positive: bool = False
     steps: int = 100_000
     envs: int = 1
     vec_env: str = "subproc"
@@ -342,6 +345,11 @@ class TrainConfig:
     def __post_init__(self) -> None:
         require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
         require(self.source in SOURCES, "source", f"unknown source {self.source!r}; one of {SOURCES}")
+        require(
+            isinstance(self.stop_for_positive, bool) and (self.filter or not self.stop_for_positive),
+            "stop_for_positive",
+            f"must be a bool and needs filter, got {self.stop_for_positive!r} with filter={self.filter!r}",
+        )
         require(
             self.vec_env in VEC_ENVS, "vec_env", f"unknown vector env {self.vec_env!r}; one of {VEC_ENVS}"
         )

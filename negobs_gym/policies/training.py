@@ -41,6 +41,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
+from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
 
 log = logging.getLogger(__name__)
 
@@ -93,14 +94,19 @@ def _with_source(config: EnvConfig, source: str | None) -> EnvConfig:
     return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source=source))
 
 
-def make_env(env: str, source: str, use_filter: bool) -> gym.Env:
-    """One training env: :func:`make_task_env`, the safety filter if asked, :class:`PolicyObservation`."""
+def make_env(env: str, source: str, use_filter: bool | SafetyFilterConfig) -> gym.Env:
+    """One training env: :func:`make_task_env`, the safety filter if asked (True: its defaults, or
+    a :class:`SafetyFilterConfig`), :class:`PolicyObservation`."""
     task = make_task_env(env, source)
-    if use_filter:
-        from negobs_gym.safety import BrakingSafetyFilter
-
-        task = BrakingSafetyFilter(task)
+    if use_filter is not False:
+        settings = use_filter if isinstance(use_filter, SafetyFilterConfig) else None
+        task = BrakingSafetyFilter(task, config=settings)
     return PolicyObservation(task, grid=source != "state")
+
+
+def filter_setting(config: TrainConfig) -> bool | SafetyFilterConfig:
+    """The run's filter: False, or the settings it trains and evaluates behind."""
+    return SafetyFilterConfig(stop_for_positive=config.stop_for_positive) if config.filter else False
 
 
 def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
@@ -112,7 +118,8 @@ def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
         env = make_task_env(config.env, config.source)
         max_steps = env.unwrapped.scenario.episode.max_episode_steps
         driver = PolicyDriver(model)
-        results.append(run_driven_episode(env, driver, config.eval_seed + k, config.filter, max_steps))
+        guard = filter_setting(config)
+        results.append(run_driven_episode(env, driver, config.eval_seed + k, guard, max_steps))
     return results
 
 
@@ -126,7 +133,7 @@ def logger_formats() -> list[str]:
 
 def _env_factory(config: TrainConfig) -> Callable[[], gym.Env]:
     """A picklable maker of the run's training env, for worker processes."""
-    return functools.partial(make_env, config.env, config.source, config.filter)
+    return functools.partial(make_env, config.env, config.source, filter_setting(config))
 
 
 def _vec_env(config: TrainConfig):
@@ -180,7 +187,7 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
 
 
 #: Fields that must match between a run and the run it resumes.
-_RESUME_FIELDS = ("env", "algo", "source", "filter", "init_model")
+_RESUME_FIELDS = ("env", "algo", "source", "filter", "stop_for_positive", "init_model")
 
 
 def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> TrainResult:
@@ -204,7 +211,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
     )
 
     out = Path(out_dir)
-    probe = make_env(config.env, config.source, config.filter)  # fails early on a bad env
+    probe = make_env(config.env, config.source, filter_setting(config))  # fails early on a bad env
     grid_shape = probe.grid_shape
     probe.close()
     checkpoint = latest_checkpoint(out / "checkpoints")
@@ -440,8 +447,9 @@ def _check_resume(config: TrainConfig, out: Path, checkpoint: Path | None) -> No
     record = out / "train.json"
     if record.exists():
         before = json.loads(record.read_text(encoding="utf-8"))["config"]
-        differ = [k for k in _RESUME_FIELDS if before.get(k) != getattr(config, k)]
+        defaults = {"stop_for_positive": False}  # runs recorded before the field existed
+        differ = [k for k in _RESUME_FIELDS if before.get(k, defaults.get(k)) != getattr(config, k)]
         if differ:
             raise ConfigError(
-                "resume", f"{differ} differ from the run in {out}: {[before[k] for k in differ]}"
+                "resume", f"{differ} differ from the run in {out}: {[before.get(k) for k in differ]}"
             )

@@ -122,6 +122,8 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "no checkpoint" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
     assert "critic_warmup_steps" in capsys.readouterr().err
+    assert main(["train", "--env", ENV, "--stop-for-positive"]) == 2  # without --filter
+    assert "stop_for_positive" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2

@@ -13,7 +13,8 @@ import pytest
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.callbacks import latest_checkpoint
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
-from negobs_gym.policies.training import make_env, make_task_env, train
+from negobs_gym.policies.training import filter_setting, make_env, make_task_env, train
+from negobs_gym.safety import SafetyFilterConfig
 
 
 def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
@@ -180,6 +181,8 @@ def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: P
         ({"vec_env": "async"}, "vec_env"),
         ({"learning_rate": 0.0}, "learning_rate"),
         ({"eval_every": -1}, "eval_every"),
+        ({"stop_for_positive": True}, "stop_for_positive"),  # without filter
+        ({"filter": True, "stop_for_positive": 1}, "stop_for_positive"),
     ],
 )
 def test_bad_config_names_its_field(kwargs: dict, field: str) -> None:
@@ -190,6 +193,11 @@ def test_bad_config_names_its_field(kwargs: dict, field: str) -> None:
 def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
     env = make_env("paper_n_three_pits", "oracle", use_filter=True)
     assert env.unwrapped.config.observation.source == "oracle" and env.grid_shape == (4, 36, 16)
+    assert env.env.config == SafetyFilterConfig()  # the policy observation wraps the filter
+    env.close()
+    config = TrainConfig(env="paper_n_three_pits", filter=True, stop_for_positive=True)
+    env = make_env(config.env, "oracle", use_filter=filter_setting(config))
+    assert env.env.config.stop_for_positive
     env.close()
     with pytest.raises(ConfigError, match="unknown env 'nope'"):
         make_task_env("nope", "oracle")
