@@ -1,0 +1,94 @@
+"""The track planner behind the braking safety filter: how often the filter lets a navigating car through.
+
+Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` with
+``--planner-sight-m`` and ``--planner-horizon-m``; it reads the course's ground-truth obstacles)
+through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
+the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
+grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B).
+Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
+channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
+left_track= vetoes=``.
+
+Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
+[--filter off|on] [--stop-for-positive] [--buffer-m 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+import numpy as np
+
+from negobs_gym.drivers import make_driver
+from negobs_gym.eval.braking_campaign import run_driven_episode
+from negobs_gym.policies.training import make_task_env
+from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
+
+
+class TrackPlanner:
+    """The track planner, built on the course the env has just reset to."""
+
+    def __init__(self, env: Any, sight_m: float, horizon_m: float) -> None:
+        self.env, self.sight_m, self.horizon_m = env, sight_m, horizon_m
+        self.driver = None
+        self.first_veto = ("-", math.nan)
+
+    def reset(self, seed: int) -> None:
+        self.driver = None
+        self.first_veto = ("-", math.nan)
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        if self.driver is None:
+            terrain = self.env.unwrapped.terrain
+            self.driver = make_driver(
+                "track_planner", terrain, planner_sight_m=self.sight_m, planner_horizon_m=self.horizon_m
+            )
+            self.driver.reset(0)
+        safety = info.get("safety")
+        if safety is not None and safety["vetoed"] and self.first_veto[0] == "-":
+            self.first_veto = (safety["hazard_channel"], safety["hazard_distance_m"])
+        return self.driver.act(obs, info)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="offroad_nav_v2_structure", help="env id, shipped scenario or TOML")
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=3_000_020)
+    parser.add_argument("--filter", choices=("off", "on"), default="on")
+    parser.add_argument("--stop-for-positive", action="store_true")
+    parser.add_argument("--buffer-m", type=float, default=BrakingConfig().buffer_m, help="B of Eq. 18 [m]")
+    parser.add_argument("--planner-sight-m", type=float, default=14.0)
+    parser.add_argument("--planner-horizon-m", type=float, default=30.0)
+    parser.add_argument("--max-steps", type=int, default=600)
+    args = parser.parse_args()
+    guard: bool | SafetyFilterConfig = False
+    if args.filter == "on":
+        guard = SafetyFilterConfig(
+            braking=BrakingConfig(buffer_m=args.buffer_m), stop_for_positive=args.stop_for_positive
+        )
+    totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        env = make_task_env(args.env, None)
+        driver = TrackPlanner(env, args.planner_sight_m, args.planner_horizon_m)
+        m = run_driven_episode(env, driver, seed, guard, args.max_steps)
+        env.close()
+        for k in totals:
+            totals[k] += int(m[k])
+        channel, distance = driver.first_veto
+        print(
+            f"seed={seed} goal={int(m['goal'])} entered={int(m['entered'])} collision={int(m['collision'])} "
+            f"left_track={int(m['left_track'])} vetoes={m['vetoes']} steps={m['steps']} "
+            f"first_veto={channel}@{distance:.2f}m",
+            flush=True,
+        )
+    print(
+        f"goal={totals['goal']}/{args.seeds} entries={totals['entered']} collisions={totals['collision']} "
+        f"left_track={totals['left_track']} vetoes={totals['vetoes']}"
+    )
+
+
+if __name__ == "__main__":
+    main()
