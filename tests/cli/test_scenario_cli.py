@@ -81,3 +81,18 @@ def test_run_each_paper_scene_prints_a_line_per_seed(scene, capsys):
     lines = _lines(capsys)
     assert [line.split()[:2] for line in lines] == [[scene, "seed=0"], [scene, "seed=1"]]
     assert code == (0 if all(line.endswith("PASS") for line in lines) else 1)
+
+
+def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) -> None:
+    """The rock scene with its run.stop_for_positive off hits the rock; the flag turns it on."""
+    import dataclasses
+
+    from negobs_gym.scenarios import spec_to_toml
+
+    spec = load_scenario("rock_on_track_25kmh")
+    paper = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=False))
+    path = tmp_path / "rock.toml"
+    path.write_text(spec_to_toml(paper))
+    assert main(["scenario", "run", str(path), "--stop-for-positive"]) == 0
+    line = capsys.readouterr().out.strip()
+    assert " collision=0 " in line and " false_vetoes=0 " in line and line.endswith("PASS")
