@@ -217,7 +217,7 @@ def run_driven_episode(
     from negobs_gym.safety import BrakingSafetyFilter
 
     guard = filtered if isinstance(filtered, SafetyFilterConfig) else None
-    if filtered is True:
+    if guard is None and filtered:  # True (or any truthy flag): the defaults
         guard = SafetyFilterConfig()
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)

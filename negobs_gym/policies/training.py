@@ -98,7 +98,7 @@ def make_env(env: str, source: str, use_filter: bool | SafetyFilterConfig) -> gy
     """One training env: :func:`make_task_env`, the safety filter if asked (True: its defaults, or
     a :class:`SafetyFilterConfig`), :class:`PolicyObservation`."""
     task = make_task_env(env, source)
-    if use_filter is not False:
+    if isinstance(use_filter, SafetyFilterConfig) or use_filter:
         settings = use_filter if isinstance(use_filter, SafetyFilterConfig) else None
         task = BrakingSafetyFilter(task, config=settings)
     return PolicyObservation(task, grid=source != "state")
