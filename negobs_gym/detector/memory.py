@@ -46,3 +46,10 @@ class PointHold:
         if self.hold_s > 0 and len(points_vehicle):
             self._frames.append((stamp_s, pose.to_world(points_vehicle)))
         return earlier
+
+    def recall(self, pose: Pose) -> np.ndarray:
+        """(N, 3) vehicle-frame points (at ``pose``) of every frame held, aged by nothing: for a
+        frame without a scan time (no scans), which neither drops nor adds a frame."""
+        if not self._frames:
+            return np.zeros((0, 3))
+        return pose.to_vehicle(np.concatenate([p for _, p in self._frames]))

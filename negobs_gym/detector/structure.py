@@ -155,7 +155,9 @@ class StructureDetector:
         ``ground``: the frame's ground map where paper N's detector already built it
         (:attr:`~negobs_gym.detector.Detection.ground_map`); None builds one from ``scans``. Raises
         :class:`~negobs_gym.errors.ScanError` on a pose that is not a finite :class:`Pose` or a value
-        that is not a :class:`StructuredScan`; an empty mapping gives this frame no points.
+        that is not a :class:`StructuredScan`. An empty mapping gives this frame no points; with
+        ``hold_s`` > 0 the held points still show, at ``pose`` (a sensor dropout does not blank
+        them; with no scan time they are not aged either).
         """
         check_frame(scans, pose)
         cfg = self.config
@@ -174,4 +176,6 @@ class StructureDetector:
         if cfg.hold_s > 0 and scans:
             stamp_s = max(float(s.timestamp_s) for s in scans.values())
             mask |= self.grid.occupied(self._held.recall_and_keep(self.points_m, pose, stamp_s)[:, :2])
+        elif cfg.hold_s > 0:
+            mask |= self.grid.occupied(self._held.recall(pose)[:, :2])
         return mask

@@ -94,6 +94,7 @@ def test_held_structure_follows_the_pose_and_expires() -> None:
     assert held.sum() == first.sum()
     nearer = dataclasses.replace(ROCK, y0_m=ROCK.y0_m - 2.0, y1_m=ROCK.y1_m - 2.0)
     assert held[footprint(GRID, nearer)].all() and not held[footprint(GRID, ROCK)].any()
+    assert np.array_equal(det.update({}, moved), held)  # a frame with no scans (dropout) keeps them
     assert not det.update(expired, moved).any()
     det.update(seen, Pose())
     det.reset()
