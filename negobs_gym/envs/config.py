@@ -78,6 +78,12 @@ class ObservationConfig:
             or ``StructureConfig.hold_s``: a rock within ~4 m passes under the LUX's layers and
             the HDL-64's, and would vanish from the grid). 0 (default): per frame, as the papers.
             Ignored by the oracle source.
+        hazard_hold_s: How long the obstacle cells the safety filter reads
+            (``hazard_state()``, both channels) stay after the detector last reported them, held
+            in the world frame of the INS pose [s]. Not in paper N, whose filter reads each frame
+            alone: a pit the car stands or creeps beside leaves the rig's view (the HDL-64's
+            blind disc, ~5 m), its cells vanish and the filter would let the car on. 0 (default):
+            the last frame's cells. The observation is unchanged.
     """
 
     source: str = "detector"
@@ -96,6 +102,7 @@ class ObservationConfig:
     oracle_range_m: float | None = None
     positive_detector: str = "traversable"
     positive_hold_s: float = 0.0
+    hazard_hold_s: float = 0.0
 
     def __post_init__(self) -> None:
         require(
@@ -155,13 +162,13 @@ class ObservationConfig:
             "positive_detector",
             f"must be one of {POSITIVE_DETECTORS}, got {self.positive_detector!r}",
         )
-        require(
-            isinstance(self.positive_hold_s, (int, float))
-            and math.isfinite(self.positive_hold_s)
-            and self.positive_hold_s >= 0,
-            "positive_hold_s",
-            f"must be finite and >= 0 [s], got {self.positive_hold_s!r}",
-        )
+        for name in ("positive_hold_s", "hazard_hold_s"):
+            value = getattr(self, name)
+            require(
+                isinstance(value, (int, float)) and math.isfinite(value) and value >= 0,
+                name,
+                f"must be finite and >= 0 [s], got {value!r}",
+            )
         route = self.route_points_m
         require(
             isinstance(route, tuple)

@@ -35,6 +35,7 @@ from negobs_gym.detector import (
     TraversableRegion,
     TraversableRegionDetector,
 )
+from negobs_gym.detector.memory import PointHold
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
@@ -81,6 +82,10 @@ def _pin_blas_threads() -> None:
 def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
     """One selector (and its mask cache) per rig and region, shared by the envs of a process."""
     return RoiSelector(rig, config)
+
+
+#: The grid channels whose cells the safety filter reads (``hazard_state()``).
+HAZARD_CHANNELS = ("negative", "positive")
 
 
 class DetectorGrid:
@@ -136,6 +141,8 @@ class DetectorGrid:
         self.region: TraversableRegion | None = None
         self.stamp_s: float | None = None  # sensing time of the last frame (None before the first)
         self.positive: np.ndarray | None = None  # the last frame's positive-obstacle layer
+        self._hazard_holds = {name: PointHold(config.hazard_hold_s) for name in HAZARD_CHANNELS}
+        self._hazards = {name: np.empty((0, 2)) for name in HAZARD_CHANNELS}
 
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
@@ -163,6 +170,8 @@ class DetectorGrid:
         else:
             positive = np.asarray(self.region.positive_obstacles, dtype=bool)
         self.positive = positive
+        for name, layer in zip(HAZARD_CHANNELS, (self.detection.grid, positive), strict=True):
+            self._hazards[name] = self._held_cells(name, layer, ins_pose, float(timestamp_s))
         return {
             "negative": self.detection.grid,
             "positive": positive,
@@ -176,17 +185,23 @@ class DetectorGrid:
         return np.concatenate(pts) if pts else np.empty((0, 3))
 
     def negative_cells_xy_m(self) -> np.ndarray:
-        """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells."""
-        if self.detection is None:
-            return np.empty((0, 2))
-        return _cell_centres_xy_m(self.config.grid, self.detection.grid)
+        """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells, plus those of
+        the last ``config.hazard_hold_s`` seconds (at the last frame's INS pose)."""
+        return self._hazards["negative"]
 
     def positive_cells_xy_m(self) -> np.ndarray:
-        """(N, 2) vehicle-frame centres of the last frame's positive-obstacle cells (the channel
-        ``config.positive_detector`` fills: paper T's obstacles or the structure channel)."""
-        if self.positive is None:
-            return np.empty((0, 2))
-        return _cell_centres_xy_m(self.config.grid, self.positive)
+        """The same for the positive-obstacle cells (the channel ``config.positive_detector``
+        fills: paper T's obstacles or the structure channel)."""
+        return self._hazards["positive"]
+
+    def _held_cells(self, name: str, layer: np.ndarray, pose: Pose, stamp_s: float) -> np.ndarray:
+        """The cells of ``layer`` with those held from earlier frames, (N, 2) vehicle frame."""
+        cells = _cell_centres_xy_m(self.config.grid, layer)
+        if self.config.hazard_hold_s <= 0:
+            return cells
+        points = np.column_stack([cells, np.zeros(len(cells))])
+        held = self._hazard_holds[name].recall_and_keep(points, pose, stamp_s)
+        return np.concatenate([cells, held[:, :2]])
 
     def _observed(self) -> np.ndarray:
         """Cells holding a return, from each scan's points as they are (no gathered copy)."""
