@@ -56,10 +56,11 @@ def test_positive_hold_keeps_paper_t_obstacles_on_the_grid_after_the_lux_loses_t
     assert seen and extra >= 3
 
 
-def test_bad_positive_hold_is_refused() -> None:
-    for bad in (-1.0, float("nan"), float("inf")):
-        with pytest.raises(ConfigError, match="positive_hold_s"):
-            ObservationConfig(positive_hold_s=bad)
+@pytest.mark.parametrize("field", ["positive_hold_s", "hazard_hold_s"])
+def test_bad_holds_are_refused(field: str) -> None:
+    for bad in (-1.0, float("nan"), float("inf"), "2"):
+        with pytest.raises(ConfigError, match=field):
+            ObservationConfig(**{field: bad})
 
 
 def test_structure_positive_channel_marks_rocks_and_boxes_on_their_footprint() -> None:
@@ -109,3 +110,34 @@ def test_structure_positive_channel_marks_rocks_and_boxes_on_their_footprint() -
 def test_bad_positive_detector_is_refused() -> None:
     with pytest.raises(ConfigError, match="positive_detector"):
         ObservationConfig(positive_detector="lidar")
+
+
+@pytest.mark.parametrize("hold_s", [0.0, 1.0])
+def test_hazard_hold_keeps_the_filters_cells_where_they_were_seen(hold_s: float) -> None:
+    """With ``hazard_hold_s`` the filter's points are this frame's cells followed by the earlier
+    frames' cells moved into the current vehicle frame; without, this frame's cells only."""
+    base = BrakingEnv.default_config()
+    env = BrakingEnv(replace(base, observation=replace(base.observation, hazard_hold_s=hold_s)))
+    env.reset(seed=3)
+    assert env._vehicle.config.ins_position_noise_m == 0  # the INS pose is the true pose
+    perception = env._detector.perception
+    action = np.array([0.3, 0.0], np.float32)
+    while not perception.detection.grid.any():
+        env.step(action)
+    seen_world = env._vehicle.true_pose().to_world(
+        np.column_stack([perception.negative_cells_xy_m(), np.zeros(len(perception.negative_cells_xy_m()))])
+    )
+    env.step(action)
+    hazards = env.hazard_state().negative_obstacles_xy_m
+    grid = perception.config.grid
+    current = grid.cell_centres()[perception.detection.grid]
+    assert np.array_equal(hazards[: len(current)], current)
+    if hold_s == 0:
+        assert len(hazards) == len(current)
+    else:
+        earlier = env._vehicle.true_pose().to_vehicle(seen_world)[:, :2]
+        gaps = np.min(
+            np.hypot(*(earlier[:, None, :] - hazards[None, len(current) :, :]).transpose(2, 0, 1)), axis=1
+        )
+        assert gaps.max() < 1e-6  # every cell seen a frame ago is held where it was
+    env.close()
