@@ -1,7 +1,8 @@
 """The track planner behind the braking safety filter: how often the filter lets a navigating car through.
 
 Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` with
-``--planner-sight-m`` and ``--planner-horizon-m``; it reads the course's ground-truth obstacles)
+``--planner-sight-m`` and ``--planner-horizon-m``; it reads the course's ground-truth obstacles;
+``--wheel-clearance-m`` and ``--clearance-m`` widen the berth it keeps from pits and bodies)
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
 the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
 grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B).
@@ -10,7 +11,7 @@ channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= col
 left_track= vetoes=``.
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
-[--filter off|on] [--stop-for-positive] [--buffer-m 5]
+[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--wheel-clearance-m 0.4] [--clearance-m 0.3]
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.drivers import make_driver
+from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.eval.braking_campaign import run_driven_episode
 from negobs_gym.policies.training import make_task_env
 from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
@@ -30,8 +31,8 @@ from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
 class TrackPlanner:
     """The track planner, built on the course the env has just reset to."""
 
-    def __init__(self, env: Any, sight_m: float, horizon_m: float) -> None:
-        self.env, self.sight_m, self.horizon_m = env, sight_m, horizon_m
+    def __init__(self, env: Any, config: TrackPlannerConfig) -> None:
+        self.env, self.config = env, config
         self.driver = None
         self.first_veto = ("-", math.nan)
 
@@ -41,10 +42,7 @@ class TrackPlanner:
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         if self.driver is None:
-            terrain = self.env.unwrapped.terrain
-            self.driver = make_driver(
-                "track_planner", terrain, planner_sight_m=self.sight_m, planner_horizon_m=self.horizon_m
-            )
+            self.driver = TrackPlannerDriver(self.env.unwrapped.terrain, self.config)
             self.driver.reset(0)
         safety = info.get("safety")
         if safety is not None and safety["vetoed"] and self.first_veto[0] == "-":
@@ -62,6 +60,9 @@ def main() -> None:
     parser.add_argument("--buffer-m", type=float, default=BrakingConfig().buffer_m, help="B of Eq. 18 [m]")
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
+    defaults = TrackPlannerConfig()
+    parser.add_argument("--wheel-clearance-m", type=float, default=defaults.wheel_clearance_m)
+    parser.add_argument("--clearance-m", type=float, default=defaults.clearance_m)
     parser.add_argument("--max-steps", type=int, default=600)
     args = parser.parse_args()
     guard: bool | SafetyFilterConfig = False
@@ -69,10 +70,17 @@ def main() -> None:
         guard = SafetyFilterConfig(
             braking=BrakingConfig(buffer_m=args.buffer_m), stop_for_positive=args.stop_for_positive
         )
+    planner = TrackPlannerConfig(
+        sight_m=args.planner_sight_m,
+        plan_horizon_m=args.planner_horizon_m,
+        wheel_clearance_m=args.wheel_clearance_m,
+        clearance_m=args.clearance_m,
+        pursuit=PurePursuitConfig(),
+    )
     totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         env = make_task_env(args.env, None)
-        driver = TrackPlanner(env, args.planner_sight_m, args.planner_horizon_m)
+        driver = TrackPlanner(env, planner)
         m = run_driven_episode(env, driver, seed, guard, args.max_steps)
         env.close()
         for k in totals:
