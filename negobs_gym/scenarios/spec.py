@@ -319,6 +319,7 @@ class CriteriaSpec:
     min_positive_gap_m: float | None = None
     collision: bool | None = None
     goal_reached: bool | None = None
+    left_track: bool | None = None
     max_decel_mps2: float | None = None
     max_vetoes: int | None = None
     max_false_vetoes: int | None = None

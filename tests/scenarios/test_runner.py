@@ -95,6 +95,7 @@ def test_criteria_check_each_named_bound() -> None:
     )
     assert check_criteria(CriteriaSpec(min_positive_gap_m=3.5), result) == ("min_positive_gap_m",)
     assert check_criteria(CriteriaSpec(min_positive_gap_m=3.0), result) == ()
+    assert check_criteria(CriteriaSpec(left_track=True), result) == ("left_track",)
     assert "positive_gap_m=3.00" in result.line()
     none = dataclasses.replace(result, stop_margin_m=None, stopped_before=False, positive_gap_m=math.inf)
     assert check_criteria(CriteriaSpec(min_stop_margin_m=0.0, stopped_before=False), none) == (
