@@ -82,6 +82,14 @@ class GridSpec:
         xx, yy = np.meshgrid(x, y)
         return np.stack([xx, yy], axis=-1)
 
+    def centres_of(self, mask: np.ndarray) -> np.ndarray:
+        """(N, 2) vehicle-frame centres of the set cells of ``mask`` (rows, cols), row-major:
+        ``cell_centres()[mask]`` without building every cell's centre."""
+        row, col = np.nonzero(mask)
+        x = -self.side_m + (col + 0.5) * self.cell_m
+        y = -self.back_m + (row + 0.5) * self.cell_m
+        return np.stack([x, y], axis=1).astype(float)
+
 
 @kernel
 def _mark_cells(

@@ -38,11 +38,7 @@ class PointHold:
         """(N, 3) vehicle-frame points (at ``pose``) of the frames held from before ``stamp_s``;
         then keeps this frame's ``points_vehicle`` (n, 3), seen at ``pose``, for the next calls."""
         self._frames = [(t, p) for t, p in self._frames if 0.0 <= stamp_s - t <= self.hold_s]
-        earlier = (
-            pose.to_vehicle(np.concatenate([p for _, p in self._frames]))
-            if self._frames
-            else np.zeros((0, 3))
-        )
+        earlier = self.recall(pose)
         if self.hold_s > 0 and len(points_vehicle):
             self._frames.append((stamp_s, pose.to_world(points_vehicle)))
         return earlier

@@ -22,7 +22,6 @@ import os
 
 import numpy as np
 
-from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import (
@@ -196,7 +195,7 @@ class DetectorGrid:
 
     def _held_cells(self, name: str, layer: np.ndarray, pose: Pose, stamp_s: float) -> np.ndarray:
         """The cells of ``layer`` with those held from earlier frames, (N, 2) vehicle frame."""
-        cells = _cell_centres_xy_m(self.config.grid, layer)
+        cells = self.config.grid.centres_of(layer)
         if self.config.hazard_hold_s <= 0:
             return cells
         points = np.column_stack([cells, np.zeros(len(cells))])
@@ -209,11 +208,3 @@ class DetectorGrid:
         for s in self.scans.values():
             mask |= self.config.grid.occupied(s.points_vehicle[..., :2])
         return mask
-
-
-def _cell_centres_xy_m(grid: GridSpec, mask: np.ndarray) -> np.ndarray:
-    """(N, 2) vehicle-frame centres of the set cells of ``mask``, in row-major order."""
-    row, col = np.nonzero(mask)
-    x = -grid.side_m + (col + 0.5) * grid.cell_m
-    y = -grid.back_m + (row + 0.5) * grid.cell_m
-    return np.stack([x, y], axis=1).astype(float)

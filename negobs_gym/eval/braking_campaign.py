@@ -25,7 +25,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
-from negobs_gym.safety.filter import SafetyFilterConfig
+from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -216,9 +216,7 @@ def run_driven_episode(
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
-    guard = filtered if isinstance(filtered, SafetyFilterConfig) else None
-    if guard is None and filtered:  # True (or any truthy flag): the defaults
-        guard = SafetyFilterConfig()
+    guard = filter_config(filtered)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
     driver.reset(seed)

@@ -41,7 +41,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
-from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, filter_config
 
 log = logging.getLogger(__name__)
 
@@ -98,8 +98,8 @@ def make_env(env: str, source: str, use_filter: bool | SafetyFilterConfig) -> gy
     """One training env: :func:`make_task_env`, the safety filter if asked (True: its defaults, or
     a :class:`SafetyFilterConfig`), :class:`PolicyObservation`."""
     task = make_task_env(env, source)
-    if isinstance(use_filter, SafetyFilterConfig) or use_filter:
-        settings = use_filter if isinstance(use_filter, SafetyFilterConfig) else None
+    settings = filter_config(use_filter)
+    if settings is not None:
         task = BrakingSafetyFilter(task, config=settings)
     return PolicyObservation(task, grid=source != "state")
 

@@ -3,7 +3,7 @@
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import hazard_distance_m
 from negobs_gym.safety.decision import SafetyDecision
-from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, filter_config
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 __all__ = [
@@ -15,6 +15,7 @@ __all__ = [
     "SafetyDecision",
     "SafetyFilterConfig",
     "braking_distance_m",
+    "filter_config",
     "hazard_distance_m",
     "max_safe_speed_mps",
 ]

@@ -69,6 +69,14 @@ class SafetyFilterConfig:
         )
 
 
+def filter_config(setting: bool | SafetyFilterConfig) -> SafetyFilterConfig | None:
+    """The filter a run asks for: a :class:`SafetyFilterConfig` as it is, any true flag (``True``,
+    ``np.True_``, 1) the defaults, a false one None (no filter)."""
+    if isinstance(setting, SafetyFilterConfig):
+        return setting
+    return SafetyFilterConfig() if setting else None
+
+
 class BrakingSafetyFilter(gym.Wrapper):
     """Replaces unsafe longitudinal commands so that d - travelled >= R(v') holds after each step.
 

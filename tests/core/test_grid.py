@@ -71,3 +71,10 @@ def test_extent_is_the_box_whose_points_fall_in_cells():
     outside = np.array([[x0 - eps, 0.0], [x1, 0.0], [0.0, y0 - eps], [0.0, y1]])
     assert grid.cell_of(inside)[2].all()
     assert not grid.cell_of(outside)[2].any()
+
+
+def test_centres_of_a_mask_are_those_cells_centres():
+    grid = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)
+    mask = np.random.default_rng(0).random(grid.shape) < 0.05
+    assert np.array_equal(grid.centres_of(mask), grid.cell_centres()[mask])
+    assert grid.centres_of(np.zeros(grid.shape, bool)).shape == (0, 2)

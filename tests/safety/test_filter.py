@@ -394,3 +394,12 @@ def test_stop_for_positive_must_be_a_bool():
     with pytest.raises(ConfigError) as err:
         SafetyFilterConfig(stop_for_positive="yes")
     assert err.value.field == "stop_for_positive"
+
+
+def test_filter_config_reads_flags_and_configs():
+    from negobs_gym.safety import filter_config
+
+    custom = SafetyFilterConfig(stop_for_positive=True)
+    assert filter_config(custom) is custom
+    assert filter_config(True) == filter_config(np.True_) == filter_config(1) == SafetyFilterConfig()
+    assert filter_config(False) is None and filter_config(np.False_) is None and filter_config(0) is None
