@@ -28,7 +28,13 @@ from negobs_gym.envs.outcome import StepOutcome, termination_conditions
 from negobs_gym.envs.perception import DetectorGrid
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.envs.sources import DetectorSource, GridSource, make_grid_source
-from negobs_gym.envs.world_cache import CachedWorld, WorldCache, build_world, generator_key
+from negobs_gym.envs.world_cache import (
+    CachedWorld,
+    WorldCache,
+    build_world,
+    generator_key,
+    release_freed_memory,
+)
 from negobs_gym.errors import ActionError, ConfigError, ResetNeeded
 from negobs_gym.safety.braking import BrakingConfig
 from negobs_gym.safety.decision import SafetyDecision
@@ -145,6 +151,7 @@ class NegObsEnv(gym.Env):
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        evictions = self._worlds.evictions
         self._entry = self._acquire_world()
         episode = self._entry.episode
         self.terrain = episode.terrain
@@ -158,6 +165,8 @@ class NegObsEnv(gym.Env):
         self._sensor_rng = np.random.default_rng(int(self.np_random.integers(0, 2**63)))
         self._grid_source.start(self._world, self._vehicle, self.terrain, self._sensor_rng, entry.extras)
         self._detector = self._grid_source if isinstance(self._grid_source, DetectorSource) else None
+        if self._worlds.evictions > evictions:  # the dropped world's last references are gone now
+            release_freed_memory()
         self._steps = 0
         self._still_s = 0.0
         self._entered = False
@@ -199,7 +208,7 @@ class NegObsEnv(gym.Env):
             entry = build_world(episode, spec.physics, vehicle_config, settle_steps)
             if pool is None:
                 entry.rng_state_after_draw = copy.deepcopy(self.np_random.bit_generator.state)
-            self._worlds.put(key, entry, keep=self._entry)
+            self._worlds.put(key, entry)
         elif pool is None:
             self.np_random.bit_generator.state = copy.deepcopy(entry.rng_state_after_draw)
         entry.restore()

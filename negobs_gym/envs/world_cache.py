@@ -8,13 +8,20 @@ hits), or the index of the draw in a fixed pool (``EnvConfig.terrain_pool_size``
 settling, the PyBullet state is saved (``saveState``); every episode on that world, the first
 included, starts from ``restoreState``, so a kept world gives the same episode bit for bit as a
 fresh one.
+
+A world dropped from the cache frees its PyBullet and Embree memory into the C heap, where glibc
+keeps most of it; :func:`release_freed_memory` hands it back to the OS, so a long run of resets
+onto new terrains holds one world's memory, not the high-water mark of all the worlds it built.
 """
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -28,12 +35,33 @@ from negobs_gym.sim.world import World, WorldConfig
 if TYPE_CHECKING:
     from negobs_gym.scenarios.spec import SampledScenario
 
-__all__ = ["CachedWorld", "WorldCache", "generator_key"]
+__all__ = ["CachedWorld", "WorldCache", "generator_key", "release_freed_memory"]
 
 
 def generator_key(rng: np.random.Generator) -> str:
     """A digest of ``rng``'s bit-generator state: equal keys give equal draws."""
     return hashlib.sha1(repr(rng.bit_generator.state).encode()).hexdigest()
+
+
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim``, or None where the C library has none (macOS, musl)."""
+    try:
+        return ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+def release_freed_memory() -> bool:
+    """Return the C heap's free pages to the OS (glibc ``malloc_trim``); False where unavailable.
+
+    Costs ~10 ms after a world is dropped (OffroadNav-v0), against ~0.6 s to build the next one.
+    """
+    trim = _malloc_trim()
+    if trim is None:
+        return False
+    trim(0)
+    return True
 
 
 @dataclass(eq=False)
@@ -76,6 +104,7 @@ class WorldCache:
         self._worlds: OrderedDict[str, CachedWorld] = OrderedDict()
         self.hits = 0
         self.misses = 0
+        self.evictions = 0  # worlds dropped and closed so far
 
     def __len__(self) -> int:
         return len(self._worlds)
@@ -90,18 +119,18 @@ class WorldCache:
         self._worlds.move_to_end(key)
         return entry
 
-    def put(self, key: str, entry: CachedWorld, keep: CachedWorld | None = None) -> None:
-        """Add ``entry``; evicts the least recently used others (never ``entry`` or ``keep``)."""
+    def put(self, key: str, entry: CachedWorld) -> None:
+        """Add ``entry`` as the most recently used; closes the least recently used beyond the limit.
+
+        The env calls it on reset, when the world of the episode that ended is no longer needed:
+        with ``max_worlds = 1`` that world is closed here and one world stays alive.
+        """
         self._worlds[key] = entry
         self._worlds.move_to_end(key)
-        for old_key in list(self._worlds):
-            if len(self._worlds) <= self.max_worlds:
-                break
-            old = self._worlds[old_key]
-            if old is entry or old is keep:
-                continue
-            del self._worlds[old_key]
+        while len(self._worlds) > self.max_worlds:
+            _, old = self._worlds.popitem(last=False)
             old.close()
+            self.evictions += 1
 
     def close(self) -> None:
         """Close every kept world."""

@@ -1,0 +1,78 @@
+"""Settled worlds kept between episodes: LRU eviction, closing, and the heap handed back."""
+
+from __future__ import annotations
+
+import ctypes
+import os
+
+import gymnasium as gym
+import pytest
+
+import negobs_gym  # noqa: F401 - registers the envs
+from negobs_gym.envs.world_cache import WorldCache, release_freed_memory
+
+
+class _FakeWorld:
+    """Stands in for a CachedWorld: the cache only calls ``close``."""
+
+    def __init__(self) -> None:
+        self.closed = False
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_cache_closes_the_least_recently_used_world_beyond_its_limit():
+    cache = WorldCache(2)
+    a, b, c = _FakeWorld(), _FakeWorld(), _FakeWorld()
+    cache.put("a", a)
+    cache.put("b", b)
+    assert cache.get("a") is a  # a is now the most recently used
+    cache.put("c", c)
+    assert b.closed and not a.closed and not c.closed
+    assert len(cache) == 2 and cache.evictions == 1
+    assert cache.get("b") is None and cache.misses == 1 and cache.hits == 1
+    cache.close()
+    assert a.closed and c.closed and len(cache) == 0
+
+
+def test_a_reset_onto_a_new_terrain_closes_the_last_episodes_world():
+    env = gym.make("negobs_gym/OffroadNav-v0")
+    base = env.unwrapped
+    assert base.config.world_cache_size == 1
+    env.reset(seed=0)
+    first = base._world
+    env.reset(seed=1)
+    assert first.closed, "with one world kept, the ended episode's world must be released"
+    assert not base._world.closed and len(base._worlds) == 1 and base._worlds.evictions == 1
+    env.step(env.action_space.sample())  # the env runs on its new world
+    env.close()
+
+
+def _rss_mb() -> float:
+    with open(f"/proc/{os.getpid()}/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _has_malloc_trim() -> bool:
+    try:
+        ctypes.CDLL(None).malloc_trim  # noqa: B018 - probing for the symbol
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
+@pytest.mark.skipif(not (_has_malloc_trim() and os.path.exists("/proc/self/statm")), reason="needs glibc")
+def test_release_freed_memory_hands_fragmented_heap_back():
+    # 1 kB buffers come from malloc's heap (not Python's small-object arenas, not mmap); freed,
+    # glibc keeps their pages while a live block sits above them.
+    release_freed_memory()  # so the blocks take new pages, not those earlier tests freed
+    start = _rss_mb()
+    blocks = [bytearray(1000) for _ in range(130_000)]  # ~130 MB
+    keep = blocks[-1]  # one block at the top of the heap stops the heap shrinking by itself
+    del blocks
+    before = _rss_mb()
+    assert before - start > 100.0, "the freed blocks must still be resident for the test to mean anything"
+    assert release_freed_memory()
+    assert before - _rss_mb() > 50.0
+    del keep
