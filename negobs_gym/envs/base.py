@@ -391,6 +391,7 @@ class NegObsEnv(gym.Env):
             positive_obstacles_xy_m=self._detector.perception.positive_cells_xy_m(),
             vehicle_width_m=cfg.width_m,
             wheelbase_m=cfg.wheelbase_m,
+            front_length_m=cfg.length_m - cfg.rear_overhang_m,
             max_steer_rad=math.radians(cfg.max_steer_deg),
             dt_s=1.0 / self.config.control_hz,
             max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,

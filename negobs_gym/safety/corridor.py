@@ -13,15 +13,23 @@ STRAIGHT_CURVATURE_PER_M = 1e-9
 
 
 def hazard_distance_m(
-    points_xy_m: np.ndarray, steer_rad: float, wheelbase_m: float, half_width_m: float
+    points_xy_m: np.ndarray,
+    steer_rad: float,
+    wheelbase_m: float,
+    half_width_m: float,
+    front_length_m: float = 0.0,
 ) -> float:
     """Arc length from the origin to the nearest point inside the swept corridor (inf when clear).
 
-    The rear-axle centre follows a circle of radius ``wheelbase / tan(steer)`` (kinematic
-    bicycle; steer > 0 turns left, towards -X); the corridor is the band of half-width
-    ``half_width_m`` around it. A point inside the band is reached at the arc length of its radial
-    projection. Assumes radius > half-width (true for road vehicles). Straight path: points with
-    ``|x| <= half_width`` and ``y >= 0``, at distance ``y``.
+    The rear-axle centre follows a circle of radius ``R = wheelbase / tan(steer)`` (kinematic
+    bicycle; steer > 0 turns left, towards -X). The corridor is the ring swept by the rectangle of
+    half-width ``half_width_m`` reaching ``front_length_m`` ahead of the rear axle (to the front
+    bumper): from ``R - half_width`` (the inner rear corner) to ``hypot(R + half_width,
+    front_length)`` (the outer front corner, which in a tight turn sweeps up to a metre outside
+    the rear-axle band). A point inside is reached at the arc length of its radial projection onto
+    the rear-axle circle: the distance convention of the straight path, where a point at ``y``
+    ahead is at ``y``. Assumes ``R > half_width`` (true for road vehicles). Straight path: points
+    with ``|x| <= half_width`` and ``y >= 0``, at distance ``y``.
     """
     pts = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
     if pts.shape[0] == 0:
@@ -35,7 +43,7 @@ def hazard_distance_m(
     xm = x if kappa > 0 else -x  # mirror right turns onto left turns
     cx = xm + radius  # vector from the turn centre (-radius, 0) to the point
     r = np.hypot(cx, y)
-    inside = np.abs(r - radius) <= half_width_m
+    inside = (r >= radius - half_width_m) & (r <= math.hypot(radius + half_width_m, front_length_m))
     if not np.any(inside):
         return float("inf")
     theta = np.mod(libm.arctan2(y[inside], cx[inside]), 2.0 * np.pi)

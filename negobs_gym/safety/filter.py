@@ -212,11 +212,12 @@ class BrakingSafetyFilter(gym.Wrapper):
         state = self._hazard_state()
         steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
         half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
-        d = hazard_distance_m(state.negative_obstacles_xy_m, steer, state.wheelbase_m, half_width)
+        corridor = (steer, state.wheelbase_m, half_width, state.front_length_m)
+        d = hazard_distance_m(state.negative_obstacles_xy_m, *corridor)
         channel = "negative" if np.isfinite(d) else None
         if self.config.stop_for_positive:
             positive = state.positive_obstacles_xy_m
-            d_positive = hazard_distance_m(positive, steer, state.wheelbase_m, half_width)
+            d_positive = hazard_distance_m(positive, *corridor)
             if d_positive < d:
                 d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))

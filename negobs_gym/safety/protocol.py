@@ -6,7 +6,8 @@ Conventions every negobs env follows (and any other env must follow to be filter
   brake), ``action[1]`` steering (+1 = full LEFT = ``+max_steer_rad``, positive yaw rate).
 * Vehicle frame (see ``negobs_gym.core.pose``): Y forward, X right, Z up; origin at the rear-axle
   centre (the INS point). Steering left turns towards -X. Hazard distances are measured from the
-  origin along the path.
+  origin along the path; ``front_length_m`` (rear axle to front bumper) widens the corridor to
+  what the front corners sweep in a turn.
 * Longitudinal model over one control period ``dt_s``: ``v' = max(0, v + dt_s * accel(a0))`` with
   ``accel(a0) = a0 * max_accel_mps2`` for ``a0 >= 0`` and ``a0 * max_brake_decel_mps2`` for
   ``a0 < 0``.
@@ -47,6 +48,9 @@ class HazardState:
     perception_time_s: float | None  # when the hazard points were sensed [s]; None = no perception
     # (M, 2) detected positive-obstacle points [m], sensed with the negative ones; empty = none
     positive_obstacles_xy_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    # rear axle to front bumper [m]: the corridor reaches out to the outer front corner's circle in
+    # a turn; 0 = the band around the rear-axle arc only
+    front_length_m: float = 0.0
 
     def __post_init__(self) -> None:
         require(
@@ -67,6 +71,11 @@ class HazardState:
             value = getattr(self, name)
             require(np.isfinite(value) and value > 0, name, f"must be finite and > 0, got {value!r}")
         require(self.max_steer_rad < np.pi / 2, "max_steer_rad", "must be < pi/2")
+        require(
+            np.isfinite(self.front_length_m) and self.front_length_m >= 0,
+            "front_length_m",
+            f"must be finite and >= 0, got {self.front_length_m!r}",
+        )
         require(np.isfinite(self.time_s), "time_s", f"must be finite, got {self.time_s!r}")
         if self.perception_time_s is not None:
             require(

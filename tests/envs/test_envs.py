@@ -101,7 +101,9 @@ def test_detector_grid_sees_the_braking_ditch_and_feeds_the_hazards() -> None:
         assert not terminated
     k = env.config.observation.channels.index("negative")
     assert obs["grid"][k].any(), "the detector grid shows no ditch 6.5 m ahead"
-    hazards = env.hazard_state().negative_obstacles_xy_m
+    state = env.hazard_state()
+    assert state.front_length_m == pytest.approx(bumper_m)  # the corridor reaches the front corners
+    hazards = state.negative_obstacles_xy_m
     straight_ahead = hazards[np.abs(hazards[:, 0]) < 1.0]
     truth_m = info["distance_to_negative_ahead_m"] + bumper_m  # from the rear axle
     # the outline runs from the last ground point A before the rim, up to a ring gap short of it:

@@ -20,3 +20,32 @@ def test_left_turn_quarter_circle():
     # the same point is clear when turning right
     assert np.isposinf(hazard_distance_m(np.array([[-radius, radius]]), -0.3, 2.8, 1.0))
     assert np.isclose(hazard_distance_m(np.array([[radius, radius]]), -0.3, 2.8, 1.0), d)
+
+
+def test_outer_front_corner_widens_the_corridor_in_a_turn_only():
+    steer, wheelbase, half_width, front = 0.6, 2.8, 1.2, 3.65
+    radius = wheelbase / np.tan(steer)
+    outer = np.hypot(radius + half_width, front)  # the outer front corner's circle
+    assert outer - (radius + half_width) > 0.8  # the gap the rear-axle band left open
+
+    def at(r, theta):  # a point at radius r around the left turn's centre (-R, 0), angle theta
+        return np.array([[r * np.cos(theta) - radius, r * np.sin(theta)]])
+
+    beyond_band = at(0.5 * (radius + half_width + outer), np.pi / 3)
+    assert np.isposinf(hazard_distance_m(beyond_band, steer, wheelbase, half_width))
+    d = hazard_distance_m(beyond_band, steer, wheelbase, half_width, front)
+    assert np.isclose(d, radius * np.pi / 3)  # radial projection onto the rear-axle circle
+    assert np.isposinf(hazard_distance_m(at(outer + 0.01, np.pi / 3), steer, wheelbase, half_width, front))
+    inner = at(radius - half_width - 0.01, np.pi / 3)  # the inner side is the rear axle's: unchanged
+    assert np.isposinf(hazard_distance_m(inner, steer, wheelbase, half_width, front))
+    # the straight path is the rectangle swept forward: its width does not grow
+    pts = np.array([[1.3, 5.0], [1.1, 9.0]])
+    assert hazard_distance_m(pts, 0.0, wheelbase, half_width, front) == 9.0
+
+
+def test_a_point_at_the_outer_front_corner_is_inside_now():
+    radius = 2.8 / np.tan(0.6)
+    corner = np.array([[-1.19, 3.6]])  # just inside the front left corner, the outer one turning right
+    assert np.isposinf(hazard_distance_m(corner, -0.6, 2.8, 1.2))  # beyond the rear-axle band
+    d = hazard_distance_m(corner, -0.6, 2.8, 1.2, 3.65)
+    assert np.isclose(d, radius * np.arctan2(3.6, radius + 1.19))

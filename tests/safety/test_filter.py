@@ -21,25 +21,38 @@ from .standins import DITCH_Y_M, DT_S, FixedHazardEnv, PointCarDitchEnv
 HW = 0.5 * (1.8 + 0.4)
 
 
-def brute_distance(points, steer_rad, wheelbase, half_width, ds=0.01, s_max=80.0):
-    """First arc length at which the swept cross-axle segment covers a point (dense sampling)."""
+FRONT_M = 3.0  # rear axle to front bumper of the test car
+
+
+def brute_distance(points, steer_rad, wheelbase, half_width, front_length=0.0, ds=0.01, s_max=80.0):
+    """Arc length at which the rear axle's cross line passes a point the swept body covers.
+
+    The body (the rectangle from the rear axle to ``front_length`` ahead, ``half_width`` either
+    side) is posed every ``ds`` along the path; a point it covers at some pose is at the arc length
+    where its along-track coordinate first crosses zero on the near side of the turn centre.
+    """
     s = np.arange(0.0, s_max, ds)
     kappa = np.tan(steer_rad) / wheelbase
     if abs(kappa) < 1e-9:
         cx, cy, hx, hy = np.zeros_like(s), s, np.zeros_like(s), np.ones_like(s)
+        radius = np.inf
     else:
         th = kappa * s  # heading change, left positive; heading vector (-sin, cos)
         cx = (np.cos(th) - 1.0) / kappa
         cy = np.sin(th) / kappa
         hx, hy = -np.sin(th), np.cos(th)
+        radius = 1.0 / abs(kappa)
     best = np.inf
     for p in points:
         rx, ry = p[0] - cx, p[1] - cy
         along = rx * hx + ry * hy
         across = rx * hy - ry * hx
-        hit = (np.abs(along) <= 0.7 * ds) & (np.abs(across) <= half_width)
-        if np.any(hit):
-            best = min(best, s[np.argmax(hit)])
+        covered = (along >= 0.0) & (along <= front_length) & (np.abs(across) <= half_width)
+        crossing = (np.abs(along) <= 0.7 * ds) & (np.abs(across) < radius)
+        if front_length == 0.0:  # the cross-axle segment itself
+            covered = crossing & (np.abs(across) <= half_width)
+        if np.any(covered) and np.any(crossing):
+            best = min(best, s[np.argmax(crossing)])
     return best
 
 
@@ -49,6 +62,7 @@ def make_state(v, points, time_s=0.0, perception_time_s=0.0):
         negative_obstacles_xy_m=points,
         vehicle_width_m=1.8,
         wheelbase_m=2.8,
+        front_length_m=FRONT_M,
         max_steer_rad=float(np.deg2rad(35)),
         dt_s=0.1,
         max_accel_mps2=3.0,
@@ -81,7 +95,7 @@ def test_never_lets_unsafe_through(v, a0, steer, pts, mode):
     rec = info["safety"]
     applied = env.unwrapped.received
     assert applied[1] == action[1]
-    d_bf = brute_distance(pts, float(action[1]) * state.max_steer_rad, 2.8, HW)
+    d_bf = brute_distance(pts, float(action[1]) * state.max_steer_rad, 2.8, HW, FRONT_M)
     v_next = state.predicted_speed_mps(float(applied[0]))
     ok = d_bf + 0.02 - state.travelled_m(v_next) >= float(braking_distance_m(v_next))
     if not rec["vetoed"]:
