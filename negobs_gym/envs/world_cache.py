@@ -45,10 +45,10 @@ def generator_key(rng: np.random.Generator) -> str:
 
 @functools.cache
 def _malloc_trim() -> Callable[[int], int] | None:
-    """glibc's ``malloc_trim``, or None where the C library has none (macOS, musl)."""
+    """glibc's ``malloc_trim``, or None where the C library has none (macOS, musl, Windows)."""
     try:
         return ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):  # TypeError: Windows cannot open "no library"
         return None
 
 
