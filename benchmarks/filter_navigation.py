@@ -5,13 +5,15 @@ Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` wit
 ``--wheel-clearance-m`` and ``--clearance-m`` widen the berth it keeps from pits and bodies)
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
 the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
-grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B).
+grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B,
+``--steer-search`` lets the filter try other steering before it brakes).
 Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
 left_track= vetoes=``.
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
-[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--wheel-clearance-m 0.4] [--clearance-m 0.3]
+[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--steer-search 0] [--wheel-clearance-m 0.4]
+[--clearance-m 0.3]
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ def main() -> None:
     parser.add_argument("--filter", choices=("off", "on"), default="on")
     parser.add_argument("--stop-for-positive", action="store_true")
     parser.add_argument("--buffer-m", type=float, default=BrakingConfig().buffer_m, help="B of Eq. 18 [m]")
+    parser.add_argument(
+        "--steer-search", type=float, default=0.0, help="largest steering change instead of a veto (0: off)"
+    )
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
     defaults = TrackPlannerConfig()
@@ -68,7 +73,9 @@ def main() -> None:
     guard: bool | SafetyFilterConfig = False
     if args.filter == "on":
         guard = SafetyFilterConfig(
-            braking=BrakingConfig(buffer_m=args.buffer_m), stop_for_positive=args.stop_for_positive
+            braking=BrakingConfig(buffer_m=args.buffer_m),
+            stop_for_positive=args.stop_for_positive,
+            steer_search=args.steer_search,
         )
     planner = TrackPlannerConfig(
         sight_m=args.planner_sight_m,
