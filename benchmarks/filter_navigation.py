@@ -9,7 +9,7 @@ grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`
 ``--steer-search`` lets the filter try other steering before it brakes).
 Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
-left_track= vetoes=``.
+left_track= vetoes= steered=`` (steered: steps on which the filter changed the steering).
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
 [--filter off|on] [--stop-for-positive] [--buffer-m 5] [--steer-search 0] [--wheel-clearance-m 0.4]
@@ -35,12 +35,12 @@ class TrackPlanner:
 
     def __init__(self, env: Any, config: TrackPlannerConfig) -> None:
         self.env, self.config = env, config
-        self.driver = None
-        self.first_veto = ("-", math.nan)
+        self.reset(0)
 
     def reset(self, seed: int) -> None:
         self.driver = None
         self.first_veto = ("-", math.nan)
+        self.steered = 0  # steps on which the filter changed the steering
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         if self.driver is None:
@@ -49,6 +49,7 @@ class TrackPlanner:
         safety = info.get("safety")
         if safety is not None and safety["vetoed"] and self.first_veto[0] == "-":
             self.first_veto = (safety["hazard_channel"], safety["hazard_distance_m"])
+        self.steered += bool(safety is not None and safety["steered"])
         return self.driver.act(obs, info)
 
 
@@ -84,24 +85,26 @@ def main() -> None:
         clearance_m=args.clearance_m,
         pursuit=PurePursuitConfig(),
     )
-    totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
+    totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes", "steered"), 0)
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         env = make_task_env(args.env, None)
         driver = TrackPlanner(env, planner)
         m = run_driven_episode(env, driver, seed, guard, args.max_steps)
         env.close()
+        m["steered"] = driver.steered
         for k in totals:
             totals[k] += int(m[k])
         channel, distance = driver.first_veto
         print(
             f"seed={seed} goal={int(m['goal'])} entered={int(m['entered'])} collision={int(m['collision'])} "
-            f"left_track={int(m['left_track'])} vetoes={m['vetoes']} steps={m['steps']} "
+            f"left_track={int(m['left_track'])} vetoes={m['vetoes']} steered={m['steered']} "
+            f"steps={m['steps']} "
             f"first_veto={channel}@{distance:.2f}m",
             flush=True,
         )
     print(
         f"goal={totals['goal']}/{args.seeds} entries={totals['entered']} collisions={totals['collision']} "
-        f"left_track={totals['left_track']} vetoes={totals['vetoes']}"
+        f"left_track={totals['left_track']} vetoes={totals['vetoes']} steered={totals['steered']}"
     )
 
 
