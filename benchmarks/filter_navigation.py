@@ -5,15 +5,13 @@ Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` wit
 ``--wheel-clearance-m`` and ``--clearance-m`` widen the berth it keeps from pits and bodies)
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
 the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
-grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B,
-``--steer-search`` lets the filter try other steering before it brakes).
+grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B).
 Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
-left_track= vetoes= steered=`` (steered: steps on which the filter changed the steering).
+left_track= vetoes=``.
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
-[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--steer-search 0] [--wheel-clearance-m 0.4]
-[--clearance-m 0.3]
+[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--wheel-clearance-m 0.4] [--clearance-m 0.3]
 """
 
 from __future__ import annotations
@@ -35,12 +33,12 @@ class TrackPlanner:
 
     def __init__(self, env: Any, config: TrackPlannerConfig) -> None:
         self.env, self.config = env, config
-        self.reset(0)
+        self.driver = None
+        self.first_veto = ("-", math.nan)
 
     def reset(self, seed: int) -> None:
         self.driver = None
         self.first_veto = ("-", math.nan)
-        self.steered = 0  # steps on which the filter changed the steering
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         if self.driver is None:
@@ -49,7 +47,6 @@ class TrackPlanner:
         safety = info.get("safety")
         if safety is not None and safety["vetoed"] and self.first_veto[0] == "-":
             self.first_veto = (safety["hazard_channel"], safety["hazard_distance_m"])
-        self.steered += bool(safety is not None and safety["steered"])
         return self.driver.act(obs, info)
 
 
@@ -61,9 +58,6 @@ def main() -> None:
     parser.add_argument("--filter", choices=("off", "on"), default="on")
     parser.add_argument("--stop-for-positive", action="store_true")
     parser.add_argument("--buffer-m", type=float, default=BrakingConfig().buffer_m, help="B of Eq. 18 [m]")
-    parser.add_argument(
-        "--steer-search", type=float, default=0.0, help="largest steering change instead of a veto (0: off)"
-    )
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
     defaults = TrackPlannerConfig()
@@ -74,9 +68,7 @@ def main() -> None:
     guard: bool | SafetyFilterConfig = False
     if args.filter == "on":
         guard = SafetyFilterConfig(
-            braking=BrakingConfig(buffer_m=args.buffer_m),
-            stop_for_positive=args.stop_for_positive,
-            steer_search=args.steer_search,
+            braking=BrakingConfig(buffer_m=args.buffer_m), stop_for_positive=args.stop_for_positive
         )
     planner = TrackPlannerConfig(
         sight_m=args.planner_sight_m,
@@ -85,26 +77,24 @@ def main() -> None:
         clearance_m=args.clearance_m,
         pursuit=PurePursuitConfig(),
     )
-    totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes", "steered"), 0)
+    totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         env = make_task_env(args.env, None)
         driver = TrackPlanner(env, planner)
         m = run_driven_episode(env, driver, seed, guard, args.max_steps)
         env.close()
-        m["steered"] = driver.steered
         for k in totals:
             totals[k] += int(m[k])
         channel, distance = driver.first_veto
         print(
             f"seed={seed} goal={int(m['goal'])} entered={int(m['entered'])} collision={int(m['collision'])} "
-            f"left_track={int(m['left_track'])} vetoes={m['vetoes']} steered={m['steered']} "
-            f"steps={m['steps']} "
+            f"left_track={int(m['left_track'])} vetoes={m['vetoes']} steps={m['steps']} "
             f"first_veto={channel}@{distance:.2f}m",
             flush=True,
         )
     print(
         f"goal={totals['goal']}/{args.seeds} entries={totals['entered']} collisions={totals['collision']} "
-        f"left_track={totals['left_track']} vetoes={totals['vetoes']} steered={totals['steered']}"
+        f"left_track={totals['left_track']} vetoes={totals['vetoes']}"
     )
 
 

@@ -13,7 +13,7 @@ class SafetyDecision:
     """What :class:`~negobs_gym.safety.BrakingSafetyFilter` decided for one step.
 
     Attributes:
-        vetoed: The proposed longitudinal command was replaced (full brake or a capped speed).
+        vetoed: The proposed action was replaced.
         hazard_distance_m: Arc length to the nearest detected hazard in the corridor (inf = clear).
         braking_distance_m: R(v) at the current speed (Eq. 18).
         safe_speed_mps: Largest v with R(v) <= hazard distance.
@@ -24,8 +24,6 @@ class SafetyDecision:
             filter braked whatever the distance.
         hazard_channel: Which grid channel the nearest hazard came from: ``"negative"``,
             ``"positive"`` (only with ``stop_for_positive``), or None when the corridor is clear.
-        steered: Instead of a veto, the filter changed the steering (``steer_search``); the hazard
-            distance and channel are then those of the applied arc.
     """
 
     vetoed: bool
@@ -37,14 +35,11 @@ class SafetyDecision:
     perception_age_s: float
     perception_stale: bool
     hazard_channel: Literal["negative", "positive"] | None = None
-    steered: bool = False
 
     @property
     def cost(self) -> float:
-        """1.0 when vetoed or steered (the proposal was unsafe) or when the vehicle already
-        violates d < R(v), else 0.0 (safe-RL cost)."""
-        unsafe_proposal = self.vetoed or self.steered
-        return 1.0 if (unsafe_proposal or self.hazard_distance_m < self.braking_distance_m) else 0.0
+        """1.0 when vetoed or when the vehicle already violates d < R(v), else 0.0 (safe-RL cost)."""
+        return 1.0 if (self.vetoed or self.hazard_distance_m < self.braking_distance_m) else 0.0
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict for ``info["safety"]`` (arrays copied)."""
@@ -58,5 +53,4 @@ class SafetyDecision:
             "perception_age_s": self.perception_age_s,
             "perception_stale": self.perception_stale,
             "hazard_channel": self.hazard_channel,
-            "steered": self.steered,
         }

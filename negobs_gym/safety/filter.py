@@ -37,12 +37,6 @@ class SafetyFilterConfig:
     # Eq. 18 test. Not in paper N, whose filter guards negative obstacles; off by default. Useful
     # with the structure channel, which sees rocks and boxes 2-20 m ahead (docs/detector_structure.md).
     stop_for_positive: bool = False
-    # Largest change of the steering command [action units; full lock to full lock is 2] the
-    # filter may make instead of braking: it tries the proposed throttle on arcs k * steer_search_step
-    # either side of the proposed steering (nearest first; of two safe ones the clearer) and applies
-    # the first that passes the Eq. 18 test. Not in paper N, whose filter never steers: 0 = off.
-    steer_search: float = 0.0
-    steer_search_step: float = 0.1
 
     def __post_init__(self) -> None:
         require(
@@ -73,16 +67,6 @@ class SafetyFilterConfig:
             "stop_for_positive",
             f"must be a bool, got {self.stop_for_positive!r}",
         )
-        require(
-            np.isfinite(self.steer_search) and 0 <= self.steer_search <= 2,
-            "steer_search",
-            f"must be in [0, 2] (action units), got {self.steer_search!r}",
-        )
-        require(
-            np.isfinite(self.steer_search_step) and 0 < self.steer_search_step <= 2,
-            "steer_search_step",
-            f"must be in (0, 2] (action units), got {self.steer_search_step!r}",
-        )
 
 
 def filter_config(setting: bool | SafetyFilterConfig) -> SafetyFilterConfig | None:
@@ -103,10 +87,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     meanwhile, and vetoes the action when ``d - travelled < R(v')``; after a veto, until an action
     passes again, the test is ``d - travelled < R(v') + release_margin_m`` (hysteresis against
     stop-and-go at the boundary; cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
-    ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Safe actions pass
-    bit-identical. Steering is never changed unless ``steer_search`` > 0 (not in paper N): then,
-    before braking, the filter tries the proposed throttle on nearby arcs and applies the first
-    safe one (``SafetyDecision.steered``).
+    ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is never
+    changed; safe actions pass bit-identical.
 
     Fail-safe: when the env has no perception yet, or its hazard data is older than
     ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``), the
@@ -114,14 +96,13 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
-    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``steer_search``) over
-    the defaults;
+    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
-    original_action, applied_action, perception_age_s, perception_stale, hazard_channel, steered).
-    ``info["cost"]``: 1.0 when the action was vetoed or steered, or the vehicle already violates d < R(v)
+    original_action, applied_action, perception_age_s, perception_stale, hazard_channel).
+    ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
     at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
     step is :attr:`last_decision`; an env implementing :class:`DecisionSink` receives it before
     the step so its frames can show it.
@@ -141,7 +122,6 @@ class BrakingSafetyFilter(gym.Wrapper):
         perception_timeout_s: float | None = None,
         release_margin_m: float | None = None,
         stop_for_positive: bool | None = None,
-        steer_search: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -160,7 +140,6 @@ class BrakingSafetyFilter(gym.Wrapper):
             "perception_timeout_s": perception_timeout_s,
             "release_margin_m": release_margin_m,
             "stop_for_positive": stop_for_positive,
-            "steer_search": steer_search,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -231,21 +210,21 @@ class BrakingSafetyFilter(gym.Wrapper):
         if not np.all(np.isfinite(original)):
             raise ActionError(f"action must be finite, got {original.tolist()}")
         state = self._hazard_state()
-        proposed_steer = float(np.clip(original[1], -1.0, 1.0))
-        d, channel = self._nearest_hazard(state, proposed_steer)
+        steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
+        half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
+        corridor = (steer, state.wheelbase_m, half_width, state.front_length_m)
+        d = hazard_distance_m(state.negative_obstacles_xy_m, *corridor)
+        channel = "negative" if np.isfinite(d) else None
+        if self.config.stop_for_positive:
+            positive = state.positive_obstacles_xy_m
+            d_positive = hazard_distance_m(positive, *corridor)
+            if d_positive < d:
+                d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s
         vetoed = stale or not self._is_safe(state, d, proposed)
         applied = original
-        steered = False
-        if vetoed and not stale and self.config.steer_search > 0:
-            found = self._search_steering(state, proposed_steer, proposed)
-            if found is not None:
-                steer, d, channel = found
-                applied = original.copy()
-                applied[1] = np.float32(steer)
-                vetoed, steered = False, True
         if vetoed:
             if self.config.mode == "cap_speed" and not stale:
                 cmd = self._capped_longitudinal(state, d, proposed)
@@ -271,46 +250,8 @@ class BrakingSafetyFilter(gym.Wrapper):
             perception_age_s=age,
             perception_stale=stale,
             hazard_channel=channel,
-            steered=steered,
         )
-        return (applied if (vetoed or steered) else action), decision
-
-    def _nearest_hazard(self, state: HazardState, steer: float) -> tuple[float, str | None]:
-        """Arc length to the nearest hazard in the corridor of steering command ``steer``, and
-        its channel (None when clear)."""
-        half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
-        corridor = (steer * state.max_steer_rad, state.wheelbase_m, half_width, state.front_length_m)
-        d = hazard_distance_m(state.negative_obstacles_xy_m, *corridor)
-        channel = "negative" if np.isfinite(d) else None
-        if self.config.stop_for_positive:
-            d_positive = hazard_distance_m(state.positive_obstacles_xy_m, *corridor)
-            if d_positive < d:
-                d, channel = d_positive, "positive"
-        return d, channel
-
-    def _search_steering(
-        self, state: HazardState, proposed_steer: float, longitudinal: float
-    ) -> tuple[float, float, str | None] | None:
-        """The nearest steering command (within ``steer_search`` of the proposal, in steps of
-        ``steer_search_step``) on whose arc ``longitudinal`` is safe, with that arc's hazard
-        distance and channel; of the two sides at the same offset the one with the larger
-        distance. None when no arc is safe."""
-        step = self.config.steer_search_step
-        tried = {proposed_steer}
-        for k in range(1, int(self.config.steer_search / step + 1e-9) + 1):
-            safe = []
-            for steer in (proposed_steer + k * step, proposed_steer - k * step):
-                steer = float(np.clip(steer, -1.0, 1.0))
-                if steer in tried:
-                    continue
-                tried.add(steer)
-                d, channel = self._nearest_hazard(state, steer)
-                if self._is_safe(state, d, longitudinal):
-                    safe.append((d, -abs(steer), steer, channel))
-            if safe:
-                d, _, steer, channel = max(safe)
-                return steer, d, channel
-        return None
+        return (action if not vetoed else applied), decision
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
