@@ -14,20 +14,14 @@ Run: ``python benchmarks/reset_memory.py [--steps 5000] [--warmup 1000] [--no-re
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
 import gymnasium as gym
 import numpy as np
+from sim_step import current_rss_mb as rss_mb  # this directory's benchmark
 
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.envs import base, world_cache
-
-
-def rss_mb() -> float:
-    """Resident set size of this process [MB] (Linux /proc)."""
-    with open(f"/proc/{os.getpid()}/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def main() -> None:

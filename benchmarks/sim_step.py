@@ -76,7 +76,7 @@ def main() -> None:
             f"reset_new_course_s: mean={sum(reset_times) / len(reset_times):.2f} max={max(reset_times):.2f} "
             f"({args.resets} winding courses of {args.length:g} m)"
         )
-        print(f"rss_after_resets_mb={_current_rss_mb():.0f}")
+        print(f"rss_after_resets_mb={current_rss_mb():.0f}")
         print(f"peak_rss_mb={resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f}")
     if args.renderer_builds > 0:
         _renderer_builds(terrain, config, args.renderer_builds)
@@ -87,11 +87,11 @@ def _renderer_builds(terrain, config: WorldConfig, n: int) -> None:
     stats: dict[bool, list[tuple[float, float, float]]] = {False: [], True: []}
     for k in range(2 * n):
         kept = bool(k % 2)
-        rss0 = _current_rss_mb()
+        rss0 = current_rss_mb()
         t0 = time.perf_counter()
         world = World(terrain, dataclasses.replace(config, pybullet_renderer=kept))
         t_build = time.perf_counter() - t0
-        rss = _current_rss_mb() - rss0
+        rss = current_rss_mb() - rss0
         t0 = time.perf_counter()
         world.close()
         stats[kept].append((t_build, time.perf_counter() - t0, rss))
@@ -103,7 +103,8 @@ def _renderer_builds(terrain, config: WorldConfig, n: int) -> None:
         )
 
 
-def _current_rss_mb() -> float:
+def current_rss_mb() -> float:
+    """Resident set size of this process now [MB] (Linux /proc)."""
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * resource.getpagesize() / 2**20
 

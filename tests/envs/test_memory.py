@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import os
-
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
+from tests.helpers import HAS_PROC_STATM, rss_mb
 
 WARMUP_STEPS = 1000
 STEPS = 5000
 MAX_GROWTH_MB = 50.0
 
 
-def _rss_mb() -> float:
-    """Resident set size of this process [MB] (Linux /proc)."""
-    with open(f"/proc/{os.getpid()}/statm") as f:
-        resident_pages = int(f.read().split()[1])
-    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 2**20
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs Linux /proc")
+@pytest.mark.skipif(not HAS_PROC_STATM, reason="needs Linux /proc")
 def test_5000_steps_of_offroadnav_default_observation_grow_rss_by_at_most_50_mb():
     env = gym.make("negobs_gym/OffroadNav-v0")
     assert env.unwrapped.config.observation.rig == "roi"
@@ -38,8 +30,8 @@ def test_5000_steps_of_offroadnav_default_observation_grow_rss_by_at_most_50_mb(
             env.reset()
             episodes += 1
         if k + 1 == WARMUP_STEPS:
-            rss_after_warmup = _rss_mb()
-    growth = _rss_mb() - rss_after_warmup
+            rss_after_warmup = rss_mb()
+    growth = rss_mb() - rss_after_warmup
     env.close()
     print(f"rss_after_warmup_mb={rss_after_warmup:.1f} growth_mb={growth:.1f} episodes={episodes}")
     assert episodes >= 5, "the run must cross several resets"

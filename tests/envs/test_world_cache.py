@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import ctypes
-import os
 
 import gymnasium as gym
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.envs.world_cache import WorldCache, release_freed_memory
+from tests.helpers import HAS_PROC_STATM, rss_mb
 
 
 class _FakeWorld:
@@ -49,11 +49,6 @@ def test_a_reset_onto_a_new_terrain_closes_the_last_episodes_world():
     env.close()
 
 
-def _rss_mb() -> float:
-    with open(f"/proc/{os.getpid()}/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-
-
 def _has_malloc_trim() -> bool:
     try:
         ctypes.CDLL(None).malloc_trim  # noqa: B018 - probing for the symbol
@@ -62,17 +57,17 @@ def _has_malloc_trim() -> bool:
     return True
 
 
-@pytest.mark.skipif(not (_has_malloc_trim() and os.path.exists("/proc/self/statm")), reason="needs glibc")
+@pytest.mark.skipif(not (_has_malloc_trim() and HAS_PROC_STATM), reason="needs glibc")
 def test_release_freed_memory_hands_fragmented_heap_back():
     # 1 kB buffers come from malloc's heap (not Python's small-object arenas, not mmap); freed,
     # glibc keeps their pages while a live block sits above them.
     release_freed_memory()  # so the blocks take new pages, not those earlier tests freed
-    start = _rss_mb()
+    start = rss_mb()
     blocks = [bytearray(1000) for _ in range(130_000)]  # ~130 MB
     keep = blocks[-1]  # one block at the top of the heap stops the heap shrinking by itself
     del blocks
-    before = _rss_mb()
+    before = rss_mb()
     assert before - start > 100.0, "the freed blocks must still be resident for the test to mean anything"
     assert release_freed_memory()
-    assert before - _rss_mb() > 50.0
+    assert before - rss_mb() > 50.0
     del keep

@@ -12,12 +12,8 @@ from negobs_gym.errors import ConfigError, SimulationError
 from negobs_gym.sim import presets
 from negobs_gym.sim.types import HeightField, PositiveObstacle
 from negobs_gym.sim.world import World, WorldConfig, physics_heightfield
+from tests.helpers import rss_mb
 from tests.sim.helpers import flat_terrain
-
-
-def _rss_mb() -> float:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * 4096 / 2**20
 
 
 def test_heightfield_sample_points_match_terrain_exactly():
@@ -80,7 +76,7 @@ def test_fifty_worlds_leak_no_clients_or_memory():
     with World(terrain):
         pass
     gc.collect()
-    before = _rss_mb()
+    before = rss_mb()
     ids = []
     for _ in range(50):
         with World(terrain) as world:
@@ -88,7 +84,7 @@ def test_fifty_worlds_leak_no_clients_or_memory():
             world.step(2)
     gc.collect()
     assert not any(p.isConnected(physicsClientId=c) for c in ids)
-    assert _rss_mb() - before < 100.0
+    assert rss_mb() - before < 100.0
 
 
 def test_physics_heightfield_subsamples_or_interpolates():
