@@ -13,7 +13,10 @@ Episodes are kept under ``--out`` (``--resume`` continues a killed run; the part
 ``negobs eval braking --out`` for the same seeds). Prints one line per configuration; the last lines
 are ``narrow_stopped_before=<k>/<n>`` and, last, ``stopped_before=<k>/<n>`` of the filtered runs.
 
+``--tighten-pairs`` runs the detector with paper N's pairs tightened to the close frames' near edge.
+
 Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow trench_narrow]
+     [--no-baseline] [--tighten-pairs]
 """
 
 from __future__ import annotations
@@ -41,12 +44,18 @@ def main() -> None:
     parser.add_argument("--out", default="outputs/braking_safety", help="campaign directory")
     parser.add_argument("--resume", action="store_true", help="keep the finished episodes under --out")
     parser.add_argument("--no-baseline", action="store_true", help="skip the unfiltered runs")
+    parser.add_argument(
+        "--tighten-pairs",
+        action="store_true",
+        help="ObservationConfig.tighten_pairs (docs/detector_features.md)",
+    )
     args = parser.parse_args()
     config = BrakingCampaignConfig(
         seeds=args.episodes,
         scenarios=("ditch", args.narrow),
         drivers=("reckless",),
         filters=(True,) if args.no_baseline else (False, True),
+        tighten_pairs=args.tighten_pairs,
     )
     options = RunOptions(backend=Backend(workers=args.workers), resume=args.resume, progress=False)
     t0 = time.perf_counter()

@@ -5,13 +5,15 @@ Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` wit
 ``--wheel-clearance-m`` and ``--clearance-m`` widen the berth it keeps from pits and bodies)
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
 the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
-grid; ``--stop-for-positive`` also stops for the positive channel, ``--buffer-m`` replaces B).
+grid; ``--stop-for-positive`` also stops for the positive channel, ``--mode cap_speed`` caps the
+speed instead of braking, ``--margin-m`` replaces the corridor's margin, ``--buffer-m`` B).
 Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
 left_track= vetoes=``.
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
-[--filter off|on] [--stop-for-positive] [--buffer-m 5] [--wheel-clearance-m 0.4] [--clearance-m 0.3]
+[--filter off|on] [--stop-for-positive] [--mode brake|cap_speed] [--margin-m 0.4] [--buffer-m 5]
+[--wheel-clearance-m 0.4] [--clearance-m 0.3]
 """
 
 from __future__ import annotations
@@ -57,6 +59,10 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=3_000_020)
     parser.add_argument("--filter", choices=("off", "on"), default="on")
     parser.add_argument("--stop-for-positive", action="store_true")
+    parser.add_argument("--mode", choices=("brake", "cap_speed"), default="brake", help="what a veto applies")
+    parser.add_argument(
+        "--margin-m", type=float, default=SafetyFilterConfig().margin_m, help="corridor margin [m]"
+    )
     parser.add_argument("--buffer-m", type=float, default=BrakingConfig().buffer_m, help="B of Eq. 18 [m]")
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
@@ -68,7 +74,10 @@ def main() -> None:
     guard: bool | SafetyFilterConfig = False
     if args.filter == "on":
         guard = SafetyFilterConfig(
-            braking=BrakingConfig(buffer_m=args.buffer_m), stop_for_positive=args.stop_for_positive
+            braking=BrakingConfig(buffer_m=args.buffer_m),
+            stop_for_positive=args.stop_for_positive,
+            mode=args.mode,
+            margin_m=args.margin_m,
         )
     planner = TrackPlannerConfig(
         sight_m=args.planner_sight_m,

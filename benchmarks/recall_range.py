@@ -15,11 +15,16 @@ Prints the table, then ``fused_recall_12_20=<mean of the 12-20 m bins>`` and, la
 the observation grid (and the features' neighbourhoods) need it (:mod:`negobs_gym.sensors.roi`),
 the rays outside left as no return; its table is compared bin by bin with ``native``'s.
 
+Also prints how far the fused detection's outline starts before the pit's near rim (the mean
+over the recalled frames of each bin, along the track; a pit confirmed far out keeps its far
+frames' early edge unless ``--tighten``, ``FusionConfig.tighten_on_match``) and
+``near_edge_lead_6_12_m=``, its mean over 6-12 m, where the safety filter stops.
+
 ``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
 run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
 
 Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|roi|reduced] [--cache DIR]
-     [--bin-by centre|nearest]
+     [--bin-by centre|nearest] [--tighten]
 """
 
 from __future__ import annotations
@@ -35,7 +40,8 @@ import numpy as np
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
-from negobs_gym.detector import SENSOR_MODES, NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.detector import SENSOR_MODES, FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.detector.grid import convex_overlap_mask
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
 from negobs_gym.sensors.lidar import scan_rig
@@ -137,10 +143,28 @@ def frame_scans(rig: Rig, drive: dict, k: int) -> dict[str, StructuredScan]:
     }
 
 
-def evaluate(rig: Rig, drives: list[dict], matching: DetectionEvalConfig) -> dict[str, RecallTable]:
-    """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive)."""
-    detectors = {m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m)) for m in SENSOR_MODES}
+def near_edge_lead_m(outlines: list[np.ndarray], truth: np.ndarray) -> float:
+    """How far before the pit's near rim (along +y) the earliest detected outline overlapping the
+    pit on the grid starts [m]; NaN when none overlaps it."""
+    pit = convex_overlap_mask(truth[:, :2], GRID)
+    leads = [
+        float(truth[:, 1].min() - outline[:, 1].min())
+        for outline in outlines
+        if np.any(convex_overlap_mask(outline, GRID) & pit)
+    ]
+    return max(leads) if leads else float("nan")
+
+
+def evaluate(
+    rig: Rig, drives: list[dict], matching: DetectionEvalConfig, fusion: FusionConfig
+) -> tuple[dict[str, RecallTable], np.ndarray, np.ndarray]:
+    """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive), and per
+    fused frame the pit centre's distance and :func:`near_edge_lead_m`."""
+    detectors = {
+        m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m, fusion=fusion)) for m in SENSOR_MODES
+    }
     tables = {m: RecallTable(matching) for m in SENSOR_MODES}
+    distances, leads = [], []
     for drive in drives:
         for det in detectors.values():
             det.reset()
@@ -154,7 +178,10 @@ def evaluate(rig: Rig, drives: list[dict], matching: DetectionEvalConfig) -> dic
                 detection = det.update(scans, ins)
                 outlines = [o.outline_xy_m for o in detection.obstacles]
                 tables[mode].add(match_frame(outlines, [truth], GRID, matching))
-    return tables
+                if mode == "fused":
+                    distances.append(float(np.hypot(*truth[:, :2].mean(axis=0))))
+                    leads.append(near_edge_lead_m(outlines, truth))
+    return tables, np.asarray(distances), np.asarray(leads)
 
 
 def main() -> None:
@@ -168,6 +195,7 @@ def main() -> None:
         default="centre",
         help="distance of a pit: its cells' centre (paper N §4.2, default) or its nearest cell",
     )
+    parser.add_argument("--tighten", action="store_true", help="FusionConfig(tighten_on_match=True)")
     args = parser.parse_args()
     matching = DetectionEvalConfig(size_bin_edges_cells=SIZE_BINS, bin_distance=args.bin_by)
     rig = RIGS[args.rig]()
@@ -176,13 +204,13 @@ def main() -> None:
         for seed in range(args.seeds)
         for size in PAPER_N_PIT_SIZES_M
     ]
-    tables = evaluate(rig, drives, matching)
+    tables, distances, leads = evaluate(rig, drives, matching, FusionConfig(tighten_on_match=args.tighten))
     edges = matching.distance_bin_edges_m
     bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in itertools.pairwise(edges)]
     recall = {m: t.recall()[0] for m, t in tables.items()}
     print(
         f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}, "
-        f"distance bins by the pit's {args.bin_by}"
+        f"distance bins by the pit's {args.bin_by}, tighten_on_match={args.tighten}"
     )
     print(f"frames per bin: {' '.join(str(n) for n in tables['fused'].seen[0])}")
     print(f"{'mode':<14}" + "".join(f"{b:>9}" for b in bins))
@@ -192,6 +220,16 @@ def main() -> None:
     below = [b for b, r, p in zip(bins, recall["fused"], PAPER_TABLE7, strict=True) if not r >= p]
     print(f"fused below paper N Table 7 in: {', '.join(below) if below else 'no bin'}")
     print(f"false alarms per frame (fused): {tables['fused'].false_alarms_per_frame():.3f}")
+    where = np.digitize(distances, edges) - 1  # bin of each frame by the pit centre's distance
+    mean_lead = [
+        np.nanmean(leads[where == k]) if np.any(~np.isnan(leads[where == k])) else np.nan
+        for k in range(len(bins))
+    ]
+    print(
+        f"{'near-edge lead':<14}" + "".join(f"{v:9.2f}" for v in mean_lead) + "   (fused, m before the rim)"
+    )
+    near = (distances >= 6.0) & (distances < 12.0) & ~np.isnan(leads)
+    print(f"near_edge_lead_6_12_m={np.mean(leads[near]):.2f}")
     far = np.asarray(edges[:-1]) >= 12.0
     print(f"fused_recall_12_20={np.nanmean(recall['fused'][far]):.2f}")
     beyond = np.asarray(edges[:-1]) >= 14.0

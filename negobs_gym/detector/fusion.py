@@ -62,6 +62,12 @@ class FusionConfig:
     max_pairs: int = 20000  # history bound
     max_age_frames: int = 50  # history bound
     likelihoods: Mapping[str, SensorLikelihood] | None = None  # per sensor; None -> default
+    # A history pair hit within d_min moves its A along its A->B line to where the hitting pair's
+    # A projects, when that is between A and B. Not in paper N, whose history keeps a pair's first
+    # geometry: A is the last ground return before the gap, up to a ring gap short of the rim (1.1
+    # m at 15 m), so a pit confirmed far out kept that early edge while the car came close, and
+    # the grid marked the ground before the rim as obstacle.
+    tighten_on_match: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -176,6 +182,8 @@ class PairFusion:
                     np.concatenate([j, j_new]),
                     np.concatenate([d, d_new]),
                 )
+            if cfg.tighten_on_match:
+                _tighten(a_v, b_v, i, fp.a_m[j], d <= cfg.match_distance_m)
             hit = np.zeros(len(p), dtype=bool)
             hit[i] = True
             p[hit] = bayes_hit(p[hit], lik)
@@ -213,6 +221,21 @@ class PairFusion:
         if sensor in cfg.range_scaled_sensors:
             reach *= range_scale(fp.a_m, fp.b_m, cfg.match_full_range_m, cfg.max_match_scale)
         return reach
+
+
+def _tighten(a_v: np.ndarray, b_v: np.ndarray, i: np.ndarray, a_f: np.ndarray, close: np.ndarray) -> None:
+    """In place: where ``close[k]``, move history pair ``i[k]``'s A along its own A->B line up to
+    where frame pair ``k``'s A projects on it, when that lies between A and B (ground was seen
+    there, so the gap starts later); of several, the farthest. B and the line stay."""
+    e = b_v[i, :2] - a_v[i, :2]
+    t = np.sum((a_f[:, :2] - a_v[i, :2]) * e, axis=1) / np.maximum(np.sum(e * e, axis=1), 1e-12)
+    k = np.flatnonzero(close & (t > 0.0) & (t < 1.0))
+    if k.size == 0:
+        return
+    k = k[np.lexsort((-t[k], i[k]))]  # by history pair, farthest first
+    k = k[np.r_[True, i[k][1:] != i[k][:-1]]]
+    rows = i[k]
+    a_v[rows] += t[k, None] * (b_v[rows] - a_v[rows])
 
 
 def _search(

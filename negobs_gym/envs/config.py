@@ -84,6 +84,11 @@ class ObservationConfig:
             alone: a pit the car stands or creeps beside leaves the rig's view (the HDL-64's
             blind disc, ~5 m), its cells vanish and the filter would let the car on. 0 (default):
             the last frame's cells. The observation is unchanged.
+        tighten_pairs: With ``source="detector"`` (and for the safety filter's hazards), paper N's
+            fusion lets a history pair take the geometry of a shorter pair that matches it
+            (``FusionConfig.tighten_on_match``): a pit confirmed 15-20 m out then starts at the
+            close frames' last ground return instead of a far ring gap (~1 m) before its rim.
+            False (default): paper N's history, each pair keeps the geometry it was first seen with.
     """
 
     source: str = "detector"
@@ -103,6 +108,7 @@ class ObservationConfig:
     positive_detector: str = "traversable"
     positive_hold_s: float = 0.0
     hazard_hold_s: float = 0.0
+    tighten_pairs: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -169,6 +175,11 @@ class ObservationConfig:
                 name,
                 f"must be finite and >= 0 [s], got {value!r}",
             )
+        require(
+            isinstance(self.tighten_pairs, bool),
+            "tighten_pairs",
+            f"must be a bool, got {self.tighten_pairs!r}",
+        )
         route = self.route_points_m
         require(
             isinstance(route, tuple)

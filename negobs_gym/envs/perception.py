@@ -26,6 +26,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import (
     Detection,
+    FusionConfig,
     NegativeDetectorConfig,
     NegativeObstacleDetector,
     StructureConfig,
@@ -124,7 +125,8 @@ class DetectorGrid:
             if "heights" not in cache:
                 cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
             self._heights = cache["heights"]
-        self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid))
+        fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
+        self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"
         self.traversable = TraversableRegionDetector(
             TraversableConfig(obstacle_hold_s=0.0 if by_structure else config.positive_hold_s),

@@ -89,6 +89,7 @@ class BrakingCampaignConfig:
     model_path: str | None = None  # a saved SB3 model: adds the driver "sb3"
     algo: str = "PPO"  # its stable-baselines3 class
     rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
+    tighten_pairs: bool = False  # ObservationConfig.tighten_pairs of the detector the filter reads
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -103,6 +104,11 @@ class BrakingCampaignConfig:
             "driver 'sb3' needs a saved model",
         )
         require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
+        require(
+            isinstance(self.tighten_pairs, bool),
+            "tighten_pairs",
+            f"must be a bool, got {self.tighten_pairs!r}",
+        )
         require(bool(self.scenarios) and bool(self.drivers) and bool(self.filters), "scenarios", "empty")
 
     def all_drivers(self) -> tuple[str, ...]:
@@ -132,12 +138,13 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
                         "model_path": config.model_path,
                         "algo": config.algo,
                         "rig": config.rig,
+                        "tighten_pairs": config.tighten_pairs,
                     }
                     out.append(Episode(key, args))
     return out
 
 
-def scenario_spec(scenario: str, rig: str, oracle: bool) -> Any:
+def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = False) -> Any:
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
@@ -153,14 +160,16 @@ def scenario_spec(scenario: str, rig: str, oracle: bool) -> Any:
     spec = ScenarioSpec.from_dict(data)
     # scripted drivers ignore the observation: the oracle grid skips the sensors unless the
     # filter asks for the detector (it always sees obstacles through the detector grid)
-    observation = dataclasses.replace(spec.observation, rig=rig, source="oracle" if oracle else "detector")
+    observation = dataclasses.replace(
+        spec.observation, rig=rig, source="oracle" if oracle else "detector", tighten_pairs=tighten_pairs
+    )
     return dataclasses.replace(spec, observation=observation)
 
 
-def _scenario_env(scenario: str, rig: str, oracle: bool) -> Any:
+def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = False) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
-    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle))
+    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs))
 
 
 class ModelDriver(PolicyDriver):
@@ -273,7 +282,7 @@ def run_episode(episode: Episode) -> Rows:
     """One braking episode of :func:`episodes`; one row of :data:`COLUMNS`."""
     a = episode.args
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
-    env = _scenario_env(a["scenario"], a["rig"], oracle=a["driver"] != "sb3")
+    env = _scenario_env(a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"])
     metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], round(TIME_LIMIT_S * 10))
     row = [episode.key, a["scenario"], a["driver"], "filter" if a["filtered"] else "nofilter", a["seed"]]
     return {"braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])]}

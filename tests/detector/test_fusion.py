@@ -120,3 +120,34 @@ def test_range_scaled_d_min_applies_to_the_configured_sensors_only():
     np.testing.assert_allclose(r.posterior, [0.6, 0.75])
     with pytest.raises(ConfigError, match="range_scaled_sensors"):
         FusionConfig(range_scaled_sensors="hdl32_left")
+
+
+def test_tighten_on_match_takes_the_shortest_matching_pair_and_keeps_the_posterior():
+    # The same rim seen from far (A a ring gap before it) and then from close (A near it):
+    # collinear pairs overlap at distance 0, so the close pair is a hit, not a new pair.
+    far = _pair("hdl64", [0, 8.0, 0], [0, 10.0, -0.5])
+    close = _pair("hdl64", [[0, 9.2, 0], [0, 9.6, 0]], [[0, 10.0, -0.5], [0, 10.0, -0.5]])
+    for tighten, a_y in ((False, 8.0), (True, 9.6)):
+        f = PairFusion(FusionConfig(tighten_on_match=tighten))
+        f.update({"hdl64": far}, POSE0)
+        r = f.update({"hdl64": close}, POSE0)
+        assert len(r) == 1
+        assert r.a_m[0, 1] == pytest.approx(a_y)
+        assert r.posterior[0] == pytest.approx(0.9)  # one hit per sensor and frame either way
+    # a longer pair never widens the history's
+    f = PairFusion(FusionConfig(tighten_on_match=True))
+    f.update({"hdl64": _pair("hdl64", [0, 9.6, 0], [0, 10.0, -0.5])}, POSE0)
+    r = f.update({"hdl64": far}, POSE0)
+    assert len(r) == 1 and r.a_m[0, 1] == pytest.approx(9.6)
+
+
+def test_tighten_on_match_ignores_pairs_hit_only_by_the_range_scaled_reach():
+    # A side HDL-32 pair 16 m out reaches 1.6 x d_min: a pair 0.15 m to the side is a hit but
+    # enters the history as a pair of its own, and the history pair keeps its geometry.
+    hist = _pair("hdl32_left", [0, 15.0, 0], [0, 17.0, -0.5])
+    beside = _pair("hdl32_left", [0.15, 16.0, 0], [0.15, 17.0, -0.5])
+    f = PairFusion(FusionConfig(tighten_on_match=True))
+    f.update({"hdl32_left": hist}, POSE0)
+    r = f.update({"hdl32_left": beside}, POSE0)
+    assert len(r) == 2
+    assert sorted(r.a_m[:, 1].tolist()) == pytest.approx([15.0, 16.0])

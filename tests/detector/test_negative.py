@@ -184,3 +184,23 @@ def test_side_hdl32_pairs_may_end_past_the_range_limit_on_a_pit_at_its_edge() ->
     assert all(len(paper.update(scans, POSE0).frame_pairs[s]) == 0 for s in ("hdl32_left", "hdl32_right"))
     with pytest.raises(ConfigError, match="hdl32_far_wall_margin_m"):
         NegativeDetectorConfig(hdl32_far_wall_margin_m=float("nan"))
+
+
+@pytest.mark.parametrize("tighten", [False, True])
+def test_near_edge_of_a_pit_confirmed_far_out(tighten: bool) -> None:
+    # A pit fixed in the world at y = 18 m, approached 0.7 m per frame to 8 m: its first pairs'
+    # A lies up to a ring gap (~1 m at 18 m) before the rim. Paper N's history keeps that early
+    # edge; tighten_on_match moves it to the close frames' A (ring gap ~0.3 m at 8 m).
+    fusion = dataclasses.replace(NegativeDetectorConfig().fusion, tighten_on_match=tighten)
+    detector = NegativeObstacleDetector(NegativeDetectorConfig(mode="hdl64", fusion=fusion))
+    for k in range(15):
+        y = 0.7 * k
+        hole = Hole.ahead(18.0 - y, width_m=1.5, length_m=1.0, depth_m=0.8)
+        detection = detector.update(_rig_scans([hole]), Pose(x=0.0, y=y, z=0.0, roll=0.0, pitch=0.0, yaw=0.0))
+    (ob,) = detection.obstacles
+    lead_m = hole.y0_m - ob.outline_xy_m[:, 1].min()
+    if tighten:
+        assert -0.05 < lead_m < 0.4
+    else:
+        assert lead_m > 0.6
+    assert ob.outline_xy_m[:, 1].max() == pytest.approx(hole.y1_m, abs=0.3)  # the far rim either way

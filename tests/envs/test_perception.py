@@ -141,3 +141,32 @@ def test_hazard_hold_keeps_the_filters_cells_where_they_were_seen(hold_s: float)
         )
         assert gaps.max() < 1e-6  # every cell seen a frame ago is held where it was
     env.close()
+
+
+def test_tighten_pairs_moves_the_hazard_cells_to_the_ditch_rim() -> None:
+    """Braking-v0's ditch, seen from 20-40 m and approached to ~8 m: with paper N's history the
+    nearest hazard cell stays a far ring gap before the rim; with ``tighten_pairs`` it follows the
+    close frames' last ground return. Same seed, same actions."""
+    from negobs_gym.safety.corridor import hazard_distance_m
+
+    base = EnvConfig()
+    leads = {}
+    for tighten in (False, True):
+        env = BrakingEnv(replace(base, observation=replace(base.observation, tighten_pairs=tighten)))
+        _, info = env.reset(seed=4)
+        assert env._detector.perception.negative.config.fusion.tighten_on_match is tighten
+        while info["distance_to_negative_ahead_m"] > 8.0:
+            _, _, terminated, truncated, info = env.step(np.array([1.0, 0.0], np.float32))
+            assert not (terminated or truncated)
+        state = env.hazard_state()
+        detected = hazard_distance_m(state.negative_obstacles_xy_m, 0.0, state.wheelbase_m, 1.0)
+        leads[tighten] = info["distance_to_negative_ahead_m"] + state.front_length_m - detected
+        env.close()
+    assert leads[False] > 1.0  # the far frames' edge
+    assert -0.1 < leads[True] < 0.6
+
+
+def test_tighten_pairs_must_be_a_bool() -> None:
+    for bad in ("true", 1, None):
+        with pytest.raises(ConfigError, match="tighten_pairs"):
+            ObservationConfig(tighten_pairs=bad)

@@ -89,3 +89,17 @@ def test_configurations_are_data() -> None:
         BrakingCampaignConfig(scenarios=("moon",))
     with pytest.raises(ConfigError, match="model_path"):
         BrakingCampaignConfig(drivers=("sb3",))
+
+
+def test_tighten_pairs_reaches_the_episodes_detector() -> None:
+    from negobs_gym.eval.braking_campaign import scenario_spec
+
+    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), tighten_pairs=True)
+    assert all(e.args["tighten_pairs"] is True for e in episodes(cfg))
+    for tighten in (False, True):
+        assert (
+            scenario_spec("ditch", "roi", oracle=True, tighten_pairs=tighten).observation.tighten_pairs
+            is tighten
+        )
+    with pytest.raises(ConfigError, match="tighten_pairs"):
+        BrakingCampaignConfig(tighten_pairs="yes")
