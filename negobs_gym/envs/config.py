@@ -84,9 +84,9 @@ class ObservationConfig:
             alone: a pit the car stands or creeps beside leaves the rig's view (the HDL-64's
             blind disc, ~5 m), its cells vanish and the filter would let the car on. 0 (default):
             the last frame's cells. The observation is unchanged.
-        tighten_pairs: With ``source="detector"`` (and for the safety filter's hazards), paper N's
-            fusion lets a history pair take the geometry of a shorter pair that matches it
-            (``FusionConfig.tighten_on_match``): a pit confirmed 15-20 m out then starts at the
+        tighten_pairs: Paper N's fusion moves a history pair's A to where the A of a frame pair
+            hitting it projects on its line (``FusionConfig.tighten_on_match``; the detector grid
+            and the safety filter's hazards): a pit confirmed 15-20 m out then starts at the
             close frames' last ground return instead of a far ring gap (~1 m) before its rim.
             False (default): paper N's history, each pair keeps the geometry it was first seen with.
     """
