@@ -122,7 +122,7 @@ def test_range_scaled_d_min_applies_to_the_configured_sensors_only():
         FusionConfig(range_scaled_sensors="hdl32_left")
 
 
-def test_tighten_on_match_takes_the_shortest_matching_pair_and_keeps_the_posterior():
+def test_tighten_on_match_moves_a_to_the_farthest_projection_and_keeps_the_posterior():
     # The same rim seen from far (A a ring gap before it) and then from close (A near it):
     # collinear pairs overlap at distance 0, so the close pair is a hit, not a new pair.
     far = _pair("hdl64", [0, 8.0, 0], [0, 10.0, -0.5])
