@@ -8,7 +8,9 @@ returns CSV rows already formatted as strings (see :func:`format_row`). The runn
   tasks (``ray`` is the optional extra ``negobs_gym[ray]``);
 - writes each finished episode's rows to ``out/parts/<key>.json`` atomically (temp file +
   ``os.replace``), from the driver process only, so a killed campaign leaves whole parts or none;
-- with ``resume=True`` skips episodes whose part exists, otherwise starts from an empty parts dir;
+- with ``resume=True`` skips episodes whose part exists (each part records the arguments it ran
+  with; a part run with other arguments is an error, never a row mixed in), otherwise starts from
+  an empty parts dir;
 - assembles ``out/<table>.csv`` from the parts sorted by key, so the bytes depend on the seeds only,
   never on the backend, the worker count or the order in which episodes finished.
 """
@@ -111,13 +113,36 @@ class Backend:
             raise ConfigError("workers", f"must be an integer >= 1, got {self.workers!r}")
 
 
-def _read_part(path: Path) -> Rows:
+def _args_record(args: Mapping[str, Any]) -> Any:
+    """An episode's arguments as plain JSON (config dataclasses by their repr): what a part ran with."""
+    return json.loads(json.dumps(args, sort_keys=True, default=repr))
+
+
+def _read_part(path: Path, episode: Episode) -> Rows:
+    """A finished part's rows, after checking that it ran with ``episode``'s arguments.
+
+    Raises:
+        ConfigError: the part ran with other arguments (a resumed campaign whose settings changed,
+            e.g. another rig or detector setting, into the same ``--out``). Parts written before
+            the arguments were recorded carry none and are taken as they are.
+    """
     data = json.loads(path.read_text(encoding="utf-8"))
+    if "args" in data:
+        want = _args_record(episode.args)
+        diff = sorted(k for k in set(data["args"]) | set(want) if data["args"].get(k) != want.get(k))
+        require(
+            not diff,
+            f"{PARTS_DIR}/{path.name}",
+            "was run with other settings ("
+            + ", ".join(f"{k}: kept {data['args'].get(k)!r}, asked {want.get(k)!r}" for k in diff)
+            + "); rerun without resume or into another output folder",
+        )
     return {str(k): [str(r) for r in v] for k, v in data["rows"].items()}
 
 
-def _write_part(parts: Path, key: str, rows: Rows) -> None:
-    write_text_atomic(parts / f"{key}.json", json.dumps({"key": key, "rows": rows}, sort_keys=True))
+def _write_part(parts: Path, episode: Episode, rows: Rows) -> None:
+    record = {"key": episode.key, "args": _args_record(episode.args), "rows": rows}
+    write_text_atomic(parts / f"{episode.key}.json", json.dumps(record, sort_keys=True))
 
 
 def _serial(fn: EpisodeFn, todo: Sequence[Episode]) -> Iterator[tuple[Episode, Rows]]:
@@ -203,7 +228,7 @@ def run_episodes(
     todo = [ep for ep in episodes if ep.key not in finished]
     if resume:
         log.info("resume: %d of %d episodes already finished in %s", len(finished), len(keys), parts)
-    results = {key: _read_part(path) for key, path in finished.items()}
+    results = {ep.key: _read_part(finished[ep.key], ep) for ep in episodes if ep.key in finished}
     if todo:
         if backend.ray is not None:
             stream = _ray(fn, todo, backend.ray)
@@ -213,7 +238,7 @@ def run_episodes(
             stream = _serial(fn, todo)
         with tqdm(total=len(keys), initial=len(finished), desc=description, disable=not progress) as bar:
             for episode, rows in stream:
-                _write_part(parts, episode.key, rows)
+                _write_part(parts, episode, rows)
                 results[episode.key] = rows
                 bar.update(1)
     return results

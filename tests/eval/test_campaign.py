@@ -102,6 +102,23 @@ def test_resume_skips_finished_parts_and_clears_temp_files(tmp_path) -> None:
     assert calls == [e.key for e in eps]
 
 
+def test_resume_with_other_settings_is_a_clear_error(tmp_path) -> None:
+    eps = [Episode(f"e{seed:03d}", {"seed": seed, "tighten_pairs": False}) for seed in range(2)]
+    run_episodes(noisy_episode, eps, tmp_path, progress=False)
+    changed = [Episode(e.key, {**e.args, "tighten_pairs": True}) for e in eps]
+    want = r"parts/e000.json.*tighten_pairs: kept False, asked True.*without resume"
+    with pytest.raises(ConfigError, match=want):
+        run_episodes(noisy_episode, changed, tmp_path, resume=True, progress=False)
+    # the same settings resume; a config dataclass is compared by its fields
+    cfg = Backend(workers=2)
+    kept = [Episode(e.key, {**e.args, "backend": cfg}) for e in eps]
+    run_episodes(noisy_episode, kept, tmp_path / "c", progress=False)
+    assert run_episodes(noisy_episode, kept, tmp_path / "c", resume=True, progress=False)
+    with pytest.raises(ConfigError, match="backend: kept"):
+        other = [Episode(e.key, {**e.args, "backend": Backend(workers=3)}) for e in eps]
+        run_episodes(noisy_episode, other, tmp_path / "c", resume=True, progress=False)
+
+
 def test_missing_ray_is_a_clear_error(monkeypatch) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(MissingDependencyError, match=r"negobs_gym\[ray\]"):
