@@ -15,7 +15,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.cli.common import positive_int
+from negobs_gym.cli.common import add_set_option, env_with_overrides, positive_int
 from negobs_gym.errors import ConfigError, MissingDependencyError
 
 log = logging.getLogger("negobs_gym.cli.eval")
@@ -148,6 +148,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     pol.add_argument(
         "--source", choices=("detector", "oracle"), default=None, help="grid source (default: the env's own)"
     )
+    add_set_option(pol)
     pol.set_defaults(handler=run_policy)
 
 
@@ -245,6 +246,10 @@ def run_policy(args: argparse.Namespace) -> int:
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
     config = build_config(PolicyCampaignConfig, _toml(args), cli)
+    if args.overrides:
+        env = env_with_overrides(config.env_id, args.overrides, args.out, replace=not args.resume)
+        log.info("--set: %s with %s -> %s", config.env_id, ", ".join(args.overrides), env)
+        config = dataclasses.replace(config, env_id=env)
     csv, summary_json, summary = run_policy_campaign(config, args.out, _options(args))
     for name, s in summary.items():
         print(

@@ -10,8 +10,12 @@ import argparse
 import dataclasses
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from negobs_gym.cli.common import non_negative_int, positive_int
+from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
+
+if TYPE_CHECKING:
+    from negobs_gym.scenarios import ScenarioSpec
 
 DRIVER_CHOICES = (
     "reckless",
@@ -36,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     p_show = sub.add_parser("show", help="print a scenario as complete TOML (every default filled in)")
     p_show.add_argument("spec", metavar="SPEC", help="shipped scenario name or TOML file")
+    add_set_option(p_show)
     p_show.set_defaults(handler=_show)
 
     p_run = sub.add_parser(
@@ -60,6 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
+    add_set_option(p_run)
     p_run.set_defaults(handler=_run)
 
     p_render = sub.add_parser("render", help="write an episode's first top-down frame to a PNG")
@@ -68,6 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p_render.add_argument(
         "--seed", type=non_negative_int, default=0, help="episode seed (default: %(default)s)"
     )
+    add_set_option(p_render)
     p_render.set_defaults(handler=_render)
 
 
@@ -80,16 +87,24 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from negobs_gym.scenarios import load_scenario, spec_to_toml
+    from negobs_gym.scenarios import spec_to_toml
 
-    sys.stdout.write(spec_to_toml(load_scenario(args.spec)))
+    sys.stdout.write(spec_to_toml(_spec(args)))
     return 0
 
 
-def _run(args: argparse.Namespace) -> int:
-    from negobs_gym.scenarios import load_scenario, run_scenario
+def _spec(args: argparse.Namespace) -> ScenarioSpec:
+    """The SPEC argument's scenario with the ``--set`` changes."""
+    from negobs_gym.scenarios import load_scenario
+    from negobs_gym.scenarios.overrides import apply_overrides
 
-    spec = load_scenario(args.spec)
+    return apply_overrides(load_scenario(args.spec), args.overrides)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from negobs_gym.scenarios import run_scenario
+
+    spec = _spec(args)
     if args.stop_for_positive:
         spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
     failed = 0
@@ -104,10 +119,9 @@ def _render(args: argparse.Namespace) -> int:
     import logging
 
     from negobs_gym.envs.base import NegObsEnv
-    from negobs_gym.scenarios import load_scenario
     from negobs_gym.sim.render import write_png_atomic
 
-    env = NegObsEnv(scenario=load_scenario(args.spec), render_mode="rgb_array")
+    env = NegObsEnv(scenario=_spec(args), render_mode="rgb_array")
     try:
         env.reset(seed=args.seed)
         write_png_atomic(env.render(), Path(args.out))

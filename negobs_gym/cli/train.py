@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from negobs_gym.cli.common import non_negative_int, positive_int
+from negobs_gym.cli.common import add_set_option, env_with_overrides, non_negative_int, positive_int
 from negobs_gym.policies.config import (
     ALGORITHMS,
     DEMONSTRATORS,
@@ -237,6 +237,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "and evaluates once before training",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_set_option(parser)
     parser.set_defaults(handler=run_train)
 
 
@@ -244,7 +245,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The :class:`TrainConfig` of the parsed command line."""
     defaults = WarmStartConfig()
     return TrainConfig(
-        env=args.env,
+        env=env_with_overrides(args.env, args.overrides, args.out),
         algo=args.algo,
         source=args.source,
         filter=args.filter,

@@ -5,11 +5,14 @@
 - :mod:`negobs_gym.scenarios.library` — the TOML scenes shipped in ``negobs_gym/scenarios/scenes``
   (paper N and paper T scenes and the registered envs), loadable by name;
 - :mod:`negobs_gym.scenarios.runner` — :func:`run_scenario`: one scripted episode, a frozen
-  :class:`ScenarioResult` to assert on, and the spec's pass criteria.
+  :class:`ScenarioResult` to assert on, and the spec's pass criteria;
+- :mod:`negobs_gym.scenarios.overrides` — :func:`apply_overrides`: single settings changed by
+  ``KEY.PATH=VALUE`` (the commands' ``--set``), and the spec behind an env id.
 """
 
 from negobs_gym.scenarios.fields import Range
 from negobs_gym.scenarios.library import load_scenario, scenario_names
+from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
 from negobs_gym.scenarios.runner import ScenarioResult, run_scenario
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_from_toml, spec_to_toml
 
@@ -17,9 +20,11 @@ __all__ = [
     "Range",
     "ScenarioResult",
     "ScenarioSpec",
+    "apply_overrides",
     "load_scenario",
     "run_scenario",
     "scenario_names",
+    "spec_for_env",
     "spec_from_toml",
     "spec_to_toml",
 ]

@@ -11,6 +11,7 @@ from negobs_gym.cli import main
 from negobs_gym.cli.eval import build_config, load_toml
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
+from negobs_gym.scenarios import spec_from_toml
 
 
 @pytest.mark.parametrize("campaign", ["detection", "braking", "policy"])
@@ -91,6 +92,15 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     labels = [r.split(",")[2] for r in (tmp_path / "toml" / "policy.csv").read_text().splitlines()[1:]]
     assert sorted(labels) == ["filter_positive", "nofilter"]
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
+    # --set: the env's scenario with one setting changed, recorded as OUT/scenario.toml
+    short = ["eval", "policy", str(path), "--seeds", "1", "--filter", "off"]
+    short += ["--set", "episode.time_limit_s=0.5"]
+    assert main(["-q", *short, "--out", str(tmp_path / "set"), "--no-progress"]) == 0
+    written = tmp_path / "set" / "scenario.toml"
+    assert capsys.readouterr().out.startswith(f"{written}/nofilter success=")
+    assert spec_from_toml(written.read_text()).episode.time_limit_s == 0.5
+    (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
+    assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
     config = tmp_path / "braking.toml"
     config.write_text("[braking]\nfilters = [true]\n")

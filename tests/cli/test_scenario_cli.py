@@ -62,6 +62,21 @@ def test_run_exits_non_zero_exactly_when_a_named_criterion_fails(tmp_path, capsy
         assert all(line.endswith("FAIL entered_negative_obstacle") == (code == 1) for line in lines)
 
 
+def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):
+    setting = ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=3.5"]
+    assert main(["scenario", "show", "paper_n_three_pits", *setting]) == 0
+    shown = spec_from_toml(capsys.readouterr().out)
+    assert shown.observation.tighten_pairs is True and shown.episode.time_limit_s == 3.5
+    # the criterion the reckless driver fails, flipped from the command line: the run passes
+    path = tmp_path / "scene.toml"
+    path.write_text(FAILING.format(entered="false"))
+    assert main(["scenario", "run", str(path), "--set", "criteria.entered_negative_obstacle=true"]) == 0
+    assert _lines(capsys)[0].endswith("PASS")
+    assert main(["scenario", "show", "paper_n_three_pits", "--set", "observation.tighten_pairs=yes"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "observation.tighten_pairs: must be true or false" in err and "\n" not in err
+
+
 def test_unknown_scenario_is_a_one_line_error(capsys):
     assert main(["scenario", "run", "no_such_scene"]) == 2
     assert "unknown scenario" in capsys.readouterr().err

@@ -132,6 +132,26 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert "bin_edges: needs one edge between each two of the 3 candidates" in capsys.readouterr().err
 
 
+def test_set_trains_on_the_changed_scenario_and_a_resume_keeps_it(tmp_path: Path, capsys) -> None:
+    from negobs_gym.scenarios import spec_from_toml
+
+    out = tmp_path / "run"
+    args = ["train", "--env", ENV, "--steps", "64", "--eval-every", "0", *SHORT, "--out", str(out)]
+    assert main(["-q", *args, "--set", "episode.time_limit_s=2.0"]) == 0
+    capsys.readouterr()
+    scene = out / "scenario.toml"
+    assert spec_from_toml(scene.read_text()).episode.time_limit_s == 2.0
+    record = json.loads((out / "train.json").read_text())
+    assert record["config"]["env"] == str(scene)
+    with (out / "eval.csv").open() as fh:
+        (row,) = list(csv.DictReader(fh))
+    assert float(row["mean_progress_m"]) < 2.0 * 25 / 3.6 + 1.0  # 2 s at most, from 25 km/h
+    # a resume with other settings would go on with another scenario: refused, the file kept
+    assert main(["-q", *args, "--resume", "--steps", "128", "--set", "episode.time_limit_s=3.0"]) == 2
+    assert "holds an earlier run's other scenario" in capsys.readouterr().err
+    assert spec_from_toml(scene.read_text()).episode.time_limit_s == 2.0
+
+
 def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
     from negobs_gym.cli import build_parser
     from negobs_gym.cli.train import config_from_args

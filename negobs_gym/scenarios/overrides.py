@@ -1,0 +1,98 @@
+"""Single settings of a scenario changed from the command line: ``--set observation.tighten_pairs=true``.
+
+An ablation should not need a copied TOML file per setting. An assignment is ``KEY.PATH=VALUE``:
+the path walks the spec's tables as :meth:`ScenarioSpec.to_dict` spells them (a list element by
+its index, ``obstacles.0.depth_m``), and VALUE is TOML (``true``, ``2.5``, ``[1.0, 2.0]``,
+``"text"``); a VALUE that is not TOML is taken as text (``run.driver=reckless``). The changed spec
+is validated as a whole, so a misspelt key or a bad value is a :class:`ConfigError` naming its
+full path, as in a TOML file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import tomllib
+
+from negobs_gym.errors import ConfigError
+from negobs_gym.scenarios.library import load_scenario
+from negobs_gym.scenarios.spec import ScenarioSpec
+
+__all__ = ["apply_overrides", "parse_assignment", "spec_for_env"]
+
+OPTION = "--set"  # how errors name the assignment: the option that carried it
+
+
+def parse_assignment(text: str) -> tuple[tuple[str, ...], Any]:
+    """``"a.b.c=VALUE"`` -> ``(("a", "b", "c"), value)``.
+
+    Raises:
+        ConfigError: no ``=``, or an empty key in the path.
+    """
+    path, sep, raw = text.partition("=")
+    keys = tuple(k.strip() for k in path.split("."))
+    if not sep or not all(keys):
+        raise ConfigError(
+            OPTION, f"expected KEY.PATH=VALUE (e.g. observation.tighten_pairs=true), got {text!r}"
+        )
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return keys, value
+
+
+def apply_overrides(spec: ScenarioSpec, assignments: Sequence[str]) -> ScenarioSpec:
+    """``spec`` with each assignment applied in order, validated as one new spec.
+
+    Raises:
+        ConfigError: a malformed assignment, a path through a value or past a list's end, or a
+            changed spec that does not validate (the error names the field's full path).
+    """
+    data = spec.to_dict()
+    for text in assignments:
+        keys, value = parse_assignment(text)
+        node: Any = data
+        for depth, key in enumerate(keys):
+            where = ".".join(keys[: depth + 1])
+            last = depth == len(keys) - 1
+            if isinstance(node, list):
+                if not key.isdigit() or int(key) >= len(node):
+                    raise ConfigError(
+                        OPTION, f"{where}: the list has {len(node)} elements, index 0-{len(node) - 1}"
+                    )
+                if last:
+                    node[int(key)] = value
+                else:
+                    node = node[int(key)]
+            elif isinstance(node, dict):
+                if last:
+                    node[key] = value
+                else:
+                    node = node.setdefault(key, {})
+            else:
+                raise ConfigError(OPTION, f"{where}: {'.'.join(keys[:depth])} is a value, not a table")
+    return ScenarioSpec.from_dict(data)
+
+
+def spec_for_env(env: str) -> ScenarioSpec:
+    """The scenario spec behind an env argument: a registered negobs env id (its default
+    scenario), a shipped scenario name or a scenario TOML file.
+
+    Raises:
+        ConfigError: a registered id that is not a negobs env, or an unknown scenario or file.
+    """
+    import gymnasium as gym
+    from gymnasium.envs.registration import load_env_creator
+
+    from negobs_gym.envs.base import NegObsEnv
+
+    if env in gym.registry:
+        creator = load_env_creator(gym.spec(env).entry_point)
+        scenario = getattr(creator, "default_scenario", None)
+        if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)) or scenario is None:
+            raise ConfigError("env", f"{env!r} is not a negobs_gym env with a scenario spec")
+        return load_scenario(scenario)
+    return load_scenario(env)

@@ -1,0 +1,64 @@
+"""``--set KEY.PATH=VALUE``: single settings of a scenario changed without a copied TOML file."""
+
+from __future__ import annotations
+
+import pytest
+
+import negobs_gym  # noqa: F401  (registers the envs)
+from negobs_gym.errors import ConfigError
+from negobs_gym.scenarios import load_scenario
+from negobs_gym.scenarios.overrides import apply_overrides, parse_assignment, spec_for_env
+
+
+@pytest.mark.parametrize(
+    ("text", "keys", "value"),
+    [
+        ("observation.tighten_pairs=true", ("observation", "tighten_pairs"), True),
+        ("episode.time_limit_s = 30", ("episode", "time_limit_s"), 30),
+        ("observation.route_points_m=[5.0, 10.0]", ("observation", "route_points_m"), [5.0, 10.0]),
+        ('run.driver="reckless"', ("run", "driver"), "reckless"),
+        ("run.driver=reckless", ("run", "driver"), "reckless"),  # not TOML: taken as text
+    ],
+)
+def test_parse_reads_toml_values_and_falls_back_to_text(text: str, keys: tuple, value: object) -> None:
+    assert parse_assignment(text) == (keys, value)
+
+
+def test_overrides_change_only_the_named_settings() -> None:
+    spec = load_scenario("paper_n_three_pits")
+    changed = apply_overrides(
+        spec, ["observation.tighten_pairs=true", "obstacles.0.depth_m=1.2", "observation.grid.cell_m=0.4"]
+    )
+    assert changed.observation.tighten_pairs is True and spec.observation.tighten_pairs is False
+    assert changed.obstacles[0].depth_m == 1.2 and spec.obstacles[0].depth_m == 0.8
+    assert changed.observation.grid.cell_m == 0.4
+    same = {k: v for k, v in changed.to_dict().items() if k not in ("observation", "obstacles")}
+    assert same == {k: v for k, v in spec.to_dict().items() if k not in ("observation", "obstacles")}
+    assert changed.obstacles[1:] == spec.obstacles[1:]
+    assert apply_overrides(spec, []) == spec
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("observation.tighten_pairs", r"--set: expected KEY.PATH=VALUE"),
+        ("observation..rig=roi", r"--set: expected KEY.PATH=VALUE"),
+        ("observation.tighten=true", r"observation.tighten: unknown key"),
+        ("observation.tighten_pairs=yes", r"observation.tighten_pairs: must be true or false"),
+        ("name.first=x", r"--set: name.first: name is a value, not a table"),
+        ("obstacles.7.depth_m=1", r"--set: obstacles.7: the list has 3 elements, index 0-2"),
+        ("obstacles.0.depth_m=-1", r"obstacles\[0\].depth_m"),
+    ],
+)
+def test_bad_overrides_name_the_field(text: str, match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        apply_overrides(load_scenario("paper_n_three_pits"), [text])
+
+
+def test_an_env_id_resolves_to_its_scenario() -> None:
+    assert spec_for_env("negobs_gym/OffroadNav-v2") == load_scenario("offroad_nav_v2")
+    assert spec_for_env("paper_n_mud_pit") == load_scenario("paper_n_mud_pit")
+    with pytest.raises(ConfigError, match="not a negobs_gym env"):
+        spec_for_env("CartPole-v1")
+    with pytest.raises(ConfigError, match="unknown scenario"):
+        spec_for_env("no_such_scene")
