@@ -22,10 +22,11 @@ def test_a_path_resolves_to_itself_and_an_unknown_name_is_refused(tmp_path: Path
 
 
 @pytest.mark.parametrize("name", baseline_names())
-def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> None:
+def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str, tmp_path: Path) -> None:
     from stable_baselines3 import PPO
 
     import negobs_gym  # noqa: F401 - registers the envs
+    from negobs_gym.cli.common import env_with_overrides
     from negobs_gym.policies.observation import match_observation
     from negobs_gym.policies.training import make_task_env
 
@@ -33,8 +34,10 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
     for key in ("command", "seed", "steps", "wall_s", "env", "evaluation"):
         assert key in record, f"{name}.json lacks {key!r}"
     assert record["command"].startswith("negobs train ")
+    settings = record.get("set", [])  # the --set its commands carry
+    assert all(f"--set {s}" in record["command"] for s in settings)
     model = PPO.load(resolve_model(name), device="cpu")
-    env = make_task_env(record["env"], None)  # an env id or a shipped scenario
+    env = make_task_env(env_with_overrides(record["env"], settings, tmp_path), None)  # id or scenario
     obs, _ = env.reset(seed=1_000_000)
     action, _ = model.predict(match_observation(obs, model.observation_space), deterministic=True)
     assert env.action_space.contains(action.astype(env.action_space.dtype))
