@@ -7,6 +7,7 @@ wall_s=<s> steps_per_s=<r>`` followed by the last evaluation's figures.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 
 from negobs_gym.cli.common import add_set_option, env_with_overrides, non_negative_int, positive_int
@@ -245,7 +246,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The :class:`TrainConfig` of the parsed command line."""
     defaults = WarmStartConfig()
     return TrainConfig(
-        env=env_with_overrides(args.env, args.overrides, args.out),
+        env=args.env,
         algo=args.algo,
         source=args.source,
         filter=args.filter,
@@ -290,6 +291,8 @@ def run_train(args: argparse.Namespace) -> int:
     from negobs_gym.policies.training import train
 
     config = config_from_args(args)
+    if args.overrides:  # the changed scenario, written to OUT/scenario.toml, is what trains
+        config = dataclasses.replace(config, env=env_with_overrides(config.env, args.overrides, args.out))
     log.info(
         "training %s on %s (%s%s), %d steps, %d env(s) -> %s",
         config.algo,
