@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from negobs_gym.cli.common import write_atomic
+from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
     from negobs_gym.detector.io import ScanSetup

@@ -15,7 +15,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.cli.common import add_set_option, env_with_overrides, positive_int
+from negobs_gym.cli.common import add_set_option, positive_int
 from negobs_gym.errors import ConfigError, MissingDependencyError
 
 log = logging.getLogger("negobs_gym.cli.eval")
@@ -245,15 +245,18 @@ def run_policy(args: argparse.Namespace) -> int:
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
+    from negobs_gym.scenarios import describe_overrides, env_with_overrides
+
     config = build_config(PolicyCampaignConfig, _toml(args), cli)
+    label = describe_overrides(config.env_id, args.overrides)  # result lines name the id and settings
     if args.overrides:
         env = env_with_overrides(config.env_id, args.overrides, args.out, replace=not args.resume)
-        log.info("--set: %s with %s -> %s", config.env_id, ", ".join(args.overrides), env)
+        log.info("--set: %s runs as %s", label, env)
         config = dataclasses.replace(config, env_id=env)
     csv, summary_json, summary = run_policy_campaign(config, args.out, _options(args))
     for name, s in summary.items():
         print(
-            f"{config.env_id}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
+            f"{label}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
             f"goal={int(s['goals'])}/{int(s['episodes'])} "
             f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
             f"left_track={int(s['left_track'])} mean_progress_m={s['mean_progress_m']:.2f} "

@@ -10,7 +10,7 @@ import argparse
 import dataclasses
 import logging
 
-from negobs_gym.cli.common import add_set_option, env_with_overrides, non_negative_int, positive_int
+from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
 from negobs_gym.policies.config import (
     ALGORITHMS,
     DEMONSTRATORS,
@@ -289,14 +289,16 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 def run_train(args: argparse.Namespace) -> int:
     """Train; print the result line."""
     from negobs_gym.policies.training import train
+    from negobs_gym.scenarios import describe_overrides, env_with_overrides
 
     config = config_from_args(args)
+    label = describe_overrides(config.env, args.overrides)
     if args.overrides:  # the changed scenario, written to OUT/scenario.toml, is what trains
         config = dataclasses.replace(config, env=env_with_overrides(config.env, args.overrides, args.out))
     log.info(
         "training %s on %s (%s%s), %d steps, %d env(s) -> %s",
         config.algo,
-        config.env,
+        label,
         config.source,
         (", filter" + (" + positive" if config.stop_for_positive else "")) if config.filter else "",
         config.steps,

@@ -5,7 +5,7 @@ registered envs in :mod:`negobs_gym.envs.scenarios` name their spec. Grid observ
 :mod:`negobs_gym.envs.sources`.
 """
 
-from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.envs.base import NegObsEnv, registered_negobs_env
 from negobs_gym.envs.config import CHANNELS, EnvConfig, ObservationConfig, RewardConfig
 from negobs_gym.envs.scenarios import (
     BrakingEnv,
@@ -31,4 +31,5 @@ __all__ = [
     "PaperTStraightEnv",
     "RewardConfig",
     "TrenchCrossingEnv",
+    "registered_negobs_env",
 ]

@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = ["NegObsEnv"]
+__all__ = ["NegObsEnv", "registered_negobs_env"]
 
 
 def _load_spec(scenario: ScenarioSpec | str) -> ScenarioSpec:
@@ -466,3 +466,20 @@ class NegObsEnv(gym.Env):
             if ahead.size:
                 best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
         return best
+
+
+def registered_negobs_env(env_id: str) -> type[NegObsEnv] | None:
+    """The :class:`NegObsEnv` subclass that ``gymnasium.make(env_id)`` builds; None when ``env_id``
+    is not a registered id (a scenario name or TOML path, for the caller to try).
+
+    Raises:
+        ConfigError: ``env_id`` is registered but makes another env (field ``env``).
+    """
+    if env_id not in gym.registry:
+        return None
+    from gymnasium.envs.registration import load_env_creator
+
+    creator = load_env_creator(gym.spec(env_id).entry_point)
+    if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)) or creator.default_scenario is None:
+        raise ConfigError("env", f"{env_id!r} is not a negobs_gym env (its observation has no grid)")
+    return creator

@@ -405,7 +405,8 @@ def run_braking_campaign(
     options: RunOptions | None = None,
 ) -> BrakingOutputs:
     """Run (or resume) the braking campaign; CSV, summary JSON, table and plots in ``out_dir``."""
-    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
+    from negobs_gym.core.files import write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign
     from negobs_gym.eval.plots import distribution_plot
 
     out = Path(out_dir)

@@ -23,13 +23,13 @@ import math
 import multiprocessing
 import os
 import shutil
-import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from negobs_gym.core.files import write_text_atomic
 from negobs_gym.errors import ConfigError, MissingDependencyError, require
 
 log = logging.getLogger(__name__)
@@ -73,28 +73,6 @@ def format_value(value: Any) -> str:
 def format_row(values: Iterable[Any]) -> str:
     """One CSV line (no newline) of :func:`format_value` texts."""
     return ",".join(format_value(v) for v in values)
-
-
-def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` via a temp file in the same directory, fsync and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """UTF-8 ``text`` written with :func:`write_bytes_atomic`."""
-    return write_bytes_atomic(path, text.encode("utf-8"))
 
 
 @dataclass(frozen=True)
@@ -222,7 +200,7 @@ def run_episodes(
     if parts.exists() and not resume:
         shutil.rmtree(parts)
     parts.mkdir(parents=True, exist_ok=True)
-    for stale in parts.glob(".*.tmp"):  # a temp file of a killed run: never a finished part
+    for stale in parts.glob(".*.tmp*"):  # a temp file of a killed run: never a finished part
         stale.unlink()
     finished = {p.stem: p for p in parts.glob("*.json") if p.stem in set(keys)}
     todo = [ep for ep in episodes if ep.key not in finished]

@@ -414,7 +414,8 @@ def run_detection_campaign(
     options: RunOptions | None = None,
 ) -> DetectionOutputs:
     """Run (or resume) the campaign and write its CSVs, summary JSON, tables and figures to ``out_dir``."""
-    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
+    from negobs_gym.core.files import write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign
     from negobs_gym.eval.plots import fig16_plot, recall_heatmap
     from negobs_gym.eval.tables import PAPER_N_TABLE7, paper_n_fig16_fused
 

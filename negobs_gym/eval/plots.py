@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from negobs_gym.eval.campaign import write_bytes_atomic
+from negobs_gym.core.files import write_bytes_atomic
 
 MODE_LABELS = {"fused": "fused (HDL-64 + 2 HDL-32)", "hdl64": "HDL-64 only", "hdl32": "HDL-32 only"}
 # distinct line styles and markers: equal curves (e.g. fused = HDL-64 only) stay visible

@@ -197,7 +197,8 @@ def run_policy_campaign(
     options: RunOptions | None = None,
 ) -> tuple[Path, Path, dict[str, dict[str, float]]]:
     """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
-    from negobs_gym.eval.campaign import run_campaign, write_text_atomic
+    from negobs_gym.core.files import write_text_atomic
+    from negobs_gym.eval.campaign import run_campaign
 
     out = Path(out_dir)
     csv = run_campaign(run_episode, episodes(config), out, {"policy": COLUMNS}, options, "policy episodes")[

@@ -7,9 +7,7 @@ return only, so these three are small callbacks of our own. Files are written at
 from __future__ import annotations
 
 import logging
-import os
 import re
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -18,7 +16,8 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm.auto import tqdm
 
-from negobs_gym.eval.campaign import format_row, read_csv, write_text_atomic
+from negobs_gym.core.files import write_atomic, write_text_atomic
+from negobs_gym.eval.campaign import format_row, read_csv
 
 log = logging.getLogger(__name__)
 
@@ -74,17 +73,8 @@ class ProgressBarCallback(BaseCallback):
 
 
 def save_model_atomic(model: Any, path: Path) -> Path:
-    """``model.save`` into a temp file beside ``path``, then ``os.replace`` (never a partial zip)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zip")
-    os.close(fd)
-    try:
-        model.save(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    """``model.save`` written atomically (never a partial zip, :func:`write_atomic`)."""
+    return write_atomic(path, model.save)
 
 
 def latest_checkpoint(directory: Path) -> Path | None:

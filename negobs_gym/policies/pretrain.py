@@ -41,10 +41,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from negobs_gym.core.files import write_bytes_atomic
 from negobs_gym.drivers import Driver, make_driver
 from negobs_gym.envs.observation import mirror_signs
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.campaign import write_bytes_atomic
 from negobs_gym.policies.config import DEMONSTRATORS, STEERING, WarmStartConfig
 from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.sim.types import Terrain

@@ -35,7 +35,7 @@ import gymnasium as gym
 import torch
 
 import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
-from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.envs.base import NegObsEnv, registered_negobs_env
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig
@@ -68,12 +68,8 @@ def make_task_env(env: str, source: str | None) -> gym.Env:
         ConfigError: ``env`` names no negobs env, scenario or file (field ``env``).
     """
     grid_source = "oracle" if source == "state" else source
-    if env in gym.registry:
-        from gymnasium.envs.registration import load_env_creator
-
-        creator = load_env_creator(gym.spec(env).entry_point)
-        if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)):
-            raise ConfigError("env", f"{env!r} is not a negobs_gym env (its observation has no grid)")
+    creator = registered_negobs_env(env)
+    if creator is not None:
         return gym.make(env, config=_with_source(creator.default_config(), grid_source))
     from negobs_gym.scenarios.library import load_scenario, scenario_names
 
@@ -426,7 +422,7 @@ def _previous_warm_start(out: Path) -> dict[str, Any]:
 
 def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
     """``train.json``: the config and progress (written at the start too, for ``--resume``)."""
-    from negobs_gym.eval.campaign import write_text_atomic
+    from negobs_gym.core.files import write_text_atomic
 
     wall_s = session.get("wall_s")
     record = {

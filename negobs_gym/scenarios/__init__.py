@@ -7,12 +7,18 @@
 - :mod:`negobs_gym.scenarios.runner` — :func:`run_scenario`: one scripted episode, a frozen
   :class:`ScenarioResult` to assert on, and the spec's pass criteria;
 - :mod:`negobs_gym.scenarios.overrides` — :func:`apply_overrides`: single settings changed by
-  ``KEY.PATH=VALUE`` (the commands' ``--set``), and the spec behind an env id.
+  ``KEY.PATH=VALUE`` (the commands' ``--set``), the spec behind an env id, and the changed
+  scenario written beside a run's results.
 """
 
 from negobs_gym.scenarios.fields import Range
 from negobs_gym.scenarios.library import load_scenario, scenario_names
-from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
+from negobs_gym.scenarios.overrides import (
+    apply_overrides,
+    describe_overrides,
+    env_with_overrides,
+    spec_for_env,
+)
 from negobs_gym.scenarios.runner import ScenarioResult, run_scenario
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_from_toml, spec_to_toml
 
@@ -21,6 +27,8 @@ __all__ = [
     "ScenarioResult",
     "ScenarioSpec",
     "apply_overrides",
+    "describe_overrides",
+    "env_with_overrides",
     "load_scenario",
     "run_scenario",
     "scenario_names",

@@ -11,15 +11,17 @@ full path, as in a TOML file.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import tomllib
 
+from negobs_gym.core.files import write_text_atomic
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios.library import load_scenario
-from negobs_gym.scenarios.spec import ScenarioSpec
+from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
 
-__all__ = ["apply_overrides", "parse_assignment", "spec_for_env"]
+__all__ = ["apply_overrides", "describe_overrides", "env_with_overrides", "parse_assignment", "spec_for_env"]
 
 OPTION = "--set"  # how errors name the assignment: the option that carried it
 
@@ -84,15 +86,36 @@ def spec_for_env(env: str) -> ScenarioSpec:
     Raises:
         ConfigError: a registered id that is not a negobs env, or an unknown scenario or file.
     """
-    import gymnasium as gym
-    from gymnasium.envs.registration import load_env_creator
+    from negobs_gym.envs.base import registered_negobs_env
 
-    from negobs_gym.envs.base import NegObsEnv
+    creator = registered_negobs_env(env)
+    return load_scenario(creator.default_scenario if creator is not None else env)
 
-    if env in gym.registry:
-        creator = load_env_creator(gym.spec(env).entry_point)
-        scenario = getattr(creator, "default_scenario", None)
-        if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)) or scenario is None:
-            raise ConfigError("env", f"{env!r} is not a negobs_gym env with a scenario spec")
-        return load_scenario(scenario)
-    return load_scenario(env)
+
+def env_with_overrides(
+    env: str, overrides: Sequence[str], out_dir: str | Path, *, replace: bool = False
+) -> str:
+    """``env`` itself without assignments; otherwise its scenario with them applied, written to
+    ``out_dir/scenario.toml`` (atomically; it records what ran), whose path runs in its place.
+
+    Raises:
+        ConfigError: a bad assignment (:func:`apply_overrides`), or ``out_dir/scenario.toml``
+            holds another scenario (an earlier run's, which a resumed run would go on with) and
+            ``replace`` is false.
+    """
+    if not overrides:
+        return env
+    text = spec_to_toml(apply_overrides(spec_for_env(env), overrides))
+    path = Path(out_dir) / "scenario.toml"
+    if path.is_file() and path.read_text(encoding="utf-8") != text and not replace:
+        raise ConfigError(
+            OPTION, f"{path} holds an earlier run's other scenario: use its settings or another --out"
+        )
+    write_text_atomic(path, text)
+    return str(path)
+
+
+def describe_overrides(env: str, overrides: Sequence[str]) -> str:
+    """A one-word label of ``env`` with its assignments, for result lines and logs:
+    ``negobs_gym/OffroadNav-v2[observation.tighten_pairs=true]``."""
+    return f"{env}[{','.join(overrides)}]" if overrides else env

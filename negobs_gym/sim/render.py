@@ -8,13 +8,13 @@ x_min) * width``, ``row = (y_max - y) / (y_max - y_min) * height``.
 from __future__ import annotations
 
 import os
-import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from negobs_gym.core import Pose
+from negobs_gym.core.files import write_atomic
 from negobs_gym.core.geometry import heading_axes, vehicle_to_world_xy
 from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim.types import Terrain
@@ -176,16 +176,7 @@ def render_top_down(
 
 
 def write_png_atomic(image: np.ndarray, out_path: Path) -> None:
-    """Write ``image`` as PNG via a temp file in the same folder and ``os.replace``."""
+    """Write ``image`` as PNG atomically (:func:`negobs_gym.core.files.write_atomic`)."""
     import matplotlib.image as mpimg
 
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    # A plain new file (not mkstemp) so the PNG gets the usual umask permissions, not 0600.
-    tmp = out_path.with_name(f".{out_path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        mpimg.imsave(tmp, image, format="png")
-        os.replace(tmp, out_path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(out_path, lambda tmp: mpimg.imsave(tmp, image, format="png"))

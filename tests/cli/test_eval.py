@@ -97,7 +97,8 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     short += ["--set", "episode.time_limit_s=0.5"]
     assert main(["-q", *short, "--out", str(tmp_path / "set"), "--no-progress"]) == 0
     written = tmp_path / "set" / "scenario.toml"
-    assert capsys.readouterr().out.startswith(f"{written}/nofilter success=")
+    label = "negobs_gym/Braking-v0[episode.time_limit_s=0.5]"  # the id and its settings
+    assert capsys.readouterr().out.startswith(f"{label}/nofilter success=")
     assert spec_from_toml(written.read_text()).episode.time_limit_s == 0.5
     (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
     assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5

@@ -18,7 +18,6 @@ from negobs_gym.eval.campaign import (
     import_ray,
     read_csv,
     run_episodes,
-    write_text_atomic,
 )
 
 
@@ -50,12 +49,6 @@ def test_episode_keys_must_be_file_names_and_unique(tmp_path) -> None:
         run_episodes(noisy_episode, [Episode("x", {"seed": 0})] * 2, tmp_path, progress=False)
     with pytest.raises(ConfigError, match="workers"):
         Backend(workers=0)
-
-
-def test_atomic_write_leaves_no_temp_file(tmp_path) -> None:
-    path = write_text_atomic(tmp_path / "sub" / "a.txt", "hello\n")
-    assert path.read_text() == "hello\n"
-    assert [p.name for p in path.parent.iterdir()] == ["a.txt"]
 
 
 def test_csv_rows_sorted_by_key_whatever_the_finish_order(tmp_path) -> None:

@@ -26,9 +26,9 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str, tmp
     from stable_baselines3 import PPO
 
     import negobs_gym  # noqa: F401 - registers the envs
-    from negobs_gym.cli.common import env_with_overrides
     from negobs_gym.policies.observation import match_observation
     from negobs_gym.policies.training import make_task_env
+    from negobs_gym.scenarios import env_with_overrides
 
     record = baseline_record(name)
     for key in ("command", "seed", "steps", "wall_s", "env", "evaluation"):
