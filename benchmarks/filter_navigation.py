@@ -24,7 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.cli.common import add_set_option
 from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
+from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import run_driven_episode
 from negobs_gym.policies.training import make_task_env
 from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
@@ -70,7 +72,12 @@ def main() -> None:
     parser.add_argument("--wheel-clearance-m", type=float, default=defaults.wheel_clearance_m)
     parser.add_argument("--clearance-m", type=float, default=defaults.clearance_m)
     parser.add_argument("--max-steps", type=int, default=600)
+    add_set_option(parser)
     args = parser.parse_args()
+    try:
+        make_task_env(args.env, None, args.overrides).close()  # a bad --env or --set: exit 2, named
+    except ConfigError as error:
+        parser.error(str(error))
     guard: bool | SafetyFilterConfig = False
     if args.filter == "on":
         guard = SafetyFilterConfig(
@@ -88,7 +95,7 @@ def main() -> None:
     )
     totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        env = make_task_env(args.env, None)
+        env = make_task_env(args.env, None, args.overrides)
         driver = TrackPlanner(env, planner)
         m = run_driven_episode(env, driver, seed, guard, args.max_steps)
         env.close()

@@ -39,10 +39,12 @@ import time
 
 import numpy as np
 
+from negobs_gym.cli.common import add_set_option
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import convex_overlap_mask
 from negobs_gym.drivers import make_driver
 from negobs_gym.envs.config import POSITIVE_DETECTORS
+from negobs_gym.errors import ConfigError
 from negobs_gym.policies.training import make_task_env
 
 OBSTACLE_CHANNELS = ("negative", "positive")
@@ -108,11 +110,15 @@ def main() -> None:
         default=0.0,
         help="keep positive obstacles this long on the detector grid (ObservationConfig.positive_hold_s)",
     )
+    add_set_option(parser)
     args = parser.parse_args()
     if args.seeds < 1 or not args.band_m > 0 or not args.positive_hold_s >= 0:
         parser.error("--seeds must be >= 1, --band-m > 0 and --positive-hold-s >= 0")
 
-    named = make_task_env(args.env, "detector")
+    try:
+        named = make_task_env(args.env, "detector", args.overrides)
+    except ConfigError as error:  # a bad --env or --set: exit 2, named
+        parser.error(str(error))
     detector_env = twin(named, positive_detector=args.positive_detector, positive_hold_s=args.positive_hold_s)
     named.close()
     oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)

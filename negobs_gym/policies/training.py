@@ -26,7 +26,7 @@ import json
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,18 +60,25 @@ class TrainResult:
     last_eval: dict[str, float]
 
 
-def make_task_env(env: str, source: str | None) -> gym.Env:
+def make_task_env(env: str, source: str | None, overrides: Sequence[str] = ()) -> gym.Env:
     """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source`` (None:
-    the env's own).
+    the env's own) and its scenario changed by ``overrides`` (``KEY.PATH=VALUE``, the commands'
+    ``--set``; :func:`negobs_gym.scenarios.apply_overrides`).
 
     Raises:
-        ConfigError: ``env`` names no negobs env, scenario or file (field ``env``).
+        ConfigError: ``env`` names no negobs env, scenario or file (field ``env``), or a bad
+            assignment.
     """
     grid_source = "oracle" if source == "state" else source
     creator = registered_negobs_env(env)
-    if creator is not None:
+    if creator is not None and not overrides:
         return gym.make(env, config=_with_source(creator.default_config(), grid_source))
     from negobs_gym.scenarios.library import load_scenario, scenario_names
+    from negobs_gym.scenarios.overrides import apply_overrides
+
+    if creator is not None:  # the registered classes only name their scenario
+        spec = apply_overrides(load_scenario(creator.default_scenario), overrides)
+        return creator(config=_with_source(spec.env_config(), grid_source), scenario=spec)
 
     if not (Path(env).is_file() or env in scenario_names()):
         ids = [i for i in gym.registry if i.startswith("negobs_gym/")]
@@ -80,7 +87,7 @@ def make_task_env(env: str, source: str | None) -> gym.Env:
             f"unknown env {env!r}: not a registered id ({', '.join(ids)}), a shipped scenario "
             f"({', '.join(scenario_names())}) or an existing scenario TOML file",
         )
-    spec = load_scenario(env)
+    spec = apply_overrides(load_scenario(env), overrides)
     return NegObsEnv(config=_with_source(spec.env_config(), grid_source), scenario=spec)
 
 

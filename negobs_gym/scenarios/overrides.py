@@ -62,9 +62,8 @@ def apply_overrides(spec: ScenarioSpec, assignments: Sequence[str]) -> ScenarioS
             last = depth == len(keys) - 1
             if isinstance(node, list):
                 if not key.isdigit() or int(key) >= len(node):
-                    raise ConfigError(
-                        OPTION, f"{where}: the list has {len(node)} elements, index 0-{len(node) - 1}"
-                    )
+                    size = f"has {len(node)} elements, index 0-{len(node) - 1}" if node else "is empty"
+                    raise ConfigError(OPTION, f"{where}: the list {size}")
                 if last:
                     node[int(key)] = value
                 else:

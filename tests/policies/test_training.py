@@ -207,6 +207,25 @@ def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
         make_task_env("CartPole-v1", "oracle")
 
 
+def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
+    from negobs_gym.envs.scenarios import OffroadNavV2Env
+
+    env = make_task_env("negobs_gym/OffroadNav-v2", "detector", ["observation.tighten_pairs=true"])
+    assert type(env) is OffroadNavV2Env and env.scenario.name == "offroad_nav_v2"
+    assert env.config.observation.tighten_pairs and env.config.observation.source == "detector"
+    plain = make_task_env("negobs_gym/OffroadNav-v2", "detector")
+    assert not plain.unwrapped.config.observation.tighten_pairs
+    observation = plain.unwrapped.config.observation
+    assert env.config.observation == dataclasses.replace(observation, tighten_pairs=True)
+    for e in (env, plain):
+        e.close()
+    env = make_task_env("paper_n_mud_pit", None, ["obstacles.0.depth_m=1.2"])
+    assert env.scenario.obstacles[0].depth_m == 1.2
+    env.close()
+    with pytest.raises(ConfigError, match=r"observation\.tighten_pair"):
+        make_task_env("negobs_gym/OffroadNav-v2", None, ["observation.tighten_pair=true"])
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("vec_env", ["subproc", "prefetch"])
 def test_two_envs_run_in_subprocesses(tmp_path: Path, vec_env: str) -> None:

@@ -55,6 +55,11 @@ def test_bad_overrides_name_the_field(text: str, match: str) -> None:
         apply_overrides(load_scenario("paper_n_three_pits"), [text])
 
 
+def test_an_index_into_an_empty_list_says_so() -> None:
+    with pytest.raises(ConfigError, match=r"--set: obstacles\.0: the list is empty"):
+        apply_overrides(load_scenario("offroad_nav_v2"), ["obstacles.0.depth_m=1"])
+
+
 def test_an_env_id_resolves_to_its_scenario() -> None:
     assert spec_for_env("negobs_gym/OffroadNav-v2") == load_scenario("offroad_nav_v2")
     assert spec_for_env("paper_n_mud_pit") == load_scenario("paper_n_mud_pit")
