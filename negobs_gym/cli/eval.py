@@ -129,7 +129,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--env",
         dest="env_id",
         default=None,
-        help="env id, shipped scenario or scenario TOML file (default negobs_gym/Braking-v0)",
+        help="env id, shipped scenario or scenario TOML file (default: the one the model's record "
+        "names, a shipped policy's NAME.json or its training folder's train.json, with the record's "
+        "--set; else negobs_gym/Braking-v0)",
     )
     pol.add_argument("--algo", default=None, help="stable-baselines3 class (default PPO)")
     pol.add_argument("--filter", choices=("off", "on", "both"), default=None, help="default: both")
@@ -245,9 +247,23 @@ def run_policy(args: argparse.Namespace) -> int:
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
+    from negobs_gym.policies.baselines import recorded_env
     from negobs_gym.scenarios import describe_overrides, env_with_overrides
 
-    config = build_config(PolicyCampaignConfig, _toml(args), cli)
+    toml = _toml(args)
+    recorded = recorded_env(args.model)
+    if recorded is not None and args.env_id is None and "env_id" not in toml:
+        cli["env_id"] = recorded[0]  # the env the model was fitted on, with its settings first
+        args.overrides = [*recorded[1], *args.overrides]
+        log.info("--env from %s's record: %s", args.model, describe_overrides(*recorded))
+    elif recorded is not None and not set(recorded[1]) <= set(args.overrides):
+        log.warning(
+            "%s was fitted with --set %s; evaluating with %s",
+            args.model,
+            " --set ".join(recorded[1]),
+            " ".join(f"--set {s}" for s in args.overrides) or "no --set",
+        )
+    config = build_config(PolicyCampaignConfig, toml, cli)
     label = describe_overrides(config.env_id, args.overrides)  # result lines name the id and settings
     if args.overrides:
         env = env_with_overrides(config.env_id, args.overrides, args.out, replace=not args.resume)

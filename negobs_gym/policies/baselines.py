@@ -14,7 +14,7 @@ from typing import Any
 
 from negobs_gym.errors import ConfigError
 
-__all__ = ["BASELINE_DIR", "baseline_names", "baseline_record", "resolve_model"]
+__all__ = ["BASELINE_DIR", "baseline_names", "baseline_record", "recorded_env", "resolve_model"]
 
 BASELINE_DIR = Path(__file__).with_name("trained")
 
@@ -51,3 +51,27 @@ def resolve_model(model: str, field: str = "model_path") -> str:
     raise ConfigError(
         field, f"no saved model at {model} and no shipped baseline of that name ({baseline_names()})"
     )
+
+
+def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
+    """The env a model was fitted on and the ``--set`` assignments it was fitted with, from its
+    record: a shipped baseline's ``NAME.json`` (``env``, ``set``), or the ``train.json`` of the
+    ``negobs train`` folder the model file lies in (``model.zip``, ``warm_start.zip``,
+    ``checkpoints/model_N.zip``; a ``--set`` run's ``OUT/scenario.toml``, found beside it). None when
+    there is no record, so evaluating on another grid than the one trained on is never silent.
+    """
+    path = Path(model) if Path(model).exists() else Path(f"{model}.zip")
+    if not path.exists():
+        if not (BASELINE_DIR / f"{model}.zip").exists():
+            return None
+        record = baseline_record(model)
+        return str(record["env"]), tuple(record.get("set", ()))
+    for folder in (path.parent, path.parent.parent):
+        run = folder / "train.json"
+        if run.is_file():
+            env = str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"])
+            beside = folder / "scenario.toml"
+            if Path(env).name == "scenario.toml" and not Path(env).is_file() and beside.is_file():
+                env = str(beside)  # the run's --set scenario, recorded relative to where it ran
+            return env, ()
+    return None

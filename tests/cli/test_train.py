@@ -51,6 +51,10 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     (line,) = capsys.readouterr().out.splitlines()
     assert line.startswith(f"{ENV}/filter success=") and "/1 " in line
     assert 0.0 <= float(line.rsplit("off_track_share=", 1)[1]) <= 1.0
+    # without --env: the env of the run's train.json (Braking-v1), not eval policy's Braking-v0
+    evaluation = ["eval", "policy", str(out / "model.zip"), "--seeds", "1", "--filter", "off"]
+    assert main(["-q", *evaluation, "--out", str(tmp_path / "eval2"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.startswith(f"{ENV}/nofilter success=")
 
 
 def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path: Path, capsys) -> None:

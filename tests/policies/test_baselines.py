@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.baselines import baseline_names, baseline_record, resolve_model
+from negobs_gym.policies.baselines import baseline_names, baseline_record, recorded_env, resolve_model
 
 
 def test_a_path_resolves_to_itself_and_an_unknown_name_is_refused(tmp_path: Path) -> None:
@@ -22,13 +23,12 @@ def test_a_path_resolves_to_itself_and_an_unknown_name_is_refused(tmp_path: Path
 
 
 @pytest.mark.parametrize("name", baseline_names())
-def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str, tmp_path: Path) -> None:
+def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> None:
     from stable_baselines3 import PPO
 
     import negobs_gym  # noqa: F401 - registers the envs
     from negobs_gym.policies.observation import match_observation
     from negobs_gym.policies.training import make_task_env
-    from negobs_gym.scenarios import env_with_overrides
 
     record = baseline_record(name)
     for key in ("command", "seed", "steps", "wall_s", "env", "evaluation"):
@@ -37,7 +37,8 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str, tmp
     settings = record.get("set", [])  # the --set its commands carry
     assert all(f"--set {s}" in record["command"] for s in settings)
     model = PPO.load(resolve_model(name), device="cpu")
-    env = make_task_env(env_with_overrides(record["env"], settings, tmp_path), None)  # id or scenario
+    assert recorded_env(name) == (record["env"], tuple(settings))  # eval policy's default --env
+    env = make_task_env(record["env"], None, settings)  # id or scenario
     obs, _ = env.reset(seed=1_000_000)
     action, _ = model.predict(match_observation(obs, model.observation_space), deterministic=True)
     assert env.action_space.contains(action.astype(env.action_space.dtype))
@@ -46,3 +47,20 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str, tmp
 
 def test_at_least_one_baseline_is_shipped() -> None:
     assert baseline_names(), "no trained policy under negobs_gym/policies/trained"
+
+
+def test_a_training_folder_records_the_env_of_its_models(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    for model in ("model.zip", "warm_start.zip", "checkpoints/model_64.zip"):
+        (run / model).write_bytes(b"zip")
+    loose = tmp_path / "loose.zip"
+    loose.write_bytes(b"zip")
+    (run / "train.json").write_text(json.dumps({"config": {"env": "negobs_gym/OffroadNav-v2"}}))
+    for model in ("model.zip", "warm_start.zip", "checkpoints/model_64.zip", "model"):
+        assert recorded_env(str(run / model)) == ("negobs_gym/OffroadNav-v2", ())
+    assert recorded_env(str(loose)) is None and recorded_env(str(tmp_path / "none.zip")) is None
+    # a --set run records OUT/scenario.toml relative to where it ran: found beside train.json
+    (run / "train.json").write_text(json.dumps({"config": {"env": "elsewhere/run/scenario.toml"}}))
+    (run / "scenario.toml").write_text("name = 'x'\n")
+    assert recorded_env(str(run / "model.zip")) == (str(run / "scenario.toml"), ())
