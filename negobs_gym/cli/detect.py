@@ -81,8 +81,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Recordings carry no pose here: every frame is taken as standing still at the same place, "
-        "so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
+        "Without --poses every frame is taken as standing still at the same place, so multi-frame "
+        "fusion accumulates evidence only for a vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
@@ -113,6 +113,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DEG",
         help="range-image column width [deg] (default: the sensor's)",
     )
+    parser.add_argument(
+        "--poses",
+        default=None,
+        metavar="CSV",
+        help="the vehicle's pose at each frame of the sequence, in order: a CSV whose header names "
+        "x,y,z,roll,pitch,yaw (m, rad, ROS axes: x forward, y left, yaw from the world x axis), so "
+        "that the multi-frame fusion follows a moving vehicle",
+    )
+    parser.add_argument(
+        "--tighten-pairs",
+        action="store_true",
+        help="move a fused pair's near edge to the closer frames' (FusionConfig.tighten_on_match; "
+        "not in paper N; useful with --poses)",
+    )
     parser.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
     parser.set_defaults(handler=run)
 
@@ -140,12 +154,21 @@ def run(args: argparse.Namespace) -> int:
 
     from negobs_gym.cli.detect_report import detection_record, plot_detection
     from negobs_gym.core.pose import Pose
-    from negobs_gym.detector import NegativeObstacleDetector, StructureDetector
-    from negobs_gym.detector.io import read_recording
+    from negobs_gym.detector import (
+        FusionConfig,
+        NegativeDetectorConfig,
+        NegativeObstacleDetector,
+        StructureDetector,
+    )
+    from negobs_gym.detector.io import read_poses_csv, read_recording
+    from negobs_gym.errors import ScanError
 
     setup = scan_setup(args)
     out = Path(args.out)
-    detector = NegativeObstacleDetector()
+    poses = read_poses_csv(args.poses) if args.poses else None
+    detector = NegativeObstacleDetector(
+        NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
+    )
     structure = StructureDetector(grid=detector.config.grid)
     summary = []
     frames = (
@@ -154,11 +177,14 @@ def run(args: argparse.Namespace) -> int:
         for f in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic)
     )
     for n, frame in enumerate(tqdm(frames, desc="negobs detect", unit="frame", disable=None)):
+        if poses is not None and n >= len(poses):
+            raise ScanError(f"{args.poses}: {len(poses)} poses, but the recording has more frames")
+        pose = poses[n] if poses is not None else Pose()
         scans = {frame.scan.sensor: frame.scan}
-        detection = detector.update(scans, Pose())
-        cells = structure.update(scans, Pose(), detection.ground_map)
+        detection = detector.update(scans, pose)
+        cells = structure.update(scans, pose, detection.ground_map)
         stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
-        record = detection_record(frame, detection, args.sensor, cells)
+        record = detection_record(frame, detection, args.sensor, cells, pose if poses is not None else None)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:
             write_atomic(
@@ -173,6 +199,14 @@ def run(args: argparse.Namespace) -> int:
         )
         log.debug("%s: %d pairs, %d obstacles", stem, record["n_frame_pairs"], record["n_obstacles"])
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))
+    if poses is not None and len(poses) > len(summary):
+        log.warning(
+            "%s: %d poses for %d frames; the last %d unused",
+            args.poses,
+            len(poses),
+            len(summary),
+            len(poses) - len(summary),
+        )
     log.info(
         "negobs detect: %d frames, %d obstacles in the last, written to %s",
         len(summary),

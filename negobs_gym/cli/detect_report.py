@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.pose import Pose
 from negobs_gym.detector.io import RecordedFrame
 from negobs_gym.detector.negative import Detection
 
@@ -16,7 +17,11 @@ def _xyz(a: np.ndarray) -> list[list[float]]:
 
 
 def detection_record(
-    frame: RecordedFrame, detection: Detection, sensor: str, structure: np.ndarray
+    frame: RecordedFrame,
+    detection: Detection,
+    sensor: str,
+    structure: np.ndarray,
+    pose: Pose | None = None,
 ) -> dict[str, Any]:
     """JSON-ready record of one frame: provenance, this frame's pairs, fused pairs, obstacles, grid,
     and the structure channel's cells (``structure``, a bool grid of the same spec; returns above
@@ -24,6 +29,8 @@ def detection_record(
 
     Coordinates are metres in the vehicle frame (X right, Y forward, Z up); the grid is given by
     its spec and the ``[row, col]`` of every occupied cell (row 0 = rear edge, col 0 = left edge).
+    ``pose`` (``--poses``) is recorded as this package's pose of the vehicle (x, y, z, roll, pitch,
+    yaw; vehicle Y forward), None when the frames were taken as standing still.
     """
     spec = detection.grid_spec
     fused = detection.pairs
@@ -36,6 +43,7 @@ def detection_record(
         "ring_source": frame.ring_source,
         "n_points": frame.n_points,
         "scan_shape": list(frame.scan.shape),
+        "pose": None if pose is None else [pose.x, pose.y, pose.z, pose.roll, pose.pitch, pose.yaw],
         "n_frame_pairs": int(sum(len(p) for p in detection.frame_pairs.values())),
         "frame_pairs": {
             name: {"a_m": _xyz(p.a_m), "b_m": _xyz(p.b_m), "c_m": _xyz(np.nan_to_num(p.c_m, nan=0.0))}

@@ -10,18 +10,23 @@ The last three need ``pip install negobs_gym[real]`` (pypcd4, rosbags, velodyne-
 only when such a file is read; without them a :class:`~negobs_gym.errors.MissingDependencyError`
 says what to install. Files that cannot be read raise :class:`~negobs_gym.errors.ScanError`.
 All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and converted to this
-package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`.
+package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`. A drive's poses, for
+multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`).
 """
 
+from negobs_gym.detector.io.poses import POSE_COLUMNS, pose_from_ros, read_poses_csv
 from negobs_gym.detector.io.recording import BinLayout, RecordedFrame, read_bin, read_recording
 from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, fields_to_scan
 
 __all__ = [
+    "POSE_COLUMNS",
     "RING_FIELD_NAMES",
     "BinLayout",
     "RecordedFrame",
     "ScanSetup",
     "fields_to_scan",
+    "pose_from_ros",
     "read_bin",
+    "read_poses_csv",
     "read_recording",
 ]
