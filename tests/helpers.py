@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 HAS_PROC_STATM = os.path.exists("/proc/self/statm")
 
 
@@ -11,3 +13,44 @@ def rss_mb() -> float:
     """Resident set size of this process [MB] (Linux /proc)."""
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+# sensor_msgs/PointField datatype codes of the numpy field types the tests write
+POINTFIELD_CODES = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("u1"): 2}
+
+
+def pointcloud2(store, points: np.ndarray, stamp_ns: int, data: bytes | None = None, ros1: bool = False):
+    """A PointCloud2 message holding ``points`` (a numpy structured array) as they lie in memory."""
+    t = store.types
+    msg_types = {
+        "PointField": t["sensor_msgs/msg/PointField"],
+        "PointCloud2": t["sensor_msgs/msg/PointCloud2"],
+        "Header": t["std_msgs/msg/Header"],
+        "Time": t["builtin_interfaces/msg/Time"],
+    }
+    fields = [
+        msg_types["PointField"](
+            name=n,
+            offset=points.dtype.fields[n][1],
+            datatype=POINTFIELD_CODES[points.dtype.fields[n][0]],
+            count=1,
+        )
+        for n in points.dtype.names
+    ]
+    stamp = msg_types["Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    raw = (
+        np.frombuffer(points.tobytes(), dtype=np.uint8)
+        if data is None
+        else np.frombuffer(data, dtype=np.uint8)
+    )
+    return msg_types["PointCloud2"](
+        header=msg_types["Header"](**({"seq": 0} if ros1 else {}), stamp=stamp, frame_id="velodyne"),
+        height=1,
+        width=points.size,
+        fields=fields,
+        is_bigendian=False,
+        point_step=points.dtype.itemsize,
+        row_step=points.dtype.itemsize * points.size,
+        data=raw,
+        is_dense=True,
+    )

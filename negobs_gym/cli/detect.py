@@ -81,8 +81,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Without --poses every frame is taken as standing still at the same place, so multi-frame "
-        "fusion accumulates evidence only for a vehicle that did not move.",
+        "Without --poses or --poses-topic every frame is taken as standing still at the same place, "
+        "so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
@@ -113,13 +113,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DEG",
         help="range-image column width [deg] (default: the sensor's)",
     )
-    parser.add_argument(
+    poses = parser.add_mutually_exclusive_group()
+    poses.add_argument(
         "--poses",
         default=None,
         metavar="CSV",
         help="the vehicle's pose at each frame of the sequence, in order: a CSV whose header names "
         "x,y,z,roll,pitch,yaw (m, rad, ROS axes: x forward, y left, yaw from the world x axis), so "
         "that the multi-frame fusion follows a moving vehicle",
+    )
+    poses.add_argument(
+        "--poses-topic",
+        default=None,
+        metavar="TOPIC",
+        help="bags only: take each frame's pose from this nav_msgs/Odometry or geometry_msgs/"
+        "PoseStamped topic of the same bag, interpolated at the frame's record time",
     )
     parser.add_argument(
         "--tighten-pairs",
@@ -161,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
         StructureDetector,
     )
     from negobs_gym.detector.io import read_poses_csv, read_recording
+    from negobs_gym.detector.io.bags import bag_pose_track
     from negobs_gym.errors import ScanError
 
     setup = scan_setup(args)
@@ -171,20 +180,27 @@ def run(args: argparse.Namespace) -> int:
     )
     structure = StructureDetector(grid=detector.config.grid)
     summary = []
-    frames = (
-        f
-        for path in args.files
-        for f in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic)
-    )
-    for n, frame in enumerate(tqdm(frames, desc="negobs detect", unit="frame", disable=None)):
+
+    def frames_and_tracks():
+        for path in args.files:  # a bag's own odometry, read once per file
+            track = bag_pose_track(path, args.poses_topic) if args.poses_topic else None
+            for frame in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic):
+                yield frame, track
+
+    bar = tqdm(frames_and_tracks(), desc="negobs detect", unit="frame", disable=None)
+    for n, (frame, track) in enumerate(bar):
         if poses is not None and n >= len(poses):
             raise ScanError(f"{args.poses}: {len(poses)} poses, but the recording has more frames")
-        pose = poses[n] if poses is not None else Pose()
+        if track is not None:
+            pose = track.at(frame.scan.timestamp_s)
+        else:
+            pose = poses[n] if poses is not None else Pose()
         scans = {frame.scan.sensor: frame.scan}
         detection = detector.update(scans, pose)
         cells = structure.update(scans, pose, detection.ground_map)
         stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
-        record = detection_record(frame, detection, args.sensor, cells, pose if poses is not None else None)
+        given = poses is not None or track is not None
+        record = detection_record(frame, detection, args.sensor, cells, pose if given else None)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:
             write_atomic(

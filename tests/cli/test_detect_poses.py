@@ -81,3 +81,63 @@ def test_tightened_pairs_and_short_poses(drive, tmp_path, capsys) -> None:
     args = ["detect", *files, "--bin-fields", "xyzir", "--no-png", "--out", str(tmp_path / "s")]
     assert main([*args, "--poses", str(short)]) == 2
     assert "2 poses, but the recording has more frames" in capsys.readouterr().err
+
+
+def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) -> None:
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from tests.helpers import pointcloud2
+
+    files, poses = drive
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    t = store.types
+    bag = tmp_path / "drive_ros2"
+    start_ns, period_ns = 10**9, 10**8  # clouds at 10 Hz, odometry at 50 Hz around them
+    with Writer(bag, version=9) as writer:
+        clouds = writer.add_connection("/points", "sensor_msgs/msg/PointCloud2", typestore=store)
+        for k, path in enumerate(files):
+            raw = np.fromfile(path, dtype=np.float32).reshape(-1, 5)
+            points = np.zeros(
+                len(raw), dtype=[(n, "<f4") for n in "xyz"] + [("intensity", "<f4"), ("ring", "<u2")]
+            )
+            for i, name in enumerate(("x", "y", "z", "intensity", "ring")):
+                points[name] = raw[:, i]
+            stamp = start_ns + k * period_ns
+            msg = pointcloud2(store, points, stamp)
+            writer.write(clouds, stamp, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        for j in range(-2, 5 * (FRAMES - 1) + 3):
+            stamp = start_ns + j * period_ns // 5
+            x = STEP_M * j / 5  # 1 m per cloud period, as the CSV's poses
+            pose = t["geometry_msgs/msg/Pose"](
+                position=t["geometry_msgs/msg/Point"](x=x, y=0.0, z=0.0),
+                orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            )
+            zero = t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+            msg = t["nav_msgs/msg/Odometry"](
+                header=t["std_msgs/msg/Header"](
+                    stamp=t["builtin_interfaces/msg/Time"](sec=stamp // 10**9, nanosec=stamp % 10**9),
+                    frame_id="odom",
+                ),
+                child_frame_id="base_link",
+                pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
+                ),
+            )
+            writer.write(odom, stamp, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+    out = tmp_path / "bag"
+    args = ["-q", "detect", str(bag), "--topic", "/points", "--height", "2.2", "--no-png", "--out", str(out)]
+    assert main([*args, "--poses-topic", "/odom"]) == 0
+    from_bag = [json.loads((out / f"{k:05d}_drive_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
+    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
+    for bag_record, csv_record in zip(from_bag, from_csv, strict=True):
+        np.testing.assert_allclose(bag_record["pose"], csv_record["pose"], atol=1e-9)
+        np.testing.assert_allclose(_near_edges(bag_record), _near_edges(csv_record), atol=1e-3)
+    assert len(_near_edges(from_bag[3])) == 1
+    assert main([*args[1:-2], "--out", str(tmp_path / "x"), "--poses-topic", "/imu"]) == 2
+    assert "no topic '/imu'" in capsys.readouterr().err
+    assert main(["detect", files[0], "--out", str(tmp_path / "y"), "--poses-topic", "/odom"]) == 2
+    assert "not a readable ROS bag" in capsys.readouterr().err

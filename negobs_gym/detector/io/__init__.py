@@ -14,7 +14,7 @@ package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`. A d
 multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`).
 """
 
-from negobs_gym.detector.io.poses import POSE_COLUMNS, pose_from_ros, read_poses_csv
+from negobs_gym.detector.io.poses import POSE_COLUMNS, PoseTrack, pose_from_ros, read_poses_csv
 from negobs_gym.detector.io.recording import BinLayout, RecordedFrame, read_bin, read_recording
 from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, fields_to_scan
 
@@ -22,6 +22,7 @@ __all__ = [
     "POSE_COLUMNS",
     "RING_FIELD_NAMES",
     "BinLayout",
+    "PoseTrack",
     "RecordedFrame",
     "ScanSetup",
     "fields_to_scan",

@@ -1,5 +1,6 @@
 """ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (``rosbags``, extra ``negobs_gym[real]``; no
-ROS install needed). A bag is a sequence: one frame per message of one topic, in time order."""
+ROS install needed). A bag is a sequence: one frame per message of one topic, in time order. An
+odometry or pose topic of the same bag gives the drive's poses (:func:`bag_pose_track`)."""
 
 from __future__ import annotations
 
@@ -11,11 +12,18 @@ import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
+from negobs_gym.detector.io.poses import PoseTrack
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
 from negobs_gym.errors import ScanError
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+# message types with a pose, and how to reach its geometry_msgs/Pose
+POSE_MESSAGES = {
+    "nav_msgs/msg/Odometry": lambda m: m.pose.pose,
+    "geometry_msgs/msg/PoseStamped": lambda m: m.pose,
+    "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose,
+}
 # sensor_msgs/PointField datatype codes -> numpy scalar types
 _POINTFIELD_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
@@ -58,15 +66,8 @@ def bag_frames(
 ) -> Iterator[RecordedFrame]:
     """Frames of the PointCloud2 ``topic`` of a ROS 1 ``.bag`` or ROS 2 bag (folder, ``.db3``,
     ``.mcap``); without ``topic`` the bag must hold exactly one PointCloud2 topic."""
-    highlevel = optional_import("rosbags.highlevel", "rosbags", "reading ROS bags")
     p = Path(path)
-    bag = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
-    check_not_empty(os.fspath(p))
-    try:
-        reader = highlevel.AnyReader([bag])
-        reader.open()
-    except Exception as error:  # rosbags raises its own ReaderError / AnyReaderError on bad bags
-        raise unreadable(os.fspath(p), "ROS bag", error) from error
+    reader = _open_bag(p)
     try:
         clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
         if topic is None and len(clouds) != 1:
@@ -86,6 +87,55 @@ def bag_frames(
             yield RecordedFrame(scan, os.fspath(p), index, ring_source, int(msg.width) * int(msg.height))
     finally:
         reader.close()
+
+
+def _open_bag(p: Path):
+    """An opened rosbags ``AnyReader`` of the bag at ``p`` (its folder, or a ``.db3``/``.mcap`` in it)."""
+    highlevel = optional_import("rosbags.highlevel", "rosbags", "reading ROS bags")
+    bag = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
+    check_not_empty(os.fspath(p))
+    try:
+        reader = highlevel.AnyReader([bag])
+        reader.open()
+    except Exception as error:  # rosbags raises its own ReaderError / AnyReaderError on bad bags
+        raise unreadable(os.fspath(p), "ROS bag", error) from error
+    return reader
+
+
+def bag_pose_track(path: str | os.PathLike[str], topic: str, *, max_gap_s: float = 0.1) -> PoseTrack:
+    """The poses of ``topic`` in a bag (``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
+    ``PoseWithCovarianceStamped``), timed by the bag's record time as its frames are
+    (:func:`bag_frames`), for :meth:`PoseTrack.at`.
+
+    Raises:
+        ScanError: not a readable bag, no such topic or not a pose type, no message, or a message
+            that cannot be read.
+    """
+    p = Path(path)
+    reader = _open_bag(p)
+    try:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        if topic not in types:
+            raise ScanError(f"{p}: no topic {topic!r} (has {sorted(types)})")
+        if types[topic] not in POSE_MESSAGES:
+            raise ScanError(f"{p}: {topic} is {types[topic]}, not one of {sorted(POSE_MESSAGES)}")
+        pose_of = POSE_MESSAGES[types[topic]]
+        times, rows = [], []
+        connections = [c for c in reader.connections if c.topic == topic]
+        for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
+            try:
+                pose = pose_of(reader.deserialize(raw, connection.msgtype))
+            except Exception as error:  # a corrupt message body
+                raise unreadable(f"{p}#{topic}#{index}", types[topic], error) from error
+            o, q = pose.position, pose.orientation
+            times.append(stamp_ns * 1e-9)
+            rows.append((o.x, o.y, o.z, q.x, q.y, q.z, q.w))
+    finally:
+        reader.close()
+    if not rows:
+        raise ScanError(f"{p}: no message on {topic}")
+    data = np.asarray(rows, dtype=np.float64)
+    return PoseTrack(np.asarray(times), data[:, :3], data[:, 3:], max_gap_s=max_gap_s)
 
 
 def read_bag(

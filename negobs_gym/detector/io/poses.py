@@ -8,6 +8,9 @@ radians in ROS REP-103 axes, the frame the recordings are read in (body x forwar
 yaw counter-clockwise from the world x axis, positive pitch nose down, positive roll right side
 down), as an odometry or INS export gives them. :func:`pose_from_ros` converts each to this
 package's :class:`~negobs_gym.core.pose.Pose` (vehicle Y forward, X right; yaw 0 facing world +Y).
+
+A bag's odometry topic gives timed poses instead (:func:`negobs_gym.detector.io.bags.bag_pose_track`):
+a :class:`PoseTrack`, interpolated at each frame's time.
 """
 
 from __future__ import annotations
@@ -15,11 +18,14 @@ from __future__ import annotations
 import csv
 import math
 import os
+from dataclasses import dataclass
+
+import numpy as np
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ScanError
 
-__all__ = ["POSE_COLUMNS", "pose_from_ros", "read_poses_csv"]
+__all__ = ["POSE_COLUMNS", "PoseTrack", "pose_from_ros", "read_poses_csv"]
 
 POSE_COLUMNS = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -69,3 +75,69 @@ def read_poses_csv(path: str | os.PathLike[str]) -> list[Pose]:
             values.append(value)
         poses.append(pose_from_ros(*values))
     return poses
+
+
+@dataclass(frozen=True, eq=False)
+class PoseTrack:
+    """Timed ROS poses of a drive (an odometry topic), read at any time in their span.
+
+    Attributes:
+        times_s: (N,) strictly increasing times [s], on the clock of the frames they are read at.
+        position_m: (N, 3) ROS world positions.
+        quaternion_xyzw: (N, 4) ROS body-to-world orientations (normalised here).
+        max_gap_s: How far before the first or after the last pose a frame may lie and take that
+            pose (a cloud stamped just outside the odometry's span); farther is an error.
+    """
+
+    times_s: np.ndarray
+    position_m: np.ndarray
+    quaternion_xyzw: np.ndarray
+    max_gap_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times_s, dtype=np.float64)
+        xyz = np.asarray(self.position_m, dtype=np.float64)
+        q = np.asarray(self.quaternion_xyzw, dtype=np.float64)
+        if t.ndim != 1 or t.size == 0 or xyz.shape != (t.size, 3) or q.shape != (t.size, 4):
+            raise ScanError(
+                "pose track: need N times, (N, 3) positions, (N, 4) quaternions; "
+                f"got {t.shape}, {xyz.shape}, {q.shape}"
+            )
+        if not (np.isfinite(t).all() and np.isfinite(xyz).all() and np.isfinite(q).all()):
+            raise ScanError("pose track: a time, position or quaternion is not finite")
+        if (np.diff(t) <= 0).any():
+            raise ScanError("pose track: times must increase strictly (one pose per time)")
+        norm = np.linalg.norm(q, axis=1)
+        if (norm < 1e-9).any():
+            raise ScanError("pose track: a quaternion has zero length")
+        if not (math.isfinite(self.max_gap_s) and self.max_gap_s >= 0):
+            raise ScanError(f"pose track: max_gap_s must be finite and >= 0, got {self.max_gap_s}")
+        object.__setattr__(self, "times_s", t)
+        object.__setattr__(self, "position_m", xyz)
+        object.__setattr__(self, "quaternion_xyzw", q / norm[:, None])
+
+    def at(self, time_s: float) -> Pose:
+        """The pose at ``time_s``: positions interpolated linearly, orientations by slerp.
+
+        Raises:
+            ScanError: ``time_s`` lies more than ``max_gap_s`` outside the track's span.
+        """
+        from scipy.spatial.transform import Rotation, Slerp
+
+        t = self.times_s
+        if not (t[0] - self.max_gap_s <= time_s <= t[-1] + self.max_gap_s):
+            raise ScanError(
+                f"no pose at t = {time_s:.3f} s: the poses span {t[0]:.3f}-{t[-1]:.3f} s "
+                f"(+- {self.max_gap_s} s)"
+            )
+        time_s = min(max(time_s, t[0]), t[-1])
+        i = int(np.clip(np.searchsorted(t, time_s, side="right") - 1, 0, max(t.size - 2, 0)))
+        if t.size == 1:
+            xyz, rotation = self.position_m[0], Rotation.from_quat(self.quaternion_xyzw[0])
+        else:
+            w = (time_s - t[i]) / (t[i + 1] - t[i])
+            xyz = (1.0 - w) * self.position_m[i] + w * self.position_m[i + 1]
+            pair = Rotation.from_quat(self.quaternion_xyzw[i : i + 2])
+            rotation = Slerp(t[i : i + 2], pair)([time_s])[0]
+        roll, pitch, yaw = rotation.as_euler("xyz")  # extrinsic x, y, z: ROS roll, pitch, yaw
+        return pose_from_ros(*(float(v) for v in xyz), float(roll), float(pitch), float(yaw))

@@ -8,6 +8,7 @@ import pytest
 from negobs_gym.detector.io import ScanSetup, fields_to_scan, read_recording
 from negobs_gym.detector.io.bags import read_bag
 from negobs_gym.errors import ScanError
+from tests.helpers import pointcloud2
 
 from .conftest import HDL32E_A
 
@@ -19,48 +20,12 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 TOPIC = "/velodyne_points"
 SETUP = ScanSetup(azimuth_resolution_deg=0.16, translation_m=(0.0, 0.0, 2.3))
-# sensor_msgs/PointField datatypes of the decoder's fields
-_CODES = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("u1"): 2}
 
 
 @pytest.fixture(scope="module")
 def frames():
     """(stamp_ns, points) of the two real HDL-32E frames of hdl32e_a.pcap."""
     return [(int(s.host * 1e9), p) for s, p in vd.read_pcap(str(HDL32E_A), vd.Config(), as_pcl_structs=True)]
-
-
-def pointcloud2(store, points: np.ndarray, stamp_ns: int, data: bytes | None = None, ros1: bool = False):
-    """A PointCloud2 message holding ``points`` (a numpy structured array) as they lie in memory."""
-    t = store.types
-    msg_types = {
-        "PointField": t["sensor_msgs/msg/PointField"],
-        "PointCloud2": t["sensor_msgs/msg/PointCloud2"],
-        "Header": t["std_msgs/msg/Header"],
-        "Time": t["builtin_interfaces/msg/Time"],
-    }
-    fields = [
-        msg_types["PointField"](
-            name=n, offset=points.dtype.fields[n][1], datatype=_CODES[points.dtype.fields[n][0]], count=1
-        )
-        for n in points.dtype.names
-    ]
-    stamp = msg_types["Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
-    raw = (
-        np.frombuffer(points.tobytes(), dtype=np.uint8)
-        if data is None
-        else np.frombuffer(data, dtype=np.uint8)
-    )
-    return msg_types["PointCloud2"](
-        header=msg_types["Header"](**({"seq": 0} if ros1 else {}), stamp=stamp, frame_id="velodyne"),
-        height=1,
-        width=points.size,
-        fields=fields,
-        is_bigendian=False,
-        point_step=points.dtype.itemsize,
-        row_step=points.dtype.itemsize * points.size,
-        data=raw,
-        is_dense=True,
-    )
 
 
 def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None):

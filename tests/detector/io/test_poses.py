@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core.pose import Pose
-from negobs_gym.detector.io import pose_from_ros, read_poses_csv
+from negobs_gym.detector.io import PoseTrack, pose_from_ros, read_poses_csv
 from negobs_gym.errors import ScanError
 
 
@@ -71,3 +71,47 @@ def test_bad_csv_is_refused_naming_the_problem(tmp_path, text: str, match: str) 
 def test_a_missing_file_is_named(tmp_path) -> None:
     with pytest.raises(ScanError, match=r"none\.csv: cannot read poses"):
         read_poses_csv(tmp_path / "none.csv")
+
+
+def _quaternion(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_euler("xyz", [roll, pitch, yaw]).as_quat()  # ROS fixed-axis RPY, xyzw
+
+
+def test_a_track_interpolates_positions_and_orientations() -> None:
+    times = np.array([0.0, 0.1, 0.2])
+    xyz = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.5, 0.0]])
+    q = np.array([_quaternion(0.0, 0.0, 0.0), _quaternion(0.02, -0.04, 0.2), _quaternion(0.0, 0.0, 0.4)])
+    track = PoseTrack(times, xyz, q * 3.0)  # not unit length: normalised
+    at_knot = track.at(0.1)
+    want = pose_from_ros(1.0, 0.0, 0.0, 0.02, -0.04, 0.2)
+    np.testing.assert_allclose(
+        [at_knot.x, at_knot.y, at_knot.z, at_knot.roll, at_knot.pitch, at_knot.yaw],
+        [want.x, want.y, want.z, want.roll, want.pitch, want.yaw],
+        atol=1e-9,
+    )
+    mid = track.at(0.15)
+    assert (mid.x, mid.y) == pytest.approx((1.5, 0.25))
+    assert mid.yaw == pytest.approx(0.3 - math.pi / 2, abs=2e-3)  # slerp: halfway in yaw
+    # within max_gap_s of the ends: the end pose; beyond: an error naming the span
+    assert track.at(-0.05).x == 0.0 and track.at(0.28).x == 2.0
+    with pytest.raises(ScanError, match=r"no pose at t = 0\.350 s: the poses span 0\.000-0\.200 s"):
+        track.at(0.35)
+    single = PoseTrack(np.array([5.0]), xyz[:1], q[:1])
+    assert single.at(5.05) == pose_from_ros(0, 0, 0, 0, 0, 0)
+
+
+@pytest.mark.parametrize(
+    ("times", "quaternions", "match"),
+    [
+        ([0.0, 0.0], None, "increase strictly"),
+        ([0.0, float("nan")], None, "not finite"),
+        ([0.0, 0.1], [[0, 0, 0, 1], [0, 0, 0, 0]], "zero length"),
+        ([0.0], None, r"need N times"),
+    ],
+)
+def test_a_bad_track_is_refused(times, quaternions, match: str) -> None:
+    q = np.array(quaternions if quaternions is not None else [[0, 0, 0, 1], [0, 0, 0, 1]], dtype=float)
+    with pytest.raises(ScanError, match=match):
+        PoseTrack(np.array(times), np.zeros((2, 3)), q)
