@@ -84,10 +84,11 @@ def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``eval`` and its three campaign commands."""
+    """Add ``eval``: its three campaign commands and ``paths``, which draws a policy campaign's drives."""
     parser = subparsers.add_parser(
         "eval",
-        help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy",
+        help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy; "
+        "paths draws a policy campaign's drives",
         description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
         "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
     )
@@ -152,6 +153,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_set_option(pol)
     pol.set_defaults(handler=run_policy)
+
+    paths = commands.add_parser(
+        "paths",
+        help="draw a policy campaign's drives over their terrains (PNG per episode)",
+        description="Draws episodes of a `negobs eval policy --out DIR` folder from its paths.csv: "
+        "the terrain with its obstacles, the path, where the car ended, the vetoed steps and the "
+        "outcome. Default: the episodes that did not reach the goal.",
+    )
+    paths.add_argument("campaign_dir", metavar="DIR", help="the folder `negobs eval policy --out` wrote")
+    paths.add_argument(
+        "--episode",
+        dest="keys",
+        action="append",
+        default=[],
+        metavar="KEY",
+        help="an episode of policy.csv's episode column, repeatable (default: those without the goal)",
+    )
+    paths.add_argument("--all", dest="everything", action="store_true", help="every episode")
+    paths.add_argument("--limit", type=positive_int, default=None, help="draw at most N (in key order)")
+    paths.add_argument("--to", dest="to_dir", default=None, help="folder for the PNGs (default: DIR/paths)")
+    paths.set_defaults(handler=run_paths)
 
 
 def _options(args: argparse.Namespace):
@@ -281,4 +303,20 @@ def run_policy(args: argparse.Namespace) -> int:
             f"off_track_share={s['off_track_share']:.3f}"
         )
     log.info("wrote %s and %s", csv, summary_json)
+    return 0
+
+
+def run_paths(args: argparse.Namespace) -> int:
+    """Draw the chosen episodes; logs each PNG."""
+    from negobs_gym.eval.paths import draw_paths
+
+    written = draw_paths(
+        args.campaign_dir, args.keys, everything=args.everything, limit=args.limit, out_dir=args.to_dir
+    )
+    for path in written:
+        print(path)
+    if not written:
+        log.warning(
+            "no episode to draw in %s (every episode reached the goal; --all draws them)", args.campaign_dir
+        )
     return 0

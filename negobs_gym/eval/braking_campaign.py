@@ -221,7 +221,8 @@ def run_driven_episode(
     ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
     ``off_track_steps`` counts the steps that ended off the track (``info["off_track"]``: farther
     from the centre line than half the track width); ``left_track`` is whether that ended the
-    episode (the env's ``off_track`` termination rule, OffroadNav-v2).
+    episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
+    ``(x, y, yaw, speed, vetoed)`` per step (world metres, radians, m/s, bool), the reset's first.
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -236,6 +237,7 @@ def run_driven_episode(
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
+    path = [_path_point(info, False)]
     while not done and steps < max_steps:
         gap = float(info["distance_to_negative_ahead_m"])
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
@@ -253,6 +255,7 @@ def run_driven_episode(
             veto_events += not was_vetoed
             first_veto = gap if math.isnan(first_veto) else first_veto
         was_vetoed = vetoed
+        path.append(_path_point(info, vetoed))
         cost += float(info.get("cost", 0.0))
         still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
         done = terminated or truncated or still_s >= STANDSTILL_S
@@ -275,7 +278,13 @@ def run_driven_episode(
         "vetoes": vetoes,
         "veto_events": veto_events,
         "cost": cost,
+        "path": path,
     }
+
+
+def _path_point(info: dict[str, Any], vetoed: bool) -> tuple[float, float, float, float, bool]:
+    x, y, _, _, _, yaw = (float(v) for v in info["pose"])
+    return x, y, yaw, float(info["speed_mps"]), vetoed
 
 
 def run_episode(episode: Episode) -> Rows:

@@ -65,6 +65,9 @@ SUMMED = (
     "off_track_steps",
 )
 
+#: ``paths.csv``: the car's pose and speed at the reset and after every step of each episode
+PATH_COLUMNS = ("episode", "filter", "seed", "step", "x_m", "y_m", "yaw_rad", "speed_mps", "vetoed")
+
 
 @dataclass(frozen=True, kw_only=True)
 class PolicyCampaignConfig:
@@ -151,7 +154,8 @@ def run_episode(episode: Episode) -> Rows:
     label = filter_label(a["filtered"], a["stop_for_positive"])
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
-    return {"policy": [format_row(row)]}
+    path = [format_row([episode.key, label, a["seed"], step, *point]) for step, point in enumerate(m["path"])]
+    return {"policy": [format_row(row)], "paths": path}
 
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
@@ -201,9 +205,8 @@ def run_policy_campaign(
     from negobs_gym.eval.campaign import run_campaign
 
     out = Path(out_dir)
-    csv = run_campaign(run_episode, episodes(config), out, {"policy": COLUMNS}, options, "policy episodes")[
-        "policy"
-    ]
+    tables = {"policy": COLUMNS, "paths": PATH_COLUMNS}
+    csv = run_campaign(run_episode, episodes(config), out, tables, options, "policy episodes")["policy"]
     summary = summarize(csv)
     text = json.dumps({"config": dataclasses.asdict(config), "summary": summary}, indent=1, sort_keys=True)
     return csv, write_text_atomic(out / "summary.json", text), summary

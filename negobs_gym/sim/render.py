@@ -26,6 +26,7 @@ NEGATIVE_COLOUR = "red"
 POSITIVE_COLOUR = "blue"
 PATH_COLOUR = "yellow"
 VEHICLE_COLOUR = "orange"
+MARK_COLOUR = "magenta"
 TRACK_EDGE_COLOUR = "white"
 
 
@@ -121,6 +122,8 @@ def render_top_down(
     width_px: int | None = None,
     vehicle_size_m: tuple[float, float] = (2.0, 4.5),
     rear_overhang_m: float = 0.85,
+    marks_xy_m: np.ndarray | None = None,
+    caption: str | None = None,
 ) -> np.ndarray:
     """Render the terrain from above; returns an (H, W, 3) uint8 image, writes a PNG if asked.
 
@@ -133,6 +136,8 @@ def render_top_down(
         height_px: image height; ``width_px`` defaults to the terrain's aspect ratio (>= 64 px).
         vehicle_size_m: (width, length) of the footprint [m].
         rear_overhang_m: distance from the rear axle (pose origin) back to the rear bumper [m].
+        marks_xy_m: (M, 2) world points drawn as dots (e.g. where the safety filter vetoed).
+        caption: one line of text drawn at the top left.
 
     Raises:
         ValueError: a malformed path or image size.
@@ -160,6 +165,9 @@ def render_top_down(
             raise GeometryError(f"path_xy_m must have shape (N, 2), got {path.shape}")
         finite = np.all(np.isfinite(path), axis=1)
         ax.plot(path[finite, 0], path[finite, 1], color=PATH_COLOUR, lw=1.5)
+    if marks_xy_m is not None:
+        marks = np.asarray(marks_xy_m, dtype=np.float64).reshape(-1, 2)
+        ax.plot(marks[:, 0], marks[:, 1], ".", color=MARK_COLOUR, ms=4)
     if vehicle_pose is not None:
         width, length = vehicle_size_m
         x, y, yaw = float(vehicle_pose.x), float(vehicle_pose.y), float(vehicle_pose.yaw)
@@ -168,6 +176,18 @@ def render_top_down(
         centre = np.array([x, y]) + fwd * (0.5 * length - rear_overhang_m)
         corners = _box_corners(centre, 0.5 * width, 0.5 * length, yaw)
         ax.add_patch(_patches().Polygon(corners, closed=True, fill=False, edgecolor=VEHICLE_COLOUR, lw=2))
+    if caption:
+        ax.text(
+            0.01,
+            0.99,
+            caption,
+            transform=ax.transAxes,
+            va="top",
+            ha="left",
+            fontsize=9,
+            color="white",
+            bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "none"},
+        )
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if out_path is not None:

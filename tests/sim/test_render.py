@@ -69,3 +69,15 @@ def test_bad_path_raises() -> None:
     terrain = presets.rough_track(length_m=20.0, seed=0, resolution_m=0.2)
     with pytest.raises(GeometryError, match="path_xy_m"):
         render_top_down(terrain, path_xy_m=np.zeros((5, 3)), height_px=100)
+
+
+def test_marks_and_caption_are_drawn() -> None:
+    terrain = presets.rough_track(length_m=40.0, seed=0, resolution_m=0.2)
+    plain = render_top_down(terrain, height_px=400)
+    mark = np.array([[0.0, 20.0]])
+    marked = render_top_down(terrain, height_px=400, marks_xy_m=mark, caption="seed 0: goal")
+    row, col = _pixel(terrain, mark[0], marked.shape)
+    r, g, b = (int(v) for v in marked[row, col])
+    assert r > 200 and g < 80 and b > 200  # magenta
+    assert not np.array_equal(plain[:20, :60], marked[:20, :60])  # the caption's box, top left
+    assert np.array_equal(plain[-50:], marked[-50:])  # nothing else changed far from both

@@ -1,0 +1,62 @@
+"""A policy campaign's paths.csv and `negobs eval paths`, which draws the drives over their terrains."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.eval.campaign import read_csv
+from negobs_gym.eval.paths import episode_outcome
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory) -> Path:
+    """The shipped v1 policy for 2 s (20 steps) of one OffroadNav-v1 course, without and with the filter."""
+    out = tmp_path_factory.mktemp("policy")
+    args = ["-q", "eval", "policy", "ppo_offroad_nav_v1", "--env", "negobs_gym/OffroadNav-v1", "--seeds", "1"]
+    args += ["--set", "episode.time_limit_s=2", "--filter", "both", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    return out
+
+
+def test_paths_hold_every_step_of_every_episode(campaign: Path) -> None:
+    episodes = read_csv(campaign / "policy.csv")
+    paths = read_csv(campaign / "paths.csv")
+    assert len(episodes) == 2
+    for episode in episodes:
+        rows = [r for r in paths if r["episode"] == episode["episode"]]
+        assert [int(r["step"]) for r in rows] == list(range(int(episode["steps"]) + 1))  # the reset first
+        assert {r["filter"] for r in rows} == {episode["filter"]} and {r["seed"] for r in rows} == {
+            episode["seed"]
+        }
+        xy = np.array([[float(r["x_m"]), float(r["y_m"])] for r in rows])
+        driven = float(np.hypot(*np.diff(xy, axis=0).T).sum())
+        assert driven == pytest.approx(float(episode["distance_m"]), abs=1e-4 * len(rows))
+        assert sum(r["vetoed"] == "1" for r in rows) == int(episode["vetoes"])
+        assert float(rows[-1]["speed_mps"]) > 0.5  # the policy drives off within the 2 s
+
+
+def test_eval_paths_draws_the_episodes(campaign: Path, tmp_path: Path, capsys) -> None:
+    assert main(["-q", "eval", "paths", str(campaign)]) == 0  # default: episodes without the goal
+    written = capsys.readouterr().out.split()
+    keys = sorted(r["episode"] for r in read_csv(campaign / "policy.csv"))
+    assert written == [str(campaign / "paths" / f"{k}.png") for k in keys]
+    assert all(Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in written)
+    assert (
+        main(["-q", "eval", "paths", str(campaign), "--episode", keys[1], "--to", str(tmp_path / "one")]) == 0
+    )
+    assert sorted(p.name for p in (tmp_path / "one").iterdir()) == [f"{keys[1]}.png"]
+    assert main(["eval", "paths", str(campaign), "--episode", "9.9999999"]) == 2
+    assert "no episodes ['9.9999999']" in capsys.readouterr().err
+    assert main(["eval", "paths", str(tmp_path)]) == 2
+    assert "no policy.csv" in capsys.readouterr().err
+
+
+def test_an_outcome_names_every_failure_or_the_goal() -> None:
+    row = dict.fromkeys(("entered", "collision", "rollover", "trapped", "left_track", "goal"), "0")
+    assert episode_outcome(row) == "no goal"
+    assert episode_outcome({**row, "goal": "1"}) == "goal"
+    assert episode_outcome({**row, "entered": "1", "left_track": "1"}) == "entered + left_track"
