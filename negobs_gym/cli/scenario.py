@@ -65,6 +65,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
+    p_run.add_argument(
+        "--draw",
+        metavar="DIR",
+        default=None,
+        help="write each seed's drive over its terrain to DIR/<scenario>_seed<k>.png (path, end pose, "
+        "vetoed steps, verdict)",
+    )
     add_set_option(p_run)
     p_run.set_defaults(handler=_run)
 
@@ -109,7 +116,8 @@ def _run(args: argparse.Namespace) -> int:
         spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
     failed = 0
     for seed in range(args.seed, args.seed + args.seeds):
-        result = run_scenario(spec, args.driver, filter=args.filter, seed=seed)
+        png = Path(args.draw) / f"{spec.name}_seed{seed}.png" if args.draw else None
+        result = run_scenario(spec, args.driver, filter=args.filter, seed=seed, draw_to=png)
         print(result.line(), file=sys.stdout, flush=True)
         failed += not result.passed
     return 1 if failed else 0

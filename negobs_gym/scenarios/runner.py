@@ -76,6 +76,9 @@ class ScenarioResult:
         termination: Termination rules that ended the episode (empty: truncated).
         truncated: Ended by the time limit.
         failures: Names of the spec's criteria this run failed (empty: passed).
+        path_xy_m: The rear-axle centre's world position at the reset and after every step [m].
+        vetoed_steps: The steps (1-based, indices into ``path_xy_m``) whose action the filter
+            replaced.
     """
 
     scenario: str
@@ -101,6 +104,8 @@ class ScenarioResult:
     termination: tuple[str, ...]
     truncated: bool
     failures: tuple[str, ...] = ()
+    path_xy_m: tuple[tuple[float, float], ...] = ()
+    vetoed_steps: tuple[int, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -176,6 +181,7 @@ def run_scenario(
     filter: bool | SafetyFilterConfig | None = None,
     seed: int = 0,
     render_mode: str | None = None,
+    draw_to: str | Path | None = None,
 ) -> ScenarioResult:
     """Run one episode of ``spec`` (a spec, shipped name or TOML path) with a scripted driver.
 
@@ -188,6 +194,8 @@ def run_scenario(
             False, or None for the spec's ``run.filter``.
         seed: Episode seed (terrain draws, sensor noise, the driver's ``reset``).
         render_mode: Passed to the env (e.g. to keep frames for a failing test).
+        draw_to: A PNG to write at the end (atomically): the terrain from above with the path, the
+            car where it ended, the vetoed steps and the result's verdict.
 
     Returns:
         The episode's :class:`ScenarioResult`, with the spec's failed criteria in ``failures``.
@@ -215,6 +223,7 @@ def run_scenario(
         vetoes = false_vetoes = steps = 0
         max_decel = 0.0
         terminated = truncated = False
+        path, vetoed_steps = [_xy(info)], []
         while not (terminated or truncated):
             gaps_before = {
                 "negative": info["distance_to_negative_ahead_m"],
@@ -223,8 +232,11 @@ def run_scenario(
             speed_before = info["speed_mps"]
             obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
             steps += 1
+            path.append(_xy(info))
             if "safety" in info:
                 vetoed, hazard_m, channel = _vetoed(info["safety"])
+                if vetoed:
+                    vetoed_steps.append(steps)
                 gap_before = gaps_before[channel or "negative"]
                 vetoes += vetoed
                 false_vetoes += vetoed and gap_before + bumper_m > hazard_m + FALSE_VETO_TOLERANCE_M
@@ -267,7 +279,29 @@ def run_scenario(
             positive_gap_m=float(info["distance_to_positive_ahead_m"]),
             termination=tuple(info["termination"]),
             truncated=bool(truncated and not terminated),
+            path_xy_m=tuple(path),
+            vetoed_steps=tuple(vetoed_steps),
         )
+        result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
+        if draw_to is not None:
+            _draw(result, base.terrain, float(info["pose"][5]), Path(draw_to))
     finally:
         env.close()
-    return dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
+    return result
+
+
+def _xy(info: dict[str, Any]) -> tuple[float, float]:
+    return float(info["pose"][0]), float(info["pose"][1])
+
+
+def _draw(result: ScenarioResult, terrain: Terrain, yaw_rad: float, out_path: Path) -> None:
+    from negobs_gym.core.pose import Pose
+    from negobs_gym.sim.render import render_top_down
+
+    path = np.asarray(result.path_xy_m, dtype=np.float64)
+    verdict = "PASS" if result.passed else "FAIL " + ",".join(result.failures)
+    filtered = "filter" if result.filtered else "no filter"
+    caption = f"{result.scenario} seed {result.seed} {result.driver}, {filtered}: {verdict}"
+    end = Pose(x=path[-1, 0], y=path[-1, 1], yaw=yaw_rad)
+    marks = path[list(result.vetoed_steps)]
+    render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption)

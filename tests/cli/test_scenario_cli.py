@@ -108,6 +108,11 @@ def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) ->
     paper = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=False))
     path = tmp_path / "rock.toml"
     path.write_text(spec_to_toml(paper))
-    assert main(["scenario", "run", str(path), "--stop-for-positive"]) == 0
+    assert main(["scenario", "run", str(path), "--stop-for-positive", "--draw", str(tmp_path / "drawn")]) == 0
     line = capsys.readouterr().out.strip()
     assert " collision=0 " in line and " false_vetoes=0 " in line and line.endswith("PASS")
+    import matplotlib.image as mpimg
+
+    image = mpimg.imread(tmp_path / "drawn" / f"{spec.name}_seed0.png")[..., :3]
+    magenta = (image[..., 0] > 0.8) & (image[..., 1] < 0.3) & (image[..., 2] > 0.8)
+    assert magenta.any()  # the vetoed steps before the rock

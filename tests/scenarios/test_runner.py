@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from negobs_gym.drivers import RecklessDriver
@@ -126,6 +127,10 @@ def test_the_filter_stops_for_a_rock_only_when_told() -> None:
     assert not told.collision and told.termination == ("stopped",)
     assert 1.0 < told.positive_gap_m < 6.0  # B = 5 m from the rear axle, ~3.4 m behind the bumper
     assert told.vetoes > 0 and told.false_vetoes == 0 and told.max_decel_mps2 > 4.0
+    path = np.asarray(told.path_xy_m)  # the reset's position, then one per step
+    assert path.shape == (told.steps + 1, 2) and len(told.vetoed_steps) == told.vetoes
+    assert list(told.vetoed_steps) == sorted(set(told.vetoed_steps)) and told.vetoed_steps[-1] <= told.steps
+    assert np.hypot(*np.diff(path, axis=0).T).max() < 25 / 3.6 * 0.1 + 0.05  # <= 25 km/h for 0.1 s
 
     papers = run_scenario("rock_on_track_25kmh", filter=SafetyFilterConfig(), seed=0)  # used as it is
     assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
