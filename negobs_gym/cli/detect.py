@@ -192,7 +192,10 @@ def run(args: argparse.Namespace) -> int:
         if poses is not None and n >= len(poses):
             raise ScanError(f"{args.poses}: {len(poses)} poses, but the recording has more frames")
         if track is not None:
-            pose = track.at(frame.scan.timestamp_s)
+            try:
+                pose = track.at(frame.scan.timestamp_s)
+            except ScanError as error:  # name the frame: a cloud outside the odometry's span
+                raise ScanError(f"{frame.source}, frame {frame.index}: {error}") from error
         else:
             pose = poses[n] if poses is not None else Pose()
         scans = {frame.scan.sensor: frame.scan}
