@@ -28,8 +28,12 @@ def hazard_distance_m(
     front_length)`` (the outer front corner, which in a tight turn sweeps up to a metre outside
     the rear-axle band). A point inside is reached at the arc length of its radial projection onto
     the rear-axle circle: the distance convention of the straight path, where a point at ``y``
-    ahead is at ``y``. Assumes ``R > half_width`` (true for road vehicles). Straight path: points
-    with ``|x| <= half_width`` and ``y >= 0``, at distance ``y``.
+    ahead is at ``y``. Beyond the outer side (``R + half_width < r``) only the front of the
+    rectangle passes, from the angle where its outer side meets radius ``r`` onwards: a point
+    beside the car at a smaller angle (beside its outer rear, as when passing a pit in a turn) is
+    never reached, as the footprint turns away from it (it counts one turn later). Assumes
+    ``R > half_width`` (true for road vehicles). Straight path: points with ``|x| <= half_width``
+    and ``y >= 0``, at distance ``y``.
     """
     pts = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
     if pts.shape[0] == 0:
@@ -47,4 +51,8 @@ def hazard_distance_m(
     if not np.any(inside):
         return float("inf")
     theta = np.mod(libm.arctan2(y[inside], cx[inside]), 2.0 * np.pi)
+    outer = radius + half_width_m
+    beyond = np.maximum(r[inside] * r[inside] - outer * outer, 0.0)  # 0 within the rear-axle band
+    entry = libm.arctan2(np.sqrt(beyond), np.full_like(beyond, outer))  # the outer side meets r here
+    theta = np.where(theta >= entry, theta, theta + 2.0 * np.pi)
     return float(radius * np.min(theta))

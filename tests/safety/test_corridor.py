@@ -49,3 +49,21 @@ def test_a_point_at_the_outer_front_corner_is_inside_now():
     assert np.isposinf(hazard_distance_m(corner, -0.6, 2.8, 1.2))  # beyond the rear-axle band
     d = hazard_distance_m(corner, -0.6, 2.8, 1.2, 3.65)
     assert np.isclose(d, radius * np.arctan2(3.6, radius + 1.19))
+
+
+def test_a_point_beside_the_outer_rear_is_never_reached():
+    """Found by the filter's property test: steering 0.25 of 35 deg, a point 1.25 m to the right
+    and 1 m ahead of the rear axle, just outside the 1.2 m half-width. The ring counted it, but
+    only the car's front passes beyond its outer side, from the angle where that side meets the
+    point's radius, and the car turns away from it."""
+    steer, wheelbase, half_width, front = 0.25 * np.deg2rad(35.0), 2.8, 1.2, 3.65
+    radius = wheelbase / np.tan(steer)
+    beside = np.array([[1.25, 1.0]])  # x right: the outer side of a left turn
+    d = hazard_distance_m(beside, steer, wheelbase, half_width, front)
+    assert d > 2.0 * np.pi * radius  # reached only after a full turn
+    # the same radius further round is reached: where the outer side meets it, and beyond
+    r = np.hypot(radius + 1.25, 1.0)
+    entry = np.arctan2(np.sqrt(r**2 - (radius + half_width) ** 2), radius + half_width)
+    for theta in (entry + 1e-6, entry + 0.1):
+        point = np.array([[r * np.cos(theta) - radius, r * np.sin(theta)]])  # about the centre (-R, 0)
+        assert np.isclose(hazard_distance_m(point, steer, wheelbase, half_width, front), radius * theta)

@@ -29,7 +29,9 @@ def brute_distance(points, steer_rad, wheelbase, half_width, front_length=0.0, d
 
     The body (the rectangle from the rear axle to ``front_length`` ahead, ``half_width`` either
     side) is posed every ``ds`` along the path; a point it covers at some pose is at the arc length
-    where its along-track coordinate first crosses zero on the near side of the turn centre.
+    where its along-track coordinate next crosses zero on the near side of the turn centre, from
+    the first pose that covers it on (a point beside the outer rear is covered, if ever, only a
+    turn later: its first crossing does not count).
     """
     s = np.arange(0.0, s_max, ds)
     kappa = np.tan(steer_rad) / wheelbase
@@ -51,8 +53,10 @@ def brute_distance(points, steer_rad, wheelbase, half_width, front_length=0.0, d
         crossing = (np.abs(along) <= 0.7 * ds) & (np.abs(across) < radius)
         if front_length == 0.0:  # the cross-axle segment itself
             covered = crossing & (np.abs(across) <= half_width)
-        if np.any(covered) and np.any(crossing):
-            best = min(best, s[np.argmax(crossing)])
+        if np.any(covered):
+            after = crossing & (s >= s[np.argmax(covered)] - ds)
+            if np.any(after):
+                best = min(best, s[np.argmax(after)])
     return best
 
 
