@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.policy_campaign import PATH_COLUMNS
@@ -59,7 +58,8 @@ def draw_paths(
             paths were recorded).
     """
     from negobs_gym.policies.training import make_task_env
-    from negobs_gym.sim.render import render_top_down
+    from negobs_gym.scenarios.overrides import recorded_env_in
+    from negobs_gym.sim.render import render_drive
 
     folder = Path(campaign_dir)
     files = {name: folder / f"{name}.csv" for name in ("policy", "paths")}
@@ -86,7 +86,7 @@ def draw_paths(
             raise ConfigError(key, f"no rows in {files['paths']}: a campaign from before paths were recorded")
         row = episodes[key]
         # the terrain is the seed's whatever the grid: the oracle grid spares the detector's set-up
-        env = make_task_env(_env_of(row["env"], folder), "oracle")
+        env = make_task_env(recorded_env_in(row["env"], folder), "oracle")
         env.reset(seed=int(row["seed"]))
         terrain, scenario = env.unwrapped.terrain, env.unwrapped.scenario.name
         env.close()
@@ -96,20 +96,6 @@ def draw_paths(
         caption = f"{name} seed {row['seed']} {row['filter']}: {episode_outcome(row)}, {progress:.1f} m"
         caption += f", {row['vetoes']} vetoes"
         path = out / f"{key}.png"
-        render_top_down(
-            terrain,
-            np.column_stack([x, y]),
-            Pose(x=x[-1], y=y[-1], yaw=yaw[-1]),
-            path,
-            marks_xy_m=np.column_stack([x, y])[vetoed > 0],
-            caption=caption,
-        )
+        render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path)
         written.append(path)
     return written
-
-
-def _env_of(env: str, folder: Path) -> str:
-    """The env as recorded; a ``--set`` run's scenario file is also found in the campaign folder."""
-    if env.endswith(".toml") and not Path(env).is_file() and (folder / Path(env).name).is_file():
-        return str(folder / Path(env).name)
-    return env

@@ -69,9 +69,9 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     for folder in (path.parent, path.parent.parent):
         run = folder / "train.json"
         if run.is_file():
-            env = str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"])
-            beside = folder / "scenario.toml"
-            if Path(env).name == "scenario.toml" and not Path(env).is_file() and beside.is_file():
-                env = str(beside)  # the run's --set scenario, recorded relative to where it ran
-            return env, ()
+            from negobs_gym.scenarios.overrides import recorded_env_in
+
+            return recorded_env_in(
+                str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"]), folder
+            ), ()
     return None

@@ -73,22 +73,19 @@ def make_task_env(env: str, source: str | None, overrides: Sequence[str] = ()) -
     creator = registered_negobs_env(env)
     if creator is not None and not overrides:
         return gym.make(env, config=_with_source(creator.default_config(), grid_source))
-    from negobs_gym.scenarios.library import load_scenario, scenario_names
-    from negobs_gym.scenarios.overrides import apply_overrides
+    from negobs_gym.scenarios.library import scenario_names
+    from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
 
-    if creator is not None:  # the registered classes only name their scenario
-        spec = apply_overrides(load_scenario(creator.default_scenario), overrides)
-        return creator(config=_with_source(spec.env_config(), grid_source), scenario=spec)
-
-    if not (Path(env).is_file() or env in scenario_names()):
+    if creator is None and not (Path(env).is_file() or env in scenario_names()):
         ids = [i for i in gym.registry if i.startswith("negobs_gym/")]
         raise ConfigError(
             "env",
             f"unknown env {env!r}: not a registered id ({', '.join(ids)}), a shipped scenario "
             f"({', '.join(scenario_names())}) or an existing scenario TOML file",
         )
-    spec = apply_overrides(load_scenario(env), overrides)
-    return NegObsEnv(config=_with_source(spec.env_config(), grid_source), scenario=spec)
+    spec = apply_overrides(spec_for_env(env), overrides)
+    cls = creator or NegObsEnv  # the registered classes only name their scenario
+    return cls(config=_with_source(spec.env_config(), grid_source), scenario=spec)
 
 
 def _with_source(config: EnvConfig, source: str | None) -> EnvConfig:

@@ -21,7 +21,14 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
 
-__all__ = ["apply_overrides", "describe_overrides", "env_with_overrides", "parse_assignment", "spec_for_env"]
+__all__ = [
+    "apply_overrides",
+    "describe_overrides",
+    "env_with_overrides",
+    "parse_assignment",
+    "recorded_env_in",
+    "spec_for_env",
+]
 
 OPTION = "--set"  # how errors name the assignment: the option that carried it
 
@@ -112,6 +119,16 @@ def env_with_overrides(
         )
     write_text_atomic(path, text)
     return str(path)
+
+
+def recorded_env_in(env: str, run_dir: str | Path) -> str:
+    """The env a run recorded, as it can be found now: a ``--set`` run records the
+    ``scenario.toml`` it wrote by the path it ran with (relative to where it ran), so when that
+    path is gone the file of that name in ``run_dir`` is the one."""
+    beside = Path(run_dir) / Path(env).name
+    if env.endswith(".toml") and not Path(env).is_file() and beside.is_file():
+        return str(beside)
+    return env
 
 
 def describe_overrides(env: str, overrides: Sequence[str]) -> str:

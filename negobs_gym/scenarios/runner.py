@@ -295,13 +295,11 @@ def _xy(info: dict[str, Any]) -> tuple[float, float]:
 
 
 def _draw(result: ScenarioResult, terrain: Terrain, yaw_rad: float, out_path: Path) -> None:
-    from negobs_gym.core.pose import Pose
-    from negobs_gym.sim.render import render_top_down
+    from negobs_gym.sim.render import render_drive
 
-    path = np.asarray(result.path_xy_m, dtype=np.float64)
     verdict = "PASS" if result.passed else "FAIL " + ",".join(result.failures)
     filtered = "filter" if result.filtered else "no filter"
     caption = f"{result.scenario} seed {result.seed} {result.driver}, {filtered}: {verdict}"
-    end = Pose(x=path[-1, 0], y=path[-1, 1], yaw=yaw_rad)
-    marks = path[list(result.vetoed_steps)]
-    render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption)
+    vetoed = np.zeros(len(result.path_xy_m), dtype=bool)
+    vetoed[list(result.vetoed_steps)] = True
+    render_drive(terrain, np.asarray(result.path_xy_m), yaw_rad, vetoed, caption, out_path)

@@ -195,6 +195,23 @@ def render_top_down(
     return image
 
 
+def render_drive(
+    terrain: Terrain,
+    path_xy_m: np.ndarray,
+    end_yaw_rad: float,
+    vetoed: np.ndarray,
+    caption: str,
+    out_path: str | os.PathLike,
+) -> np.ndarray:
+    """One drive from above (``negobs eval paths``, ``negobs scenario run --draw``): the path, the
+    car where it ended (at the path's last point, heading ``end_yaw_rad``), the path's points where
+    ``vetoed`` (a bool per point) as marks, and ``caption``; written to ``out_path``."""
+    path = np.asarray(path_xy_m, dtype=np.float64).reshape(-1, 2)
+    end = Pose(x=path[-1, 0], y=path[-1, 1], yaw=end_yaw_rad)
+    marks = path[np.asarray(vetoed, dtype=bool)]
+    return render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption)
+
+
 def write_png_atomic(image: np.ndarray, out_path: Path) -> None:
     """Write ``image`` as PNG atomically (:func:`negobs_gym.core.files.write_atomic`)."""
     import matplotlib.image as mpimg
