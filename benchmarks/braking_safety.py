@@ -13,10 +13,11 @@ Episodes are kept under ``--out`` (``--resume`` continues a killed run; the part
 ``negobs eval braking --out`` for the same seeds). Prints one line per configuration; the last lines
 are ``narrow_stopped_before=<k>/<n>`` and, last, ``stopped_before=<k>/<n>`` of the filtered runs.
 
-``--tighten-pairs`` runs the detector with paper N's pairs tightened to the close frames' near edge.
+The detector tightens paper N's pairs to the close frames' near edge, as the envs do by default
+(``ObservationConfig.tighten_pairs``); ``--no-tighten-pairs`` runs paper N's fusion history.
 
 Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow trench_narrow]
-     [--no-baseline] [--tighten-pairs]
+     [--no-baseline] [--no-tighten-pairs]
 """
 
 from __future__ import annotations
@@ -46,8 +47,9 @@ def main() -> None:
     parser.add_argument("--no-baseline", action="store_true", help="skip the unfiltered runs")
     parser.add_argument(
         "--tighten-pairs",
-        action="store_true",
-        help="ObservationConfig.tighten_pairs (docs/detector_features.md)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="ObservationConfig.tighten_pairs (docs/detector_features.md, 'Near edge')",
     )
     args = parser.parse_args()
     config = BrakingCampaignConfig(

@@ -116,6 +116,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     brk.add_argument("--drivers", default=None, help="comma-separated subset of reckless,constant_speed")
     brk.add_argument("--model", default=None, help="a saved SB3 model: adds the driver 'sb3'")
     brk.add_argument("--algo", default=None, help="its stable-baselines3 class (default PPO)")
+    brk.add_argument(
+        "--tighten-pairs",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="paper N's pairs tightened to the close frames' near edge, as the envs' default "
+        "(ObservationConfig.tighten_pairs); --no-tighten-pairs: paper N's fusion history",
+    )
     brk.set_defaults(handler=run_braking)
 
     pol = commands.add_parser(
@@ -242,6 +249,7 @@ def run_braking(args: argparse.Namespace) -> int:
         "drivers": _split(args.drivers),
         "model_path": args.model,
         "algo": args.algo,
+        "tighten_pairs": args.tighten_pairs,
     }
     config = build_config(BrakingCampaignConfig, _toml(args), cli)
     out = run_braking_campaign(config, args.out, _options(args))
@@ -270,13 +278,13 @@ def run_policy(args: argparse.Namespace) -> int:
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
     from negobs_gym.policies.baselines import recorded_env
-    from negobs_gym.scenarios import describe_overrides, env_with_overrides
+    from negobs_gym.scenarios import combine_overrides, describe_overrides, env_with_overrides
 
     toml = _toml(args)
     recorded = recorded_env(args.model)
     if recorded is not None and args.env_id is None and "env_id" not in toml:
         cli["env_id"] = recorded[0]  # the env the model was fitted on, with its settings first
-        args.overrides = [*recorded[1], *args.overrides]
+        args.overrides = combine_overrides(recorded[1], args.overrides)
         log.info("--env from %s's record: %s", args.model, describe_overrides(*recorded))
     elif recorded is not None and not set(recorded[1]) <= set(args.overrides):
         log.warning(

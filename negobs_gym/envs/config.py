@@ -88,7 +88,9 @@ class ObservationConfig:
             hitting it projects on its line (``FusionConfig.tighten_on_match``; the detector grid
             and the safety filter's hazards): a pit confirmed 15-20 m out then starts at the
             close frames' last ground return instead of a far ring gap (~1 m) before its rim.
-            False (default): paper N's history, each pair keeps the geometry it was first seen with.
+            True (default): same recall and false obstacles as paper N's history, and the
+            filter no longer stops cars ~1 m early (docs/detector_features.md, "Near edge").
+            False: paper N's history, each pair keeps the geometry it was first seen with.
     """
 
     source: str = "detector"
@@ -108,7 +110,7 @@ class ObservationConfig:
     positive_detector: str = "traversable"
     positive_hold_s: float = 0.0
     hazard_hold_s: float = 0.0
-    tighten_pairs: bool = False
+    tighten_pairs: bool = True
 
     def __post_init__(self) -> None:
         require(

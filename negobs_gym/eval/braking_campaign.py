@@ -89,7 +89,7 @@ class BrakingCampaignConfig:
     model_path: str | None = None  # a saved SB3 model: adds the driver "sb3"
     algo: str = "PPO"  # its stable-baselines3 class
     rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
-    tighten_pairs: bool = False  # ObservationConfig.tighten_pairs of the detector the filter reads
+    tighten_pairs: bool = True  # ObservationConfig.tighten_pairs of the detector the filter reads
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -144,7 +144,7 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     return out
 
 
-def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = False) -> Any:
+def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = True) -> Any:
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
@@ -166,7 +166,7 @@ def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = F
     return dataclasses.replace(spec, observation=observation)
 
 
-def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = False) -> Any:
+def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = True) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
     return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs))

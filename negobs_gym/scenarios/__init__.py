@@ -15,6 +15,7 @@ from negobs_gym.scenarios.fields import Range
 from negobs_gym.scenarios.library import load_scenario, scenario_names
 from negobs_gym.scenarios.overrides import (
     apply_overrides,
+    combine_overrides,
     describe_overrides,
     env_with_overrides,
     spec_for_env,
@@ -27,6 +28,7 @@ __all__ = [
     "ScenarioResult",
     "ScenarioSpec",
     "apply_overrides",
+    "combine_overrides",
     "describe_overrides",
     "env_with_overrides",
     "load_scenario",

@@ -23,6 +23,7 @@ from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
 
 __all__ = [
     "apply_overrides",
+    "combine_overrides",
     "describe_overrides",
     "env_with_overrides",
     "parse_assignment",
@@ -83,6 +84,18 @@ def apply_overrides(spec: ScenarioSpec, assignments: Sequence[str]) -> ScenarioS
             else:
                 raise ConfigError(OPTION, f"{where}: {'.'.join(keys[:depth])} is a value, not a table")
     return ScenarioSpec.from_dict(data)
+
+
+def combine_overrides(first: Sequence[str], then: Sequence[str]) -> list[str]:
+    """``first`` followed by ``then``, where an assignment in ``then`` to a key ``first`` also
+    sets replaces that one: a policy record's settings, then the command's own, as one list
+    that says once what runs (``observation.tighten_pairs=true`` over the record's ``false``).
+
+    Raises:
+        ConfigError: a malformed assignment (:func:`parse_assignment`).
+    """
+    overridden = {parse_assignment(text)[0] for text in then}
+    return [text for text in first if parse_assignment(text)[0] not in overridden] + list(then)
 
 
 def spec_for_env(env: str) -> ScenarioSpec:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -100,9 +101,11 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     label = "negobs_gym/Braking-v0[episode.time_limit_s=0.5]"  # the id and its settings
     assert capsys.readouterr().out.startswith(f"{label}/nofilter success=")
     assert spec_from_toml(written.read_text()).episode.time_limit_s == 0.5
-    # a shipped policy without --env: its record's env and settings, then the command's --set
-    shipped = ["eval", "policy", "ppo_offroad_nav_v2_detector_clone_tight", "--seeds", "1", "--filter", "off"]
-    shipped += ["--set", "episode.time_limit_s=0.3", "--out", str(tmp_path / "shipped"), "--no-progress"]
+    # a shipped policy without --env: its record's env and settings (paper N's fusion history for
+    # this clone), then the command's --set, which replaces the record's assignment to that key
+    shipped = ["eval", "policy", "ppo_offroad_nav_v2_detector_clone", "--seeds", "1", "--filter", "off"]
+    shipped += ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=0.3"]
+    shipped += ["--out", str(tmp_path / "shipped"), "--no-progress"]
     assert main(["-q", *shipped]) == 0
     label = "negobs_gym/OffroadNav-v2[observation.tighten_pairs=true,episode.time_limit_s=0.3]"
     line = capsys.readouterr().out
@@ -126,6 +129,9 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
         "--seeds",
         "1",
     ]
+    braking += ["--no-tighten-pairs"]  # paper N's fusion history instead of the envs' default
     assert main(["-q", *braking, "--config", str(config), "--out", str(tmp_path / "b"), "--no-progress"]) == 0
     (line,) = capsys.readouterr().out.splitlines()
     assert line.startswith("ditch/sb3/filter stopped_before=")
+    (part,) = (tmp_path / "b" / "parts").glob("*.json")
+    assert json.loads(part.read_text())["args"]["tighten_pairs"] is False

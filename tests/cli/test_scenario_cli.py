@@ -63,10 +63,10 @@ def test_run_exits_non_zero_exactly_when_a_named_criterion_fails(tmp_path, capsy
 
 
 def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):
-    setting = ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=3.5"]
+    setting = ["--set", "observation.tighten_pairs=false", "--set", "episode.time_limit_s=3.5"]
     assert main(["scenario", "show", "paper_n_three_pits", *setting]) == 0
     shown = spec_from_toml(capsys.readouterr().out)
-    assert shown.observation.tighten_pairs is True and shown.episode.time_limit_s == 3.5
+    assert shown.observation.tighten_pairs is False and shown.episode.time_limit_s == 3.5
     # the criterion the reckless driver fails, flipped from the command line: the run passes
     path = tmp_path / "scene.toml"
     path.write_text(FAILING.format(entered="false"))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core.pose import Pose
-from negobs_gym.detector import convex_overlap_mask
+from negobs_gym.detector import NegativeDetectorConfig, convex_overlap_mask
 from negobs_gym.drivers import make_driver
 from negobs_gym.envs.config import EnvConfig, ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv, OffroadNavV2Env
@@ -145,16 +145,17 @@ def test_hazard_hold_keeps_the_filters_cells_where_they_were_seen(hold_s: float)
 
 def test_tighten_pairs_moves_the_hazard_cells_to_the_ditch_rim() -> None:
     """Braking-v0's ditch, seen from 20-40 m and approached to ~8 m: with paper N's history the
-    nearest hazard cell stays a far ring gap before the rim; with ``tighten_pairs`` it follows the
-    close frames' last ground return. Same seed, same actions."""
+    nearest hazard cell stays a far ring gap before the rim; with ``tighten_pairs`` (the envs'
+    default) it follows the close frames' last ground return. Same seed, same actions."""
     from negobs_gym.safety.corridor import hazard_distance_m
 
     base = EnvConfig()
     leads = {}
-    for tighten in (False, True):
-        env = BrakingEnv(replace(base, observation=replace(base.observation, tighten_pairs=tighten)))
+    for tighten in (False, None):  # None: the default config
+        obs = base.observation if tighten is None else replace(base.observation, tighten_pairs=tighten)
+        env = BrakingEnv(replace(base, observation=obs))
         _, info = env.reset(seed=4)
-        assert env._detector.perception.negative.config.fusion.tighten_on_match is tighten
+        assert env._detector.perception.negative.config.fusion.tighten_on_match is (tighten is None)
         while info["distance_to_negative_ahead_m"] > 8.0:
             _, _, terminated, truncated, info = env.step(np.array([1.0, 0.0], np.float32))
             assert not (terminated or truncated)
@@ -163,7 +164,8 @@ def test_tighten_pairs_moves_the_hazard_cells_to_the_ditch_rim() -> None:
         leads[tighten] = info["distance_to_negative_ahead_m"] + state.front_length_m - detected
         env.close()
     assert leads[False] > 1.0  # the far frames' edge
-    assert -0.1 < leads[True] < 0.6
+    assert -0.1 < leads[None] < 0.6
+    assert NegativeDetectorConfig().fusion.tighten_on_match is False  # the detector alone: paper N
 
 
 def test_tighten_pairs_must_be_a_bool() -> None:

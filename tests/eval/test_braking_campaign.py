@@ -94,8 +94,9 @@ def test_configurations_are_data() -> None:
 def test_tighten_pairs_reaches_the_episodes_detector() -> None:
     from negobs_gym.eval.braking_campaign import scenario_spec
 
-    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), tighten_pairs=True)
-    assert all(e.args["tighten_pairs"] is True for e in episodes(cfg))
+    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), tighten_pairs=False)
+    assert all(e.args["tighten_pairs"] is False for e in episodes(cfg))
+    assert BrakingCampaignConfig().tighten_pairs is True  # as the envs' default
     for tighten in (False, True):
         assert (
             scenario_spec("ditch", "roi", oracle=True, tighten_pairs=tighten).observation.tighten_pairs

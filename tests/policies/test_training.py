@@ -210,13 +210,13 @@ def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
 def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
     from negobs_gym.envs.scenarios import OffroadNavV2Env
 
-    env = make_task_env("negobs_gym/OffroadNav-v2", "detector", ["observation.tighten_pairs=true"])
+    env = make_task_env("negobs_gym/OffroadNav-v2", "detector", ["observation.tighten_pairs=false"])
     assert type(env) is OffroadNavV2Env and env.scenario.name == "offroad_nav_v2"
-    assert env.config.observation.tighten_pairs and env.config.observation.source == "detector"
+    assert not env.config.observation.tighten_pairs and env.config.observation.source == "detector"
     plain = make_task_env("negobs_gym/OffroadNav-v2", "detector")
-    assert not plain.unwrapped.config.observation.tighten_pairs
+    assert plain.unwrapped.config.observation.tighten_pairs
     observation = plain.unwrapped.config.observation
-    assert env.config.observation == dataclasses.replace(observation, tighten_pairs=True)
+    assert env.config.observation == dataclasses.replace(observation, tighten_pairs=False)
     for e in (env, plain):
         e.close()
     env = make_task_env("paper_n_mud_pit", None, ["obstacles.0.depth_m=1.2"])

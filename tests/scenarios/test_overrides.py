@@ -7,7 +7,12 @@ import pytest
 import negobs_gym  # noqa: F401  (registers the envs)
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios import load_scenario
-from negobs_gym.scenarios.overrides import apply_overrides, parse_assignment, spec_for_env
+from negobs_gym.scenarios.overrides import (
+    apply_overrides,
+    combine_overrides,
+    parse_assignment,
+    spec_for_env,
+)
 
 
 @pytest.mark.parametrize(
@@ -27,9 +32,9 @@ def test_parse_reads_toml_values_and_falls_back_to_text(text: str, keys: tuple, 
 def test_overrides_change_only_the_named_settings() -> None:
     spec = load_scenario("paper_n_three_pits")
     changed = apply_overrides(
-        spec, ["observation.tighten_pairs=true", "obstacles.0.depth_m=1.2", "observation.grid.cell_m=0.4"]
+        spec, ["observation.tighten_pairs=false", "obstacles.0.depth_m=1.2", "observation.grid.cell_m=0.4"]
     )
-    assert changed.observation.tighten_pairs is True and spec.observation.tighten_pairs is False
+    assert changed.observation.tighten_pairs is False and spec.observation.tighten_pairs is True
     assert changed.obstacles[0].depth_m == 1.2 and spec.obstacles[0].depth_m == 0.8
     assert changed.observation.grid.cell_m == 0.4
     same = {k: v for k, v in changed.to_dict().items() if k not in ("observation", "obstacles")}
@@ -67,3 +72,19 @@ def test_an_env_id_resolves_to_its_scenario() -> None:
         spec_for_env("CartPole-v1")
     with pytest.raises(ConfigError, match="unknown scenario"):
         spec_for_env("no_such_scene")
+
+
+def test_combined_overrides_let_the_later_assignment_to_a_key_replace_the_earlier() -> None:
+    record = ["observation.tighten_pairs=false", "observation.hazard_hold_s=2.0"]
+    combined = combine_overrides(record, ["observation.tighten_pairs = true", "episode.time_limit_s=9"])
+    assert combined == [
+        "observation.hazard_hold_s=2.0",
+        "observation.tighten_pairs = true",
+        "episode.time_limit_s=9",
+    ]
+    spec = apply_overrides(load_scenario("offroad_nav_v2_structure"), combined)
+    assert spec.observation.tighten_pairs is True and spec.observation.hazard_hold_s == 2.0
+    assert spec.episode.time_limit_s == 9
+    assert combine_overrides(record, []) == record
+    with pytest.raises(ConfigError, match=r"KEY\.PATH=VALUE"):
+        combine_overrides(record, ["tighten"])
