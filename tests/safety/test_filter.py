@@ -421,3 +421,60 @@ def test_filter_config_reads_flags_and_configs():
     assert filter_config(custom) is custom
     assert filter_config(True) == filter_config(np.True_) == filter_config(1) == SafetyFilterConfig()
     assert filter_config(False) is None and filter_config(np.False_) is None and filter_config(0) is None
+
+
+PIT_LEFT = np.array([[x, y] for x in np.arange(-5.0, -3.4, 0.2) for y in np.arange(5.0, 7.0, 0.2)])
+
+
+def test_the_plan_corridor_reads_the_drivers_plan_for_one_decision():
+    """Mid-swerve at full left lock with a pit where that arc goes: the arc corridor vetoes, the
+    driver's plan (straightening out, right of the pit) passes; the plan holds for one step."""
+    state = make_state(25 / 3.6, PIT_LEFT)
+    swerve = np.array([0.5, 1.0], np.float32)
+    straight_on = np.column_stack([np.full(39, -0.3), np.arange(0.5, 20.0, 0.5)])
+    arc = BrakingSafetyFilter(FixedHazardEnv(state))
+    arc.set_plan(straight_on)  # the arc corridor ignores plans
+    assert arc.filter_action(swerve)[1].vetoed
+    guard = BrakingSafetyFilter(FixedHazardEnv(state), corridor="plan")
+    assert guard.filter_action(swerve)[1].vetoed  # no plan yet: the arc
+    guard.set_plan(straight_on)
+    applied, decision = guard.filter_action(swerve)
+    assert not decision.vetoed and applied is swerve and decision.hazard_distance_m == np.inf
+    guard.step(swerve)
+    assert not guard.last_decision.vetoed
+    assert guard.filter_action(swerve)[1].vetoed  # the plan was for that step only
+    into_the_pit = np.array([[-1.0, 3.0], [-4.2, 6.0], [-6.0, 12.0]])
+    guard.set_plan(into_the_pit)
+    _, decision = guard.filter_action(swerve)
+    assert decision.vetoed and decision.hazard_distance_m < 7.0
+    guard.set_plan(None)
+    assert guard.filter_action(swerve)[1].vetoed
+    with pytest.raises(ActionError, match="plan"):
+        guard.set_plan(np.array([[0.0, np.nan]]))
+    with pytest.raises(ConfigError, match="corridor"):
+        SafetyFilterConfig(corridor="path")
+
+
+def test_hand_plan_passes_a_planning_drivers_path_to_a_plan_filter_only():
+    from negobs_gym.drivers import PlanningDriver, hand_plan
+
+    class Planner:
+        def reset(self, seed=None):
+            pass
+
+        def act(self, obs, info):
+            return np.array([0.5, 1.0], np.float32)
+
+        def planned_path_xy_m(self, info):
+            return np.array([[0.0, 1.0], [0.0, 20.0]])
+
+    assert isinstance(Planner(), PlanningDriver) and not isinstance(RecklessDriver(), PlanningDriver)
+    pit = PIT_LEFT
+    for corridor, vetoed in (("arc", True), ("plan", False)):
+        guard = BrakingSafetyFilter(FixedHazardEnv(make_state(25 / 3.6, pit)), corridor=corridor)
+        hand_plan(guard, Planner(), {})
+        assert guard.filter_action(np.array([0.5, 1.0], np.float32))[1].vetoed is vetoed
+    guard = BrakingSafetyFilter(FixedHazardEnv(make_state(25 / 3.6, pit)), corridor="plan")
+    hand_plan(guard, RecklessDriver(), {})  # no plan: the arc
+    assert guard.filter_action(np.array([0.5, 1.0], np.float32))[1].vetoed
+    hand_plan(None, Planner(), {})  # no filter: nothing to do
