@@ -6,15 +6,13 @@ Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` wit
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without
 the filter (``--filter off``) or behind ``BrakingSafetyFilter`` (paper N Eq. 18 on the detector
 grid; ``--stop-for-positive`` also stops for the positive channel, ``--mode cap_speed`` caps the
-speed instead of braking, ``--margin-m`` replaces the corridor's margin, ``--buffer-m`` B,
-``--corridor plan`` measures hazards along the planner's path instead of its current arc).
+speed instead of braking, ``--margin-m`` replaces the corridor's margin, ``--buffer-m`` B).
 Prints one line per course (goal, entered, collision, left the track, vetoes, steps, and the
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
 left_track= vetoes=``.
 
 Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
-[--filter off|on] [--stop-for-positive] [--mode brake|cap_speed] [--corridor arc|plan]
-[--margin-m 0.4] [--buffer-m 5]
+[--filter off|on] [--stop-for-positive] [--mode brake|cap_speed] [--margin-m 0.4] [--buffer-m 5]
 [--wheel-clearance-m 0.4] [--clearance-m 0.3]
 """
 
@@ -55,9 +53,6 @@ class TrackPlanner:
             self.first_veto = (safety["hazard_channel"], safety["hazard_distance_m"])
         return self.driver.act(obs, info)
 
-    def planned_path_xy_m(self, info: dict[str, Any]) -> np.ndarray | None:
-        return None if self.driver is None else self.driver.planned_path_xy_m(info)
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -67,12 +62,6 @@ def main() -> None:
     parser.add_argument("--filter", choices=("off", "on"), default="on")
     parser.add_argument("--stop-for-positive", action="store_true")
     parser.add_argument("--mode", choices=("brake", "cap_speed"), default="brake", help="what a veto applies")
-    parser.add_argument(
-        "--corridor",
-        choices=("arc", "plan"),
-        default="arc",
-        help="the filter's corridor: the arc or the planned path",
-    )
     parser.add_argument(
         "--margin-m", type=float, default=SafetyFilterConfig().margin_m, help="corridor margin [m]"
     )
@@ -96,7 +85,6 @@ def main() -> None:
             stop_for_positive=args.stop_for_positive,
             mode=args.mode,
             margin_m=args.margin_m,
-            corridor=args.corridor,
         )
     planner = TrackPlannerConfig(
         sight_m=args.planner_sight_m,

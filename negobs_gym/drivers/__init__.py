@@ -4,7 +4,7 @@ All but :class:`TrackPlannerDriver` read only the env's info; it reads the cours
 (an expert for demonstrations, not a sensor-driven baseline).
 """
 
-from negobs_gym.drivers.base import Driver, PlanningDriver, hand_plan
+from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.by_name import DRIVER_NAMES, make_driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
@@ -16,13 +16,11 @@ __all__ = [
     "ConstantSpeedConfig",
     "ConstantSpeedDriver",
     "Driver",
-    "PlanningDriver",
     "PurePursuitConfig",
     "PurePursuitDriver",
     "RecklessConfig",
     "RecklessDriver",
     "TrackPlannerConfig",
     "TrackPlannerDriver",
-    "hand_plan",
     "make_driver",
 ]

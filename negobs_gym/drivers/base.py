@@ -31,26 +31,6 @@ class Driver(Protocol):
         ...
 
 
-@runtime_checkable
-class PlanningDriver(Protocol):
-    """A driver that can say where it means to go: its path for the safety filter's ``"plan"``
-    corridor (:meth:`~negobs_gym.safety.BrakingSafetyFilter.set_plan`)."""
-
-    def planned_path_xy_m(self, info: dict[str, Any]) -> np.ndarray | None:
-        """The rear axle's path from the pose in ``info`` on, as it stands after this step's
-        ``act``: vehicle-frame points (N, 2), X right, Y forward; None when it has none."""
-        ...
-
-
-def hand_plan(guard: Any, driver: Any, info: dict[str, Any]) -> None:
-    """Give the filter ``guard`` (a :class:`~negobs_gym.safety.BrakingSafetyFilter`, or None) the
-    plan of ``driver`` for its next decision, when the filter follows plans and the driver makes
-    them; call it after ``driver.act`` and before ``guard.step``."""
-    if guard is None or guard.config.corridor != "plan":
-        return
-    guard.set_plan(driver.planned_path_xy_m(info) if isinstance(driver, PlanningDriver) else None)
-
-
 def read_speed_mps(info: dict[str, Any]) -> float:
     """``info["speed_mps"]`` as a finite float, or a clear error."""
     if "speed_mps" not in info:

@@ -36,9 +36,6 @@ class PurePursuitConfig:
         )
 
 
-PLAN_LENGTH_M = 40.0  # how much of the route ahead a plan hands the safety filter [m]
-
-
 class PurePursuitDriver:
     """Steers towards the route point ``lookahead_m`` ahead: curvature 2 * x_left / L_d^2.
 
@@ -88,17 +85,3 @@ class PurePursuitDriver:
         steer = math.atan(self.config.wheelbase_m * curvature)
         cmd = speed_command(read_speed_mps(info), self.config.target_speed_mps, self.config.gain_per_mps)
         return np.array([cmd, np.clip(steer / self.config.max_steer_rad, -1.0, 1.0)], dtype=np.float32)
-
-    def planned_path_xy_m(self, info: dict[str, Any], length_m: float = PLAN_LENGTH_M) -> np.ndarray | None:
-        """The route ahead of the nearest point found by the last ``act``, up to ``length_m`` of
-        it, in the frame of the pose in ``info`` (what the safety filter's ``"plan"`` corridor
-        reads); None without a finite pose."""
-        pose = np.asarray(info.get("pose", ()), dtype=float)
-        if pose.shape != (6,) or not np.all(np.isfinite(pose)):
-            return None
-        pts = self.route_xy_m[self._window()]
-        steps = np.hypot(*np.diff(pts, axis=0).T)
-        within = np.concatenate([[0.0], np.cumsum(steps)]) <= length_m
-        path = world_to_vehicle_xy(pts[within], pose[:2], pose[5])
-        ahead = np.flatnonzero(path[:, 1] > 0.0)  # from the first point ahead of the rear axle
-        return path[ahead[0] :] if ahead.size else None

@@ -279,7 +279,3 @@ class TrackPlannerDriver:
                     self._sighted = max(sighted, self._sighted)
                     self.replans += 1
         return self._pursuit.act(obs, info)
-
-    def planned_path_xy_m(self, info: dict[str, Any]) -> np.ndarray | None:
-        """The path it follows now, ahead of the car, in the frame of the pose in ``info``."""
-        return self._pursuit.planned_path_xy_m(info)

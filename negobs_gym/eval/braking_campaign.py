@@ -224,13 +224,11 @@ def run_driven_episode(
     episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
     ``(x, y, yaw, speed, vetoed)`` per step (world metres, radians, m/s, bool), the reset's first.
     """
-    from negobs_gym.drivers import hand_plan
     from negobs_gym.safety import BrakingSafetyFilter
 
     guard = filter_config(filtered)
-    shield = None
     if guard is not None:
-        env = shield = BrakingSafetyFilter(env, config=guard)
+        env = BrakingSafetyFilter(env, config=guard)
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
     dt = 1.0 / env.unwrapped.config.control_hz
@@ -242,9 +240,7 @@ def run_driven_episode(
     path = [_path_point(info, False)]
     while not done and steps < max_steps:
         gap = float(info["distance_to_negative_ahead_m"])
-        action = driver.act(obs, info)
-        hand_plan(shield, driver, info)  # the filter's "plan" corridor follows a planning driver
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
         steps += 1
         xy = np.asarray(info["pose"][:2], dtype=np.float64)
         distance += float(np.hypot(*(xy - last_xy)))

@@ -13,7 +13,6 @@ from negobs_gym.errors import ActionError, ConfigError, InterfaceError, require
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import hazard_distance_m
 from negobs_gym.safety.decision import SafetyDecision
-from negobs_gym.safety.path_corridor import path_hazard_distance_m
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 logger = logging.getLogger(__name__)
@@ -38,11 +37,6 @@ class SafetyFilterConfig:
     # Eq. 18 test. Not in paper N, whose filter guards negative obstacles; off by default. Useful
     # with the structure channel, which sees rocks and boxes 2-20 m ahead (docs/detector_structure.md).
     stop_for_positive: bool = False
-    # Where the corridor runs: "arc", the circle of the proposed steering (paper N's filter guards
-    # the path the car is on); "plan", the path the driver plans, handed over each step with
-    # set_plan() (steps without one use the arc). Not in paper N: a driver steering round a pit
-    # is on an arc into it for part of the swerve, and the arc test stops it there (docs/safety.md).
-    corridor: Literal["arc", "plan"] = "arc"
 
     def __post_init__(self) -> None:
         require(
@@ -73,9 +67,6 @@ class SafetyFilterConfig:
             "stop_for_positive",
             f"must be a bool, got {self.stop_for_positive!r}",
         )
-        require(
-            self.corridor in ("arc", "plan"), "corridor", f"must be 'arc' or 'plan', got {self.corridor!r}"
-        )
 
 
 def filter_config(setting: bool | SafetyFilterConfig) -> SafetyFilterConfig | None:
@@ -105,13 +96,8 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
-    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``corridor``) over the defaults;
+    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``) over the defaults;
     passing both is a :class:`ConfigError`.
-
-    With ``corridor="plan"`` a driver that plans hands its path to :meth:`set_plan` before each
-    step, and d is measured along what the footprint sweeps on that path
-    (:func:`~negobs_gym.safety.path_corridor.path_hazard_distance_m`) instead of the arc: the
-    filter then trusts the driver to follow its plan while it brakes.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
@@ -136,7 +122,6 @@ class BrakingSafetyFilter(gym.Wrapper):
         perception_timeout_s: float | None = None,
         release_margin_m: float | None = None,
         stop_for_positive: bool | None = None,
-        corridor: Literal["arc", "plan"] | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -155,7 +140,6 @@ class BrakingSafetyFilter(gym.Wrapper):
             "perception_timeout_s": perception_timeout_s,
             "release_margin_m": release_margin_m,
             "stop_for_positive": stop_for_positive,
-            "corridor": corridor,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -169,24 +153,6 @@ class BrakingSafetyFilter(gym.Wrapper):
             self.config = SafetyFilterConfig(braking=BrakingConfig(**braking_kw), **filter_kw)
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
-        self._plan: np.ndarray | None = None  # the driver's path for the coming step
-
-    def set_plan(self, path_xy_m: Any) -> None:
-        """The path the driver plans for its rear axle from now on, vehicle frame (N, 2), for the
-        next decision only (``corridor="plan"``; ignored with the arc). None: no plan, the arc.
-
-        Raises:
-            ActionError: a path that is not finite (N, 2).
-        """
-        if path_xy_m is None:
-            self._plan = None
-            return
-        path = np.asarray(path_xy_m, dtype=float)
-        if path.ndim != 2 or path.shape[1] != 2 or not np.all(np.isfinite(path)):
-            raise ActionError(
-                f"a plan must be a finite (N, 2) array of vehicle-frame points, got shape {path.shape}"
-            )
-        self._plan = path
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -194,7 +160,6 @@ class BrakingSafetyFilter(gym.Wrapper):
         """Reset the env and the filter's hysteresis."""
         self._holding = False
         self.last_decision = None
-        self._plan = None
         return self.env.reset(seed=seed, options=options)
 
     def _hazard_state(self) -> HazardState:
@@ -247,17 +212,12 @@ class BrakingSafetyFilter(gym.Wrapper):
         state = self._hazard_state()
         steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
         half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
-        plan = self._plan if self.config.corridor == "plan" else None
-
-        def distance(points: np.ndarray) -> float:
-            if plan is not None:
-                return path_hazard_distance_m(points, plan, half_width, state.front_length_m)
-            return hazard_distance_m(points, steer, state.wheelbase_m, half_width, state.front_length_m)
-
-        d = distance(state.negative_obstacles_xy_m)
+        corridor = (steer, state.wheelbase_m, half_width, state.front_length_m)
+        d = hazard_distance_m(state.negative_obstacles_xy_m, *corridor)
         channel = "negative" if np.isfinite(d) else None
         if self.config.stop_for_positive:
-            d_positive = distance(state.positive_obstacles_xy_m)
+            positive = state.positive_obstacles_xy_m
+            d_positive = hazard_distance_m(positive, *corridor)
             if d_positive < d:
                 d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))
@@ -297,7 +257,6 @@ class BrakingSafetyFilter(gym.Wrapper):
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
         applied, decision = self.filter_action(action)
         self._holding = decision.vetoed
-        self._plan = None  # a plan holds for one decision
         if isinstance(self.env.unwrapped, DecisionSink):  # negobs envs draw the decision
             self.env.unwrapped.set_render_overlay(decision)
         obs, reward, terminated, truncated, info = self.env.step(applied)

@@ -15,7 +15,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from negobs_gym.drivers import DRIVER_NAMES, Driver, hand_plan
+from negobs_gym.drivers import DRIVER_NAMES, Driver
 from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.safety import BrakingSafetyFilter
@@ -230,9 +230,7 @@ def run_scenario(
                 "positive": info["distance_to_positive_ahead_m"],
             }
             speed_before = info["speed_mps"]
-            action = pilot.act(obs, info)
-            hand_plan(env if isinstance(env, BrakingSafetyFilter) else None, pilot, info)
-            obs, _, terminated, truncated, info = env.step(action)
+            obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
             steps += 1
             path.append(_xy(info))
             if "safety" in info:

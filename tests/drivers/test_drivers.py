@@ -4,7 +4,6 @@ import pytest
 from negobs_gym.drivers import (
     ConstantSpeedDriver,
     Driver,
-    PlanningDriver,
     PurePursuitConfig,
     PurePursuitDriver,
     RecklessDriver,
@@ -83,20 +82,6 @@ def test_pure_pursuit_s_route():
     err = cross_track(path[30:], route)
     assert err.max() < 0.5
     assert path[-1, 1] > 60
-
-
-def test_pure_pursuit_hands_the_route_ahead_as_its_plan_in_the_vehicle_frame():
-    route = np.column_stack([np.arange(100.0), np.full(100, 10.0)])  # world +X at y = 10
-    drv = PurePursuitDriver(route)
-    assert isinstance(drv, PlanningDriver) and not isinstance(RecklessDriver(), PlanningDriver)
-    # the car at (20.3, 9.5), facing world +X (yaw -90 deg: yaw 0 faces +Y, left positive)
-    info = {"speed_mps": 5.0, "pose": np.array([20.3, 9.5, 0.0, 0.0, 0.0, -np.pi / 2])}
-    drv.act(None, info)
-    plan = drv.planned_path_xy_m(info)
-    assert plan[0, 1] > 0.0 and plan[0, 1] < 1.0  # from the first route point ahead of the rear axle
-    np.testing.assert_allclose(plan[:, 0], -0.5, atol=1e-9)  # the route runs 0.5 m to the left
-    assert np.all(np.diff(plan[:, 1]) > 0) and plan[-1, 1] <= 40.0
-    assert drv.planned_path_xy_m({"pose": np.full(6, np.nan)}) is None
 
 
 def test_deterministic():

@@ -134,26 +134,3 @@ def test_the_filter_stops_for_a_rock_only_when_told() -> None:
 
     papers = run_scenario("rock_on_track_25kmh", filter=SafetyFilterConfig(), seed=0)  # used as it is
     assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
-
-
-def test_a_planning_driver_hands_its_plan_to_a_plan_corridor_filter() -> None:
-    """The runner passes a planning driver's path to the filter each step; a reckless driver
-    that plans straight on is stopped before the pit by the plan corridor as by the arc."""
-    from negobs_gym.safety import SafetyFilterConfig
-
-    class StraightPlanner(RecklessDriver):
-        def __init__(self) -> None:
-            super().__init__()
-            self.plans = 0
-
-        def planned_path_xy_m(self, info: dict) -> np.ndarray:
-            self.plans += 1
-            return np.array([[0.0, 1.0], [0.0, 40.0]])
-
-    spec = spec_from_toml(PIT_SCENE)
-    driver = StraightPlanner()
-    planned = run_scenario(spec, driver, filter=SafetyFilterConfig(corridor="plan"), seed=0)
-    assert planned.passed, planned.line()
-    assert driver.plans == planned.steps
-    arc = run_scenario(spec, RecklessDriver(), filter=True, seed=0)
-    assert planned.stop_margin_m == pytest.approx(arc.stop_margin_m, abs=0.3)
