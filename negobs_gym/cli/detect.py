@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from negobs_gym.cli.common import positive_float
 from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
@@ -57,14 +58,6 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
         # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
         "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
     }
-
-
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0 (heights, resolutions)."""
-    value = float(text)
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

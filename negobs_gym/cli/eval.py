@@ -15,7 +15,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.cli.common import add_set_option, positive_int
+from negobs_gym.cli.common import add_set_option, positive_float, positive_int
 from negobs_gym.errors import ConfigError, MissingDependencyError
 
 log = logging.getLogger("negobs_gym.cli.eval")
@@ -180,6 +180,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     paths.add_argument("--all", dest="everything", action="store_true", help="every episode")
     paths.add_argument("--limit", type=positive_int, default=None, help="draw at most N (in key order)")
     paths.add_argument("--to", dest="to_dir", default=None, help="folder for the PNGs (default: DIR/paths)")
+    paths.add_argument(
+        "--zoom",
+        dest="zoom_m",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help="draw the square of half-width M metres around where each drive ended "
+        "(default: the whole terrain)",
+    )
     paths.set_defaults(handler=run_paths)
 
 
@@ -319,7 +328,12 @@ def run_paths(args: argparse.Namespace) -> int:
     from negobs_gym.eval.paths import draw_paths
 
     written = draw_paths(
-        args.campaign_dir, args.keys, everything=args.everything, limit=args.limit, out_dir=args.to_dir
+        args.campaign_dir,
+        args.keys,
+        everything=args.everything,
+        limit=args.limit,
+        out_dir=args.to_dir,
+        zoom_m=args.zoom_m,
     )
     for path in written:
         print(path)

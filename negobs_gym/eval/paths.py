@@ -41,6 +41,7 @@ def draw_paths(
     everything: bool = False,
     limit: int | None = None,
     out_dir: str | Path | None = None,
+    zoom_m: float | None = None,
 ) -> list[Path]:
     """Draw episodes of a policy campaign to ``out_dir`` (default ``campaign_dir/paths``).
 
@@ -48,6 +49,8 @@ def draw_paths(
         keys: the episodes (``policy.csv``'s ``episode`` column); empty: those without a goal, or
             all of them with ``everything``.
         limit: draw at most this many (in key order).
+        zoom_m: draw only the square of this half-width around where each drive ended [m]; None:
+            the whole terrain.
 
     Returns:
         The PNGs written, in key order.
@@ -96,6 +99,6 @@ def draw_paths(
         caption = f"{name} seed {row['seed']} {row['filter']}: {episode_outcome(row)}, {progress:.1f} m"
         caption += f", {row['vetoes']} vetoes"
         path = out / f"{key}.png"
-        render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path)
+        render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path, zoom_m)
         written.append(path)
     return written

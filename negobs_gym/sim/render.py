@@ -124,6 +124,7 @@ def render_top_down(
     rear_overhang_m: float = 0.85,
     marks_xy_m: np.ndarray | None = None,
     caption: str | None = None,
+    view_m: tuple[float, float, float, float] | None = None,
 ) -> np.ndarray:
     """Render the terrain from above; returns an (H, W, 3) uint8 image, writes a PNG if asked.
 
@@ -133,14 +134,16 @@ def render_top_down(
         vehicle_pose: the vehicle's pose (origin at the rear axle, yaw 0 facing +Y); its
             footprint of ``vehicle_size_m`` is drawn.
         out_path: PNG file to write atomically (temp file + ``os.replace``).
-        height_px: image height; ``width_px`` defaults to the terrain's aspect ratio (>= 64 px).
+        height_px: image height; ``width_px`` defaults to the view's aspect ratio (>= 64 px).
         vehicle_size_m: (width, length) of the footprint [m].
         rear_overhang_m: distance from the rear axle (pose origin) back to the rear bumper [m].
         marks_xy_m: (M, 2) world points drawn as dots (e.g. where the safety filter vetoed).
         caption: one line of text drawn at the top left.
+        view_m: the world window ``(x0, x1, y0, y1)`` to draw [m]; None: the whole terrain.
 
     Raises:
-        ValueError: a malformed path or image size.
+        ConfigError: an image under 16 px or an empty or non-finite view.
+        GeometryError: a malformed path.
     """
     import matplotlib
 
@@ -148,7 +151,9 @@ def render_top_down(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    x0, x1, y0, y1 = terrain.heightfield.extent_m
+    x0, x1, y0, y1 = terrain.heightfield.extent_m if view_m is None else view_m
+    if not (np.all(np.isfinite([x0, x1, y0, y1])) and x1 > x0 and y1 > y0):
+        raise ConfigError("view_m", f"must be a finite window (x0 < x1, y0 < y1), got {view_m!r}")
     if width_px is None:
         width_px = max(64, round(height_px * (x1 - x0) / max(y1 - y0, 1e-9)))
     if height_px < 16 or width_px < 16:
@@ -159,6 +164,9 @@ def render_top_down(
     ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
     ax.set_axis_off()
     draw_terrain(ax, terrain)
+    if view_m is not None:
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
     if path_xy_m is not None:
         path = np.asarray(path_xy_m, dtype=np.float64)
         if path.ndim != 2 or path.shape[1] != 2:
@@ -202,14 +210,22 @@ def render_drive(
     vetoed: np.ndarray,
     caption: str,
     out_path: str | os.PathLike,
+    zoom_m: float | None = None,
 ) -> np.ndarray:
     """One drive from above (``negobs eval paths``, ``negobs scenario run --draw``): the path, the
     car where it ended (at the path's last point, heading ``end_yaw_rad``), the path's points where
-    ``vetoed`` (a bool per point) as marks, and ``caption``; written to ``out_path``."""
+    ``vetoed`` (a bool per point) as marks, and ``caption``; written to ``out_path``. ``zoom_m``:
+    only the square of that half-width around where the car ended (1000 px a side), to see how it
+    ended; None: the whole terrain."""
     path = np.asarray(path_xy_m, dtype=np.float64).reshape(-1, 2)
     end = Pose(x=path[-1, 0], y=path[-1, 1], yaw=end_yaw_rad)
     marks = path[np.asarray(vetoed, dtype=bool)]
-    return render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption)
+    view = None
+    if zoom_m is not None:
+        if not (np.isfinite(zoom_m) and zoom_m > 0):
+            raise ConfigError("zoom_m", f"must be finite and > 0, got {zoom_m!r}")
+        view = (end.x - zoom_m, end.x + zoom_m, end.y - zoom_m, end.y + zoom_m)
+    return render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption, view_m=view)
 
 
 def write_png_atomic(image: np.ndarray, out_path: Path) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
@@ -49,6 +50,24 @@ def test_eval_paths_draws_the_episodes(campaign: Path, tmp_path: Path, capsys) -
         main(["-q", "eval", "paths", str(campaign), "--episode", keys[1], "--to", str(tmp_path / "one")]) == 0
     )
     assert sorted(p.name for p in (tmp_path / "one").iterdir()) == [f"{keys[1]}.png"]
+    zoom = [
+        "-q",
+        "eval",
+        "paths",
+        str(campaign),
+        "--episode",
+        keys[1],
+        "--zoom",
+        "6",
+        "--to",
+        str(tmp_path / "z"),
+    ]
+    assert main(zoom) == 0  # the 12 m square around where the drive ended
+    assert mpimg.imread(tmp_path / "z" / f"{keys[1]}.png").shape[:2] == (1000, 1000)
+    with pytest.raises(SystemExit) as exit_info:  # argparse: must be > 0
+        main(["eval", "paths", str(campaign), "--zoom", "0"])
+    assert exit_info.value.code == 2
+    assert "must be a finite number > 0" in capsys.readouterr().err
     assert main(["eval", "paths", str(campaign), "--episode", "9.9999999"]) == 2
     assert "no episodes ['9.9999999']" in capsys.readouterr().err
     assert main(["eval", "paths", str(tmp_path)]) == 2

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core import Pose
-from negobs_gym.errors import GeometryError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim import presets
 from negobs_gym.sim.render import render_top_down
 
@@ -63,6 +63,26 @@ def test_default_width_follows_terrain_aspect() -> None:
     image = render_top_down(terrain, height_px=300)
     x0, x1, y0, y1 = terrain.heightfield.extent_m
     assert image.shape[1] == pytest.approx(300 * (x1 - x0) / (y1 - y0), abs=1)
+
+
+def test_a_view_draws_that_window_only() -> None:
+    """A view of the pit's surroundings: the pit fills the middle, the image is square."""
+    terrain = presets.braking_track(
+        ditch_distance_m=12.0,
+        ditch_length_m=2.0,
+        ditch_width_m=2.0,
+        lateral_offset_m=0.0,
+        seed=0,
+        resolution_m=0.2,
+    )
+    cx, cy = terrain.negative_obstacles[0].centre_xy_m
+    image = render_top_down(terrain, height_px=200, view_m=(cx - 4.0, cx + 4.0, cy - 4.0, cy + 4.0))
+    assert image.shape == (200, 200, 3)
+    assert _is_red(image[100, 100])  # the pit's middle is the picture's
+    assert not _is_red(image[5, 5])  # 4 m off, beyond the 2 m pit
+    for bad in ((0.0, 0.0, 0.0, 1.0), (0.0, 1.0, float("nan"), 2.0)):
+        with pytest.raises(ConfigError, match="view_m"):
+            render_top_down(terrain, height_px=100, view_m=bad)
 
 
 def test_bad_path_raises() -> None:
