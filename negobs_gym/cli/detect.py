@@ -120,7 +120,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="TOPIC",
         help="bags only: take each frame's pose from this nav_msgs/Odometry or geometry_msgs/"
-        "PoseStamped topic of the same bag, interpolated at the frame's record time",
+        "PoseStamped topic of the same bag, interpolated at the frame's time (--stamps)",
+    )
+    parser.add_argument(
+        "--stamps",
+        choices=("record", "header"),
+        default="record",
+        help="bags only: time clouds and poses by when the bag recorded them (default) or by their "
+        "header stamps, the sensor's and the odometry's own clocks without the transport's latency",
     )
     parser.add_argument(
         "--tighten-pairs",
@@ -176,8 +183,11 @@ def run(args: argparse.Namespace) -> int:
 
     def frames_and_tracks():
         for path in args.files:  # a bag's own odometry, read once per file
-            track = bag_pose_track(path, args.poses_topic) if args.poses_topic else None
-            for frame in read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic):
+            track = bag_pose_track(path, args.poses_topic, stamps=args.stamps) if args.poses_topic else None
+            frames = read_recording(
+                path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps
+            )
+            for frame in frames:
                 yield frame, track
 
     bar = tqdm(frames_and_tracks(), desc="negobs detect", unit="frame", disable=None)

@@ -95,6 +95,8 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     t = store.types
     bag = tmp_path / "drive_ros2"
     start_ns, period_ns = 10**9, 10**8  # clouds at 10 Hz, odometry at 50 Hz around them
+    # the recorder receives clouds 30 ms and odometry 5 ms after their header stamps
+    cloud_latency_ns, odom_latency_ns = 30 * 10**6, 5 * 10**6
     with Writer(bag, version=9) as writer:
         clouds = writer.add_connection("/points", "sensor_msgs/msg/PointCloud2", typestore=store)
         for k, path in enumerate(files):
@@ -106,7 +108,9 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
                 points[name] = raw[:, i]
             stamp = start_ns + k * period_ns
             msg = pointcloud2(store, points, stamp)
-            writer.write(clouds, stamp, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
+            writer.write(
+                clouds, stamp + cloud_latency_ns, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
+            )
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
         for j in range(-2, 5 * (FRAMES - 1) + 3):
             stamp = start_ns + j * period_ns // 5
@@ -127,10 +131,16 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
                     twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
                 ),
             )
-            writer.write(odom, stamp, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+            writer.write(odom, stamp + odom_latency_ns, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
     out = tmp_path / "bag"
     args = ["-q", "detect", str(bag), "--topic", "/points", "--height", "2.2", "--no-png", "--out", str(out)]
-    assert main([*args, "--poses-topic", "/odom"]) == 0
+    # timed by the bag's record time each cloud takes the pose 25 ms later: 0.25 m ahead at 10 m/s
+    assert main([*args[:-1], str(tmp_path / "record"), "--poses-topic", "/odom"]) == 0
+    recorded = [
+        json.loads((tmp_path / "record" / f"{k:05d}_drive_ros2_{k:04d}.json").read_text()) for k in range(2)
+    ]
+    assert [r["pose"][0] for r in recorded] == pytest.approx([0.25, STEP_M + 0.25])
+    assert main([*args, "--poses-topic", "/odom", "--stamps", "header"]) == 0
     from_bag = [json.loads((out / f"{k:05d}_drive_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
     from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
     for bag_record, csv_record in zip(from_bag, from_csv, strict=True):

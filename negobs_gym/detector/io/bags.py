@@ -24,6 +24,9 @@ POSE_MESSAGES = {
     "geometry_msgs/msg/PoseStamped": lambda m: m.pose,
     "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose,
 }
+# what times a bag's messages: when the recorder received them, or the stamp in their header
+# (the sensor's and the odometry's own clocks, without the transport's latency)
+STAMPS = ("record", "header")
 # sensor_msgs/PointField datatype codes -> numpy scalar types
 _POINTFIELD_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
@@ -61,11 +64,32 @@ def pointcloud2_fields(msg: object, source: str) -> dict[str, np.ndarray]:
     return {name: points[name] for name in names}
 
 
+def _message_time_s(stamp_ns: int, msg: object, stamps: str, source: str) -> float:
+    """A message's time [s]: the bag's record time, or its ``header.stamp`` (``stamps``)."""
+    if stamps == "record":
+        return stamp_ns * 1e-9
+    stamp = msg.header.stamp  # type: ignore[attr-defined]
+    seconds = int(stamp.sec) + int(stamp.nanosec) * 1e-9
+    if seconds <= 0.0:
+        raise ScanError(
+            f"{source}: header stamp is {seconds} (not stamped by its driver): use the record time"
+        )
+    return seconds
+
+
+def _check_stamps(stamps: str) -> None:
+    if stamps not in STAMPS:
+        raise ScanError(f"stamps must be one of {STAMPS}, got {stamps!r}")
+
+
 def bag_frames(
-    path: str | os.PathLike[str], setup: ScanSetup, *, topic: str | None = None
+    path: str | os.PathLike[str], setup: ScanSetup, *, topic: str | None = None, stamps: str = "record"
 ) -> Iterator[RecordedFrame]:
     """Frames of the PointCloud2 ``topic`` of a ROS 1 ``.bag`` or ROS 2 bag (folder, ``.db3``,
-    ``.mcap``); without ``topic`` the bag must hold exactly one PointCloud2 topic."""
+    ``.mcap``) in record order; without ``topic`` the bag must hold exactly one PointCloud2 topic.
+    Each scan's ``timestamp_s`` is the message's record time, or with ``stamps="header"`` its
+    header stamp (an unstamped message, 0, is an error)."""
+    _check_stamps(stamps)
     p = Path(path)
     reader = _open_bag(p)
     try:
@@ -83,7 +107,8 @@ def bag_frames(
             except Exception as error:  # a corrupt message body
                 raise unreadable(source, "PointCloud2 message", error) from error
             fields = pointcloud2_fields(msg, source)
-            scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=stamp_ns * 1e-9)
+            time_s = _message_time_s(stamp_ns, msg, stamps, source)
+            scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=time_s)
             yield RecordedFrame(scan, os.fspath(p), index, ring_source, int(msg.width) * int(msg.height))
     finally:
         reader.close()
@@ -102,15 +127,19 @@ def _open_bag(p: Path):
     return reader
 
 
-def bag_pose_track(path: str | os.PathLike[str], topic: str, *, max_gap_s: float = 0.1) -> PoseTrack:
+def bag_pose_track(
+    path: str | os.PathLike[str], topic: str, *, max_gap_s: float = 0.1, stamps: str = "record"
+) -> PoseTrack:
     """The poses of ``topic`` in a bag (``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
-    ``PoseWithCovarianceStamped``), timed by the bag's record time as its frames are
-    (:func:`bag_frames`), for :meth:`PoseTrack.at`.
+    ``PoseWithCovarianceStamped``), timed as :func:`bag_frames` times its frames with the same
+    ``stamps`` (record time, or header stamps in time order), for :meth:`PoseTrack.at`.
 
     Raises:
-        ScanError: not a readable bag, no such topic or not a pose type, no message, or a message
-            that cannot be read.
+        ScanError: not a readable bag, no such topic or not a pose type, no message, a message
+            that cannot be read, an unstamped message (``stamps="header"``), or two poses at one
+            time.
     """
+    _check_stamps(stamps)
     p = Path(path)
     reader = _open_bag(p)
     try:
@@ -123,19 +152,22 @@ def bag_pose_track(path: str | os.PathLike[str], topic: str, *, max_gap_s: float
         times, rows = [], []
         connections = [c for c in reader.connections if c.topic == topic]
         for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
+            source = f"{p}#{topic}#{index}"
             try:
-                pose = pose_of(reader.deserialize(raw, connection.msgtype))
+                msg = reader.deserialize(raw, connection.msgtype)
+                pose = pose_of(msg)
             except Exception as error:  # a corrupt message body
-                raise unreadable(f"{p}#{topic}#{index}", types[topic], error) from error
+                raise unreadable(source, types[topic], error) from error
             o, q = pose.position, pose.orientation
-            times.append(stamp_ns * 1e-9)
+            times.append(_message_time_s(stamp_ns, msg, stamps, source))
             rows.append((o.x, o.y, o.z, q.x, q.y, q.z, q.w))
     finally:
         reader.close()
     if not rows:
         raise ScanError(f"{p}: no message on {topic}")
-    data = np.asarray(rows, dtype=np.float64)
-    return PoseTrack(np.asarray(times), data[:, :3], data[:, 3:], max_gap_s=max_gap_s)
+    order = np.argsort(times, kind="stable")  # header stamps need not come in record order
+    data = np.asarray(rows, dtype=np.float64)[order]
+    return PoseTrack(np.asarray(times)[order], data[:, :3], data[:, 3:], max_gap_s=max_gap_s)
 
 
 def read_bag(

@@ -69,10 +69,12 @@ def read_recording(
     *,
     bin_layout: BinLayout = "xyzi",
     topic: str | None = None,
+    stamps: str = "record",
 ) -> Iterator[RecordedFrame]:
     """Frames of one recording, chosen by its name: ``.bin`` (float32, ``bin_layout``), ``.pcd``,
     ``.pcap`` (raw Velodyne packets), ``.bag`` (ROS 1) or a ROS 2 bag (its folder, ``.db3`` or
-    ``.mcap``). PCD, bags and pcap need the ``negobs_gym[real]`` extra."""
+    ``.mcap``; ``topic`` and ``stamps`` as :func:`~negobs_gym.detector.io.bags.bag_frames`). PCD,
+    bags and pcap need the ``negobs_gym[real]`` extra."""
     p = Path(path)
     if not p.exists():
         raise ScanError(f"{p}: no such file or folder")
@@ -90,6 +92,6 @@ def read_recording(
     elif suffix in (".bag", ".db3", ".mcap") or (p.is_dir() and (p / "metadata.yaml").exists()):
         from negobs_gym.detector.io.bags import bag_frames
 
-        yield from bag_frames(p, setup, topic=topic)
+        yield from bag_frames(p, setup, topic=topic, stamps=stamps)
     else:
         raise ScanError(f"{p}: unknown recording type (expected .bin, .pcd, .pcap, .bag, a ROS 2 bag)")

@@ -28,7 +28,9 @@ def frames():
     return [(int(s.host * 1e9), p) for s, p in vd.read_pcap(str(HDL32E_A), vd.Config(), as_pcl_structs=True)]
 
 
-def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None):
+def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None, header_ns=None):
+    """``frames`` as PointCloud2 messages recorded at their stamps; ``header_ns(stamp)`` gives each
+    header's stamp (default: the record time)."""
     store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
     msgtype = "sensor_msgs/msg/PointCloud2"
     writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
@@ -36,7 +38,8 @@ def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None
         for topic in topics:
             conn = writer.add_connection(topic, msgtype, typestore=store)
             for stamp, points in frames:
-                msg = pointcloud2(store, points, stamp, data, ros1=ros == 1)
+                header = stamp if header_ns is None else header_ns(stamp)
+                msg = pointcloud2(store, points, header, data, ros1=ros == 1)
                 raw = store.serialize_ros1(msg, msgtype) if ros == 1 else store.serialize_cdr(msg, msgtype)
                 writer.write(conn, stamp, raw)
     return path
@@ -53,6 +56,22 @@ def test_bag_frames_equal_the_recorded_points(tmp_path, frames, ros, name):
         np.testing.assert_array_equal(frame.scan.ranges_m, direct.ranges_m)
         assert frame.scan.timestamp_s == pytest.approx(stamp * 1e-9)
         assert frame.n_points == points.size
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_frames_timed_by_their_header_stamps(tmp_path, frames, ros):
+    name = "{}.bag" if ros == 1 else "{}_ros2"
+    bag = write_bag(tmp_path / name.format("late"), frames, ros, header_ns=lambda stamp: stamp - 40 * 10**6)
+    recorded = [f.scan.timestamp_s for f in read_recording(bag, SETUP)]
+    stamped = [f.scan.timestamp_s for f in read_recording(bag, SETUP, stamps="header")]
+    assert recorded == pytest.approx([s * 1e-9 for s, _ in frames])
+    np.testing.assert_allclose(np.subtract(recorded, stamped), 0.040, atol=1e-6)
+    unstamped = write_bag(tmp_path / name.format("zero"), frames[:1], ros, header_ns=lambda stamp: 0)
+    assert len(list(read_recording(unstamped, SETUP))) == 1  # the record time needs no stamp
+    with pytest.raises(ScanError, match="header stamp is 0"):
+        list(read_recording(unstamped, SETUP, stamps="header"))
+    with pytest.raises(ScanError, match="stamps must be one of"):
+        list(read_recording(unstamped, SETUP, stamps="sensor"))
 
 
 def test_ros2_bag_by_its_db3_file_and_named_topic(tmp_path, frames):
