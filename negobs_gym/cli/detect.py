@@ -74,8 +74,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Without --poses or --poses-topic every frame is taken as standing still at the same place, "
-        "so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
+        "Without --poses, --poses-topic or --kitti-poses every frame is taken as standing still at the "
+        "same place, so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
@@ -121,6 +121,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="TOPIC",
         help="bags only: take each frame's pose from this nav_msgs/Odometry or geometry_msgs/"
         "PoseStamped topic of the same bag, interpolated at the frame's time (--stamps)",
+    )
+    poses.add_argument(
+        "--kitti-poses",
+        default=None,
+        metavar="TXT",
+        help="a KITTI odometry poses/NN.txt (the camera's 3x4 pose per frame), with --kitti-calib: "
+        "the vehicle's pose at each frame, from the Velodyne's pose less its mounting",
+    )
+    parser.add_argument(
+        "--kitti-calib",
+        default=None,
+        metavar="TXT",
+        help="the sequence's calib.txt, whose Tr line takes the Velodyne to the camera (--kitti-poses)",
     )
     parser.add_argument(
         "--stamps",
@@ -175,6 +188,14 @@ def run(args: argparse.Namespace) -> int:
     setup = scan_setup(args)
     out = Path(args.out)
     poses = read_poses_csv(args.poses) if args.poses else None
+    if (args.kitti_poses is None) != (args.kitti_calib is None):
+        raise ScanError("--kitti-poses and --kitti-calib go together (a sequence's poses and its calib.txt)")
+    if args.kitti_poses:
+        from negobs_gym.detector.io.kitti import kitti_vehicle_poses, read_kitti_poses, read_kitti_velo_to_cam
+
+        cameras, velo_to_cam = read_kitti_poses(args.kitti_poses), read_kitti_velo_to_cam(args.kitti_calib)
+        poses = kitti_vehicle_poses(cameras, velo_to_cam, setup)
+    poses_file = args.poses or args.kitti_poses
     detector = NegativeObstacleDetector(
         NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
     )
@@ -193,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(frames_and_tracks(), desc="negobs detect", unit="frame", disable=None)
     for n, (frame, track) in enumerate(bar):
         if poses is not None and n >= len(poses):
-            raise ScanError(f"{args.poses}: {len(poses)} poses, but the recording has more frames")
+            raise ScanError(f"{poses_file}: {len(poses)} poses, but the recording has more frames")
         if track is not None:
             try:
                 pose = track.at(frame.scan.timestamp_s)
@@ -224,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
     if poses is not None and len(poses) > len(summary):
         log.warning(
             "%s: %d poses for %d frames; the last %d unused",
-            args.poses,
+            poses_file,
             len(poses),
             len(summary),
             len(poses) - len(summary),

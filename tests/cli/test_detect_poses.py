@@ -151,3 +151,29 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     assert "no topic '/imu'" in capsys.readouterr().err
     assert main(["detect", files[0], "--out", str(tmp_path / "y"), "--poses-topic", "/odom"]) == 2
     assert "not a readable ROS bag" in capsys.readouterr().err
+
+
+def test_kitti_poses_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> None:
+    """The same drive as a KITTI sequence: camera poses and a calib.txt whose Tr is sequence 00's;
+    the vehicle's poses, the outlines and the poses recorded equal those of the CSV."""
+    import argparse
+
+    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.detector.io import read_poses_csv
+    from tests.detector.io.test_kitti import TR_00, _camera_poses, _write
+
+    files, poses = drive
+    setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None))
+    _write(tmp_path / "00.txt", _camera_poses(read_poses_csv(poses), TR_00, setup))
+    calib = tmp_path / "calib.txt"
+    calib.write_text("Tr: " + " ".join(map(str, TR_00.ravel())) + "\n")
+    kitti = _records(
+        files, tmp_path / "kitti", "--kitti-poses", str(tmp_path / "00.txt"), "--kitti-calib", str(calib)
+    )
+    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
+    for k_record, csv_record in zip(kitti, from_csv, strict=True):
+        np.testing.assert_allclose(k_record["pose"], csv_record["pose"], atol=1e-6)
+        np.testing.assert_allclose(_near_edges(k_record), _near_edges(csv_record), atol=1e-3)
+    args = ["detect", files[0], "--out", str(tmp_path / "x"), "--kitti-poses", str(tmp_path / "00.txt")]
+    assert main(args) == 2
+    assert "--kitti-poses and --kitti-calib go together" in capsys.readouterr().err

@@ -11,7 +11,8 @@ only when such a file is read; without them a :class:`~negobs_gym.errors.Missing
 says what to install. Files that cannot be read raise :class:`~negobs_gym.errors.ScanError`.
 All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and converted to this
 package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`. A drive's poses, for
-multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`).
+multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`),
+a bag's odometry topic or a KITTI odometry sequence (:mod:`~negobs_gym.detector.io.kitti`).
 """
 
 from negobs_gym.detector.io.poses import POSE_COLUMNS, PoseTrack, pose_from_ros, read_poses_csv
