@@ -10,6 +10,9 @@ from negobs_gym.core import libm
 
 # Below this curvature [1/m] the path is treated as straight (radius > 1e9 m).
 STRAIGHT_CURVATURE_PER_M = 1e-9
+# A point on the outer side's line at its entry angle touches the body now; round-off between the
+# two angles must not move it a turn later, so angles this close to the entry count as reached [rad].
+ENTRY_TOLERANCE_RAD = 1e-9
 
 
 def hazard_distance_m(
@@ -54,5 +57,5 @@ def hazard_distance_m(
     outer = radius + half_width_m
     beyond = np.maximum(r[inside] * r[inside] - outer * outer, 0.0)  # 0 within the rear-axle band
     entry = libm.arctan2(np.sqrt(beyond), np.full_like(beyond, outer))  # the outer side meets r here
-    theta = np.where(theta >= entry, theta, theta + 2.0 * np.pi)
+    theta = np.where(theta >= entry - ENTRY_TOLERANCE_RAD, theta, theta + 2.0 * np.pi)
     return float(radius * np.min(theta))

@@ -67,3 +67,13 @@ def test_a_point_beside_the_outer_rear_is_never_reached():
     for theta in (entry + 1e-6, entry + 0.1):
         point = np.array([[r * np.cos(theta) - radius, r * np.sin(theta)]])  # about the centre (-R, 0)
         assert np.isclose(hazard_distance_m(point, steer, wheelbase, half_width, front), radius * theta)
+
+
+def test_a_point_on_the_outer_side_at_its_entry_angle_is_reached_now():
+    """Found by the filter's property test: full left lock, a point on the body's right side 1.125 m
+    ahead of the rear axle (x = the half-width). Its angle equals the entry angle where the outer
+    side meets its radius, and round-off had put it just below, a full turn later (26 m)."""
+    steer, wheelbase, half_width, front = np.deg2rad(35.0), 2.8, 1.1, 3.0
+    radius = wheelbase / np.tan(steer)
+    d = hazard_distance_m(np.array([[1.1, 1.125]]), steer, wheelbase, half_width, front)
+    assert np.isclose(d, radius * np.arctan2(1.125, radius + 1.1))  # reached at once, not a turn later

@@ -3,7 +3,7 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from negobs_gym.drivers import RecklessDriver
@@ -91,6 +91,10 @@ DECISION_CASE = {
 
 @settings(max_examples=1000, deadline=None)
 @given(**DECISION_CASE)
+@example(
+    v=0.0, a0=0.0, steer=1.0, pts=np.array([[1.1, 1.125]]), mode="brake"
+)  # on the side at its entry angle
+@example(v=0.0, a0=0.0, steer=0.25, pts=np.array([[1.25, 1.0]]), mode="brake")  # beside the outer rear
 def test_never_lets_unsafe_through(v, a0, steer, pts, mode):
     state = make_state(v, pts)
     env = BrakingSafetyFilter(FixedHazardEnv(state), mode=mode)
