@@ -27,6 +27,16 @@ def rotation_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     return rz @ rx @ ry
 
 
+def pose_from_matrix(position: np.ndarray, rotation: np.ndarray) -> Pose:
+    """The :class:`Pose` of a vehicle-to-world ``rotation`` (3x3) at ``position``: the inverse of
+    :func:`rotation_from_rpy`'s ``Rz(yaw) Rx(pitch) Ry(roll)``."""
+    r = np.asarray(rotation, dtype=np.float64)
+    pitch = math.asin(float(np.clip(r[2, 1], -1.0, 1.0)))
+    roll = math.atan2(-r[2, 0], r[2, 2])
+    yaw = math.atan2(-r[0, 1], r[1, 1])
+    return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)
+
+
 @dataclass(frozen=True)
 class Pose:
     """A 6-DoF pose of the vehicle frame in the world frame: position [m], angles [rad]."""

@@ -21,11 +21,11 @@ import numpy as np
 import pybullet as p
 
 from negobs_gym.core.geometry import heading_axes
-from negobs_gym.core.pose import Pose
+from negobs_gym.core.pose import Pose, pose_from_matrix
 from negobs_gym.errors import ActionError, ConfigError, require
 from negobs_gym.sim.world import World
 
-__all__ = ["Vehicle", "VehicleConfig", "pose_from_matrix"]
+__all__ = ["Vehicle", "VehicleConfig"]
 
 WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
 
@@ -122,15 +122,6 @@ class VehicleConfig:
     def max_steer_rad(self) -> float:
         """Maximum (bicycle-model) steering angle [rad]."""
         return math.radians(self.max_steer_deg)
-
-
-def pose_from_matrix(position: np.ndarray, rotation: np.ndarray) -> Pose:
-    """Pose with the ``Rz(yaw) Rx(pitch) Ry(roll)`` convention of :mod:`negobs_gym.core.pose`."""
-    r = np.asarray(rotation, dtype=np.float64)
-    pitch = math.asin(float(np.clip(r[2, 1], -1.0, 1.0)))
-    roll = math.atan2(-r[2, 0], r[2, 2])
-    yaw = math.atan2(-r[0, 1], r[1, 1])
-    return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)
 
 
 class Vehicle:

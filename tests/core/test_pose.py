@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core import Pose, rotation_from_rpy
+from negobs_gym.core.pose import pose_from_matrix
 from negobs_gym.errors import ScanError
 
 
@@ -36,3 +37,11 @@ def test_pose_rejects_nan_and_wrong_length():
     with pytest.raises(ScanError, match="6 values"):
         Pose.from_array([1.0, 2.0])
     assert Pose.from_array(Pose(1, 2, 3, 0.1, 0.2, 0.3).as_array()) == Pose(1, 2, 3, 0.1, 0.2, 0.3)
+
+
+def test_pose_from_matrix_inverts_core_rotation():
+    rng = np.random.default_rng(0)
+    for roll, pitch, yaw in rng.uniform(-1.2, 1.2, size=(20, 3)):
+        ref = Pose(1.0, 2.0, 3.0, roll, pitch, yaw)
+        got = pose_from_matrix(ref.translation, ref.rotation)
+        np.testing.assert_allclose(got.as_array(), ref.as_array(), atol=1e-9)

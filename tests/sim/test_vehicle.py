@@ -9,7 +9,7 @@ import pytest
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ActionError, ConfigError
-from negobs_gym.sim.vehicle import Vehicle, VehicleConfig, pose_from_matrix
+from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
 from negobs_gym.sim.world import World, WorldConfig
 from tests.sim.helpers import flat_terrain
 
@@ -152,14 +152,6 @@ def test_bad_vehicle_config_names_the_field(field, value):
     with pytest.raises(ConfigError) as err:
         VehicleConfig(**{field: value})
     assert err.value.field == field
-
-
-def test_pose_from_matrix_inverts_core_rotation():
-    rng = np.random.default_rng(0)
-    for roll, pitch, yaw in rng.uniform(-1.2, 1.2, size=(20, 3)):
-        ref = Pose(1.0, 2.0, 3.0, roll, pitch, yaw)
-        got = pose_from_matrix(ref.translation, ref.rotation)
-        np.testing.assert_allclose(got.as_array(), ref.as_array(), atol=1e-9)
 
 
 def test_ackermann_inner_wheel_turns_more():

@@ -12,10 +12,11 @@ detector places the sensor where it was. No data is shipped: KITTI's licence is 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 
-from negobs_gym.core.pose import Pose
+from negobs_gym.core.pose import Pose, pose_from_matrix
 from negobs_gym.detector.io.setup import ScanSetup
 from negobs_gym.errors import ScanError
 
@@ -44,6 +45,13 @@ def _numbers(line: str, name: str, n: int, where: str) -> np.ndarray:
     return values
 
 
+def _lines(path: str | os.PathLike[str], what: str) -> list[str]:
+    try:
+        return Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as error:
+        raise ScanError(f"{os.fspath(path)}: cannot read {what} ({type(error).__name__}: {error})") from error
+
+
 def read_kitti_velo_to_cam(path: str | os.PathLike[str]) -> np.ndarray:
     """The 4x4 Velodyne-to-camera transform of a KITTI ``calib.txt`` (its ``Tr:`` line).
 
@@ -51,11 +59,7 @@ def read_kitti_velo_to_cam(path: str | os.PathLike[str]) -> np.ndarray:
         ScanError: an unreadable file, no ``Tr`` line, or one that is not 12 finite numbers.
     """
     name = os.fspath(path)
-    try:
-        lines = open(name, encoding="utf-8").read().splitlines()
-    except (OSError, UnicodeDecodeError) as error:
-        raise ScanError(f"{name}: cannot read the calibration ({type(error).__name__}: {error})") from error
-    for n, line in enumerate(lines, start=1):
+    for n, line in enumerate(_lines(path, "the calibration"), start=1):
         key, sep, rest = line.partition(":")
         if sep and key.strip() in CALIB_KEYS:
             return _homogeneous(_numbers(rest, key.strip(), 12, f"{name}: line {n}").reshape(3, 4))
@@ -71,10 +75,7 @@ def read_kitti_poses(path: str | os.PathLike[str]) -> np.ndarray:
         ScanError: an unreadable or empty file, or a line that is not 12 finite numbers.
     """
     name = os.fspath(path)
-    try:
-        lines = [line for line in open(name, encoding="utf-8").read().splitlines() if line.strip()]
-    except (OSError, UnicodeDecodeError) as error:
-        raise ScanError(f"{name}: cannot read poses ({type(error).__name__}: {error})") from error
+    lines = [line for line in _lines(path, "poses") if line.strip()]
     if not lines:
         raise ScanError(f"{name}: no poses (12 numbers a line, a 3x4 [R | t] per frame)")
     rows = [_numbers(line, "a pose", 12, f"{name}: line {n}") for n, line in enumerate(lines, start=1)]
@@ -84,17 +85,10 @@ def read_kitti_poses(path: str | os.PathLike[str]) -> np.ndarray:
 def kitti_vehicle_poses(camera_poses: np.ndarray, velo_to_cam: np.ndarray, setup: ScanSetup) -> list[Pose]:
     """The vehicle's :class:`Pose` at each frame: the Velodyne's pose (``camera_pose @ velo_to_cam``)
     in the z-up world, in this package's axes, less the sensor's mounting in ``setup``."""
-    from scipy.spatial.transform import Rotation
-
     velo = np.asarray(camera_poses, dtype=float) @ np.asarray(velo_to_cam, dtype=float)
     r_sensor = CAMERA_TO_WORLD @ velo[:, :3, :3] @ PACKAGE_TO_ROS_BODY
     t_sensor = velo[:, :3, 3] @ CAMERA_TO_WORLD.T
     mount_r, mount_t = np.asarray(setup.rotation, dtype=float), np.asarray(setup.translation_m, dtype=float)
     r_vehicle = r_sensor @ mount_r.T  # the mounting is sensor-to-vehicle
     t_vehicle = t_sensor - r_vehicle @ mount_t
-    # this package's angles: R = Rz(yaw) Rx(pitch) Ry(roll) (core.pose.rotation_from_rpy)
-    yaw, pitch, roll = Rotation.from_matrix(r_vehicle).as_euler("ZXY").T
-    return [
-        Pose(x=x, y=y, z=z, roll=float(a), pitch=float(b), yaw=float(c))
-        for (x, y, z), a, b, c in zip(t_vehicle.tolist(), roll, pitch, yaw, strict=True)
-    ]
+    return [pose_from_matrix(t, r) for t, r in zip(t_vehicle, r_vehicle, strict=True)]
