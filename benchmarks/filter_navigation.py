@@ -24,9 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.cli.common import add_set_option
+from negobs_gym.cli.common import add_set_option, task_env_or_exit
 from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import run_driven_episode
 from negobs_gym.policies.training import make_task_env
 from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
@@ -74,10 +73,7 @@ def main() -> None:
     parser.add_argument("--max-steps", type=int, default=600)
     add_set_option(parser)
     args = parser.parse_args()
-    try:
-        make_task_env(args.env, None, args.overrides).close()  # a bad --env or --set: exit 2, named
-    except ConfigError as error:
-        parser.error(str(error))
+    task_env_or_exit(parser, args.env, None, args.overrides).close()  # a bad --env or --set: exit 2
     guard: bool | SafetyFilterConfig = False
     if args.filter == "on":
         guard = SafetyFilterConfig(

@@ -39,13 +39,11 @@ import time
 
 import numpy as np
 
-from negobs_gym.cli.common import add_set_option
+from negobs_gym.cli.common import add_set_option, task_env_or_exit
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import convex_overlap_mask
 from negobs_gym.drivers import make_driver
 from negobs_gym.envs.config import POSITIVE_DETECTORS
-from negobs_gym.errors import ConfigError
-from negobs_gym.policies.training import make_task_env
 
 OBSTACLE_CHANNELS = ("negative", "positive")
 # to 14 m: OffroadNav-v1/-v2's oracle range; from 4 m: nearer, the LUX's layers pass over a low rock
@@ -115,10 +113,7 @@ def main() -> None:
     if args.seeds < 1 or not args.band_m > 0 or not args.positive_hold_s >= 0:
         parser.error("--seeds must be >= 1, --band-m > 0 and --positive-hold-s >= 0")
 
-    try:
-        named = make_task_env(args.env, "detector", args.overrides)
-    except ConfigError as error:  # a bad --env or --set: exit 2, named
-        parser.error(str(error))
+    named = task_env_or_exit(parser, args.env, "detector", args.overrides)
     detector_env = twin(named, positive_detector=args.positive_detector, positive_hold_s=args.positive_hold_s)
     named.close()
     oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)

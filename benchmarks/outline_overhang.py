@@ -25,7 +25,7 @@ import argparse
 
 import numpy as np
 
-from negobs_gym.cli.common import add_set_option
+from negobs_gym.cli.common import add_set_option, task_env_or_exit
 from negobs_gym.core.geometry import (
     distance_to_polyline,
     pad_polygons,
@@ -33,7 +33,6 @@ from negobs_gym.core.geometry import (
     vehicle_to_world_xy,
 )
 from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.errors import ConfigError
 from negobs_gym.policies.training import make_task_env
 
 NEAR_PIT_M = 3.0  # farther from every pit: a false detection, not an overhang
@@ -59,10 +58,7 @@ def main() -> None:
     parser.add_argument("--max-steps", type=int, default=320)
     add_set_option(parser)
     args = parser.parse_args()
-    try:
-        make_task_env(args.env, None, args.overrides).close()  # a bad --env or --set: exit 2, named
-    except ConfigError as error:
-        parser.error(str(error))
+    task_env_or_exit(parser, args.env, None, args.overrides).close()  # a bad --env or --set: exit 2
     planner = TrackPlannerConfig(sight_m=14.0, plan_horizon_m=30.0, pursuit=PurePursuitConfig())
     found: dict[str, list[np.ndarray]] = {name: [] for name in REGIONS}
     for seed in range(args.first_seed, args.first_seed + args.seeds):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any
 
 
 def non_negative_int(text: str) -> int:
@@ -38,6 +39,20 @@ def add_set_option(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="change one setting of the scenario, repeatable: observation.tighten_pairs=true, "
+        help="change one setting of the scenario, repeatable: observation.tighten_pairs=false, "
         "episode.time_limit_s=30, obstacles.0.depth_m=1.2; VALUE is TOML, or else text",
     )
+
+
+def task_env_or_exit(
+    parser: argparse.ArgumentParser, env: str, source: str | None, overrides: list[str]
+) -> Any:
+    """:func:`~negobs_gym.policies.training.make_task_env` of a command's ``--env`` and ``--set``;
+    a bad one exits 2 through ``parser.error``, naming the field."""
+    from negobs_gym.errors import ConfigError
+    from negobs_gym.policies.training import make_task_env
+
+    try:
+        return make_task_env(env, source, overrides)
+    except ConfigError as error:
+        parser.error(str(error))

@@ -144,7 +144,7 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     return out
 
 
-def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = True) -> Any:
+def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) -> Any:
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
@@ -166,7 +166,7 @@ def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = T
     return dataclasses.replace(spec, observation=observation)
 
 
-def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool = True) -> Any:
+def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
     return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs))
