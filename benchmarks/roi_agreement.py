@@ -39,7 +39,7 @@ import gymnasium as gym
 import numpy as np
 
 import negobs_gym  # noqa: F401  (registers the envs)
-from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.detector import FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.drivers import PurePursuitDriver
 from negobs_gym.envs.perception import env_rig
 from negobs_gym.eval.detection_campaign import BRAKING_SPEED_MPS
@@ -65,7 +65,9 @@ class _Episode:
         self.caster = make_caster(world, "auto", exclude_body_ids=exclude)
         self.heights = HeightEnvelope(world, exclude_body_ids=exclude)
         self.recent: list = []
-        config = NegativeDetectorConfig(grid=self.grid)
+        # the env's own detector settings: its grid and whether its fusion tightens pairs
+        tighten = FusionConfig(tighten_on_match=u.config.observation.tighten_pairs)
+        config = NegativeDetectorConfig(grid=self.grid, fusion=tighten)
         self.roi_detector = NegativeObstacleDetector(config)
         self.native_detector = NegativeObstacleDetector(config)
         car = self.vehicle.config
