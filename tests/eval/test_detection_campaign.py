@@ -150,6 +150,9 @@ def test_ray_gives_byte_identical_csvs(tmp_path: Path) -> None:
         assert (tmp_path / "serial" / name).read_bytes() == (tmp_path / "ray" / name).read_bytes()
 
 
+FINISHED_PART = "seed*.json"  # not the hidden temp file a part is written through (".seed00000.json.*.tmp.json")
+
+
 def test_killed_campaign_resumes_to_the_same_csv(tmp_path: Path) -> None:
     args = ["eval", "detection", "--seeds", "4", "--frames", "12", *QUICK]
     killed = tmp_path / "killed"
@@ -163,14 +166,14 @@ def test_killed_campaign_resumes_to_the_same_csv(tmp_path: Path) -> None:
     )
     parts = killed / "parts"
     deadline = time.monotonic() + 240
-    while time.monotonic() < deadline and len(list(parts.glob("*.json"))) < 1 and proc.poll() is None:
+    while time.monotonic() < deadline and len(list(parts.glob(FINISHED_PART))) < 1 and proc.poll() is None:
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
-    finished = sorted(p.name for p in parts.glob("*.json"))
+    finished = sorted(p.name for p in parts.glob(FINISHED_PART))
     assert 1 <= len(finished) < 4, f"kill came too late or too early: {finished}"
     assert not (killed / "obstacles.csv").exists()
-    stamps = {p.name: p.stat().st_mtime_ns for p in parts.glob("*.json")}
+    stamps = {p.name: p.stat().st_mtime_ns for p in parts.glob(FINISHED_PART)}
     assert main(["-q", *args, "--out", str(killed), "--resume"]) == 0
     assert {n: (parts / n).stat().st_mtime_ns for n in finished} == stamps  # finished ones not rerun
     assert main(["-q", *args, "--out", str(tmp_path / "whole")]) == 0
