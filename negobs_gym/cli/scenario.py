@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
+from negobs_gym.cli.common import add_set_option, non_negative_int, positive_float, positive_int
 
 if TYPE_CHECKING:
     from negobs_gym.scenarios import ScenarioSpec
@@ -72,6 +72,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="write each seed's drive over its terrain to DIR/<scenario>_seed<k>.png (path, end pose, "
         "vetoed steps, verdict)",
     )
+    p_run.add_argument(
+        "--zoom",
+        dest="zoom_m",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help="with --draw: the square of half-width M metres around where the drive ended "
+        "(default: the whole terrain)",
+    )
     add_set_option(p_run)
     p_run.set_defaults(handler=_run)
 
@@ -111,13 +120,18 @@ def _spec(args: argparse.Namespace) -> ScenarioSpec:
 def _run(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import run_scenario
 
+    if args.zoom_m is not None and not args.draw:
+        print("error: --zoom needs --draw DIR (it sets the drawn window)", file=sys.stderr)
+        return 2
     spec = _spec(args)
     if args.stop_for_positive:
         spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
     failed = 0
     for seed in range(args.seed, args.seed + args.seeds):
         png = Path(args.draw) / f"{spec.name}_seed{seed}.png" if args.draw else None
-        result = run_scenario(spec, args.driver, filter=args.filter, seed=seed, draw_to=png)
+        result = run_scenario(
+            spec, args.driver, filter=args.filter, seed=seed, draw_to=png, draw_zoom_m=args.zoom_m
+        )
         print(result.line(), file=sys.stdout, flush=True)
         failed += not result.passed
     return 1 if failed else 0

@@ -18,6 +18,7 @@ import numpy as np
 from negobs_gym.drivers import DRIVER_NAMES, Driver
 from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -182,6 +183,7 @@ def run_scenario(
     seed: int = 0,
     render_mode: str | None = None,
     draw_to: str | Path | None = None,
+    draw_zoom_m: float | None = None,
 ) -> ScenarioResult:
     """Run one episode of ``spec`` (a spec, shipped name or TOML path) with a scripted driver.
 
@@ -196,11 +198,15 @@ def run_scenario(
         render_mode: Passed to the env (e.g. to keep frames for a failing test).
         draw_to: A PNG to write at the end (atomically): the terrain from above with the path, the
             car where it ended, the vetoed steps and the result's verdict.
+        draw_zoom_m: Draw only the square of this half-width around where the car ended (1000 px
+            a side, to see how it ended); None: the whole terrain.
 
     Returns:
         The episode's :class:`ScenarioResult`, with the spec's failed criteria in ``failures``.
     """
     spec = load_scenario(spec)
+    if draw_zoom_m is not None and not (np.isfinite(draw_zoom_m) and draw_zoom_m > 0):
+        raise ConfigError("draw_zoom_m", f"must be finite and > 0, got {draw_zoom_m!r}")
     filter = spec.run.filter if filter is None else filter
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
     env = _wrap(base, filter, spec.run)
@@ -284,7 +290,7 @@ def run_scenario(
         )
         result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
         if draw_to is not None:
-            _draw(result, base.terrain, float(info["pose"][5]), Path(draw_to))
+            _draw(result, base.terrain, float(info["pose"][5]), Path(draw_to), draw_zoom_m)
     finally:
         env.close()
     return result
@@ -294,7 +300,9 @@ def _xy(info: dict[str, Any]) -> tuple[float, float]:
     return float(info["pose"][0]), float(info["pose"][1])
 
 
-def _draw(result: ScenarioResult, terrain: Terrain, yaw_rad: float, out_path: Path) -> None:
+def _draw(
+    result: ScenarioResult, terrain: Terrain, yaw_rad: float, out_path: Path, zoom_m: float | None
+) -> None:
     from negobs_gym.sim.render import render_drive
 
     verdict = "PASS" if result.passed else "FAIL " + ",".join(result.failures)
@@ -302,4 +310,4 @@ def _draw(result: ScenarioResult, terrain: Terrain, yaw_rad: float, out_path: Pa
     caption = f"{result.scenario} seed {result.seed} {result.driver}, {filtered}: {verdict}"
     vetoed = np.zeros(len(result.path_xy_m), dtype=bool)
     vetoed[list(result.vetoed_steps)] = True
-    render_drive(terrain, np.asarray(result.path_xy_m), yaw_rad, vetoed, caption, out_path)
+    render_drive(terrain, np.asarray(result.path_xy_m), yaw_rad, vetoed, caption, out_path, zoom_m)

@@ -116,3 +116,12 @@ def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) ->
     image = mpimg.imread(tmp_path / "drawn" / f"{spec.name}_seed0.png")[..., :3]
     magenta = (image[..., 0] > 0.8) & (image[..., 1] < 0.3) & (image[..., 2] > 0.8)
     assert magenta.any()  # the vetoed steps before the rock
+    capsys.readouterr()
+    zoomed = ["--stop-for-positive", "--draw", str(tmp_path / "z"), "--zoom", "5"]
+    assert main(["scenario", "run", str(path), *zoomed]) == 0
+    close = mpimg.imread(tmp_path / "z" / f"{spec.name}_seed0.png")[..., :3]
+    assert close.shape[:2] == (1000, 1000)  # the 10 m square around where the car stopped
+    close_magenta = (close[..., 0] > 0.8) & (close[..., 1] < 0.3) & (close[..., 2] > 0.8)
+    assert close_magenta.sum() > magenta.sum()  # the same marks, drawn larger
+    assert main(["scenario", "run", str(path), "--zoom", "5"]) == 2
+    assert "--zoom needs --draw" in capsys.readouterr().err

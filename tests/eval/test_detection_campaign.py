@@ -150,7 +150,8 @@ def test_ray_gives_byte_identical_csvs(tmp_path: Path) -> None:
         assert (tmp_path / "serial" / name).read_bytes() == (tmp_path / "ray" / name).read_bytes()
 
 
-FINISHED_PART = "seed*.json"  # not the hidden temp file a part is written through (".seed00000.json.*.tmp.json")
+# finished parts only, not the hidden temp file a part is written through (".seed00000.json.*.tmp.json")
+FINISHED_PART = "seed*.json"
 
 
 def test_killed_campaign_resumes_to_the_same_csv(tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.drivers import RecklessDriver
+from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios import ScenarioResult, run_scenario, spec_from_toml
 from negobs_gym.scenarios.runner import check_criteria
 from negobs_gym.scenarios.spec import CriteriaSpec
@@ -134,3 +135,10 @@ def test_the_filter_stops_for_a_rock_only_when_told() -> None:
 
     papers = run_scenario("rock_on_track_25kmh", filter=SafetyFilterConfig(), seed=0)  # used as it is
     assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
+
+
+@pytest.mark.parametrize("zoom_m", [0.0, -2.0, math.nan, math.inf])
+def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) -> None:
+    with pytest.raises(ConfigError, match="draw_zoom_m"):
+        run_scenario(spec_from_toml(PIT_SCENE), draw_to=tmp_path / "x.png", draw_zoom_m=zoom_m)
+    assert not (tmp_path / "x.png").exists()
