@@ -74,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Without --poses, --poses-topic or --kitti-poses every frame is taken as standing still at the "
+        "Without --poses, --poses-topic, --tf or --kitti-poses every frame is taken as standing still at the "
         "same place, so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
@@ -123,6 +123,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "PoseStamped topic of the same bag, interpolated at the frame's time (--stamps)",
     )
     poses.add_argument(
+        "--tf",
+        type=tf_frames,
+        default=None,
+        metavar="FIXED:BODY",
+        help="bags only: take each frame's pose from the bag's /tf and /tf_static, the chain from "
+        "frame FIXED to the vehicle's frame BODY (e.g. odom:base_link or map:base_link), each edge "
+        "interpolated at the frame's time (--stamps)",
+    )
+    poses.add_argument(
         "--kitti-poses",
         default=None,
         metavar="TXT",
@@ -150,6 +159,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
     parser.set_defaults(handler=run)
+
+
+def tf_frames(text: str) -> tuple[str, str]:
+    """``FIXED:BODY`` as two frame names (argparse type of ``--tf``)."""
+    parts = text.split(":")
+    if len(parts) != 2 or not all(part.strip("/ ") for part in parts):
+        raise argparse.ArgumentTypeError(
+            f"want two frame names FIXED:BODY (e.g. odom:base_link), got {text!r}"
+        )
+    return parts[0].strip(), parts[1].strip()
 
 
 def scan_setup(args: argparse.Namespace) -> ScanSetup:
@@ -182,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
         StructureDetector,
     )
     from negobs_gym.detector.io import read_poses_csv, read_recording
-    from negobs_gym.detector.io.bags import bag_pose_track
+    from negobs_gym.detector.io.bags import bag_pose_track, bag_transform_chain
     from negobs_gym.errors import ScanError
 
     setup = scan_setup(args)
@@ -204,7 +223,11 @@ def run(args: argparse.Namespace) -> int:
 
     def frames_and_tracks():
         for path in args.files:  # a bag's own odometry, read once per file
-            track = bag_pose_track(path, args.poses_topic, stamps=args.stamps) if args.poses_topic else None
+            track = None
+            if args.poses_topic:
+                track = bag_pose_track(path, args.poses_topic, stamps=args.stamps)
+            elif args.tf:
+                track = bag_transform_chain(path, *args.tf, stamps=args.stamps)
             frames = read_recording(
                 path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps
             )

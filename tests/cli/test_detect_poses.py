@@ -83,20 +83,25 @@ def test_tightened_pairs_and_short_poses(drive, tmp_path, capsys) -> None:
     assert "2 poses, but the recording has more frames" in capsys.readouterr().err
 
 
-def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) -> None:
+START_NS, PERIOD_NS = 10**9, 10**8  # clouds at 10 Hz from t = 1 s
+# the recorder receives clouds 30 ms and poses 5 ms after their header stamps
+CLOUD_LATENCY_NS, POSE_LATENCY_NS = 30 * 10**6, 5 * 10**6
+POSE_STAMPS_NS = [START_NS + j * PERIOD_NS // 5 for j in range(-2, 5 * (FRAMES - 1) + 3)]  # 50 Hz
+
+
+def _stamp(store, stamp_ns: int):
+    return store.types["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+
+
+def _drive_bag(bag: Path, files: list[str], write_poses) -> Path:
+    """The drive's clouds as a ROS 2 bag on /points, and what ``write_poses(writer, store)`` adds."""
     pytest.importorskip("rosbags")
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
 
     from tests.helpers import pointcloud2
 
-    files, poses = drive
     store = get_typestore(Stores.ROS2_HUMBLE)
-    t = store.types
-    bag = tmp_path / "drive_ros2"
-    start_ns, period_ns = 10**9, 10**8  # clouds at 10 Hz, odometry at 50 Hz around them
-    # the recorder receives clouds 30 ms and odometry 5 ms after their header stamps
-    cloud_latency_ns, odom_latency_ns = 30 * 10**6, 5 * 10**6
     with Writer(bag, version=9) as writer:
         clouds = writer.add_connection("/points", "sensor_msgs/msg/PointCloud2", typestore=store)
         for k, path in enumerate(files):
@@ -106,32 +111,43 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
             )
             for i, name in enumerate(("x", "y", "z", "intensity", "ring")):
                 points[name] = raw[:, i]
-            stamp = start_ns + k * period_ns
+            stamp = START_NS + k * PERIOD_NS
             msg = pointcloud2(store, points, stamp)
             writer.write(
-                clouds, stamp + cloud_latency_ns, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
+                clouds, stamp + CLOUD_LATENCY_NS, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
             )
+        write_poses(writer, store)
+    return bag
+
+
+def _driven_x(stamp_ns: int) -> float:
+    """Where the drive is at ``stamp_ns``: 1 m per cloud period, as the CSV's poses."""
+    return STEP_M * (stamp_ns - START_NS) / PERIOD_NS
+
+
+def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) -> None:
+    files, poses = drive
+
+    def odometry(writer, store) -> None:
+        t = store.types
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
-        for j in range(-2, 5 * (FRAMES - 1) + 3):
-            stamp = start_ns + j * period_ns // 5
-            x = STEP_M * j / 5  # 1 m per cloud period, as the CSV's poses
+        for stamp in POSE_STAMPS_NS:
             pose = t["geometry_msgs/msg/Pose"](
-                position=t["geometry_msgs/msg/Point"](x=x, y=0.0, z=0.0),
+                position=t["geometry_msgs/msg/Point"](x=_driven_x(stamp), y=0.0, z=0.0),
                 orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
             )
             zero = t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
             msg = t["nav_msgs/msg/Odometry"](
-                header=t["std_msgs/msg/Header"](
-                    stamp=t["builtin_interfaces/msg/Time"](sec=stamp // 10**9, nanosec=stamp % 10**9),
-                    frame_id="odom",
-                ),
+                header=t["std_msgs/msg/Header"](stamp=_stamp(store, stamp), frame_id="odom"),
                 child_frame_id="base_link",
                 pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
                 twist=t["geometry_msgs/msg/TwistWithCovariance"](
                     twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
                 ),
             )
-            writer.write(odom, stamp + odom_latency_ns, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+            writer.write(odom, stamp + POSE_LATENCY_NS, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+
+    bag = _drive_bag(tmp_path / "drive_ros2", files, odometry)
     out = tmp_path / "bag"
     args = ["-q", "detect", str(bag), "--topic", "/points", "--height", "2.2", "--no-png", "--out", str(out)]
     # timed by the bag's record time each cloud takes the pose 25 ms later: 0.25 m ahead at 10 m/s
@@ -151,6 +167,71 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     assert "no topic '/imu'" in capsys.readouterr().err
     assert main(["detect", files[0], "--out", str(tmp_path / "y"), "--poses-topic", "/odom"]) == 2
     assert "not a readable ROS bag" in capsys.readouterr().err
+
+
+def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None:
+    """The drive's poses as a tf tree: a localiser's static map -> odom (5 m off, turned 90 deg),
+    wheel odometry odom -> base_link at 50 Hz on /tf, the sensor's mounting below base_link; the
+    chain map -> base_link gives the CSV's poses and outlines."""
+    from scipy.spatial.transform import Rotation
+
+    files, poses = drive
+    map_odom = (np.array([5.0, 0.0, 0.0]), Rotation.from_euler("z", 90, degrees=True))
+
+    def tf_tree(writer, store) -> None:
+        t = store.types
+
+        def stamped(stamp_ns: int, parent: str, child: str, position, rotation):
+            x, y, z = (float(v) for v in position)
+            qx, qy, qz, qw = (float(v) for v in rotation.as_quat())
+            return t["geometry_msgs/msg/TransformStamped"](
+                header=t["std_msgs/msg/Header"](stamp=_stamp(store, stamp_ns), frame_id=parent),
+                child_frame_id=child,
+                transform=t["geometry_msgs/msg/Transform"](
+                    translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
+                    rotation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+                ),
+            )
+
+        def write(connection, record_ns: int, transforms) -> None:
+            msg = t["tf2_msgs/msg/TFMessage"](transforms=transforms)
+            writer.write(connection, record_ns, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+
+        static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        mount = (np.array([0.0, 0.0, 2.2]), Rotation.identity())
+        write(
+            static,
+            START_NS - PERIOD_NS,
+            [stamped(0, "map", "odom", *map_odom), stamped(0, "base_link", "velodyne", *mount)],
+        )
+        dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        to_odom = map_odom[1].inv()
+        for stamp in POSE_STAMPS_NS:  # odom -> base_link = (map -> odom)^-1 * (the CSV's pose in map)
+            position = to_odom.apply(np.array([_driven_x(stamp), 0.0, 0.0]) - map_odom[0])
+            write(dynamic, stamp + POSE_LATENCY_NS, [stamped(stamp, "odom", "base_link", position, to_odom)])
+
+    bag = _drive_bag(tmp_path / "tf_ros2", files, tf_tree)
+    out = tmp_path / "bag"
+    args = ["-q", "detect", str(bag), "--height", "2.2", "--no-png", "--stamps", "header"]
+    assert main([*args, "--out", str(out), "--tf", "map:base_link"]) == 0
+    from_tf = [json.loads((out / f"{k:05d}_tf_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
+    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
+    for tf_record, csv_record in zip(from_tf, from_csv, strict=True):
+        np.testing.assert_allclose(tf_record["pose"], csv_record["pose"], atol=1e-9)
+        np.testing.assert_allclose(_near_edges(tf_record), _near_edges(csv_record), atol=1e-3)
+    # odom -> base_link alone: the drive as odometry saw it, 5 m off and turned against the map
+    assert main([*args, "--out", str(tmp_path / "odom"), "--tf", "odom:base_link"]) == 0
+    odom = json.loads((tmp_path / "odom" / "00001_tf_ros2_0001.json").read_text())
+    assert abs(odom["pose"][5]) == pytest.approx(np.pi)  # facing odom's -y: this package's yaw +-pi
+    assert main([*args, "--out", str(tmp_path / "x"), "--tf", "map:lidar"]) == 2
+    assert "no frame 'lidar'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main([*args, "--out", str(tmp_path / "y"), "--tf", "base_link"])
+    assert exit_info.value.code == 2
+    assert "want two frame names FIXED:BODY" in capsys.readouterr().err
+    no_tf = _drive_bag(tmp_path / "points_only", files, lambda writer, store: None)
+    assert main(["detect", str(no_tf), "--out", str(tmp_path / "z"), "--tf", "odom:base_link"]) == 2
+    assert "no tf topic" in capsys.readouterr().err
 
 
 def test_kitti_poses_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> None:

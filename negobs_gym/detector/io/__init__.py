@@ -12,7 +12,8 @@ says what to install. Files that cannot be read raise :class:`~negobs_gym.errors
 All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and converted to this
 package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`. A drive's poses, for
 multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`),
-a bag's odometry topic or a KITTI odometry sequence (:mod:`~negobs_gym.detector.io.kitti`).
+a bag's odometry topic or its transform tree (:mod:`~negobs_gym.detector.io.tf`), or a KITTI
+odometry sequence (:mod:`~negobs_gym.detector.io.kitti`).
 """
 
 from negobs_gym.detector.io.poses import POSE_COLUMNS, PoseTrack, pose_from_ros, read_poses_csv

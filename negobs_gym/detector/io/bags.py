@@ -1,6 +1,7 @@
 """ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (``rosbags``, extra ``negobs_gym[real]``; no
 ROS install needed). A bag is a sequence: one frame per message of one topic, in time order. An
-odometry or pose topic of the same bag gives the drive's poses (:func:`bag_pose_track`)."""
+odometry or pose topic of the same bag gives the drive's poses (:func:`bag_pose_track`), or its
+transform tree does (:func:`bag_transform_chain`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from negobs_gym.detector.io._optional import optional_import
 from negobs_gym.detector.io.poses import PoseTrack
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
+from negobs_gym.detector.io.tf import TimedTransform, TransformChain, frame_name, transform_chain
 from negobs_gym.errors import ScanError
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -24,6 +26,8 @@ POSE_MESSAGES = {
     "geometry_msgs/msg/PoseStamped": lambda m: m.pose,
     "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose,
 }
+# transform-tree messages (``/tf``, ``/tf_static``): tf2's, and ROS 1 tf's older name
+TF_MESSAGES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 # what times a bag's messages: when the recorder received them, or the stamp in their header
 # (the sensor's and the odometry's own clocks, without the transport's latency)
 STAMPS = ("record", "header")
@@ -168,6 +172,61 @@ def bag_pose_track(
     order = np.argsort(times, kind="stable")  # header stamps need not come in record order
     data = np.asarray(rows, dtype=np.float64)[order]
     return PoseTrack(np.asarray(times)[order], data[:, :3], data[:, 3:], max_gap_s=max_gap_s)
+
+
+def bag_transform_chain(
+    path: str | os.PathLike[str],
+    fixed: str,
+    body: str,
+    *,
+    max_gap_s: float = 0.1,
+    stamps: str = "record",
+) -> TransformChain:
+    """Where frame ``body`` (e.g. ``base_link``) is in frame ``fixed`` (``odom``, ``map``) by the
+    bag's ``/tf`` and ``/tf_static`` (``tf2_msgs/TFMessage``; :mod:`~negobs_gym.detector.io.tf`),
+    each transform timed as :func:`bag_frames` times its frames with the same ``stamps`` (the
+    message's record time, or the transform's header stamp), for :meth:`TransformChain.at`.
+
+    Raises:
+        ScanError: not a readable bag, no tf topic, a message that cannot be read, an unstamped
+            transform (``stamps="header"``), or a tree without a chain between the two frames.
+    """
+    _check_stamps(stamps)
+    p = Path(path)
+    reader = _open_bag(p)
+    timed: list[TimedTransform] = []
+    static: list[TimedTransform] = []
+    try:
+        topics = sorted({c.topic for c in reader.connections if c.msgtype in TF_MESSAGES})
+        if not topics:
+            types = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
+            raise ScanError(f"{p}: no tf topic ({' or '.join(TF_MESSAGES)}); the bag has {types}")
+        connections = [c for c in reader.connections if c.topic in topics]
+        for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
+            source = f"{p}#{connection.topic}#{index}"
+            try:
+                msg = reader.deserialize(raw, connection.msgtype)
+                transforms = list(msg.transforms)
+            except Exception as error:  # a corrupt message body
+                raise unreadable(source, connection.msgtype, error) from error
+            is_static = frame_name(connection.topic) == "tf_static"
+            for stamped in transforms:
+                t, q = stamped.transform.translation, stamped.transform.rotation
+                (static if is_static else timed).append(
+                    TimedTransform(
+                        0.0 if is_static else _message_time_s(stamp_ns, stamped, stamps, source),
+                        stamped.header.frame_id,
+                        stamped.child_frame_id,
+                        (float(t.x), float(t.y), float(t.z)),
+                        (float(q.x), float(q.y), float(q.z), float(q.w)),
+                    )
+                )
+    finally:
+        reader.close()
+    try:
+        return transform_chain(timed, static, fixed, body, max_gap_s=max_gap_s)
+    except ScanError as error:
+        raise ScanError(f"{p}: {error}") from error
 
 
 def read_bag(

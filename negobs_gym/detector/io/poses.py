@@ -19,13 +19,17 @@ import csv
 import math
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ScanError
 
-__all__ = ["POSE_COLUMNS", "PoseTrack", "pose_from_ros", "read_poses_csv"]
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
+__all__ = ["POSE_COLUMNS", "PoseTrack", "pose_from_ros", "pose_from_ros_transform", "read_poses_csv"]
 
 POSE_COLUMNS = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -122,6 +126,10 @@ class PoseTrack:
         Raises:
             ScanError: ``time_s`` lies more than ``max_gap_s`` outside the track's span.
         """
+        return pose_from_ros_transform(*self.transform_at(time_s))
+
+    def transform_at(self, time_s: float) -> tuple[np.ndarray, Rotation]:
+        """The ROS body-to-world transform at ``time_s`` (position, rotation), as :meth:`at` reads it."""
         from scipy.spatial.transform import Rotation, Slerp
 
         t = self.times_s
@@ -139,5 +147,10 @@ class PoseTrack:
             xyz = (1.0 - w) * self.position_m[i] + w * self.position_m[i + 1]
             pair = Rotation.from_quat(self.quaternion_xyzw[i : i + 2])
             rotation = Slerp(t[i : i + 2], pair)([time_s])[0]
-        roll, pitch, yaw = rotation.as_euler("xyz")  # extrinsic x, y, z: ROS roll, pitch, yaw
-        return pose_from_ros(*(float(v) for v in xyz), float(roll), float(pitch), float(yaw))
+        return np.asarray(xyz, dtype=np.float64), rotation
+
+
+def pose_from_ros_transform(position_m: np.ndarray, rotation: Rotation) -> Pose:
+    """The :class:`Pose` of a ROS body-to-world transform (position, scipy rotation)."""
+    roll, pitch, yaw = rotation.as_euler("xyz")  # extrinsic x, y, z: ROS roll, pitch, yaw
+    return pose_from_ros(*(float(v) for v in position_m), float(roll), float(pitch), float(yaw))

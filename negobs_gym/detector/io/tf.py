@@ -1,0 +1,183 @@
+"""A recording's transform tree (ROS ``/tf`` and ``/tf_static``) and the vehicle's pose read from it.
+
+ROS drives publish where the vehicle is as a tree of frames (REP-105: ``map`` -> ``odom`` ->
+``base_link``, sensors below ``base_link``), each edge on its own clock: wheel odometry at 50 Hz,
+a localiser's ``map`` -> ``odom`` correction at 1 Hz, mountings once on ``/tf_static``. The pose of
+a body frame in a fixed frame at a frame's time is the chain of edges between them, each edge
+interpolated at that time (positions linearly, orientations by slerp, as
+:class:`~negobs_gym.detector.io.poses.PoseTrack`) and the edges composed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from negobs_gym.core.pose import Pose
+from negobs_gym.detector.io.poses import PoseTrack, pose_from_ros_transform
+from negobs_gym.errors import ScanError
+
+__all__ = ["TimedTransform", "TransformChain", "transform_chain"]
+
+
+@dataclass(frozen=True)
+class TimedTransform:
+    """One published edge of the tree: where ``child``'s origin and axes are in ``parent`` (ROS
+    axes; a ``geometry_msgs/TransformStamped``) at ``time_s``."""
+
+    time_s: float
+    parent: str
+    child: str
+    position_m: tuple[float, float, float]
+    quaternion_xyzw: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class _Link:
+    """One edge on a chain: a timed track or a constant transform, walked forwards or inverted."""
+
+    name: str
+    track: PoseTrack | None
+    constant: tuple[np.ndarray, Rotation] | None
+    inverted: bool
+
+    def transform_at(self, time_s: float) -> tuple[np.ndarray, Rotation]:
+        if self.track is None:
+            position, rotation = self.constant  # type: ignore[misc]
+        else:
+            try:
+                position, rotation = self.track.transform_at(time_s)
+            except ScanError as error:
+                raise ScanError(f"tf {self.name}: {error}") from error
+        if self.inverted:
+            inverse = rotation.inv()
+            return -inverse.apply(position), inverse
+        return position, rotation
+
+
+@dataclass(frozen=True)
+class TransformChain:
+    """Where the ``body`` frame is in the ``fixed`` frame at any time: the tree's edges between
+    them composed (up from ``fixed`` to their common ancestor inverted, then down to ``body``)."""
+
+    fixed: str
+    body: str
+    links: tuple[_Link, ...]
+
+    def transform_at(self, time_s: float) -> tuple[np.ndarray, Rotation]:
+        """The ROS body-to-fixed transform (position, rotation) at ``time_s``.
+
+        Raises:
+            ScanError: ``time_s`` lies outside a timed edge's span (by more than its gap), named.
+        """
+        position, rotation = np.zeros(3), Rotation.identity()
+        for link in self.links:
+            p, r = link.transform_at(time_s)
+            position, rotation = position + rotation.apply(p), rotation * r
+        return position, rotation
+
+    def at(self, time_s: float) -> Pose:
+        """This package's :class:`Pose` of the body frame (REP-103 axes, x forward) at ``time_s``."""
+        return pose_from_ros_transform(*self.transform_at(time_s))
+
+    @property
+    def edges(self) -> tuple[str, ...]:
+        """The chain's edges in composition order, ``parent -> child`` (``^-1`` where inverted)."""
+        return tuple(link.name + ("^-1" if link.inverted else "") for link in self.links)
+
+
+def frame_name(name: str) -> str:
+    """A frame id as tf2 compares them: without ROS 1 tf's leading slash."""
+    return name.lstrip("/")
+
+
+def transform_chain(
+    timed: Iterable[TimedTransform],
+    static: Iterable[TimedTransform],
+    fixed: str,
+    body: str,
+    *,
+    max_gap_s: float = 0.1,
+) -> TransformChain:
+    """The chain from ``fixed`` to ``body`` through a tree of timed (``/tf``) and static
+    (``/tf_static``, the last one published counts) edges.
+
+    A timed edge's transforms are read in time order; two at the same time keep the later
+    published. ``max_gap_s`` is how far outside a timed edge's span a frame may lie and take its
+    first or last transform.
+
+    Raises:
+        ScanError: a frame with two parents, an edge both timed and static, a loop, a frame that
+            is not in the tree, or no chain between the two frames (two separate trees).
+    """
+    fixed, body = frame_name(fixed), frame_name(body)
+    parent_of: dict[str, str] = {}
+    samples: dict[str, list[TimedTransform]] = {}
+    constants: dict[str, TimedTransform] = {}
+    for kind, transforms in (("timed", timed), ("static", static)):
+        for tf in transforms:
+            parent, child = frame_name(tf.parent), frame_name(tf.child)
+            if parent_of.setdefault(child, parent) != parent:
+                raise ScanError(
+                    f"tf: frame {child!r} has two parents, {parent_of[child]!r} and {parent!r} "
+                    "(a tf tree gives each frame one)"
+                )
+            if kind == "timed":
+                samples.setdefault(child, []).append(tf)
+            else:
+                constants[child] = tf
+    both = sorted(set(samples) & set(constants))
+    if both:
+        raise ScanError(f"tf: frame {both[0]!r} is published both on /tf and /tf_static")
+    frames = sorted(set(parent_of) | set(parent_of.values()))
+    for name in (fixed, body):
+        if name not in frames:
+            raise ScanError(f"tf: no frame {name!r} (the tree has {frames})")
+
+    def up(frame: str) -> list[str]:
+        path = [frame]
+        while path[-1] in parent_of:
+            path.append(parent_of[path[-1]])
+            if path[-1] in path[:-1]:
+                raise ScanError(f"tf: the frames {path[path.index(path[-1]) :]} form a loop")
+        return path
+
+    from_fixed, from_body = up(fixed), up(body)
+    common = next((f for f in from_body if f in from_fixed), None)
+    if common is None:
+        raise ScanError(
+            f"tf: no chain from {fixed!r} to {body!r}: they lie in separate trees "
+            f"(roots {from_fixed[-1]!r} and {from_body[-1]!r})"
+        )
+
+    def link(child: str, inverted: bool) -> _Link:
+        name = f"{parent_of[child]} -> {child}"
+        if child in constants:
+            tf = constants[child]
+            position = np.asarray(tf.position_m, dtype=np.float64)
+            quaternion = np.asarray(tf.quaternion_xyzw, dtype=np.float64)
+            if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
+                raise ScanError(f"tf {name}: a position or quaternion is not finite")
+            if np.linalg.norm(quaternion) < 1e-9:
+                raise ScanError(f"tf {name}: the quaternion has zero length")
+            return _Link(name, None, (position, Rotation.from_quat(quaternion)), inverted)
+        ordered = sorted(samples[child], key=lambda s: s.time_s)  # stable: the later one last
+        times = np.array([s.time_s for s in ordered])
+        last = np.append(times[1:] != times[:-1], True)  # of equal times, the later published
+        try:
+            track = PoseTrack(
+                times[last],
+                np.array([s.position_m for s in ordered], dtype=np.float64)[last],
+                np.array([s.quaternion_xyzw for s in ordered], dtype=np.float64)[last],
+                max_gap_s=max_gap_s,
+            )
+        except ScanError as error:
+            raise ScanError(f"tf {name}: {error}") from error
+        return _Link(name, track, None, inverted)
+
+    ups = [link(f, True) for f in from_fixed[: from_fixed.index(common)]]
+    downs = [link(f, False) for f in reversed(from_body[: from_body.index(common)])]
+    return TransformChain(fixed, body, tuple(ups + downs))

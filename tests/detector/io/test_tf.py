@@ -1,0 +1,140 @@
+"""The transform tree: chains composed and inverted edge by edge, timed edges interpolated."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from negobs_gym.detector.io.poses import pose_from_ros_transform
+from negobs_gym.detector.io.tf import TimedTransform, transform_chain
+from negobs_gym.errors import ScanError
+
+YAW_90 = tuple(Rotation.from_euler("z", 90, degrees=True).as_quat())
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
+
+
+def _odometry(times, speed_mps: float = 2.0) -> list[TimedTransform]:
+    """odom -> base_link: driving along odom's x at ``speed_mps``, nose turning 0.1 rad/s."""
+    return [
+        TimedTransform(
+            t,
+            "odom",
+            "base_link",
+            (speed_mps * t, 0.0, 0.0),
+            tuple(Rotation.from_euler("z", 0.1 * t).as_quat()),
+        )
+        for t in times
+    ]
+
+
+# map -> odom: the localiser's correction, 5 m along map's x and turned 90 deg; base_link ->
+# velodyne: the roof sensor's mounting (ROS 1 names with tf's leading slash)
+MAP_ODOM = TimedTransform(0.0, "map", "odom", (5.0, 0.0, 0.0), YAW_90)
+MOUNT = TimedTransform(0.0, "/base_link", "/velodyne", (0.5, 0.0, 2.2), IDENTITY)
+
+
+def _expected(t: float, speed_mps: float = 2.0) -> tuple[np.ndarray, Rotation]:
+    """base_link in map at ``t``, composed by hand."""
+    turn = Rotation.from_quat(YAW_90)
+    return np.array([5.0, 0.0, 0.0]) + turn.apply([speed_mps * t, 0.0, 0.0]), turn * Rotation.from_euler(
+        "z", 0.1 * t
+    )
+
+
+def _close(actual: tuple[np.ndarray, Rotation], expected: tuple[np.ndarray, Rotation]) -> None:
+    np.testing.assert_allclose(actual[0], expected[0], atol=1e-9)
+    assert (actual[1] * expected[1].inv()).magnitude() < 1e-9
+
+
+def test_a_chain_composes_a_static_and_an_interpolated_edge() -> None:
+    chain = transform_chain(_odometry([0.0, 0.5, 1.0]), [MAP_ODOM, MOUNT], "map", "base_link")
+    assert chain.edges == ("map -> odom", "odom -> base_link")
+    for t in (0.0, 0.25, 0.5, 0.8, 1.0):  # between samples: linear, and slerp about one axis
+        _close(chain.transform_at(t), _expected(t))
+    pose = chain.at(0.5)  # this package's pose: yaw 0 faces world +y, ROS yaw 0 world +x
+    expected = pose_from_ros_transform(*_expected(0.5))
+    assert (pose.x, pose.y, pose.yaw) == pytest.approx((expected.x, expected.y, expected.yaw), abs=1e-9)
+    assert pose.yaw == pytest.approx(0.05)  # ROS yaw 90 deg + 0.05 rad, less this package's 90 deg
+
+
+def test_a_chain_walks_up_inverted_then_down() -> None:
+    tree = (_odometry([0.0, 1.0]), [MAP_ODOM, MOUNT])
+    back = transform_chain(*tree, "base_link", "map")
+    assert back.edges == ("odom -> base_link^-1", "map -> odom^-1")
+    position, rotation = _expected(0.6)
+    inverse = rotation.inv()
+    _close(back.transform_at(0.6), (-inverse.apply(position), inverse))
+    # velodyne in odom: odom -> base_link -> velodyne; map in velodyne: up to map's child, inverted
+    sensor = transform_chain(*tree, "odom", "velodyne")
+    p, r = _odometry([0.6])[0].position_m, Rotation.from_euler("z", 0.06)
+    _close(sensor.transform_at(0.6), (np.asarray(p) + r.apply([0.5, 0.0, 2.2]), r))
+    sibling = transform_chain(*tree, "velodyne", "odom")
+    assert sibling.edges == ("base_link -> velodyne^-1", "odom -> base_link^-1")
+
+
+def test_equal_times_keep_the_later_transform_and_gaps_are_named() -> None:
+    republished = [*_odometry([0.0, 1.0]), *_odometry([1.0], speed_mps=3.0)]  # the later one at t = 1
+    chain = transform_chain(republished, [MAP_ODOM], "odom", "base_link", max_gap_s=0.05)
+    assert chain.transform_at(1.0)[0][0] == pytest.approx(3.0)
+    assert chain.transform_at(1.04)[0][0] == pytest.approx(3.0)  # within the gap: the last one
+    with pytest.raises(ScanError, match=r"tf odom -> base_link: no pose at t = 1.100 s"):
+        chain.at(1.1)
+
+
+@pytest.mark.parametrize(
+    ("timed", "static", "frames", "match"),
+    [
+        (_odometry([0.0]), [MAP_ODOM], ("map", "lidar"), r"no frame 'lidar'"),
+        (
+            _odometry([0.0]),
+            [TimedTransform(0.0, "map", "base_link", (0.0, 0.0, 0.0), IDENTITY)],
+            ("map", "base_link"),
+            "'base_link' has two parents, 'odom' and 'map'",
+        ),
+        (
+            _odometry([0.0]),
+            [TimedTransform(0.0, "odom", "base_link", (0, 0, 0), IDENTITY)],
+            ("odom", "base_link"),
+            "both on /tf and /tf_static",
+        ),
+        (
+            _odometry([0.0]),
+            [TimedTransform(0.0, "earth", "gps", (0.0, 0.0, 0.0), IDENTITY)],
+            ("earth", "base_link"),
+            "separate trees",
+        ),
+        (
+            [],
+            [
+                TimedTransform(0.0, "a", "b", (0.0, 0.0, 0.0), IDENTITY),
+                TimedTransform(0.0, "b", "a", (0.0, 0.0, 0.0), IDENTITY),
+            ],
+            ("a", "b"),
+            "form a loop",
+        ),
+        (
+            _odometry([0.0]),
+            [TimedTransform(0.0, "map", "odom", (math.nan, 0, 0), IDENTITY)],
+            ("map", "base_link"),
+            "map -> odom: a position",
+        ),
+        (
+            _odometry([0.0]),
+            [TimedTransform(0.0, "map", "odom", (0, 0, 0), (0, 0, 0, 0))],
+            ("map", "base_link"),
+            "zero length",
+        ),
+        (
+            [*_odometry([0.0]), TimedTransform(0.5, "odom", "base_link", (0, 0, 0), (0, 0, 0, 0))],
+            [],
+            ("odom", "base_link"),
+            "odom -> base_link: pose track: a quaternion has zero length",
+        ),
+    ],
+)
+def test_bad_trees_are_named(timed, static, frames, match) -> None:
+    with pytest.raises(ScanError, match=match):
+        transform_chain(timed, static, *frames)
