@@ -31,6 +31,14 @@ def positive_float(text: str) -> float:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0 (tolerances, gaps)."""
+    value = float(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def add_set_option(parser: argparse.ArgumentParser) -> None:
     """``--set KEY.PATH=VALUE`` (repeatable): change one setting of the scenario (docs/scenarios.md)."""
     parser.add_argument(

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from negobs_gym.cli.common import positive_float
+from negobs_gym.cli.common import non_negative_float, positive_float
 from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
@@ -152,6 +152,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "header stamps, the sensor's and the odometry's own clocks without the transport's latency",
     )
     parser.add_argument(
+        "--max-pose-gap",
+        type=non_negative_float,
+        default=0.1,
+        metavar="S",
+        help="--poses-topic and --tf: how far [s] a cloud may lie outside a pose topic's or a timed "
+        "tf edge's span and take its first or last pose (default: %(default)s; a localiser's "
+        "map -> odom at 1 Hz may need 1)",
+    )
+    parser.add_argument(
         "--tighten-pairs",
         action="store_true",
         help="move a fused pair's near edge to the closer frames' (FusionConfig.tighten_on_match; "
@@ -225,9 +234,11 @@ def run(args: argparse.Namespace) -> int:
         for path in args.files:  # a bag's own odometry, read once per file
             track = None
             if args.poses_topic:
-                track = bag_pose_track(path, args.poses_topic, stamps=args.stamps)
+                track = bag_pose_track(
+                    path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap
+                )
             elif args.tf:
-                track = bag_transform_chain(path, *args.tf, stamps=args.stamps)
+                track = bag_transform_chain(path, *args.tf, stamps=args.stamps, max_gap_s=args.max_pose_gap)
             frames = read_recording(
                 path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps
             )

@@ -6,7 +6,7 @@ import argparse
 
 import pytest
 
-from negobs_gym.cli.common import positive_float, task_env_or_exit
+from negobs_gym.cli.common import non_negative_float, positive_float, task_env_or_exit
 
 
 def test_positive_float_takes_finite_positive_numbers_only() -> None:
@@ -14,6 +14,13 @@ def test_positive_float_takes_finite_positive_numbers_only() -> None:
     for bad in ("0", "-1", "nan", "inf"):
         with pytest.raises(argparse.ArgumentTypeError, match="finite number > 0"):
             positive_float(bad)
+
+
+def test_non_negative_float_takes_zero_but_not_below_or_specials() -> None:
+    assert non_negative_float("0") == 0.0 and non_negative_float("1.5") == 1.5
+    for bad in ("-0.1", "nan", "inf"):
+        with pytest.raises(argparse.ArgumentTypeError, match=">= 0"):
+            non_negative_float(bad)
 
 
 def test_a_bad_env_or_setting_exits_2_naming_it(capsys) -> None:

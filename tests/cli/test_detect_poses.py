@@ -178,7 +178,7 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     files, poses = drive
     map_odom = (np.array([5.0, 0.0, 0.0]), Rotation.from_euler("z", 90, degrees=True))
 
-    def tf_tree(writer, store) -> None:
+    def tf_tree(writer, store, localiser: bool = False) -> None:
         t = store.types
 
         def stamped(stamp_ns: int, parent: str, child: str, position, rotation):
@@ -198,13 +198,13 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
             writer.write(connection, record_ns, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
 
         static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
-        mount = (np.array([0.0, 0.0, 2.2]), Rotation.identity())
-        write(
-            static,
-            START_NS - PERIOD_NS,
-            [stamped(0, "map", "odom", *map_odom), stamped(0, "base_link", "velodyne", *mount)],
-        )
         dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        mount = (np.array([0.0, 0.0, 2.2]), Rotation.identity())
+        write(static, START_NS - PERIOD_NS, [stamped(0, "base_link", "velodyne", *mount)])
+        if not localiser:
+            write(static, START_NS - PERIOD_NS, [stamped(0, "map", "odom", *map_odom)])
+        else:  # a 1 Hz correction on /tf at the first cloud's stamp: the next comes after the drive
+            write(dynamic, START_NS + POSE_LATENCY_NS, [stamped(START_NS, "map", "odom", *map_odom)])
         to_odom = map_odom[1].inv()
         for stamp in POSE_STAMPS_NS:  # odom -> base_link = (map -> odom)^-1 * (the CSV's pose in map)
             position = to_odom.apply(np.array([_driven_x(stamp), 0.0, 0.0]) - map_odom[0])
@@ -229,6 +229,17 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
         main([*args, "--out", str(tmp_path / "y"), "--tf", "base_link"])
     assert exit_info.value.code == 2
     assert "want two frame names FIXED:BODY" in capsys.readouterr().err
+    # a localiser's 1 Hz map -> odom on /tf: its one correction lies 0.2 s before the third cloud
+    slow = _drive_bag(
+        tmp_path / "slow_ros2", files, lambda writer, store: tf_tree(writer, store, localiser=True)
+    )
+    slow_args = ["-q", "detect", str(slow), "--height", "2.2", "--no-png", "--stamps", "header"]
+    assert main([*slow_args, "--out", str(tmp_path / "s"), "--tf", "map:base_link"]) == 2
+    assert "frame 2: tf map -> odom: no pose at t = 1.200 s" in capsys.readouterr().err
+    one_s = ["--max-pose-gap", "1", "--out", str(tmp_path / "s1"), "--tf", "map:base_link"]
+    assert main([*slow_args, *one_s]) == 0
+    last = json.loads((tmp_path / "s1" / f"{FRAMES - 1:05d}_slow_ros2_{FRAMES - 1:04d}.json").read_text())
+    np.testing.assert_allclose(last["pose"], from_csv[-1]["pose"], atol=1e-9)
     no_tf = _drive_bag(tmp_path / "points_only", files, lambda writer, store: None)
     assert main(["detect", str(no_tf), "--out", str(tmp_path / "z"), "--tf", "odom:base_link"]) == 2
     assert "no tf topic" in capsys.readouterr().err
