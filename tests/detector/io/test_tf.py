@@ -138,3 +138,53 @@ def test_equal_times_keep_the_later_transform_and_gaps_are_named() -> None:
 def test_bad_trees_are_named(timed, static, frames, match) -> None:
     with pytest.raises(ScanError, match=match):
         transform_chain(timed, static, *frames)
+
+
+def test_a_ros1_bag_tf_tree_with_slashed_frames(tmp_path) -> None:
+    """ROS 1 tf: ``/odom`` -> ``/base_link`` on /tf, ``/base_link`` -> ``/velodyne`` on
+    /tf_static (latched once), read by record time or header stamps."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    from negobs_gym.detector.io.bags import bag_transform_chain
+
+    store = get_typestore(Stores.ROS1_NOETIC)  # has no tf2_msgs: registered from its definition
+    store.register(
+        get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
+    )
+    t = store.types
+
+    def message(stamp_ns: int, transforms) -> bytes:
+        stamped = [
+            t["geometry_msgs/msg/TransformStamped"](
+                header=t["std_msgs/msg/Header"](
+                    seq=0,
+                    stamp=t["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+                    frame_id=parent,
+                ),
+                child_frame_id=child,
+                transform=t["geometry_msgs/msg/Transform"](
+                    translation=t["geometry_msgs/msg/Vector3"](x=x, y=0.0, z=z),
+                    rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                ),
+            )
+            for parent, child, x, z in transforms
+        ]
+        return store.serialize_ros1(t["tf2_msgs/msg/TFMessage"](transforms=stamped), "tf2_msgs/msg/TFMessage")
+
+    bag = tmp_path / "tf.bag"
+    with Writer(bag) as writer:
+        static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        writer.write(static, 10**9, message(10**9, [("/base_link", "/velodyne", 0.5, 2.2)]))
+        for k in range(11):  # 10 Hz, 1 m/s along x; recorded 50 ms after the stamp
+            stamp = 10**9 + k * 10**8
+            writer.write(dynamic, stamp + 5 * 10**7, message(stamp, [("/odom", "/base_link", 0.1 * k, 0.0)]))
+    by_header = bag_transform_chain(bag, "odom", "velodyne", stamps="header")
+    assert by_header.edges == ("odom -> base_link", "base_link -> velodyne")
+    np.testing.assert_allclose(by_header.transform_at(1.55)[0], [0.55 + 0.5, 0.0, 2.2], atol=1e-9)
+    by_record = bag_transform_chain(bag, "/odom", "/base_link")  # 50 ms later: 5 cm behind
+    np.testing.assert_allclose(by_record.transform_at(1.55)[0], [0.50, 0.0, 0.0], atol=1e-9)
+    with pytest.raises(ScanError, match=r"tf\.bag: tf: no frame 'map'"):
+        bag_transform_chain(bag, "map", "base_link")
