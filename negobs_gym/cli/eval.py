@@ -84,11 +84,12 @@ def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``eval``: its three campaign commands and ``paths``, which draws a policy campaign's drives."""
+    """Add ``eval``: its three campaign commands and ``paths``, which draws a policy or braking
+    campaign's drives."""
     parser = subparsers.add_parser(
         "eval",
         help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy; "
-        "paths draws a policy campaign's drives",
+        "paths draws a policy or braking campaign's drives",
         description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
         "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
     )
@@ -163,19 +164,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     paths = commands.add_parser(
         "paths",
-        help="draw a policy campaign's drives over their terrains (PNG per episode)",
-        description="Draws episodes of a `negobs eval policy --out DIR` folder from its paths.csv: "
-        "the terrain with its obstacles, the path, where the car ended, the vetoed steps and the "
-        "outcome. Default: the episodes that did not reach the goal.",
+        help="draw a policy or braking campaign's drives over their terrains (PNG per episode)",
+        description="Draws episodes of a `negobs eval policy --out DIR` or `negobs eval braking --out "
+        "DIR` folder from its paths.csv: the terrain with its obstacles, the path, where the car "
+        "ended, the vetoed steps and the outcome. Default: the episodes that did not do their task "
+        "(no goal; braking: no stop before the obstacle, or a veto on the obstacle-free track).",
     )
-    paths.add_argument("campaign_dir", metavar="DIR", help="the folder `negobs eval policy --out` wrote")
+    paths.add_argument(
+        "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
+    )
     paths.add_argument(
         "--episode",
         dest="keys",
         action="append",
         default=[],
         metavar="KEY",
-        help="an episode of policy.csv's episode column, repeatable (default: those without the goal)",
+        help="an episode of policy.csv's or braking.csv's episode column, repeatable (default: those "
+        "that did not do their task)",
     )
     paths.add_argument("--all", dest="everything", action="store_true", help="every episode")
     paths.add_argument("--limit", type=positive_int, default=None, help="draw at most N (in key order)")
@@ -339,6 +344,6 @@ def run_paths(args: argparse.Namespace) -> int:
         print(path)
     if not written:
         log.warning(
-            "no episode to draw in %s (every episode reached the goal; --all draws them)", args.campaign_dir
+            "no episode to draw in %s (every episode did its task; --all draws them)", args.campaign_dir
         )
     return 0

@@ -4,7 +4,8 @@ Configurations are data: every scenario of :data:`SCENARIOS` (paper N's pit size
 ditch, a narrow trench, an off-centre pit, an obstacle-free track for false vetoes) x every driver
 (scripted drivers of :mod:`negobs_gym.drivers`, optionally a saved SB3 model) x filter off / on
 (:class:`~negobs_gym.safety.BrakingSafetyFilter`), each run on seeds 0..n-1. One CSV row per
-episode (:data:`COLUMNS`); :func:`summarize` turns the CSV into per-configuration counts.
+episode (:data:`COLUMNS`), and each episode's path in ``paths.csv`` (:data:`PATH_COLUMNS`, drawn by
+``negobs eval paths``); :func:`summarize` turns the CSV into per-configuration counts.
 
 :func:`run_driven_episode` is also what ``negobs eval policy`` runs on a registered env id.
 """
@@ -50,6 +51,9 @@ SCENARIOS: dict[str, tuple[str, dict[str, float]]] = {
     # no obstacle at all: every veto is a false veto
     "free_track": ("rough_track", {"length_m": 160.0}),
 }
+#: ``paths.csv`` of the braking and policy campaigns: the car's pose and speed at the reset and
+#: after every step of each episode (``negobs eval paths`` draws them)
+PATH_COLUMNS = ("episode", "filter", "seed", "step", "x_m", "y_m", "yaw_rad", "speed_mps", "vetoed")
 DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
 OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
 TIME_LIMIT_S = 15.0  # Braking-v0's episode length: 104 m at 25 km/h
@@ -287,14 +291,23 @@ def _path_point(info: dict[str, Any], vetoed: bool) -> tuple[float, float, float
     return x, y, yaw, float(info["speed_mps"]), vetoed
 
 
+def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> list[str]:
+    """An episode's ``path`` (:func:`run_driven_episode`) as rows of :data:`PATH_COLUMNS`."""
+    return [format_row([key, filter_label, seed, step, *point]) for step, point in enumerate(path)]
+
+
 def run_episode(episode: Episode) -> Rows:
     """One braking episode of :func:`episodes`; one row of :data:`COLUMNS`."""
     a = episode.args
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
     env = _scenario_env(a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"])
     metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], round(TIME_LIMIT_S * 10))
-    row = [episode.key, a["scenario"], a["driver"], "filter" if a["filtered"] else "nofilter", a["seed"]]
-    return {"braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])]}
+    label = "filter" if a["filtered"] else "nofilter"
+    row = [episode.key, a["scenario"], a["driver"], label, a["seed"]]
+    return {
+        "braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])],
+        "paths": path_rows(episode.key, label, a["seed"], metrics["path"]),
+    }
 
 
 # -- summary -----------------------------------------------------------------------------------
@@ -419,9 +432,8 @@ def run_braking_campaign(
     from negobs_gym.eval.plots import distribution_plot
 
     out = Path(out_dir)
-    csv = run_campaign(run_episode, episodes(config), out, {"braking": COLUMNS}, options, "braking episodes")[
-        "braking"
-    ]
+    tables = {"braking": COLUMNS, "paths": PATH_COLUMNS}
+    csv = run_campaign(run_episode, episodes(config), out, tables, options, "braking episodes")["braking"]
     summaries = summarize(csv)
     obstacle = [s for s in summaries if s.obstacle]
     return BrakingOutputs(

@@ -1,11 +1,13 @@
-"""Where a policy's drives went: each evaluated episode's path drawn over its terrain.
+"""Where a campaign's drives went: each evaluated episode's path drawn over its terrain.
 
-``negobs eval policy`` writes ``paths.csv`` beside ``policy.csv`` (:data:`PATH_COLUMNS`: the car's
-pose and speed at the reset and after every step). :func:`draw_paths` rebuilds each chosen
-episode's terrain from its env and seed (the terrain depends on nothing else) and writes
-``<key>.png``: the terrain with the ground-truth obstacles, the path (yellow), the car where the
-episode ended (orange), the steps the safety filter vetoed (magenta dots) and a caption with the
-outcome. By default it draws the episodes that did not reach the goal, the ones to look at.
+``negobs eval policy`` and ``negobs eval braking`` write ``paths.csv`` beside their episode table
+(``policy.csv``, ``braking.csv``; :data:`~negobs_gym.eval.braking_campaign.PATH_COLUMNS`: the
+car's pose and speed at the reset and after every step). :func:`draw_paths` rebuilds each chosen
+episode's terrain from its env or scenario and seed (the terrain depends on nothing else) and
+writes ``<key>.png``: the terrain with the ground-truth obstacles, the path (yellow), the car where
+the episode ended (orange), the steps the safety filter vetoed (magenta dots) and a caption with
+the outcome. By default it draws the episodes that did not do their task (no goal; for braking, no
+stop before the obstacle, or a veto on the obstacle-free track), the ones to look at.
 """
 
 from __future__ import annotations
@@ -13,25 +15,71 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from negobs_gym.errors import ConfigError, require
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, SCENARIOS
 from negobs_gym.eval.campaign import read_csv
-from negobs_gym.eval.policy_campaign import PATH_COLUMNS
 
-__all__ = ["draw_paths", "episode_outcome"]
+__all__ = ["draw_paths", "episode_outcome", "task_done"]
 
-#: The failure columns of ``policy.csv``, in the order a caption names them.
+#: The failure columns of the episode tables, in the order a caption names them.
 OUTCOMES = ("entered", "collision", "rollover", "trapped", "left_track")
+#: The episode table of each campaign that records paths.
+EPISODE_TABLES = ("policy", "braking")
+
+
+def _is_braking(row: dict[str, str]) -> bool:
+    return "scenario" in row
 
 
 def episode_outcome(row: dict[str, str]) -> str:
-    """How a ``policy.csv`` episode ended, in words: ``goal``, a failure, or ``no goal``."""
-    failures = [name for name in OUTCOMES if row[name] == "1"]
+    """How a ``policy.csv`` or ``braking.csv`` episode ended, in words: a failure, ``goal`` or
+    ``no goal`` (policy), ``stopped`` or ``drove on`` (braking)."""
+    failures = [name for name in OUTCOMES if row.get(name) == "1"]
     if failures:
         return " + ".join(failures)
+    if _is_braking(row):
+        return "stopped" if row["stopped"] == "1" else "drove on"
     return "goal" if row["goal"] == "1" else "no goal"
+
+
+def task_done(row: dict[str, str]) -> bool:
+    """Whether an episode did its task: the goal (policy); braking: stopped short of the obstacle
+    without entering it, or on the obstacle-free track no failure and no veto."""
+    if not _is_braking(row):
+        return row["goal"] == "1"
+    failed = any(row[name] == "1" for name in OUTCOMES if name in row)
+    if SCENARIOS[row["scenario"]][0] == "rough_track":  # no obstacle: any veto is a false one
+        return not failed and row["vetoes"] == "0"
+    return not failed and row["stopped"] == "1"
+
+
+def _terrain_and_caption(row: dict[str, str], folder: Path) -> tuple[Any, str]:
+    """The episode's terrain, rebuilt from its env or scenario and seed on the oracle grid (the
+    terrain is the seed's whatever the grid; the oracle spares the detector's set-up), and its
+    caption."""
+    if _is_braking(row):
+        from negobs_gym.envs.base import NegObsEnv
+        from negobs_gym.eval.braking_campaign import scenario_spec
+
+        env = NegObsEnv(scenario=scenario_spec(row["scenario"], "roi", oracle=True, tighten_pairs=True))
+        name = f"{row['scenario']} seed {row['seed']} {row['driver']}, {row['filter']}"
+        result = f"gap {float(row['final_gap_m']):.2f} m"
+    else:
+        from negobs_gym.policies.training import make_task_env
+        from negobs_gym.scenarios.overrides import recorded_env_in
+
+        env = make_task_env(recorded_env_in(row["env"], folder), "oracle")
+        shown = env.unwrapped.scenario.name if row["env"].endswith(".toml") else row["env"]
+        name = f"{shown} seed {row['seed']} {row['filter']}"
+        result = f"{float(row['progress_m']):.1f} m"
+    env.reset(seed=int(row["seed"]))
+    terrain = env.unwrapped.terrain
+    env.close()
+    return terrain, f"{name}: {episode_outcome(row)}, {result}, {row['vetoes']} vetoes"
 
 
 def draw_paths(
@@ -43,11 +91,11 @@ def draw_paths(
     out_dir: str | Path | None = None,
     zoom_m: float | None = None,
 ) -> list[Path]:
-    """Draw episodes of a policy campaign to ``out_dir`` (default ``campaign_dir/paths``).
+    """Draw episodes of a policy or braking campaign to ``out_dir`` (default ``campaign_dir/paths``).
 
     Args:
-        keys: the episodes (``policy.csv``'s ``episode`` column); empty: those without a goal, or
-            all of them with ``everything``.
+        keys: the episodes (the episode table's ``episode`` column); empty: those that did not do
+            their task (:func:`task_done`), or all of them with ``everything``.
         limit: draw at most this many (in key order).
         zoom_m: draw only the square of this half-width around where each drive ended [m]; None:
             the whole terrain.
@@ -56,48 +104,39 @@ def draw_paths(
         The PNGs written, in key order.
 
     Raises:
-        ConfigError: no ``policy.csv`` / ``paths.csv`` in ``campaign_dir`` (field ``campaign_dir``),
-            an unknown key (``keys``), or an episode without path rows (a campaign from before
-            paths were recorded).
+        ConfigError: no ``policy.csv`` or ``braking.csv`` and ``paths.csv`` in ``campaign_dir``
+            (field ``campaign_dir``), an unknown key (``keys``), or an episode without path rows
+            (a campaign from before paths were recorded).
     """
-    from negobs_gym.policies.training import make_task_env
-    from negobs_gym.scenarios.overrides import recorded_env_in
     from negobs_gym.sim.render import render_drive
 
     folder = Path(campaign_dir)
-    files = {name: folder / f"{name}.csv" for name in ("policy", "paths")}
-    for path in files.values():
-        require(
-            path.is_file(),
-            "campaign_dir",
-            f"no {path.name} in {folder}: not a `negobs eval policy --out` folder",
-        )
-    episodes = {r["episode"]: r for r in read_csv(files["policy"])}
+    table = next((folder / f"{n}.csv" for n in EPISODE_TABLES if (folder / f"{n}.csv").is_file()), None)
+    require(
+        table is not None,
+        "campaign_dir",
+        f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
+    )
+    assert table is not None  # for the type checker: require raised otherwise
+    paths_csv = folder / "paths.csv"
+    require(paths_csv.is_file(), "campaign_dir", f"no paths.csv in {folder}: a campaign from before paths")
+    episodes = {r["episode"]: r for r in read_csv(table)}
     unknown = sorted(set(keys) - set(episodes))
-    require(not unknown, "keys", f"no episodes {unknown} in {files['policy']}")
-    default = sorted(k for k, r in episodes.items() if everything or r["goal"] != "1")
+    require(not unknown, "keys", f"no episodes {unknown} in {table}")
+    default = sorted(k for k, r in episodes.items() if everything or not task_done(r))
     chosen = sorted(keys) if keys else default
     chosen = chosen[:limit] if limit is not None else chosen
     points: dict[str, list[list[float]]] = defaultdict(list)
-    for row in read_csv(files["paths"]):
+    for row in read_csv(paths_csv):
         if row["episode"] in chosen:
             points[row["episode"]].append([float(row[c]) for c in PATH_COLUMNS[4:]])
     out = Path(out_dir) if out_dir is not None else folder / "paths"
     written = []
     for key in chosen:
         if not points[key]:
-            raise ConfigError(key, f"no rows in {files['paths']}: a campaign from before paths were recorded")
-        row = episodes[key]
-        # the terrain is the seed's whatever the grid: the oracle grid spares the detector's set-up
-        env = make_task_env(recorded_env_in(row["env"], folder), "oracle")
-        env.reset(seed=int(row["seed"]))
-        terrain, scenario = env.unwrapped.terrain, env.unwrapped.scenario.name
-        env.close()
+            raise ConfigError(key, f"no rows in {paths_csv}: a campaign from before paths were recorded")
+        terrain, caption = _terrain_and_caption(episodes[key], folder)
         x, y, yaw, _, vetoed = np.asarray(points[key]).T
-        name = scenario if row["env"].endswith(".toml") else row["env"]
-        progress = float(row["progress_m"])
-        caption = f"{name} seed {row['seed']} {row['filter']}: {episode_outcome(row)}, {progress:.1f} m"
-        caption += f", {row['vetoes']} vetoes"
         path = out / f"{key}.png"
         render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path, zoom_m)
         written.append(path)

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from negobs_gym.errors import require
-from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, ModelDriver, path_rows, run_driven_episode
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.safety.filter import SafetyFilterConfig
 
@@ -64,9 +64,6 @@ SUMMED = (
     "steps",
     "off_track_steps",
 )
-
-#: ``paths.csv``: the car's pose and speed at the reset and after every step of each episode
-PATH_COLUMNS = ("episode", "filter", "seed", "step", "x_m", "y_m", "yaw_rad", "speed_mps", "vetoed")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,8 +151,7 @@ def run_episode(episode: Episode) -> Rows:
     label = filter_label(a["filtered"], a["stop_for_positive"])
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
-    path = [format_row([episode.key, label, a["seed"], step, *point]) for step, point in enumerate(m["path"])]
-    return {"policy": [format_row(row)], "paths": path}
+    return {"policy": [format_row(row)], "paths": path_rows(episode.key, label, a["seed"], m["path"])}
 
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:

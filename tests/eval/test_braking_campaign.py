@@ -18,6 +18,8 @@ from negobs_gym.eval.braking_campaign import (
     summarize,
     summary_line,
 )
+from negobs_gym.eval.campaign import read_csv
+from negobs_gym.eval.paths import episode_outcome, task_done
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -43,6 +45,23 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     assert len(ditch.first_veto_gaps_m) == 1 and ditch.first_veto_gaps_m[0] > ditch.stop_margins_m[0]
     for png in ("stop_margins.png", "first_veto.png"):
         assert (out / png).read_bytes()[:8] == PNG
+    # every step's pose in paths.csv; `negobs eval paths` draws the runs that did not do their task
+    rows = {r["episode"]: r for r in read_csv(out / "braking.csv")}
+    paths = read_csv(out / "paths.csv")
+    for key, row in rows.items():
+        steps = [p for p in paths if p["episode"] == key]
+        assert [int(p["step"]) for p in steps] == list(range(int(row["steps"]) + 1))
+        assert sum(p["vetoed"] == "1" for p in steps) == int(row["vetoes"])
+    assert main(["-q", "eval", "paths", str(out)]) == 0
+    drawn = [Path(p).stem for p in capsys.readouterr().out.split()]
+    ditch_keys = sorted(k for k in rows if k.startswith("ditch."))
+    assert "ditch.reckless.0.00000" in drawn and "ditch.reckless.1.00000" not in drawn  # entered / stopped
+    assert drawn == sorted(k for k, r in rows.items() if not task_done(r))
+    assert (
+        episode_outcome(rows[ditch_keys[0]]) == "entered"
+        and episode_outcome(rows[ditch_keys[1]]) == "stopped"
+    )
+    assert (out / "paths" / "ditch.reckless.0.00000.png").read_bytes()[:8] == PNG
 
 
 def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
