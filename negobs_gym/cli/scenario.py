@@ -66,6 +66,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
     p_run.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        help="run the seeds in this many processes; lines still come in seed order (default: %(default)s)",
+    )
+    p_run.add_argument(
         "--draw",
         metavar="DIR",
         default=None,
@@ -118,7 +124,7 @@ def _spec(args: argparse.Namespace) -> ScenarioSpec:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from negobs_gym.scenarios import run_scenario
+    from negobs_gym.scenarios import run_scenario_seeds
 
     if args.zoom_m is not None and not args.draw:
         print("error: --zoom needs --draw DIR (it sets the drawn window)", file=sys.stderr)
@@ -127,11 +133,16 @@ def _run(args: argparse.Namespace) -> int:
     if args.stop_for_positive:
         spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
     failed = 0
-    for seed in range(args.seed, args.seed + args.seeds):
-        png = Path(args.draw) / f"{spec.name}_seed{seed}.png" if args.draw else None
-        result = run_scenario(
-            spec, args.driver, filter=args.filter, seed=seed, draw_to=png, draw_zoom_m=args.zoom_m
-        )
+    results = run_scenario_seeds(
+        spec,
+        args.driver,
+        range(args.seed, args.seed + args.seeds),
+        filter=args.filter,
+        workers=args.workers,
+        draw_dir=args.draw,
+        draw_zoom_m=args.zoom_m,
+    )
+    for result in results:
         print(result.line(), file=sys.stdout, flush=True)
         failed += not result.passed
     return 1 if failed else 0

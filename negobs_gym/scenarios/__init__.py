@@ -5,7 +5,8 @@
 - :mod:`negobs_gym.scenarios.library` — the TOML scenes shipped in ``negobs_gym/scenarios/scenes``
   (paper N and paper T scenes and the registered envs), loadable by name;
 - :mod:`negobs_gym.scenarios.runner` — :func:`run_scenario`: one scripted episode, a frozen
-  :class:`ScenarioResult` to assert on, and the spec's pass criteria;
+  :class:`ScenarioResult` to assert on, and the spec's pass criteria; :func:`run_scenario_seeds`
+  runs it per seed in several processes;
 - :mod:`negobs_gym.scenarios.overrides` — :func:`apply_overrides`: single settings changed by
   ``KEY.PATH=VALUE`` (the commands' ``--set``), the spec behind an env id, and the changed
   scenario written beside a run's results.
@@ -20,7 +21,7 @@ from negobs_gym.scenarios.overrides import (
     env_with_overrides,
     spec_for_env,
 )
-from negobs_gym.scenarios.runner import ScenarioResult, run_scenario
+from negobs_gym.scenarios.runner import ScenarioResult, run_scenario, run_scenario_seeds
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_from_toml, spec_to_toml
 
 __all__ = [
@@ -33,6 +34,7 @@ __all__ = [
     "env_with_overrides",
     "load_scenario",
     "run_scenario",
+    "run_scenario_seeds",
     "scenario_names",
     "spec_for_env",
     "spec_from_toml",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ __all__ = [
     "check_criteria",
     "make_driver",
     "run_scenario",
+    "run_scenario_seeds",
 ]
 
 #: A veto is false when the true obstacle ahead (negative, or positive when the filter stopped for
@@ -294,6 +296,49 @@ def run_scenario(
     finally:
         env.close()
     return result
+
+
+def run_scenario_seeds(
+    spec: ScenarioSpec | str | Path,
+    driver: str | None = None,
+    seeds: Sequence[int] = (0,),
+    *,
+    filter: bool | SafetyFilterConfig | None = None,
+    workers: int = 1,
+    draw_dir: str | Path | None = None,
+    draw_zoom_m: float | None = None,
+) -> Iterator[ScenarioResult]:
+    """:func:`run_scenario` once per seed, in ``workers`` processes; results yielded in seed order.
+
+    Each seed's episode is the same whatever the worker count (it depends on the seed alone).
+    ``driver`` is a name here (a driver object need not survive a process boundary).
+    ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``.
+
+    Raises:
+        ConfigError: ``workers`` < 1.
+    """
+    spec = load_scenario(spec)
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ConfigError("workers", f"must be an int >= 1, got {workers!r}")
+    seeds = list(seeds)
+
+    def kwargs(seed: int) -> dict[str, Any]:
+        png = Path(draw_dir) / f"{spec.name}_seed{seed}.png" if draw_dir is not None else None
+        return {"filter": filter, "seed": seed, "draw_to": png, "draw_zoom_m": draw_zoom_m}
+
+    if workers == 1 or len(seeds) < 2:
+        for seed in seeds:
+            yield run_scenario(spec, driver, **kwargs(seed))
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    # spawn: no inherited PyBullet/Embree state, as the campaigns' processes
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(seeds)), mp_context=context) as pool:
+        futures = [pool.submit(run_scenario, spec, driver, **kwargs(seed)) for seed in seeds]
+        for future in futures:  # in seed order: a later seed that finished first waits its turn
+            yield future.result()
 
 
 def _xy(info: dict[str, Any]) -> tuple[float, float]:

@@ -89,6 +89,14 @@ def test_render_writes_a_png(tmp_path):
     assert not [p for p in out.parent.iterdir() if p.name.endswith(".tmp")]
 
 
+def test_run_with_workers_prints_the_serial_lines(capsys):
+    args = ["scenario", "run", "paper_n_mud_pit", "--seeds", "2"]
+    assert main(args) == 0
+    serial = _lines(capsys)
+    assert main([*args, "--workers", "2"]) == 0
+    assert _lines(capsys) == serial and [line.split()[1] for line in serial] == ["seed=0", "seed=1"]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scene", PAPER_SCENES)
 def test_run_each_paper_scene_prints_a_line_per_seed(scene, capsys):

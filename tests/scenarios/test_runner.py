@@ -10,7 +10,7 @@ import pytest
 
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios import ScenarioResult, run_scenario, spec_from_toml
+from negobs_gym.scenarios import ScenarioResult, run_scenario, run_scenario_seeds, spec_from_toml
 from negobs_gym.scenarios.runner import check_criteria
 from negobs_gym.scenarios.spec import CriteriaSpec
 
@@ -142,3 +142,14 @@ def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) ->
     with pytest.raises(ConfigError, match="draw_zoom_m"):
         run_scenario(spec_from_toml(PIT_SCENE), draw_to=tmp_path / "x.png", draw_zoom_m=zoom_m)
     assert not (tmp_path / "x.png").exists()
+
+
+def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(tmp_path) -> None:
+    spec = spec_from_toml(PIT_SCENE)
+    serial = list(run_scenario_seeds(spec, "reckless", [2, 0, 1], filter=True))
+    assert [r.seed for r in serial] == [2, 0, 1]
+    spread = list(run_scenario_seeds(spec, "reckless", [2, 0, 1], filter=True, workers=2, draw_dir=tmp_path))
+    assert spread == serial  # every field, the path included: a seed's episode is the seed's alone
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(3)]
+    with pytest.raises(ConfigError, match="workers"):
+        next(run_scenario_seeds(spec, "reckless", [0], workers=0))

@@ -35,7 +35,7 @@ class TimedTransform:
     quaternion_xyzw: tuple[float, float, float, float]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Link:
     """One edge on a chain: a timed track or a constant transform, walked forwards or inverted."""
 
@@ -58,7 +58,7 @@ class _Link:
         return position, rotation
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TransformChain:
     """Where the ``body`` frame is in the ``fixed`` frame at any time: the tree's edges between
     them composed (up from ``fixed`` to their common ancestor inverted, then down to ``body``)."""
