@@ -52,9 +52,17 @@ class GridSpec:
         return -self.side_m, self.side_m, -self.back_m, self.ahead_m
 
     def cell_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cell (row, col) of vehicle-frame points (..., 2) and a mask of those inside the grid."""
+        """Cell (row, col) of vehicle-frame points (..., 2) and a mask of those inside the grid.
+
+        Points outside get the cell they would have on an unbounded grid (a box's corners clip
+        its cell range); NaN points (no return) get (-1, -1), outside."""
         row, col, inside = self._cells(np.asarray(xy, dtype=np.float64))
-        return row.astype(np.int64), col.astype(np.int64), inside
+        no_point = np.isnan(row) | np.isnan(col)
+        return (
+            np.where(no_point, -1.0, row).astype(np.int64),
+            np.where(no_point, -1.0, col).astype(np.int64),
+            inside,
+        )
 
     def occupied(self, xy: np.ndarray) -> np.ndarray:
         """(rows, cols) bool: the cells holding at least one of the vehicle-frame points (..., 2);

@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 
@@ -54,7 +56,12 @@ def test_occupied_reads_a_strided_view_of_scan_points_and_names_a_wrong_shape():
     points[rng.random((16, 50)) < 0.2] = np.nan
     view = points[..., :2]
     np.testing.assert_array_equal(grid.occupied(view), grid.occupied(np.ascontiguousarray(view)))
-    row, col, inside = grid.cell_of(view.reshape(-1, 2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # NaN points are no cell: no invalid cast
+        row, col, inside = grid.cell_of(view.reshape(-1, 2))
+    no_point = np.isnan(view.reshape(-1, 2)).any(axis=1)
+    assert no_point.any() and (row[no_point] == -1).all() and (col[no_point] == -1).all()
+    assert not inside[no_point].any()
     want = np.zeros(grid.shape, dtype=bool)
     want[row[inside], col[inside]] = True
     np.testing.assert_array_equal(grid.occupied(view), want)
