@@ -74,8 +74,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Without --poses, --poses-topic, --tf or --kitti-poses every frame is taken as standing still at the "
-        "same place, so multi-frame fusion accumulates evidence only for a vehicle that did not move.",
+        "Without --poses, --poses-topic, --tf, --kitti-poses or --kitti-oxts every frame is taken as "
+        "standing still at the same place, so multi-frame fusion accumulates evidence only for a "
+        "vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
@@ -138,11 +139,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a KITTI odometry poses/NN.txt (the camera's 3x4 pose per frame), with --kitti-calib: "
         "the vehicle's pose at each frame, from the Velodyne's pose less its mounting",
     )
+    poses.add_argument(
+        "--kitti-oxts",
+        default=None,
+        metavar="DIR",
+        help="a KITTI raw drive's oxts folder (one GPS/IMU fix per frame), with --kitti-calib "
+        "calib_imu_to_velo.txt: the vehicle's pose at each frame, from the IMU's pose and the "
+        "calibration, less the sensor's mounting; positions relative to the first frame",
+    )
     parser.add_argument(
         "--kitti-calib",
         default=None,
         metavar="TXT",
-        help="the sequence's calib.txt, whose Tr line takes the Velodyne to the camera (--kitti-poses)",
+        help="with --kitti-poses the sequence's calib.txt, whose Tr line takes the Velodyne to the "
+        "camera; with --kitti-oxts the date folder's calib_imu_to_velo.txt",
     )
     parser.add_argument(
         "--stamps",
@@ -216,14 +226,27 @@ def run(args: argparse.Namespace) -> int:
     setup = scan_setup(args)
     out = Path(args.out)
     poses = read_poses_csv(args.poses) if args.poses else None
-    if (args.kitti_poses is None) != (args.kitti_calib is None):
-        raise ScanError("--kitti-poses and --kitti-calib go together (a sequence's poses and its calib.txt)")
+    kitti = args.kitti_poses or args.kitti_oxts
+    if (kitti is None) != (args.kitti_calib is None):
+        raise ScanError(
+            "--kitti-calib goes with --kitti-poses (a sequence's poses and its calib.txt) or "
+            "--kitti-oxts (a raw drive's oxts folder and calib_imu_to_velo.txt), and they with it"
+        )
     if args.kitti_poses:
         from negobs_gym.detector.io.kitti import kitti_vehicle_poses, read_kitti_poses, read_kitti_velo_to_cam
 
         cameras, velo_to_cam = read_kitti_poses(args.kitti_poses), read_kitti_velo_to_cam(args.kitti_calib)
         poses = kitti_vehicle_poses(cameras, velo_to_cam, setup)
-    poses_file = args.poses or args.kitti_poses
+    elif args.kitti_oxts:
+        from negobs_gym.detector.io.kitti import (
+            kitti_oxts_vehicle_poses,
+            read_kitti_imu_to_velo,
+            read_kitti_oxts,
+        )
+
+        fixes, imu_to_velo = read_kitti_oxts(args.kitti_oxts), read_kitti_imu_to_velo(args.kitti_calib)
+        poses = kitti_oxts_vehicle_poses(fixes, imu_to_velo, setup)
+    poses_file = args.poses or kitti
     detector = NegativeObstacleDetector(
         NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
     )

@@ -268,4 +268,31 @@ def test_kitti_poses_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> Non
         np.testing.assert_allclose(_near_edges(k_record), _near_edges(csv_record), atol=1e-3)
     args = ["detect", files[0], "--out", str(tmp_path / "x"), "--kitti-poses", str(tmp_path / "00.txt")]
     assert main(args) == 2
-    assert "--kitti-poses and --kitti-calib go together" in capsys.readouterr().err
+    assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err
+
+
+def test_kitti_oxts_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> None:
+    """The same drive as a KITTI raw drive: OXTS fixes at Karlsruhe and 2011_09_26's IMU-to-Velodyne
+    calibration; the vehicle's poses and outlines equal those of the CSV (its first pose is the
+    origin, as the OXTS poses' is)."""
+    import argparse
+
+    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.detector.io import read_poses_csv
+    from tests.detector.io.test_kitti import IMU_TO_VELO_0926, oxts_fixes, write_imu_to_velo, write_oxts
+
+    files, poses = drive
+    setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None))
+    write_oxts(tmp_path / "oxts", oxts_fixes(read_poses_csv(poses), IMU_TO_VELO_0926, setup))
+    calib = tmp_path / "calib_imu_to_velo.txt"
+    write_imu_to_velo(calib, IMU_TO_VELO_0926)
+    oxts = _records(
+        files, tmp_path / "oxts_out", "--kitti-oxts", str(tmp_path / "oxts"), "--kitti-calib", str(calib)
+    )
+    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
+    for o_record, csv_record in zip(oxts, from_csv, strict=True):
+        np.testing.assert_allclose(o_record["pose"], csv_record["pose"], atol=1e-6)
+        np.testing.assert_allclose(_near_edges(o_record), _near_edges(csv_record), atol=1e-3)
+    args = ["detect", files[0], "--out", str(tmp_path / "x"), "--kitti-oxts", str(tmp_path / "oxts")]
+    assert main(args) == 2
+    assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err

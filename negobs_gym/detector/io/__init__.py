@@ -13,7 +13,7 @@ All formats are read in the ROS / Velodyne frame (x forward, y left, z up) and c
 package's sensor frame; the sensor's mounting comes from :class:`ScanSetup`. A drive's poses, for
 multi-frame fusion on a moving vehicle, come from a CSV file (:mod:`~negobs_gym.detector.io.poses`),
 a bag's odometry topic or its transform tree (:mod:`~negobs_gym.detector.io.tf`), or a KITTI
-odometry sequence (:mod:`~negobs_gym.detector.io.kitti`).
+odometry sequence or raw drive's OXTS fixes (:mod:`~negobs_gym.detector.io.kitti`).
 """
 
 from negobs_gym.detector.io.poses import POSE_COLUMNS, PoseTrack, pose_from_ros, read_poses_csv
