@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from negobs_gym.cli.common import add_set_option, non_negative_int, positive_float, positive_int
+from negobs_gym.errors import ConfigError
 
 if TYPE_CHECKING:
     from negobs_gym.scenarios import ScenarioSpec
@@ -127,8 +128,7 @@ def _run(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import run_scenario_seeds
 
     if args.zoom_m is not None and not args.draw:
-        print("error: --zoom needs --draw DIR (it sets the drawn window)", file=sys.stderr)
-        return 2
+        raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
     spec = _spec(args)
     if args.stop_for_positive:
         spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))

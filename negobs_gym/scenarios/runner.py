@@ -315,12 +315,24 @@ def run_scenario_seeds(
     ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``.
 
     Raises:
-        ConfigError: ``workers`` < 1.
+        ConfigError: ``workers`` < 1 (when called, not at the first result).
     """
     spec = load_scenario(spec)
     if not (isinstance(workers, int) and workers >= 1):
         raise ConfigError("workers", f"must be an int >= 1, got {workers!r}")
-    seeds = list(seeds)
+    return _seed_results(spec, driver, list(seeds), filter, workers, draw_dir, draw_zoom_m)
+
+
+def _seed_results(
+    spec: ScenarioSpec,
+    driver: str | None,
+    seeds: list[int],
+    filter: bool | SafetyFilterConfig | None,
+    workers: int,
+    draw_dir: str | Path | None,
+    draw_zoom_m: float | None,
+) -> Iterator[ScenarioResult]:
+    """The results of :func:`run_scenario_seeds`, run as they are asked for."""
 
     def kwargs(seed: int) -> dict[str, Any]:
         png = Path(draw_dir) / f"{spec.name}_seed{seed}.png" if draw_dir is not None else None

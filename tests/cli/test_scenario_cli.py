@@ -132,4 +132,4 @@ def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) ->
     close_magenta = (close[..., 0] > 0.8) & (close[..., 1] < 0.3) & (close[..., 2] > 0.8)
     assert close_magenta.sum() > magenta.sum()  # the same marks, drawn larger
     assert main(["scenario", "run", str(path), "--zoom", "5"]) == 2
-    assert "--zoom needs --draw" in capsys.readouterr().err
+    assert "--zoom: needs --draw DIR" in capsys.readouterr().err

@@ -152,4 +152,4 @@ def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(tmp_path) 
     assert spread == serial  # every field, the path included: a seed's episode is the seed's alone
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(3)]
     with pytest.raises(ConfigError, match="workers"):
-        next(run_scenario_seeds(spec, "reckless", [0], workers=0))
+        run_scenario_seeds(spec, "reckless", [0], workers=0)
