@@ -89,12 +89,14 @@ def test_render_writes_a_png(tmp_path):
     assert not [p for p in out.parent.iterdir() if p.name.endswith(".tmp")]
 
 
-def test_run_with_workers_prints_the_serial_lines(capsys):
-    args = ["scenario", "run", "paper_n_mud_pit", "--seeds", "2"]
-    assert main(args) == 0
-    serial = _lines(capsys)
-    assert main([*args, "--workers", "2"]) == 0
-    assert _lines(capsys) == serial and [line.split()[1] for line in serial] == ["seed=0", "seed=1"]
+def test_run_with_workers_prints_a_line_per_seed_in_seed_order(capsys):
+    """Two processes (equal to one, seed by seed: tests/scenarios/test_runner.py)."""
+    assert main(["scenario", "run", "paper_n_mud_pit", "--seed", "3", "--seeds", "2", "--workers", "2"]) == 0
+    lines = _lines(capsys)
+    assert [line.split()[:2] for line in lines] == [
+        ["paper_n_mud_pit", "seed=3"],
+        ["paper_n_mud_pit", "seed=4"],
+    ]
 
 
 @pytest.mark.slow

@@ -146,10 +146,10 @@ def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) ->
 
 def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(tmp_path) -> None:
     spec = spec_from_toml(PIT_SCENE)
-    serial = list(run_scenario_seeds(spec, "reckless", [2, 0, 1], filter=True))
-    assert [r.seed for r in serial] == [2, 0, 1]
-    spread = list(run_scenario_seeds(spec, "reckless", [2, 0, 1], filter=True, workers=2, draw_dir=tmp_path))
+    serial = list(run_scenario_seeds(spec, "reckless", [1, 0], filter=True))
+    assert [r.seed for r in serial] == [1, 0]
+    spread = list(run_scenario_seeds(spec, "reckless", [1, 0], filter=True, workers=2, draw_dir=tmp_path))
     assert spread == serial  # every field, the path included: a seed's episode is the seed's alone
-    assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(3)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(2)]
     with pytest.raises(ConfigError, match="workers"):
         run_scenario_seeds(spec, "reckless", [0], workers=0)
