@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from negobs_gym.detector.io.poses import pose_from_ros_transform
@@ -188,3 +190,45 @@ def test_a_ros1_bag_tf_tree_with_slashed_frames(tmp_path) -> None:
     np.testing.assert_allclose(by_record.transform_at(1.55)[0], [0.50, 0.0, 0.0], atol=1e-9)
     with pytest.raises(ScanError, match=r"tf\.bag: tf: no frame 'map'"):
         bag_transform_chain(bag, "map", "base_link")
+
+
+def _matrix(tf: TimedTransform) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_quat(tf.quaternion_xyzw).as_matrix()
+    out[:3, 3] = tf.position_m
+    return out
+
+
+@st.composite
+def random_trees(draw) -> tuple[list[TimedTransform], str, str]:
+    """A random static tree of up to 7 frames (each frame's parent an earlier frame) and two of its
+    frames."""
+    n = draw(st.integers(2, 7))
+    floats = st.floats(-10.0, 10.0, allow_nan=False)
+    edges = []
+    for child in range(1, n):
+        parent = draw(st.integers(0, child - 1))
+        position = tuple(draw(floats) for _ in range(3))
+        quaternion = tuple(draw(st.floats(-1.0, 1.0, allow_nan=False)) for _ in range(4))
+        if np.linalg.norm(quaternion) < 0.1:
+            quaternion = IDENTITY
+        edges.append(TimedTransform(0.0, f"f{parent}", f"f{child}", position, quaternion))
+    a, b = draw(st.integers(0, n - 1)), draw(st.integers(0, n - 1))
+    return edges, f"f{a}", f"f{b}"
+
+
+@settings(max_examples=100, deadline=None)
+@given(random_trees())
+def test_a_chain_is_the_product_of_the_tree_s_matrices(tree) -> None:
+    """Against 4x4 matrices: each frame's pose in the root is the product down its path, and the
+    chain from a to b is root-to-a inverted times root-to-b."""
+    edges, a, b = tree
+    parent = {e.child: e for e in edges}
+
+    def in_root(frame: str) -> np.ndarray:
+        return in_root(parent[frame].parent) @ _matrix(parent[frame]) if frame in parent else np.eye(4)
+
+    want = np.linalg.inv(in_root(a)) @ in_root(b)
+    position, rotation = transform_chain([], edges, a, b).transform_at(0.0)
+    np.testing.assert_allclose(position, want[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(rotation.as_matrix(), want[:3, :3], atol=1e-9)
