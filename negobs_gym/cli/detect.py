@@ -26,9 +26,15 @@ from negobs_gym.cli.common import non_negative_float, positive_float
 from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
-    from negobs_gym.detector.io import ScanSetup
+    from collections.abc import Iterator
+
+    from negobs_gym.detector.io import PoseTrack, RecordedFrame, ScanSetup
+    from negobs_gym.detector.io.tf import TransformChain, TransformTree
 
 log = logging.getLogger(__name__)
+#: ``--tf``: warn when the tree mounts the cloud's frame turned by more than this from the
+#: ``--sensor`` mounting (the detector's ground and features assume that mounting) [deg]
+MOUNT_TOLERANCE_DEG = 1.0
 
 
 @dataclass(frozen=True)
@@ -190,6 +196,55 @@ def tf_frames(text: str) -> tuple[str, str]:
     return parts[0].strip(), parts[1].strip()
 
 
+def _frames_and_tracks(
+    args: argparse.Namespace, setup: ScanSetup
+) -> Iterator[tuple[RecordedFrame, PoseTrack | TransformChain | None]]:
+    """Every frame of ``args.files`` in order, each with its bag's pose track (``--poses-topic``
+    or ``--tf``, read once per bag; None otherwise). With ``--tf`` a bag's first frame is also
+    checked against the mounting the detector assumes."""
+    from negobs_gym.detector.io import read_recording
+    from negobs_gym.detector.io.bags import bag_pose_track, bag_transform_tree
+    from negobs_gym.errors import ScanError
+
+    for path in args.files:
+        track: PoseTrack | TransformChain | None = None
+        tree: TransformTree | None = None
+        if args.poses_topic:
+            track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)
+        elif args.tf:
+            tree = bag_transform_tree(path, stamps=args.stamps)
+            try:
+                track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap)
+            except ScanError as error:
+                raise ScanError(f"{path}: {error}") from error
+        frames = read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps)
+        for k, frame in enumerate(frames):
+            if tree is not None and k == 0 and frame.frame_id:
+                _check_mounting(tree, args.tf[1], frame, setup, args.max_pose_gap)
+            yield frame, track
+
+
+def _check_mounting(
+    tree: TransformTree, body: str, frame: RecordedFrame, setup: ScanSetup, max_gap_s: float
+) -> None:
+    """Warn when the bag's tf mounts the cloud's frame on ``body`` turned by more than
+    :data:`MOUNT_TOLERANCE_DEG` from the ``--sensor`` mounting the detector assumes."""
+    from negobs_gym.detector.io.tf import mounting_difference_deg
+
+    time_s = frame.scan.timestamp_s
+    angle = mounting_difference_deg(tree, body, frame.frame_id, setup, time_s, max_gap_s=max_gap_s)
+    if angle is not None and angle > MOUNT_TOLERANCE_DEG:
+        log.warning(
+            "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s "
+            "mounting the detector assumes; its ground and features will be off",
+            frame.source,
+            body,
+            frame.frame_id,
+            angle,
+            setup.sensor,
+        )
+
+
 def scan_setup(args: argparse.Namespace) -> ScanSetup:
     """The :class:`ScanSetup` for ``--sensor``, ``--height`` and ``--azimuth-resolution``."""
     from negobs_gym.detector.io import ScanSetup
@@ -219,8 +274,7 @@ def run(args: argparse.Namespace) -> int:
         NegativeObstacleDetector,
         StructureDetector,
     )
-    from negobs_gym.detector.io import read_poses_csv, read_recording
-    from negobs_gym.detector.io.bags import bag_pose_track, bag_transform_chain
+    from negobs_gym.detector.io import read_poses_csv
     from negobs_gym.errors import ScanError
 
     setup = scan_setup(args)
@@ -253,22 +307,8 @@ def run(args: argparse.Namespace) -> int:
     structure = StructureDetector(grid=detector.config.grid)
     summary = []
 
-    def frames_and_tracks():
-        for path in args.files:  # a bag's own odometry, read once per file
-            track = None
-            if args.poses_topic:
-                track = bag_pose_track(
-                    path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap
-                )
-            elif args.tf:
-                track = bag_transform_chain(path, *args.tf, stamps=args.stamps, max_gap_s=args.max_pose_gap)
-            frames = read_recording(
-                path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps
-            )
-            for frame in frames:
-                yield frame, track
-
-    bar = tqdm(frames_and_tracks(), desc="negobs detect", unit="frame", disable=None)
+    frames = _frames_and_tracks(args, setup)
+    bar = tqdm(frames, desc="negobs detect", unit="frame", disable=None)
     for n, (frame, track) in enumerate(bar):
         if poses is not None and n >= len(poses):
             raise ScanError(f"{poses_file}: {len(poses)} poses, but the recording has more frames")

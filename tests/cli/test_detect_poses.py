@@ -178,7 +178,7 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     files, poses = drive
     map_odom = (np.array([5.0, 0.0, 0.0]), Rotation.from_euler("z", 90, degrees=True))
 
-    def tf_tree(writer, store, localiser: bool = False) -> None:
+    def tf_tree(writer, store, localiser: bool = False, mount_pitch_deg: float = 0.0) -> None:
         t = store.types
 
         def stamped(stamp_ns: int, parent: str, child: str, position, rotation):
@@ -199,7 +199,7 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
 
         static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
         dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
-        mount = (np.array([0.0, 0.0, 2.2]), Rotation.identity())
+        mount = (np.array([0.0, 0.0, 2.2]), Rotation.from_euler("y", mount_pitch_deg, degrees=True))
         write(static, START_NS - PERIOD_NS, [stamped(0, "base_link", "velodyne", *mount)])
         if not localiser:
             write(static, START_NS - PERIOD_NS, [stamped(0, "map", "odom", *map_odom)])
@@ -214,6 +214,7 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     out = tmp_path / "bag"
     args = ["-q", "detect", str(bag), "--height", "2.2", "--no-png", "--stamps", "header"]
     assert main([*args, "--out", str(out), "--tf", "map:base_link"]) == 0
+    assert "deg from the --sensor" not in capsys.readouterr().err  # mounted as --sensor says
     from_tf = [json.loads((out / f"{k:05d}_tf_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
     from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
     for tf_record, csv_record in zip(from_tf, from_csv, strict=True):
@@ -240,6 +241,16 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     assert main([*slow_args, *one_s]) == 0
     last = json.loads((tmp_path / "s1" / f"{FRAMES - 1:05d}_slow_ros2_{FRAMES - 1:04d}.json").read_text())
     np.testing.assert_allclose(last["pose"], from_csv[-1]["pose"], atol=1e-9)
+    # a sensor the tf pitches 3 deg down on the vehicle, where --sensor hdl64 assumes it upright:
+    # the detector's ground would be off, and the run says so (the upright one above did not)
+    pitched = _drive_bag(tmp_path / "pitched", files, lambda w, st: tf_tree(w, st, mount_pitch_deg=3.0))
+    capsys.readouterr()
+    assert (
+        main(["-q", "detect", str(pitched), *args[3:], "--out", str(tmp_path / "p"), "--tf", "map:base_link"])
+        == 0
+    )
+    warned = [line for line in capsys.readouterr().err.splitlines() if "deg from the --sensor" in line]
+    assert len(warned) == 1 and "(base_link -> velodyne) turns the cloud's frame 3.0 deg" in warned[0]
     no_tf = _drive_bag(tmp_path / "points_only", files, lambda writer, store: None)
     assert main(["detect", str(no_tf), "--out", str(tmp_path / "z"), "--tf", "odom:base_link"]) == 2
     assert "no tf topic" in capsys.readouterr().err

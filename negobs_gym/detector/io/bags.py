@@ -16,7 +16,7 @@ from negobs_gym.detector.io._optional import optional_import
 from negobs_gym.detector.io.poses import PoseTrack
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
-from negobs_gym.detector.io.tf import TimedTransform, TransformChain, frame_name, transform_chain
+from negobs_gym.detector.io.tf import TimedTransform, TransformChain, TransformTree, frame_name
 from negobs_gym.errors import ScanError
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -113,7 +113,8 @@ def bag_frames(
             fields = pointcloud2_fields(msg, source)
             time_s = _message_time_s(stamp_ns, msg, stamps, source)
             scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=time_s)
-            yield RecordedFrame(scan, os.fspath(p), index, ring_source, int(msg.width) * int(msg.height))
+            points = int(msg.width) * int(msg.height)
+            yield RecordedFrame(scan, os.fspath(p), index, ring_source, points, msg.header.frame_id)
     finally:
         reader.close()
 
@@ -174,22 +175,14 @@ def bag_pose_track(
     return PoseTrack(np.asarray(times)[order], data[:, :3], data[:, 3:], max_gap_s=max_gap_s)
 
 
-def bag_transform_chain(
-    path: str | os.PathLike[str],
-    fixed: str,
-    body: str,
-    *,
-    max_gap_s: float = 0.1,
-    stamps: str = "record",
-) -> TransformChain:
-    """Where frame ``body`` (e.g. ``base_link``) is in frame ``fixed`` (``odom``, ``map``) by the
-    bag's ``/tf`` and ``/tf_static`` (``tf2_msgs/TFMessage``; :mod:`~negobs_gym.detector.io.tf`),
-    each transform timed as :func:`bag_frames` times its frames with the same ``stamps`` (the
-    message's record time, or the transform's header stamp), for :meth:`TransformChain.at`.
+def bag_transform_tree(path: str | os.PathLike[str], *, stamps: str = "record") -> TransformTree:
+    """The transform tree of a bag's ``/tf`` and ``/tf_static`` (``tf2_msgs/TFMessage``;
+    :mod:`~negobs_gym.detector.io.tf`), each transform timed as :func:`bag_frames` times its frames
+    with the same ``stamps`` (the message's record time, or the transform's header stamp).
 
     Raises:
         ScanError: not a readable bag, no tf topic, a message that cannot be read, an unstamped
-            transform (``stamps="header"``), or a tree without a chain between the two frames.
+            transform (``stamps="header"``), a frame with two parents.
     """
     _check_stamps(stamps)
     p = Path(path)
@@ -224,9 +217,30 @@ def bag_transform_chain(
     finally:
         reader.close()
     try:
-        return transform_chain(timed, static, fixed, body, max_gap_s=max_gap_s)
+        return TransformTree(timed, static)
     except ScanError as error:
         raise ScanError(f"{p}: {error}") from error
+
+
+def bag_transform_chain(
+    path: str | os.PathLike[str],
+    fixed: str,
+    body: str,
+    *,
+    max_gap_s: float = 0.1,
+    stamps: str = "record",
+) -> TransformChain:
+    """Where frame ``body`` (e.g. ``base_link``) is in frame ``fixed`` (``odom``, ``map``) by the
+    bag's transform tree (:func:`bag_transform_tree`), for :meth:`TransformChain.at`.
+
+    Raises:
+        ScanError: as :func:`bag_transform_tree`, or a tree without a chain between the two frames.
+    """
+    tree = bag_transform_tree(path, stamps=stamps)
+    try:
+        return tree.chain(fixed, body, max_gap_s=max_gap_s)
+    except ScanError as error:
+        raise ScanError(f"{Path(path)}: {error}") from error
 
 
 def read_bag(

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from negobs_gym.core.pose import Pose, pose_from_matrix
-from negobs_gym.detector.io.setup import ScanSetup
+from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY, ScanSetup
 from negobs_gym.errors import ScanError
 
 __all__ = [
@@ -43,8 +43,6 @@ __all__ = [
 
 # the first camera frame (x right, y down, z forward) in a z-up world (x forward, y left, z up)
 CAMERA_TO_WORLD = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-# ROS / Velodyne body axes (x forward, y left) from this package's (X right, Y forward): p_ros = B p
-PACKAGE_TO_ROS_BODY = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 CALIB_KEYS = ("Tr", "Tr_velo_to_cam")
 EARTH_RADIUS_M = 6378137.0  # the devkit's Mercator radius (WGS-84 equatorial)
 OXTS_FIELDS = 30  # lat, lon, alt, roll, pitch, yaw, then velocities, accelerations, accuracies

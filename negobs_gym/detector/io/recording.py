@@ -29,6 +29,8 @@ class RecordedFrame:
         ring_source: How each point's laser was found: ``"ring_field"``, ``"point_order"`` or
             ``"elevation_table"`` (see :mod:`negobs_gym.detector.loaders`).
         n_points: Points in the recorded cloud (before binning).
+        frame_id: The cloud's coordinate frame where the recording names it (a bag message's
+            ``header.frame_id``), else None.
     """
 
     scan: StructuredScan
@@ -36,6 +38,7 @@ class RecordedFrame:
     index: int
     ring_source: RingSource
     n_points: int
+    frame_id: str | None = None
 
 
 def unreadable(name: str, what: str, error: BaseException) -> ScanError:

@@ -22,6 +22,9 @@ from negobs_gym.errors import ScanError, require
 #: Names under which recorded files carry the laser index (velodyne driver: ring; Autoware nebula:
 #: channel; Ouster / some SDKs: laser_id).
 RING_FIELD_NAMES: tuple[str, ...] = ("ring", "channel", "laser_id")
+#: ROS / Velodyne body axes (x forward, y left, z up) from this package's (X right, Y forward, Z up):
+#: ``p_ros = PACKAGE_TO_ROS_BODY @ p`` (the matrix of :func:`ros_to_sensor_frame`'s inverse).
+PACKAGE_TO_ROS_BODY = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -18,9 +18,10 @@ from scipy.spatial.transform import Rotation
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector.io.poses import PoseTrack, pose_from_ros_transform
+from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY, ScanSetup
 from negobs_gym.errors import ScanError
 
-__all__ = ["TimedTransform", "TransformChain", "transform_chain"]
+__all__ = ["TimedTransform", "TransformChain", "TransformTree", "mounting_difference_deg", "transform_chain"]
 
 
 @dataclass(frozen=True)
@@ -102,61 +103,82 @@ def transform_chain(
     *,
     max_gap_s: float = 0.1,
 ) -> TransformChain:
-    """The chain from ``fixed`` to ``body`` through a tree of timed (``/tf``) and static
-    (``/tf_static``, the last one published counts) edges.
+    """The chain from ``fixed`` to ``body`` through the tree of ``timed`` and ``static`` edges
+    (:meth:`TransformTree.chain`)."""
+    return TransformTree(timed, static).chain(fixed, body, max_gap_s=max_gap_s)
 
-    A timed edge's transforms are read in time order; two at the same time keep the later
-    published. ``max_gap_s`` is how far outside a timed edge's span a frame may lie and take its
-    first or last transform.
+
+class TransformTree:
+    """A tree of timed (``/tf``) and static (``/tf_static``, the last one published counts)
+    edges, checked once, from which chains between any two of its frames are taken.
 
     Raises:
-        ScanError: a frame with two parents, an edge both timed and static, a loop, a frame that
-            is not in the tree, or no chain between the two frames (two separate trees).
+        ScanError: a frame with two parents or an edge both timed and static.
     """
-    fixed, body = frame_name(fixed), frame_name(body)
-    parent_of: dict[str, str] = {}
-    samples: dict[str, list[TimedTransform]] = {}
-    constants: dict[str, TimedTransform] = {}
-    for kind, transforms in (("timed", timed), ("static", static)):
-        for tf in transforms:
-            parent, child = frame_name(tf.parent), frame_name(tf.child)
-            if parent_of.setdefault(child, parent) != parent:
-                raise ScanError(
-                    f"tf: frame {child!r} has two parents, {parent_of[child]!r} and {parent!r} "
-                    "(a tf tree gives each frame one)"
-                )
-            if kind == "timed":
-                samples.setdefault(child, []).append(tf)
-            else:
-                constants[child] = tf
-    both = sorted(set(samples) & set(constants))
-    if both:
-        raise ScanError(f"tf: frame {both[0]!r} is published both on /tf and /tf_static")
-    frames = sorted(set(parent_of) | set(parent_of.values()))
-    for name in (fixed, body):
-        if name not in frames:
-            raise ScanError(f"tf: no frame {name!r} (the tree has {frames})")
 
-    def up(frame: str) -> list[str]:
+    def __init__(self, timed: Iterable[TimedTransform], static: Iterable[TimedTransform]) -> None:
+        self._parent_of: dict[str, str] = {}
+        self._samples: dict[str, list[TimedTransform]] = {}
+        self._constants: dict[str, TimedTransform] = {}
+        for kind, transforms in (("timed", timed), ("static", static)):
+            for tf in transforms:
+                parent, child = frame_name(tf.parent), frame_name(tf.child)
+                if self._parent_of.setdefault(child, parent) != parent:
+                    raise ScanError(
+                        f"tf: frame {child!r} has two parents, {self._parent_of[child]!r} and "
+                        f"{parent!r} (a tf tree gives each frame one)"
+                    )
+                if kind == "timed":
+                    self._samples.setdefault(child, []).append(tf)
+                else:
+                    self._constants[child] = tf
+        both = sorted(set(self._samples) & set(self._constants))
+        if both:
+            raise ScanError(f"tf: frame {both[0]!r} is published both on /tf and /tf_static")
+
+    @property
+    def frames(self) -> list[str]:
+        """Every frame of the tree, sorted."""
+        return sorted(set(self._parent_of) | set(self._parent_of.values()))
+
+    def chain(self, fixed: str, body: str, *, max_gap_s: float = 0.1) -> TransformChain:
+        """The chain from ``fixed`` to ``body``. A timed edge's transforms are read in time order;
+        two at the same time keep the later published. ``max_gap_s`` is how far outside a timed
+        edge's span a frame may lie and take its first or last transform.
+
+        Raises:
+            ScanError: a frame that is not in the tree, a loop, or no chain between the two
+                frames (two separate trees).
+        """
+        fixed, body = frame_name(fixed), frame_name(body)
+        for name in (fixed, body):
+            if name not in self.frames:
+                raise ScanError(f"tf: no frame {name!r} (the tree has {self.frames})")
+        from_fixed, from_body = self._up(fixed), self._up(body)
+        common = next((f for f in from_body if f in from_fixed), None)
+        if common is None:
+            raise ScanError(
+                f"tf: no chain from {fixed!r} to {body!r}: they lie in separate trees "
+                f"(roots {from_fixed[-1]!r} and {from_body[-1]!r})"
+            )
+        ups = [self._link(f, True, max_gap_s) for f in from_fixed[: from_fixed.index(common)]]
+        downs = [self._link(f, False, max_gap_s) for f in reversed(from_body[: from_body.index(common)])]
+        return TransformChain(fixed, body, tuple(ups + downs))
+
+    def _up(self, frame: str) -> list[str]:
+        """``frame`` and its ancestors up to the root."""
         path = [frame]
-        while path[-1] in parent_of:
-            path.append(parent_of[path[-1]])
+        while path[-1] in self._parent_of:
+            path.append(self._parent_of[path[-1]])
             if path[-1] in path[:-1]:
                 raise ScanError(f"tf: the frames {path[path.index(path[-1]) :]} form a loop")
         return path
 
-    from_fixed, from_body = up(fixed), up(body)
-    common = next((f for f in from_body if f in from_fixed), None)
-    if common is None:
-        raise ScanError(
-            f"tf: no chain from {fixed!r} to {body!r}: they lie in separate trees "
-            f"(roots {from_fixed[-1]!r} and {from_body[-1]!r})"
-        )
-
-    def link(child: str, inverted: bool) -> _Link:
-        name = f"{parent_of[child]} -> {child}"
-        if child in constants:
-            tf = constants[child]
+    def _link(self, child: str, inverted: bool, max_gap_s: float) -> _Link:
+        """The edge from ``child``'s parent to ``child``."""
+        name = f"{self._parent_of[child]} -> {child}"
+        if child in self._constants:
+            tf = self._constants[child]
             position = np.asarray(tf.position_m, dtype=np.float64)
             quaternion = np.asarray(tf.quaternion_xyzw, dtype=np.float64)
             if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
@@ -164,7 +186,7 @@ def transform_chain(
             if np.linalg.norm(quaternion) < 1e-9:
                 raise ScanError(f"tf {name}: the quaternion has zero length")
             return _Link(name, None, (position, Rotation.from_quat(quaternion)), inverted)
-        ordered = sorted(samples[child], key=lambda s: s.time_s)  # stable: the later one last
+        ordered = sorted(self._samples[child], key=lambda s: s.time_s)  # stable: the later one last
         times = np.array([s.time_s for s in ordered])
         last = np.append(times[1:] != times[:-1], True)  # of equal times, the later published
         try:
@@ -178,6 +200,16 @@ def transform_chain(
             raise ScanError(f"tf {name}: {error}") from error
         return _Link(name, track, None, inverted)
 
-    ups = [link(f, True) for f in from_fixed[: from_fixed.index(common)]]
-    downs = [link(f, False) for f in reversed(from_body[: from_body.index(common)])]
-    return TransformChain(fixed, body, tuple(ups + downs))
+
+def mounting_difference_deg(
+    tree: TransformTree, body: str, sensor: str, setup: ScanSetup, time_s: float, *, max_gap_s: float = 0.1
+) -> float | None:
+    """The angle [deg] between the sensor's orientation on the vehicle by the tree (the chain from
+    ``body`` to the cloud's frame ``sensor`` at ``time_s``) and by ``setup.rotation`` (what the
+    detector assumes); None when ``sensor`` is not in the tree. A pitched or rolled sensor the
+    setup takes as upright puts the detector's ground where it is not."""
+    if frame_name(sensor) not in tree.frames:
+        return None
+    _, on_vehicle = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
+    assumed = PACKAGE_TO_ROS_BODY @ np.asarray(setup.rotation, dtype=np.float64) @ PACKAGE_TO_ROS_BODY.T
+    return float(np.degrees((on_vehicle.inv() * Rotation.from_matrix(assumed)).magnitude()))

@@ -232,3 +232,27 @@ def test_a_chain_is_the_product_of_the_tree_s_matrices(tree) -> None:
     position, rotation = transform_chain([], edges, a, b).transform_at(0.0)
     np.testing.assert_allclose(position, want[:3, 3], atol=1e-9)
     np.testing.assert_allclose(rotation.as_matrix(), want[:3, :3], atol=1e-9)
+
+
+def test_mounting_difference_reads_the_setup_in_ros_axes() -> None:
+    """A sensor rolled and turned on the vehicle (as the paper rig's side HDL-32s): a tf mounting it
+    as its ScanSetup does differs by 0 deg, one pitched 2 deg more by 2; a frame not in the tree:
+    None."""
+    from negobs_gym.detector.io import ScanSetup
+    from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY
+    from negobs_gym.detector.io.tf import TransformTree, mounting_difference_deg
+
+    rotation = Rotation.from_euler("xyz", [0.3, 1.2, -0.4]).as_matrix()  # sensor to vehicle, package axes
+    setup = ScanSetup(rotation=tuple(tuple(float(v) for v in row) for row in rotation))
+    on_vehicle = Rotation.from_matrix(PACKAGE_TO_ROS_BODY @ rotation @ PACKAGE_TO_ROS_BODY.T)
+    for extra_deg in (0.0, 2.0):
+        mount = on_vehicle * Rotation.from_euler("y", extra_deg, degrees=True)
+        tree = TransformTree(
+            [], [TimedTransform(0.0, "base_link", "left", (0.0, 0.5, 2.0), tuple(mount.as_quat()))]
+        )
+        assert mounting_difference_deg(tree, "base_link", "left", setup, 0.0) == pytest.approx(
+            extra_deg, abs=1e-9
+        )
+    assert mounting_difference_deg(tree, "base_link", "velodyne", setup, 0.0) is None
+    # the same rotation read in package axes (no conversion) would not match: the check is not vacuous
+    assert np.degrees((Rotation.from_matrix(rotation).inv() * on_vehicle).magnitude()) > 5.0
