@@ -50,6 +50,17 @@ def _near_edges(record: dict) -> list[float]:
     return [min(y for _, y in ob["outline_xy_m"]) for ob in record["obstacles"]]
 
 
+def _assert_csv_poses_and_outlines(
+    records: list[dict], files: list[str], poses: Path, out: Path, atol: float
+) -> list:
+    """``records`` hold the CSV drive's poses (to ``atol``) and outlines (to 1 mm); the CSV's records."""
+    from_csv = _records(files, out, "--poses", str(poses))
+    for record, csv_record in zip(records, from_csv, strict=True):
+        np.testing.assert_allclose(record["pose"], csv_record["pose"], atol=atol)
+        np.testing.assert_allclose(_near_edges(record), _near_edges(csv_record), atol=1e-3)
+    return from_csv
+
+
 def test_poses_keep_the_pit_where_it_is_and_standing_still_loses_it(drive, tmp_path) -> None:
     files, poses = drive
     moving = _records(files, tmp_path / "moving", "--poses", str(poses))
@@ -158,10 +169,7 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     assert [r["pose"][0] for r in recorded] == pytest.approx([0.25, STEP_M + 0.25])
     assert main([*args, "--poses-topic", "/odom", "--stamps", "header"]) == 0
     from_bag = [json.loads((out / f"{k:05d}_drive_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
-    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
-    for bag_record, csv_record in zip(from_bag, from_csv, strict=True):
-        np.testing.assert_allclose(bag_record["pose"], csv_record["pose"], atol=1e-9)
-        np.testing.assert_allclose(_near_edges(bag_record), _near_edges(csv_record), atol=1e-3)
+    _assert_csv_poses_and_outlines(from_bag, files, poses, tmp_path / "csv", atol=1e-9)
     assert len(_near_edges(from_bag[3])) == 1
     assert main([*args[1:-2], "--out", str(tmp_path / "x"), "--poses-topic", "/imu"]) == 2
     assert "no topic '/imu'" in capsys.readouterr().err
@@ -216,10 +224,7 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     assert main([*args, "--out", str(out), "--tf", "map:base_link"]) == 0
     assert "deg from the --sensor" not in capsys.readouterr().err  # mounted as --sensor says
     from_tf = [json.loads((out / f"{k:05d}_tf_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
-    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
-    for tf_record, csv_record in zip(from_tf, from_csv, strict=True):
-        np.testing.assert_allclose(tf_record["pose"], csv_record["pose"], atol=1e-9)
-        np.testing.assert_allclose(_near_edges(tf_record), _near_edges(csv_record), atol=1e-3)
+    from_csv = _assert_csv_poses_and_outlines(from_tf, files, poses, tmp_path / "csv", atol=1e-9)
     # odom -> base_link alone: the drive as odometry saw it, 5 m off and turned against the map
     assert main([*args, "--out", str(tmp_path / "odom"), "--tf", "odom:base_link"]) == 0
     odom = json.loads((tmp_path / "odom" / "00001_tf_ros2_0001.json").read_text())
@@ -256,54 +261,38 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     assert "no tf topic" in capsys.readouterr().err
 
 
-def test_kitti_poses_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> None:
-    """The same drive as a KITTI sequence: camera poses and a calib.txt whose Tr is sequence 00's;
-    the vehicle's poses, the outlines and the poses recorded equal those of the CSV."""
+@pytest.mark.parametrize("kind", ["odometry", "raw"])
+def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) -> None:
+    """The same drive as a KITTI odometry sequence (camera poses and a calib.txt whose Tr is
+    sequence 00's) or a KITTI raw drive (OXTS fixes at Karlsruhe and 2011_09_26's IMU-to-Velodyne
+    calibration): the vehicle's poses and the outlines equal those of the CSV (whose first pose is
+    the origin, as the OXTS poses' is)."""
     import argparse
 
     from negobs_gym.cli.detect import scan_setup
     from negobs_gym.detector.io import read_poses_csv
-    from tests.detector.io.test_kitti import TR_00, _camera_poses, _write
+    from tests.detector.io.test_kitti import (
+        IMU_TO_VELO_0926,
+        TR_00,
+        _camera_poses,
+        _write,
+        oxts_fixes,
+        write_imu_to_velo,
+        write_oxts,
+    )
 
     files, poses = drive
     setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None))
-    _write(tmp_path / "00.txt", _camera_poses(read_poses_csv(poses), TR_00, setup))
-    calib = tmp_path / "calib.txt"
-    calib.write_text("Tr: " + " ".join(map(str, TR_00.ravel())) + "\n")
-    kitti = _records(
-        files, tmp_path / "kitti", "--kitti-poses", str(tmp_path / "00.txt"), "--kitti-calib", str(calib)
-    )
-    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
-    for k_record, csv_record in zip(kitti, from_csv, strict=True):
-        np.testing.assert_allclose(k_record["pose"], csv_record["pose"], atol=1e-6)
-        np.testing.assert_allclose(_near_edges(k_record), _near_edges(csv_record), atol=1e-3)
-    args = ["detect", files[0], "--out", str(tmp_path / "x"), "--kitti-poses", str(tmp_path / "00.txt")]
-    assert main(args) == 2
-    assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err
-
-
-def test_kitti_oxts_give_the_csvs_vehicle_poses(drive, tmp_path, capsys) -> None:
-    """The same drive as a KITTI raw drive: OXTS fixes at Karlsruhe and 2011_09_26's IMU-to-Velodyne
-    calibration; the vehicle's poses and outlines equal those of the CSV (its first pose is the
-    origin, as the OXTS poses' is)."""
-    import argparse
-
-    from negobs_gym.cli.detect import scan_setup
-    from negobs_gym.detector.io import read_poses_csv
-    from tests.detector.io.test_kitti import IMU_TO_VELO_0926, oxts_fixes, write_imu_to_velo, write_oxts
-
-    files, poses = drive
-    setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None))
-    write_oxts(tmp_path / "oxts", oxts_fixes(read_poses_csv(poses), IMU_TO_VELO_0926, setup))
-    calib = tmp_path / "calib_imu_to_velo.txt"
-    write_imu_to_velo(calib, IMU_TO_VELO_0926)
-    oxts = _records(
-        files, tmp_path / "oxts_out", "--kitti-oxts", str(tmp_path / "oxts"), "--kitti-calib", str(calib)
-    )
-    from_csv = _records(files, tmp_path / "csv", "--poses", str(poses))
-    for o_record, csv_record in zip(oxts, from_csv, strict=True):
-        np.testing.assert_allclose(o_record["pose"], csv_record["pose"], atol=1e-6)
-        np.testing.assert_allclose(_near_edges(o_record), _near_edges(csv_record), atol=1e-3)
-    args = ["detect", files[0], "--out", str(tmp_path / "x"), "--kitti-oxts", str(tmp_path / "oxts")]
-    assert main(args) == 2
+    vehicles, calib = read_poses_csv(poses), tmp_path / "calib.txt"
+    if kind == "odometry":
+        option, given = "--kitti-poses", tmp_path / "00.txt"
+        _write(given, _camera_poses(vehicles, TR_00, setup))
+        calib.write_text("Tr: " + " ".join(map(str, TR_00.ravel())) + "\n")
+    else:
+        option, given = "--kitti-oxts", tmp_path / "oxts"
+        write_oxts(given, oxts_fixes(vehicles, IMU_TO_VELO_0926, setup))
+        write_imu_to_velo(calib, IMU_TO_VELO_0926)
+    records = _records(files, tmp_path / "kitti", option, str(given), "--kitti-calib", str(calib))
+    _assert_csv_poses_and_outlines(records, files, poses, tmp_path / "csv", atol=1e-6)
+    assert main(["detect", files[0], "--out", str(tmp_path / "x"), option, str(given)]) == 2
     assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err
