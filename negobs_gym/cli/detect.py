@@ -204,7 +204,6 @@ def _frames_and_tracks(
     checked against the mounting the detector assumes."""
     from negobs_gym.detector.io import read_recording
     from negobs_gym.detector.io.bags import bag_pose_track, bag_transform_tree
-    from negobs_gym.errors import ScanError
 
     for path in args.files:
         track: PoseTrack | TransformChain | None = None
@@ -213,10 +212,7 @@ def _frames_and_tracks(
             track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)
         elif args.tf:
             tree = bag_transform_tree(path, stamps=args.stamps)
-            try:
-                track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap)
-            except ScanError as error:
-                raise ScanError(f"{path}: {error}") from error
+            track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap)
         frames = read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps)
         for k, frame in enumerate(frames):
             if tree is not None and k == 0 and frame.frame_id:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.braking_campaign import PATH_COLUMNS, SCENARIOS
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, SCENARIOS, scenario_spec
 from negobs_gym.eval.campaign import read_csv
 
 __all__ = ["draw_paths", "episode_outcome", "task_done"]
@@ -63,7 +63,6 @@ def _terrain_and_caption(row: dict[str, str], folder: Path) -> tuple[Any, str]:
     caption."""
     if _is_braking(row):
         from negobs_gym.envs.base import NegObsEnv
-        from negobs_gym.eval.braking_campaign import scenario_spec
 
         env = NegObsEnv(scenario=scenario_spec(row["scenario"], "roi", oracle=True, tighten_pairs=True))
         name = f"{row['scenario']} seed {row['seed']} {row['driver']}, {row['filter']}"

@@ -1,7 +1,7 @@
 """ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (``rosbags``, extra ``negobs_gym[real]``; no
 ROS install needed). A bag is a sequence: one frame per message of one topic, in time order. An
 odometry or pose topic of the same bag gives the drive's poses (:func:`bag_pose_track`), or its
-transform tree does (:func:`bag_transform_chain`)."""
+transform tree does (:func:`bag_transform_tree`, :func:`bag_transform_chain`)."""
 
 from __future__ import annotations
 
@@ -216,10 +216,7 @@ def bag_transform_tree(path: str | os.PathLike[str], *, stamps: str = "record") 
                 )
     finally:
         reader.close()
-    try:
-        return TransformTree(timed, static)
-    except ScanError as error:
-        raise ScanError(f"{p}: {error}") from error
+    return TransformTree(timed, static, source=os.fspath(p))
 
 
 def bag_transform_chain(
@@ -236,11 +233,7 @@ def bag_transform_chain(
     Raises:
         ScanError: as :func:`bag_transform_tree`, or a tree without a chain between the two frames.
     """
-    tree = bag_transform_tree(path, stamps=stamps)
-    try:
-        return tree.chain(fixed, body, max_gap_s=max_gap_s)
-    except ScanError as error:
-        raise ScanError(f"{Path(path)}: {error}") from error
+    return bag_transform_tree(path, stamps=stamps).chain(fixed, body, max_gap_s=max_gap_s)
 
 
 def read_bag(

@@ -110,13 +110,17 @@ def transform_chain(
 
 class TransformTree:
     """A tree of timed (``/tf``) and static (``/tf_static``, the last one published counts)
-    edges, checked once, from which chains between any two of its frames are taken.
+    edges, checked once, from which chains between any two of its frames are taken. ``source``
+    (e.g. the bag) begins every error message about the tree.
 
     Raises:
         ScanError: a frame with two parents or an edge both timed and static.
     """
 
-    def __init__(self, timed: Iterable[TimedTransform], static: Iterable[TimedTransform]) -> None:
+    def __init__(
+        self, timed: Iterable[TimedTransform], static: Iterable[TimedTransform], *, source: str = ""
+    ) -> None:
+        self._prefix = f"{source}: " if source else ""
         self._parent_of: dict[str, str] = {}
         self._samples: dict[str, list[TimedTransform]] = {}
         self._constants: dict[str, TimedTransform] = {}
@@ -125,7 +129,7 @@ class TransformTree:
                 parent, child = frame_name(tf.parent), frame_name(tf.child)
                 if self._parent_of.setdefault(child, parent) != parent:
                     raise ScanError(
-                        f"tf: frame {child!r} has two parents, {self._parent_of[child]!r} and "
+                        f"{self._prefix}tf: frame {child!r} has two parents, {self._parent_of[child]!r} and "
                         f"{parent!r} (a tf tree gives each frame one)"
                     )
                 if kind == "timed":
@@ -134,12 +138,9 @@ class TransformTree:
                     self._constants[child] = tf
         both = sorted(set(self._samples) & set(self._constants))
         if both:
-            raise ScanError(f"tf: frame {both[0]!r} is published both on /tf and /tf_static")
-
-    @property
-    def frames(self) -> list[str]:
-        """Every frame of the tree, sorted."""
-        return sorted(set(self._parent_of) | set(self._parent_of.values()))
+            raise ScanError(f"{self._prefix}tf: frame {both[0]!r} is published both on /tf and /tf_static")
+        #: Every frame of the tree, sorted.
+        self.frames: list[str] = sorted(set(self._parent_of) | set(self._parent_of.values()))
 
     def chain(self, fixed: str, body: str, *, max_gap_s: float = 0.1) -> TransformChain:
         """The chain from ``fixed`` to ``body``. A timed edge's transforms are read in time order;
@@ -153,12 +154,12 @@ class TransformTree:
         fixed, body = frame_name(fixed), frame_name(body)
         for name in (fixed, body):
             if name not in self.frames:
-                raise ScanError(f"tf: no frame {name!r} (the tree has {self.frames})")
+                raise ScanError(f"{self._prefix}tf: no frame {name!r} (the tree has {self.frames})")
         from_fixed, from_body = self._up(fixed), self._up(body)
         common = next((f for f in from_body if f in from_fixed), None)
         if common is None:
             raise ScanError(
-                f"tf: no chain from {fixed!r} to {body!r}: they lie in separate trees "
+                f"{self._prefix}tf: no chain from {fixed!r} to {body!r}: they lie in separate trees "
                 f"(roots {from_fixed[-1]!r} and {from_body[-1]!r})"
             )
         ups = [self._link(f, True, max_gap_s) for f in from_fixed[: from_fixed.index(common)]]
@@ -171,7 +172,7 @@ class TransformTree:
         while path[-1] in self._parent_of:
             path.append(self._parent_of[path[-1]])
             if path[-1] in path[:-1]:
-                raise ScanError(f"tf: the frames {path[path.index(path[-1]) :]} form a loop")
+                raise ScanError(f"{self._prefix}tf: the frames {path[path.index(path[-1]) :]} form a loop")
         return path
 
     def _link(self, child: str, inverted: bool, max_gap_s: float) -> _Link:
@@ -182,9 +183,9 @@ class TransformTree:
             position = np.asarray(tf.position_m, dtype=np.float64)
             quaternion = np.asarray(tf.quaternion_xyzw, dtype=np.float64)
             if not (np.isfinite(position).all() and np.isfinite(quaternion).all()):
-                raise ScanError(f"tf {name}: a position or quaternion is not finite")
+                raise ScanError(f"{self._prefix}tf {name}: a position or quaternion is not finite")
             if np.linalg.norm(quaternion) < 1e-9:
-                raise ScanError(f"tf {name}: the quaternion has zero length")
+                raise ScanError(f"{self._prefix}tf {name}: the quaternion has zero length")
             return _Link(name, None, (position, Rotation.from_quat(quaternion)), inverted)
         ordered = sorted(self._samples[child], key=lambda s: s.time_s)  # stable: the later one last
         times = np.array([s.time_s for s in ordered])
@@ -197,7 +198,7 @@ class TransformTree:
                 max_gap_s=max_gap_s,
             )
         except ScanError as error:
-            raise ScanError(f"tf {name}: {error}") from error
+            raise ScanError(f"{self._prefix}tf {name}: {error}") from error
         return _Link(name, track, None, inverted)
 
 
@@ -206,10 +207,12 @@ def mounting_difference_deg(
 ) -> float | None:
     """The angle [deg] between the sensor's orientation on the vehicle by the tree (the chain from
     ``body`` to the cloud's frame ``sensor`` at ``time_s``) and by ``setup.rotation`` (what the
-    detector assumes); None when ``sensor`` is not in the tree. A pitched or rolled sensor the
-    setup takes as upright puts the detector's ground where it is not."""
-    if frame_name(sensor) not in tree.frames:
+    detector assumes); None when the tree cannot say (``sensor`` is not in it, or not in
+    ``body``'s tree, or a timed edge between them does not reach ``time_s``). A pitched or rolled
+    sensor the setup takes as upright puts the detector's ground where it is not."""
+    try:
+        _, on_vehicle = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
+    except ScanError:  # an advisory check: what the tree does not hold is no answer
         return None
-    _, on_vehicle = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
     assumed = PACKAGE_TO_ROS_BODY @ np.asarray(setup.rotation, dtype=np.float64) @ PACKAGE_TO_ROS_BODY.T
     return float(np.degrees((on_vehicle.inv() * Rotation.from_matrix(assumed)).magnitude()))

@@ -254,5 +254,18 @@ def test_mounting_difference_reads_the_setup_in_ros_axes() -> None:
             extra_deg, abs=1e-9
         )
     assert mounting_difference_deg(tree, "base_link", "velodyne", setup, 0.0) is None
+    # the cloud's frame in another tree, or mounted by a timed edge that does not reach the time:
+    # the tree cannot say, which is no answer (the check is advisory), not an error
+    apart = TransformTree(
+        [],
+        [
+            TimedTransform(0.0, "rig", "left", (0, 0, 0), IDENTITY),
+            TimedTransform(0.0, "odom", "base_link", (0, 0, 0), IDENTITY),
+        ],
+    )
+    assert mounting_difference_deg(apart, "base_link", "left", setup, 0.0) is None
+    timed = TransformTree([TimedTransform(5.0, "base_link", "left", (0, 0, 0), tuple(mount.as_quat()))], [])
+    assert mounting_difference_deg(timed, "base_link", "left", setup, 0.0) is None
+    assert mounting_difference_deg(timed, "base_link", "left", setup, 5.0) == pytest.approx(2.0, abs=1e-9)
     # the same rotation read in package axes (no conversion) would not match: the check is not vacuous
     assert np.degrees((Rotation.from_matrix(rotation).inv() * on_vehicle).magnitude()) > 5.0
