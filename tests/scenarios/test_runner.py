@@ -49,7 +49,7 @@ min_stop_margin_m = 0.5
 def runs() -> dict[bool, list[ScenarioResult]]:
     spec = spec_from_toml(PIT_SCENE)
     return {
-        f: [run_scenario(spec, RecklessDriver(), filter=f, seed=s) for s in range(5)] for f in (False, True)
+        f: [run_scenario(spec, RecklessDriver(), filter=f, seed=s) for s in range(3)] for f in (False, True)
     }
 
 
@@ -63,7 +63,7 @@ def test_reckless_driver_enters_the_pit_without_the_filter(runs) -> None:
 
 def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
     starts = {round(r.start_gap_m, 6) for r in runs[True]}
-    assert len(starts) == 5  # the station is drawn per seed
+    assert len(starts) == 3  # the station is drawn per seed
     for r, plain in zip(runs[True], runs[False], strict=True):
         assert r.start_gap_m == plain.start_gap_m  # same seed, same pit
         assert not r.entered_negative_obstacle and r.stopped_before
@@ -144,10 +144,10 @@ def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) ->
     assert not (tmp_path / "x.png").exists()
 
 
-def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(tmp_path) -> None:
+def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(runs, tmp_path) -> None:
     spec = spec_from_toml(PIT_SCENE)
-    serial = list(run_scenario_seeds(spec, "reckless", [1, 0], filter=True))
-    assert [r.seed for r in serial] == [1, 0]
+    # run_scenario in this process, seeds 1 and 0 (its driver named by its class, not "reckless")
+    serial = [dataclasses.replace(runs[True][k], driver="reckless") for k in (1, 0)]
     spread = list(run_scenario_seeds(spec, "reckless", [1, 0], filter=True, workers=2, draw_dir=tmp_path))
     assert spread == serial  # every field, the path included: a seed's episode is the seed's alone
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(2)]
