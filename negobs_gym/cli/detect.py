@@ -13,6 +13,7 @@ is written atomically.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import math
@@ -35,6 +36,9 @@ log = logging.getLogger(__name__)
 #: ``--tf``: warn when the tree mounts the cloud's frame turned by more than this from the
 #: ``--sensor`` mounting (the detector's ground and features assume that mounting) [deg]
 MOUNT_TOLERANCE_DEG = 1.0
+#: ``--mount-from-tf``: warn when the tree's mounting is turned by more than this from the
+#: ``--sensor`` one, i.e. belongs to the other detector path (upright §3.1 or rolled 90 deg §3.2) [deg]
+PATH_TOLERANCE_DEG = 30.0
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "map -> odom at 1 Hz may need 1)",
     )
     parser.add_argument(
+        "--mount-from-tf",
+        action="store_true",
+        help="with --tf: take the sensor's mounting (rotation and position on the vehicle) from the "
+        "tree's chain from BODY to the clouds' frame_id at each bag's first cloud, instead of "
+        "--sensor's and --height; --sensor still picks the sensor model and detector path",
+    )
+    parser.add_argument(
+        "--body-height",
+        type=non_negative_float,
+        default=0.0,
+        metavar="M",
+        help="with --tf: BODY's origin above the ground [m]; the vehicle's pose and frame are taken "
+        "that far below BODY (default: %(default)s, BODY on the ground as base_footprint; "
+        "base_link usually sits at the rear axle)",
+    )
+    parser.add_argument(
         "--tighten-pairs",
         action="store_true",
         help="move a fused pair's near edge to the closer frames' (FusionConfig.tighten_on_match; "
@@ -212,33 +232,95 @@ def _frames_and_tracks(
             track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)
         elif args.tf:
             tree = bag_transform_tree(path, stamps=args.stamps)
-            track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap)
+            track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap, body_height_m=args.body_height)
         frames = read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps)
+        mounting: tuple[np.ndarray, np.ndarray] | None = None
         for k, frame in enumerate(frames):
-            if tree is not None and k == 0 and frame.frame_id:
-                _check_mounting(tree, args.tf[1], frame, setup, args.max_pose_gap)
+            if tree is not None and k == 0:
+                if args.mount_from_tf:
+                    mounting = _tf_mounting(tree, args, frame)
+                if frame.frame_id:
+                    _check_mounting(tree, args.tf[1], frame, setup, args)
+            if mounting is not None:
+                scan = dataclasses.replace(frame.scan, rotation=mounting[0], translation_m=mounting[1])
+                frame = dataclasses.replace(frame, scan=scan)
             yield frame, track
 
 
+def _tf_mounting(
+    tree: TransformTree, args: argparse.Namespace, frame: RecordedFrame
+) -> tuple[np.ndarray, np.ndarray]:
+    """``--mount-from-tf``: the mounting of the bag's clouds on the vehicle at its first cloud."""
+    from negobs_gym.detector.io.tf import sensor_mounting
+    from negobs_gym.errors import ScanError
+
+    if not frame.frame_id:
+        raise ScanError(f"{frame.source}: the clouds name no frame_id, so --mount-from-tf cannot find them")
+    try:
+        rotation, translation = sensor_mounting(
+            tree,
+            args.tf[1],
+            frame.frame_id,
+            frame.scan.timestamp_s,
+            body_height_m=args.body_height,
+            max_gap_s=args.max_pose_gap,
+        )
+    except ScanError as error:
+        raise ScanError(f"--mount-from-tf: {error}") from error
+    log.info(
+        "%s: the clouds' frame %s is mounted at %s m (vehicle X right, Y forward, Z up) by the bag's tf",
+        frame.source,
+        frame.frame_id,
+        np.round(translation, 3).tolist(),
+    )
+    return rotation, translation
+
+
 def _check_mounting(
-    tree: TransformTree, body: str, frame: RecordedFrame, setup: ScanSetup, max_gap_s: float
+    tree: TransformTree, body: str, frame: RecordedFrame, setup: ScanSetup, args: argparse.Namespace
 ) -> None:
-    """Warn when the bag's tf mounts the cloud's frame on ``body`` turned by more than
-    :data:`MOUNT_TOLERANCE_DEG` from the ``--sensor`` mounting the detector assumes."""
+    """Warn when the bag's tf mounts the cloud's frame on ``body`` turned from the ``--sensor``
+    mounting: by more than :data:`MOUNT_TOLERANCE_DEG` where the detector assumes that mounting,
+    by more than :data:`PATH_TOLERANCE_DEG` where it takes the tf's (``--mount-from-tf``), as the
+    ``--sensor`` path then reads a sensor mounted as the other path expects."""
     from negobs_gym.detector.io.tf import mounting_difference_deg
 
     time_s = frame.scan.timestamp_s
-    angle = mounting_difference_deg(tree, body, frame.frame_id, setup, time_s, max_gap_s=max_gap_s)
-    if angle is not None and angle > MOUNT_TOLERANCE_DEG:
+    angle = mounting_difference_deg(tree, body, frame.frame_id, setup, time_s, max_gap_s=args.max_pose_gap)
+    if angle is None:
+        return
+    if not args.mount_from_tf and angle > MOUNT_TOLERANCE_DEG:
         log.warning(
             "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s "
-            "mounting the detector assumes; its ground and features will be off",
+            "mounting the detector assumes; its ground and features will be off (--mount-from-tf "
+            "takes the tf's)",
             frame.source,
             body,
             frame.frame_id,
             angle,
             setup.sensor,
         )
+    elif args.mount_from_tf and angle > PATH_TOLERANCE_DEG:
+        log.warning(
+            "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s "
+            "mounting, whose detector path (upright or rolled) then reads it; pick the --sensor "
+            "mounted nearest",
+            frame.source,
+            body,
+            frame.frame_id,
+            angle,
+            setup.sensor,
+        )
+
+
+def _check_tf_options(args: argparse.Namespace) -> None:
+    """``--mount-from-tf`` and ``--body-height`` need ``--tf``; ``--height`` is the tree's then."""
+    from negobs_gym.errors import ScanError
+
+    if args.tf is None and (args.mount_from_tf or args.body_height):
+        raise ScanError("--mount-from-tf and --body-height go with --tf FIXED:BODY")
+    if args.mount_from_tf and args.height is not None:
+        raise ScanError("--height and --mount-from-tf both set the sensor's height: give one")
 
 
 def scan_setup(args: argparse.Namespace) -> ScanSetup:
@@ -273,6 +355,7 @@ def run(args: argparse.Namespace) -> int:
     from negobs_gym.detector.io import read_poses_csv
     from negobs_gym.errors import ScanError
 
+    _check_tf_options(args)
     setup = scan_setup(args)
     out = Path(args.out)
     poses = read_poses_csv(args.poses) if args.poses else None

@@ -40,6 +40,10 @@ def detection_record(
         "timestamp_s": frame.scan.timestamp_s,
         "sensor": sensor,
         "height_m": float(frame.scan.translation_m[2]),
+        "mounting": {  # paper N Eq. 9: sensor-to-vehicle rotation R and translation T
+            "rotation": np.asarray(frame.scan.rotation, dtype=np.float64).tolist(),
+            "translation_m": np.asarray(frame.scan.translation_m, dtype=np.float64).tolist(),
+        },
         "ring_source": frame.ring_source,
         "n_points": frame.n_points,
         "scan_shape": list(frame.scan.shape),

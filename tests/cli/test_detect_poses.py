@@ -11,9 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from negobs_gym.cli import main
-from negobs_gym.detector.synthetic import Hole, hdl64_scan
+from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, hdl64_scan, synthetic_scan
 
 NEAR_M, LENGTH_M, STEP_M, FRAMES = 12.0, 1.5, 1.0, 4
 RING_GAP_M = 0.6  # a pair's A is the last ground return before the pit: up to a ring gap early
@@ -25,19 +27,26 @@ def drive(tmp_path_factory) -> tuple[list[str], Path]:
     folder = tmp_path_factory.mktemp("drive")
     files = []
     for k in range(FRAMES):
-        near = NEAR_M - k * STEP_M
-        scan = hdl64_scan([Hole(x0_m=-1.5, x1_m=1.5, y0_m=near, y1_m=near + LENGTH_M, depth_m=1.0)])
-        valid = scan.valid
-        p = scan.points_sensor[valid]  # X right, Y forward -> ROS x forward, y left
-        ring = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[valid]
-        cloud = np.column_stack([p[:, 1], -p[:, 0], p[:, 2], np.zeros(len(p)), ring]).astype(np.float32)
-        path = folder / f"f{k}.bin"
-        cloud.tofile(path)
-        files.append(str(path))
+        files.append(_write_bin(hdl64_scan([_pit(k)]), folder / f"f{k}.bin"))
     poses = folder / "poses.csv"
     rows = [f"{k * 0.1:.1f},{k * STEP_M},0,0,0,0,0" for k in range(FRAMES)]
     poses.write_text("timestamp,x,y,z,roll,pitch,yaw\n" + "\n".join(rows) + "\n")
     return files, poses
+
+
+def _pit(frame: int) -> Hole:
+    """The pit in the vehicle frame at ``frame``: NEAR_M ahead at the first, STEP_M nearer each."""
+    near = NEAR_M - frame * STEP_M
+    return Hole(x0_m=-1.5, x1_m=1.5, y0_m=near, y1_m=near + LENGTH_M, depth_m=1.0)
+
+
+def _write_bin(scan: StructuredScan, path: Path) -> str:
+    """``scan``'s returns as a .bin file in the ROS sensor frame (x, y, z, intensity, ring)."""
+    valid = scan.valid
+    p = scan.points_sensor[valid]  # X right, Y forward -> ROS x forward, y left
+    ring = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[valid]
+    np.column_stack([p[:, 1], -p[:, 0], p[:, 2], np.zeros(len(p)), ring]).astype(np.float32).tofile(path)
+    return str(path)
 
 
 def _records(files: list[str], out: Path, *extra: str) -> list[dict]:
@@ -98,6 +107,7 @@ START_NS, PERIOD_NS = 10**9, 10**8  # clouds at 10 Hz from t = 1 s
 # the recorder receives clouds 30 ms and poses 5 ms after their header stamps
 CLOUD_LATENCY_NS, POSE_LATENCY_NS = 30 * 10**6, 5 * 10**6
 POSE_STAMPS_NS = [START_NS + j * PERIOD_NS // 5 for j in range(-2, 5 * (FRAMES - 1) + 3)]  # 50 Hz
+MAP_ODOM = (np.array([5.0, 0.0, 0.0]), Rotation.from_euler("z", 90, degrees=True))  # a localiser's
 
 
 def _stamp(store, stamp_ns: int):
@@ -177,46 +187,52 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     assert "not a readable ROS bag" in capsys.readouterr().err
 
 
+def _write_tf_tree(
+    writer, store, mount, map_odom, *, localiser: bool = False, sensor_frame: str = "velodyne"
+) -> None:
+    """The drive as a tf tree: ``map -> odom`` (static, or with ``localiser`` one 1 Hz correction
+    on /tf at the first cloud), ``odom -> base_link`` at 50 Hz on /tf, and the mounting
+    ``base_link -> sensor_frame`` (position, Rotation; ROS axes) on /tf_static."""
+    t = store.types
+
+    def stamped(stamp_ns: int, parent: str, child: str, position, rotation):
+        x, y, z = (float(v) for v in position)
+        qx, qy, qz, qw = (float(v) for v in rotation.as_quat())
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=t["std_msgs/msg/Header"](stamp=_stamp(store, stamp_ns), frame_id=parent),
+            child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
+                rotation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+            ),
+        )
+
+    def write(connection, record_ns: int, transforms) -> None:
+        msg = t["tf2_msgs/msg/TFMessage"](transforms=transforms)
+        writer.write(connection, record_ns, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+
+    static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+    dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+    write(static, START_NS - PERIOD_NS, [stamped(0, "base_link", sensor_frame, *mount)])
+    if not localiser:
+        write(static, START_NS - PERIOD_NS, [stamped(0, "map", "odom", *map_odom)])
+    else:
+        write(dynamic, START_NS + POSE_LATENCY_NS, [stamped(START_NS, "map", "odom", *map_odom)])
+    to_odom = map_odom[1].inv()
+    for stamp in POSE_STAMPS_NS:  # odom -> base_link = (map -> odom)^-1 * (the CSV's pose in map)
+        position = to_odom.apply(np.array([_driven_x(stamp), 0.0, 0.0]) - map_odom[0])
+        write(dynamic, stamp + POSE_LATENCY_NS, [stamped(stamp, "odom", "base_link", position, to_odom)])
+
+
 def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None:
     """The drive's poses as a tf tree: a localiser's static map -> odom (5 m off, turned 90 deg),
     wheel odometry odom -> base_link at 50 Hz on /tf, the sensor's mounting below base_link; the
     chain map -> base_link gives the CSV's poses and outlines."""
-    from scipy.spatial.transform import Rotation
-
     files, poses = drive
-    map_odom = (np.array([5.0, 0.0, 0.0]), Rotation.from_euler("z", 90, degrees=True))
 
     def tf_tree(writer, store, localiser: bool = False, mount_pitch_deg: float = 0.0) -> None:
-        t = store.types
-
-        def stamped(stamp_ns: int, parent: str, child: str, position, rotation):
-            x, y, z = (float(v) for v in position)
-            qx, qy, qz, qw = (float(v) for v in rotation.as_quat())
-            return t["geometry_msgs/msg/TransformStamped"](
-                header=t["std_msgs/msg/Header"](stamp=_stamp(store, stamp_ns), frame_id=parent),
-                child_frame_id=child,
-                transform=t["geometry_msgs/msg/Transform"](
-                    translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
-                    rotation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
-                ),
-            )
-
-        def write(connection, record_ns: int, transforms) -> None:
-            msg = t["tf2_msgs/msg/TFMessage"](transforms=transforms)
-            writer.write(connection, record_ns, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
-
-        static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
-        dynamic = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
         mount = (np.array([0.0, 0.0, 2.2]), Rotation.from_euler("y", mount_pitch_deg, degrees=True))
-        write(static, START_NS - PERIOD_NS, [stamped(0, "base_link", "velodyne", *mount)])
-        if not localiser:
-            write(static, START_NS - PERIOD_NS, [stamped(0, "map", "odom", *map_odom)])
-        else:  # a 1 Hz correction on /tf at the first cloud's stamp: the next comes after the drive
-            write(dynamic, START_NS + POSE_LATENCY_NS, [stamped(START_NS, "map", "odom", *map_odom)])
-        to_odom = map_odom[1].inv()
-        for stamp in POSE_STAMPS_NS:  # odom -> base_link = (map -> odom)^-1 * (the CSV's pose in map)
-            position = to_odom.apply(np.array([_driven_x(stamp), 0.0, 0.0]) - map_odom[0])
-            write(dynamic, stamp + POSE_LATENCY_NS, [stamped(stamp, "odom", "base_link", position, to_odom)])
+        _write_tf_tree(writer, store, mount, MAP_ODOM, localiser=localiser)
 
     bag = _drive_bag(tmp_path / "tf_ros2", files, tf_tree)
     out = tmp_path / "bag"
@@ -259,6 +275,70 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     no_tf = _drive_bag(tmp_path / "points_only", files, lambda writer, store: None)
     assert main(["detect", str(no_tf), "--out", str(tmp_path / "z"), "--tf", "odom:base_link"]) == 2
     assert "no tf topic" in capsys.readouterr().err
+
+
+def test_mount_from_tf_puts_the_sensor_where_the_tree_mounts_it(drive, tmp_path, capsys) -> None:
+    """The roof sensor 1 m ahead of base_link and 1.5 m above it, pitched 3 deg nose down, with
+    base_link 0.4 m above the ground: ``--mount-from-tf --body-height 0.4`` reads it where it is
+    and finds the pit where it is; ``--sensor``'s upright mounting at the vehicle origin does not."""
+    files, poses = drive
+    pitched = Rotation.from_euler("x", -3, degrees=True).as_matrix()  # this package's axes: nose down
+    azimuth = np.linspace(-np.pi, np.pi, 4000, endpoint=False)
+    elevation = np.radians(np.sort(HDL64_ELEVATION_DEG))
+    mounted = [
+        _write_bin(
+            synthetic_scan("hdl64", elevation, azimuth, pitched, np.array([0.0, 1.0, 1.9]), [_pit(k)]),
+            tmp_path / f"m{k}.bin",
+        )
+        for k in range(FRAMES)
+    ]
+    mount = (np.array([1.0, 0.0, 1.5]), Rotation.from_euler("y", 3, degrees=True))  # ROS: x forward
+    bag = _drive_bag(tmp_path / "mounted", mounted, lambda w, st: _write_tf_tree(w, st, mount, MAP_ODOM))
+    args = ["-q", "detect", str(bag), "--no-png", "--stamps", "header", "--tf", "map:base_link"]
+
+    def records(out: str, *extra: str) -> list[dict]:
+        assert main([*args, "--out", str(tmp_path / out), *extra]) == 0
+        return [
+            json.loads((tmp_path / out / f"{k:05d}_mounted_{k:04d}.json").read_text()) for k in range(FRAMES)
+        ]
+
+    from_tf = records("tf", "--mount-from-tf", "--body-height", "0.4")
+    assert "deg from the --sensor" not in capsys.readouterr().err
+    assert from_tf[0]["height_m"] == pytest.approx(1.9)
+    np.testing.assert_allclose(from_tf[0]["mounting"]["translation_m"], [0.0, 1.0, 1.9], atol=1e-9)
+    forward = np.asarray(from_tf[0]["mounting"]["rotation"]) @ [0.0, 1.0, 0.0]  # the sensor's +Y
+    np.testing.assert_allclose(forward, [0.0, np.cos(np.radians(3)), -np.sin(np.radians(3))], atol=1e-9)
+    # the vehicle's pose is base_link's 0.4 m lower: the CSV's, z = -0.4
+    csv_poses = [r["pose"] for r in _records(files, tmp_path / "csv", "--poses", str(poses))]
+    np.testing.assert_allclose(
+        [r["pose"] for r in from_tf], np.add(csv_poses, [0, 0, -0.4, 0, 0, 0]), atol=1e-9
+    )
+    assumed = records("assumed", "--height", "1.9")  # the --sensor mounting: upright at the origin
+    assert "turns the cloud's frame 3.0 deg from the --sensor hdl64" in capsys.readouterr().err
+    for k in (2, 3):
+        near = NEAR_M - k * STEP_M
+        (edge,) = _near_edges(from_tf[k])
+        assert near - RING_GAP_M <= edge <= near + LENGTH_M, (k, edge)
+        assert all(e < near - RING_GAP_M for e in _near_edges(assumed[k])), (k, _near_edges(assumed[k]))
+    # the options' own rules, and a tree that does not mount the clouds' frame
+    assert main([*args, "--out", str(tmp_path / "bad"), "--height", "1.9", "--mount-from-tf"]) == 2
+    assert "--height and --mount-from-tf" in capsys.readouterr().err
+    assert main(["detect", *files, "--out", str(tmp_path / "bad"), "--body-height", "0.4"]) == 2
+    assert "go with --tf FIXED:BODY" in capsys.readouterr().err
+    imu_only = _drive_bag(
+        tmp_path / "imu_only",
+        mounted,
+        lambda w, st: _write_tf_tree(w, st, mount, MAP_ODOM, sensor_frame="imu"),
+    )
+    assert main([*args[:2], str(imu_only), *args[3:], "--out", str(tmp_path / "bad"), "--mount-from-tf"]) == 2
+    assert "--mount-from-tf: " in (err := capsys.readouterr().err) and "no frame 'velodyne'" in err
+    # a tf that rolls the sensor 90 deg (a side mount) read through --sensor hdl64's upright path
+    rolled = (mount[0], Rotation.from_euler("x", 90, degrees=True))
+    side = _drive_bag(tmp_path / "side", mounted[:1], lambda w, st: _write_tf_tree(w, st, rolled, MAP_ODOM))
+    assert (
+        main([*args[:2], str(side), *args[3:], "--out", str(tmp_path / "side_out"), "--mount-from-tf"]) == 0
+    )
+    assert "turns the cloud's frame 90.0 deg from the --sensor hdl64 mounting" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("kind", ["odometry", "raw"])

@@ -21,7 +21,14 @@ from negobs_gym.detector.io.poses import PoseTrack, pose_from_ros_transform
 from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY, ScanSetup
 from negobs_gym.errors import ScanError
 
-__all__ = ["TimedTransform", "TransformChain", "TransformTree", "mounting_difference_deg", "transform_chain"]
+__all__ = [
+    "TimedTransform",
+    "TransformChain",
+    "TransformTree",
+    "mounting_difference_deg",
+    "sensor_mounting",
+    "transform_chain",
+]
 
 
 @dataclass(frozen=True)
@@ -62,11 +69,14 @@ class _Link:
 @dataclass(frozen=True, eq=False)
 class TransformChain:
     """Where the ``body`` frame is in the ``fixed`` frame at any time: the tree's edges between
-    them composed (up from ``fixed`` to their common ancestor inverted, then down to ``body``)."""
+    them composed (up from ``fixed`` to their common ancestor inverted, then down to ``body``).
+    With ``body_height_m`` > 0 the chain ends that far below ``body`` along its z axis: the
+    vehicle's ground point under a ``base_link`` that sits at the axle."""
 
     fixed: str
     body: str
     links: tuple[_Link, ...]
+    body_height_m: float = 0.0
 
     def transform_at(self, time_s: float) -> tuple[np.ndarray, Rotation]:
         """The ROS body-to-fixed transform (position, rotation) at ``time_s``.
@@ -78,6 +88,8 @@ class TransformChain:
         for link in self.links:
             p, r = link.transform_at(time_s)
             position, rotation = position + rotation.apply(p), rotation * r
+        if self.body_height_m:
+            position = position - rotation.apply([0.0, 0.0, self.body_height_m])
         return position, rotation
 
     def at(self, time_s: float) -> Pose:
@@ -142,10 +154,13 @@ class TransformTree:
         #: Every frame of the tree, sorted.
         self.frames: list[str] = sorted(set(self._parent_of) | set(self._parent_of.values()))
 
-    def chain(self, fixed: str, body: str, *, max_gap_s: float = 0.1) -> TransformChain:
-        """The chain from ``fixed`` to ``body``. A timed edge's transforms are read in time order;
-        two at the same time keep the later published. ``max_gap_s`` is how far outside a timed
-        edge's span a frame may lie and take its first or last transform.
+    def chain(
+        self, fixed: str, body: str, *, max_gap_s: float = 0.1, body_height_m: float = 0.0
+    ) -> TransformChain:
+        """The chain from ``fixed`` to ``body`` (ending ``body_height_m`` below it,
+        :class:`TransformChain`). A timed edge's transforms are read in time order; two at the
+        same time keep the later published. ``max_gap_s`` is how far outside a timed edge's span a
+        frame may lie and take its first or last transform.
 
         Raises:
             ScanError: a frame that is not in the tree, a loop, or no chain between the two
@@ -164,7 +179,7 @@ class TransformTree:
             )
         ups = [self._link(f, True, max_gap_s) for f in from_fixed[: from_fixed.index(common)]]
         downs = [self._link(f, False, max_gap_s) for f in reversed(from_body[: from_body.index(common)])]
-        return TransformChain(fixed, body, tuple(ups + downs))
+        return TransformChain(fixed, body, tuple(ups + downs), body_height_m)
 
     def _up(self, frame: str) -> list[str]:
         """``frame`` and its ancestors up to the root."""
@@ -202,17 +217,41 @@ class TransformTree:
         return _Link(name, track, None, inverted)
 
 
+def sensor_mounting(
+    tree: TransformTree,
+    body: str,
+    sensor: str,
+    time_s: float,
+    *,
+    body_height_m: float = 0.0,
+    max_gap_s: float = 0.1,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor's mounting on the vehicle as the tree has it (the chain from ``body`` to the
+    cloud's frame ``sensor`` at ``time_s``): paper N Eq. 9's rotation ``R`` (3, 3) and translation
+    ``T`` (3,) in this package's vehicle frame (X right, Y forward, Z up), the vehicle's origin
+    ``body_height_m`` below ``body``'s (0 for a frame on the ground such as ``base_footprint``), so
+    ``T[2]`` is the sensor's height above the ground.
+
+    Raises:
+        ScanError: ``sensor`` is not in the tree, or not in ``body``'s, or a timed edge between
+            them does not reach ``time_s``.
+    """
+    position, rotation = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
+    to_ros = PACKAGE_TO_ROS_BODY
+    return to_ros.T @ rotation.as_matrix() @ to_ros, to_ros.T @ position + np.array([0.0, 0.0, body_height_m])
+
+
 def mounting_difference_deg(
     tree: TransformTree, body: str, sensor: str, setup: ScanSetup, time_s: float, *, max_gap_s: float = 0.1
 ) -> float | None:
-    """The angle [deg] between the sensor's orientation on the vehicle by the tree (the chain from
-    ``body`` to the cloud's frame ``sensor`` at ``time_s``) and by ``setup.rotation`` (what the
-    detector assumes); None when the tree cannot say (``sensor`` is not in it, or not in
-    ``body``'s tree, or a timed edge between them does not reach ``time_s``). A pitched or rolled
-    sensor the setup takes as upright puts the detector's ground where it is not."""
+    """The angle [deg] between the sensor's orientation on the vehicle by the tree
+    (:func:`sensor_mounting`) and by ``setup.rotation`` (what the detector assumes); None when the
+    tree cannot say (``sensor`` is not in it, or not in ``body``'s tree, or a timed edge between
+    them does not reach ``time_s``). A pitched or rolled sensor the setup takes as upright puts the
+    detector's ground where it is not."""
     try:
-        _, on_vehicle = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
+        on_vehicle, _ = sensor_mounting(tree, body, sensor, time_s, max_gap_s=max_gap_s)
     except ScanError:  # an advisory check: what the tree does not hold is no answer
         return None
-    assumed = PACKAGE_TO_ROS_BODY @ np.asarray(setup.rotation, dtype=np.float64) @ PACKAGE_TO_ROS_BODY.T
-    return float(np.degrees((on_vehicle.inv() * Rotation.from_matrix(assumed)).magnitude()))
+    turn = on_vehicle.T @ np.asarray(setup.rotation, dtype=np.float64)
+    return float(np.degrees(Rotation.from_matrix(turn).magnitude()))

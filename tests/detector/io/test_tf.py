@@ -269,3 +269,36 @@ def test_mounting_difference_reads_the_setup_in_ros_axes() -> None:
     assert mounting_difference_deg(timed, "base_link", "left", setup, 5.0) == pytest.approx(2.0, abs=1e-9)
     # the same rotation read in package axes (no conversion) would not match: the check is not vacuous
     assert np.degrees((Rotation.from_matrix(rotation).inv() * on_vehicle).magnitude()) > 5.0
+
+
+def test_sensor_mounting_is_the_setup_a_rig_mount_would_give() -> None:
+    """The paper rig's left HDL-32 (rolled 90 deg, 0.9 m off the centre line) written as a tf
+    mounting below a base_link 0.35 m above the ground reads back as that mount's R and T."""
+    from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY as TO_ROS
+    from negobs_gym.detector.io.tf import TransformTree, sensor_mounting
+    from negobs_gym.sensors.rigs import paper_n_rig
+
+    mount = next(m for m in paper_n_rig().mounts if m.name == "hdl32_left")
+    rotation, translation = np.asarray(mount.rotation_matrix), np.asarray(mount.translation_m)
+    quaternion = Rotation.from_matrix(TO_ROS @ rotation @ TO_ROS.T).as_quat()
+    position = TO_ROS @ (translation - [0.0, 0.0, 0.35])
+    tree = TransformTree([], [TimedTransform(0.0, "base_link", "left", tuple(position), tuple(quaternion))])
+    got_rotation, got_translation = sensor_mounting(tree, "base_link", "left", 0.0, body_height_m=0.35)
+    np.testing.assert_allclose(got_rotation, rotation, atol=1e-12)
+    np.testing.assert_allclose(got_translation, translation, atol=1e-12)
+    with pytest.raises(ScanError, match="no frame 'right'"):
+        sensor_mounting(tree, "base_link", "right", 0.0)
+
+
+def test_a_body_height_lowers_the_chain_along_the_body_s_up_axis() -> None:
+    """base_link 1 m up, pitched 10 deg nose down: the ground point 0.5 m below it lies behind."""
+    from negobs_gym.detector.io.tf import TransformTree
+
+    pitch = Rotation.from_euler("y", 10, degrees=True)
+    tree = TransformTree(
+        [], [TimedTransform(0.0, "odom", "base_link", (5.0, 0.0, 1.0), tuple(pitch.as_quat()))]
+    )
+    position, rotation = tree.chain("odom", "base_link", body_height_m=0.5).transform_at(0.0)
+    s, c = math.sin(math.radians(10)), math.cos(math.radians(10))
+    np.testing.assert_allclose(position, [5.0 - 0.5 * s, 0.0, 1.0 - 0.5 * c], atol=1e-12)
+    assert (rotation * pitch.inv()).magnitude() < 1e-12
