@@ -85,11 +85,13 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     shipped = Path(negobs_gym.__file__).parent / "scenarios" / "scenes" / "braking_v0.toml"
     scene.write_text(shipped.read_text() + '\n[observation]\npositive_detector = "structure"\n')
     toml_run = ["eval", "policy", str(path), "--env", str(scene), "--seeds", "1", "--filter", "both"]
+    toml_run += ["--set", "episode.time_limit_s=1"]  # what is checked here needs no whole episode
     assert (
         main(["-q", *toml_run, "--stop-for-positive", "--out", str(tmp_path / "toml"), "--no-progress"]) == 0
     )
     lines = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in lines] == [f"{scene}/nofilter", f"{scene}/filter_positive"]
+    label = f"{scene}[episode.time_limit_s=1]"
+    assert [line.split()[0] for line in lines] == [f"{label}/nofilter", f"{label}/filter_positive"]
     labels = [r.split(",")[2] for r in (tmp_path / "toml" / "policy.csv").read_text().splitlines()[1:]]
     assert sorted(labels) == ["filter_positive", "nofilter"]
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
