@@ -287,30 +287,26 @@ def _check_mounting(
 
     time_s = frame.scan.timestamp_s
     angle = mounting_difference_deg(tree, body, frame.frame_id, setup, time_s, max_gap_s=args.max_pose_gap)
-    if angle is None:
+    if angle is None or angle <= (PATH_TOLERANCE_DEG if args.mount_from_tf else MOUNT_TOLERANCE_DEG):
         return
-    if not args.mount_from_tf and angle > MOUNT_TOLERANCE_DEG:
-        log.warning(
-            "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s "
-            "mounting the detector assumes; its ground and features will be off (--mount-from-tf "
-            "takes the tf's)",
-            frame.source,
-            body,
-            frame.frame_id,
-            angle,
-            setup.sensor,
+    if args.mount_from_tf:
+        consequence = (
+            "mounting, whose detector path (upright or rolled) reads it; pick the --sensor mounted nearest"
         )
-    elif args.mount_from_tf and angle > PATH_TOLERANCE_DEG:
-        log.warning(
-            "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s "
-            "mounting, whose detector path (upright or rolled) then reads it; pick the --sensor "
-            "mounted nearest",
-            frame.source,
-            body,
-            frame.frame_id,
-            angle,
-            setup.sensor,
+    else:
+        consequence = (
+            "mounting the detector assumes; its ground and features will be off "
+            "(--mount-from-tf takes the tf's)"
         )
+    log.warning(
+        "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s %s",
+        frame.source,
+        body,
+        frame.frame_id,
+        angle,
+        setup.sensor,
+        consequence,
+    )
 
 
 def _check_tf_options(args: argparse.Namespace) -> None:
