@@ -41,6 +41,8 @@ def test_arctan2_equals_the_c_library_and_broadcasts():
 def test_shapes_and_numpy_domain_rules():
     assert libm.exp(np.zeros((2, 3))).shape == (2, 3)
     np.testing.assert_array_equal(libm.arcsin(np.array([2.0, -1.0])), [np.nan, -math.pi / 2])
-    assert np.isnan(libm.log2(np.array([-1.0])))[0]
-    assert libm.log2(np.array([0.0]))[0] == -np.inf
+    with pytest.warns(RuntimeWarning, match="invalid value"):  # numpy's warning, as np.log2 gives
+        assert np.isnan(libm.log2(np.array([-1.0])))[0]
+    with pytest.warns(RuntimeWarning, match="divide by zero"):
+        assert libm.log2(np.array([0.0]))[0] == -np.inf
     assert libm.exp(np.array([np.nan]))[0] != libm.exp(np.array([np.nan]))[0]  # NaN stays NaN
