@@ -10,6 +10,7 @@ interpolated at that time (positions linearly, orientations by slerp, as
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -166,6 +167,7 @@ class TransformTree:
             ScanError: a frame that is not in the tree, a loop, or no chain between the two
                 frames (two separate trees).
         """
+        _check_body_height(body_height_m)
         fixed, body = frame_name(fixed), frame_name(body)
         for name in (fixed, body):
             if name not in self.frames:
@@ -217,6 +219,11 @@ class TransformTree:
         return _Link(name, track, None, inverted)
 
 
+def _check_body_height(body_height_m: float) -> None:
+    if not (math.isfinite(body_height_m) and body_height_m >= 0.0):
+        raise ScanError(f"body_height_m must be a finite height >= 0 above the ground, got {body_height_m}")
+
+
 def sensor_mounting(
     tree: TransformTree,
     body: str,
@@ -236,6 +243,7 @@ def sensor_mounting(
         ScanError: ``sensor`` is not in the tree, or not in ``body``'s, or a timed edge between
             them does not reach ``time_s``.
     """
+    _check_body_height(body_height_m)
     position, rotation = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
     to_ros = PACKAGE_TO_ROS_BODY
     return to_ros.T @ rotation.as_matrix() @ to_ros, to_ros.T @ position + np.array([0.0, 0.0, body_height_m])

@@ -288,6 +288,11 @@ def test_sensor_mounting_is_the_setup_a_rig_mount_would_give() -> None:
     np.testing.assert_allclose(got_translation, translation, atol=1e-12)
     with pytest.raises(ScanError, match="no frame 'right'"):
         sensor_mounting(tree, "base_link", "right", 0.0)
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ScanError, match="body_height_m"):
+            sensor_mounting(tree, "base_link", "left", 0.0, body_height_m=bad)
+        with pytest.raises(ScanError, match="body_height_m"):
+            tree.chain("base_link", "left", body_height_m=bad)
 
 
 def test_a_body_height_lowers_the_chain_along_the_body_s_up_axis() -> None:
