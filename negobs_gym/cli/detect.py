@@ -29,7 +29,9 @@ from negobs_gym.core.files import write_atomic
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
+    from negobs_gym.core.scan import StructuredScan
     from negobs_gym.detector.io import PoseTrack, RecordedFrame, ScanSetup
+    from negobs_gym.detector.io.sync import SynchronisedFrames
     from negobs_gym.detector.io.tf import TransformChain, TransformTree
 
 log = logging.getLogger(__name__)
@@ -39,6 +41,18 @@ MOUNT_TOLERANCE_DEG = 1.0
 #: ``--mount-from-tf``: warn when the tree's mounting is turned by more than this from the
 #: ``--sensor`` one, i.e. belongs to the other detector path (upright §3.1 or rolled 90 deg §3.2) [deg]
 PATH_TOLERANCE_DEG = 30.0
+#: ``--sensor`` when neither it nor ``--cloud`` is given
+DEFAULT_SENSOR = "hdl64"
+
+
+@dataclass(frozen=True)
+class CloudSpec:
+    """One ``--cloud TOPIC:SENSOR[:HEIGHT]``: a bag topic, the ``--sensor`` it comes from, and its
+    height above the ground [m] (None: the sensor's paper N rig mount, or the tf's)."""
+
+    topic: str
+    sensor: str
+    height_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -93,8 +107,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--sensor",
         choices=tuple(recorded_sensors()),
-        default="hdl64",
-        help="sensor model and mounting: "
+        default=None,
+        help="sensor model and mounting (default: hdl64): "
         + "; ".join(f"{name}: {spec.help}" for name, spec in recorded_sensors().items())
         + ". Upright sensors use the detector's HDL-64 path (paper N §3.1), rolled ones its HDL-32 "
         "path (§3.2)",
@@ -110,6 +124,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--bin-fields", choices=("xyzi", "xyzir"), default="xyzi", help=".bin layout (default: %(default)s)"
     )
     parser.add_argument("--topic", default=None, help="PointCloud2 topic of a bag with several")
+    parser.add_argument(
+        "--cloud",
+        type=cloud_spec,
+        action="append",
+        default=None,
+        metavar="TOPIC:SENSOR[:HEIGHT]",
+        help="bags only, repeated: a rig of LiDARs, one PointCloud2 topic each, in one detector "
+        "update (paper N's rig: --cloud /top:hdl64 --cloud /left:hdl32-left --cloud "
+        "/right:hdl32-right). SENSOR is a --sensor name, HEIGHT its origin above the ground [m] "
+        "(default: its paper N rig mount's; --mount-from-tf takes the tf's). The first topic "
+        "leads: each of its clouds makes an update, with every other topic's cloud nearest in "
+        "time within --sync-window, brought to the lead's time by the vehicle's motion when the "
+        "poses are timed (--poses-topic, --tf). Replaces --topic, --sensor and --height",
+    )
+    parser.add_argument(
+        "--sync-window",
+        type=non_negative_float,
+        default=None,
+        metavar="S",
+        help="--cloud: how far [s] another topic's cloud may lie from the lead's and join its "
+        "update (default: one revolution of a 10 Hz sensor, detector.io.sync.SYNC_WINDOW_S)",
+    )
     parser.add_argument(
         "--azimuth-resolution",
         type=positive_float,
@@ -216,15 +252,31 @@ def tf_frames(text: str) -> tuple[str, str]:
     return parts[0].strip(), parts[1].strip()
 
 
-def _frames_and_tracks(
-    args: argparse.Namespace, setup: ScanSetup
-) -> Iterator[tuple[RecordedFrame, PoseTrack | TransformChain | None]]:
-    """Every frame of ``args.files`` in order, each with its bag's pose track (``--poses-topic``
-    or ``--tf``, read once per bag; None otherwise). With ``--tf`` a bag's first frame is also
-    checked against the mounting the detector assumes."""
-    from negobs_gym.detector.io import read_recording
-    from negobs_gym.detector.io.bags import bag_pose_track, bag_transform_tree
+def cloud_spec(text: str) -> CloudSpec:
+    """``TOPIC:SENSOR[:HEIGHT]`` as a :class:`CloudSpec` (argparse type of ``--cloud``)."""
+    parts = text.split(":")  # ROS names hold no colon
+    sensors = recorded_sensors()
+    if len(parts) not in (2, 3) or not parts[0].strip() or parts[1] not in sensors:
+        raise argparse.ArgumentTypeError(
+            f"want TOPIC:SENSOR[:HEIGHT] with SENSOR one of {', '.join(sensors)}, got {text!r}"
+        )
+    height = positive_float(parts[2]) if len(parts) == 3 else None
+    return CloudSpec(parts[0].strip(), parts[1], height)
 
+
+def _updates(
+    args: argparse.Namespace, setups: dict[str, ScanSetup]
+) -> Iterator[tuple[SynchronisedFrames, PoseTrack | TransformChain | None]]:
+    """Every detector update of ``args.files`` in order, each with its bag's pose track
+    (``--poses-topic`` or ``--tf``, read once per bag; None otherwise). ``setups`` by topic: one
+    entry without ``--cloud`` (its key unused), the lead topic first with it. Each topic's first
+    cloud of a bag is checked against (or with ``--mount-from-tf`` given) the tf tree's mounting."""
+    from negobs_gym.detector.io import read_recording
+    from negobs_gym.detector.io.bags import bag_clouds, bag_pose_track, bag_transform_tree
+    from negobs_gym.detector.io.sync import SYNC_WINDOW_S, synchronise
+
+    lead, *others = setups
+    window_s = SYNC_WINDOW_S if args.sync_window is None else args.sync_window
     for path in args.files:
         track: PoseTrack | TransformChain | None = None
         tree: TransformTree | None = None
@@ -233,18 +285,39 @@ def _frames_and_tracks(
         elif args.tf:
             tree = bag_transform_tree(path, stamps=args.stamps)
             track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap, body_height_m=args.body_height)
-        frames = read_recording(path, setup, bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps)
-        mounting: tuple[np.ndarray, np.ndarray] | None = None
-        for k, frame in enumerate(frames):
-            if tree is not None and k == 0:
-                if args.mount_from_tf:
-                    mounting = _tf_mounting(tree, args, frame)
-                if frame.frame_id:
-                    _check_mounting(tree, args.tf[1], frame, setup, args)
-            if mounting is not None:
-                scan = dataclasses.replace(frame.scan, rotation=mounting[0], translation_m=mounting[1])
-                frame = dataclasses.replace(frame, scan=scan)
-            yield frame, track
+        if args.cloud:
+            stream = bag_clouds(path, setups, stamps=args.stamps)
+        else:
+            frames = read_recording(
+                path, setups[lead], bin_layout=args.bin_fields, topic=args.topic, stamps=args.stamps
+            )
+            stream = ((lead, frame) for frame in frames)
+        mounted = _mounted(stream, tree, setups, args)
+        for update in synchronise(mounted, lead, others, window_s=window_s):
+            yield update, track
+
+
+def _mounted(
+    stream: Iterator[tuple[str, RecordedFrame]],
+    tree: TransformTree | None,
+    setups: dict[str, ScanSetup],
+    args: argparse.Namespace,
+) -> Iterator[tuple[str, RecordedFrame]]:
+    """``stream`` with each topic's mounting checked against the tf tree at its first cloud and,
+    with ``--mount-from-tf``, taken from it."""
+    mountings: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+    for topic, frame in stream:
+        if topic not in mountings:
+            mountings[topic] = None
+            if tree is not None and args.mount_from_tf:
+                mountings[topic] = _tf_mounting(tree, args, frame)
+            if tree is not None and frame.frame_id:
+                _check_mounting(tree, args.tf[1], frame, setups[topic], args)
+        mounting = mountings[topic]
+        if mounting is not None:
+            scan = dataclasses.replace(frame.scan, rotation=mounting[0], translation_m=mounting[1])
+            frame = dataclasses.replace(frame, scan=scan)
+        yield topic, frame
 
 
 def _tf_mounting(
@@ -315,32 +388,91 @@ def _check_tf_options(args: argparse.Namespace) -> None:
 
     if args.tf is None and (args.mount_from_tf or args.body_height):
         raise ScanError("--mount-from-tf and --body-height go with --tf FIXED:BODY")
-    if args.mount_from_tf and args.height is not None:
-        raise ScanError("--height and --mount-from-tf both set the sensor's height: give one")
+    if args.mount_from_tf and (args.height is not None or any(c.height_m for c in args.cloud or ())):
+        raise ScanError(
+            "--height and --mount-from-tf both set the sensor's height (so does --cloud's HEIGHT): give one"
+        )
 
 
 def scan_setup(args: argparse.Namespace) -> ScanSetup:
     """The :class:`ScanSetup` for ``--sensor``, ``--height`` and ``--azimuth-resolution``."""
+    return _setup(args.sensor or DEFAULT_SENSOR, args.height, args.azimuth_resolution)
+
+
+def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | None) -> ScanSetup:
+    """A recorded sensor's setup: its paper N rig mount, at ``height_m`` when given."""
     from negobs_gym.detector.io import ScanSetup
     from negobs_gym.sensors.rigs import paper_n_rig
 
-    spec = recorded_sensors()[args.sensor]
+    spec = recorded_sensors()[sensor]
     mount = next(m for m in paper_n_rig().mounts if m.name == spec.mount)
     x, y, z = mount.translation_m
     return ScanSetup(
         sensor=mount.name,
-        azimuth_resolution_deg=args.azimuth_resolution or spec.azimuth_resolution_deg,
+        azimuth_resolution_deg=azimuth_resolution_deg or spec.azimuth_resolution_deg,
         elevation_rad=tuple(math.radians(v) for v in spec.elevation_deg),
         rotation=tuple(tuple(float(v) for v in row) for row in mount.rotation_matrix),
-        translation_m=(x, y, z if args.height is None else args.height),
+        translation_m=(x, y, z if height_m is None else height_m),
     )
+
+
+def scan_setups(args: argparse.Namespace) -> dict[str, ScanSetup]:
+    """The setup of each ``--cloud`` topic, the lead's first; without ``--cloud`` the one of
+    :func:`scan_setup` (keyed by the sensor's name).
+
+    Raises:
+        ScanError: ``--cloud`` with ``--topic``, ``--sensor``, ``--height`` or
+            ``--azimuth-resolution``, or with files that are not bags; a topic named twice; two
+            clouds feeding the same detector input (two upright sensors, or two on one side).
+    """
+    from negobs_gym.detector.io.recording import is_bag
+    from negobs_gym.errors import ScanError
+
+    if not args.cloud:
+        if args.sync_window is not None:
+            raise ScanError("--sync-window goes with --cloud (several topics of one bag)")
+        return {args.sensor or DEFAULT_SENSOR: scan_setup(args)}
+    given = [f"--{name.replace('_', '-')}" for name in ("topic", "sensor", "height", "azimuth_resolution")]
+    given = [flag for flag in given if getattr(args, flag[2:].replace("-", "_")) is not None]
+    if given:
+        raise ScanError(f"--cloud names each topic's sensor and height: drop {', '.join(given)}")
+    not_bags = [path for path in args.files if not is_bag(path)]
+    if not_bags:
+        raise ScanError(f"--cloud reads several topics of a bag; not bags: {not_bags}")
+    setups: dict[str, ScanSetup] = {}
+    for cloud in args.cloud:
+        if cloud.topic in setups:
+            raise ScanError(f"--cloud names {cloud.topic} twice")
+        setup = _setup(cloud.sensor, cloud.height_m, None)
+        taken = [topic for topic, other in setups.items() if other.sensor == setup.sensor]
+        if taken:
+            raise ScanError(
+                f"--cloud {cloud.topic}:{cloud.sensor} and {taken[0]} both feed the detector's "
+                f"{setup.sensor} input; paper N's rig has one upright sensor and one rolled on each side"
+            )
+        setups[cloud.topic] = setup
+    return setups
+
+
+def _scans_at_lead_time(
+    update: SynchronisedFrames, track: PoseTrack | TransformChain | None
+) -> dict[str, StructuredScan]:
+    """The update's scans by detector input; with timed poses each other topic's cloud is brought to
+    the lead's time (:func:`~negobs_gym.detector.io.sync.scan_at_time`), else taken as at it."""
+    from negobs_gym.detector.io.sync import scan_at_time
+
+    scans = {}
+    for frame in update.clouds.values():
+        moved = track is not None and frame is not update.lead
+        scans[frame.scan.sensor] = scan_at_time(frame.scan, track, update.time_s) if moved else frame.scan
+    return scans
 
 
 def run(args: argparse.Namespace) -> int:
     """Detect on every frame of ``args.files``; writes the per-frame files and ``summary.json``."""
     from tqdm import tqdm
 
-    from negobs_gym.cli.detect_report import detection_record, plot_detection
+    from negobs_gym.cli.detect_report import cloud_records, detection_record, plot_detection
     from negobs_gym.core.pose import Pose
     from negobs_gym.detector import (
         FusionConfig,
@@ -352,7 +484,8 @@ def run(args: argparse.Namespace) -> int:
     from negobs_gym.errors import ScanError
 
     _check_tf_options(args)
-    setup = scan_setup(args)
+    setups = scan_setups(args)
+    setup = next(iter(setups.values()))  # the lead's
     out = Path(args.out)
     poses = read_poses_csv(args.poses) if args.poses else None
     kitti = args.kitti_poses or args.kitti_oxts
@@ -376,15 +509,22 @@ def run(args: argparse.Namespace) -> int:
         fixes, imu_to_velo = read_kitti_oxts(args.kitti_oxts), read_kitti_imu_to_velo(args.kitti_calib)
         poses = kitti_oxts_vehicle_poses(fixes, imu_to_velo, setup)
     poses_file = args.poses or kitti
+    if poses is not None and len(setups) > 1:
+        log.warning(
+            "%s gives a pose per update, untimed: the other --cloud topics' clouds are taken as at "
+            "the lead's time, up to --sync-window apart (--poses-topic or --tf bring them to it)",
+            poses_file,
+        )
     detector = NegativeObstacleDetector(
         NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
     )
     structure = StructureDetector(grid=detector.config.grid)
     summary = []
 
-    frames = _frames_and_tracks(args, setup)
-    bar = tqdm(frames, desc="negobs detect", unit="frame", disable=None)
-    for n, (frame, track) in enumerate(bar):
+    updates = _updates(args, setups)
+    bar = tqdm(updates, desc="negobs detect", unit="frame", disable=None)
+    for n, (update, track) in enumerate(bar):
+        frame = update.lead
         if poses is not None and n >= len(poses):
             raise ScanError(f"{poses_file}: {len(poses)} poses, but the recording has more frames")
         if track is not None:
@@ -394,22 +534,27 @@ def run(args: argparse.Namespace) -> int:
                 raise ScanError(f"{frame.source}, frame {frame.index}: {error}") from error
         else:
             pose = poses[n] if poses is not None else Pose()
-        scans = {frame.scan.sensor: frame.scan}
+        scans = _scans_at_lead_time(update, track)
         detection = detector.update(scans, pose)
         cells = structure.update(scans, pose, detection.ground_map)
         stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
         given = poses is not None or track is not None
-        record = detection_record(frame, detection, args.sensor, cells, pose if given else None)
+        sensor = args.cloud[0].sensor if args.cloud else args.sensor or DEFAULT_SENSOR
+        record = detection_record(frame, detection, sensor, cells, pose if given else None)
+        if args.cloud:
+            record["clouds"] = cloud_records(update, scans, {c.topic: c.sensor for c in args.cloud})
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:
             write_atomic(
-                out / f"{stem}.png", lambda tmp, f=frame, d=detection, c=cells: plot_detection(f, d, c, tmp)
+                out / f"{stem}.png",
+                lambda tmp, f=frame, d=detection, c=cells, s=scans: plot_detection(f, d, c, tmp, s.values()),
             )
         summary.append(
             {
                 "frame": stem,
                 **{k: record[k] for k in ("n_points", "n_frame_pairs", "n_obstacles")},
                 "n_structure_cells": len(record["structure_cells"]),
+                **({"n_clouds": len(update.clouds)} if args.cloud else {}),
             }
         )
         log.debug("%s: %d pairs, %d obstacles", stem, record["n_frame_pairs"], record["n_obstacles"])

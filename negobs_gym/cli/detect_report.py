@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from negobs_gym.core.pose import Pose
+from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io import RecordedFrame
+from negobs_gym.detector.io.sync import SynchronisedFrames
 from negobs_gym.detector.negative import Detection
 
 
@@ -40,10 +43,7 @@ def detection_record(
         "timestamp_s": frame.scan.timestamp_s,
         "sensor": sensor,
         "height_m": float(frame.scan.translation_m[2]),
-        "mounting": {  # paper N Eq. 9: sensor-to-vehicle rotation R and translation T
-            "rotation": np.asarray(frame.scan.rotation, dtype=np.float64).tolist(),
-            "translation_m": np.asarray(frame.scan.translation_m, dtype=np.float64).tolist(),
-        },
+        "mounting": _mounting(frame.scan),
         "ring_source": frame.ring_source,
         "n_points": frame.n_points,
         "scan_shape": list(frame.scan.shape),
@@ -81,10 +81,48 @@ def detection_record(
     }
 
 
-def plot_detection(frame: RecordedFrame, detection: Detection, structure: np.ndarray, out_path: Path) -> None:
-    """Top-down PNG of one frame over the grid's extent: returns coloured by height above ground,
-    structure cells (grey), grid cells (magenta), this frame's pairs A->B (red), confirmed fused
-    pairs (orange), obstacle outlines (cyan)."""
+def cloud_records(
+    update: SynchronisedFrames, scans: Mapping[str, StructuredScan], sensors: Mapping[str, str]
+) -> list[dict[str, Any]]:
+    """Each topic's cloud in a ``--cloud`` update: topic, ``--sensor`` name, detector input, frame,
+    time and offset from the lead's [s], and the mounting the detector used (at the lead's time)."""
+    records = []
+    for topic, frame in update.clouds.items():
+        scan = scans[frame.scan.sensor]
+        records.append(
+            {
+                "topic": topic,
+                "sensor": sensors[topic],
+                "input": frame.scan.sensor,
+                "frame": frame.index,
+                "timestamp_s": frame.scan.timestamp_s,
+                "dt_s": round(frame.scan.timestamp_s - update.time_s, 6),
+                "n_points": frame.n_points,
+                "ring_source": frame.ring_source,
+                "mounting": _mounting(scan),
+            }
+        )
+    return records
+
+
+def _mounting(scan: StructuredScan) -> dict[str, Any]:
+    """Paper N Eq. 9: the sensor-to-vehicle rotation R and translation T."""
+    return {
+        "rotation": np.asarray(scan.rotation, dtype=np.float64).tolist(),
+        "translation_m": np.asarray(scan.translation_m, dtype=np.float64).tolist(),
+    }
+
+
+def plot_detection(
+    frame: RecordedFrame,
+    detection: Detection,
+    structure: np.ndarray,
+    out_path: Path,
+    scans: Iterable[StructuredScan] | None = None,
+) -> None:
+    """Top-down PNG of one frame over the grid's extent: returns coloured by height above ground
+    (``scans``' or the frame's), structure cells (grey), grid cells (magenta), this frame's pairs
+    A->B (red), confirmed fused pairs (orange), obstacle outlines (cyan)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -92,7 +130,7 @@ def plot_detection(frame: RecordedFrame, detection: Detection, structure: np.nda
     from matplotlib.figure import Figure
 
     spec = detection.grid_spec
-    pts = frame.scan.points_vehicle[frame.scan.valid]
+    pts = np.concatenate([scan.points_vehicle[scan.valid] for scan in scans or (frame.scan,)])
     inside = (np.abs(pts[:, 0]) <= spec.side_m) & (pts[:, 1] >= -spec.back_m) & (pts[:, 1] <= spec.ahead_m)
     pts = pts[inside]
     fig = Figure(figsize=(7, 9), dpi=110)

@@ -150,23 +150,12 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     files, poses = drive
 
     def odometry(writer, store) -> None:
-        t = store.types
+        from tests.helpers import odometry as odometry_msg
+
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
         for stamp in POSE_STAMPS_NS:
-            pose = t["geometry_msgs/msg/Pose"](
-                position=t["geometry_msgs/msg/Point"](x=_driven_x(stamp), y=0.0, z=0.0),
-                orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-            )
-            zero = t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-            msg = t["nav_msgs/msg/Odometry"](
-                header=t["std_msgs/msg/Header"](stamp=_stamp(store, stamp), frame_id="odom"),
-                child_frame_id="base_link",
-                pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
-                twist=t["geometry_msgs/msg/TwistWithCovariance"](
-                    twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
-                ),
-            )
-            writer.write(odom, stamp + POSE_LATENCY_NS, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+            msg = store.serialize_cdr(odometry_msg(store, stamp, _driven_x(stamp)), "nav_msgs/msg/Odometry")
+            writer.write(odom, stamp + POSE_LATENCY_NS, msg)
 
     bag = _drive_bag(tmp_path / "drive_ros2", files, odometry)
     out = tmp_path / "bag"

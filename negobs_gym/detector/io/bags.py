@@ -6,7 +6,7 @@ transform tree does (:func:`bag_transform_tree`, :func:`bag_transform_chain`).""
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -97,26 +97,61 @@ def bag_frames(
     p = Path(path)
     reader = _open_bag(p)
     try:
-        clouds = sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
+        clouds = _cloud_topics(reader)
         if topic is None and len(clouds) != 1:
             raise ScanError(f"{p}: {len(clouds)} PointCloud2 topics {clouds}; name one with topic=")
-        chosen = topic or clouds[0]
-        if chosen not in clouds:
-            raise ScanError(f"{p}: no PointCloud2 topic {chosen!r} (has {clouds})")
-        connections = [c for c in reader.connections if c.topic == chosen]
-        for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
-            source = f"{p}#{index}"
-            try:
-                msg = reader.deserialize(raw, connection.msgtype)
-            except Exception as error:  # a corrupt message body
-                raise unreadable(source, "PointCloud2 message", error) from error
-            fields = pointcloud2_fields(msg, source)
-            time_s = _message_time_s(stamp_ns, msg, stamps, source)
-            scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=time_s)
-            points = int(msg.width) * int(msg.height)
-            yield RecordedFrame(scan, os.fspath(p), index, ring_source, points, msg.header.frame_id)
+        for _, frame in _read_clouds(reader, p, {topic or clouds[0]: setup}, stamps):
+            yield frame
     finally:
         reader.close()
+
+
+def bag_clouds(
+    path: str | os.PathLike[str], setups: Mapping[str, ScanSetup], *, stamps: str = "record"
+) -> Iterator[tuple[str, RecordedFrame]]:
+    """The clouds of several PointCloud2 topics of a bag (a rig of LiDARs, one topic each), each
+    topic read with its own setup, as ``(topic, frame)`` merged in record order; a frame's
+    ``index`` counts its own topic's clouds. Timed as :func:`bag_frames`; grouped into detector
+    updates by :func:`~negobs_gym.detector.io.sync.synchronise`."""
+    _check_stamps(stamps)
+    if not setups:
+        raise ScanError("bag_clouds: name at least one PointCloud2 topic")
+    p = Path(path)
+    reader = _open_bag(p)
+    try:
+        yield from _read_clouds(reader, p, setups, stamps)
+    finally:
+        reader.close()
+
+
+def _cloud_topics(reader) -> list[str]:
+    return sorted({c.topic for c in reader.connections if c.msgtype == POINTCLOUD2})
+
+
+def _read_clouds(
+    reader, p: Path, setups: Mapping[str, ScanSetup], stamps: str
+) -> Iterator[tuple[str, RecordedFrame]]:
+    """``(topic, frame)`` of the topics of ``setups`` in record order (an opened reader)."""
+    clouds = _cloud_topics(reader)
+    missing = [topic for topic in setups if topic not in clouds]
+    if missing:
+        raise ScanError(f"{p}: no PointCloud2 topic {' or '.join(map(repr, missing))} (has {clouds})")
+    connections = [c for c in reader.connections if c.topic in setups]
+    counts = dict.fromkeys(setups, 0)
+    for connection, stamp_ns, raw in reader.messages(connections=connections):
+        topic = connection.topic
+        index = counts[topic]
+        counts[topic] += 1
+        source = f"{p}#{index}" if len(setups) == 1 else f"{p}#{topic}#{index}"
+        try:
+            msg = reader.deserialize(raw, connection.msgtype)
+        except Exception as error:  # a corrupt message body
+            raise unreadable(source, "PointCloud2 message", error) from error
+        fields = pointcloud2_fields(msg, source)
+        time_s = _message_time_s(stamp_ns, msg, stamps, source)
+        scan, ring_source = fields_to_scan(fields, setups[topic], source=source, timestamp_s=time_s)
+        points = int(msg.width) * int(msg.height)
+        yield topic, RecordedFrame(scan, os.fspath(p), index, ring_source, points, msg.header.frame_id)
 
 
 def _open_bag(p: Path):

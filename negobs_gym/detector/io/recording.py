@@ -66,6 +66,13 @@ def read_bin(path: str | os.PathLike[str], setup: ScanSetup, layout: BinLayout =
     return RecordedFrame(scan, os.fspath(path), 0, ring_source, cloud.shape[0])
 
 
+def is_bag(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` names a ROS bag: a ROS 1 ``.bag``, a ROS 2 ``.db3`` or ``.mcap``, or a ROS 2
+    bag's folder (holding ``metadata.yaml``)."""
+    p = Path(path)
+    return p.suffix.lower() in (".bag", ".db3", ".mcap") or (p.is_dir() and (p / "metadata.yaml").exists())
+
+
 def read_recording(
     path: str | os.PathLike[str],
     setup: ScanSetup,
@@ -92,7 +99,7 @@ def read_recording(
         from negobs_gym.detector.io.pcap import pcap_frames
 
         yield from pcap_frames(p, setup)
-    elif suffix in (".bag", ".db3", ".mcap") or (p.is_dir() and (p / "metadata.yaml").exists()):
+    elif is_bag(p):
         from negobs_gym.detector.io.bags import bag_frames
 
         yield from bag_frames(p, setup, topic=topic, stamps=stamps)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from negobs_gym.detector.io import ScanSetup, fields_to_scan, read_recording
-from negobs_gym.detector.io.bags import read_bag
+from negobs_gym.detector.io.bags import bag_clouds, read_bag
+from negobs_gym.detector.io.sync import synchronise
 from negobs_gym.errors import ScanError
 from tests.helpers import pointcloud2
 
@@ -28,16 +29,20 @@ def frames():
     return [(int(s.host * 1e9), p) for s, p in vd.read_pcap(str(HDL32E_A), vd.Config(), as_pcl_structs=True)]
 
 
-def write_bag(path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None, header_ns=None):
-    """``frames`` as PointCloud2 messages recorded at their stamps; ``header_ns(stamp)`` gives each
-    header's stamp (default: the record time)."""
+def write_bag(
+    path, frames, ros: int, topics=(TOPIC,), data: bytes | None = None, header_ns=None, topic_lag_ns: int = 0
+):
+    """``frames`` as PointCloud2 messages recorded at their stamps, the ``i``-th topic's
+    ``i * topic_lag_ns`` later; ``header_ns(stamp)`` gives each header's stamp (default: the record
+    time)."""
     store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
     msgtype = "sensor_msgs/msg/PointCloud2"
     writer = Writer1(path) if ros == 1 else Writer2(path, version=9)
     with writer:
-        for topic in topics:
+        for i, topic in enumerate(topics):
             conn = writer.add_connection(topic, msgtype, typestore=store)
             for stamp, points in frames:
+                stamp += i * topic_lag_ns
                 header = stamp if header_ns is None else header_ns(stamp)
                 msg = pointcloud2(store, points, header, data, ros1=ros == 1)
                 raw = store.serialize_ros1(msg, msgtype) if ros == 1 else store.serialize_cdr(msg, msgtype)
@@ -82,6 +87,31 @@ def test_ros2_bag_by_its_db3_file_and_named_topic(tmp_path, frames):
     with pytest.raises(ScanError, match="no PointCloud2 topic '/c'"):
         list(read_recording(db3, SETUP, topic="/c"))
     assert len(list(read_bag(db3, SETUP, topic="/b"))) == 1
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_several_topics_merge_in_record_order_and_group_by_the_lead(tmp_path, frames, ros):
+    name = "rig.bag" if ros == 1 else "rig_ros2"
+    at_10_hz = [(frames[0][0] + k * 10**8, points) for k, (_, points) in enumerate(frames)]
+    bag = write_bag(tmp_path / name, at_10_hz, ros, topics=("/top", "/side"), topic_lag_ns=30 * 10**6)
+    side = ScanSetup(sensor="hdl32_left", azimuth_resolution_deg=0.16, translation_m=(-0.9, 0.5, 2.0))
+    clouds = list(bag_clouds(bag, {"/top": SETUP, "/side": side}))
+    assert [(topic, f.index) for topic, f in clouds] == [("/top", 0), ("/side", 0), ("/top", 1), ("/side", 1)]
+    alone = list(read_recording(bag, SETUP, topic="/top"))
+    for (_, frame), single in zip(clouds[::2], alone, strict=True):
+        np.testing.assert_array_equal(frame.scan.ranges_m, single.scan.ranges_m)
+    assert {f.scan.sensor for _, f in clouds[1::2]} == {"hdl32_left"}
+    updates = list(synchronise(iter(clouds), "/top", ["/side"]))
+    assert [(u.lead.index, {t: f.index for t, f in u.clouds.items()}) for u in updates] == [
+        (0, {"/top": 0, "/side": 0}),
+        (1, {"/top": 1, "/side": 1}),
+    ]
+    lags = [u.clouds["/side"].scan.timestamp_s - u.time_s for u in updates]
+    np.testing.assert_allclose(lags, 0.030, atol=1e-6)
+    with pytest.raises(ScanError, match="no PointCloud2 topic '/rear'"):
+        list(bag_clouds(bag, {"/top": SETUP, "/rear": side}))
+    with pytest.raises(ScanError, match="at least one"):
+        list(bag_clouds(bag, {}))
 
 
 def test_truncated_message_data_raises_scan_error(tmp_path, frames):
