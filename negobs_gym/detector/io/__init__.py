@@ -3,7 +3,8 @@
 - ``.bin``: KITTI-style float32 ``x, y, z, intensity`` (ring from the point order, else from the
   elevation table) or ``x, y, z, intensity, ring`` (numpy only);
 - ``.pcd`` with a ``ring``/``channel``/``laser_id`` field (:mod:`~negobs_gym.detector.io.pcd`);
-- ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (:mod:`~negobs_gym.detector.io.bags`);
+- ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (:mod:`~negobs_gym.detector.io.bags`), one
+  topic, or a rig's several topics grouped into detector updates (:mod:`~negobs_gym.detector.io.sync`);
 - raw Velodyne ``.pcap`` (:mod:`~negobs_gym.detector.io.pcap`).
 
 The last three need ``pip install negobs_gym[real]`` (pypcd4, rosbags, velodyne-decoder), imported
