@@ -14,12 +14,10 @@ B = jump point, C = next point beyond B's back-wall neighbourhood, see
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from negobs_gym.core.compiled import kernel
-from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.config import Hdl32FeatureConfig
 from negobs_gym.detector.hdl64 import sensor_height
 from negobs_gym.detector.pair_test import pair_test
@@ -33,36 +31,33 @@ def ground_hit_distance(scan: StructuredScan, height_m: float) -> np.ndarray:
 
 def _ray_tables(scan: StructuredScan, height_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ground-hit distances and the near-to-far masks of both walking directions (read-only),
-    cached per scan geometry and height."""
-    geometry = (scan.elevation_rad.tobytes(), scan.azimuth_rad.tobytes(), scan.rotation.tobytes())
-    return _ray_tables_cached(*geometry, scan.elevation_rad.size, float(height_m))
-
-
-@functools.lru_cache(maxsize=8)
-def _ray_tables_cached(
-    elevation: bytes, azimuth: bytes, rotation: bytes, n_lasers: int, height_m: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    ground = height_m * _ground_hit_per_metre(elevation, azimuth, rotation, n_lasers)
-    tables = (ground, _near_to_far(ground, 1), _near_to_far(ground, -1))
-    for t in tables:
-        t.flags.writeable = False
+    kept for the last few scan geometries and heights (a rig's sensor keeps its own from frame to
+    frame; a recorded or moved one brings new ones)."""
+    key = (scan.elevation_rad.tobytes(), scan.azimuth_rad.tobytes(), scan.rotation.tobytes(), float(height_m))
+    tables = _RAY_TABLES.get(key)
+    if tables is None:
+        ground = height_m * _ground_hit_per_metre(scan.directions_vehicle)
+        tables = (ground, _near_to_far(ground, 1), _near_to_far(ground, -1))
+        for t in tables:
+            t.flags.writeable = False
+        if len(_RAY_TABLES) >= _MAX_RAY_TABLES:
+            _RAY_TABLES.pop(next(iter(_RAY_TABLES)))
+        _RAY_TABLES[key] = tables
     return tables
 
 
-@functools.lru_cache(maxsize=8)
-def _ground_hit_per_metre(elevation: bytes, azimuth: bytes, rotation: bytes, n_lasers: int) -> np.ndarray:
-    """Ground-hit distance per metre of sensor height of each ray; cached per scan geometry, which a
-    sensor keeps from frame to frame."""
-    el = np.frombuffer(elevation, dtype=np.float64)
-    az = np.frombuffer(azimuth, dtype=np.float64)
-    rot = np.frombuffer(rotation, dtype=np.float64).reshape(3, 3)
-    d = ray_directions(el, az) @ rot.T
-    down = d[..., 2] < -1e-9
-    horiz = np.hypot(d[..., 0], d[..., 1])
+_RAY_TABLES: dict[tuple[bytes | float, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+_MAX_RAY_TABLES = 8
+
+
+def _ground_hit_per_metre(directions_vehicle: np.ndarray) -> np.ndarray:
+    """Ground-hit distance per metre of sensor height of each ray, from the rays' vehicle-frame
+    directions (3, lasers, columns), which the scan's points are built from too."""
+    dx, dy, dz = directions_vehicle
+    down = dz < -1e-9
+    horiz = np.hypot(dx, dy)
     with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.where(down, horiz / np.where(down, -d[..., 2], 1.0), np.inf)
-    out.flags.writeable = False
-    return out.reshape(n_lasers, az.size)
+        return np.where(down, horiz / np.where(down, -dz, 1.0), np.inf)
 
 
 def compensate_missing(ranges_m: np.ndarray) -> np.ndarray:
