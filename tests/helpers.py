@@ -19,7 +19,14 @@ def rss_mb() -> float:
 POINTFIELD_CODES = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("u1"): 2}
 
 
-def pointcloud2(store, points: np.ndarray, stamp_ns: int, data: bytes | None = None, ros1: bool = False):
+def pointcloud2(
+    store,
+    points: np.ndarray,
+    stamp_ns: int,
+    data: bytes | None = None,
+    ros1: bool = False,
+    frame_id: str = "velodyne",
+):
     """A PointCloud2 message holding ``points`` (a numpy structured array) as they lie in memory."""
     t = store.types
     msg_types = {
@@ -44,7 +51,7 @@ def pointcloud2(store, points: np.ndarray, stamp_ns: int, data: bytes | None = N
         else np.frombuffer(data, dtype=np.uint8)
     )
     return msg_types["PointCloud2"](
-        header=msg_types["Header"](**({"seq": 0} if ros1 else {}), stamp=stamp, frame_id="velodyne"),
+        header=msg_types["Header"](**({"seq": 0} if ros1 else {}), stamp=stamp, frame_id=frame_id),
         height=1,
         width=points.size,
         fields=fields,

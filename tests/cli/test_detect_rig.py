@@ -13,8 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from negobs_gym.cli import main
+from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY
 from negobs_gym.detector.synthetic import HDL32_ELEVATION_DEG, HDL64_ELEVATION_DEG, Hole, synthetic_scan
 from negobs_gym.sensors.rigs import paper_n_rig
 from tests.helpers import odometry, pointcloud2
@@ -36,9 +38,39 @@ def _near(time_s: float) -> float:
     return NEAR_M - SPEED_MPS * time_s
 
 
+def _mount(name: str):
+    return next(m for m in paper_n_rig().mounts if m.name == name)
+
+
+def _ros_rotation(mount) -> np.ndarray:
+    """The mount's rotation from its ROS sensor axes (x forward) to ROS body axes."""
+    return PACKAGE_TO_ROS_BODY @ mount.rotation_matrix @ PACKAGE_TO_ROS_BODY.T
+
+
+def _tf_message(store, transforms) -> bytes:
+    """A serialised tf2_msgs/TFMessage of ``(stamp_ns, parent, child, position, rotation matrix)``."""
+    t = store.types
+    stamped = []
+    for stamp_ns, parent, child, position, rotation in transforms:
+        (x, y, z), (qx, qy, qz, qw) = position, Rotation.from_matrix(rotation).as_quat()
+        stamp = t["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+        stamped.append(
+            t["geometry_msgs/msg/TransformStamped"](
+                header=t["std_msgs/msg/Header"](stamp=stamp, frame_id=parent),
+                child_frame_id=child,
+                transform=t["geometry_msgs/msg/Transform"](
+                    translation=t["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z)),
+                    rotation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+                ),
+            )
+        )
+    msg = t["tf2_msgs/msg/TFMessage"](transforms=stamped)
+    return store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage")
+
+
 def _cloud(mount: str, time_s: float) -> np.ndarray:
     """The returns of the rig's ``mount`` at ``time_s``, in its ROS frame, with their ring."""
-    sensor = next(m for m in paper_n_rig().mounts if m.name == mount)
+    sensor = _mount(mount)
     elevation = HDL64_ELEVATION_DEG if mount == "hdl64" else HDL32_ELEVATION_DEG
     n = 4000 if mount == "hdl64" else 2250  # 0.09 and 0.16 deg columns
     # mid-column azimuths: float32 coordinates on a column's edge would fall either side of it
@@ -68,13 +100,26 @@ def rig_bag(tmp_path_factory) -> Path:
             connection = writer.add_connection(topic, "sensor_msgs/msg/PointCloud2", typestore=store)
             for k in range(FRAMES):
                 stamp = START_NS + k * PERIOD_NS + offset_ns
-                msg = pointcloud2(store, _cloud(mount, (stamp - START_NS) * 1e-9), stamp)
+                cloud = _cloud(mount, (stamp - START_NS) * 1e-9)
+                msg = pointcloud2(store, cloud, stamp, frame_id=topic.strip("/"))
                 messages.append((stamp, connection, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")))
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
         for j in range(-5, 5 * FRAMES + 5):
             stamp = START_NS + j * PERIOD_NS // 5
-            msg = odometry(store, stamp, SPEED_MPS * (stamp - START_NS) * 1e-9)
-            messages.append((stamp, odom, store.serialize_cdr(msg, "nav_msgs/msg/Odometry")))
+            x = SPEED_MPS * (stamp - START_NS) * 1e-9
+            messages.append(
+                (stamp, odom, store.serialize_cdr(odometry(store, stamp, x), "nav_msgs/msg/Odometry"))
+            )
+            moved = _tf_message(store, [(stamp, "odom", "base_link", np.array([x, 0.0, 0.0]), np.eye(3))])
+            messages.append((stamp, tf, moved))
+        # each LiDAR's mounting below base_link (on the ground), in ROS axes, under its cloud's frame_id
+        static = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        mounts = [
+            (0, "base_link", topic.strip("/"), PACKAGE_TO_ROS_BODY @ m.translation_m, _ros_rotation(m))
+            for topic, m in ((t, _mount(mount)) for t, (mount, _, _) in RIG.items())
+        ]
+        messages.append((START_NS - PERIOD_NS, static, _tf_message(store, mounts)))
         for stamp, connection, raw in sorted(messages, key=lambda m: m[0]):
             writer.write(connection, stamp, raw)
     return bag
@@ -127,6 +172,42 @@ def test_without_timed_poses_each_cloud_lies_where_the_vehicle_was_at_its_own_ti
     narrow = _records(rig_bag, tmp_path / "narrow", *CLOUDS, "--sync-window", "0.02")
     assert all([c["topic"] for c in r["clouds"]] == ["/top"] for r in narrow)
     assert set(narrow[0]["frame_pairs"]) == {"hdl64"}
+
+
+def test_each_topic_mounted_by_its_own_frame_in_the_tf_tree(rig_bag, tmp_path, capsys) -> None:
+    odometry_run = _records(rig_bag, tmp_path / "odom", *CLOUDS, "--poses-topic", "/odom")
+    tf_run = _records(rig_bag, tmp_path / "tf", *CLOUDS, "--tf", "odom:base_link", "--mount-from-tf")
+    assert "deg from the --sensor" not in capsys.readouterr().err
+    for by_odometry, by_tf in zip(odometry_run, tf_run, strict=True):
+        np.testing.assert_allclose(by_tf["pose"], by_odometry["pose"], atol=1e-9)
+        for a, b in zip(by_tf["clouds"], by_odometry["clouds"], strict=True):
+            assert a["topic"] == b["topic"]
+            np.testing.assert_allclose(a["mounting"]["rotation"], b["mounting"]["rotation"], atol=1e-9)
+            np.testing.assert_allclose(
+                a["mounting"]["translation_m"], b["mounting"]["translation_m"], atol=1e-9
+            )
+        for sensor, pairs in by_odometry["frame_pairs"].items():
+            np.testing.assert_allclose(by_tf["frame_pairs"][sensor]["a_m"], pairs["a_m"], atol=1e-3)
+    # a side LiDAR named as the top one: its tf mounting is rolled 90 deg from --sensor's
+    swapped = ["--cloud", "/left:hdl64", "--cloud", "/top:hdl32-left"]
+    assert (
+        main(
+            [
+                "-q",
+                "detect",
+                str(rig_bag),
+                "--no-png",
+                "--out",
+                str(tmp_path / "s"),
+                *swapped,
+                "--tf",
+                "odom:base_link",
+                "--mount-from-tf",
+            ]
+        )
+        == 0
+    )
+    assert capsys.readouterr().err.count("90.0 deg from the --sensor") == 2
 
 
 def test_the_rig_with_a_png_per_update(rig_bag, tmp_path) -> None:
