@@ -432,8 +432,13 @@ def scan_setups(args: argparse.Namespace) -> dict[str, ScanSetup]:
         if args.sync_window is not None:
             raise ScanError("--sync-window goes with --cloud (several topics of one bag)")
         return {args.sensor or DEFAULT_SENSOR: scan_setup(args)}
-    given = [f"--{name.replace('_', '-')}" for name in ("topic", "sensor", "height", "azimuth_resolution")]
-    given = [flag for flag in given if getattr(args, flag[2:].replace("-", "_")) is not None]
+    single = {
+        "--topic": args.topic,
+        "--sensor": args.sensor,
+        "--height": args.height,
+        "--azimuth-resolution": args.azimuth_resolution,
+    }
+    given = [flag for flag, value in single.items() if value is not None]
     if given:
         raise ScanError(f"--cloud names each topic's sensor and height: drop {', '.join(given)}")
     not_bags = [path for path in args.files if not is_bag(path)]
@@ -460,11 +465,18 @@ def _scans_at_lead_time(
     """The update's scans by detector input; with timed poses each other topic's cloud is brought to
     the lead's time (:func:`~negobs_gym.detector.io.sync.scan_at_time`), else taken as at it."""
     from negobs_gym.detector.io.sync import scan_at_time
+    from negobs_gym.errors import ScanError
 
     scans = {}
     for frame in update.clouds.values():
-        moved = track is not None and frame is not update.lead
-        scans[frame.scan.sensor] = scan_at_time(frame.scan, track, update.time_s) if moved else frame.scan
+        scan = frame.scan
+        if track is not None and frame is not update.lead:
+            try:
+                scan = scan_at_time(scan, track, update.time_s)
+            except ScanError as error:  # name the cloud: one outside the odometry's span
+                where = f"{frame.source}, {frame.scan.sensor} cloud {frame.index}"
+                raise ScanError(f"{where}: {error}") from error
+        scans[frame.scan.sensor] = scan
     return scans
 
 
