@@ -108,3 +108,16 @@ def test_pcap_sequence_json_only(tmp_path):
     ]
     summary = json.loads((out / "summary.json").read_text())
     assert [s["n_points"] for s in summary] == [18154, 1425]
+
+
+def test_png_height_image_keeps_the_highest_return_per_pixel():
+    from negobs_gym.cli.detect_report import _highest_return
+
+    pts = np.array(
+        [[0.01, 0.01, 0.2], [0.02, 0.03, 1.1], [0.03, 0.02, -0.4], [0.12, 0.01, 0.5], [0.99, 1.99, 0.7]]
+    )
+    image = _highest_return(pts, (0.0, 1.0, 0.0, 2.0), 0.05)
+    assert image.shape == (40, 20)
+    assert image[0, 0] == 1.1  # three returns in the first pixel: the highest drawn
+    assert image[0, 2] == 0.5 and image[39, 19] == 0.7  # the last pixel holds the far corner
+    assert int(image.count()) == 3  # every other pixel masked: no return there
