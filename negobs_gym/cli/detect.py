@@ -532,6 +532,7 @@ def run(args: argparse.Namespace) -> int:
     )
     structure = StructureDetector(grid=detector.config.grid)
     summary = []
+    missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
 
     updates = _updates(args, setups)
     bar = tqdm(updates, desc="negobs detect", unit="frame", disable=None)
@@ -570,7 +571,14 @@ def run(args: argparse.Namespace) -> int:
             }
         )
         log.debug("%s: %d pairs, %d obstacles", stem, record["n_frame_pairs"], record["n_obstacles"])
+        for topic in setups:
+            missing[topic] += topic not in update.clouds
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))
+    if args.cloud and any(missing.values()):
+        log.warning(
+            "--cloud: no cloud within --sync-window of the lead's for %s",
+            ", ".join(f"{topic} in {n} of {len(summary)} updates" for topic, n in missing.items() if n),
+        )
     if poses is not None and len(poses) > len(summary):
         log.warning(
             "%s: %d poses for %d frames; the last %d unused",

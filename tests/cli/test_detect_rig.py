@@ -158,7 +158,9 @@ def test_the_rig_finds_the_pit_in_one_update_with_each_cloud_at_the_lead_time(ri
     assert json.loads((tmp_path / "rig" / "summary.json").read_text())[0]["n_clouds"] == 3
 
 
-def test_without_timed_poses_each_cloud_lies_where_the_vehicle_was_at_its_own_time(rig_bag, tmp_path) -> None:
+def test_without_timed_poses_each_cloud_lies_where_the_vehicle_was_at_its_own_time(
+    rig_bag, tmp_path, capsys
+) -> None:
     still = _records(rig_bag, tmp_path / "still", *CLOUDS)  # no poses: standing still
     for k, record in enumerate(still):
         near = _near(k * PERIOD_NS * 1e-9)
@@ -168,10 +170,13 @@ def test_without_timed_poses_each_cloud_lies_where_the_vehicle_was_at_its_own_ti
     top = _records(rig_bag, tmp_path / "top", "--topic", "/top", "--poses-topic", "/odom")
     assert [r["n_obstacles"] for r in top] == [0, 0, 1, 1]
     assert "clouds" not in top[0]
-    # a window narrower than the sensors' offsets leaves the side clouds out
+    # a window narrower than the sensors' offsets leaves the side clouds out, and says so
     narrow = _records(rig_bag, tmp_path / "narrow", *CLOUDS, "--sync-window", "0.02")
     assert all([c["topic"] for c in r["clouds"]] == ["/top"] for r in narrow)
     assert set(narrow[0]["frame_pairs"]) == {"hdl64"}
+    assert "for /left in 4 of 4 updates, /right in 4 of 4 updates" in capsys.readouterr().err
+    _records(rig_bag, tmp_path / "between", *CLOUDS, "--sync-window", "0.035")
+    assert "for /left in 4 of 4 updates\n" in capsys.readouterr().err  # the right's 30 ms fit
 
 
 def test_each_topic_mounted_by_its_own_frame_in_the_tf_tree(rig_bag, tmp_path, capsys) -> None:
