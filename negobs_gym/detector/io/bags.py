@@ -5,8 +5,10 @@ transform tree does (:func:`bag_transform_tree`, :func:`bag_transform_chain`).""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -276,3 +278,103 @@ def read_bag(
 ) -> Iterator[StructuredScan]:
     """The structured scans of a bag's PointCloud2 topic (see :func:`bag_frames`)."""
     return (frame.scan for frame in bag_frames(path, setup or ScanSetup(), topic=topic))
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    """One topic of a bag as ``negobs detect`` may read it.
+
+    Attributes:
+        topic: Its name.
+        msgtype: Its message type (``sensor_msgs/msg/PointCloud2``...).
+        count: Messages on it.
+        frame_id: The first message's ``header.frame_id`` (clouds, poses), else None.
+        child_frame_id: The first odometry message's ``child_frame_id`` (the body it tracks), else None.
+        fields: The first cloud's PointField names (``ring``: no elevation table needed).
+        points: Points in the first cloud.
+    """
+
+    topic: str
+    msgtype: str
+    count: int
+    frame_id: str | None = None
+    child_frame_id: str | None = None
+    fields: tuple[str, ...] = ()
+    points: int = 0
+
+
+@dataclass(frozen=True)
+class TransformEdge:
+    """One edge of a bag's tf tree: ``parent -> child``, on ``/tf_static`` or timed, how often."""
+
+    parent: str
+    child: str
+    static: bool
+    count: int
+
+
+@dataclass(frozen=True)
+class BagContents:
+    """What a bag holds for ``negobs detect``: its span, topics, and tf tree's edges."""
+
+    path: str
+    duration_s: float
+    topics: tuple[BagTopic, ...]
+    tf_edges: tuple[TransformEdge, ...]
+
+    def of_type(self, *msgtypes: str) -> tuple[BagTopic, ...]:
+        """The topics of any of ``msgtypes``."""
+        return tuple(t for t in self.topics if t.msgtype in msgtypes)
+
+
+def bag_contents(path: str | os.PathLike[str]) -> BagContents:
+    """The topics of a bag (each cloud and pose topic's first message read for its frame and
+    fields) and its tf tree's edges (every tf message read; no cloud beyond the first).
+
+    Raises:
+        ScanError: not a readable bag, or a first message or tf message that cannot be read.
+    """
+    p = Path(path)
+    reader = _open_bag(p)
+    edges: dict[tuple[str, str, bool], int] = {}
+    try:
+        topics = []
+        for topic, info in sorted(reader.topics.items()):
+            entry = BagTopic(topic, info.msgtype, int(info.msgcount))
+            if info.msgtype == POINTCLOUD2 or info.msgtype in POSE_MESSAGES:
+                msg = _first_message(reader, info.connections, f"{p}#{topic}")
+                if msg is not None:
+                    entry = dataclasses.replace(
+                        entry,
+                        frame_id=msg.header.frame_id,
+                        child_frame_id=getattr(msg, "child_frame_id", None),
+                        fields=tuple(f.name for f in getattr(msg, "fields", ())),
+                        points=int(msg.width) * int(msg.height) if info.msgtype == POINTCLOUD2 else 0,
+                    )
+            topics.append(entry)
+        tf = [c for c in reader.connections if c.msgtype in TF_MESSAGES]
+        messages = reader.messages(connections=tf) if tf else ()  # no connections: rosbags reads all
+        for index, (connection, _, raw) in enumerate(messages):
+            try:
+                transforms = reader.deserialize(raw, connection.msgtype).transforms
+            except Exception as error:  # a corrupt message body
+                raise unreadable(f"{p}#{connection.topic}#{index}", connection.msgtype, error) from error
+            static = frame_name(connection.topic) == "tf_static"
+            for stamped in transforms:
+                key = (stamped.header.frame_id, stamped.child_frame_id, static)
+                edges[key] = edges.get(key, 0) + 1
+        duration_s = reader.duration * 1e-9 if reader.message_count else 0.0
+    finally:
+        reader.close()
+    tf_edges = tuple(TransformEdge(parent, child, static, n) for (parent, child, static), n in edges.items())
+    return BagContents(os.fspath(p), duration_s, tuple(topics), tf_edges)
+
+
+def _first_message(reader, connections, source: str):
+    """The first message on ``connections`` (deserialised), None on an empty topic."""
+    for connection, _, raw in reader.messages(connections=connections):
+        try:
+            return reader.deserialize(raw, connection.msgtype)
+        except Exception as error:  # a corrupt message body
+            raise unreadable(source, connection.msgtype, error) from error
+    return None
