@@ -125,7 +125,7 @@ def same_laser_density(
 def density_threshold(points_m: np.ndarray, sensor_m: np.ndarray, config: Hdl32FeatureConfig) -> np.ndarray:
     """Per-point D_th32: the paper's value up to ``density_full_range_m`` from the sensor, then
     falling with the square of the range to ``density_threshold_min`` (see the config)."""
-    d = np.hypot(points_m[..., 0] - sensor_m[0], points_m[..., 1] - sensor_m[1])
+    d = np.hypot(points_m[..., 0] - sensor_m[..., 0], points_m[..., 1] - sensor_m[..., 1])
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.minimum(1.0, (config.density_full_range_m / d) ** 2)
     thr = np.maximum(config.density_threshold_min, config.density_threshold * scale)
@@ -209,19 +209,20 @@ def extract_hdl32_pairs(scan: StructuredScan, config: Hdl32FeatureConfig) -> Fea
     _, far_forward, far_backward = _ray_tables(scan, h)
     r_c = compensate_missing(ranges) if config.compensate_missing else ranges
     valid = ~np.isnan(ranges)
-    a_all, b_all, c_all = [], [], []
+    a_all, b_all, c_all, b_cols = [], [], [], []
     for step, far in ((1, far_forward), (-1, far_backward)):
         rows, cols = np.divmod(np.flatnonzero(_jumps(r_c, far, config.jump_threshold_m, step) & valid), n_c)
         # density only where it is used: at the jump points
         dens = same_laser_density(pts, config.density_radius_m, config.density_half_window, rows, cols)
-        dense = dens > density_threshold(pts[rows, cols], scan.translation_m, config)
+        dense = dens > density_threshold(pts[rows, cols], scan.origins_vehicle(cols), config)
         rows, cols = rows[dense], cols[dense]
         prev = cols - step
         ok_idx = (prev >= 0) & (prev < n_c)
         rows, cols, prev = rows[ok_idx], cols[ok_idx], prev[ok_idx]
+        b_cols.append(cols)
         a_all.append(pts[rows, prev])
         b_all.append(pts[rows, cols])
         c_all.append(next_point(pts, rows, cols, step, config.c_min_separation_m, config.density_half_window))
     a_m, b_m, c_m = (np.concatenate(x) for x in (a_all, b_all, c_all))
-    ok = pair_test(a_m, b_m, c_m, scan.translation_m, h, config.pair_test)
+    ok = pair_test(a_m, b_m, c_m, scan.origins_vehicle(np.concatenate(b_cols)), h, config.pair_test)
     return FeaturePairs(scan.sensor, a_m[ok], b_m[ok], c_m[ok])

@@ -334,5 +334,5 @@ def extract_hdl64_pairs(
     rows, cols = rows[cand], cols[cand]
     a_m, c_m = trace_pairs(pts, valid, scan.azimuth_rad, rows, cols, np.radians(config.epsilon_deg))
     b_m = pts[rows, cols]
-    ok = pair_test(a_m, b_m, c_m, scan.translation_m, h, config.pair_test)
+    ok = pair_test(a_m, b_m, c_m, scan.origins_vehicle(cols), h, config.pair_test)
     return FeaturePairs(scan.sensor, a_m[ok], b_m[ok], c_m[ok])

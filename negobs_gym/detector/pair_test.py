@@ -25,18 +25,19 @@ def pair_test(
 
     Args:
         a_m, b_m, c_m: (n, 3) vehicle-frame points.
-        sensor_m: (3,) sensor origin in the vehicle frame.
+        sensor_m: (3,) sensor origin in the vehicle frame, or (n, 3) one per triple (a deskewed
+            scan's origin when it fired each B, :meth:`StructuredScan.origins_vehicle`).
         height_m: Sensor height above the ground [m].
         config: Eq. 14 thresholds.
     """
     a = np.asarray(a_m, dtype=np.float64).reshape(-1, 3)
     b = np.asarray(b_m, dtype=np.float64).reshape(-1, 3)
     c = np.asarray(c_m, dtype=np.float64).reshape(-1, 3)
-    s = np.asarray(sensor_m, dtype=np.float64).reshape(3)
+    s = np.asarray(sensor_m, dtype=np.float64).reshape(-1, 3)
     d_ab = np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1])  # Eq. 11
     d_bc = np.hypot(b[:, 0] - c[:, 0], b[:, 1] - c[:, 1])  # Eq. 12
     dz_bc = c[:, 2] - b[:, 2]  # Eq. 13
-    y_a = np.hypot(a[:, 0] - s[0], a[:, 1] - s[1])
+    y_a = np.hypot(a[:, 0] - s[:, 0], a[:, 1] - s[:, 1])
     with np.errstate(invalid="ignore", divide="ignore"):
         ok = (
             (d_ab >= config.w_min_m)

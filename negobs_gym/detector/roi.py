@@ -176,11 +176,12 @@ def ray_sectors(scan: StructuredScan, config: RoiConfig) -> np.ndarray | None:
     A sensor whose origin lies on the vehicle's z axis (translation x = y = 0, as the HDL-64 above
     the vehicle origin) sees every return of a ray at the ray's own vehicle-frame azimuth, whatever
     its range: the sector is computed once per scan geometry instead of once per point (the
-    per-point ``arctan2`` was a quarter of the map's time). Rays whose angle lies within
+    per-point ``arctan2`` was a quarter of the map's time); a deskewed scan's (``column_motion``)
+    points are moved off their rays, so they take the per-point rule. Rays whose angle lies within
     :data:`_SECTOR_GUARD` of a sector boundary, or that point straight up or down, are -1: their
     points get the per-point rule, so the map is the same as without this table.
     """
-    if scan.translation_m[0] != 0.0 or scan.translation_m[1] != 0.0:
+    if scan.translation_m[0] != 0.0 or scan.translation_m[1] != 0.0 or scan.column_motion is not None:
         return None
     key = (
         scan.elevation_rad.tobytes(),

@@ -231,6 +231,7 @@ def test_the_rig_with_a_png_per_update(rig_bag, tmp_path) -> None:
         (["--cloud", "/rear:hdl64"], "no PointCloud2 topic '/rear'"),
         (["--sync-window", "0.05"], "--sync-window goes with --cloud"),
         (["--cloud", "/top:hdl64:2.0", "--tf", "odom:base_link", "--mount-from-tf"], "HEIGHT"),
+        (["--cloud", "/top:hdl64", "--poses-topic", "/odom", "--deskew"], "no per-point time field"),
     ],
 )
 def test_rig_options_that_do_not_fit_are_refused_by_name(rig_bag, tmp_path, capsys, extra, message) -> None:

@@ -98,3 +98,25 @@ def test_points_vehicle_equal_range_times_rotated_direction_plus_translation_bit
     planes = scan.directions_vehicle
     want = np.stack([ranges * planes[a] + scan.translation_m[a] for a in range(3)], axis=-1)
     assert np.array_equal(scan.points_vehicle, want, equal_nan=True)
+
+
+def test_column_motion_moves_each_columns_points_and_origin():
+    # column 0 fired when the vehicle was 0.5 m behind, column 2 when it was turned 90 deg left
+    motion = np.zeros((3, 3, 4))
+    motion[:, :, :3] = np.eye(3)
+    motion[0, 1, 3] = -0.5
+    motion[2, :, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    still = _scan(translation_m=[0.0, 1.0, 2.0])
+    moved = _scan(translation_m=[0.0, 1.0, 2.0], column_motion=motion)
+    p, q = still.points_vehicle, moved.points_vehicle
+    np.testing.assert_array_equal(q[:, 1], p[:, 1])
+    np.testing.assert_allclose(q[:, 0], p[:, 0] - [0.0, 0.5, 0.0])
+    np.testing.assert_allclose(q[:, 2], np.stack([-p[:, 2, 1], p[:, 2, 0], p[:, 2, 2]], axis=-1))
+    np.testing.assert_allclose(
+        moved.origins_vehicle([0, 1, 2]), [[0.0, 0.5, 2.0], [0.0, 1.0, 2.0], [-1.0, 0.0, 2.0]]
+    )
+    np.testing.assert_array_equal(still.origins_vehicle([0, 2]), [[0.0, 1.0, 2.0]] * 2)
+    np.testing.assert_array_equal(moved.ranges_m, still.ranges_m)  # the range image as recorded
+    for bad in (np.zeros((2, 3, 4)), np.full((3, 3, 4), np.nan)):
+        with pytest.raises(ScanError, match="column_motion must be 3 finite 3x4 motions"):
+            _scan(column_motion=bad)

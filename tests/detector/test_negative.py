@@ -204,3 +204,16 @@ def test_near_edge_of_a_pit_confirmed_far_out(tighten: bool) -> None:
     else:
         assert lead_m > 0.6
     assert ob.outline_xy_m[:, 1].max() == pytest.approx(hole.y1_m, abs=0.3)  # the far rim either way
+
+
+def test_a_scan_that_did_not_move_while_firing_gives_the_same_detection():
+    scans = _rig_scans([PIT_8M])
+    still = NegativeObstacleDetector().update(scans, POSE0)
+    motion = np.zeros((scans["hdl64"].shape[1], 3, 4))
+    motion[:, :, :3] = np.eye(3)
+    moving = dict(scans, hdl64=dataclasses.replace(scans["hdl64"], column_motion=motion))
+    same = NegativeObstacleDetector().update(moving, POSE0)
+    for name, pairs in still.frame_pairs.items():
+        np.testing.assert_array_equal(same.frame_pairs[name].a_m, pairs.a_m)
+        np.testing.assert_array_equal(same.frame_pairs[name].b_m, pairs.b_m)
+    np.testing.assert_array_equal(same.grid, still.grid)

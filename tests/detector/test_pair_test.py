@@ -44,3 +44,13 @@ def test_config_validation_names_field():
         PairTestConfig(w_min_m=-1)
     with pytest.raises(ConfigError, match="gamma2"):
         PairTestConfig(gamma2=np.nan)
+
+
+def test_one_origin_per_triple_reads_each_from_its_own():
+    a = np.array([[0, 8, 0], [0, 8, 0]])
+    b = np.array([[0, 9, -0.3], [0, 9, -0.3]])
+    c = np.array([[0, 9, -0.256], [0, 9, -0.256]])
+    # dz_BC = 0.044 >= 0.15 * 2.2 * 1.0 / y_A: passes from 8 m (0.041), fails from 7 m (0.047)
+    origins = np.array([[0.0, 0.0, 2.2], [0.0, 1.0, 2.2]])
+    assert pair_test(a, b, c, origins, 2.2, CFG).tolist() == [True, False]
+    assert pair_test(a, b, c, SENSOR, 2.2, CFG).tolist() == [True, True]

@@ -17,7 +17,7 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
 from negobs_gym.detector.io.poses import PoseTrack
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
-from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
+from negobs_gym.detector.io.setup import ScanSetup, column_time_offsets, fields_to_scan
 from negobs_gym.detector.io.tf import TimedTransform, TransformChain, TransformTree, frame_name
 from negobs_gym.errors import ScanError
 
@@ -89,12 +89,18 @@ def _check_stamps(stamps: str) -> None:
 
 
 def bag_frames(
-    path: str | os.PathLike[str], setup: ScanSetup, *, topic: str | None = None, stamps: str = "record"
+    path: str | os.PathLike[str],
+    setup: ScanSetup,
+    *,
+    topic: str | None = None,
+    stamps: str = "record",
+    point_times: bool = False,
 ) -> Iterator[RecordedFrame]:
     """Frames of the PointCloud2 ``topic`` of a ROS 1 ``.bag`` or ROS 2 bag (folder, ``.db3``,
     ``.mcap``) in record order; without ``topic`` the bag must hold exactly one PointCloud2 topic.
     Each scan's ``timestamp_s`` is the message's record time, or with ``stamps="header"`` its
-    header stamp (an unstamped message, 0, is an error)."""
+    header stamp (an unstamped message, 0, is an error). With ``point_times`` each frame's
+    ``column_time_s`` is read from its points' time field (an error where there is none)."""
     _check_stamps(stamps)
     p = Path(path)
     reader = _open_bag(p)
@@ -102,26 +108,31 @@ def bag_frames(
         clouds = _cloud_topics(reader)
         if topic is None and len(clouds) != 1:
             raise ScanError(f"{p}: {len(clouds)} PointCloud2 topics {clouds}; name one with topic=")
-        for _, frame in _read_clouds(reader, p, {topic or clouds[0]: setup}, stamps):
+        for _, frame in _read_clouds(reader, p, {topic or clouds[0]: setup}, stamps, point_times):
             yield frame
     finally:
         reader.close()
 
 
 def bag_clouds(
-    path: str | os.PathLike[str], setups: Mapping[str, ScanSetup], *, stamps: str = "record"
+    path: str | os.PathLike[str],
+    setups: Mapping[str, ScanSetup],
+    *,
+    stamps: str = "record",
+    point_times: bool = False,
 ) -> Iterator[tuple[str, RecordedFrame]]:
     """The clouds of several PointCloud2 topics of a bag (a rig of LiDARs, one topic each), each
     topic read with its own setup, as ``(topic, frame)`` merged in record order; a frame's
-    ``index`` counts its own topic's clouds. Timed as :func:`bag_frames`; grouped into detector
-    updates by :func:`~negobs_gym.detector.io.sync.synchronise`."""
+    ``index`` counts its own topic's clouds. Timed (and ``point_times`` read) as
+    :func:`bag_frames`; grouped into detector updates by
+    :func:`~negobs_gym.detector.io.sync.synchronise`."""
     _check_stamps(stamps)
     if not setups:
         raise ScanError("bag_clouds: name at least one PointCloud2 topic")
     p = Path(path)
     reader = _open_bag(p)
     try:
-        yield from _read_clouds(reader, p, setups, stamps)
+        yield from _read_clouds(reader, p, setups, stamps, point_times)
     finally:
         reader.close()
 
@@ -131,7 +142,7 @@ def _cloud_topics(reader) -> list[str]:
 
 
 def _read_clouds(
-    reader, p: Path, setups: Mapping[str, ScanSetup], stamps: str
+    reader, p: Path, setups: Mapping[str, ScanSetup], stamps: str, point_times: bool = False
 ) -> Iterator[tuple[str, RecordedFrame]]:
     """``(topic, frame)`` of the topics of ``setups`` in record order (an opened reader)."""
     clouds = _cloud_topics(reader)
@@ -152,8 +163,14 @@ def _read_clouds(
         fields = pointcloud2_fields(msg, source)
         time_s = _message_time_s(stamp_ns, msg, stamps, source)
         scan, ring_source = fields_to_scan(fields, setups[topic], source=source, timestamp_s=time_s)
+        columns = None
+        if point_times:
+            stamp = msg.header.stamp
+            stamp_s = int(stamp.sec) + int(stamp.nanosec) * 1e-9
+            columns = column_time_offsets(fields, setups[topic], source=source, stamp_s=stamp_s)
         points = int(msg.width) * int(msg.height)
-        yield topic, RecordedFrame(scan, os.fspath(p), index, ring_source, points, msg.header.frame_id)
+        frame = RecordedFrame(scan, os.fspath(p), index, ring_source, points, msg.header.frame_id, columns)
+        yield topic, frame
 
 
 def _open_bag(p: Path):

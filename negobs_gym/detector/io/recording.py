@@ -31,6 +31,9 @@ class RecordedFrame:
         n_points: Points in the recorded cloud (before binning).
         frame_id: The cloud's coordinate frame where the recording names it (a bag message's
             ``header.frame_id``), else None.
+        column_time_s: When each column of ``scan`` was fired, after the cloud's stamp [s]
+            (:func:`~negobs_gym.detector.io.setup.column_time_offsets`), where it was read; None
+            otherwise.
     """
 
     scan: StructuredScan
@@ -39,6 +42,7 @@ class RecordedFrame:
     ring_source: RingSource
     n_points: int
     frame_id: str | None = None
+    column_time_s: np.ndarray | None = None
 
 
 def unreadable(name: str, what: str, error: BaseException) -> ScanError:
@@ -80,15 +84,19 @@ def read_recording(
     bin_layout: BinLayout = "xyzi",
     topic: str | None = None,
     stamps: str = "record",
+    point_times: bool = False,
 ) -> Iterator[RecordedFrame]:
     """Frames of one recording, chosen by its name: ``.bin`` (float32, ``bin_layout``), ``.pcd``,
     ``.pcap`` (raw Velodyne packets), ``.bag`` (ROS 1) or a ROS 2 bag (its folder, ``.db3`` or
-    ``.mcap``; ``topic`` and ``stamps`` as :func:`~negobs_gym.detector.io.bags.bag_frames`). PCD,
-    bags and pcap need the ``negobs_gym[real]`` extra."""
+    ``.mcap``; ``topic``, ``stamps`` and ``point_times`` as
+    :func:`~negobs_gym.detector.io.bags.bag_frames`; ``point_times`` is for bags only). PCD, bags and
+    pcap need the ``negobs_gym[real]`` extra."""
     p = Path(path)
     if not p.exists():
         raise ScanError(f"{p}: no such file or folder")
     suffix = p.suffix.lower()
+    if point_times and not is_bag(p):
+        raise ScanError(f"{p}: per-point times are read from bags only")
     if suffix == ".bin":
         yield read_bin(p, setup, bin_layout)
     elif suffix == ".pcd":
@@ -102,6 +110,6 @@ def read_recording(
     elif is_bag(p):
         from negobs_gym.detector.io.bags import bag_frames
 
-        yield from bag_frames(p, setup, topic=topic, stamps=stamps)
+        yield from bag_frames(p, setup, topic=topic, stamps=stamps, point_times=point_times)
     else:
         raise ScanError(f"{p}: unknown recording type (expected .bin, .pcd, .pcap, .bag, a ROS 2 bag)")

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from negobs_gym.core import libm
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.loaders import (
     HDL64E_AZIMUTH_RESOLUTION_DEG,
@@ -22,6 +23,14 @@ from negobs_gym.errors import ScanError, require
 #: Names under which recorded files carry the laser index (velodyne driver: ring; Autoware nebula:
 #: channel; Ouster / some SDKs: laser_id).
 RING_FIELD_NAMES: tuple[str, ...] = ("ring", "channel", "laser_id")
+#: Names under which recorded files carry each point's firing time, as drivers write them:
+#: velodyne_pointcloud ``time`` (float s after the header stamp), Ouster ``t`` and Livox
+#: ``offset_time`` (integer ns after it), Autoware nebula ``time_stamp`` (integer ns after it),
+#: Hesai ``timestamp`` (float s since the epoch). Floats are seconds, integers nanoseconds; a time
+#: beyond :data:`ABSOLUTE_TIME_S` is taken as since the epoch and made relative to the stamp.
+POINT_TIME_FIELDS: tuple[str, ...] = ("time", "t", "offset_time", "time_stamp", "timestamp")
+#: Point times above this [s] are absolute (since the epoch: 11.6 days after 1970), not offsets.
+ABSOLUTE_TIME_S = 1e6
 #: ROS / Velodyne body axes (x forward, y left, z up) from this package's (X right, Y forward, Z up):
 #: ``p_ros = PACKAGE_TO_ROS_BODY @ p`` (the matrix of :func:`ros_to_sensor_frame`'s inverse).
 PACKAGE_TO_ROS_BODY = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -123,3 +132,38 @@ def fields_to_scan(
         )
     rings = assign_rings(xyz, np.asarray(setup.elevation_rad))
     return setup.scan(xyz, rings.ring, rings.elevation_rad, intensity, timestamp_s), rings.source
+
+
+def column_time_offsets(
+    fields: dict[str, np.ndarray], setup: ScanSetup, *, source: str, stamp_s: float
+) -> np.ndarray:
+    """When each column of the cloud's scan was fired, from its points' time field
+    (:data:`POINT_TIME_FIELDS`): the mean time of the column's returns after ``stamp_s`` (the
+    cloud's header stamp) [s], NaN for a column without returns. All lasers of a spinning sensor
+    fire a column within microseconds, so one time per column tells where the vehicle was when
+    that part of the revolution was scanned (``detector.io.sync.scan_at_time`` deskews with it).
+
+    Raises:
+        ScanError: no time field, or one that is not finite.
+    """
+    name = next((k for k in POINT_TIME_FIELDS if k in fields), None)
+    if name is None:
+        raise ScanError(
+            f"{source}: no per-point time field ({'/'.join(POINT_TIME_FIELDS)}; has {sorted(fields)})"
+        )
+    xyz = np.column_stack([np.asarray(fields[k], dtype=np.float64).reshape(-1) for k in "xyz"])
+    keep = ~np.isnan(xyz).any(axis=1) & (np.linalg.norm(np.nan_to_num(xyz), axis=1) > 0)
+    raw = np.asarray(fields[name]).reshape(-1)[keep]
+    times = raw.astype(np.float64) * (1e-9 if np.issubdtype(raw.dtype, np.integer) else 1.0)
+    if not np.isfinite(times).all():
+        raise ScanError(f"{source}: {name} field holds a value that is not finite")
+    if times.size and np.median(times) > ABSOLUTE_TIME_S:
+        times = times - stamp_s
+    xyz = ros_to_sensor_frame(xyz[keep])
+    n_cols = max(1, round(360.0 / setup.azimuth_resolution_deg))
+    res = 2 * np.pi / n_cols
+    az = libm.arctan2(xyz[:, 0], xyz[:, 1])  # as cloud_to_scan bins them: clockwise from +Y
+    col = np.clip(np.floor((az + np.pi) / res).astype(np.int64), 0, n_cols - 1)
+    count = np.bincount(col, minlength=n_cols)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.bincount(col, weights=times, minlength=n_cols) / np.where(count > 0, count, np.nan)

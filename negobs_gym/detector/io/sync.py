@@ -18,6 +18,8 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
+
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io.recording import RecordedFrame
@@ -146,13 +148,58 @@ def _nearest(
     return chosen
 
 
-def scan_at_time(scan: StructuredScan, poses: PoseAtTime, time_s: float) -> StructuredScan:
-    """``scan`` (taken at its ``timestamp_s``) as the vehicle frame at ``time_s`` sees it: its mounting
-    ``R, T`` (paper N Eq. 9) composed with the vehicle's motion between the two times by ``poses``,
-    so its returns land where the vehicle at ``time_s`` has them. Ranges and timestamp unchanged."""
-    then, now = poses.at(scan.timestamp_s), poses.at(time_s)
+def scan_at_time(
+    scan: StructuredScan,
+    poses: PoseAtTime,
+    time_s: float,
+    *,
+    column_time_s: np.ndarray | None = None,
+) -> StructuredScan:
+    """``scan`` as the vehicle frame at ``time_s`` sees it, by ``poses``.
+
+    Without ``column_time_s`` the scan is taken as fired at once at its ``timestamp_s``: its
+    mounting ``R, T`` (paper N Eq. 9) is composed with the vehicle's motion between the two times
+    (``R' = M R``, ``T' = M T + m``), ranges unchanged. With ``column_time_s``, when each column was
+    fired after ``timestamp_s`` (:attr:`RecordedFrame.column_time_s`; NaN = at ``timestamp_s``), the
+    scan is deskewed: each column's motion from its own time to ``time_s`` becomes the scan's
+    :attr:`~negobs_gym.core.scan.StructuredScan.column_motion` (a revolution takes 0.1 s, 0.7 m at
+    25 km/h), the range image and mounting stay as recorded, so the detector's features read the
+    scan as the sensor saw it and place what they find where the vehicle at ``time_s`` has it.
+
+    Raises:
+        ScanError: ``column_time_s`` not one value per column; a time ``poses`` cannot give.
+    """
+    now = poses.at(time_s)
+    if column_time_s is None:
+        turn, shift = _motion(poses.at(scan.timestamp_s), now)
+        return dataclasses.replace(
+            scan, rotation=turn @ scan.rotation, translation_m=turn @ scan.translation_m + shift
+        )
+    offsets = np.nan_to_num(np.asarray(column_time_s, dtype=np.float64), nan=0.0)
+    if offsets.shape != (scan.shape[1],):
+        raise ScanError(
+            f"{scan.sensor}: column_time_s has shape {offsets.shape}, the scan {scan.shape[1]} columns"
+        )
+    # the motion at a few times across the revolution, linear between them (3 ms apart at 10 Hz)
+    samples = np.unique(np.linspace(offsets.min(), offsets.max(), DESKEW_SAMPLES))
+    motions = np.stack([_as_3x4(*_motion(poses.at(scan.timestamp_s + dt), now)) for dt in samples])
+    at = np.interp(offsets, samples, np.arange(samples.size))
+    i = np.minimum(at.astype(np.int64), samples.size - 1)
+    j = np.minimum(i + 1, samples.size - 1)
+    w = (at - i)[:, None, None]
+    return dataclasses.replace(scan, column_motion=(1.0 - w) * motions[i] + w * motions[j])
+
+
+def _as_3x4(turn: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """``[M | m]`` as one (3, 4) array."""
+    return np.hstack([turn, shift[:, None]])
+
+
+#: Times across a revolution at which :func:`scan_at_time` reads the poses to deskew (linear between).
+DESKEW_SAMPLES = 33
+
+
+def _motion(then: Pose, now: Pose) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, m)``: the vehicle frame at ``then`` in the vehicle frame at ``now``."""
     turn = now.rotation.T @ then.rotation
-    shift = now.rotation.T @ (then.translation - now.translation)
-    return dataclasses.replace(
-        scan, rotation=turn @ scan.rotation, translation_m=turn @ scan.translation_m + shift
-    )
+    return turn, now.rotation.T @ (then.translation - now.translation)

@@ -109,3 +109,30 @@ def test_a_cloud_brought_to_the_lead_time_lands_where_the_vehicle_then_sees_it()
     # at its own time nothing moves
     same = scan_at_time(scan, track, 0.96)
     np.testing.assert_allclose(same.points_vehicle, scan.points_vehicle, atol=1e-12, equal_nan=True)
+
+
+def test_a_deskewed_scan_moves_each_column_by_the_vehicles_motion_since_it_fired() -> None:
+    times = np.array([0.9, 1.0, 1.1, 1.2])
+    track = PoseTrack(
+        times,
+        np.column_stack([7.0 * (times - 1.0), np.zeros(4), np.zeros(4)]),
+        Rotation.from_euler("z", np.radians(20.0) * (times[:, None] - 1.0)).as_quat(),
+    )
+    scan = hdl32_side_scan([Hole.ahead(8.0, 1.0, 1.0, 0.8)], side="left")
+    scan = StructuredScan(**{**scan.__dict__, "timestamp_s": 1.0})
+    fired = np.linspace(0.0, 0.1, scan.shape[1], endpoint=False)  # one revolution after its stamp
+    fired[5] = np.nan  # a column without returns: taken at the stamp
+    moved = scan_at_time(scan, track, 1.05, column_time_s=fired)
+    now = track.at(1.05)
+    for column in (0, 5, 700, 1500, scan.shape[1] - 1):
+        then = track.at(1.0 + np.nan_to_num(fired[column]))
+        expected = now.to_vehicle(then.to_world(scan.points_vehicle[:, column]))
+        np.testing.assert_allclose(moved.points_vehicle[:, column], expected, atol=1e-4, equal_nan=True)
+        np.testing.assert_allclose(
+            moved.origins_vehicle([column])[0], now.to_vehicle(then.to_world(scan.translation_m)), atol=1e-4
+        )
+    # the range image and the mounting as recorded: the features read the scan the sensor saw
+    np.testing.assert_array_equal(moved.ranges_m, scan.ranges_m)
+    np.testing.assert_array_equal(moved.rotation, scan.rotation)
+    with pytest.raises(ScanError, match="column_time_s has shape"):
+        scan_at_time(scan, track, 1.05, column_time_s=fired[:-1])
