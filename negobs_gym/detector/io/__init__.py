@@ -4,7 +4,8 @@
   elevation table) or ``x, y, z, intensity, ring`` (numpy only);
 - ``.pcd`` with a ``ring``/``channel``/``laser_id`` field (:mod:`~negobs_gym.detector.io.pcd`);
 - ROS 1 / ROS 2 bags with ``sensor_msgs/PointCloud2`` (:mod:`~negobs_gym.detector.io.bags`), one
-  topic, or a rig's several topics grouped into detector updates (:mod:`~negobs_gym.detector.io.sync`);
+  topic, or a rig's several topics grouped into detector updates (:mod:`~negobs_gym.detector.io.sync`,
+  which also deskews a revolution from its points' firing times);
 - raw Velodyne ``.pcap`` (:mod:`~negobs_gym.detector.io.pcap`).
 
 The last three need ``pip install negobs_gym[real]`` (pypcd4, rosbags, velodyne-decoder), imported

@@ -7,6 +7,7 @@ most half a revolution apart), each cloud used once. The detector takes one vehi
 update and maps each sensor by its mounting (paper N Eq. 9), so a cloud taken ``dt`` before or
 after the lead's is brought to the lead's time by composing its mounting with the vehicle's motion
 over ``dt`` (:func:`scan_at_time`), read from the pose source that gives the update's pose.
+Given when each column was fired, the same function deskews a revolution scanned while driving.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ SYNC_WINDOW_S = 0.1
 #: How long [s] of lead clouds past a lead cloud's window to wait for a topic that has gone quiet
 #: (a sensor that stopped, a bag that ends one topic early) before updating without it.
 SYNC_LAG_S = 1.0
+#: Times across a revolution at which :func:`scan_at_time` reads the poses to deskew (linear between).
+DESKEW_SAMPLES = 33
 
 
 class PoseAtTime(Protocol):
@@ -193,10 +196,6 @@ def scan_at_time(
 def _as_3x4(turn: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """``[M | m]`` as one (3, 4) array."""
     return np.hstack([turn, shift[:, None]])
-
-
-#: Times across a revolution at which :func:`scan_at_time` reads the poses to deskew (linear between).
-DESKEW_SAMPLES = 33
 
 
 def _motion(then: Pose, now: Pose) -> tuple[np.ndarray, np.ndarray]:
