@@ -98,9 +98,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ".pcap (raw Velodyne), ROS 1 .bag / ROS 2 bags with sensor_msgs/PointCloud2; .pcd, bags and "
         ".pcap need `pip install negobs_gym[real]`. Files are read in the ROS/Velodyne frame "
         "(x forward, y left, z up). All FILEs form one sequence; a bag or pcap is a sequence. "
-        "Without --poses, --poses-topic, --tf, --kitti-poses or --kitti-oxts every frame is taken as "
-        "standing still at the same place, so multi-frame fusion accumulates evidence only for a "
-        "vehicle that did not move.",
+        "Without --poses, --poses-track, --poses-topic, --tf, --kitti-poses or --kitti-oxts every "
+        "frame is taken as standing still at the same place, so multi-frame fusion accumulates "
+        "evidence only for a vehicle that did not move.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recorded scans, read in order")
     parser.add_argument("--out", required=True, help="folder for the PNG and JSON files")
@@ -136,7 +136,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: its paper N rig mount's; --mount-from-tf takes the tf's). The first topic "
         "leads: each of its clouds makes an update, with every other topic's cloud nearest in "
         "time within --sync-window, brought to the lead's time by the vehicle's motion when the "
-        "poses are timed (--poses-topic, --tf). Replaces --topic, --sensor and --height",
+        "poses are timed (--poses-track, --poses-topic, --tf). Replaces --topic, --sensor and --height",
     )
     parser.add_argument(
         "--sync-window",
@@ -161,6 +161,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the vehicle's pose at each frame of the sequence, in order: a CSV whose header names "
         "x,y,z,roll,pitch,yaw (m, rad, ROS axes: x forward, y left, yaw from the world x axis), so "
         "that the multi-frame fusion follows a moving vehicle",
+    )
+    poses.add_argument(
+        "--poses-track",
+        default=None,
+        metavar="CSV",
+        help="the vehicle's poses at times, e.g. an INS log: a CSV whose header names timestamp "
+        "[s, on the frames' clock: a bag's --stamps, a pcap's capture time] and x,y,z,roll,pitch,yaw "
+        "(as --poses), interpolated at each frame's time like --poses-topic (so --deskew and "
+        "--cloud can use it)",
     )
     poses.add_argument(
         "--poses-topic",
@@ -235,7 +244,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--deskew",
         action="store_true",
-        help="bags with --poses-topic or --tf: deskew each cloud, i.e. place each column's returns "
+        help="bags and pcap with timed poses (--poses-track, --poses-topic, --tf): deskew each "
+        "cloud, i.e. place each column's returns "
         "and the pairs found on them by the vehicle's motion between when the column was fired (the "
         "points' time field: time, t, offset_time, time_stamp or timestamp) and the cloud's time "
         "(the lead's with --cloud); the features read the scan as recorded. A 10 Hz revolution is "
@@ -282,14 +292,18 @@ def _updates(
     cloud of a bag is checked against (or with ``--mount-from-tf`` given) the tf tree's mounting."""
     from negobs_gym.detector.io import read_recording
     from negobs_gym.detector.io.bags import bag_clouds, bag_pose_track, bag_transform_tree
+    from negobs_gym.detector.io.poses import read_pose_track_csv
     from negobs_gym.detector.io.sync import SYNC_WINDOW_S, synchronise
 
     lead, *others = setups
     window_s = SYNC_WINDOW_S if args.sync_window is None else args.sync_window
+    timed = read_pose_track_csv(args.poses_track, max_gap_s=args.max_pose_gap) if args.poses_track else None
     for path in args.files:
         track: PoseTrack | TransformChain | None = None
         tree: TransformTree | None = None
-        if args.poses_topic:
+        if args.poses_track:
+            track = timed
+        elif args.poses_topic:
             track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)
         elif args.tf:
             tree = bag_transform_tree(path, stamps=args.stamps)
@@ -403,8 +417,8 @@ def _check_tf_options(args: argparse.Namespace) -> None:
 
     if args.tf is None and (args.mount_from_tf or args.body_height):
         raise ScanError("--mount-from-tf and --body-height go with --tf FIXED:BODY")
-    if args.deskew and not (args.poses_topic or args.tf):
-        raise ScanError("--deskew needs the vehicle's motion in time: --poses-topic or --tf")
+    if args.deskew and not (args.poses_track or args.poses_topic or args.tf):
+        raise ScanError("--deskew needs the vehicle's motion in time: --poses-track, --poses-topic or --tf")
     if args.mount_from_tf and (args.height is not None or any(c.height_m for c in args.cloud or ())):
         raise ScanError(
             "--height and --mount-from-tf both set the sensor's height (so does --cloud's HEIGHT): give one"
@@ -542,7 +556,8 @@ def run(args: argparse.Namespace) -> int:
     if poses is not None and len(setups) > 1:
         log.warning(
             "%s gives a pose per update, untimed: the other --cloud topics' clouds are taken as at "
-            "the lead's time, up to --sync-window apart (--poses-topic or --tf bring them to it)",
+            "the lead's time, up to --sync-window apart (--poses-track, --poses-topic or --tf bring "
+            "them to it)",
             poses_file,
         )
     detector = NegativeObstacleDetector(

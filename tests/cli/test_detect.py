@@ -121,3 +121,34 @@ def test_png_height_image_keeps_the_highest_return_per_pixel():
     assert image[0, 0] == 1.1  # three returns in the first pixel: the highest drawn
     assert image[0, 2] == 0.5 and image[39, 19] == 0.7  # the last pixel holds the far corner
     assert int(image.count()) == 3  # every other pixel masked: no return there
+
+
+def test_a_real_capture_deskewed_by_an_ins_log(tmp_path):
+    """hdl32e_b's revolution fired over the 50 ms before its capture time: standing still, deskewing
+    changes nothing; driving at 7 m/s along the log's x, each pair moves back by the vehicle's
+    travel between its column's firing and the capture time."""
+    host = 1355262378.019387  # the revolution's capture time (the decoder's host stamp)
+    args = ["-q", "detect", str(HDL32E_B), "--sensor", "hdl32", "--height", "2.3", "--no-png"]
+    runs = {}
+    for name, speed, extra in (
+        ("raw", 7.0, ()),
+        ("still", 0.0, ("--deskew",)),
+        ("moving", 7.0, ("--deskew",)),
+    ):
+        log = tmp_path / f"{name}.csv"
+        rows = [f"{t:.6f},{speed * (t - host):.6f},0,0,0,0,0" for t in (host - 0.5, host + 0.5)]
+        log.write_text("timestamp,x,y,z,roll,pitch,yaw\n" + "\n".join(rows) + "\n")
+        assert main([*args, "--out", str(tmp_path / name), "--poses-track", str(log), *extra]) == 0
+        runs[name] = json.loads((tmp_path / name / "00000_hdl32e_b_0000.json").read_text())
+    raw, still, moving = (
+        np.array(runs[k]["frame_pairs"]["hdl64"]["a_m"]) for k in ("raw", "still", "moving")
+    )
+    assert len(raw) > 10
+    np.testing.assert_allclose(still, raw, atol=1e-9)
+    # moving along Y leaves a pair's x and z: match each deskewed A to its raw one by them (the
+    # moved ground map keeps 20 of the 22)
+    gap = np.abs(moving[:, None, 0] - raw[None, :, 0]) + np.abs(moving[:, None, 2] - raw[None, :, 2])
+    assert len(moving) >= len(raw) - 3 and np.all(gap.min(axis=1) < 1e-6)
+    shift = moving[:, 1] - raw[gap.argmin(axis=1), 1]  # fired up to 50 ms early: seen from behind
+    assert np.all((shift > -7.0 * 0.05 - 1e-3) & (shift < 1e-3)) and shift.min() < -0.05
+    assert runs["moving"]["deskewed"] and not runs["raw"]["deskewed"]

@@ -365,3 +365,29 @@ def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) 
     _assert_csv_poses_and_outlines(records, files, poses, tmp_path / "csv", atol=1e-6)
     assert main(["detect", files[0], "--out", str(tmp_path / "x"), option, str(given)]) == 2
     assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err
+
+
+def test_a_timed_poses_csv_is_read_at_each_clouds_time(drive, tmp_path, capsys) -> None:
+    """An INS log (timestamp, pose) beside the bag's clouds gives what its odometry topic gives."""
+    files, poses = drive
+    bag = _drive_bag(tmp_path / "log_ros2", files, lambda writer, store: None)
+    log = tmp_path / "ins.csv"
+    rows = [f"{stamp * 1e-9:.6f},{_driven_x(stamp):.6f},0,0,0,0,0" for stamp in reversed(POSE_STAMPS_NS)]
+    log.write_text("timestamp,x,y,z,roll,pitch,yaw\n" + "\n".join(rows) + "\n")  # in any order
+    out = tmp_path / "track"
+    args = ["-q", "detect", str(bag), "--height", "2.2", "--no-png", "--stamps", "header"]
+    assert main([*args, "--out", str(out), "--poses-track", str(log)]) == 0
+    records = [json.loads((out / f"{k:05d}_log_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
+    _assert_csv_poses_and_outlines(records, files, poses, tmp_path / "csv", atol=1e-6)
+    # a log on another clock (the frames' CSV: 0-0.3 s), without times, or with two poses at one
+    # time is refused by name
+    assert main([*args, "--out", str(tmp_path / "x"), "--poses-track", str(poses)]) == 2
+    assert "frame 0: no pose at t = 1.000 s: the poses span 0.000-0.300 s" in capsys.readouterr().err
+    untimed = tmp_path / "untimed.csv"
+    untimed.write_text("x,y,z,roll,pitch,yaw\n0,0,0,0,0,0\n")
+    assert main([*args, "--out", str(tmp_path / "z"), "--poses-track", str(untimed)]) == 2
+    assert "missing pose columns ['timestamp']" in capsys.readouterr().err
+    twice = tmp_path / "twice.csv"
+    twice.write_text("timestamp,x,y,z,roll,pitch,yaw\n1.0,0,0,0,0,0,0\n1.0,1,0,0,0,0,0\n")
+    assert main([*args, "--out", str(tmp_path / "y"), "--poses-track", str(twice)]) == 2
+    assert "times must increase strictly" in capsys.readouterr().err

@@ -18,7 +18,7 @@ import numpy as np
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
-from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
+from negobs_gym.detector.io.setup import ScanSetup, column_time_offsets, fields_to_scan
 from negobs_gym.errors import ScanError
 
 log = logging.getLogger(__name__)
@@ -50,8 +50,12 @@ def truncated_at(path: str) -> int | None:
         return offset if offset < size else None
 
 
-def pcap_frames(path: str | os.PathLike[str], setup: ScanSetup) -> Iterator[RecordedFrame]:
-    """One frame per revolution of a Velodyne pcap (sensor frame x forward, y left, z up)."""
+def pcap_frames(
+    path: str | os.PathLike[str], setup: ScanSetup, *, point_times: bool = False
+) -> Iterator[RecordedFrame]:
+    """One frame per revolution of a Velodyne pcap (sensor frame x forward, y left, z up), timed by
+    the capture's host clock; with ``point_times`` each frame's ``column_time_s`` from the decoder's
+    per-point times (after that stamp)."""
     vd = optional_import("velodyne_decoder", "velodyne-decoder", "reading Velodyne pcap files")
     name = os.fspath(path)
     check_not_empty(name)
@@ -61,11 +65,13 @@ def pcap_frames(path: str | os.PathLike[str], setup: ScanSetup) -> Iterator[Reco
     index = 0
     try:
         for stamp, points in vd.read_pcap(name, vd.Config(), as_pcl_structs=True):
-            fields = {k: np.asarray(points[k]) for k in ("x", "y", "z", "intensity", "ring")}
-            scan, ring_source = fields_to_scan(
-                fields, setup, source=f"{name}#{index}", timestamp_s=stamp.host
+            fields = {k: np.asarray(points[k]) for k in ("x", "y", "z", "intensity", "ring", "time")}
+            source = f"{name}#{index}"
+            scan, ring_source = fields_to_scan(fields, setup, source=source, timestamp_s=stamp.host)
+            columns = (
+                column_time_offsets(fields, setup, source=source, stamp_s=stamp.host) if point_times else None
             )
-            yield RecordedFrame(scan, name, index, ring_source, int(points.shape[0]))
+            yield RecordedFrame(scan, name, index, ring_source, int(points.shape[0]), column_time_s=columns)
             index += 1
     except ScanError:
         raise

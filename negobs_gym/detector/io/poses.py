@@ -9,8 +9,9 @@ yaw counter-clockwise from the world x axis, positive pitch nose down, positive 
 down), as an odometry or INS export gives them. :func:`pose_from_ros` converts each to this
 package's :class:`~negobs_gym.core.pose.Pose` (vehicle Y forward, X right; yaw 0 facing world +Y).
 
-A bag's odometry topic gives timed poses instead (:func:`negobs_gym.detector.io.bags.bag_pose_track`):
-a :class:`PoseTrack`, interpolated at each frame's time.
+Timed poses, a :class:`PoseTrack` interpolated at each frame's time, come from a CSV with a
+``timestamp`` column (:func:`read_pose_track_csv`) or a bag's odometry topic
+(:func:`negobs_gym.detector.io.bags.bag_pose_track`).
 """
 
 from __future__ import annotations
@@ -29,9 +30,19 @@ from negobs_gym.errors import ScanError
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
 
-__all__ = ["POSE_COLUMNS", "PoseTrack", "pose_from_ros", "pose_from_ros_transform", "read_poses_csv"]
+__all__ = [
+    "POSE_COLUMNS",
+    "TIME_COLUMN",
+    "PoseTrack",
+    "pose_from_ros",
+    "pose_from_ros_transform",
+    "read_pose_track_csv",
+    "read_poses_csv",
+]
 
 POSE_COLUMNS = ("x", "y", "z", "roll", "pitch", "yaw")
+#: The column of a timed poses CSV (:func:`read_pose_track_csv`) that says when each pose holds [s].
+TIME_COLUMN = "timestamp"
 
 
 def pose_from_ros(x: float, y: float, z: float, roll: float, pitch: float, yaw: float) -> Pose:
@@ -51,6 +62,32 @@ def read_poses_csv(path: str | os.PathLike[str]) -> list[Pose]:
         ScanError: an unreadable or empty file, a missing column, or a value that is not a finite
             number (named by row and column).
     """
+    return [pose_from_ros(*values) for values in _csv_rows(path, POSE_COLUMNS)]
+
+
+def read_pose_track_csv(path: str | os.PathLike[str], *, max_gap_s: float = 0.1) -> PoseTrack:
+    """Timed poses of a CSV file: a ``timestamp`` column [s] besides the pose columns (module note),
+    rows in any order, as a :class:`PoseTrack` read at each frame's time (an INS log beside a
+    Velodyne capture, on the clock the frames are timed by).
+
+    Raises:
+        ScanError: as :func:`read_poses_csv` (the ``timestamp`` column included), or two rows at
+            one time.
+    """
+    from scipy.spatial.transform import Rotation
+
+    rows = np.asarray(_csv_rows(path, (TIME_COLUMN, *POSE_COLUMNS)), dtype=np.float64)
+    order = np.argsort(rows[:, 0], kind="stable")
+    rows = rows[order]
+    quaternions = Rotation.from_euler("xyz", rows[:, 4:7]).as_quat()  # ROS roll, pitch, yaw
+    try:
+        return PoseTrack(rows[:, 0], rows[:, 1:4], quaternions, max_gap_s=max_gap_s)
+    except ScanError as error:
+        raise ScanError(f"{os.fspath(path)}: {error}") from error
+
+
+def _csv_rows(path: str | os.PathLike[str], columns: tuple[str, ...]) -> list[tuple[float, ...]]:
+    """The ``columns`` of every data row of a CSV file, as finite numbers."""
     name = os.fspath(path)
     try:
         with open(name, newline="", encoding="utf-8") as handle:
@@ -60,15 +97,15 @@ def read_poses_csv(path: str | os.PathLike[str]) -> list[Pose]:
     except (OSError, UnicodeDecodeError, csv.Error) as error:
         raise ScanError(f"{name}: cannot read poses ({type(error).__name__}: {error})") from error
     if not rows:
-        raise ScanError(f"{name}: no poses (a header and one row per frame: {', '.join(POSE_COLUMNS)})")
-    missing = [c for c in POSE_COLUMNS if c not in header]
+        raise ScanError(f"{name}: no poses (a header and one row per frame: {', '.join(columns)})")
+    missing = [c for c in columns if c not in header]
     if missing:
         raise ScanError(f"{name}: missing pose columns {missing}; the header has {header}")
-    poses = []
+    out = []
     for n, row in enumerate(rows, start=2):  # line 1 is the header
         row = {(k or "").strip(): v for k, v in row.items()}
         values = []
-        for column in POSE_COLUMNS:
+        for column in columns:
             text = row.get(column)
             try:
                 value = float(text)
@@ -77,8 +114,8 @@ def read_poses_csv(path: str | os.PathLike[str]) -> list[Pose]:
             if not math.isfinite(value):
                 raise ScanError(f"{name}: line {n}, column {column}: not a finite number ({text!r})")
             values.append(value)
-        poses.append(pose_from_ros(*values))
-    return poses
+        out.append(tuple(values))
+    return out
 
 
 @dataclass(frozen=True, eq=False)

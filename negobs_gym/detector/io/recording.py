@@ -89,14 +89,14 @@ def read_recording(
     """Frames of one recording, chosen by its name: ``.bin`` (float32, ``bin_layout``), ``.pcd``,
     ``.pcap`` (raw Velodyne packets), ``.bag`` (ROS 1) or a ROS 2 bag (its folder, ``.db3`` or
     ``.mcap``; ``topic``, ``stamps`` and ``point_times`` as
-    :func:`~negobs_gym.detector.io.bags.bag_frames`; ``point_times`` is for bags only). PCD, bags and
-    pcap need the ``negobs_gym[real]`` extra."""
+    :func:`~negobs_gym.detector.io.bags.bag_frames`; ``point_times`` for bags and pcap only). PCD,
+    bags and pcap need the ``negobs_gym[real]`` extra."""
     p = Path(path)
     if not p.exists():
         raise ScanError(f"{p}: no such file or folder")
     suffix = p.suffix.lower()
-    if point_times and not is_bag(p):
-        raise ScanError(f"{p}: per-point times are read from bags only")
+    if point_times and not (is_bag(p) or suffix == ".pcap"):
+        raise ScanError(f"{p}: per-point times are read from bags and pcap captures only")
     if suffix == ".bin":
         yield read_bin(p, setup, bin_layout)
     elif suffix == ".pcd":
@@ -106,7 +106,7 @@ def read_recording(
     elif suffix == ".pcap":
         from negobs_gym.detector.io.pcap import pcap_frames
 
-        yield from pcap_frames(p, setup)
+        yield from pcap_frames(p, setup, point_times=point_times)
     elif is_bag(p):
         from negobs_gym.detector.io.bags import bag_frames
 

@@ -107,7 +107,7 @@ def test_dispatch_and_setup_errors(tmp_path):
     (tmp_path / "cloud.las").write_bytes(b"LASF")
     with pytest.raises(ScanError, match="unknown recording type"):
         list(read_recording(tmp_path / "cloud.las", SETUP))
-    with pytest.raises(ScanError, match="per-point times are read from bags only"):
+    with pytest.raises(ScanError, match="per-point times are read from bags and pcap captures only"):
         list(read_recording(tmp_path / "cloud.las", SETUP, point_times=True))
     with pytest.raises(ConfigError, match="azimuth_resolution_deg"):
         ScanSetup(azimuth_resolution_deg=0.0)
