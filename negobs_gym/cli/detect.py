@@ -293,7 +293,9 @@ def _updates(
     from negobs_gym.detector.io import read_recording
     from negobs_gym.detector.io.bags import bag_clouds, bag_pose_track, bag_transform_tree
     from negobs_gym.detector.io.poses import read_pose_track_csv
+    from negobs_gym.detector.io.recording import is_bag
     from negobs_gym.detector.io.sync import SYNC_WINDOW_S, synchronise
+    from negobs_gym.errors import ScanError
 
     lead, *others = setups
     window_s = SYNC_WINDOW_S if args.sync_window is None else args.sync_window
@@ -302,6 +304,11 @@ def _updates(
         track: PoseTrack | TransformChain | None = None
         tree: TransformTree | None = None
         if args.poses_track:
+            if not (is_bag(path) or Path(path).suffix.lower() == ".pcap"):
+                raise ScanError(
+                    f"{path}: its frames carry no time, which --poses-track needs (bags and pcap "
+                    "captures do); give one pose per frame with --poses"
+                )
             track = timed
         elif args.poses_topic:
             track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)

@@ -387,6 +387,8 @@ def test_a_timed_poses_csv_is_read_at_each_clouds_time(drive, tmp_path, capsys) 
     untimed.write_text("x,y,z,roll,pitch,yaw\n0,0,0,0,0,0\n")
     assert main([*args, "--out", str(tmp_path / "z"), "--poses-track", str(untimed)]) == 2
     assert "missing pose columns ['timestamp']" in capsys.readouterr().err
+    assert main(["detect", *files, "--out", str(tmp_path / "b"), "--poses-track", str(log)]) == 2
+    assert "its frames carry no time, which --poses-track needs" in capsys.readouterr().err
     twice = tmp_path / "twice.csv"
     twice.write_text("timestamp,x,y,z,roll,pitch,yaw\n1.0,0,0,0,0,0,0\n1.0,1,0,0,0,0,0\n")
     assert main([*args, "--out", str(tmp_path / "y"), "--poses-track", str(twice)]) == 2
