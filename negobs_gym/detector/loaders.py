@@ -94,8 +94,6 @@ def cloud_to_scan(
         raise ScanError(f"{sensor}: ring indices must be integers in [0, {el.size})")
     if not (np.isfinite(azimuth_resolution_deg) and 0 < azimuth_resolution_deg <= 360):
         raise ScanError(f"{sensor}: azimuth_resolution_deg must be in (0, 360]")
-    n_cols = max(1, round(360.0 / azimuth_resolution_deg))
-    res = 2 * np.pi / n_cols
     rng_m = np.linalg.norm(xyz, axis=1)
     keep = rng_m > 0
     xyz, ring, rng_m = xyz[keep], ring[keep].astype(np.int64), rng_m[keep]
@@ -104,8 +102,7 @@ def cloud_to_scan(
         if inten.shape[0] != keep.size:
             raise ScanError(f"{sensor}: intensity must have one entry per point")
         inten = inten[keep]
-    az = libm.arctan2(xyz[:, 0], xyz[:, 1])  # clockwise from +Y
-    col = np.clip(np.floor((az + np.pi) / res).astype(np.int64), 0, n_cols - 1)
+    col, n_cols = azimuth_columns(xyz, azimuth_resolution_deg)
     order_rows = np.argsort(el, kind="stable")
     row_of_ring = np.empty(el.size, dtype=np.int64)
     row_of_ring[order_rows] = np.arange(el.size)
@@ -127,7 +124,7 @@ def cloud_to_scan(
     return StructuredScan(
         sensor=sensor,
         ranges_m=ranges.reshape(el.size, n_cols),
-        azimuth_rad=-np.pi + (np.arange(n_cols) + 0.5) * res,
+        azimuth_rad=-np.pi + (np.arange(n_cols) + 0.5) * (2 * np.pi / n_cols),
         elevation_rad=el[order_rows],
         rotation=np.eye(3) if rotation is None else rotation,
         translation_m=np.zeros(3) if translation_m is None else translation_m,
@@ -135,6 +132,14 @@ def cloud_to_scan(
         timestamp_s=timestamp_s,
         intensity=inten_img,
     )
+
+
+def azimuth_columns(xyz_m: np.ndarray, azimuth_resolution_deg: float) -> tuple[np.ndarray, int]:
+    """The range-image column of each sensor-frame point (azimuth clockwise from +Y, column 0 at
+    -180 deg) and the number of columns, as :func:`cloud_to_scan` bins them."""
+    n_cols = max(1, round(360.0 / azimuth_resolution_deg))
+    az = libm.arctan2(xyz_m[:, 0], xyz_m[:, 1])
+    return np.clip(np.floor((az + np.pi) / (2 * np.pi / n_cols)).astype(np.int64), 0, n_cols - 1), n_cols
 
 
 def ring_cloud_to_scan(

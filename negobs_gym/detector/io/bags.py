@@ -156,10 +156,7 @@ def _read_clouds(
         index = counts[topic]
         counts[topic] += 1
         source = f"{p}#{index}" if len(setups) == 1 else f"{p}#{topic}#{index}"
-        try:
-            msg = reader.deserialize(raw, connection.msgtype)
-        except Exception as error:  # a corrupt message body
-            raise unreadable(source, "PointCloud2 message", error) from error
+        msg = _deserialize(reader, connection, raw, source)
         fields = pointcloud2_fields(msg, source)
         time_s = _message_time_s(stamp_ns, msg, stamps, source)
         scan, ring_source = fields_to_scan(fields, setups[topic], source=source, timestamp_s=time_s)
@@ -248,26 +245,17 @@ def bag_transform_tree(path: str | os.PathLike[str], *, stamps: str = "record") 
         if not topics:
             types = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
             raise ScanError(f"{p}: no tf topic ({' or '.join(TF_MESSAGES)}); the bag has {types}")
-        connections = [c for c in reader.connections if c.topic in topics]
-        for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
-            source = f"{p}#{connection.topic}#{index}"
-            try:
-                msg = reader.deserialize(raw, connection.msgtype)
-                transforms = list(msg.transforms)
-            except Exception as error:  # a corrupt message body
-                raise unreadable(source, connection.msgtype, error) from error
-            is_static = frame_name(connection.topic) == "tf_static"
-            for stamped in transforms:
-                t, q = stamped.transform.translation, stamped.transform.rotation
-                (static if is_static else timed).append(
-                    TimedTransform(
-                        0.0 if is_static else _message_time_s(stamp_ns, stamped, stamps, source),
-                        stamped.header.frame_id,
-                        stamped.child_frame_id,
-                        (float(t.x), float(t.y), float(t.z)),
-                        (float(q.x), float(q.y), float(q.z), float(q.w)),
-                    )
+        for stamp_ns, is_static, stamped, source in _transforms(reader, p):
+            t, q = stamped.transform.translation, stamped.transform.rotation
+            (static if is_static else timed).append(
+                TimedTransform(
+                    0.0 if is_static else _message_time_s(stamp_ns, stamped, stamps, source),
+                    stamped.header.frame_id,
+                    stamped.child_frame_id,
+                    (float(t.x), float(t.y), float(t.z)),
+                    (float(q.x), float(q.y), float(q.z), float(q.w)),
                 )
+            )
     finally:
         reader.close()
     return TransformTree(timed, static, source=os.fspath(p))
@@ -369,17 +357,9 @@ def bag_contents(path: str | os.PathLike[str]) -> BagContents:
                         points=int(msg.width) * int(msg.height) if info.msgtype == POINTCLOUD2 else 0,
                     )
             topics.append(entry)
-        tf = [c for c in reader.connections if c.msgtype in TF_MESSAGES]
-        messages = reader.messages(connections=tf) if tf else ()  # no connections: rosbags reads all
-        for index, (connection, _, raw) in enumerate(messages):
-            try:
-                transforms = reader.deserialize(raw, connection.msgtype).transforms
-            except Exception as error:  # a corrupt message body
-                raise unreadable(f"{p}#{connection.topic}#{index}", connection.msgtype, error) from error
-            static = frame_name(connection.topic) == "tf_static"
-            for stamped in transforms:
-                key = (stamped.header.frame_id, stamped.child_frame_id, static)
-                edges[key] = edges.get(key, 0) + 1
+        for _, static, stamped, _ in _transforms(reader, p):
+            key = (stamped.header.frame_id, stamped.child_frame_id, static)
+            edges[key] = edges.get(key, 0) + 1
         duration_s = reader.duration * 1e-9 if reader.message_count else 0.0
     finally:
         reader.close()
@@ -390,8 +370,27 @@ def bag_contents(path: str | os.PathLike[str]) -> BagContents:
 def _first_message(reader, connections, source: str):
     """The first message on ``connections`` (deserialised), None on an empty topic."""
     for connection, _, raw in reader.messages(connections=connections):
-        try:
-            return reader.deserialize(raw, connection.msgtype)
-        except Exception as error:  # a corrupt message body
-            raise unreadable(source, connection.msgtype, error) from error
+        return _deserialize(reader, connection, raw, source)
     return None
+
+
+def _transforms(reader, p: Path) -> Iterator[tuple[int, bool, object, str]]:
+    """``(record time [ns], static, TransformStamped, source)`` of every transform on the bag's tf
+    topics, in record order (none without a tf topic)."""
+    connections = [c for c in reader.connections if c.msgtype in TF_MESSAGES]
+    if not connections:  # rosbags reads every topic when given none
+        return
+    for index, (connection, stamp_ns, raw) in enumerate(reader.messages(connections=connections)):
+        source = f"{p}#{connection.topic}#{index}"
+        msg = _deserialize(reader, connection, raw, source)
+        static = frame_name(connection.topic) == "tf_static"
+        for stamped in msg.transforms:  # type: ignore[attr-defined]
+            yield stamp_ns, static, stamped, source
+
+
+def _deserialize(reader, connection, raw: bytes, source: str) -> object:
+    """One message's body, or a one-line :class:`ScanError` naming ``source`` if it is corrupt."""
+    try:
+        return reader.deserialize(raw, connection.msgtype)
+    except Exception as error:  # rosbags raises its own errors on a corrupt message body
+        raise unreadable(source, connection.msgtype, error) from error

@@ -8,12 +8,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from negobs_gym.core import libm
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.loaders import (
     HDL64E_AZIMUTH_RESOLUTION_DEG,
     RingSource,
     assign_rings,
+    azimuth_columns,
     cloud_to_scan,
     measured_ring_elevations,
     ros_to_sensor_frame,
@@ -159,11 +159,7 @@ def column_time_offsets(
         raise ScanError(f"{source}: {name} field holds a value that is not finite")
     if times.size and np.median(times) > ABSOLUTE_TIME_S:
         times = times - stamp_s
-    xyz = ros_to_sensor_frame(xyz[keep])
-    n_cols = max(1, round(360.0 / setup.azimuth_resolution_deg))
-    res = 2 * np.pi / n_cols
-    az = libm.arctan2(xyz[:, 0], xyz[:, 1])  # as cloud_to_scan bins them: clockwise from +Y
-    col = np.clip(np.floor((az + np.pi) / res).astype(np.int64), 0, n_cols - 1)
+    col, n_cols = azimuth_columns(ros_to_sensor_frame(xyz[keep]), setup.azimuth_resolution_deg)
     count = np.bincount(col, minlength=n_cols)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.bincount(col, weights=times, minlength=n_cols) / np.where(count > 0, count, np.nan)
