@@ -1,4 +1,5 @@
-"""``negobs detect``: paper N's negative-obstacle detector on recorded LiDAR files.
+"""``negobs detect``: paper N's negative-obstacle detector (and paper T's traversable-region
+detector for a 4-layer LiDAR) on recorded LiDAR files.
 
 Reads each FILE (see :mod:`negobs_gym.detector.io`), runs one
 :class:`~negobs_gym.detector.NegativeObstacleDetector` over all frames in order (a bag or pcap is a
@@ -7,7 +8,9 @@ sequence, several files are one sequence) and writes, for frame ``n`` of the seq
 cells, and the cells of the structure channel: returns above paper N's ground map, walls, vehicles,
 rocks; :mod:`negobs_gym.detector.structure`) and ``<n>_<stem>_<frame>.png`` (top-down: points
 coloured by height, structure cells, pairs and outlines drawn), plus ``summary.json``; every file
-is written atomically.
+is written atomically. A LUX cloud (``--sensor lux``, or a ``--cloud`` topic) goes to one
+:class:`~negobs_gym.detector.TraversableRegionDetector` instead: its boundaries, obstacles and
+region in the JSON's ``traversable`` key and in the PNG.
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ MOUNT_TOLERANCE_DEG = 1.0
 PATH_TOLERANCE_DEG = 30.0
 #: ``--sensor`` when neither it nor ``--cloud`` is given
 DEFAULT_SENSOR = "hdl64"
+#: The detector input of paper T's 4-layer LiDAR (the mount of ``sensors.rigs.paper_t_rig``)
+LUX_MOUNT = "lux"
 
 
 @dataclass(frozen=True)
@@ -57,21 +62,23 @@ class CloudSpec:
 
 @dataclass(frozen=True)
 class RecordedSensor:
-    """A sensor ``--sensor`` can name: column width, fallback elevation table, and the paper N rig
-    mount whose extrinsics it takes (``hdl64``: upright on the roof; ``hdl32_left/right``: rolled
-    90 deg on the sides). Upright sensors feed the detector's HDL-64 path, rolled ones its HDL-32 path."""
+    """A sensor ``--sensor`` can name: column width, fallback elevation table, and the rig mount
+    whose extrinsics it takes (paper N's ``hdl64``: upright on the roof, ``hdl32_left/right``:
+    rolled 90 deg on the sides; paper T's ``lux``: on the bumper, pitched down). Upright sensors feed
+    paper N's HDL-64 path, rolled ones its HDL-32 path, the LUX paper T's traversable-region detector."""
 
     help: str
     azimuth_resolution_deg: float
     elevation_deg: tuple[float, ...]  # fallback table for clouds without ring (empty: ring needed)
     mount: str = "hdl64"
+    columns_centred: bool = False  # a fixed-angle scanner: columns centred on its firing angles
 
 
 def recorded_sensors() -> dict[str, RecordedSensor]:
     """The sensors ``--sensor`` offers, by name."""
-    from negobs_gym.sensors.models import hdl32e, hdl64e_s2
+    from negobs_gym.sensors.models import hdl32e, hdl64e_s2, ibeo_lux
 
-    h64, h32 = hdl64e_s2().elevation_deg, hdl32e().elevation_deg
+    h64, h32, lux = hdl64e_s2().elevation_deg, hdl32e().elevation_deg, ibeo_lux()
     return {
         "hdl64": RecordedSensor("HDL-64E S2 upright (default)", 0.09, h64),
         "hdl32": RecordedSensor("HDL-32E upright", 0.16, h32),
@@ -81,6 +88,13 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
         "vlp16": RecordedSensor("VLP-16 upright", 0.2, tuple(float(v) for v in np.arange(-15.0, 16.0, 2.0))),
         # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
         "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
+        "lux": RecordedSensor(
+            "IBEO LUX or SICK LD-MRS, 4 layers, on the bumper pitched down 5.03 deg (paper T)",
+            lux.azimuth_resolution_deg,
+            lux.elevation_deg,
+            LUX_MOUNT,
+            columns_centred=True,
+        ),
     }
 
 
@@ -88,8 +102,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``detect`` command."""
     parser = subparsers.add_parser(
         "detect",
-        help="paper N's negative-obstacle detector on recorded scans; writes PNG + JSON per frame",
-        description="Runs paper N's negative-obstacle detector on recorded LiDAR files and writes, "
+        help="paper N's negative-obstacle detector (paper T's traversable region for a 4-layer "
+        "LiDAR) on recorded scans; writes PNG + JSON per frame",
+        description="Runs paper N's negative-obstacle detector on recorded LiDAR files (paper T's "
+        "traversable-region detector on a 4-layer LiDAR's: --sensor lux) and writes, "
         "per frame, a top-down PNG (points coloured by height, this frame's pairs, fused pairs, "
         "obstacle outlines, grid cells, structure cells) and a JSON with the grid, the pairs, the "
         "obstacles and the structure cells (returns standing 0.25-2.5 m above paper N's ground map: "
@@ -110,15 +126,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="sensor model and mounting (default: hdl64): "
         + "; ".join(f"{name}: {spec.help}" for name, spec in recorded_sensors().items())
-        + ". Upright sensors use the detector's HDL-64 path (paper N §3.1), rolled ones its HDL-32 "
-        "path (§3.2)",
+        + ". Upright sensors use paper N's HDL-64 path (§3.1), rolled ones its HDL-32 path (§3.2); "
+        "lux runs paper T's traversable-region detector instead",
     )
     parser.add_argument(
         "--height",
         type=positive_float,
         default=None,
-        help="sensor origin above the ground [m] (default: the paper N rig's, 2.2 m for the roof "
-        "sensor, 2.0 m for the side HDL-32s)",
+        help="sensor origin above the ground [m] (default: the rig's, 2.2 m for the roof sensor, "
+        "2.0 m for the side HDL-32s, 0.65 m for the LUX)",
     )
     parser.add_argument(
         "--bin-fields", choices=("xyzi", "xyzir"), default="xyzi", help=".bin layout (default: %(default)s)"
@@ -438,12 +454,12 @@ def scan_setup(args: argparse.Namespace) -> ScanSetup:
 
 
 def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | None) -> ScanSetup:
-    """A recorded sensor's setup: its paper N rig mount, at ``height_m`` when given."""
+    """A recorded sensor's setup: its paper N or paper T rig mount, at ``height_m`` when given."""
     from negobs_gym.detector.io import ScanSetup
-    from negobs_gym.sensors.rigs import paper_n_rig
+    from negobs_gym.sensors.rigs import paper_n_rig, paper_t_rig
 
     spec = recorded_sensors()[sensor]
-    mount = next(m for m in paper_n_rig().mounts if m.name == spec.mount)
+    mount = next(m for m in paper_n_rig().mounts + paper_t_rig().mounts if m.name == spec.mount)
     x, y, z = mount.translation_m
     return ScanSetup(
         sensor=mount.name,
@@ -451,6 +467,7 @@ def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | 
         elevation_rad=tuple(math.radians(v) for v in spec.elevation_deg),
         rotation=tuple(tuple(float(v) for v in row) for row in mount.rotation_matrix),
         translation_m=(x, y, z if height_m is None else height_m),
+        columns_centred=spec.columns_centred,
     )
 
 
@@ -530,6 +547,7 @@ def run(args: argparse.Namespace) -> int:
         NegativeDetectorConfig,
         NegativeObstacleDetector,
         StructureDetector,
+        TraversableRegionDetector,
     )
     from negobs_gym.detector.io import read_poses_csv
     from negobs_gym.errors import ScanError
@@ -571,6 +589,7 @@ def run(args: argparse.Namespace) -> int:
         NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
     )
     structure = StructureDetector(grid=detector.config.grid)
+    traversable = TraversableRegionDetector(grid=detector.config.grid)
     summary = []
     missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
 
@@ -588,12 +607,21 @@ def run(args: argparse.Namespace) -> int:
         else:
             pose = poses[n] if poses is not None else Pose()
         scans = _scans_at_lead_time(update, track)
-        detection = detector.update(scans, pose)
-        cells = structure.update(scans, pose, detection.ground_map)
+        detection = cells = region = None
+        if set(scans) - {LUX_MOUNT}:  # paper N's inputs
+            detection = detector.update(scans, pose)
+            cells = structure.update(scans, pose, detection.ground_map)
+        if LUX_MOUNT in scans:
+            try:
+                region = traversable.update(scans[LUX_MOUNT], pose)
+            except ScanError as error:  # e.g. a layer field with fewer than the LUX's 4 layers
+                lux = next(f for f in update.clouds.values() if f.scan.sensor == LUX_MOUNT)
+                raise ScanError(f"{lux.source}, LUX cloud {lux.index}: {error}") from error
         stem = f"{n:05d}_{Path(frame.source).stem}_{frame.index:04d}"  # n: the same file may repeat
         given = poses is not None or track is not None
         sensor = args.cloud[0].sensor if args.cloud else args.sensor or DEFAULT_SENSOR
-        record = detection_record(frame, detection, sensor, cells, pose if given else None)
+        found = {"detection": detection, "structure": cells, "region": region, "grid": detector.config.grid}
+        record = detection_record(frame, sensor, pose if given else None, **found)
         record["deskewed"] = args.deskew
         if args.cloud:
             record["clouds"] = cloud_records(update, scans, {c.topic: c.sensor for c in args.cloud})
@@ -601,17 +629,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_png:
             write_atomic(
                 out / f"{stem}.png",
-                lambda tmp, f=frame, d=detection, c=cells, s=scans: plot_detection(f, d, c, tmp, s.values()),
+                lambda tmp, f=frame, s=scans, found=found: plot_detection(f, tmp, s.values(), **found),
             )
         summary.append(
-            {
-                "frame": stem,
-                **{k: record[k] for k in ("n_points", "n_frame_pairs", "n_obstacles")},
-                "n_structure_cells": len(record["structure_cells"]),
-                **({"n_clouds": len(update.clouds)} if args.cloud else {}),
-            }
+            {"frame": stem, **_summary(record), **({"n_clouds": len(update.clouds)} if args.cloud else {})}
         )
-        log.debug("%s: %d pairs, %d obstacles", stem, record["n_frame_pairs"], record["n_obstacles"])
+        log.debug("%s: %s", stem, _summary(record))
         for topic in setups:
             missing[topic] += topic not in update.clouds
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))
@@ -629,9 +652,28 @@ def run(args: argparse.Namespace) -> int:
             len(poses) - len(summary),
         )
     log.info(
-        "negobs detect: %d frames, %d obstacles in the last, written to %s",
+        "negobs detect: %d frames, the last %s, written to %s",
         len(summary),
-        summary[-1]["n_obstacles"] if summary else 0,
+        summary[-1] if summary else {},
         out,
     )
     return 0
+
+
+def _summary(record: dict) -> dict:
+    """A frame's line of ``summary.json``: its points and what each detector that ran found."""
+    line = {"n_points": record["n_points"]}
+    if "n_frame_pairs" in record:
+        line.update(
+            n_frame_pairs=record["n_frame_pairs"],
+            n_obstacles=record["n_obstacles"],
+            n_structure_cells=len(record["structure_cells"]),
+        )
+    if "traversable" in record:
+        region = record["traversable"]
+        line.update(
+            n_traversable_cells=len(region["traversable_cells"]),
+            n_positive_obstacles=region["n_obstacles"],
+            boundaries=[side for side in ("left", "right") if region[f"{side}_line"] is not None],
+        )
+    return line

@@ -8,11 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io import RecordedFrame
 from negobs_gym.detector.io.sync import SynchronisedFrames
 from negobs_gym.detector.negative import Detection
+from negobs_gym.detector.traversable import TraversableRegion
+from negobs_gym.detector.traversable.boundaries import BoundaryLine
 
 
 def _xyz(a: np.ndarray) -> list[list[float]]:
@@ -21,23 +24,27 @@ def _xyz(a: np.ndarray) -> list[list[float]]:
 
 def detection_record(
     frame: RecordedFrame,
-    detection: Detection,
     sensor: str,
-    structure: np.ndarray,
     pose: Pose | None = None,
+    *,
+    detection: Detection | None = None,
+    structure: np.ndarray | None = None,
+    region: TraversableRegion | None = None,
+    grid: GridSpec | None = None,
 ) -> dict[str, Any]:
-    """JSON-ready record of one frame: provenance, this frame's pairs, fused pairs, obstacles, grid,
-    and the structure channel's cells (``structure``, a bool grid of the same spec; returns above
-    paper N's ground map, :mod:`negobs_gym.detector.structure`).
+    """JSON-ready record of one update: provenance, then what each detector that ran found.
 
-    Coordinates are metres in the vehicle frame (X right, Y forward, Z up); the grid is given by
-    its spec and the ``[row, col]`` of every occupied cell (row 0 = rear edge, col 0 = left edge).
+    Paper N (``detection``, with the structure channel's cells ``structure``, a bool grid of the
+    same spec: returns above paper N's ground map, :mod:`negobs_gym.detector.structure`): this
+    frame's pairs, fused pairs, obstacles and grid, as top-level keys. Paper T (``region``, on
+    ``grid``, the default spec when None): the ``traversable`` key (:func:`traversable_record`).
+
+    Coordinates are metres in the vehicle frame (X right, Y forward, Z up); a grid is given by its
+    spec and the ``[row, col]`` of every occupied cell (row 0 = rear edge, col 0 = left edge).
     ``pose`` (``--poses``) is recorded as this package's pose of the vehicle (x, y, z, roll, pitch,
     yaw; vehicle Y forward), None when the frames were taken as standing still.
     """
-    spec = detection.grid_spec
-    fused = detection.pairs
-    return {
+    record: dict[str, Any] = {
         "source": frame.source,
         "frame": frame.index,
         "timestamp_s": frame.scan.timestamp_s,
@@ -48,6 +55,19 @@ def detection_record(
         "n_points": frame.n_points,
         "scan_shape": list(frame.scan.shape),
         "pose": None if pose is None else [pose.x, pose.y, pose.z, pose.roll, pose.pitch, pose.yaw],
+    }
+    if detection is not None:
+        record.update(_negative_record(detection, structure))
+    if region is not None:
+        record["traversable"] = traversable_record(region, grid or GridSpec())
+    return record
+
+
+def _negative_record(detection: Detection, structure: np.ndarray | None) -> dict[str, Any]:
+    """Paper N's part of a record: pairs, fused pairs, obstacles, grid, structure cells."""
+    spec = detection.grid_spec
+    fused = detection.pairs
+    return {
         "n_frame_pairs": int(sum(len(p) for p in detection.frame_pairs.values())),
         "frame_pairs": {
             name: {"a_m": _xyz(p.a_m), "b_m": _xyz(p.b_m), "c_m": _xyz(np.nan_to_num(p.c_m, nan=0.0))}
@@ -69,15 +89,60 @@ def detection_record(
             }
             for ob in detection.obstacles
         ],
-        "grid": {
-            "cell_m": spec.cell_m,
-            "ahead_m": spec.ahead_m,
-            "back_m": spec.back_m,
-            "side_m": spec.side_m,
-            "shape": list(detection.grid.shape),
-            "occupied_cells": np.argwhere(detection.grid).tolist(),
-        },
-        "structure_cells": np.argwhere(structure).tolist(),
+        "grid": _grid(spec, detection.grid),
+        "structure_cells": [] if structure is None else np.argwhere(structure).tolist(),
+    }
+
+
+def _grid(spec: GridSpec, occupied: np.ndarray | None = None) -> dict[str, Any]:
+    """A grid's spec, with the ``[row, col]`` of each ``occupied`` cell when given."""
+    grid: dict[str, Any] = {
+        "cell_m": spec.cell_m,
+        "ahead_m": spec.ahead_m,
+        "back_m": spec.back_m,
+        "side_m": spec.side_m,
+        "shape": list(spec.shape),
+    }
+    if occupied is not None:
+        grid["occupied_cells"] = np.argwhere(occupied).tolist()
+    return grid
+
+
+def _points_or_none(points: np.ndarray) -> list[list[float] | None]:
+    """(k, 2) boundary points, a row with NaN (none found) as None."""
+    return [_xyz(p) if np.isfinite(p).all() else None for p in np.asarray(points, dtype=np.float64)]
+
+
+def _line(line: BoundaryLine | None) -> dict[str, float] | None:
+    return None if line is None else {"slope": round(line.slope, 6), "offset_m": round(line.offset_m, 4)}
+
+
+def traversable_record(region: TraversableRegion, spec: GridSpec) -> dict[str, Any]:
+    """Paper T's part of a record: this scan's boundary points per boundary layer (``raw_*``, None
+    where a layer has none), the Kalman-filtered ones, the least-squares boundary lines ``x = slope
+    * y + offset_m`` (None: a side never seen), the region's polygon, the obstacle clusters, and the
+    cells of the traversable, positive-obstacle and reachable (Eq. 13) grids on ``spec``."""
+    return {
+        "grid": _grid(spec),
+        "left_line": _line(region.left_line),
+        "right_line": _line(region.right_line),
+        "raw_left_m": _points_or_none(region.raw_left_m),
+        "raw_right_m": _points_or_none(region.raw_right_m),
+        "left_points_m": _points_or_none(region.left_points_m),
+        "right_points_m": _points_or_none(region.right_points_m),
+        "polygon_m": _xyz(region.polygon_m),
+        "n_obstacles": len(region.obstacles),
+        "obstacles": [
+            {
+                "centre_xy_m": _xyz(ob.centre_xy_m),
+                "width_m": round(float(ob.width_m), 4),
+                "n_points": len(ob.points_m),
+            }
+            for ob in region.obstacles
+        ],
+        "traversable_cells": np.argwhere(region.traversable).tolist(),
+        "positive_cells": np.argwhere(region.positive_obstacles).tolist(),
+        "reachable_cells": np.argwhere(region.reachable).tolist(),
     }
 
 
@@ -133,21 +198,25 @@ def _highest_return(pts: np.ndarray, extent: tuple[float, float, float, float], 
 
 def plot_detection(
     frame: RecordedFrame,
-    detection: Detection,
-    structure: np.ndarray,
     out_path: Path,
     scans: Iterable[StructuredScan] | None = None,
+    *,
+    detection: Detection | None = None,
+    structure: np.ndarray | None = None,
+    region: TraversableRegion | None = None,
+    grid: GridSpec | None = None,
 ) -> None:
-    """Top-down PNG of one frame over the grid's extent: returns coloured by height above ground
-    (``scans``' or the frame's), structure cells (grey), grid cells (magenta), this frame's pairs
-    A->B (red), confirmed fused pairs (orange), obstacle outlines (cyan)."""
+    """Top-down PNG of one update over the grid's extent: returns coloured by height above ground
+    (``scans``' or the frame's); paper N's structure cells (grey), grid cells (yellow), this
+    frame's pairs A->B (red), confirmed fused pairs (orange) and obstacle outlines (cyan); paper
+    T's traversable cells (green), positive-obstacle cells (white) and boundary lines (lime)."""
     import matplotlib
 
     matplotlib.use("Agg")
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
 
-    spec = detection.grid_spec
+    spec = detection.grid_spec if detection is not None else grid or GridSpec()
     pts = np.concatenate([scan.points_vehicle[scan.valid] for scan in scans or (frame.scan,)])
     inside = (np.abs(pts[:, 0]) <= spec.side_m) & (pts[:, 1] >= -spec.back_m) & (pts[:, 1] <= spec.ahead_m)
     pts = pts[inside]
@@ -165,35 +234,63 @@ def plot_detection(
         interpolation="nearest",
     )
     fig.colorbar(heights, ax=ax, shrink=0.6, label="height above ground [m] (vehicle frame)")
-    walls = np.ma.masked_where(~structure, structure.astype(float))
-    ax.imshow(walls, origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1.5, alpha=0.5)
-    cells = np.ma.masked_where(~detection.grid, detection.grid.astype(float))
-    ax.imshow(cells, origin="lower", extent=extent, cmap="spring", alpha=0.6, interpolation="nearest")
-    ok = np.asarray(detection.pairs.confirmed, dtype=bool)
-    segments = [
-        (
-            np.concatenate([p.a_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
-            np.concatenate([p.b_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
-            "red",
-            0.8,
-        ),
-        (detection.pairs.a_m[ok, :2], detection.pairs.b_m[ok, :2], "orange", 1.2),
-    ]
-    for a, b, colour, width in segments:
-        ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors=colour, linewidths=width))
-    outlines = [np.vstack([ob.outline_xy_m, ob.outline_xy_m[:1]]) for ob in detection.obstacles]
-    ax.add_collection(LineCollection(outlines, colors="cyan", linewidths=1.5))
+    title = [f"{Path(frame.source).name} frame {frame.index}: rings from {frame.ring_source}"]
+    if region is not None:
+        _cells(ax, region.traversable, extent, "green", 0.35)
+        _cells(ax, region.positive_obstacles, extent, "white", 0.8)
+        ys = np.array([0.0, spec.ahead_m])
+        lines = [
+            np.column_stack([line.x_at(ys), ys]) for line in (region.left_line, region.right_line) if line
+        ]
+        ax.add_collection(LineCollection(lines, colors="lime", linewidths=1.2))
+        title.append(
+            f"paper T: {int(region.traversable.sum())} traversable cells (green), "
+            f"{len(region.obstacles)} obstacles (white), {len(lines)} boundaries (lime)"
+        )
+    if detection is not None:
+        if structure is not None:
+            _cells(ax, structure, extent, "darkgrey", 0.5)
+        _cells(ax, detection.grid, extent, "yellow", 0.6)
+        ok = np.asarray(detection.pairs.confirmed, dtype=bool)
+        segments = [
+            (
+                np.concatenate([p.a_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+                np.concatenate([p.b_m[:, :2] for p in detection.frame_pairs.values()] or [np.empty((0, 2))]),
+                "red",
+                0.8,
+            ),
+            (detection.pairs.a_m[ok, :2], detection.pairs.b_m[ok, :2], "orange", 1.2),
+        ]
+        for a, b, colour, width in segments:
+            ax.add_collection(LineCollection(np.stack([a, b], axis=1), colors=colour, linewidths=width))
+        outlines = [np.vstack([ob.outline_xy_m, ob.outline_xy_m[:1]]) for ob in detection.obstacles]
+        ax.add_collection(LineCollection(outlines, colors="cyan", linewidths=1.5))
+        n_pairs = sum(len(p) for p in detection.frame_pairs.values())
+        n_structure = 0 if structure is None else int(structure.sum())
+        title.append(
+            f"paper N: {n_pairs} pairs (red), {int(ok.sum())} confirmed (orange), "
+            f"{len(detection.obstacles)} obstacles (cyan), {n_structure} structure cells (grey)"
+        )
     ax.plot([0], [0], marker="^", color="white", ms=8)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal")
     ax.set_xlabel("X right [m]")
     ax.set_ylabel("Y forward [m]")
-    n_pairs = sum(len(p) for p in detection.frame_pairs.values())
-    ax.set_title(
-        f"{Path(frame.source).name} frame {frame.index}: {n_pairs} pairs (red), "
-        f"{int(ok.sum())} confirmed (orange),\n{len(detection.obstacles)} obstacles (cyan), "
-        f"{int(structure.sum())} structure cells (grey); rings from {frame.ring_source}",
-        fontsize=9,
-    )
+    ax.set_title("\n".join(title), fontsize=8)
     fig.savefig(out_path, format="png")
+
+
+def _cells(ax: Any, cells: np.ndarray, extent: tuple[float, ...], colour: str, alpha: float) -> None:
+    """Draw the set cells of a bool grid over ``extent`` in one colour."""
+    from matplotlib.colors import ListedColormap
+
+    shown = np.ma.masked_where(~cells, np.ones(cells.shape))
+    ax.imshow(
+        shown,
+        origin="lower",
+        extent=extent,
+        cmap=ListedColormap([colour]),
+        alpha=alpha,
+        interpolation="nearest",
+    )

@@ -70,6 +70,7 @@ def cloud_to_scan(
     translation_m: np.ndarray | None = None,
     pose: Pose | None = None,
     timestamp_s: float = 0.0,
+    columns_centred: bool = False,
 ) -> StructuredScan:
     """Bin a sensor-frame cloud with known ring indices into a structured scan.
 
@@ -81,6 +82,7 @@ def cloud_to_scan(
         intensity: Optional (N,) intensities.
         azimuth_resolution_deg: Column width [deg]; must divide into at least one column.
         rotation, translation_m, pose, timestamp_s: Passed to :class:`StructuredScan`.
+        columns_centred: Centre the columns on multiples of the width (see :func:`azimuth_columns`).
 
     Raises:
         ScanError: non-finite points, rings outside the table, bad resolution, shape mismatch.
@@ -102,7 +104,7 @@ def cloud_to_scan(
         if inten.shape[0] != keep.size:
             raise ScanError(f"{sensor}: intensity must have one entry per point")
         inten = inten[keep]
-    col, n_cols = azimuth_columns(xyz, azimuth_resolution_deg)
+    col, n_cols = azimuth_columns(xyz, azimuth_resolution_deg, centred=columns_centred)
     order_rows = np.argsort(el, kind="stable")
     row_of_ring = np.empty(el.size, dtype=np.int64)
     row_of_ring[order_rows] = np.arange(el.size)
@@ -124,7 +126,7 @@ def cloud_to_scan(
     return StructuredScan(
         sensor=sensor,
         ranges_m=ranges.reshape(el.size, n_cols),
-        azimuth_rad=-np.pi + (np.arange(n_cols) + 0.5) * (2 * np.pi / n_cols),
+        azimuth_rad=-np.pi + (np.arange(n_cols) + (0.0 if columns_centred else 0.5)) * (2 * np.pi / n_cols),
         elevation_rad=el[order_rows],
         rotation=np.eye(3) if rotation is None else rotation,
         translation_m=np.zeros(3) if translation_m is None else translation_m,
@@ -134,12 +136,24 @@ def cloud_to_scan(
     )
 
 
-def azimuth_columns(xyz_m: np.ndarray, azimuth_resolution_deg: float) -> tuple[np.ndarray, int]:
-    """The range-image column of each sensor-frame point (azimuth clockwise from +Y, column 0 at
-    -180 deg) and the number of columns, as :func:`cloud_to_scan` bins them."""
+def azimuth_columns(
+    xyz_m: np.ndarray, azimuth_resolution_deg: float, *, centred: bool = False
+) -> tuple[np.ndarray, int]:
+    """The range-image column of each sensor-frame point (azimuth clockwise from +Y) and the number
+    of columns, as :func:`cloud_to_scan` bins them.
+
+    Column 0 starts at -180 deg; with ``centred`` it is centred there instead, so every column is
+    centred on a multiple of the width. A spinning sensor's firing azimuths drift over a revolution
+    and fall anywhere in a column; a fixed-angle scanner (IBEO LUX, SICK LD-MRS) fires at multiples
+    of its resolution, which would lie on the column edges, where a coordinate's last bit decides
+    the side and two neighbouring returns can share a column.
+    """
     n_cols = max(1, round(360.0 / azimuth_resolution_deg))
     az = libm.arctan2(xyz_m[:, 0], xyz_m[:, 1])
-    return np.clip(np.floor((az + np.pi) / (2 * np.pi / n_cols)).astype(np.int64), 0, n_cols - 1), n_cols
+    width = 2 * np.pi / n_cols
+    if centred:
+        return np.floor((az + np.pi) / width + 0.5).astype(np.int64) % n_cols, n_cols
+    return np.clip(np.floor((az + np.pi) / width).astype(np.int64), 0, n_cols - 1), n_cols
 
 
 def ring_cloud_to_scan(

@@ -5,6 +5,7 @@ from negobs_gym.detector.config import Hdl64FeatureConfig
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
 from negobs_gym.detector.loaders import (
     assign_rings,
+    azimuth_columns,
     cloud_to_scan,
     load_kitti_bin,
     recover_rings,
@@ -106,3 +107,24 @@ def test_bad_clouds_rejected(tmp_path):
 def test_empty_cloud_gives_scan_without_returns():
     scan = ring_cloud_to_scan(np.empty((0, 5)), np.array([-0.1, 0.0]), sensor="s")
     assert np.isnan(scan.ranges_m).all()
+
+
+def test_centred_columns_keep_a_fixed_angle_scanners_returns_apart():
+    """A LUX fires at multiples of 0.25 deg: on column edges a float32 coordinate's last bit picks
+    the side, and neighbouring returns share a column; centred columns hold one each."""
+    firing = np.arange(-220, 221)  # -55 .. +55 deg in 0.25 deg steps
+    az = np.radians(firing * 0.25)
+    xyz = np.column_stack([10 * np.sin(az), 10 * np.cos(az), np.full(az.size, -0.5)]).astype(np.float32)
+    edges, n_cols = azimuth_columns(xyz, 0.25)
+    assert n_cols == 1440 and np.unique(edges).size < az.size - 50  # returns lost to shared columns
+    centred, _ = azimuth_columns(xyz, 0.25, centred=True)
+    assert np.array_equal(centred, firing + 720)
+    one_layer = np.zeros(az.size, int)
+    scan = cloud_to_scan(
+        xyz, one_layer, np.radians([-0.4]), sensor="lux", azimuth_resolution_deg=0.25, columns_centred=True
+    )
+    assert int(scan.valid.sum()) == az.size
+    np.testing.assert_allclose(scan.azimuth_rad[firing + 720], az, atol=1e-12)
+    # the +-180 deg column is one column, centred on the seam
+    back = np.array([[0.0, -5.0, 0.0], [1e-6, -5.0, 0.0], [-1e-6, -5.0, 0.0]])
+    assert set(azimuth_columns(back, 0.25, centred=True)[0]) == {0}

@@ -21,8 +21,8 @@ from negobs_gym.detector.loaders import (
 from negobs_gym.errors import ScanError, require
 
 #: Names under which recorded files carry the laser index (velodyne driver: ring; Autoware nebula:
-#: channel; Ouster / some SDKs: laser_id).
-RING_FIELD_NAMES: tuple[str, ...] = ("ring", "channel", "laser_id")
+#: channel; Ouster / some SDKs: laser_id; SICK's LD-MRS driver (IBEO LUX hardware): layer).
+RING_FIELD_NAMES: tuple[str, ...] = ("ring", "channel", "laser_id", "layer")
 #: Names under which recorded files carry each point's firing time, as drivers write them:
 #: velodyne_pointcloud ``time`` (float s after the header stamp), Ouster ``t`` and Livox
 #: ``offset_time`` (integer ns after it), Autoware nebula ``time_stamp`` (integer ns after it),
@@ -47,6 +47,8 @@ class ScanSetup:
             is not laser by laser (empty: such clouds are refused).
         rotation: Sensor-to-vehicle rotation ``R`` (paper N Eq. 9).
         translation_m: Sensor origin in the vehicle frame ``T`` [m]; ``T[2]`` is the height.
+        columns_centred: Columns centred on multiples of the width, for a fixed-angle scanner
+            (:func:`~negobs_gym.detector.loaders.azimuth_columns`).
     """
 
     sensor: str = "hdl64"
@@ -54,6 +56,7 @@ class ScanSetup:
     elevation_rad: tuple[float, ...] = ()
     rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     translation_m: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
+    columns_centred: bool = False
 
     def __post_init__(self) -> None:
         require(isinstance(self.sensor, str) and bool(self.sensor), "sensor", "must be a non-empty name")
@@ -89,6 +92,7 @@ class ScanSetup:
             rotation=np.asarray(self.rotation),
             translation_m=np.asarray(self.translation_m),
             timestamp_s=timestamp_s,
+            columns_centred=self.columns_centred,
         )
 
 
@@ -159,7 +163,9 @@ def column_time_offsets(
         raise ScanError(f"{source}: {name} field holds a value that is not finite")
     if times.size and np.median(times) > ABSOLUTE_TIME_S:
         times = times - stamp_s
-    col, n_cols = azimuth_columns(ros_to_sensor_frame(xyz[keep]), setup.azimuth_resolution_deg)
+    col, n_cols = azimuth_columns(
+        ros_to_sensor_frame(xyz[keep]), setup.azimuth_resolution_deg, centred=setup.columns_centred
+    )
     count = np.bincount(col, minlength=n_cols)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.bincount(col, weights=times, minlength=n_cols) / np.where(count > 0, count, np.nan)
