@@ -187,3 +187,37 @@ def test_a_rig_bag_runs_paper_n_and_paper_t_in_one_update(tmp_path):
     # paper T saw clouds 0, 2, 5 in the rig, every cloud alone: its Kalman filters differ, the
     # boundaries of the first update (cloud 0 in both) do not
     assert records[0]["traversable"] == lux_alone[0]["traversable"]
+
+
+def test_a_real_mrs1104_capture_keeps_every_return(tmp_path):
+    """SICK's MRS1104 (4 layers at -2.5, 0, 2.5 and 5 deg, 0.25 deg steps over 275 deg) recorded
+    indoors (tests/data/real): its returns lie at multiples of 0.25 deg, where the spinning
+    sensors' column edges would lose a quarter of them to shared columns; the LUX's centred
+    columns keep each, by its ring field or, without one, by its layer-by-layer point order."""
+    from negobs_gym.detector.io import ScanSetup
+    from negobs_gym.detector.io.pcd import read_pcd
+    from tests import mrs1104
+
+    frames = mrs1104.clouds(FRAMES)
+    files = [_write_pcd(tmp_path / f"mrs1104_{k}.pcd", cloud) for k, cloud in enumerate(frames)]
+    table = tuple(np.radians([-2.5, 0.0, 2.5, 5.0]))  # bounds the rings of a cloud read by point order
+    setup = ScanSetup(sensor="lux", azimuth_resolution_deg=0.25, elevation_rad=table, columns_centred=True)
+    for path, cloud in zip(files, frames, strict=True):
+        frame = read_pcd(path, setup)
+        assert frame.ring_source == "ring_field" and int(frame.scan.valid.sum()) == len(cloud) > 4300
+        np.testing.assert_allclose(np.degrees(frame.scan.elevation_rad), [-2.5, 0.0, 2.5, 5.0], atol=1e-6)
+        columns = np.flatnonzero(frame.scan.valid.any(axis=0))
+        np.testing.assert_allclose(np.degrees(frame.scan.azimuth_rad[columns[[0, -1]]]), [-137.5, 137.5])
+        edges = read_pcd(path, ScanSetup(sensor="lux", azimuth_resolution_deg=0.25))
+        assert int(edges.scan.valid.sum()) < 0.8 * len(cloud)
+        bare = _write_pcd(tmp_path / "bare.pcd", cloud[["x", "y", "z"]])
+        by_order = read_pcd(bare, setup)
+        assert by_order.ring_source == "point_order"
+        np.testing.assert_array_equal(by_order.scan.ranges_m, frame.scan.ranges_m)
+    out = tmp_path / "out"
+    assert main(["detect", *files, "--sensor", "lux", "--out", str(out)]) == 0
+    for record in _records(out):
+        assert record["scan_shape"] == [4, 1440] and record["n_points"] > 4300
+        # a room: no ground within the layers' reach, so no road between two boundaries
+        region = record["traversable"]
+        assert region["traversable_cells"] == [] and region["right_line"] is None
