@@ -95,6 +95,14 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
             LUX_MOUNT,
             columns_centred=True,
         ),
+        # SICK MRS1000 / MRS1104: 4 layers 2.5 deg apart (-2.5 .. +5 deg), 0.25 deg over 275 deg
+        "mrs1000": RecordedSensor(
+            "SICK MRS1000/MRS1104, 4 layers, at the LUX's mount (paper T)",
+            0.25,
+            (-2.5, 0.0, 2.5, 5.0),
+            LUX_MOUNT,
+            columns_centred=True,
+        ),
     }
 
 
@@ -127,7 +135,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="sensor model and mounting (default: hdl64): "
         + "; ".join(f"{name}: {spec.help}" for name, spec in recorded_sensors().items())
         + ". Upright sensors use paper N's HDL-64 path (§3.1), rolled ones its HDL-32 path (§3.2); "
-        "lux runs paper T's traversable-region detector instead",
+        "lux and mrs1000 run paper T's traversable-region detector instead",
     )
     parser.add_argument(
         "--height",
@@ -508,7 +516,8 @@ def scan_setups(args: argparse.Namespace) -> dict[str, ScanSetup]:
         if taken:
             raise ScanError(
                 f"--cloud {cloud.topic}:{cloud.sensor} and {taken[0]} both feed the detector's "
-                f"{setup.sensor} input; paper N's rig has one upright sensor and one rolled on each side"
+                f"{setup.sensor} input; paper N's rig has one upright sensor and one rolled on each side, "
+                "paper T's one 4-layer LiDAR"
             )
         setups[cloud.topic] = setup
     return setups

@@ -216,6 +216,20 @@ def test_a_real_mrs1104_capture_keeps_every_return(tmp_path):
         np.testing.assert_array_equal(by_order.scan.ranges_m, frame.scan.ranges_m)
     out = tmp_path / "out"
     assert main(["detect", *files, "--sensor", "lux", "--out", str(out)]) == 0
+    # merged by angle and without its ring field, the MRS1000 table assigns the same layers
+    merged = frames[0][np.argsort(np.arctan2(frames[0]["y"], frames[0]["x"]), kind="stable")]
+    table_out = tmp_path / "table"
+    merged_file = _write_pcd(tmp_path / "merged.pcd", merged[["x", "y", "z"]])
+    assert main(["detect", merged_file, "--sensor", "mrs1000", "--out", str(table_out)]) == 0
+    (by_table,) = _records(table_out)
+    assert by_table["ring_source"] == "elevation_table"
+    by_field = _records(out)[0]["traversable"]
+    # the same ranges; the rows at the table's elevations instead of the measured ones (1e-8 deg
+    # apart) move 4 of the obstacle's 1,502 returns across a threshold on these mm-quantised ranges
+    by_table = by_table["traversable"]
+    (table_cluster,), (field_cluster,) = by_table.pop("obstacles"), by_field.pop("obstacles")
+    assert by_table == by_field
+    assert table_cluster["n_points"] == pytest.approx(field_cluster["n_points"], rel=0.01)
     for record in _records(out):
         assert record["scan_shape"] == [4, 1440] and record["n_points"] > 4300
         # a room: no ground within the layers' reach, so no road between two boundaries
