@@ -525,24 +525,29 @@ def scan_setups(args: argparse.Namespace) -> dict[str, ScanSetup]:
 
 def _scans_at_lead_time(
     update: SynchronisedFrames, track: PoseTrack | TransformChain | None
-) -> dict[str, StructuredScan]:
-    """The update's scans by detector input; with timed poses each other topic's cloud is brought to
-    the lead's time (:func:`~negobs_gym.detector.io.sync.scan_at_time`), else taken as at it; a
-    cloud read with its columns' times (``--deskew``) is deskewed to it, the lead's included."""
-    from negobs_gym.detector.io.sync import scan_at_time
+) -> tuple[dict[str, StructuredScan], dict[str, np.ndarray | None]]:
+    """The update's scans by detector input, and by topic the vehicle's motion ``[M | m]`` from
+    each cloud's time to the lead's (None without timed poses). With timed poses each other
+    topic's cloud is brought to the lead's time (:func:`~negobs_gym.detector.io.sync.scan_at_time`),
+    else taken as at it; a cloud read with its columns' times (``--deskew``) is deskewed to it, the
+    lead's included."""
+    from negobs_gym.detector.io.sync import scan_at_time, vehicle_motion
     from negobs_gym.errors import ScanError
 
-    scans = {}
-    for frame in update.clouds.values():
+    scans, motions = {}, {}
+    for topic, frame in update.clouds.items():
         scan = frame.scan
-        if track is not None and (frame is not update.lead or frame.column_time_s is not None):
+        motions[topic] = None
+        if track is not None:
+            where = f"{frame.source}, {frame.scan.sensor} cloud {frame.index}"
             try:
-                scan = scan_at_time(scan, track, update.time_s, column_time_s=frame.column_time_s)
+                motions[topic] = vehicle_motion(track, scan.timestamp_s, update.time_s)
+                if frame is not update.lead or frame.column_time_s is not None:
+                    scan = scan_at_time(scan, track, update.time_s, column_time_s=frame.column_time_s)
             except ScanError as error:  # name the cloud: one outside the odometry's span
-                where = f"{frame.source}, {frame.scan.sensor} cloud {frame.index}"
                 raise ScanError(f"{where}: {error}") from error
         scans[frame.scan.sensor] = scan
-    return scans
+    return scans, motions
 
 
 def run(args: argparse.Namespace) -> int:
@@ -615,7 +620,7 @@ def run(args: argparse.Namespace) -> int:
                 raise ScanError(f"{frame.source}, frame {frame.index}: {error}") from error
         else:
             pose = poses[n] if poses is not None else Pose()
-        scans = _scans_at_lead_time(update, track)
+        scans, motions = _scans_at_lead_time(update, track)
         detection = cells = region = None
         if set(scans) - {LUX_MOUNT}:  # paper N's inputs
             detection = detector.update(scans, pose)
@@ -633,7 +638,7 @@ def run(args: argparse.Namespace) -> int:
         record = detection_record(frame, sensor, pose if given else None, **found)
         record["deskewed"] = args.deskew
         if args.cloud:
-            record["clouds"] = cloud_records(update, scans, {c.topic: c.sensor for c in args.cloud})
+            record["clouds"] = cloud_records(update, {c.topic: c.sensor for c in args.cloud}, motions)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
         if not args.no_png:
             write_atomic(

@@ -147,13 +147,15 @@ def traversable_record(region: TraversableRegion, spec: GridSpec) -> dict[str, A
 
 
 def cloud_records(
-    update: SynchronisedFrames, scans: Mapping[str, StructuredScan], sensors: Mapping[str, str]
+    update: SynchronisedFrames, sensors: Mapping[str, str], motions: Mapping[str, np.ndarray | None]
 ) -> list[dict[str, Any]]:
     """Each topic's cloud in a ``--cloud`` update: topic, ``--sensor`` name, detector input, frame,
-    time and offset from the lead's [s], and the mounting the detector used (at the lead's time)."""
+    time and offset from the lead's [s], its recorded mounting, and the vehicle's motion from its
+    time to the lead's that placed its returns (``[M | m]`` as ``rotation`` and ``translation_m``;
+    None without timed poses)."""
     records = []
     for topic, frame in update.clouds.items():
-        scan = scans[frame.scan.sensor]
+        motion = motions[topic]
         records.append(
             {
                 "topic": topic,
@@ -164,7 +166,10 @@ def cloud_records(
                 "dt_s": round(frame.scan.timestamp_s - update.time_s, 6),
                 "n_points": frame.n_points,
                 "ring_source": frame.ring_source,
-                "mounting": _mounting(scan),
+                "mounting": _mounting(frame.scan),
+                "motion": None
+                if motion is None
+                else {"rotation": motion[:, :3].tolist(), "translation_m": motion[:, 3].tolist()},
             }
         )
     return records

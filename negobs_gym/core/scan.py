@@ -94,10 +94,12 @@ class StructuredScan:
         timestamp_s: Scan time [s].
         intensity: Optional (lasers, columns) return intensity.
         column_motion: Optional (columns, 3, 4) rigid motion ``[M | m]`` of each column's returns:
-            where the vehicle frame at the column's firing time lies in the vehicle frame of
-            ``timestamp_s`` (a revolution scanned while driving, deskewed). The range image stays
-            as recorded (features read it); :attr:`points_vehicle` and :meth:`origins_vehicle`
-            are moved. None: the whole scan fired at ``timestamp_s``.
+            where the vehicle frame at the column's firing time lies in the vehicle frame the
+            detector works in (a revolution scanned while driving, deskewed; or a rig's cloud
+            brought to another cloud's time, one motion for all columns:
+            :func:`negobs_gym.detector.io.sync.scan_at_time`). The range image and the mounting
+            stay as recorded (features read them); :attr:`points_vehicle` and
+            :meth:`origins_vehicle` are moved. None: the scan is read where it was fired.
     """
 
     sensor: str
@@ -194,8 +196,7 @@ class StructuredScan:
         points = _vehicle_points(self.ranges_m, self.directions_vehicle, self.translation_m)
         if self.column_motion is None:
             return points
-        turn, shift = self.column_motion[:, :, :3], self.column_motion[:, :, 3]
-        return np.einsum("cij,lcj->lci", turn, points) + shift[None]
+        return _moved_points(points, self.column_motion)
 
     def origins_vehicle(self, columns: np.ndarray) -> np.ndarray:
         """The sensor's origin in the vehicle frame when it fired each of ``columns``, (n, 3): ``T``,
@@ -221,4 +222,18 @@ def _vehicle_points(ranges: np.ndarray, planes: np.ndarray, translation: np.ndar
             r = ranges[i, j]
             for axis in range(3):
                 out[i, j, axis] = r * planes[axis, i, j] + translation[axis]
+    return out
+
+
+@kernel
+def _moved_points(points: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """(lasers, columns, 3): each column's points moved by its ``[M | m]`` (columns, 3, 4)."""
+    n_lasers, n_columns = points.shape[:2]
+    out = np.empty((n_lasers, n_columns, 3))
+    for i in range(n_lasers):
+        for j in range(n_columns):
+            x, y, z = points[i, j, 0], points[i, j, 1], points[i, j, 2]
+            for axis in range(3):
+                m = motion[j, axis]
+                out[i, j, axis] = m[0] * x + m[1] * y + m[2] * z + m[3]
     return out

@@ -152,9 +152,12 @@ def test_the_rig_finds_the_pit_in_one_update_with_each_cloud_at_the_lead_time(ri
         # three sensors seeing a new pit confirm it in one frame (paper N §4.2)
         (obstacle,) = record["obstacles"]
         assert near - A_BEFORE_M < min(y for _, y in obstacle["outline_xy_m"]) <= near
-    # the left cloud is 40 ms old: the vehicle was 0.28 m behind, so was its sensor
-    left = records[0]["clouds"][1]["mounting"]["translation_m"]
-    np.testing.assert_allclose(left, [-0.9, 0.5 - SPEED_MPS * 0.04, 2.0], atol=1e-6)
+    # the left cloud is 40 ms old: the vehicle was 0.28 m behind; the mounting stays as recorded
+    lead, left = records[0]["clouds"][:2]
+    np.testing.assert_allclose(left["mounting"]["translation_m"], [-0.9, 0.5, 2.0], atol=1e-6)
+    np.testing.assert_allclose(left["motion"]["translation_m"], [0.0, -SPEED_MPS * 0.04, 0.0], atol=1e-6)
+    np.testing.assert_allclose(left["motion"]["rotation"], np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(lead["motion"]["translation_m"], [0.0, 0.0, 0.0], atol=1e-12)
     assert json.loads((tmp_path / "rig" / "summary.json").read_text())[0]["n_clouds"] == 3
 
 
@@ -191,6 +194,8 @@ def test_each_topic_mounted_by_its_own_frame_in_the_tf_tree(rig_bag, tmp_path, c
             np.testing.assert_allclose(
                 a["mounting"]["translation_m"], b["mounting"]["translation_m"], atol=1e-9
             )
+            for key in ("rotation", "translation_m"):
+                np.testing.assert_allclose(a["motion"][key], b["motion"][key], atol=1e-9)
         for sensor, pairs in by_odometry["frame_pairs"].items():
             np.testing.assert_allclose(by_tf["frame_pairs"][sensor]["a_m"], pairs["a_m"], atol=1e-3)
     # a side LiDAR named as the top one: its tf mounting is rolled 90 deg from --sensor's

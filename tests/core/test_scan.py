@@ -117,6 +117,15 @@ def test_column_motion_moves_each_columns_points_and_origin():
     )
     np.testing.assert_array_equal(still.origins_vehicle([0, 2]), [[0.0, 1.0, 2.0]] * 2)
     np.testing.assert_array_equal(moved.ranges_m, still.ranges_m)  # the range image as recorded
+    # any motions: M p + m per column (the compiled pass against numpy), no return stays none
+    rng = np.random.default_rng(8)
+    ranges = rng.uniform(1.0, 60.0, (2, 3))
+    ranges[0, 1] = np.nan
+    anything = rng.normal(size=(3, 3, 4))
+    plain, shifted = _scan(ranges), _scan(ranges, column_motion=anything)
+    want = np.einsum("cij,lcj->lci", anything[:, :, :3], plain.points_vehicle) + anything[:, :, 3]
+    np.testing.assert_allclose(shifted.points_vehicle, want, rtol=0, atol=1e-12)
+    assert np.isnan(shifted.points_vehicle[0, 1]).all() and np.isfinite(shifted.points_vehicle[1]).all()
     for bad in (np.zeros((2, 3, 4)), np.full((3, 3, 4), np.nan)):
         with pytest.raises(ScanError, match="column_motion must be 3 finite 3x4 motions"):
             _scan(column_motion=bad)

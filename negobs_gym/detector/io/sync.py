@@ -5,9 +5,9 @@ Each cloud of a *lead* topic makes one update; every other topic contributes its
 time to the lead's, within a window (spinning sensors at 10 Hz that are not phase-locked lie at
 most half a revolution apart), each cloud used once. The detector takes one vehicle pose per
 update and maps each sensor by its mounting (paper N Eq. 9), so a cloud taken ``dt`` before or
-after the lead's is brought to the lead's time by composing its mounting with the vehicle's motion
-over ``dt`` (:func:`scan_at_time`), read from the pose source that gives the update's pose.
-Given when each column was fired, the same function deskews a revolution scanned while driving.
+after the lead's is brought to the lead's time by the vehicle's motion over ``dt``
+(:func:`scan_at_time`), read from the pose source that gives the update's pose. Given when each
+column was fired, the same function deskews a revolution scanned while driving.
 """
 
 from __future__ import annotations
@@ -160,24 +160,22 @@ def scan_at_time(
 ) -> StructuredScan:
     """``scan`` as the vehicle frame at ``time_s`` sees it, by ``poses``.
 
-    Without ``column_time_s`` the scan is taken as fired at once at its ``timestamp_s``: its
-    mounting ``R, T`` (paper N Eq. 9) is composed with the vehicle's motion between the two times
-    (``R' = M R``, ``T' = M T + m``), ranges unchanged. With ``column_time_s``, when each column was
-    fired after ``timestamp_s`` (:attr:`RecordedFrame.column_time_s`; NaN = at ``timestamp_s``), the
-    scan is deskewed: each column's motion from its own time to ``time_s`` becomes the scan's
-    :attr:`~negobs_gym.core.scan.StructuredScan.column_motion` (a revolution takes 0.1 s, 0.7 m at
-    25 km/h), the range image and mounting stay as recorded, so the detector's features read the
-    scan as the sensor saw it and place what they find where the vehicle at ``time_s`` has it.
+    The vehicle's motion from when a column was fired to ``time_s`` becomes the column's
+    :attr:`~negobs_gym.core.scan.StructuredScan.column_motion`; the range image and the mounting
+    stay as recorded, so the detector's features read the scan as the sensor saw it (and keep the
+    per-ray tables of its mounting) and place what they find where the vehicle at ``time_s`` has
+    it. Without ``column_time_s`` the scan is taken as fired at once at its ``timestamp_s``: every
+    column gets the same motion (:func:`vehicle_motion`). With it, when each column was fired after
+    ``timestamp_s`` (:attr:`RecordedFrame.column_time_s`; NaN = at ``timestamp_s``), each column
+    gets its own: the revolution is deskewed (it takes 0.1 s, 0.7 m at 25 km/h).
 
     Raises:
         ScanError: ``column_time_s`` not one value per column; a time ``poses`` cannot give.
     """
-    now = poses.at(time_s)
     if column_time_s is None:
-        turn, shift = _motion(poses.at(scan.timestamp_s), now)
-        return dataclasses.replace(
-            scan, rotation=turn @ scan.rotation, translation_m=turn @ scan.translation_m + shift
-        )
+        motion = vehicle_motion(poses, scan.timestamp_s, time_s)
+        return dataclasses.replace(scan, column_motion=np.broadcast_to(motion, (scan.shape[1], 3, 4)))
+    now = poses.at(time_s)
     offsets = np.nan_to_num(np.asarray(column_time_s, dtype=np.float64), nan=0.0)
     if offsets.shape != (scan.shape[1],):
         raise ScanError(
@@ -191,6 +189,12 @@ def scan_at_time(
     j = np.minimum(i + 1, samples.size - 1)
     w = (at - i)[:, None, None]
     return dataclasses.replace(scan, column_motion=(1.0 - w) * motions[i] + w * motions[j])
+
+
+def vehicle_motion(poses: PoseAtTime, from_s: float, to_s: float) -> np.ndarray:
+    """``[M | m]`` (3, 4): the vehicle frame at ``from_s`` in the vehicle frame at ``to_s``, by
+    ``poses`` (a point ``p`` of the first is ``M p + m`` in the second)."""
+    return _as_3x4(*_motion(poses.at(from_s), poses.at(to_s)))
 
 
 def _as_3x4(turn: np.ndarray, shift: np.ndarray) -> np.ndarray:

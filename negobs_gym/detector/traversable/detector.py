@@ -177,7 +177,8 @@ class TraversableRegionDetector:
         right = fit_boundary(right_pts)
         obstacles = detect_obstacles(pts, left, right, cfg)
 
-        origin = np.asarray(scan.translation_m[:2], dtype=np.float64)
+        # the sensor's origin (moved with the middle column where the scan carries a column_motion)
+        origin = np.asarray(scan.origins_vehicle(np.array([scan.shape[1] // 2]))[0, :2], dtype=np.float64)
         near_y = float(origin[1])  # A1: boundaries meet the LiDAR's X axis
         ys = filtered[..., 1]
         far_y = float(np.nanmax(ys)) if np.isfinite(ys).any() else -math.inf

@@ -102,9 +102,15 @@ def test_a_cloud_brought_to_the_lead_time_lands_where_the_vehicle_then_sees_it()
     np.testing.assert_allclose(moved.points_vehicle, expected, atol=1e-9, equal_nan=True)
     np.testing.assert_array_equal(moved.ranges_m, scan.ranges_m)
     assert moved.timestamp_s == 0.96
-    # the sensor sits 0.28 m farther back (1 cm less by the turn) and turned 0.8 deg clockwise
-    assert moved.translation_m[1] == pytest.approx(scan.translation_m[1] - 0.28, abs=0.02)
-    turn = Rotation.from_matrix(moved.rotation @ scan.rotation.T).as_rotvec()
+    # the scan's geometry stays as recorded (the features read it so); every column carries the
+    # vehicle's motion: the sensor fired 0.28 m farther back (1 cm less by the turn), turned 0.8
+    # deg clockwise
+    np.testing.assert_array_equal(moved.rotation, scan.rotation)
+    np.testing.assert_array_equal(moved.translation_m, scan.translation_m)
+    assert (moved.column_motion == moved.column_motion[0]).all()
+    origin = moved.origins_vehicle(np.array([0]))[0]
+    assert origin[1] == pytest.approx(scan.translation_m[1] - 0.28, abs=0.02)
+    turn = Rotation.from_matrix(moved.column_motion[0, :, :3]).as_rotvec()
     np.testing.assert_allclose(np.degrees(turn), [0.0, 0.0, -0.8], atol=1e-9)
     # at its own time nothing moves
     same = scan_at_time(scan, track, 0.96)
