@@ -22,7 +22,7 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -280,6 +280,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="move a fused pair's near edge to the closer frames' (FusionConfig.tighten_on_match; "
         "not in paper N; useful with --poses)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="DETECTOR.KEY=VALUE",
+        help="change one detector setting, repeatable: negative.* (paper N, NegativeDetectorConfig: "
+        "negative.fusion.prior=0.4, negative.hdl64.density_factor=0.5, negative.grid.ahead_m=40), "
+        "traversable.* (paper T, TraversableConfig: traversable.vehicle_width_m=1.8), structure.* "
+        "(StructureConfig); VALUE is TOML. The grid (negative.grid) is every detector's. OUT/config.json "
+        "records the settings that ran",
     )
     parser.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
     parser.set_defaults(handler=run)
@@ -556,13 +568,7 @@ def run(args: argparse.Namespace) -> int:
 
     from negobs_gym.cli.detect_report import cloud_records, detection_record, plot_detection
     from negobs_gym.core.pose import Pose
-    from negobs_gym.detector import (
-        FusionConfig,
-        NegativeDetectorConfig,
-        NegativeObstacleDetector,
-        StructureDetector,
-        TraversableRegionDetector,
-    )
+    from negobs_gym.detector import NegativeObstacleDetector, StructureDetector, TraversableRegionDetector
     from negobs_gym.detector.io import read_poses_csv
     from negobs_gym.errors import ScanError
 
@@ -599,11 +605,13 @@ def run(args: argparse.Namespace) -> int:
             "them to it)",
             poses_file,
         )
-    detector = NegativeObstacleDetector(
-        NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=args.tighten_pairs))
-    )
-    structure = StructureDetector(grid=detector.config.grid)
-    traversable = TraversableRegionDetector(grid=detector.config.grid)
+    configs = detector_configs(args.settings, tighten_pairs=args.tighten_pairs)
+    detector = NegativeObstacleDetector(configs["negative"])
+    structure = StructureDetector(configs["structure"], grid=detector.config.grid)
+    traversable = TraversableRegionDetector(configs["traversable"], grid=detector.config.grid)
+    record_settings = {name: dataclasses.asdict(config) for name, config in configs.items()}
+    record_settings["set"] = args.settings
+    write_atomic(out / "config.json", lambda tmp: tmp.write_text(json.dumps(record_settings, indent=1)))
     summary = []
     missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
 
@@ -672,6 +680,31 @@ def run(args: argparse.Namespace) -> int:
         out,
     )
     return 0
+
+
+def detector_configs(settings: list[str], *, tighten_pairs: bool = False) -> dict[str, Any]:
+    """The configs of the three detectors, by ``--set`` section (``negative``, ``traversable``,
+    ``structure``), with ``--tighten-pairs`` and then each ``--set`` applied.
+
+    Raises:
+        ConfigError: an assignment outside the three sections, or one the section refuses
+            (:func:`~negobs_gym.core.settings.replace_setting`).
+    """
+    from negobs_gym.core.settings import OPTION, parse_assignment, replace_setting
+    from negobs_gym.detector import FusionConfig, NegativeDetectorConfig, StructureConfig, TraversableConfig
+    from negobs_gym.errors import ConfigError
+
+    configs: dict[str, Any] = {
+        "negative": NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=tighten_pairs)),
+        "traversable": TraversableConfig(),
+        "structure": StructureConfig(),
+    }
+    for text in settings:
+        keys, value = parse_assignment(text, example="negative.fusion.prior=0.4")
+        if keys[0] not in configs or len(keys) < 2:
+            raise ConfigError(OPTION, f"{text!r}: starts with the detector, one of {', '.join(configs)}")
+        configs[keys[0]] = replace_setting(configs[keys[0]], keys[1:], value, f"{keys[0]}.")
+    return configs
 
 
 def _summary(record: dict) -> dict:

@@ -14,9 +14,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import tomllib
-
 from negobs_gym.core.files import write_text_atomic
+from negobs_gym.core.settings import parse_assignment
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
@@ -32,26 +31,6 @@ __all__ = [
 ]
 
 OPTION = "--set"  # how errors name the assignment: the option that carried it
-
-
-def parse_assignment(text: str) -> tuple[tuple[str, ...], Any]:
-    """``"a.b.c=VALUE"`` -> ``(("a", "b", "c"), value)``.
-
-    Raises:
-        ConfigError: no ``=``, or an empty key in the path.
-    """
-    path, sep, raw = text.partition("=")
-    keys = tuple(k.strip() for k in path.split("."))
-    if not sep or not all(keys):
-        raise ConfigError(
-            OPTION, f"expected KEY.PATH=VALUE (e.g. observation.tighten_pairs=true), got {text!r}"
-        )
-    raw = raw.strip()
-    try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
-    return keys, value
 
 
 def apply_overrides(spec: ScenarioSpec, assignments: Sequence[str]) -> ScenarioSpec:

@@ -24,7 +24,8 @@ def test_detect_writes_png_and_json_that_round_trip(tmp_path):
     assert main([*args, "--height", "2.3", "--out", str(out)]) == 0
     names = sorted(p.name for p in out.iterdir())
     stems = [f"{n:05d}_hdl32e_b_0000" for n in range(3)]
-    assert names == sorted([*(s + ".json" for s in stems), *(s + ".png" for s in stems), "summary.json"])
+    files = [*(s + ".json" for s in stems), *(s + ".png" for s in stems), "summary.json", "config.json"]
+    assert names == sorted(files)
     assert all((out / f"{s}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for s in stems)
     # the same three frames through the API (standing still: identity pose every frame)
     setup = ScanSetup(azimuth_resolution_deg=0.16, elevation_rad=(), translation_m=(0.0, 0.0, 2.3))
@@ -152,3 +153,25 @@ def test_a_real_capture_deskewed_by_an_ins_log(tmp_path):
     shift = moving[:, 1] - raw[gap.argmin(axis=1), 1]  # fired up to 50 ms early: seen from behind
     assert np.all((shift > -7.0 * 0.05 - 1e-3) & (shift < 1e-3)) and shift.min() < -0.05
     assert runs["moving"]["deskewed"] and not runs["raw"]["deskewed"]
+
+
+def test_set_changes_one_detector_setting_and_config_json_records_it(tmp_path, capsys):
+    args = ["detect", str(HDL32E_B), "--sensor", "hdl32", "--height", "2.3", "--no-png"]
+    assert main([*args, "--out", str(tmp_path / "flag"), "--tighten-pairs"]) == 0
+    set_by_path = [*args, "--out", str(tmp_path / "set"), "--set", "negative.fusion.tighten_on_match=true"]
+    assert main([*set_by_path, "--set", "negative.grid.ahead_m=20", "--set", "structure.max_height_m=2"]) == 0
+    flag, by_path = (json.loads(next((tmp_path / d).glob("00000_*")).read_text()) for d in ("flag", "set"))
+    assert by_path["frame_pairs"] == flag["frame_pairs"]
+    assert by_path["grid"]["shape"] == [125, 100] and flag["grid"]["shape"] == [175, 100]  # 20 + 5 m by 20 m
+    config = json.loads((tmp_path / "set" / "config.json").read_text())
+    negative = config["negative"]
+    assert negative["fusion"]["tighten_on_match"] is True and negative["grid"]["ahead_m"] == 20
+    assert config["structure"]["max_height_m"] == 2.0 and config["traversable"]["vehicle_width_m"] == 2.0
+    assert config["set"][0] == "negative.fusion.tighten_on_match=true"
+    for bad, message in (
+        ("negative.fusion.priorx=0.4", "negative.fusion.priorx: no such setting; negative.fusion has"),
+        ("paper_n.fusion.prior=0.4", "starts with the detector, one of negative, traversable, structure"),
+        ("negative.fusion.prior=2", "negative.fusion.prior=2: prior: must be in (0, 1)"),
+    ):
+        assert main([*args, "--out", str(tmp_path / "bad"), "--set", bad]) == 2
+        assert message in capsys.readouterr().err

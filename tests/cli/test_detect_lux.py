@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 from negobs_gym.cli import main
+from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_scan
-from negobs_gym.detector.traversable import Box, TrackScene, TraversableRegionDetector
+from negobs_gym.detector.traversable import Box, TrackScene, TraversableConfig, TraversableRegionDetector
 from negobs_gym.detector.traversable import synthetic_scan as lux_scan
 from negobs_gym.detector.traversable.synthetic import LuxRig
 from negobs_gym.sensors.rigs import paper_n_rig
@@ -102,6 +103,18 @@ def test_lux_clouds_give_the_detectors_region(tmp_path, layer):
     assert [s["boundaries"] for s in summary] == [["left", "right"]] * FRAMES
     assert all(s["n_traversable_cells"] > 1000 for s in summary)
     assert len(list(out.glob("*.png"))) == FRAMES
+
+
+def test_set_changes_paper_ts_settings_and_the_shared_grid(tmp_path):
+    files = _write_pcds(tmp_path / "clouds", layer=True)[:1]
+    settings = ["--set", "traversable.boundary_layers=[0, 1]", "--set", "negative.grid.ahead_m=20"]
+    assert main(["detect", *files, "--sensor", "lux", *settings, "--out", str(tmp_path / "out")]) == 0
+    (record,) = _records(tmp_path / "out")
+    region = record["traversable"]
+    assert region["grid"]["shape"] == [125, 100] and len(region["raw_left_m"]) == 2
+    two_layers = TraversableConfig(boundary_layers=(0, 1))
+    expected = TraversableRegionDetector(two_layers, grid=GridSpec(ahead_m=20.0)).update(_scans()[0], Pose())
+    assert region["traversable_cells"] == np.argwhere(expected.traversable).tolist()
 
 
 def test_a_lux_cloud_missing_a_layer_exits_naming_it(tmp_path, capsys):
