@@ -32,10 +32,12 @@ from negobs_gym.core.files import write_atomic
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
+    from negobs_gym.core.grid import GridSpec
     from negobs_gym.core.scan import StructuredScan
     from negobs_gym.detector.io import PoseTrack, RecordedFrame, ScanSetup
     from negobs_gym.detector.io.sync import SynchronisedFrames
     from negobs_gym.detector.io.tf import TransformChain, TransformTree
+    from negobs_gym.eval.recorded import RecordedRecall
 
 log = logging.getLogger(__name__)
 #: ``--tf``: warn when the tree mounts the cloud's frame turned by more than this from the
@@ -280,6 +282,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="move a fused pair's near edge to the closer frames' (FusionConfig.tighten_on_match; "
         "not in paper N; useful with --poses)",
+    )
+    parser.add_argument(
+        "--truth",
+        default=None,
+        metavar="JSON",
+        help="surveyed negative obstacles of the drive, to measure paper N's recall on it: "
+        '{"negative_obstacles": [{"name": ..., "outline_xy_m": [[x, y], ...]}, ...]}, ground outlines '
+        "in the world frame of the poses (ROS axes; without poses the vehicle stands at the origin "
+        "facing x). Each frame's JSON says which lie in the grid and which a detected obstacle "
+        "overlaps; OUT/recall.json and recall.md give the recall by distance and in paper N's "
+        "Table 7 layout, and the false alarms",
     )
     parser.add_argument(
         "--set",
@@ -614,6 +627,7 @@ def run(args: argparse.Namespace) -> int:
     write_atomic(out / "config.json", lambda tmp: tmp.write_text(json.dumps(record_settings, indent=1)))
     summary = []
     missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
+    recall = _recorded_recall(args, setups, detector.config.grid)
 
     updates = _updates(args, setups)
     bar = tqdm(updates, desc="negobs detect", unit="frame", disable=None)
@@ -645,6 +659,9 @@ def run(args: argparse.Namespace) -> int:
         found = {"detection": detection, "structure": cells, "region": region, "grid": detector.config.grid}
         record = detection_record(frame, sensor, pose if given else None, **found)
         record["deskewed"] = args.deskew
+        if recall is not None and detection is not None:
+            outlines = [ob.outline_xy_m for ob in detection.obstacles]
+            record["truth"] = recall.add(outlines, pose if given else None)
         if args.cloud:
             record["clouds"] = cloud_records(update, {c.topic: c.sensor for c in args.cloud}, motions)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
@@ -660,6 +677,12 @@ def run(args: argparse.Namespace) -> int:
         for topic in setups:
             missing[topic] += topic not in update.clouds
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))
+    if recall is not None:
+        text = json.dumps(recall.summary(), indent=1)
+        write_atomic(out / "recall.json", lambda tmp: tmp.write_text(text))
+        write_atomic(out / "recall.md", lambda tmp: tmp.write_text(recall.markdown()))
+        by_distance = recall.summary()["recall_by_distance"]
+        log.info("--truth: recall by distance %s, written to %s", by_distance, out / "recall.md")
     if args.cloud and any(missing.values()):
         log.warning(
             "--cloud: no cloud within --sync-window of the lead's for %s",
@@ -707,6 +730,24 @@ def detector_configs(settings: list[str], *, tighten_pairs: bool = False) -> dic
     return configs
 
 
+def _recorded_recall(
+    args: argparse.Namespace, setups: dict[str, ScanSetup], grid: GridSpec
+) -> RecordedRecall | None:
+    """``--truth``: the surveyed obstacles' recall counter, or None without it.
+
+    Raises:
+        ScanError: ``--truth`` without a paper N input (only a 4-layer LiDAR).
+    """
+    from negobs_gym.errors import ScanError
+    from negobs_gym.eval.recorded import RecordedRecall, read_surveyed_obstacles
+
+    if args.truth is None:
+        return None
+    if all(setup.sensor == LUX_MOUNT for setup in setups.values()):
+        raise ScanError("--truth judges paper N's negative obstacles; a 4-layer LiDAR alone gives none")
+    return RecordedRecall(read_surveyed_obstacles(args.truth), grid=grid)
+
+
 def _summary(record: dict) -> dict:
     """A frame's line of ``summary.json``: its points and what each detector that ran found."""
     line = {"n_points": record["n_points"]}
@@ -715,6 +756,13 @@ def _summary(record: dict) -> dict:
             n_frame_pairs=record["n_frame_pairs"],
             n_obstacles=record["n_obstacles"],
             n_structure_cells=len(record["structure_cells"]),
+        )
+    if "truth" in record:
+        judged = record["truth"]["obstacles"]
+        line.update(
+            truth_in_grid=len(judged),
+            truth_recalled=sum(o["recalled"] for o in judged),
+            false_alarms=record["truth"]["false_alarms"],
         )
     if "traversable" in record:
         region = record["traversable"]

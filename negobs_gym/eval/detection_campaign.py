@@ -16,7 +16,6 @@ distributed campaign summarises exactly like a serial one.
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -34,6 +33,7 @@ from negobs_gym.eval.detection import (
     track_border_mask,
     world_outline_to_vehicle,
 )
+from negobs_gym.eval.tables import bin_labels
 
 BRAKING_SPEED_MPS = 25.0 / 3.6  # paper N §4: the ALV drives at most 25 km/h off-road
 FRAME_S = 0.1  # paper N: HDL-64 / HDL-32 at 10 Hz
@@ -249,13 +249,6 @@ def run_episode(episode: Episode) -> Rows:
 
 
 # -- summary -----------------------------------------------------------------------------------
-
-
-def bin_labels(edges: tuple[float, ...], unit: str = "") -> list[str]:
-    """Row/column labels of half-open bins, e.g. ``15-19`` for cells, ``6-8 m`` for metres."""
-    if unit:
-        return [f"{lo:g}-{hi:g}{unit}" for lo, hi in itertools.pairwise(edges)]
-    return [f"{int(lo)}-{int(hi) - 1}" for lo, hi in itertools.pairwise(edges)]
 
 
 def _nan_to_none(values: np.ndarray) -> list:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -39,6 +40,13 @@ def paper_n_fig16_fused() -> list[float]:
     n = np.asarray(PAPER_N_TABLE6, dtype=float)[2:4]
     r = np.asarray(PAPER_N_TABLE7, dtype=float)[2:4]
     return [round(float(v), 3) for v in (n * r).sum(axis=0) / n.sum(axis=0)]
+
+
+def bin_labels(edges: Sequence[float], unit: str = "") -> list[str]:
+    """Row/column labels of half-open bins, e.g. ``15-19`` for cells, ``6-8 m`` for metres."""
+    if unit:
+        return [f"{lo:g}-{hi:g}{unit}" for lo, hi in itertools.pairwise(edges)]
+    return [f"{int(lo)}-{int(hi) - 1}" for lo, hi in itertools.pairwise(edges)]
 
 
 def _markdown(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
