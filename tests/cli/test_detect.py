@@ -105,6 +105,7 @@ def test_pcap_sequence_json_only(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == [
         "00000_hdl32e_a_0000.json",
         "00001_hdl32e_a_0001.json",
+        "config.json",
         "summary.json",
     ]
     summary = json.loads((out / "summary.json").read_text())
