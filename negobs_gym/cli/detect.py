@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from negobs_gym.cli.common import non_negative_float, positive_float
+from negobs_gym.cli.common import non_negative_float, positive_float, positive_int
 from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
@@ -306,7 +306,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(StructureConfig); VALUE is TOML. The grid (negative.grid) is every detector's. OUT/config.json "
         "records the settings that ran",
     )
-    parser.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
+    pngs = parser.add_mutually_exclusive_group()
+    pngs.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
+    pngs.add_argument(
+        "--png-every",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="a PNG for every Nth frame only, the first included (a PNG takes ~0.25 s, the detector "
+        "tens of ms: long recordings are drawn in a fraction of the time); every frame's JSON is written",
+    )
     parser.set_defaults(handler=run)
 
 
@@ -665,7 +674,7 @@ def run(args: argparse.Namespace) -> int:
         if args.cloud:
             record["clouds"] = cloud_records(update, {c.topic: c.sensor for c in args.cloud}, motions)
         write_atomic(out / f"{stem}.json", lambda tmp, r=record: tmp.write_text(json.dumps(r, indent=1)))
-        if not args.no_png:
+        if not args.no_png and n % args.png_every == 0:
             write_atomic(
                 out / f"{stem}.png",
                 lambda tmp, f=frame, s=scans, found=found: plot_detection(f, tmp, s.values(), **found),

@@ -117,6 +117,14 @@ def test_set_changes_paper_ts_settings_and_the_shared_grid(tmp_path):
     assert region["traversable_cells"] == np.argwhere(expected.traversable).tolist()
 
 
+def test_png_every_draws_every_nth_frame_and_writes_every_json(tmp_path):
+    files = _write_pcds(tmp_path / "clouds", layer=True)
+    out = tmp_path / "out"
+    assert main(["detect", *files, "--sensor", "lux", "--png-every", "2", "--out", str(out)]) == 0
+    assert [p.stem[:5] for p in sorted(out.glob("0*.png"))] == ["00000", "00002"]
+    assert len(list(out.glob("0*.json"))) == FRAMES
+
+
 def test_a_lux_cloud_missing_a_layer_exits_naming_it(tmp_path, capsys):
     cloud = _cloud(_scans()[0])
     path = _write_pcd(tmp_path / "lux_0.pcd", cloud[cloud["layer"] != 3])  # the top layer saw nothing
