@@ -147,6 +147,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "2.0 m for the side HDL-32s, 0.65 m for the LUX)",
     )
     parser.add_argument(
+        "--mount",
+        type=ros_mount,
+        default=None,
+        metavar="X,Y,Z,ROLL,PITCH,YAW",
+        help="the sensor's pose on the vehicle instead of the --sensor rig mount's: its origin [m] "
+        "from the vehicle origin (rear axle centre on the ground) and its roll, pitch, yaw [deg], in "
+        "ROS body axes (x forward, y left, z up; positive pitch tilts it nose down), as a tf edge "
+        "from base_footprint would give them. --sensor still picks the model and detector path",
+    )
+    parser.add_argument(
         "--bin-fields", choices=("xyzi", "xyzir"), default="xyzi", help=".bin layout (default: %(default)s)"
     )
     parser.add_argument("--topic", default=None, help="PointCloud2 topic of a bag with several")
@@ -329,6 +339,17 @@ def tf_frames(text: str) -> tuple[str, str]:
     return parts[0].strip(), parts[1].strip()
 
 
+def ros_mount(text: str) -> tuple[float, ...]:
+    """``X,Y,Z,ROLL,PITCH,YAW`` as six finite numbers (argparse type of ``--mount``)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"want six numbers X,Y,Z,ROLL,PITCH,YAW (m, deg), got {text!r}")
+    return values
+
+
 def cloud_spec(text: str) -> CloudSpec:
     """``TOPIC:SENSOR[:HEIGHT]`` as a :class:`CloudSpec` (argparse type of ``--cloud``)."""
     parts = text.split(":")  # ROS names hold no colon
@@ -488,11 +509,40 @@ def _check_tf_options(args: argparse.Namespace) -> None:
         raise ScanError(
             "--height and --mount-from-tf both set the sensor's height (so does --cloud's HEIGHT): give one"
         )
+    if args.mount is not None and (args.height is not None or args.mount_from_tf or args.cloud):
+        raise ScanError(
+            "--mount sets the whole mounting of a single sensor: drop --height, --mount-from-tf and --cloud"
+        )
 
 
 def scan_setup(args: argparse.Namespace) -> ScanSetup:
-    """The :class:`ScanSetup` for ``--sensor``, ``--height`` and ``--azimuth-resolution``."""
-    return _setup(args.sensor or DEFAULT_SENSOR, args.height, args.azimuth_resolution)
+    """The :class:`ScanSetup` for ``--sensor``, ``--height`` or ``--mount``, and
+    ``--azimuth-resolution``."""
+    setup = _setup(args.sensor or DEFAULT_SENSOR, args.height, args.azimuth_resolution)
+    if args.mount is None:
+        return setup
+    from scipy.spatial.transform import Rotation
+
+    from negobs_gym.detector.io.setup import mounting_from_ros
+
+    x, y, z, roll, pitch, yaw = args.mount
+    turn = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
+    rotation, translation = mounting_from_ros(np.array([x, y, z]), turn)
+    # the detector's path is the sensor's spin axis: upright (§3.1) or rolled 90 deg (§3.2)
+    spin, expected = rotation[:, 2], np.asarray(setup.rotation)[:, 2]
+    off = float(np.degrees(np.arccos(np.clip(spin @ expected, -1.0, 1.0))))
+    if off > PATH_TOLERANCE_DEG:
+        log.warning(
+            "--mount tilts the sensor's spin axis %.1f deg from the --sensor %s mounting's, whose "
+            "detector path (upright or rolled) reads it; pick the --sensor mounted nearest",
+            off,
+            args.sensor or DEFAULT_SENSOR,
+        )
+    return dataclasses.replace(
+        setup,
+        rotation=tuple(tuple(float(v) for v in row) for row in rotation),
+        translation_m=tuple(float(v) for v in translation),
+    )
 
 
 def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | None) -> ScanSetup:

@@ -36,6 +36,15 @@ ABSOLUTE_TIME_S = 1e6
 PACKAGE_TO_ROS_BODY = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
+def mounting_from_ros(position_m: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A sensor's mounting given in ROS body axes (x forward, y left, z up: the sensor frame's
+    position and the rotation from it to the body, as a tf edge gives them) as paper N Eq. 9's ``R``
+    (3, 3) and ``T`` (3,) in this package's vehicle frame (X right, Y forward, Z up)."""
+    to_ros = PACKAGE_TO_ROS_BODY
+    position = np.asarray(position_m, dtype=np.float64)
+    return to_ros.T @ np.asarray(rotation, dtype=np.float64) @ to_ros, to_ros.T @ position
+
+
 @dataclass(frozen=True, kw_only=True)
 class ScanSetup:
     """The sensor a recording comes from, as the detector needs it.

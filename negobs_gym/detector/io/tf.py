@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector.io.poses import PoseTrack, pose_from_ros_transform
-from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY, ScanSetup
+from negobs_gym.detector.io.setup import ScanSetup, mounting_from_ros
 from negobs_gym.errors import ScanError
 
 __all__ = [
@@ -245,8 +245,8 @@ def sensor_mounting(
     """
     _check_body_height(body_height_m)
     position, rotation = tree.chain(body, sensor, max_gap_s=max_gap_s).transform_at(time_s)
-    to_ros = PACKAGE_TO_ROS_BODY
-    return to_ros.T @ rotation.as_matrix() @ to_ros, to_ros.T @ position + np.array([0.0, 0.0, body_height_m])
+    turn, shift = mounting_from_ros(position, rotation.as_matrix())
+    return turn, shift + np.array([0.0, 0.0, body_height_m])
 
 
 def mounting_difference_deg(
