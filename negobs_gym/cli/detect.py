@@ -66,7 +66,7 @@ class CloudSpec:
 class RecordedSensor:
     """A sensor ``--sensor`` can name: column width, fallback elevation table, and the rig mount
     whose extrinsics it takes (paper N's ``hdl64``: upright on the roof, ``hdl32_left/right``:
-    rolled 90 deg on the sides; paper T's ``lux``: on the bumper, pitched down). Upright sensors feed
+    rolled 90 deg on the sides; paper T's ``lux``: 0.65 m up, pitched down 5.03 deg). Upright sensors feed
     paper N's HDL-64 path, rolled ones its HDL-32 path, the LUX paper T's traversable-region detector."""
 
     help: str
@@ -91,7 +91,8 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
         # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
         "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
         "lux": RecordedSensor(
-            "IBEO LUX or SICK LD-MRS, 4 layers, on the bumper pitched down 5.03 deg (paper T)",
+            "IBEO LUX or SICK LD-MRS, 4 layers, 0.65 m up and 2 m ahead of the rear axle, pitched "
+            "down 5.03 deg (paper T; the envs' LUX)",
             lux.azimuth_resolution_deg,
             lux.elevation_deg,
             LUX_MOUNT,
