@@ -50,7 +50,7 @@ def describe(contents: BagContents) -> list[str]:
     lines.append("  PointCloud2 (--topic TOPIC, --cloud TOPIC:SENSOR):")
     lines += [
         f"    {t.topic}  {t.count} clouds{_rate(t, contents)}  frame {t.frame_id or '-'}  "
-        f"{t.points} points  fields {' '.join(t.fields)}"
+        f"{t.points} points{f'  {t.rings} rings' if t.rings else ''}  fields {' '.join(t.fields)}"
         for t in clouds
     ] or ["    none"]
     lines.append("  poses (--poses-topic TOPIC):")

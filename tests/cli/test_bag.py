@@ -17,7 +17,8 @@ def test_the_rig_bag_lists_its_three_lidars_odometry_and_tf_tree(rig_bag, capsys
     assert sorted(clouds) == ["/left", "/right", "/top"]
     fields = ("x", "y", "z", "intensity", "ring")
     cloud_type = "sensor_msgs/msg/PointCloud2"
-    assert clouds["/top"] == BagTopic("/top", cloud_type, FRAMES, "top", None, fields, 224_000)
+    assert clouds["/top"] == BagTopic("/top", cloud_type, FRAMES, "top", None, fields, 224_000, rings=56)
+    assert clouds["/left"].rings == 32  # the top HDL-64's 8 highest lasers see only sky
     (odom,) = contents.of_type("nav_msgs/msg/Odometry")
     assert (odom.frame_id, odom.child_frame_id, odom.count) == ("odom", "base_link", 30)
     edges = set(contents.tf_edges)
@@ -27,6 +28,7 @@ def test_the_rig_bag_lists_its_three_lidars_odometry_and_tf_tree(rig_bag, capsys
     assert main(["bag", str(rig_bag)]) == 0
     out = capsys.readouterr().out
     assert f"/top  {FRAMES} clouds" in out and "frame left" in out
+    assert "224000 points  56 rings  fields" in out
     assert "/odom  nav_msgs/msg/Odometry  30" in out and "odom -> base_link" in out
     assert "odom -> base_link  timed, 30 transforms" in out and "base_link -> right  static" in out
 

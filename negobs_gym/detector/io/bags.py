@@ -17,7 +17,7 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
 from negobs_gym.detector.io.poses import PoseTrack
 from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
-from negobs_gym.detector.io.setup import ScanSetup, column_time_offsets, fields_to_scan
+from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, column_time_offsets, fields_to_scan
 from negobs_gym.detector.io.tf import TimedTransform, TransformChain, TransformTree, frame_name
 from negobs_gym.errors import ScanError
 
@@ -297,6 +297,8 @@ class BagTopic:
         child_frame_id: The first odometry message's ``child_frame_id`` (the body it tracks), else None.
         fields: The first cloud's PointField names (``ring``: no elevation table needed).
         points: Points in the first cloud.
+        rings: Rings with returns in the first cloud, by its ring field (``RING_FIELD_NAMES``: up
+            to 4 for a LUX, 64 for an HDL-64E), 0 without one.
     """
 
     topic: str
@@ -306,6 +308,7 @@ class BagTopic:
     child_frame_id: str | None = None
     fields: tuple[str, ...] = ()
     points: int = 0
+    rings: int = 0
 
 
 @dataclass(frozen=True)
@@ -355,6 +358,7 @@ def bag_contents(path: str | os.PathLike[str]) -> BagContents:
                         child_frame_id=getattr(msg, "child_frame_id", None),
                         fields=tuple(f.name for f in getattr(msg, "fields", ())),
                         points=int(msg.width) * int(msg.height) if info.msgtype == POINTCLOUD2 else 0,
+                        rings=_rings(msg, f"{p}#{topic}") if info.msgtype == POINTCLOUD2 else 0,
                     )
             topics.append(entry)
         for _, static, stamped, _ in _transforms(reader, p):
@@ -365,6 +369,17 @@ def bag_contents(path: str | os.PathLike[str]) -> BagContents:
         reader.close()
     tf_edges = tuple(TransformEdge(parent, child, static, n) for (parent, child, static), n in edges.items())
     return BagContents(os.fspath(p), duration_s, tuple(topics), tf_edges)
+
+
+def _rings(msg: object, source: str) -> int:
+    """How many distinct rings a cloud's ring field holds over its points with coordinates (0: none)."""
+    name = next((f.name for f in msg.fields if f.name in RING_FIELD_NAMES), None)  # type: ignore[attr-defined]
+    if name is None:
+        return 0
+    fields = pointcloud2_fields(msg, source)
+    xyz = np.column_stack([np.asarray(fields[k], dtype=np.float64).reshape(-1) for k in "xyz" if k in fields])
+    ring = np.asarray(fields[name]).reshape(-1)
+    return int(np.unique(ring[np.isfinite(xyz).all(axis=1)] if xyz.shape[1] == 3 else ring).size)
 
 
 def _first_message(reader, connections, source: str):
