@@ -351,7 +351,7 @@ def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) 
     )
 
     files, poses = drive
-    setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None))
+    setup = scan_setup(argparse.Namespace(sensor="hdl64", height=2.2, azimuth_resolution=None, mount=None))
     vehicles, calib = read_poses_csv(poses), tmp_path / "calib.txt"
     if kind == "odometry":
         option, given = "--kitti-poses", tmp_path / "00.txt"
