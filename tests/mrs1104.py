@@ -61,10 +61,10 @@ def layer_points(telegram: bytes) -> tuple[float, np.ndarray, np.ndarray]:
 
 
 def clouds(frames: int, path: Path = CAPTURE) -> list[np.ndarray]:
-    """The first ``frames`` 4-layer scans (four consecutive telegrams each) as sick_scan_xd
-    publishes them: float32 x, y, z in the sensor's ROS frame (x forward, y left, z up), layer
-    by layer (lowest first), each layer's beams in firing order, with the layer index as
-    ``ring``; beams without a return left out."""
+    """The first ``frames`` 4-layer scans (four consecutive telegrams each) as a driver would
+    publish them: float32 x, y, z in the sensor's ROS frame (x forward, y left, z up; sick_scan_xd's
+    azimuth and elevation conventions), layer by layer (lowest first), each layer's beams in firing
+    order, with the layer index as ``ring``; beams without a return left out."""
     telegrams = scan_telegrams(path)
     out = []
     for k in range(frames):
