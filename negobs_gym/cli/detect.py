@@ -682,12 +682,12 @@ def run(args: argparse.Namespace) -> int:
     detector = NegativeObstacleDetector(configs["negative"])
     structure = StructureDetector(configs["structure"], grid=detector.config.grid)
     traversable = TraversableRegionDetector(configs["traversable"], grid=detector.config.grid)
+    recall = _recorded_recall(args, setups, detector.config.grid)
     record_settings = {name: dataclasses.asdict(config) for name, config in configs.items()}
     record_settings["set"] = args.settings
     write_atomic(out / "config.json", lambda tmp: tmp.write_text(json.dumps(record_settings, indent=1)))
     summary = []
     missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
-    recall = _recorded_recall(args, setups, detector.config.grid)
 
     updates = _updates(args, setups)
     bar = tqdm(updates, desc="negobs detect", unit="frame", disable=None)
@@ -730,19 +730,17 @@ def run(args: argparse.Namespace) -> int:
                 out / f"{stem}.png",
                 lambda tmp, f=frame, s=scans, found=found: plot_detection(f, tmp, s.values(), **found),
             )
-        summary.append(
-            {"frame": stem, **_summary(record), **({"n_clouds": len(update.clouds)} if args.cloud else {})}
-        )
-        log.debug("%s: %s", stem, _summary(record))
+        line = _summary(record)
+        summary.append({"frame": stem, **line, **({"n_clouds": len(update.clouds)} if args.cloud else {})})
+        log.debug("%s: %s", stem, line)
         for topic in setups:
             missing[topic] += topic not in update.clouds
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=1)))
     if recall is not None:
-        text = json.dumps(recall.summary(), indent=1)
-        write_atomic(out / "recall.json", lambda tmp: tmp.write_text(text))
+        totals = recall.summary()
+        write_atomic(out / "recall.json", lambda tmp: tmp.write_text(json.dumps(totals, indent=1)))
         write_atomic(out / "recall.md", lambda tmp: tmp.write_text(recall.markdown()))
-        by_distance = recall.summary()["recall_by_distance"]
-        log.info("--truth: recall by distance %s, written to %s", by_distance, out / "recall.md")
+        log.info("--truth: recall by distance %s (%s)", totals["recall_by_distance"], out / "recall.md")
     if args.cloud and any(missing.values()):
         log.warning(
             "--cloud: no cloud within --sync-window of the lead's for %s",

@@ -225,6 +225,13 @@ def match_frame(
     )
 
 
+def distance_bins(match: FrameMatch, config: DetectionEvalConfig) -> np.ndarray:
+    """Each ground truth's distance bin (index into ``config.distance_bin_edges_m``; -1 or the bin
+    count outside them), by ``config.bin_distance``."""
+    distance = match.truth_centre_distance_m if config.bin_distance == "centre" else match.truth_distance_m
+    return np.digitize(np.nan_to_num(distance, nan=-1.0), config.distance_bin_edges_m) - 1
+
+
 @dataclass
 class RecallTable:
     """Accumulates :class:`FrameMatch` results into paper N Table 7 counts (size x distance)."""
@@ -246,10 +253,7 @@ class RecallTable:
         self.frames += 1
         self.false_alarms += match.false_alarms
         s = np.digitize(match.truth_cells, self.config.size_bin_edges_cells) - 1
-        distance = (
-            match.truth_centre_distance_m if self.config.bin_distance == "centre" else match.truth_distance_m
-        )
-        d = np.digitize(np.nan_to_num(distance, nan=-1.0), self.config.distance_bin_edges_m) - 1
+        d = distance_bins(match, self.config)
         ok = (s >= 0) & (s < self.seen.shape[0]) & (d >= 0) & (d < self.seen.shape[1])
         np.add.at(self.seen, (s[ok], d[ok]), 1)
         np.add.at(self.recalled, (s[ok], d[ok]), match.truth_recalled[ok].astype(np.int64))

@@ -26,8 +26,8 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.detection import (
     DetectionEvalConfig,
-    FrameMatch,
     RecallTable,
+    distance_bins,
     match_frame,
     world_outline_to_vehicle,
 )
@@ -103,8 +103,7 @@ class RecordedRecall:
         truth = [world_outline_to_vehicle(o.outline_xy_m, at) for o in self.obstacles]
         match = match_frame(list(detected_outlines), truth, self.grid, self.config)
         self.table.add(match)
-        distance = self._distance(match)
-        d = np.digitize(np.nan_to_num(distance, nan=-1.0), self.config.distance_bin_edges_m) - 1
+        d = distance_bins(match, self.config)
         binned = (d >= 0) & (d < self.seen_by_distance.size)
         np.add.at(self.seen_by_distance, d[binned], 1)
         np.add.at(self.recalled_by_distance, d[binned], match.truth_recalled[binned].astype(np.int64))
@@ -126,12 +125,6 @@ class RecordedRecall:
             "false_alarms": match.false_alarms,
             "detections": match.detections,
         }
-
-    def _distance(self, match: FrameMatch) -> np.ndarray:
-        """Each obstacle's distance as the Table 7 bins take it (``config.bin_distance``)."""
-        if self.config.bin_distance == "centre":
-            return match.truth_centre_distance_m
-        return match.truth_distance_m
 
     def summary(self) -> dict[str, Any]:
         """Counts and recall per distance bin (all sizes) and per Table 7 bin, per obstacle, and the
