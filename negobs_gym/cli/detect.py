@@ -91,8 +91,8 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
         # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
         "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
         "lux": RecordedSensor(
-            "IBEO LUX or SICK LD-MRS, 4 layers, 0.65 m up and 2 m ahead of the rear axle, pitched "
-            "down 5.03 deg (paper T; the envs' LUX)",
+            "IBEO LUX or SICK LD-MRS, 4 layers, on the front bumper 3.7 m ahead of the rear axle, "
+            "0.65 m up, pitched down 5.03 deg (paper T; the envs' LUX)",
             lux.azimuth_resolution_deg,
             lux.elevation_deg,
             LUX_MOUNT,

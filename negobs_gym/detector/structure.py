@@ -5,7 +5,7 @@ Paper N detects only negative obstacles, but its ROI step already tells ground f
 ground level of its polar cell, walked outward from the vehicle. The roof-mounted HDL-64 looks
 down on a rock or a box and returns from its top as well as its face, so the cells of those
 returns cover the obstacle's footprint as far as the ground map reaches (paper N's 20 m + margin),
-where paper T's LUX on the bumper, 0.65 m up, sees a face a few cells deep between ~4 and 12 m
+where paper T's LUX on the bumper, 0.65 m up, sees a face a few cells deep between ~6 and 12 m
 (docs/detector_structure.md). Returns higher than ``max_height_m`` above the ground (branches,
 canopies) pass over the vehicle and are not obstacles.
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.errors import require
 from negobs_gym.sensors.raycast.embree_packets import ISAS
+from negobs_gym.sensors.rigs import LUX_FORWARD_M
 from negobs_gym.sim.world import WorldConfig
 
 __all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
@@ -70,12 +71,12 @@ class ObservationConfig:
             on seeing pits 25 m ahead. None: the whole grid. Ignored by the detector source.
         positive_detector: With ``source="detector"``, what fills the ``positive`` channel:
             ``"traversable"`` (default: paper T's obstacle clusters from the bumper LUX, a rock's
-            near face between ~4 and 12 m) or ``"structure"`` (paper N's rig's returns standing
+            near face between ~6 and 12 m) or ``"structure"`` (paper N's rig's returns standing
             above its ROI ground map, tops and faces to ~22 m;
             :mod:`negobs_gym.detector.structure`, docs/detector_structure.md).
         positive_hold_s: With ``source="detector"``, how long obstacle points stay in the
             ``positive`` channel after the rig last saw them [s] (``TraversableConfig.obstacle_hold_s``
-            or ``StructureConfig.hold_s``: a rock within ~4 m passes under the LUX's layers and
+            or ``StructureConfig.hold_s``: a rock within ~6 m passes under the LUX's layers and
             the HDL-64's, and would vanish from the grid). 0 (default): per frame, as the papers.
             Ignored by the oracle source.
         hazard_hold_s: How long the obstacle cells the safety filter reads
@@ -91,6 +92,10 @@ class ObservationConfig:
             True (default): same recall and false obstacles as paper N's history, and the
             filter no longer stops cars ~1 m early (docs/detector_features.md, "Near edge").
             False: paper N's history, each pair keeps the geometry it was first seen with.
+        lux_forward_m: Where paper T's LUX sits ahead of the rear axle (the vehicle origin) [m]:
+            on the front bumper (paper T §2), 5 cm beyond the body's front (3.65 m). The
+            shipped policies were trained with 2.0, inside the body, the envs' mount until this
+            field came; their records set it (docs/training.md).
     """
 
     source: str = "detector"
@@ -111,6 +116,7 @@ class ObservationConfig:
     positive_hold_s: float = 0.0
     hazard_hold_s: float = 0.0
     tighten_pairs: bool = True
+    lux_forward_m: float = LUX_FORWARD_M
 
     def __post_init__(self) -> None:
         require(
@@ -181,6 +187,11 @@ class ObservationConfig:
             isinstance(self.tighten_pairs, bool),
             "tighten_pairs",
             f"must be a bool, got {self.tighten_pairs!r}",
+        )
+        require(
+            isinstance(self.lux_forward_m, (int, float)) and math.isfinite(self.lux_forward_m),
+            "lux_forward_m",
+            f"must be a finite distance [m], got {self.lux_forward_m!r}",
         )
         route = self.route_points_m
         require(

@@ -40,7 +40,7 @@ from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import make_caster
-from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
+from negobs_gym.sensors.rigs import LUX_FORWARD_M, Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
 from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -50,11 +50,11 @@ __all__ = ["DetectorGrid", "env_rig"]
 LUX_NAME = "lux"
 
 
-def env_rig(rig: str) -> Rig:
-    """Paper N's rig plus paper T's bumper LUX: native resolution (``"native"``, ``"roi"``) or
-    ``"reduced"``."""
+def env_rig(rig: str, lux_forward_m: float = LUX_FORWARD_M) -> Rig:
+    """Paper N's rig plus paper T's bumper LUX (``lux_forward_m`` ahead of the rear axle): native
+    resolution (``"native"``, ``"roi"``) or ``"reduced"``."""
     base = paper_n_rig_reduced() if rig == "reduced" else paper_n_rig()
-    return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig().mounts)
+    return Rig(name=f"{base.name}+lux", mounts=base.mounts + paper_t_rig(forward_m=lux_forward_m).mounts)
 
 
 def cast_threads(config: ObservationConfig) -> int:
@@ -102,7 +102,7 @@ class DetectorGrid:
         """``cache`` (one dict per world, e.g. ``CachedWorld.extras``) keeps the ray caster and the
         height envelope of ``world`` for the next episode on it."""
         self.config = config
-        self.rig = env_rig(config.rig)
+        self.rig = env_rig(config.rig, config.lux_forward_m)
         self._vehicle = vehicle
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)

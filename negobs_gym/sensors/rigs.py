@@ -85,6 +85,11 @@ def _rot(m: np.ndarray) -> tuple[float, ...]:
 SIDE_LEFT_R = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 SIDE_RIGHT_R = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 
+#: Paper T's LUX sits on the front bumper (paper T §2); the ALV's body ends 3.65 m ahead of the
+#: rear axle (``sim.vehicle.VehicleConfig``: 4.5 m long, 0.85 m behind the axle), the sensor's
+#: optical centre 5 cm beyond it [m]
+LUX_FORWARD_M = 3.7
+
 
 def paper_n_rig(
     hdl64: LidarModel | None = None,
@@ -120,17 +125,27 @@ def paper_n_rig(
     )
 
 
-def paper_t_rig(lux: LidarModel | None = None, height_m: float = 0.65, pitch_down_deg: float = 5.03) -> Rig:
-    """Paper T's rig: IBEO LUX on the front bumper at 0.65 m, pitched down 5.03 deg (paper T §2)."""
+def paper_t_rig(
+    lux: LidarModel | None = None,
+    height_m: float = 0.65,  # paper T §2
+    pitch_down_deg: float = 5.03,  # paper T §2
+    forward_m: float = LUX_FORWARD_M,
+) -> Rig:
+    """Paper T's rig: IBEO LUX on the front bumper (``forward_m`` ahead of the rear axle) at 0.65 m,
+    pitched down 5.03 deg (paper T §2)."""
     require(
         math.isfinite(pitch_down_deg) and abs(pitch_down_deg) < 90.0, "pitch_down_deg", "must be in (-90, 90)"
     )
+    require(math.isfinite(forward_m), "forward_m", f"must be finite, got {forward_m!r}")
     r = rotation_from_rpy(0.0, -math.radians(pitch_down_deg), 0.0)
     return Rig(
         name="paper_t",
         mounts=(
             SensorMount(
-                name="lux", model=lux or ibeo_lux(), rotation=_rot(r), translation_m=(0.0, 2.0, height_m)
+                name="lux",
+                model=lux or ibeo_lux(),
+                rotation=_rot(r),
+                translation_m=(0.0, forward_m, height_m),
             ),
         ),
     )

@@ -21,11 +21,11 @@ from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_s
 from negobs_gym.detector.traversable import Box, TrackScene, TraversableConfig, TraversableRegionDetector
 from negobs_gym.detector.traversable import synthetic_scan as lux_scan
 from negobs_gym.detector.traversable.synthetic import LuxRig
-from negobs_gym.sensors.rigs import paper_n_rig
+from negobs_gym.sensors.rigs import LUX_FORWARD_M, paper_n_rig
 from tests.helpers import pointcloud2
 
-# paper T's LUX at the env rig's mount (0.65 m high, 2 m ahead of the rear axle, pitched 5.03 deg)
-RIG = LuxRig(forward_m=2.0)
+# paper T's LUX at the env rig's mount (on the front bumper, 0.65 m high, pitched 5.03 deg)
+RIG = LuxRig(forward_m=LUX_FORWARD_M)
 SCENE = TrackScene(
     left_half_width_m=3.5,
     right_half_width_m=4.5,

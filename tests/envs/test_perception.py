@@ -172,3 +172,36 @@ def test_tighten_pairs_must_be_a_bool() -> None:
     for bad in ("true", 1, None):
         with pytest.raises(ConfigError, match="tighten_pairs"):
             ObservationConfig(tighten_pairs=bad)
+
+
+def test_the_lux_sits_on_the_front_bumper() -> None:
+    """Default: every LUX return lies ahead of the body's front, the nearest at about where its
+    lowest layer (1.2 deg below the 5.03 deg pitch) meets the ground; ``lux_forward_m=2.0``, the
+    old mount, casts from 1.7 m farther back; paper N's scans are the same bit for bit."""
+    base = EnvConfig()
+    scans = {}
+    for forward in (None, 2.0):  # None: the default config
+        obs = base.observation if forward is None else replace(base.observation, lux_forward_m=forward)
+        env = BrakingEnv(replace(base, observation=obs))
+        env.reset(seed=3)
+        scans[forward] = env._detector.perception.scans
+        front_m = env._vehicle.config.length_m - env._vehicle.config.rear_overhang_m
+        env.close()
+    bumper, inside = (scans[k]["lux"] for k in (None, 2.0))
+    assert bumper.translation_m[1] - front_m == pytest.approx(0.05)
+    assert inside.translation_m[1] == 2.0
+    points = {k: s.points_vehicle[np.isfinite(s.ranges_m)] for k, s in ((None, bumper), (2.0, inside))}
+    assert len(points[None]) > 100 and points[None][:, 1].min() > front_m
+    reach_m = np.hypot(*(points[None][:, :2] - bumper.translation_m[:2]).T)  # from the sensor, level
+    lowest_layer_m = 0.65 / np.tan(np.radians(5.03 + 1.2))
+    assert reach_m.min() == pytest.approx(lowest_layer_m, abs=0.5)  # a rough track
+    assert np.median(points[None][:, 1]) - np.median(points[2.0][:, 1]) == pytest.approx(1.7, abs=0.3)
+    for name in scans[None]:
+        if name != "lux":
+            assert np.array_equal(scans[None][name].ranges_m, scans[2.0][name].ranges_m, equal_nan=True)
+
+
+def test_lux_forward_m_must_be_finite() -> None:
+    for bad in (float("nan"), float("inf"), "3.7", None):
+        with pytest.raises(ConfigError, match="lux_forward_m"):
+            ObservationConfig(lux_forward_m=bad)

@@ -11,6 +11,7 @@ from negobs_gym.sensors import (
     ibeo_lux,
     paper_n_rig,
     paper_n_rig_reduced,
+    paper_t_rig,
 )
 from negobs_gym.sensors.calibration import HDL64E_S2_SZTAKI_VERT_CORRECTION_RAD
 
@@ -53,6 +54,19 @@ def test_bad_model(kwargs, field):
     base = {"name": "x", "elevation_deg": (0.0, 1.0), "azimuth_resolution_deg": 1.0}
     with pytest.raises(ConfigError, match=field):
         LidarModel(**{**base, **kwargs})
+
+
+def test_paper_t_rig_puts_the_lux_on_the_front_bumper():
+    from negobs_gym.sim.vehicle import VehicleConfig
+
+    vehicle = VehicleConfig()
+    (lux,) = paper_t_rig().mounts
+    x, forward, height = lux.translation_m
+    assert (x, height) == (0.0, 0.65)
+    assert 0.0 < forward - (vehicle.length_m - vehicle.rear_overhang_m) <= 0.1  # just beyond the body
+    assert paper_t_rig(forward_m=2.0).mounts[0].translation_m == (0.0, 2.0, 0.65)
+    with pytest.raises(ConfigError, match="forward_m"):
+        paper_t_rig(forward_m=float("nan"))
 
 
 def test_bad_rotation():

@@ -191,7 +191,7 @@ def boundary_points(
       lies beyond what the layer sees. Taking that end as the edge puts the boundary point on the
       FOV's edge ray; where the ground rises to one side (or the road is wider than the FOV at
       the layer's range) the near layers are cut there and the fitted boundary leans along that
-      ray (a 55 deg edge ray from a sensor 2 m ahead of the axle is at x = -4.5 m at y = 5.2 m);
+      ray (a 55 deg edge ray is at x = -4.5 m where it is 3.2 m ahead of the sensor);
     - an end whose next return outwards is much nearer (``occlusion_jump_m``): it ends at an
       occluding obstacle, not at the road edge (paper T Fig. 12 discusses this error).
 
