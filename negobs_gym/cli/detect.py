@@ -74,6 +74,7 @@ class RecordedSensor:
     elevation_deg: tuple[float, ...]  # fallback table for clouds without ring (empty: ring needed)
     mount: str = "hdl64"
     columns_centred: bool = False  # a fixed-angle scanner: columns centred on its firing angles
+    crop_columns: bool = False  # a field of view short of a revolution: the range image spans it only
 
 
 def recorded_sensors() -> dict[str, RecordedSensor]:
@@ -97,6 +98,7 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
             lux.elevation_deg,
             LUX_MOUNT,
             columns_centred=True,
+            crop_columns=True,
         ),
         # SICK MRS1000 / MRS1104: 4 layers 2.5 deg apart (-2.5 .. +5 deg), 0.25 deg over 275 deg
         "mrs1000": RecordedSensor(
@@ -105,6 +107,7 @@ def recorded_sensors() -> dict[str, RecordedSensor]:
             (-2.5, 0.0, 2.5, 5.0),
             LUX_MOUNT,
             columns_centred=True,
+            crop_columns=True,
         ),
     }
 
@@ -561,6 +564,7 @@ def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | 
         rotation=tuple(tuple(float(v) for v in row) for row in mount.rotation_matrix),
         translation_m=(x, y, z if height_m is None else height_m),
         columns_centred=spec.columns_centred,
+        crop_columns=spec.crop_columns,
     )
 
 

@@ -71,6 +71,7 @@ def cloud_to_scan(
     pose: Pose | None = None,
     timestamp_s: float = 0.0,
     columns_centred: bool = False,
+    crop_columns: bool = False,
 ) -> StructuredScan:
     """Bin a sensor-frame cloud with known ring indices into a structured scan.
 
@@ -83,6 +84,9 @@ def cloud_to_scan(
         azimuth_resolution_deg: Column width [deg]; must divide into at least one column.
         rotation, translation_m, pose, timestamp_s: Passed to :class:`StructuredScan`.
         columns_centred: Centre the columns on multiples of the width (see :func:`azimuth_columns`).
+        crop_columns: Keep only the columns from the first to the last that holds a return (see
+            :func:`column_span`): a scanner whose field of view is narrower than a revolution
+            gets a range image of its own width (the LUX's 110 deg: 441 of 1,440 columns).
 
     Raises:
         ScanError: non-finite points, rings outside the table, bad resolution, shape mismatch.
@@ -105,6 +109,10 @@ def cloud_to_scan(
             raise ScanError(f"{sensor}: intensity must have one entry per point")
         inten = inten[keep]
     col, n_cols = azimuth_columns(xyz, azimuth_resolution_deg, centred=columns_centred)
+    azimuth = -np.pi + (np.arange(n_cols) + (0.0 if columns_centred else 0.5)) * (2 * np.pi / n_cols)
+    if crop_columns:
+        first, stop = column_span(col, n_cols)
+        col, n_cols, azimuth = col - first, stop - first, azimuth[first:stop]
     order_rows = np.argsort(el, kind="stable")
     row_of_ring = np.empty(el.size, dtype=np.int64)
     row_of_ring[order_rows] = np.arange(el.size)
@@ -126,7 +134,7 @@ def cloud_to_scan(
     return StructuredScan(
         sensor=sensor,
         ranges_m=ranges.reshape(el.size, n_cols),
-        azimuth_rad=-np.pi + (np.arange(n_cols) + (0.0 if columns_centred else 0.5)) * (2 * np.pi / n_cols),
+        azimuth_rad=azimuth,
         elevation_rad=el[order_rows],
         rotation=np.eye(3) if rotation is None else rotation,
         translation_m=np.zeros(3) if translation_m is None else translation_m,
@@ -154,6 +162,15 @@ def azimuth_columns(
     if centred:
         return np.floor((az + np.pi) / width + 0.5).astype(np.int64) % n_cols, n_cols
     return np.clip(np.floor((az + np.pi) / width).astype(np.int64), 0, n_cols - 1), n_cols
+
+
+def column_span(col: np.ndarray, n_cols: int) -> tuple[int, int]:
+    """``(first, stop)``: the columns from the first to the last of ``col`` (the range-image column
+    of each return), the whole ``n_cols`` when there is none. The span does not wrap around the
+    revolution's seam at -180 deg, so a scanner facing backwards keeps most of its columns."""
+    if col.size == 0:
+        return 0, n_cols
+    return int(col.min()), int(col.max()) + 1
 
 
 def ring_cloud_to_scan(

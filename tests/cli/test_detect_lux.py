@@ -85,7 +85,7 @@ def test_lux_clouds_give_the_detectors_region(tmp_path, layer):
     assert len(records) == FRAMES
     for record, region in zip(records, _expected(), strict=True):
         assert record["ring_source"] == ("ring_field" if layer else "elevation_table")
-        assert record["scan_shape"] == [4, 1440]  # 0.25 deg columns over a revolution
+        assert record["scan_shape"] == [4, 441]  # 0.25 deg columns over the 110 deg field of view
         assert "n_frame_pairs" not in record  # no paper N input, no paper N result
         got = record["traversable"]
         for side in ("left", "right"):
@@ -252,7 +252,7 @@ def test_a_real_mrs1104_capture_keeps_every_return(tmp_path):
     assert by_table == by_field
     assert table_cluster["n_points"] == pytest.approx(field_cluster["n_points"], rel=0.01)
     for record in _records(out):
-        assert record["scan_shape"] == [4, 1440] and record["n_points"] > 4300
+        assert record["scan_shape"] == [4, 1101] and record["n_points"] > 4300  # 1,101 beams, 275 deg
         # a room: no ground within the layers' reach, so no road between two boundaries
         region = record["traversable"]
         assert region["traversable_cells"] == [] and region["right_line"] is None

@@ -7,6 +7,7 @@ from negobs_gym.detector.loaders import (
     assign_rings,
     azimuth_columns,
     cloud_to_scan,
+    column_span,
     load_kitti_bin,
     recover_rings,
     ring_cloud_to_scan,
@@ -128,3 +129,30 @@ def test_centred_columns_keep_a_fixed_angle_scanners_returns_apart():
     # the +-180 deg column is one column, centred on the seam
     back = np.array([[0.0, -5.0, 0.0], [1e-6, -5.0, 0.0], [-1e-6, -5.0, 0.0]])
     assert set(azimuth_columns(back, 0.25, centred=True)[0]) == {0}
+
+
+def test_cropped_columns_are_the_span_of_the_returns():
+    """``crop_columns``: the range image from the first to the last column with a return, equal to
+    the revolution's columns there, which hold every return; none outside it."""
+    rng = np.random.default_rng(0)
+    az = rng.uniform(np.radians(-55), np.radians(55), 400)
+    xyz = np.column_stack([10 * np.sin(az), 10 * np.cos(az), rng.uniform(-1, 0, az.size)])
+    ring, elevation = rng.integers(0, 4, az.size), np.radians([-1.2, -0.4, 0.4, 1.2])
+    kwargs = {"sensor": "lux", "intensity": rng.uniform(0, 1, az.size), "azimuth_resolution_deg": 0.25}
+    full = cloud_to_scan(xyz, ring, elevation, columns_centred=True, **kwargs)
+    crop = cloud_to_scan(xyz, ring, elevation, columns_centred=True, crop_columns=True, **kwargs)
+    first, stop = column_span(azimuth_columns(xyz, 0.25, centred=True)[0], 1440)
+    assert stop - first == crop.shape[1] <= 441 and full.shape[1] == 1440
+    np.testing.assert_array_equal(crop.ranges_m, full.ranges_m[:, first:stop])
+    np.testing.assert_array_equal(crop.intensity, full.intensity[:, first:stop])
+    np.testing.assert_array_equal(crop.azimuth_rad, full.azimuth_rad[first:stop])
+    np.testing.assert_array_equal(crop.points_vehicle, full.points_vehicle[:, first:stop])
+    assert int(crop.valid.sum()) == int(full.valid.sum())
+    assert np.isfinite(crop.ranges_m[:, 0]).any() and np.isfinite(crop.ranges_m[:, -1]).any()
+    # returns on both sides of the seam behind (+-178.9 deg): the span does not wrap, it runs the
+    # long way round, from the first column to the last; no return keeps the whole revolution
+    behind = np.array([[0.1, -5.0, 0.0], [-0.1, -5.0, 0.0]])
+    scan = cloud_to_scan(behind, np.zeros(2), elevation[:1], sensor="s", crop_columns=True)
+    assert int(scan.valid.sum()) == 2 and 3900 < scan.shape[1] < 4000
+    empty = cloud_to_scan(np.empty((0, 3)), np.zeros(0), elevation[:1], sensor="s", crop_columns=True)
+    assert empty.shape == (1, 4000)

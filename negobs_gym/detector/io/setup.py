@@ -15,6 +15,7 @@ from negobs_gym.detector.loaders import (
     assign_rings,
     azimuth_columns,
     cloud_to_scan,
+    column_span,
     measured_ring_elevations,
     ros_to_sensor_frame,
 )
@@ -58,6 +59,9 @@ class ScanSetup:
         translation_m: Sensor origin in the vehicle frame ``T`` [m]; ``T[2]`` is the height.
         columns_centred: Columns centred on multiples of the width, for a fixed-angle scanner
             (:func:`~negobs_gym.detector.loaders.azimuth_columns`).
+        crop_columns: The range image spans only the columns from the first to the last with a
+            return, for a scanner whose field of view is narrower than a revolution
+            (:func:`~negobs_gym.detector.loaders.column_span`); column times crop alike.
     """
 
     sensor: str = "hdl64"
@@ -66,6 +70,7 @@ class ScanSetup:
     rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     translation_m: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
     columns_centred: bool = False
+    crop_columns: bool = False
 
     def __post_init__(self) -> None:
         require(isinstance(self.sensor, str) and bool(self.sensor), "sensor", "must be a non-empty name")
@@ -102,6 +107,7 @@ class ScanSetup:
             translation_m=np.asarray(self.translation_m),
             timestamp_s=timestamp_s,
             columns_centred=self.columns_centred,
+            crop_columns=self.crop_columns,
         )
 
 
@@ -175,6 +181,9 @@ def column_time_offsets(
     col, n_cols = azimuth_columns(
         ros_to_sensor_frame(xyz[keep]), setup.azimuth_resolution_deg, centred=setup.columns_centred
     )
+    if setup.crop_columns:  # the span of cloud_to_scan: the same points give the same columns
+        first, stop = column_span(col, n_cols)
+        col, n_cols = col - first, stop - first
     count = np.bincount(col, minlength=n_cols)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.bincount(col, weights=times, minlength=n_cols) / np.where(count > 0, count, np.nan)

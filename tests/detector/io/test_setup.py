@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -30,6 +32,17 @@ def test_each_column_takes_the_mean_time_of_its_returns() -> None:
     np.testing.assert_allclose(
         column_time_offsets(absolute, SETUP, source="s", stamp_s=stamp), seconds, atol=1e-6
     )
+
+
+def test_cropped_columns_take_the_times_of_their_columns() -> None:
+    """With ``crop_columns`` the times are those of the scan's columns: from the first to the last
+    with a return (here ahead left to behind right)."""
+    fields = {**XYZ, "time": np.float32([0.01, 0.03, 0.08, 0.02])}
+    cropped = dataclasses.replace(SETUP, crop_columns=True)
+    seconds = column_time_offsets(fields, cropped, source="s", stamp_s=5.0)
+    np.testing.assert_allclose(seconds, [0.03, 0.015, 0.08], atol=1e-7)
+    scan = cropped.scan(np.column_stack([-XYZ["y"], XYZ["x"], XYZ["z"]]), np.zeros(4), np.zeros(1), None, 0.0)
+    assert scan.shape == (1, 3)
 
 
 def test_a_cloud_without_a_finite_time_field_is_refused_by_name() -> None:
