@@ -1,0 +1,67 @@
+"""``negobs policy``: the trained policies shipped with negobs_gym and their records.
+
+``list`` prints one line per policy: its name (what ``negobs eval policy`` and ``negobs train
+--init`` take), the env and settings it was fitted on (which ``negobs eval policy NAME`` applies),
+the algorithm and its steps, and its recorded evaluation without the filter. ``show NAME`` prints
+the whole record as JSON: the commands that trained and evaluated it, wall times, and every
+evaluation with its seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``policy`` command and its ``list`` and ``show`` subcommands."""
+    parser = subparsers.add_parser(
+        "policy",
+        help="list the shipped trained policies, or show one's record (commands, evaluations)",
+        description="The trained policies shipped in negobs_gym/policies/trained: each a "
+        "stable-baselines3 model (NAME.zip) and its record (NAME.json).",
+    )
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    p_list = sub.add_parser("list", help="name, env and settings, steps and recorded evaluation of each")
+    p_list.set_defaults(handler=_list)
+    p_show = sub.add_parser("show", help="print a shipped policy's record as JSON")
+    p_show.add_argument("name", metavar="NAME", help="shipped policy name (see 'negobs policy list')")
+    p_show.set_defaults(handler=_show)
+
+
+def summary_line(name: str, record: dict[str, Any]) -> str:
+    """One line of ``negobs policy list``: name, env with its settings, algorithm and steps (a
+    behaviour clone has none), and the recorded evaluation without the filter (``-`` where the
+    record has none)."""
+    from negobs_gym.scenarios.overrides import describe_overrides
+
+    env = describe_overrides(str(record.get("env", "-")), tuple(record.get("set", ())))
+    steps = int(record.get("steps", 0))
+    trained = f"{record.get('algo', '-')} {steps:,} steps" if steps else "cloned, no RL step"
+    result = record.get("evaluation", {}).get("nofilter")
+    if isinstance(result, dict) and {"episodes", "goal"} <= result.keys():
+        measured = (
+            f"goal {result['goal']}/{result['episodes']}, entries {result.get('entries', '-')}, "
+            f"collisions {result.get('collisions', '-')} (no filter)"
+        )
+    else:
+        measured = "-"
+    return f"{name}  {env}  {trained}  {measured}"
+
+
+def _list(args: argparse.Namespace) -> int:
+    from negobs_gym.policies.baselines import baseline_names, baseline_record
+
+    for name in baseline_names():
+        print(summary_line(name, baseline_record(name)), file=sys.stdout)
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    from negobs_gym.policies.baselines import baseline_record
+
+    record = baseline_record(args.name)
+    sys.stdout.write(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
+    return 0

@@ -1,0 +1,31 @@
+"""``negobs policy list`` and ``show``: the shipped policies from their records."""
+
+import json
+
+from negobs_gym.cli import main
+from negobs_gym.policies.baselines import baseline_names, baseline_record
+
+
+def test_list_gives_each_shipped_policy_its_env_settings_and_recorded_result(capsys) -> None:
+    assert main(["policy", "list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    names = baseline_names()
+    assert len(names) >= 8 and [line.split()[0] for line in lines] == names
+    for name, line in zip(names, lines, strict=True):
+        record = baseline_record(name)
+        env = line.split()[1]
+        assert env.startswith(record["env"])
+        assert all(setting in env for setting in record.get("set", ()))  # what eval policy applies
+        result = record["evaluation"]["nofilter"]
+        assert f"goal {result['goal']}/{result['episodes']}," in line
+    detector = next(line for line in lines if line.startswith("ppo_offroad_nav_v2_detector_clone "))
+    assert "observation.lux_forward_m=2.0" in detector and "cloned, no RL step" in detector
+    assert "PPO 100,000 steps" in next(line for line in lines if line.startswith("ppo_offroad_nav_v1 "))
+
+
+def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(capsys) -> None:
+    assert main(["policy", "show", "ppo_offroad_nav_v1_detector_filter"]) == 0
+    assert json.loads(capsys.readouterr().out) == baseline_record("ppo_offroad_nav_v1_detector_filter")
+    assert main(["policy", "show", "ppo_nothing"]) == 2
+    err = capsys.readouterr().err
+    assert "no shipped baseline 'ppo_nothing'" in err and "ppo_offroad_nav_v1" in err
