@@ -1,10 +1,11 @@
 """A short memory of obstacle points, kept in the world frame of the INS pose.
 
 Neither paper keeps obstacles between frames: each frame's grid holds what that frame saw. A rig
-has blind zones near the vehicle, though (the LUX's layers pass over a low rock within ~2 m of the bumper, the
-HDL-64's lowest laser meets the ground ~5 m out), so an obstacle drops off a per-frame grid as the
-vehicle closes in on it. :class:`PointHold` keeps each frame's points for ``hold_s`` seconds and
-hands them back in the vehicle frame of a later pose, so a detector can keep marking them.
+has blind zones near the vehicle, though (the LUX's layers pass over a low rock within ~2 m of the
+bumper, the HDL-64's lowest laser meets the ground ~5 m out), so an obstacle drops off a per-frame
+grid as the vehicle closes in on it. :class:`PointHold` keeps each frame's points for ``hold_s``
+seconds and hands them back in the vehicle frame of a later pose, so a detector can keep marking
+them.
 """
 
 from __future__ import annotations

@@ -88,7 +88,8 @@ class TraversableConfig:
     obstacle_inside_margin_m: float = 0.30
     # Not in paper T (its obstacles are per frame): keep each frame's obstacle points this long
     # [s] in the world frame (INS pose) and mark them in ``positive_obstacles`` while the LUX no
-    # longer sees them (a rock within ~2 m of the LUX passes under its layers). 0 = per frame, as the paper.
+    # longer sees them (a rock within ~2 m of the LUX passes under its layers). 0 = per frame, as
+    # the paper.
     obstacle_hold_s: float = 0.0
 
     # --- §3.5 reachability ---
