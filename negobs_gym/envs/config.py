@@ -94,8 +94,9 @@ class ObservationConfig:
             False: paper N's history, each pair keeps the geometry it was first seen with.
         lux_forward_m: Where paper T's LUX sits ahead of the rear axle (the vehicle origin) [m]:
             on the front bumper (paper T §2), 5 cm beyond the body's front (3.65 m). The
-            shipped policies were trained with 2.0, inside the body, the envs' mount until this
-            field came; their records set it (docs/training.md).
+            shipped policies fitted on paper T's ``positive`` channel were trained with 2.0,
+            inside the body, the envs' mount until this field came; their records set it
+            (docs/training.md).
     """
 
     source: str = "detector"
@@ -189,7 +190,9 @@ class ObservationConfig:
             f"must be a bool, got {self.tighten_pairs!r}",
         )
         require(
-            isinstance(self.lux_forward_m, (int, float)) and math.isfinite(self.lux_forward_m),
+            isinstance(self.lux_forward_m, (int, float))
+            and not isinstance(self.lux_forward_m, bool)
+            and math.isfinite(self.lux_forward_m),
             "lux_forward_m",
             f"must be a finite distance [m], got {self.lux_forward_m!r}",
         )

@@ -202,6 +202,6 @@ def test_the_lux_sits_on_the_front_bumper() -> None:
 
 
 def test_lux_forward_m_must_be_finite() -> None:
-    for bad in (float("nan"), float("inf"), "3.7", None):
+    for bad in (float("nan"), float("inf"), "3.7", None, True):
         with pytest.raises(ConfigError, match="lux_forward_m"):
             ObservationConfig(lux_forward_m=bad)
