@@ -23,6 +23,7 @@ import numpy as np
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector.io import ScanSetup
 from negobs_gym.detector.io.setup import fields_to_scan
+from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.traversable import Box, TrackScene, TraversableRegionDetector, synthetic_scan
 from negobs_gym.detector.traversable.synthetic import LuxRig
 from negobs_gym.sensors.rigs import LUX_FORWARD_M
@@ -42,8 +43,8 @@ def recorded_fields(seed: int) -> dict[str, np.ndarray]:
     p = np.transpose(scan.points_sensor, (1, 0, 2))  # (columns, layers, 3)
     ok = np.isfinite(p).all(axis=-1)
     layer = np.broadcast_to(np.arange(scan.shape[0])[None, :], ok.shape)[ok]
-    p = p[ok].astype(np.float32)
-    return {"x": p[:, 1], "y": -p[:, 0], "z": p[:, 2], "layer": layer.astype(np.uint16)}
+    x, y, z = sensor_to_ros_frame(p[ok]).astype(np.float32).T
+    return {"x": x, "y": y, "z": z, "layer": layer.astype(np.uint16)}
 
 
 def main() -> None:

@@ -19,6 +19,18 @@ def rss_mb() -> float:
 POINTFIELD_CODES = {np.dtype("<f4"): 7, np.dtype("<u2"): 4, np.dtype("u1"): 2}
 
 
+def ros_ring_cloud(scan) -> np.ndarray:
+    """A scan's returns as a driver's cloud: float32 ``x, y, z`` in the ROS frame, ``intensity``
+    (0) and ``ring`` (the row), row by row."""
+    from negobs_gym.detector.loaders import sensor_to_ros_frame
+
+    xyz = sensor_to_ros_frame(scan.points_sensor[scan.valid])
+    points = np.zeros(len(xyz), dtype=[(n, "<f4") for n in "xyz"] + [("intensity", "<f4"), ("ring", "<u2")])
+    points["x"], points["y"], points["z"] = xyz.T
+    points["ring"] = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[scan.valid]
+    return points
+
+
 def pointcloud2(
     store,
     points: np.ndarray,

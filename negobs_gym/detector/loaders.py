@@ -349,6 +349,14 @@ def ros_to_sensor_frame(xyz_m: np.ndarray) -> np.ndarray:
     return np.column_stack([-p[:, 1], p[:, 0], p[:, 2]])
 
 
+def sensor_to_ros_frame(xyz_m: np.ndarray) -> np.ndarray:
+    """Points from this package's sensor frame (X right, Y forward, Z up) to the ROS frame (x
+    forward, y left, z up): the inverse of :func:`ros_to_sensor_frame`, to write a scan as a
+    driver would publish it."""
+    p = np.asarray(xyz_m)
+    return np.column_stack([p[:, 1], -p[:, 0], p[:, 2]])
+
+
 def read_float32_cloud(path: str | os.PathLike[str], n_fields: int) -> np.ndarray:
     """(N, n_fields) float64 array from a headerless float32 binary; ScanError if empty or truncated."""
     name = os.fspath(path)

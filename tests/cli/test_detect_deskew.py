@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.cli import main
+from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_scan
 from tests.helpers import odometry, pointcloud2
 
@@ -44,7 +45,7 @@ def _revolution(start_s: float) -> np.ndarray:
         p = scan.points_sensor[scan.valid]  # X right, Y forward -> ROS x forward, y left
         ring = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[scan.valid]
         time = np.broadcast_to(offset[columns][None, :], scan.shape)[scan.valid]
-        parts.append(np.column_stack([p[:, 1], -p[:, 0], p[:, 2], ring, time]))
+        parts.append(np.column_stack([sensor_to_ros_frame(p), ring, time]))
     rows = np.concatenate(parts)
     fields = [(n, "<f4") for n in "xyz"] + [("intensity", "<f4"), ("ring", "<u2"), ("time", "<f4")]
     points = np.zeros(len(rows), dtype=fields)

@@ -17,12 +17,13 @@ import pytest
 from negobs_gym.cli import main
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
+from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_scan
 from negobs_gym.detector.traversable import Box, TrackScene, TraversableConfig, TraversableRegionDetector
 from negobs_gym.detector.traversable import synthetic_scan as lux_scan
 from negobs_gym.detector.traversable.synthetic import LuxRig
 from negobs_gym.sensors.rigs import LUX_FORWARD_M, paper_n_rig
-from tests.helpers import pointcloud2
+from tests.helpers import pointcloud2, ros_ring_cloud
 
 # paper T's LUX at the env rig's mount (on the front bumper, 0.65 m high, pitched 5.03 deg)
 RIG = LuxRig(forward_m=LUX_FORWARD_M)
@@ -47,7 +48,7 @@ def _cloud(scan, *, layer: bool = True) -> np.ndarray:
     p = p[ok]
     fields = [(n, "<f4") for n in "xyz"] + [("intensity", "<f4")] + ([("layer", "<u2")] if layer else [])
     cloud = np.zeros(len(p), dtype=fields)
-    cloud["x"], cloud["y"], cloud["z"] = p[:, 1], -p[:, 0], p[:, 2]
+    cloud["x"], cloud["y"], cloud["z"] = sensor_to_ros_frame(p).T
     if layer:
         cloud["layer"] = layers
     return cloud
@@ -144,11 +145,7 @@ def _hdl64_cloud(near_m: float) -> np.ndarray:
         np.array(mount.translation_m),
         [Hole.ahead(near_m, 1.0, 1.0, 0.8)],
     )
-    p = scan.points_sensor[scan.valid]
-    points = np.zeros(len(p), dtype=[(n, "<f4") for n in "xyz"] + [("intensity", "<f4"), ("ring", "<u2")])
-    points["x"], points["y"], points["z"] = p[:, 1], -p[:, 0], p[:, 2]
-    points["ring"] = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[scan.valid]
-    return points
+    return ros_ring_cloud(scan)
 
 
 def test_a_rig_bag_runs_paper_n_and_paper_t_in_one_update(tmp_path):

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from negobs_gym.cli import main
 from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, hdl64_scan, synthetic_scan
 
 NEAR_M, LENGTH_M, STEP_M, FRAMES = 12.0, 1.5, 1.0, 4
@@ -45,7 +46,7 @@ def _write_bin(scan: StructuredScan, path: Path) -> str:
     valid = scan.valid
     p = scan.points_sensor[valid]  # X right, Y forward -> ROS x forward, y left
     ring = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[valid]
-    np.column_stack([p[:, 1], -p[:, 0], p[:, 2], np.zeros(len(p)), ring]).astype(np.float32).tofile(path)
+    np.column_stack([sensor_to_ros_frame(p), np.zeros(len(p)), ring]).astype(np.float32).tofile(path)
     return str(path)
 
 

@@ -19,7 +19,7 @@ from negobs_gym.cli import main
 from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY
 from negobs_gym.detector.synthetic import HDL32_ELEVATION_DEG, HDL64_ELEVATION_DEG, Hole, synthetic_scan
 from negobs_gym.sensors.rigs import paper_n_rig
-from tests.helpers import odometry, pointcloud2
+from tests.helpers import odometry, pointcloud2, ros_ring_cloud
 
 SPEED_MPS, NEAR_M, FRAMES = 7.0, 8.5, 4  # the pit 8.5, 7.8, 7.1, 6.4 m ahead at the top's clouds
 START_NS, PERIOD_NS = 10**9, 10**8
@@ -79,11 +79,7 @@ def _cloud(mount: str, time_s: float) -> np.ndarray:
     scan = synthetic_scan(
         mount, np.radians(elevation), azimuth, sensor.rotation_matrix, np.array(sensor.translation_m), [hole]
     )
-    p = scan.points_sensor[scan.valid]  # X right, Y forward -> ROS x forward, y left
-    points = np.zeros(len(p), dtype=[(n, "<f4") for n in "xyz"] + [("intensity", "<f4"), ("ring", "<u2")])
-    points["x"], points["y"], points["z"] = p[:, 1], -p[:, 0], p[:, 2]
-    points["ring"] = np.broadcast_to(np.arange(scan.shape[0])[:, None], scan.shape)[scan.valid]
-    return points
+    return ros_ring_cloud(scan)
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,8 @@ from negobs_gym.detector.loaders import (
     load_kitti_bin,
     recover_rings,
     ring_cloud_to_scan,
+    ros_to_sensor_frame,
+    sensor_to_ros_frame,
 )
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, synthetic_scan
 from negobs_gym.errors import ScanError
@@ -156,3 +158,10 @@ def test_cropped_columns_are_the_span_of_the_returns():
     assert int(scan.valid.sum()) == 2 and 3900 < scan.shape[1] < 4000
     empty = cloud_to_scan(np.empty((0, 3)), np.zeros(0), elevation[:1], sensor="s", crop_columns=True)
     assert empty.shape == (1, 4000)
+
+
+def test_sensor_to_ros_frame_inverts_ros_to_sensor_frame():
+    ros = np.array([[5.0, 1.0, -0.5], [0.0, -2.0, 0.3]])  # x forward, y left
+    sensor = ros_to_sensor_frame(ros)
+    np.testing.assert_array_equal(sensor, [[-1.0, 5.0, -0.5], [2.0, 0.0, 0.3]])  # X right, Y forward
+    np.testing.assert_array_equal(sensor_to_ros_frame(sensor), ros)
