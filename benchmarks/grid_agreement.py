@@ -17,18 +17,25 @@ one by one: at each step, each obstacle whose footprint reaches into the grid, b
 distance of its nearest footprint corner ahead, is *seen* when the detector grid sets at least one
 of the pooled cells its footprint covers; one line per kind and band.
 
+The ``traversable`` channel (paper T's region minus obstacles and their shadows; the oracle's: the
+track's cells in view without an obstacle) is compared the same way: its precision is the share
+of the cells the detector calls free that are.
+
 Prints one line per course, one per channel and band, one per positive kind and band, then, last,
-``negative_recall_4_14=<r> positive_recall_4_14=<r> rock_box_seen_4_14=<r>`` (cells, and rocks and
-boxes, from 4 to 14 m ahead, pooled over all steps).
+``negative_recall_4_14=<r> positive_recall_4_14=<r> traversable_recall_4_14=<r>
+traversable_precision_4_14=<p> rock_box_seen_4_14=<r>`` (cells, and rocks and boxes, from 4 to 14 m
+ahead, pooled over all steps).
 
 ``--positive-detector structure`` fills the detector grid's ``positive`` channel from paper N's rig
 (returns above its ground map, ``ObservationConfig.positive_detector``) instead of paper T's LUX;
 ``--positive-hold-s S`` keeps its obstacle points on the grid for S seconds after the rig last saw
-them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame).
+them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame). ``--set`` changes any
+setting of the env's scenario (``observation.lux_ego_motion=true``: paper T's boundary filters move
+with the pose, ``ObservationConfig.lux_ego_motion``).
 
 Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
 [--env negobs_gym/OffroadNav-v2] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
-[--positive-detector traversable|structure] [--positive-hold-s 0]
+[--positive-detector traversable|structure] [--positive-hold-s 0] [--set observation.lux_ego_motion=true]
 """
 
 from __future__ import annotations
@@ -46,6 +53,8 @@ from negobs_gym.drivers import make_driver
 from negobs_gym.envs.config import POSITIVE_DETECTORS
 
 OBSTACLE_CHANNELS = ("negative", "positive")
+# the oracle's traversable channel: on the track, no obstacle, in view (envs/observation.py)
+COMPARED_CHANNELS = (*OBSTACLE_CHANNELS, "traversable")
 # to 14 m: OffroadNav-v1/-v2's oracle range; from 4 m: nearer, the LUX's layers pass over a low rock
 SUMMARY_BAND_M = (4.0, 14.0)
 
@@ -118,8 +127,8 @@ def main() -> None:
     named.close()
     oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)
     channels = detector_env.unwrapped.config.observation.channels
-    compared = [(channels.index(c), c) for c in OBSTACLE_CHANNELS if c in channels]
-    if not compared:
+    compared = [(channels.index(c), c) for c in COMPARED_CHANNELS if c in channels]
+    if not any(c in channels for c in OBSTACLE_CHANNELS):
         parser.error(f"{args.env}'s grid has no obstacle channel ({', '.join(OBSTACLE_CHANNELS)})")
     distance = row_distances_m(detector_env)
     # oracle cells, detector cells, cells in both: per channel and grid row, summed over all steps
@@ -172,8 +181,10 @@ def main() -> None:
                 f"detector_cells={seen} recall={recall} precision={precision}"
             )
         rows = (distance >= SUMMARY_BAND_M[0]) & (distance < SUMMARY_BAND_M[1])
-        truth, _, both = counts[k][:, rows].sum(1)
-        summary[name] = both / truth if truth else float("nan")
+        truth, seen, both = counts[k][:, rows].sum(1)
+        summary[f"{name}_recall_4_14"] = both / truth if truth else float("nan")
+        if name == "traversable":  # free space claimed where the truth has none matters here
+            summary[f"{name}_precision_4_14"] = both / seen if seen else float("nan")
     kinds = np.array([kind for kind, _, _ in sightings], dtype=str)
     ahead = np.array([d for _, d, _ in sightings], dtype=float)
     hit = np.array([seen for _, _, seen in sightings], dtype=bool)
@@ -189,7 +200,7 @@ def main() -> None:
     summary_objects = f"{hit[solid].mean():.2f}" if solid.any() else "-"
     print(f"wall_s={time.perf_counter() - begin:.0f}")
     print(
-        " ".join(f"{name}_recall_4_14={value:.2f}" for name, value in summary.items())
+        " ".join(f"{name}={value:.2f}" for name, value in summary.items())
         + f" rock_box_seen_4_14={summary_objects}"
     )
 

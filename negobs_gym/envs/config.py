@@ -97,6 +97,11 @@ class ObservationConfig:
             shipped policies fitted on paper T's ``positive`` channel were trained with 2.0,
             inside the body, the envs' mount until this field came; their records set it
             (docs/training.md).
+        lux_ego_motion: Paper T's boundary-point filters move with the INS pose's change between
+            frames (``TraversableConfig.kalman_ego_motion``, not in paper T), so a boundary point
+            the LUX's lower layers lose in a bend turns with the road, and one the car has passed
+            is forgotten. False (default): paper T's F = I, the estimates held still in the
+            vehicle frame (docs/training.md, "The detector grid").
     """
 
     source: str = "detector"
@@ -118,6 +123,7 @@ class ObservationConfig:
     hazard_hold_s: float = 0.0
     tighten_pairs: bool = True
     lux_forward_m: float = LUX_FORWARD_M
+    lux_ego_motion: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -188,6 +194,11 @@ class ObservationConfig:
             isinstance(self.tighten_pairs, bool),
             "tighten_pairs",
             f"must be a bool, got {self.tighten_pairs!r}",
+        )
+        require(
+            isinstance(self.lux_ego_motion, bool),
+            "lux_ego_motion",
+            f"must be a bool, got {self.lux_ego_motion!r}",
         )
         require(
             isinstance(self.lux_forward_m, (int, float))

@@ -129,7 +129,10 @@ class DetectorGrid:
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"
         self.traversable = TraversableRegionDetector(
-            TraversableConfig(obstacle_hold_s=0.0 if by_structure else config.positive_hold_s),
+            TraversableConfig(
+                obstacle_hold_s=0.0 if by_structure else config.positive_hold_s,
+                kalman_ego_motion=config.lux_ego_motion,
+            ),
             grid=config.grid,
         )
         self.structure = (

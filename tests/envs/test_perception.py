@@ -205,3 +205,15 @@ def test_lux_forward_m_must_be_finite() -> None:
     for bad in (float("nan"), float("inf"), "3.7", None, True):
         with pytest.raises(ConfigError, match="lux_forward_m"):
             ObservationConfig(lux_forward_m=bad)
+
+
+def test_lux_ego_motion_reaches_paper_t_and_must_be_a_bool() -> None:
+    for flag in (False, True):
+        env = BrakingEnv(replace(EnvConfig(), observation=ObservationConfig(lux_ego_motion=flag)))
+        env.reset(seed=3)
+        env.step(np.array([0.5, 0.0], dtype=np.float32))
+        assert env._detector.perception.traversable.config.kalman_ego_motion is flag
+        env.close()
+    for bad in ("true", 1, None):
+        with pytest.raises(ConfigError, match="lux_ego_motion"):
+            ObservationConfig(lux_ego_motion=bad)

@@ -48,6 +48,32 @@ def fit_boundary(points_xy_m: np.ndarray) -> BoundaryLine | None:
     return BoundaryLine(slope, float(mean[0] - slope * mean[1]))
 
 
+def carry_along_line(
+    points_xy_m: np.ndarray,
+    line: BoundaryLine | None,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    min_forward: float = 0.5,
+) -> np.ndarray:
+    """Where boundary points (k, 2) lie after the vehicle frame moved by ``p -> rotation @ p +
+    translation``: on ``line`` (the side's previous boundary; None: parallel to the old +Y),
+    moved alike, at each point's old forward distance y.
+
+    Not in paper T (F = I). A layer's boundary point is where that layer meets the road's edge, at
+    a distance fixed by the layer's elevation, so y stays; x follows the edge (straight between
+    frames) as the car turns and moves. Where the moved line runs more crosswise than
+    ``min_forward`` (the y component of its unit direction), x is undefined there: NaN.
+    """
+    pts = np.asarray(points_xy_m, dtype=np.float64)
+    slope = 0.0 if line is None else line.slope
+    direction = np.asarray(rotation, dtype=np.float64) @ np.array([slope, 1.0]) / np.hypot(slope, 1.0)
+    moved = pts @ np.asarray(rotation, dtype=np.float64).T + np.asarray(translation, dtype=np.float64)
+    if direction[1] < min_forward:
+        return np.full_like(pts, np.nan)
+    along = (pts[:, 1] - moved[:, 1]) / direction[1]
+    return moved + along[:, None] * direction
+
+
 def drop_inconsistent(points_xy_m: np.ndarray, max_deviation_m: float) -> np.ndarray:
     """NaN out boundary points (k, 2) whose x is > ``max_deviation_m`` from the median x.
 

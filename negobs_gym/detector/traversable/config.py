@@ -71,6 +71,11 @@ class TraversableConfig:
     # (bumps or an occluder cut a segment short); 3 such frames in a row restart the filter.
     kalman_gate_x_m: float = 1.0
     kalman_gate_reset_frames: int = 3
+    # Not in paper T (F = I holds the estimates still in the vehicle frame, right while driving
+    # straight): before each predict, move each estimate along its side's last boundary line,
+    # moved by the pose change between frames (planar: yaw and x, y), to its layer's distance; a
+    # boundary point a layer stops seeing in a bend then turns with the road, not with the car.
+    kalman_ego_motion: bool = False
 
     # --- §3.3 obstacle clustering ---
     # Not in paper T: d_T1 = 0.2 m. On an upright face adjacent layers are 0.8 deg apart (< 0.14 m
@@ -163,6 +168,11 @@ class TraversableConfig:
         ):
             value = getattr(self, name)
             require(isinstance(value, int) and value >= 1, name, f"must be an int >= 1, got {value}")
+        require(
+            isinstance(self.kalman_ego_motion, bool),
+            "kalman_ego_motion",
+            f"must be a bool, got {self.kalman_ego_motion!r}",
+        )
         require(
             isinstance(self.curve_refits, int) and self.curve_refits >= 0,
             "curve_refits",

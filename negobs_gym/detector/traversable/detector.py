@@ -5,7 +5,8 @@ least-squares boundary lines (boundaries.py) -> obstacle clusters (obstacles.py)
 obstacles and shadows (region.py) -> Eq. 12 feasibility and Eq. 13 reachability (reachability.py).
 State lives only in the Kalman filters, as in the paper, and (with ``config.obstacle_hold_s`` > 0,
 not in the paper) in the obstacle points of the last ``obstacle_hold_s`` seconds, kept in the
-world frame of the INS pose.
+world frame of the INS pose. With ``config.kalman_ego_motion`` (not in the paper) the filters'
+estimates follow the previous frame's boundary lines as the pose changes between frames.
 
 Bad input: a scan that is not a :class:`StructuredScan`, has a laser count other than
 ``config.n_layers`` or elevations not in ascending (detector) order, or a pose that is not a finite
@@ -24,10 +25,15 @@ import numpy as np
 
 from negobs_gym.core import libm
 from negobs_gym.core.grid import GridSpec
-from negobs_gym.core.pose import Pose
+from negobs_gym.core.pose import Pose, planar_motion
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.memory import PointHold
-from negobs_gym.detector.traversable.boundaries import BoundaryLine, drop_inconsistent, fit_boundary
+from negobs_gym.detector.traversable.boundaries import (
+    BoundaryLine,
+    carry_along_line,
+    drop_inconsistent,
+    fit_boundary,
+)
 from negobs_gym.detector.traversable.config import TraversableConfig
 from negobs_gym.detector.traversable.kalman import BoundaryKalman
 from negobs_gym.detector.traversable.obstacles import ObstacleCluster, detect_obstacles
@@ -118,11 +124,15 @@ class TraversableRegionDetector:
         self._cell_bearing = np.zeros(self.grid.shape)
         self._cell_range = np.zeros(self.grid.shape)
         self._held = PointHold(self.config.obstacle_hold_s)  # obstacle points of recent frames
+        self._last_pose: Pose | None = None  # the previous frame's, for kalman_ego_motion
+        self._last_lines: tuple[BoundaryLine | None, BoundaryLine | None] = (None, None)
 
     def reset(self) -> None:
         """Forget the filtered boundary points and the held obstacle points (start of a new run)."""
         self._kalman.reset()
         self._held.reset()
+        self._last_pose = None
+        self._last_lines = (None, None)
 
     def _validate(self, scan: object) -> StructuredScan:
         if not isinstance(scan, StructuredScan):
@@ -151,8 +161,9 @@ class TraversableRegionDetector:
 
         Args:
             scan: A LUX-like scan (``config.n_layers`` lasers, ascending elevation).
-            pose: Vehicle pose at scan time (validated and returned with the result; the paper's
-                filters run in the vehicle frame with F = I, so it does not move the estimates).
+            pose: Vehicle pose at scan time (validated and returned with the result). The paper's
+                filters run in the vehicle frame with F = I, so it moves the estimates only with
+                ``config.kalman_ego_motion``.
 
         Returns:
             The frame's :class:`TraversableRegion`.
@@ -170,11 +181,21 @@ class TraversableRegionDetector:
         consistent = np.stack(
             [drop_inconsistent(side, cfg.layer_consistency_m) for side in (raw_left, raw_right)]
         )
+        if cfg.kalman_ego_motion:
+            if self._last_pose is not None:
+                rotation, translation = planar_motion(self._last_pose, pose)
+                carried = [
+                    carry_along_line(self._kalman.state[side], line, rotation, translation)
+                    for side, line in enumerate(self._last_lines)
+                ]
+                self._kalman.carry_points(np.stack(carried))
+            self._last_pose = pose
         measured = self._kalman.gate_points(consistent, cfg.kalman_gate_x_m, cfg.kalman_gate_reset_frames)
         filtered = self._kalman.update(measured)
         left_pts, right_pts = filtered[0], filtered[1]
         left = fit_boundary(left_pts)
         right = fit_boundary(right_pts)
+        self._last_lines = (left, right)
         obstacles = detect_obstacles(pts, left, right, cfg)
 
         # the sensor's origin (moved with the middle column where the scan carries a column_motion)

@@ -53,6 +53,19 @@ class BoundaryKalman:
         z[far & ~restart] = np.nan
         return z
 
+    def carry_points(self, predicted: np.ndarray) -> None:
+        """Replace the point estimates (state's last axis = (x, y)) by a motion model's prediction
+        of them (not in paper T, whose F = I). A motion mixes a point's coordinates, so each takes
+        the larger of the point's two variances; NaN predictions leave the filters uninitialised.
+        """
+        z = np.asarray(predicted, dtype=np.float64)
+        if self.shape[-1] != 2 or z.shape != self.shape:
+            raise ScanError(f"carry_points needs (..., 2) points of shape {self.shape}, got {z.shape}")
+        self.state = z.copy()
+        self.variance = np.where(
+            np.isfinite(z), np.repeat(self.variance.max(axis=-1, keepdims=True), 2, axis=-1), np.inf
+        )
+
     def update(self, measurement: np.ndarray) -> np.ndarray:
         """One predict + update step; returns a copy of the estimates (NaN = never measured).
 

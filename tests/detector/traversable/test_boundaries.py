@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from negobs_gym.core import Pose, planar_motion
 from negobs_gym.detector.traversable import BoundaryLine, fit_boundary
+from negobs_gym.detector.traversable.boundaries import carry_along_line
 
 
 def test_fit_recovers_line_and_ignores_nan_rows() -> None:
@@ -38,3 +40,29 @@ def test_drop_inconsistent_needs_a_majority() -> None:
     assert np.isnan(out[1]).all() and np.array_equal(out[[0, 2]], pts[[0, 2]])
     two = np.array([[-4.0, 9.0], [-1.2, 10.0], [np.nan, np.nan]])
     assert np.array_equal(drop_inconsistent(two, 1.0), two, equal_nan=True)
+
+
+def test_carried_points_stay_on_the_road_edge_at_their_distance() -> None:
+    """A straight edge x = 0.1 y - 4 seen at 6, 8 and 9.7 m; the car drives 1.5 m on, 0.4 m left,
+    turning 8 deg left: the carried points keep their y and lie on that same edge in the world."""
+    line = BoundaryLine(0.1, -4.0)
+    y = np.array([6.0, 8.0, 9.7, np.nan])
+    points = np.column_stack([line.x_at(y), y])
+    before, after = Pose(x=2.0, y=1.0, yaw=0.3), Pose(x=1.6, y=2.5, yaw=0.3 + np.radians(8.0))
+    carried = carry_along_line(points, line, *planar_motion(before, after))
+    assert carried[:3, 1] == pytest.approx(y[:3])
+    assert np.isnan(carried[3]).all()
+    world = after.to_world(np.column_stack([carried[:3], np.zeros(3)]))
+    edge = before.to_world(np.array([[line.x_at(0.0), 0.0, 0.0], [line.x_at(20.0), 20.0, 0.0]]))
+    along = (edge[1] - edge[0])[:2] / np.linalg.norm((edge[1] - edge[0])[:2])
+    offset = world[:, :2] - edge[0, :2]
+    assert offset[:, 0] * along[1] - offset[:, 1] * along[0] == pytest.approx(np.zeros(3), abs=1e-9)
+    assert (carried[:3, 0] > points[:3, 0]).all()  # a left turn moves a left edge right in the car's frame
+
+
+def test_carry_without_a_line_follows_the_old_heading_and_refuses_a_crosswise_edge() -> None:
+    points = np.array([[-4.0, 8.0]])
+    ahead = carry_along_line(points, None, *planar_motion(Pose(), Pose(y=2.0)))
+    assert ahead == pytest.approx(points)  # driving straight along the edge changes nothing
+    turned = carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=np.radians(80.0))))
+    assert np.isnan(turned).all()

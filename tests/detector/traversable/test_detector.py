@@ -267,6 +267,40 @@ def test_filters_keep_estimate_through_an_empty_frame() -> None:
     assert second.left_line is not None
 
 
+def test_ego_motion_carries_the_held_boundary_points_along_the_road_edge() -> None:
+    """With ``kalman_ego_motion`` the estimates a frame without returns holds keep their distances
+    ahead and lie on the last frame's boundary lines as seen from the new pose (here 1.9 m on and
+    turned 10 deg left); by default (the paper's F = I) they stay where they were in the vehicle
+    frame."""
+    empty = make_scan(np.full((4, 441), np.nan))
+    before, after = Pose(x=1.0, y=3.0, yaw=0.2), Pose(x=0.6, y=4.9, yaw=0.2 + math.radians(10.0))
+    det = TraversableRegionDetector(TraversableConfig(kalman_ego_motion=True))
+    first = det.update(synthetic_scan(TrackScene()), before)
+    second = det.update(empty, after)
+    for seen, held, line in (
+        (first.left_points_m, second.left_points_m, first.left_line),
+        (first.right_points_m, second.right_points_m, first.right_line),
+    ):
+        assert np.isfinite(seen).all()
+        assert held[:, 1] == pytest.approx(seen[:, 1])
+        ends = before.to_world(np.array([[line.x_at(0.0), 0.0, 0.0], [line.x_at(20.0), 20.0, 0.0]]))
+        ends = after.to_vehicle(ends)[:, :2]  # the line, moved into the new vehicle frame
+        x_on_line = ends[0, 0] + (held[:, 1] - ends[0, 1]) * (ends[1, 0] - ends[0, 0]) / (
+            ends[1, 1] - ends[0, 1]
+        )
+        residual = np.abs(seen[:, 0] - line.x_at(seen[:, 1])).max()  # the fit's, kept by the carry
+        assert held[:, 0] == pytest.approx(x_on_line, abs=2.0 * residual + 1e-9)
+    assert second.left_line.x_at(10.0) > first.left_line.x_at(10.0) + 1.0  # a left turn moves it right
+    still = TraversableRegionDetector()
+    still.update(synthetic_scan(TrackScene()), before)
+    assert np.array_equal(still.update(empty, after).left_points_m, first.left_points_m)
+
+
+def test_bad_ego_motion_flag_is_refused() -> None:
+    with pytest.raises(ValueError, match="kalman_ego_motion"):
+        TraversableConfig(kalman_ego_motion=1)
+
+
 def test_wrong_layer_count_raises(detector) -> None:
     scan = StructuredScan(
         sensor="x", ranges_m=np.ones((3, 5)), azimuth_rad=np.arange(5.0), elevation_rad=np.zeros(3)

@@ -71,3 +71,22 @@ def test_gate_holds_back_a_lateral_jump_then_restarts() -> None:
         assert kf.state[0, 0] < -3.5
     kf.update(kf.gate_points(np.array([[-1.0, 9.0]]), 1.0, 3))  # third in a row: restart
     assert kf.state[0, 0] == -1.0
+
+
+def test_carry_points_replaces_estimates_and_keeps_the_unseen_unseen() -> None:
+    kf = BoundaryKalman((2, 2), 0.09, 0.01)
+    kf.update(np.array([[1.0, 5.0], [np.nan, np.nan]]))
+    kf.variance[0] = [0.09, 0.2]
+    kf.carry_points(np.array([[1.5, 5.0], [np.nan, np.nan]]))
+    assert kf.state[0] == pytest.approx([1.5, 5.0])
+    assert np.isnan(kf.state[1]).all() and np.isinf(kf.variance[1]).all()
+    assert kf.variance[0] == pytest.approx([0.2, 0.2])
+    kf.update(np.array([[2.0, 5.0], [3.0, 6.0]]))  # the unseen point starts at its measurement
+    assert kf.state[1] == pytest.approx([3.0, 6.0])
+
+
+def test_carry_points_needs_point_estimates_of_its_shape() -> None:
+    with pytest.raises(ValueError, match="carry_points"):
+        BoundaryKalman((3,), 1.0, 1.0).carry_points(np.zeros(3))
+    with pytest.raises(ValueError, match="carry_points"):
+        BoundaryKalman((3, 2), 1.0, 1.0).carry_points(np.zeros((2, 2)))
