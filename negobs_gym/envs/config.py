@@ -97,11 +97,13 @@ class ObservationConfig:
             shipped policies fitted on paper T's ``positive`` channel were trained with 2.0,
             inside the body, the envs' mount until this field came; their records set it
             (docs/training.md).
-        lux_ego_motion: Paper T's boundary-point filters move with the INS pose's change between
-            frames (``TraversableConfig.kalman_ego_motion``, not in paper T), so a boundary point
-            the LUX's lower layers lose in a bend turns with the road, and one the car has passed
-            is forgotten. False (default): paper T's F = I, the estimates held still in the
-            vehicle frame (docs/training.md, "The detector grid").
+        lux_ego_motion: Paper T's boundary-point estimates are carried along the last boundary
+            lines as the INS pose changes between frames (``TraversableConfig.kalman_ego_motion``,
+            not in paper T), so a boundary point the LUX's lower layers lose in a bend turns with
+            the road, not with the car. True (default): more of the track is traversable and more
+            rocks and boxes are found inside the lines (docs/training.md, "The detector grid").
+            False: paper T's F = I, the estimates held still in the vehicle frame; the shipped
+            policies fitted on paper T's channels were trained so, and their records set it.
     """
 
     source: str = "detector"
@@ -123,7 +125,7 @@ class ObservationConfig:
     hazard_hold_s: float = 0.0
     tighten_pairs: bool = True
     lux_forward_m: float = LUX_FORWARD_M
-    lux_ego_motion: bool = False
+    lux_ego_motion: bool = True
 
     def __post_init__(self) -> None:
         require(

@@ -104,7 +104,8 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert capsys.readouterr().out.startswith(f"{label}/nofilter success=")
     assert spec_from_toml(written.read_text()).episode.time_limit_s == 0.5
     # a shipped policy without --env: its record's env and settings (paper N's fusion history and
-    # the LUX 2.0 m ahead of the axle for this clone), then the command's --set, which replaces the
+    # paper T's LUX 2.0 m ahead of the axle with its filters held still for this clone), then the
+    # command's --set, which replaces the
     # record's assignment to that key
     shipped = ["eval", "policy", "ppo_offroad_nav_v2_detector_clone", "--seeds", "1", "--filter", "off"]
     shipped += ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=0.3"]
@@ -112,13 +113,14 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert main(["-q", *shipped]) == 0
     label = (
         "negobs_gym/OffroadNav-v2"
-        "[observation.lux_forward_m=2.0,observation.tighten_pairs=true,episode.time_limit_s=0.3]"
+        "[observation.lux_forward_m=2.0,observation.lux_ego_motion=false,"
+        "observation.tighten_pairs=true,episode.time_limit_s=0.3]"
     )
     line = capsys.readouterr().out
     assert line.startswith(f"{label}/nofilter success=") and " goal=0/1 " in line
     spec = spec_from_toml((tmp_path / "shipped" / "scenario.toml").read_text())
     assert spec.observation.tighten_pairs and spec.episode.time_limit_s == 0.3
-    assert spec.observation.lux_forward_m == 2.0
+    assert spec.observation.lux_forward_m == 2.0 and not spec.observation.lux_ego_motion
     (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
     assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
