@@ -7,6 +7,7 @@ to the vehicle Y axis, where that form is ill-conditioned, so we fit the equival
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +54,7 @@ def carry_along_line(
     line: BoundaryLine | None,
     rotation: np.ndarray,
     translation: np.ndarray,
-    min_forward: float = 0.5,
+    max_angle_deg: float = 60.0,
 ) -> np.ndarray:
     """Where boundary points (k, 2) lie after the vehicle frame moved by ``p -> rotation @ p +
     translation``: on ``line`` (the side's previous boundary; None: parallel to the old +Y),
@@ -61,14 +62,14 @@ def carry_along_line(
 
     Not in paper T (F = I). A layer's boundary point is where that layer meets the road's edge, at
     a distance fixed by the layer's elevation, so y stays; x follows the edge (straight between
-    frames) as the car turns and moves. Where the moved line runs more crosswise than
-    ``min_forward`` (the y component of its unit direction), x is undefined there: NaN.
+    frames) as the car turns and moves. Where the moved line is more than ``max_angle_deg`` off
+    the new +Y axis it is no lateral boundary (and x on it ill-defined): NaN.
     """
     pts = np.asarray(points_xy_m, dtype=np.float64)
     slope = 0.0 if line is None else line.slope
     direction = np.asarray(rotation, dtype=np.float64) @ np.array([slope, 1.0]) / np.hypot(slope, 1.0)
     moved = pts @ np.asarray(rotation, dtype=np.float64).T + np.asarray(translation, dtype=np.float64)
-    if direction[1] < min_forward:
+    if direction[1] < math.cos(math.radians(max_angle_deg)):
         return np.full_like(pts, np.nan)
     along = (pts[:, 1] - moved[:, 1]) / direction[1]
     return moved + along[:, None] * direction

@@ -76,6 +76,9 @@ class TraversableConfig:
     # moved by the pose change between frames (planar: yaw and x, y), to its layer's distance; a
     # boundary point a layer stops seeing in a bend then turns with the road, not with the car.
     kalman_ego_motion: bool = False
+    # Not in paper T: a line turned more than 60 deg off the car's axis after the move is no lateral
+    # boundary to carry points along; its side's estimates restart from the next measurement.
+    kalman_carry_max_angle_deg: float = 60.0
 
     # --- §3.3 obstacle clustering ---
     # Not in paper T: d_T1 = 0.2 m. On an upright face adjacent layers are 0.8 deg apart (< 0.14 m
@@ -152,6 +155,11 @@ class TraversableConfig:
             math.isfinite(self.hough_max_tilt_deg) and 0 <= self.hough_max_tilt_deg < 90,
             "hough_max_tilt_deg",
             f"must be in [0, 90), got {self.hough_max_tilt_deg}",
+        )
+        require(
+            math.isfinite(self.kalman_carry_max_angle_deg) and 0 < self.kalman_carry_max_angle_deg < 90,
+            "kalman_carry_max_angle_deg",
+            f"must be in (0, 90), got {self.kalman_carry_max_angle_deg}",
         )
         require(
             math.isfinite(self.max_steering_deg) and 0 < self.max_steering_deg < 90,

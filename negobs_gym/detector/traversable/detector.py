@@ -185,7 +185,9 @@ class TraversableRegionDetector:
             if self._last_pose is not None:
                 rotation, translation = planar_motion(self._last_pose, pose)
                 carried = [
-                    carry_along_line(self._kalman.state[side], line, rotation, translation)
+                    carry_along_line(
+                        self._kalman.state[side], line, rotation, translation, cfg.kalman_carry_max_angle_deg
+                    )
                     for side, line in enumerate(self._last_lines)
                 ]
                 self._kalman.carry_points(np.stack(carried))

@@ -66,3 +66,9 @@ def test_carry_without_a_line_follows_the_old_heading_and_refuses_a_crosswise_ed
     assert ahead == pytest.approx(points)  # driving straight along the edge changes nothing
     turned = carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=np.radians(80.0))))
     assert np.isnan(turned).all()
+    assert np.isfinite(
+        carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=np.radians(50.0))))
+    ).all()
+    assert np.isnan(
+        carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=0.9)), max_angle_deg=45.0)
+    ).all()

@@ -296,9 +296,12 @@ def test_ego_motion_carries_the_held_boundary_points_along_the_road_edge() -> No
     assert np.array_equal(still.update(empty, after).left_points_m, first.left_points_m)
 
 
-def test_bad_ego_motion_flag_is_refused() -> None:
+def test_bad_ego_motion_settings_are_refused() -> None:
     with pytest.raises(ValueError, match="kalman_ego_motion"):
         TraversableConfig(kalman_ego_motion=1)
+    for angle in (0.0, 90.0, math.nan):
+        with pytest.raises(ValueError, match="kalman_carry_max_angle_deg"):
+            TraversableConfig(kalman_carry_max_angle_deg=angle)
 
 
 def test_wrong_layer_count_raises(detector) -> None:
