@@ -5,7 +5,7 @@ subpackage imports none of them. :mod:`negobs_gym.core.files` writes every resul
 """
 
 from negobs_gym.core.grid import GridSpec
-from negobs_gym.core.pose import Pose, planar_motion, rotation_from_rpy
+from negobs_gym.core.pose import Pose, rotation_from_rpy
 from negobs_gym.core.scan import StructuredScan
 
-__all__ = ["GridSpec", "Pose", "StructuredScan", "planar_motion", "rotation_from_rpy"]
+__all__ = ["GridSpec", "Pose", "StructuredScan", "rotation_from_rpy"]

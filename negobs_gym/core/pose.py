@@ -37,18 +37,6 @@ def pose_from_matrix(position: np.ndarray, rotation: np.ndarray) -> Pose:
     return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)
 
 
-def planar_motion(before: Pose, after: Pose) -> tuple[np.ndarray, np.ndarray]:
-    """(rotation (2, 2), translation (2,)) mapping ground-plane vehicle-frame points (x, y) seen at
-    ``before`` into the vehicle frame at ``after``: ``p_after = rotation @ p_before + translation``.
-    Yaw and horizontal position only (roll, pitch and height are a tilt of the frame, not a move).
-    """
-    turn = before.yaw - after.yaw
-    c, s = math.cos(turn), math.sin(turn)
-    ca, sa = math.cos(after.yaw), math.sin(after.yaw)
-    dx, dy = before.x - after.x, before.y - after.y
-    return np.array([[c, -s], [s, c]]), np.array([ca * dx + sa * dy, -sa * dx + ca * dy])
-
-
 @dataclass(frozen=True)
 class Pose:
     """A 6-DoF pose of the vehicle frame in the world frame: position [m], angles [rad]."""

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from negobs_gym.core import Pose, planar_motion, rotation_from_rpy
+from negobs_gym.core import Pose, rotation_from_rpy
 from negobs_gym.core.pose import pose_from_matrix
 from negobs_gym.errors import ScanError
 
@@ -45,25 +45,3 @@ def test_pose_from_matrix_inverts_core_rotation():
         ref = Pose(1.0, 2.0, 3.0, roll, pitch, yaw)
         got = pose_from_matrix(ref.translation, ref.rotation)
         np.testing.assert_allclose(got.as_array(), ref.as_array(), atol=1e-9)
-
-
-@pytest.mark.parametrize(
-    ("before", "after"),
-    [
-        (Pose(), Pose(y=2.0)),
-        (Pose(x=3.0, y=-1.0, yaw=0.3), Pose(x=1.0, y=4.0, yaw=-0.2)),
-        (Pose(x=-5.0, y=7.0, z=1.0, yaw=3.0), Pose(x=2.0, y=7.5, z=0.2, yaw=-3.1)),
-    ],
-)
-def test_planar_motion_maps_ground_points_as_the_poses_do(before, after):
-    rng = np.random.default_rng(0)
-    points = np.column_stack([rng.uniform(-10, 10, (20, 2)), np.zeros(20)])
-    rotation, translation = planar_motion(before, after)
-    expected = after.to_vehicle(before.to_world(points))
-    assert points[:, :2] @ rotation.T + translation == pytest.approx(expected[:, :2], abs=1e-9)
-    assert rotation @ rotation.T == pytest.approx(np.eye(2))
-
-
-def test_planar_motion_ignores_tilt_and_height():
-    rotation, translation = planar_motion(Pose(z=1.0, roll=0.1, pitch=-0.2), Pose(z=0.0, pitch=0.3))
-    assert rotation == pytest.approx(np.eye(2)) and translation == pytest.approx([0.0, 0.0])

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from negobs_gym.core.geometry import vehicle_to_world_xy, world_to_vehicle_xy
+from negobs_gym.core.pose import Pose
+
 
 @dataclass(frozen=True)
 class BoundaryLine:
@@ -52,23 +55,27 @@ def fit_boundary(points_xy_m: np.ndarray) -> BoundaryLine | None:
 def carry_along_line(
     points_xy_m: np.ndarray,
     line: BoundaryLine | None,
-    rotation: np.ndarray,
-    translation: np.ndarray,
+    before: Pose,
+    after: Pose,
     max_angle_deg: float = 60.0,
 ) -> np.ndarray:
-    """Where boundary points (k, 2) lie after the vehicle frame moved by ``p -> rotation @ p +
-    translation``: on ``line`` (the side's previous boundary; None: parallel to the old +Y),
-    moved alike, at each point's old forward distance y.
+    """Where boundary points (k, 2) seen at pose ``before`` lie in the vehicle frame at ``after``:
+    on ``line`` (the side's boundary at ``before``; None: parallel to that frame's +Y), moved into
+    the new frame, at each point's old forward distance y. The move is planar (yaw and x, y).
 
     Not in paper T (F = I). A layer's boundary point is where that layer meets the road's edge, at
     a distance fixed by the layer's elevation, so y stays; x follows the edge (straight between
     frames) as the car turns and moves. Where the moved line is more than ``max_angle_deg`` off
     the new +Y axis it is no lateral boundary (and x on it ill-defined): NaN.
     """
-    pts = np.asarray(points_xy_m, dtype=np.float64)
     slope = 0.0 if line is None else line.slope
-    direction = np.asarray(rotation, dtype=np.float64) @ np.array([slope, 1.0]) / np.hypot(slope, 1.0)
-    moved = pts @ np.asarray(rotation, dtype=np.float64).T + np.asarray(translation, dtype=np.float64)
+    offset = 0.0 if line is None else line.offset_m
+    pts = np.asarray(points_xy_m, dtype=np.float64)
+    on_line = np.array([[offset, 0.0], [slope + offset, 1.0]])  # two points of the line, 1 m apart in y
+    world = vehicle_to_world_xy(np.concatenate([pts, on_line]), (before.x, before.y), before.yaw)
+    local = world_to_vehicle_xy(world, (after.x, after.y), after.yaw)
+    moved, (start, end) = local[:-2], local[-2:]
+    direction = (end - start) / np.hypot(*(end - start))
     if direction[1] < math.cos(math.radians(max_angle_deg)):
         return np.full_like(pts, np.nan)
     along = (pts[:, 1] - moved[:, 1]) / direction[1]

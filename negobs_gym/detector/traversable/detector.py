@@ -25,7 +25,7 @@ import numpy as np
 
 from negobs_gym.core import libm
 from negobs_gym.core.grid import GridSpec
-from negobs_gym.core.pose import Pose, planar_motion
+from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.memory import PointHold
 from negobs_gym.detector.traversable.boundaries import (
@@ -183,10 +183,9 @@ class TraversableRegionDetector:
         )
         if cfg.kalman_ego_motion:
             if self._last_pose is not None:
-                rotation, translation = planar_motion(self._last_pose, pose)
                 carried = [
                     carry_along_line(
-                        self._kalman.state[side], line, rotation, translation, cfg.kalman_carry_max_angle_deg
+                        self._kalman.state[side], line, self._last_pose, pose, cfg.kalman_carry_max_angle_deg
                     )
                     for side, line in enumerate(self._last_lines)
                 ]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from negobs_gym.core import Pose, planar_motion
+from negobs_gym.core import Pose
 from negobs_gym.detector.traversable import BoundaryLine, fit_boundary
 from negobs_gym.detector.traversable.boundaries import carry_along_line
 
@@ -49,7 +49,7 @@ def test_carried_points_stay_on_the_road_edge_at_their_distance() -> None:
     y = np.array([6.0, 8.0, 9.7, np.nan])
     points = np.column_stack([line.x_at(y), y])
     before, after = Pose(x=2.0, y=1.0, yaw=0.3), Pose(x=1.6, y=2.5, yaw=0.3 + np.radians(8.0))
-    carried = carry_along_line(points, line, *planar_motion(before, after))
+    carried = carry_along_line(points, line, before, after)
     assert carried[:3, 1] == pytest.approx(y[:3])
     assert np.isnan(carried[3]).all()
     world = after.to_world(np.column_stack([carried[:3], np.zeros(3)]))
@@ -62,13 +62,9 @@ def test_carried_points_stay_on_the_road_edge_at_their_distance() -> None:
 
 def test_carry_without_a_line_follows_the_old_heading_and_refuses_a_crosswise_edge() -> None:
     points = np.array([[-4.0, 8.0]])
-    ahead = carry_along_line(points, None, *planar_motion(Pose(), Pose(y=2.0)))
+    ahead = carry_along_line(points, None, Pose(), Pose(y=2.0))
     assert ahead == pytest.approx(points)  # driving straight along the edge changes nothing
-    turned = carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=np.radians(80.0))))
+    turned = carry_along_line(points, None, Pose(), Pose(yaw=np.radians(80.0)))
     assert np.isnan(turned).all()
-    assert np.isfinite(
-        carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=np.radians(50.0))))
-    ).all()
-    assert np.isnan(
-        carry_along_line(points, None, *planar_motion(Pose(), Pose(yaw=0.9)), max_angle_deg=45.0)
-    ).all()
+    assert np.isfinite(carry_along_line(points, None, Pose(), Pose(yaw=np.radians(50.0)))).all()
+    assert np.isnan(carry_along_line(points, None, Pose(), Pose(yaw=0.9), max_angle_deg=45.0)).all()
