@@ -125,14 +125,12 @@ class TraversableRegionDetector:
         self._cell_range = np.zeros(self.grid.shape)
         self._held = PointHold(self.config.obstacle_hold_s)  # obstacle points of recent frames
         self._last_pose: Pose | None = None  # the previous frame's, for kalman_ego_motion
-        self._last_lines: tuple[BoundaryLine | None, BoundaryLine | None] = (None, None)
 
     def reset(self) -> None:
         """Forget the filtered boundary points and the held obstacle points (start of a new run)."""
         self._kalman.reset()
         self._held.reset()
         self._last_pose = None
-        self._last_lines = (None, None)
 
     def _validate(self, scan: object) -> StructuredScan:
         if not isinstance(scan, StructuredScan):
@@ -183,11 +181,12 @@ class TraversableRegionDetector:
         )
         if cfg.kalman_ego_motion:
             if self._last_pose is not None:
+                # each side's points along the line the last frame fitted to them
                 carried = [
                     carry_along_line(
-                        self._kalman.state[side], line, self._last_pose, pose, cfg.kalman_carry_max_angle_deg
+                        points, fit_boundary(points), self._last_pose, pose, cfg.kalman_carry_max_angle_deg
                     )
-                    for side, line in enumerate(self._last_lines)
+                    for points in self._kalman.state
                 ]
                 self._kalman.carry_points(np.stack(carried))
             self._last_pose = pose
@@ -196,7 +195,6 @@ class TraversableRegionDetector:
         left_pts, right_pts = filtered[0], filtered[1]
         left = fit_boundary(left_pts)
         right = fit_boundary(right_pts)
-        self._last_lines = (left, right)
         obstacles = detect_obstacles(pts, left, right, cfg)
 
         # the sensor's origin (moved with the middle column where the scan carries a column_motion)
