@@ -11,6 +11,10 @@ coloured by height, structure cells, pairs and outlines drawn), plus ``summary.j
 is written atomically. A LUX cloud (``--sensor lux``, or a ``--cloud`` topic) goes to one
 :class:`~negobs_gym.detector.TraversableRegionDetector` instead: its boundaries, obstacles and
 region in the JSON's ``traversable`` key and in the PNG.
+
+This module is the command (its options and its run); the sensors and scan setups are
+:mod:`negobs_gym.cli.detect_sensors`'s, the input stream :mod:`negobs_gym.cli.detect_inputs`'s and
+what is written per frame :mod:`negobs_gym.cli.detect_report`'s.
 """
 
 from __future__ import annotations
@@ -19,97 +23,28 @@ import argparse
 import dataclasses
 import json
 import logging
-import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from negobs_gym.cli.common import non_negative_float, positive_float, positive_int
+from negobs_gym.cli.detect_inputs import check_tf_options, detector_updates, scans_at_lead_time, tf_frames
+from negobs_gym.cli.detect_sensors import (
+    DEFAULT_SENSOR,
+    LUX_MOUNT,
+    cloud_spec,
+    recorded_sensors,
+    ros_mount,
+    scan_setups,
+)
 from negobs_gym.core.files import write_atomic
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
-
     from negobs_gym.core.grid import GridSpec
-    from negobs_gym.core.scan import StructuredScan
-    from negobs_gym.detector.io import PoseTrack, RecordedFrame, ScanSetup
-    from negobs_gym.detector.io.sync import SynchronisedFrames
-    from negobs_gym.detector.io.tf import TransformChain, TransformTree
+    from negobs_gym.core.pose import Pose
+    from negobs_gym.detector.io import ScanSetup
     from negobs_gym.eval.recorded import RecordedRecall
 
 log = logging.getLogger(__name__)
-#: ``--tf``: warn when the tree mounts the cloud's frame turned by more than this from the
-#: ``--sensor`` mounting (the detector's ground and features assume that mounting) [deg]
-MOUNT_TOLERANCE_DEG = 1.0
-#: ``--mount-from-tf``: warn when the tree's mounting is turned by more than this from the
-#: ``--sensor`` one, i.e. belongs to the other detector path (upright §3.1 or rolled 90 deg §3.2) [deg]
-PATH_TOLERANCE_DEG = 30.0
-#: ``--sensor`` when neither it nor ``--cloud`` is given
-DEFAULT_SENSOR = "hdl64"
-#: The detector input of paper T's 4-layer LiDAR (the mount of ``sensors.rigs.paper_t_rig``)
-LUX_MOUNT = "lux"
-
-
-@dataclass(frozen=True)
-class CloudSpec:
-    """One ``--cloud TOPIC:SENSOR[:HEIGHT]``: a bag topic, the ``--sensor`` it comes from, and its
-    height above the ground [m] (None: the sensor's paper N rig mount, or the tf's)."""
-
-    topic: str
-    sensor: str
-    height_m: float | None = None
-
-
-@dataclass(frozen=True)
-class RecordedSensor:
-    """A sensor ``--sensor`` can name: column width, fallback elevation table, and the rig mount
-    whose extrinsics it takes (paper N's ``hdl64``: upright on the roof, ``hdl32_left/right``:
-    rolled 90 deg on the sides; paper T's ``lux``: 0.65 m up, pitched down 5.03 deg). Upright sensors feed
-    paper N's HDL-64 path, rolled ones its HDL-32 path, the LUX paper T's traversable-region detector."""
-
-    help: str
-    azimuth_resolution_deg: float
-    elevation_deg: tuple[float, ...]  # fallback table for clouds without ring (empty: ring needed)
-    mount: str = "hdl64"
-    columns_centred: bool = False  # a fixed-angle scanner: columns centred on its firing angles
-    crop_columns: bool = False  # a field of view short of a revolution: the range image spans it only
-
-
-def recorded_sensors() -> dict[str, RecordedSensor]:
-    """The sensors ``--sensor`` offers, by name."""
-    from negobs_gym.sensors.models import hdl32e, hdl64e_s2, ibeo_lux
-
-    h64, h32, lux = hdl64e_s2().elevation_deg, hdl32e().elevation_deg, ibeo_lux()
-    return {
-        "hdl64": RecordedSensor("HDL-64E S2 upright (default)", 0.09, h64),
-        "hdl32": RecordedSensor("HDL-32E upright", 0.16, h32),
-        "hdl32-left": RecordedSensor("HDL-32E rolled 90 deg, left side", 0.16, h32, "hdl32_left"),
-        "hdl32-right": RecordedSensor("HDL-32E rolled 90 deg, right side", 0.16, h32, "hdl32_right"),
-        # VLP-16 datasheet: 16 lasers -15..+15 deg in 2 deg steps, 0.2 deg at 10 Hz
-        "vlp16": RecordedSensor("VLP-16 upright", 0.2, tuple(float(v) for v in np.arange(-15.0, 16.0, 2.0))),
-        # VLP-32C: 0.2 deg at 10 Hz; its lasers are not evenly spaced, so files need a ring field
-        "vlp32c": RecordedSensor("VLP-32C upright (files need a ring field)", 0.2, ()),
-        "lux": RecordedSensor(
-            "IBEO LUX or SICK LD-MRS, 4 layers, on the front bumper 3.7 m ahead of the rear axle, "
-            "0.65 m up, pitched down 5.03 deg (paper T; the envs' LUX)",
-            lux.azimuth_resolution_deg,
-            lux.elevation_deg,
-            LUX_MOUNT,
-            columns_centred=True,
-            crop_columns=True,
-        ),
-        # SICK MRS1000 / MRS1104: 4 layers 2.5 deg apart (-2.5 .. +5 deg), 0.25 deg over 275 deg
-        "mrs1000": RecordedSensor(
-            "SICK MRS1000/MRS1104, 4 layers, at the LUX's mount (paper T)",
-            0.25,
-            (-2.5, 0.0, 2.5, 5.0),
-            LUX_MOUNT,
-            columns_centred=True,
-            crop_columns=True,
-        ),
-    }
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -333,312 +268,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def tf_frames(text: str) -> tuple[str, str]:
-    """``FIXED:BODY`` as two frame names (argparse type of ``--tf``)."""
-    parts = text.split(":")
-    if len(parts) != 2 or not all(part.strip("/ ") for part in parts):
-        raise argparse.ArgumentTypeError(
-            f"want two frame names FIXED:BODY (e.g. odom:base_link), got {text!r}"
-        )
-    return parts[0].strip(), parts[1].strip()
-
-
-def ros_mount(text: str) -> tuple[float, ...]:
-    """``X,Y,Z,ROLL,PITCH,YAW`` as six finite numbers (argparse type of ``--mount``)."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 6 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"want six numbers X,Y,Z,ROLL,PITCH,YAW (m, deg), got {text!r}")
-    return values
-
-
-def cloud_spec(text: str) -> CloudSpec:
-    """``TOPIC:SENSOR[:HEIGHT]`` as a :class:`CloudSpec` (argparse type of ``--cloud``)."""
-    parts = text.split(":")  # ROS names hold no colon
-    sensors = recorded_sensors()
-    if len(parts) not in (2, 3) or not parts[0].strip() or parts[1] not in sensors:
-        raise argparse.ArgumentTypeError(
-            f"want TOPIC:SENSOR[:HEIGHT] with SENSOR one of {', '.join(sensors)}, got {text!r}"
-        )
-    height = positive_float(parts[2]) if len(parts) == 3 else None
-    return CloudSpec(parts[0].strip(), parts[1], height)
-
-
-def _updates(
-    args: argparse.Namespace, setups: dict[str, ScanSetup]
-) -> Iterator[tuple[SynchronisedFrames, PoseTrack | TransformChain | None]]:
-    """Every detector update of ``args.files`` in order, each with its bag's pose track
-    (``--poses-topic`` or ``--tf``, read once per bag; None otherwise). ``setups`` by topic: one
-    entry without ``--cloud`` (its key unused), the lead topic first with it. Each topic's first
-    cloud of a bag is checked against (or with ``--mount-from-tf`` given) the tf tree's mounting."""
-    from negobs_gym.detector.io import read_recording
-    from negobs_gym.detector.io.bags import bag_clouds, bag_pose_track, bag_transform_tree
-    from negobs_gym.detector.io.poses import read_pose_track_csv
-    from negobs_gym.detector.io.recording import is_bag
-    from negobs_gym.detector.io.sync import SYNC_WINDOW_S, synchronise
-    from negobs_gym.errors import ScanError
-
-    lead, *others = setups
-    window_s = SYNC_WINDOW_S if args.sync_window is None else args.sync_window
-    timed = read_pose_track_csv(args.poses_track, max_gap_s=args.max_pose_gap) if args.poses_track else None
-    for path in args.files:
-        track: PoseTrack | TransformChain | None = None
-        tree: TransformTree | None = None
-        if args.poses_track:
-            if not (is_bag(path) or Path(path).suffix.lower() == ".pcap"):
-                raise ScanError(
-                    f"{path}: its frames carry no time, which --poses-track needs (bags and pcap "
-                    "captures do); give one pose per frame with --poses"
-                )
-            track = timed
-        elif args.poses_topic:
-            track = bag_pose_track(path, args.poses_topic, stamps=args.stamps, max_gap_s=args.max_pose_gap)
-        elif args.tf:
-            tree = bag_transform_tree(path, stamps=args.stamps)
-            track = tree.chain(*args.tf, max_gap_s=args.max_pose_gap, body_height_m=args.body_height)
-        if args.cloud:
-            stream = bag_clouds(path, setups, stamps=args.stamps, point_times=args.deskew)
-        else:
-            frames = read_recording(
-                path,
-                setups[lead],
-                bin_layout=args.bin_fields,
-                topic=args.topic,
-                stamps=args.stamps,
-                point_times=args.deskew,
-            )
-            stream = ((lead, frame) for frame in frames)
-        mounted = _mounted(stream, tree, setups, args)
-        for update in synchronise(mounted, lead, others, window_s=window_s):
-            yield update, track
-
-
-def _mounted(
-    stream: Iterator[tuple[str, RecordedFrame]],
-    tree: TransformTree | None,
-    setups: dict[str, ScanSetup],
-    args: argparse.Namespace,
-) -> Iterator[tuple[str, RecordedFrame]]:
-    """``stream`` with each topic's mounting checked against the tf tree at its first cloud and,
-    with ``--mount-from-tf``, taken from it."""
-    mountings: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
-    for topic, frame in stream:
-        if topic not in mountings:
-            mountings[topic] = None
-            if tree is not None and args.mount_from_tf:
-                mountings[topic] = _tf_mounting(tree, args, frame)
-            if tree is not None and frame.frame_id:
-                _check_mounting(tree, args.tf[1], frame, setups[topic], args)
-        mounting = mountings[topic]
-        if mounting is not None:
-            scan = dataclasses.replace(frame.scan, rotation=mounting[0], translation_m=mounting[1])
-            frame = dataclasses.replace(frame, scan=scan)
-        yield topic, frame
-
-
-def _tf_mounting(
-    tree: TransformTree, args: argparse.Namespace, frame: RecordedFrame
-) -> tuple[np.ndarray, np.ndarray]:
-    """``--mount-from-tf``: the mounting of the bag's clouds on the vehicle at its first cloud."""
-    from negobs_gym.detector.io.tf import sensor_mounting
-    from negobs_gym.errors import ScanError
-
-    if not frame.frame_id:
-        raise ScanError(f"{frame.source}: the clouds name no frame_id, so --mount-from-tf cannot find them")
-    try:
-        rotation, translation = sensor_mounting(
-            tree,
-            args.tf[1],
-            frame.frame_id,
-            frame.scan.timestamp_s,
-            body_height_m=args.body_height,
-            max_gap_s=args.max_pose_gap,
-        )
-    except ScanError as error:
-        raise ScanError(f"--mount-from-tf: {error}") from error
-    log.info(
-        "%s: the clouds' frame %s is mounted at %s m (vehicle X right, Y forward, Z up) by the bag's tf",
-        frame.source,
-        frame.frame_id,
-        np.round(translation, 3).tolist(),
-    )
-    return rotation, translation
-
-
-def _check_mounting(
-    tree: TransformTree, body: str, frame: RecordedFrame, setup: ScanSetup, args: argparse.Namespace
-) -> None:
-    """Warn when the bag's tf mounts the cloud's frame on ``body`` turned from the ``--sensor``
-    mounting: by more than :data:`MOUNT_TOLERANCE_DEG` where the detector assumes that mounting,
-    by more than :data:`PATH_TOLERANCE_DEG` where it takes the tf's (``--mount-from-tf``), as the
-    ``--sensor`` path then reads a sensor mounted as the other path expects."""
-    from negobs_gym.detector.io.tf import mounting_difference_deg
-
-    time_s = frame.scan.timestamp_s
-    angle = mounting_difference_deg(tree, body, frame.frame_id, setup, time_s, max_gap_s=args.max_pose_gap)
-    if angle is None or angle <= (PATH_TOLERANCE_DEG if args.mount_from_tf else MOUNT_TOLERANCE_DEG):
-        return
-    if args.mount_from_tf:
-        consequence = (
-            "mounting, whose detector path (upright or rolled) reads it; pick the --sensor mounted nearest"
-        )
-    else:
-        consequence = (
-            "mounting the detector assumes; its ground and features will be off "
-            "(--mount-from-tf takes the tf's)"
-        )
-    log.warning(
-        "%s: the bag's tf (%s -> %s) turns the cloud's frame %.1f deg from the --sensor %s %s",
-        frame.source,
-        body,
-        frame.frame_id,
-        angle,
-        setup.sensor,
-        consequence,
-    )
-
-
-def _check_tf_options(args: argparse.Namespace) -> None:
-    """``--mount-from-tf`` and ``--body-height`` need ``--tf``; ``--height`` is the tree's then;
-    ``--deskew`` needs timed poses."""
-    from negobs_gym.errors import ScanError
-
-    if args.tf is None and (args.mount_from_tf or args.body_height):
-        raise ScanError("--mount-from-tf and --body-height go with --tf FIXED:BODY")
-    if args.deskew and not (args.poses_track or args.poses_topic or args.tf):
-        raise ScanError("--deskew needs the vehicle's motion in time: --poses-track, --poses-topic or --tf")
-    if args.mount_from_tf and (args.height is not None or any(c.height_m for c in args.cloud or ())):
-        raise ScanError(
-            "--height and --mount-from-tf both set the sensor's height (so does --cloud's HEIGHT): give one"
-        )
-    if args.mount is not None and (args.height is not None or args.mount_from_tf or args.cloud):
-        raise ScanError(
-            "--mount sets the whole mounting of a single sensor: drop --height, --mount-from-tf and --cloud"
-        )
-
-
-def scan_setup(args: argparse.Namespace) -> ScanSetup:
-    """The :class:`ScanSetup` for ``--sensor``, ``--height`` or ``--mount``, and
-    ``--azimuth-resolution``."""
-    setup = _setup(args.sensor or DEFAULT_SENSOR, args.height, args.azimuth_resolution)
-    if args.mount is None:
-        return setup
-    from scipy.spatial.transform import Rotation
-
-    from negobs_gym.detector.io.setup import mounting_from_ros
-
-    x, y, z, roll, pitch, yaw = args.mount
-    turn = Rotation.from_euler("xyz", [roll, pitch, yaw], degrees=True).as_matrix()
-    rotation, translation = mounting_from_ros(np.array([x, y, z]), turn)
-    # the detector's path is the sensor's spin axis: upright (§3.1) or rolled 90 deg (§3.2)
-    spin, expected = rotation[:, 2], np.asarray(setup.rotation)[:, 2]
-    off = float(np.degrees(np.arccos(np.clip(spin @ expected, -1.0, 1.0))))
-    if off > PATH_TOLERANCE_DEG:
-        log.warning(
-            "--mount tilts the sensor's spin axis %.1f deg from the --sensor %s mounting's, whose "
-            "detector path (upright or rolled) reads it; pick the --sensor mounted nearest",
-            off,
-            args.sensor or DEFAULT_SENSOR,
-        )
-    return dataclasses.replace(
-        setup,
-        rotation=tuple(tuple(float(v) for v in row) for row in rotation),
-        translation_m=tuple(float(v) for v in translation),
-    )
-
-
-def _setup(sensor: str, height_m: float | None, azimuth_resolution_deg: float | None) -> ScanSetup:
-    """A recorded sensor's setup: its paper N or paper T rig mount, at ``height_m`` when given."""
-    from negobs_gym.detector.io import ScanSetup
-    from negobs_gym.sensors.rigs import paper_n_rig, paper_t_rig
-
-    spec = recorded_sensors()[sensor]
-    mount = next(m for m in paper_n_rig().mounts + paper_t_rig().mounts if m.name == spec.mount)
-    x, y, z = mount.translation_m
-    return ScanSetup(
-        sensor=mount.name,
-        azimuth_resolution_deg=azimuth_resolution_deg or spec.azimuth_resolution_deg,
-        elevation_rad=tuple(math.radians(v) for v in spec.elevation_deg),
-        rotation=tuple(tuple(float(v) for v in row) for row in mount.rotation_matrix),
-        translation_m=(x, y, z if height_m is None else height_m),
-        columns_centred=spec.columns_centred,
-        crop_columns=spec.crop_columns,
-    )
-
-
-def scan_setups(args: argparse.Namespace) -> dict[str, ScanSetup]:
-    """The setup of each ``--cloud`` topic, the lead's first; without ``--cloud`` the one of
-    :func:`scan_setup` (keyed by the sensor's name).
-
-    Raises:
-        ScanError: ``--cloud`` with ``--topic``, ``--sensor``, ``--height`` or
-            ``--azimuth-resolution``, or with files that are not bags; a topic named twice; two
-            clouds feeding the same detector input (two upright sensors, or two on one side).
-    """
-    from negobs_gym.detector.io.recording import is_bag
-    from negobs_gym.errors import ScanError
-
-    if not args.cloud:
-        if args.sync_window is not None:
-            raise ScanError("--sync-window goes with --cloud (several topics of one bag)")
-        return {args.sensor or DEFAULT_SENSOR: scan_setup(args)}
-    single = {
-        "--topic": args.topic,
-        "--sensor": args.sensor,
-        "--height": args.height,
-        "--azimuth-resolution": args.azimuth_resolution,
-    }
-    given = [flag for flag, value in single.items() if value is not None]
-    if given:
-        raise ScanError(f"--cloud names each topic's sensor and height: drop {', '.join(given)}")
-    not_bags = [path for path in args.files if not is_bag(path)]
-    if not_bags:
-        raise ScanError(f"--cloud reads several topics of a bag; not bags: {not_bags}")
-    setups: dict[str, ScanSetup] = {}
-    for cloud in args.cloud:
-        if cloud.topic in setups:
-            raise ScanError(f"--cloud names {cloud.topic} twice")
-        setup = _setup(cloud.sensor, cloud.height_m, None)
-        taken = [topic for topic, other in setups.items() if other.sensor == setup.sensor]
-        if taken:
-            raise ScanError(
-                f"--cloud {cloud.topic}:{cloud.sensor} and {taken[0]} both feed the detector's "
-                f"{setup.sensor} input; paper N's rig has one upright sensor and one rolled on each side, "
-                "paper T's one 4-layer LiDAR"
-            )
-        setups[cloud.topic] = setup
-    return setups
-
-
-def _scans_at_lead_time(
-    update: SynchronisedFrames, track: PoseTrack | TransformChain | None
-) -> tuple[dict[str, StructuredScan], dict[str, np.ndarray | None]]:
-    """The update's scans by detector input, and by topic the vehicle's motion ``[M | m]`` from
-    each cloud's time to the lead's (None without timed poses). With timed poses each other
-    topic's cloud is brought to the lead's time (:func:`~negobs_gym.detector.io.sync.scan_at_time`),
-    else taken as at it; a cloud read with its columns' times (``--deskew``) is deskewed to it, the
-    lead's included."""
-    from negobs_gym.detector.io.sync import scan_at_time, vehicle_motion
-    from negobs_gym.errors import ScanError
-
-    scans, motions = {}, {}
-    for topic, frame in update.clouds.items():
-        scan = frame.scan
-        motions[topic] = None
-        if track is not None:
-            where = f"{frame.source}, {frame.scan.sensor} cloud {frame.index}"
-            try:
-                motions[topic] = vehicle_motion(track, scan.timestamp_s, update.time_s)
-                if frame is not update.lead or frame.column_time_s is not None:
-                    scan = scan_at_time(scan, track, update.time_s, column_time_s=frame.column_time_s)
-            except ScanError as error:  # name the cloud: one outside the odometry's span
-                raise ScanError(f"{where}: {error}") from error
-        scans[frame.scan.sensor] = scan
-    return scans, motions
-
-
 def run(args: argparse.Namespace) -> int:
     """Detect on every frame of ``args.files``; writes the per-frame files and ``summary.json``."""
     from tqdm import tqdm
@@ -646,35 +275,14 @@ def run(args: argparse.Namespace) -> int:
     from negobs_gym.cli.detect_report import cloud_records, detection_record, plot_detection
     from negobs_gym.core.pose import Pose
     from negobs_gym.detector import NegativeObstacleDetector, StructureDetector, TraversableRegionDetector
-    from negobs_gym.detector.io import read_poses_csv
     from negobs_gym.errors import ScanError
 
-    _check_tf_options(args)
+    check_tf_options(args)
     setups = scan_setups(args)
     setup = next(iter(setups.values()))  # the lead's
     out = Path(args.out)
-    poses = read_poses_csv(args.poses) if args.poses else None
-    kitti = args.kitti_poses or args.kitti_oxts
-    if (kitti is None) != (args.kitti_calib is None):
-        raise ScanError(
-            "--kitti-calib goes with --kitti-poses (a sequence's poses and its calib.txt) or "
-            "--kitti-oxts (a raw drive's oxts folder and calib_imu_to_velo.txt), and they with it"
-        )
-    if args.kitti_poses:
-        from negobs_gym.detector.io.kitti import kitti_vehicle_poses, read_kitti_poses, read_kitti_velo_to_cam
-
-        cameras, velo_to_cam = read_kitti_poses(args.kitti_poses), read_kitti_velo_to_cam(args.kitti_calib)
-        poses = kitti_vehicle_poses(cameras, velo_to_cam, setup)
-    elif args.kitti_oxts:
-        from negobs_gym.detector.io.kitti import (
-            kitti_oxts_vehicle_poses,
-            read_kitti_imu_to_velo,
-            read_kitti_oxts,
-        )
-
-        fixes, imu_to_velo = read_kitti_oxts(args.kitti_oxts), read_kitti_imu_to_velo(args.kitti_calib)
-        poses = kitti_oxts_vehicle_poses(fixes, imu_to_velo, setup)
-    poses_file = args.poses or kitti
+    poses = _frame_poses(args, setup)
+    poses_file = args.poses or args.kitti_poses or args.kitti_oxts
     if poses is not None and len(setups) > 1:
         log.warning(
             "%s gives a pose per update, untimed: the other --cloud topics' clouds are taken as at "
@@ -693,7 +301,7 @@ def run(args: argparse.Namespace) -> int:
     summary = []
     missing = dict.fromkeys(setups, 0)  # --cloud: updates each topic had no cloud in
 
-    updates = _updates(args, setups)
+    updates = detector_updates(args, setups)
     bar = tqdm(updates, desc="negobs detect", unit="frame", disable=None)
     for n, (update, track) in enumerate(bar):
         frame = update.lead
@@ -706,7 +314,7 @@ def run(args: argparse.Namespace) -> int:
                 raise ScanError(f"{frame.source}, frame {frame.index}: {error}") from error
         else:
             pose = poses[n] if poses is not None else Pose()
-        scans, motions = _scans_at_lead_time(update, track)
+        scans, motions = scans_at_lead_time(update, track)
         detection = cells = region = None
         if set(scans) - {LUX_MOUNT}:  # paper N's inputs
             detection = detector.update(scans, pose)
@@ -765,6 +373,41 @@ def run(args: argparse.Namespace) -> int:
         out,
     )
     return 0
+
+
+def _frame_poses(args: argparse.Namespace, setup: ScanSetup) -> list[Pose] | None:
+    """The vehicle's pose at each frame of the sequence, in order, from ``--poses``, or from
+    ``--kitti-poses`` or ``--kitti-oxts`` with ``--kitti-calib`` (less the lead's mounting in
+    ``setup``); None without them.
+
+    Raises:
+        ScanError: ``--kitti-calib`` without ``--kitti-poses`` or ``--kitti-oxts``, or they without it.
+    """
+    from negobs_gym.detector.io import read_poses_csv
+    from negobs_gym.errors import ScanError
+
+    poses = read_poses_csv(args.poses) if args.poses else None
+    kitti = args.kitti_poses or args.kitti_oxts
+    if (kitti is None) != (args.kitti_calib is None):
+        raise ScanError(
+            "--kitti-calib goes with --kitti-poses (a sequence's poses and its calib.txt) or "
+            "--kitti-oxts (a raw drive's oxts folder and calib_imu_to_velo.txt), and they with it"
+        )
+    if args.kitti_poses:
+        from negobs_gym.detector.io.kitti import kitti_vehicle_poses, read_kitti_poses, read_kitti_velo_to_cam
+
+        cameras, velo_to_cam = read_kitti_poses(args.kitti_poses), read_kitti_velo_to_cam(args.kitti_calib)
+        poses = kitti_vehicle_poses(cameras, velo_to_cam, setup)
+    elif args.kitti_oxts:
+        from negobs_gym.detector.io.kitti import (
+            kitti_oxts_vehicle_poses,
+            read_kitti_imu_to_velo,
+            read_kitti_oxts,
+        )
+
+        fixes, imu_to_velo = read_kitti_oxts(args.kitti_oxts), read_kitti_imu_to_velo(args.kitti_calib)
+        poses = kitti_oxts_vehicle_poses(fixes, imu_to_velo, setup)
+    return poses
 
 
 def detector_configs(settings: list[str], *, tighten_pairs: bool = False) -> dict[str, Any]:

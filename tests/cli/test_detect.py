@@ -83,7 +83,7 @@ def test_help_says_frames_stand_still(capsys):
 @pytest.mark.parametrize("sensor", ["hdl64", "hdl32", "hdl32-left", "hdl32-right", "vlp16", "vlp32c"])
 def test_sensor_choices_give_paper_n_mounts(sensor):
     from negobs_gym.cli import build_parser
-    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.cli.detect_sensors import scan_setup
     from negobs_gym.sensors.rigs import paper_n_rig
 
     setup = scan_setup(build_parser().parse_args(["detect", "f.bin", "--out", "o", "--sensor", sensor]))
@@ -184,7 +184,7 @@ def test_mount_in_ros_axes_gives_the_rig_mounting(sensor):
     from scipy.spatial.transform import Rotation
 
     from negobs_gym.cli import build_parser
-    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.cli.detect_sensors import scan_setup
     from negobs_gym.detector.io.setup import PACKAGE_TO_ROS_BODY
 
     rig = scan_setup(build_parser().parse_args(["detect", "f", "--out", "o", "--sensor", sensor]))

@@ -339,7 +339,7 @@ def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) 
     the origin, as the OXTS poses' is)."""
     import argparse
 
-    from negobs_gym.cli.detect import scan_setup
+    from negobs_gym.cli.detect_sensors import scan_setup
     from negobs_gym.detector.io import read_poses_csv
     from tests.detector.io.test_kitti import (
         IMU_TO_VELO_0926,
