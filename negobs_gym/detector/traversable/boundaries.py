@@ -82,6 +82,16 @@ def carry_along_line(
     return moved + along[:, None] * direction
 
 
+def passes_on_its_side(
+    line: BoundaryLine, side: int, sensor_xy_m: tuple[float, float], clearance_m: float
+) -> bool:
+    """Whether ``line``, a boundary of ``side`` (-1 left, +1 right), passes the sensor at least
+    ``clearance_m`` out on that side at the sensor's forward distance (paper T's A1: the boundaries
+    meet the LiDAR's X axis on either side of it; not a check paper T makes)."""
+    x, y = sensor_xy_m
+    return bool(side * (float(line.x_at(y)) - x) >= clearance_m)
+
+
 def drop_inconsistent(points_xy_m: np.ndarray, max_deviation_m: float) -> np.ndarray:
     """NaN out boundary points (k, 2) whose x is > ``max_deviation_m`` from the median x.
 

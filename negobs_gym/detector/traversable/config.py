@@ -79,6 +79,11 @@ class TraversableConfig:
     # Not in paper T: a line turned more than 60 deg off the car's axis after the move is no lateral
     # boundary to carry points along; its side's estimates restart from the next measurement.
     kalman_carry_max_angle_deg: float = 60.0
+    # Not in paper T: the car drives between the boundaries (A1: they meet the LiDAR's X axis on
+    # either side of it), so a carried line that passes the LiDAR less than this far out on its own
+    # side (a wrong slope carried frame after frame) is no boundary; its side's estimates restart.
+    # None: no check.
+    kalman_carry_min_clearance_m: float | None = 0.0
 
     # --- §3.3 obstacle clustering ---
     # Not in paper T: d_T1 = 0.2 m. On an upright face adjacent layers are 0.8 deg apart (< 0.14 m
@@ -160,6 +165,17 @@ class TraversableConfig:
             math.isfinite(self.kalman_carry_max_angle_deg) and 0 < self.kalman_carry_max_angle_deg < 90,
             "kalman_carry_max_angle_deg",
             f"must be in (0, 90), got {self.kalman_carry_max_angle_deg}",
+        )
+        clearance = self.kalman_carry_min_clearance_m
+        require(
+            clearance is None
+            or (
+                isinstance(clearance, (int, float))
+                and not isinstance(clearance, bool)
+                and math.isfinite(clearance)
+            ),
+            "kalman_carry_min_clearance_m",
+            f"must be a finite number [m] or None (no check), got {clearance!r}",
         )
         require(
             math.isfinite(self.max_steering_deg) and 0 < self.max_steering_deg < 90,

@@ -33,6 +33,7 @@ from negobs_gym.detector.traversable.boundaries import (
     carry_along_line,
     drop_inconsistent,
     fit_boundary,
+    passes_on_its_side,
 )
 from negobs_gym.detector.traversable.config import TraversableConfig
 from negobs_gym.detector.traversable.kalman import BoundaryKalman
@@ -154,6 +155,28 @@ class TraversableRegionDetector:
             self._polar_origin = key
         return self._cell_bearing, self._cell_range
 
+    def _carried(self, pose: Pose, sensor_xy_m: tuple[float, float]) -> np.ndarray:
+        """The filters' points carried from the last frame's pose to ``pose``, each side's along
+        the line the last frame fitted to them; a side whose carried line passes the sensor on the
+        wrong side (``config.kalman_carry_min_clearance_m``) is dropped (NaN: it restarts)."""
+        cfg = self.config
+        carried = np.stack(
+            [
+                carry_along_line(
+                    points, fit_boundary(points), self._last_pose, pose, cfg.kalman_carry_max_angle_deg
+                )
+                for points in self._kalman.state
+            ]
+        )
+        if cfg.kalman_carry_min_clearance_m is not None:
+            for points, side in zip(carried, (-1, 1), strict=True):
+                line = fit_boundary(points)
+                if line is not None and not passes_on_its_side(
+                    line, side, sensor_xy_m, cfg.kalman_carry_min_clearance_m
+                ):
+                    points[:] = np.nan
+        return carried
+
     def update(self, scan: StructuredScan, pose: Pose) -> TraversableRegion:
         """Detect the traversable region in one scan.
 
@@ -179,16 +202,11 @@ class TraversableRegionDetector:
         consistent = np.stack(
             [drop_inconsistent(side, cfg.layer_consistency_m) for side in (raw_left, raw_right)]
         )
+        # the sensor's origin (moved with the middle column where the scan carries a column_motion)
+        origin = np.asarray(scan.origins_vehicle(np.array([scan.shape[1] // 2]))[0, :2], dtype=np.float64)
         if cfg.kalman_ego_motion:
             if self._last_pose is not None:
-                # each side's points along the line the last frame fitted to them
-                carried = [
-                    carry_along_line(
-                        points, fit_boundary(points), self._last_pose, pose, cfg.kalman_carry_max_angle_deg
-                    )
-                    for points in self._kalman.state
-                ]
-                self._kalman.carry_points(np.stack(carried))
+                self._kalman.carry_points(self._carried(pose, (float(origin[0]), float(origin[1]))))
             self._last_pose = pose
         measured = self._kalman.gate_points(consistent, cfg.kalman_gate_x_m, cfg.kalman_gate_reset_frames)
         filtered = self._kalman.update(measured)
@@ -197,8 +215,6 @@ class TraversableRegionDetector:
         right = fit_boundary(right_pts)
         obstacles = detect_obstacles(pts, left, right, cfg)
 
-        # the sensor's origin (moved with the middle column where the scan carries a column_motion)
-        origin = np.asarray(scan.origins_vehicle(np.array([scan.shape[1] // 2]))[0, :2], dtype=np.float64)
         near_y = float(origin[1])  # A1: boundaries meet the LiDAR's X axis
         ys = filtered[..., 1]
         far_y = float(np.nanmax(ys)) if np.isfinite(ys).any() else -math.inf

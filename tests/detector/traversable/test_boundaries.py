@@ -7,7 +7,7 @@ import pytest
 
 from negobs_gym.core import Pose
 from negobs_gym.detector.traversable import BoundaryLine, fit_boundary
-from negobs_gym.detector.traversable.boundaries import carry_along_line
+from negobs_gym.detector.traversable.boundaries import carry_along_line, passes_on_its_side
 
 
 def test_fit_recovers_line_and_ignores_nan_rows() -> None:
@@ -68,3 +68,14 @@ def test_carry_without_a_line_follows_the_old_heading_and_refuses_a_crosswise_ed
     assert np.isnan(turned).all()
     assert np.isfinite(carry_along_line(points, None, Pose(), Pose(yaw=np.radians(50.0)))).all()
     assert np.isnan(carry_along_line(points, None, Pose(), Pose(yaw=0.9), max_angle_deg=45.0)).all()
+
+
+def test_a_boundary_passes_the_sensor_on_its_own_side_by_the_clearance() -> None:
+    leaning_right = BoundaryLine(slope=0.5, offset_m=-3.0)  # x = -1 m at the sensor 4 m ahead
+    sensor = (0.0, 4.0)
+    assert passes_on_its_side(leaning_right, -1, sensor, 0.0)
+    assert passes_on_its_side(leaning_right, -1, sensor, 1.0)
+    assert not passes_on_its_side(leaning_right, -1, sensor, 1.5)
+    assert not passes_on_its_side(leaning_right, +1, sensor, 0.0)  # as a right boundary: left of it
+    assert passes_on_its_side(leaning_right, +1, sensor, -1.0)  # a negative clearance lets it cross
+    assert not passes_on_its_side(leaning_right, -1, (-2.0, 4.0), 0.0)  # a sensor left of the line

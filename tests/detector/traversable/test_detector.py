@@ -296,12 +296,38 @@ def test_ego_motion_carries_the_held_boundary_points_along_the_road_edge() -> No
     assert np.array_equal(still.update(empty, after).left_points_m, first.left_points_m)
 
 
+def test_a_carried_line_passing_the_lidar_on_the_wrong_side_restarts() -> None:
+    """The car drives between the boundaries (paper T's A1), so a carried line that passes the
+    LiDAR less than ``kalman_carry_min_clearance_m`` out on its own side is dropped; here the car
+    moves sideways across the left boundary (4 m left of it) during a frame without returns."""
+    empty = make_scan(np.full((4, 441), np.nan))
+    before = Pose(x=1.0, y=3.0, yaw=0.2)
+
+    def moved_left(metres: float) -> Pose:
+        x, y, _ = before.to_world(np.array([[-metres, 0.0, 0.0]]))[0]
+        return Pose(x=float(x), y=float(y), yaw=before.yaw)
+
+    for clearance, shift, kept in ((0.0, 5.0, False), (None, 5.0, True), (0.0, 3.0, True), (1.5, 3.0, False)):
+        config = TraversableConfig(kalman_ego_motion=True, kalman_carry_min_clearance_m=clearance)
+        det = TraversableRegionDetector(config)
+        det.update(synthetic_scan(TrackScene()), before)
+        second = det.update(empty, moved_left(shift))
+        assert np.isfinite(second.left_points_m).all() == kept, (clearance, shift)
+        assert (second.left_line is not None) == kept
+        assert np.isfinite(second.right_points_m).all()  # farther right of the car than before
+        if kept:
+            assert second.left_line.x_at(10.0) == pytest.approx(-4.0 + shift, abs=0.3)
+
+
 def test_bad_ego_motion_settings_are_refused() -> None:
     with pytest.raises(ValueError, match="kalman_ego_motion"):
         TraversableConfig(kalman_ego_motion=1)
     for angle in (0.0, 90.0, math.nan):
         with pytest.raises(ValueError, match="kalman_carry_max_angle_deg"):
             TraversableConfig(kalman_carry_max_angle_deg=angle)
+    for clearance in (math.inf, math.nan, "0.5", True):
+        with pytest.raises(ValueError, match="kalman_carry_min_clearance_m"):
+            TraversableConfig(kalman_carry_min_clearance_m=clearance)
 
 
 def test_wrong_layer_count_raises(detector) -> None:
