@@ -223,7 +223,8 @@ def collect_demonstrations(
     ``env_factory`` (``env`` only gives the observation layout) and its own copy of ``policy``,
     which must then pickle
     (:class:`PolicyActor`). Each episode depends on its number alone, so the steps are the same as
-    one process collects, in the same order.
+    one process collects, in the same order. Torch acts on one thread either way (a result that
+    differs in its last bit can turn a drive into another episode).
     """
     require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
     require(isinstance(workers, int) and workers >= 1, "workers", f"must be an int >= 1, got {workers!r}")
@@ -234,10 +235,15 @@ def collect_demonstrations(
     if workers == 1:
         parts: list[_Episode] = []
         collected = 0
-        while collected < steps:
-            episode, left = first_episode + len(parts), steps - collected
-            parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
-            collected += len(parts[-1].actions)
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)  # as in a worker, so both act with the same arithmetic
+        try:
+            while collected < steps:
+                episode, left = first_episode + len(parts), steps - collected
+                parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
+                collected += len(parts[-1].actions)
+        finally:
+            torch.set_num_threads(threads)
     else:
         initargs = (env_factory, expert, policy)
         parts = _episodes_in_processes(initargs, workers, first_episode, steps, noise_std, seed)

@@ -167,6 +167,18 @@ def _policy(config: TrainConfig, grid_shape: tuple[int, int, int]) -> tuple[Any,
 
 
 def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
+    """A fresh model of ``config``'s algorithm, its weights drawn on ``config.torch_threads``
+    threads: torch's orthogonal initialisation (a QR decomposition) gives other weights from the
+    same seed on another thread count."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(config.torch_threads)
+    try:
+        return _model(config, venv, grid_shape)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
     import stable_baselines3
 
     policy, policy_kwargs = _policy(config, grid_shape)
