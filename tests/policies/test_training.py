@@ -75,6 +75,13 @@ SHORT_PPO = TrainConfig(
 )
 
 
+@pytest.fixture(scope="module")
+def short_ppo_64(tmp_path_factory: pytest.TempPathFactory):
+    """One 64-step :data:`SHORT_PPO` run (one rollout, one update): the model two tests start from,
+    which they only read."""
+    return train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path_factory.mktemp("short_ppo_64"))
+
+
 def policy_weights(model_path: Path):
     """All policy parameters of a saved PPO model, as one flat tensor."""
     import torch
@@ -92,12 +99,11 @@ def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
     assert rows[0] == rows[1]
 
 
-def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path) -> None:
+def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, short_ppo_64) -> None:
     import torch
     from stable_baselines3 import PPO
 
-    base = dataclasses.replace(SHORT_PPO, steps=64)
-    first = train(base, tmp_path / "oracle")
+    base, first = dataclasses.replace(SHORT_PPO, steps=64), short_ppo_64
     tuned = dataclasses.replace(
         base, source="state", init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
     )
@@ -138,11 +144,11 @@ def split_weights(model_path: Path) -> tuple[dict, dict]:
     return value, {n: p for n, p in named.items() if n not in value}
 
 
-def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: Path) -> None:
+def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: Path, short_ppo_64) -> None:
     import torch
     from stable_baselines3 import PPO
 
-    first = train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path / "init")
+    first = short_ppo_64
     tuned = dataclasses.replace(
         SHORT_PPO, init_model=str(first.model_path), critic_warmup_steps=64, target_kl=0.05, steps=64
     )
