@@ -47,6 +47,7 @@ from negobs_gym.envs.observation import mirror_signs
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.policies.config import DEMONSTRATORS, STEERING, WarmStartConfig
 from negobs_gym.policies.modes import SteeringModesPolicy
+from negobs_gym.policies.threads import torch_threads
 from negobs_gym.sim.types import Terrain
 
 __all__ = [
@@ -235,15 +236,11 @@ def collect_demonstrations(
     if workers == 1:
         parts: list[_Episode] = []
         collected = 0
-        threads = torch.get_num_threads()
-        torch.set_num_threads(1)  # as in a worker, so both act with the same arithmetic
-        try:
+        with torch_threads(1):  # as in a worker, so both act with the same arithmetic
             while collected < steps:
                 episode, left = first_episode + len(parts), steps - collected
                 parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
                 collected += len(parts[-1].actions)
-        finally:
-            torch.set_num_threads(threads)
     else:
         initargs = (env_factory, expert, policy)
         parts = _episodes_in_processes(initargs, workers, first_episode, steps, noise_std, seed)

@@ -19,6 +19,7 @@ Output folder::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import importlib.util
@@ -41,6 +42,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
+from negobs_gym.policies.threads import torch_threads
 from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, filter_config
 
 log = logging.getLogger(__name__)
@@ -170,15 +172,6 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
     """A fresh model of ``config``'s algorithm, its weights drawn on ``config.torch_threads``
     threads: torch's orthogonal initialisation (a QR decomposition) gives other weights from the
     same seed on another thread count."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(config.torch_threads)
-    try:
-        return _model(config, venv, grid_shape)
-    finally:
-        torch.set_num_threads(threads)
-
-
-def _model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
     import stable_baselines3
 
     policy, policy_kwargs = _policy(config, grid_shape)
@@ -191,11 +184,12 @@ def _model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> 
         "device": "cpu",
         "verbose": 0,
     }
-    if config.algo == "PPO":
-        return stable_baselines3.PPO(
-            policy, venv, n_steps=config.n_steps, target_kl=config.target_kl or None, **common
-        )
-    return stable_baselines3.SAC(policy, venv, buffer_size=config.buffer_size, **common)
+    with torch_threads(config.torch_threads):
+        if config.algo == "PPO":
+            return stable_baselines3.PPO(
+                policy, venv, n_steps=config.n_steps, target_kl=config.target_kl or None, **common
+            )
+        return stable_baselines3.SAC(policy, venv, buffer_size=config.buffer_size, **common)
 
 
 #: Fields that must match between a run and the run it resumes.
@@ -232,9 +226,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
     elif checkpoint is not None:  # a later --resume would mix the two runs
         raise ConfigError("out", f"{out} holds checkpoints of an earlier run: use --resume or another --out")
     venv = _vec_env(config)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(config.torch_threads)
-    try:
+    with torch_threads(config.torch_threads), contextlib.closing(venv):
         if checkpoint is not None:
             model = getattr(stable_baselines3, config.algo).load(checkpoint, env=venv, device="cpu")
             warm = _previous_warm_start(out)  # the record of the run this one continues
@@ -270,9 +262,6 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         begin = time.perf_counter()
         model.learn(config.steps - start_step, callback=callbacks, reset_num_timesteps=False)
         wall_s = time.perf_counter() - begin
-    finally:
-        torch.set_num_threads(threads)
-        venv.close()
     if config.checkpoint_every > 0:  # the end is a checkpoint too: --resume with more --steps goes on from it
         save_model_atomic(model, out / "checkpoints" / f"model_{model.num_timesteps}.zip")
     model_path = save_model_atomic(model, out / "model.zip")
