@@ -260,19 +260,18 @@ def test_a_new_model_has_the_same_weights_whatever_threads_torch_had() -> None:
     model draws them on ``torch_threads`` whatever the caller set."""
     import torch
 
+    from negobs_gym.policies.threads import torch_threads
     from negobs_gym.policies.training import _new_model, _vec_env
 
     config = TrainConfig(env="negobs_gym/OffroadNav-v1", source="oracle", n_steps=64)
     venv = _vec_env(config)
-    threads = torch.get_num_threads()
     weights = []
     try:
         for caller_threads in (1, 2):
-            torch.set_num_threads(caller_threads)
-            model = _new_model(config, venv, (2, 36, 16))
+            with torch_threads(caller_threads):
+                model = _new_model(config, venv, (2, 36, 16))
+                assert torch.get_num_threads() == caller_threads  # restored
             weights.append([p.detach().clone() for p in model.policy.parameters()])
-            assert torch.get_num_threads() == caller_threads  # restored
     finally:
-        torch.set_num_threads(threads)
         venv.close()
     assert all(torch.equal(a, b) for a, b in zip(*weights, strict=True))
