@@ -101,7 +101,7 @@ class ObservationConfig:
             lines as the INS pose changes between frames (``TraversableConfig.kalman_ego_motion``,
             not in paper T), so a boundary point the LUX's lower layers lose in a bend turns with
             the road, not with the car. True (default): more of the track is traversable and more
-            rocks and boxes are found inside the lines (docs/training.md, "The detector grid").
+            rocks and boxes are found inside the lines (docs/training_studies.md, "The detector grid").
             False: paper T's F = I, the estimates held still in the vehicle frame; the shipped
             policies fitted on paper T's channels were trained so, and their records set it.
     """
@@ -249,7 +249,7 @@ class RewardConfig:
         off_track: Per step that ends with the car's centre off the track (``StepOutcome.off_track``;
             once on OffroadNav-v2, where that ends the episode). Default 0: then leaving the track
             costs only the progress not made, and PPO on v2 learns to leave it rather than risk
-            an entry (docs/training.md).
+            an entry (docs/training_studies.md).
     """
 
     progress: float = 1.0

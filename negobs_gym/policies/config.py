@@ -80,7 +80,7 @@ class SteeringHeadConfig:
             it outputs K steering values and a score for each, and drives the best-scored one:
             a pass to the left and one to the right stay two candidates instead of being
             averaged into a drive straight on, which a mean-squared fit does where the
-            demonstrator's choice of side is a sharp function of the grid (docs/training.md,
+            demonstrator's choice of side is a sharp function of the grid (docs/training_studies.md,
             "Where the clones' drives leave the expert's").
         bin_edges: Which candidate learns a label in the behaviour-cloning fit. Empty: the
             candidate nearest the label (multiple-choice learning). K - 1 increasing steering
@@ -172,8 +172,8 @@ class WarmStartConfig:
         workers: Processes that drive the demonstration episodes, each with its own env (and copy
             of the policy in DAgger rounds); the steps are the same for any count.
         strong_steer: A demonstrated step whose steering label exceeds this in magnitude counts
-            as a pass (0.3: where the clones fall short of the expert, docs/training.md, "Where
-            the clones' drives leave the expert's").
+            as a pass (0.3: where the clones fall short of the expert, docs/training_studies.md,
+            "Where the clones' drives leave the expert's").
         strong_steer_repeats: How often each pass step enters every epoch of the fit (1: once,
             like any step). Passes are a third of the steps; a mean-squared fit averages them with
             the straight driving around them and steers them too late or too gently.
@@ -304,7 +304,7 @@ class TrainConfig:
             learns; the features extractor, the actor and its log_std stay frozen. A cloned or
             ``init_model`` actor otherwise takes its first updates from a random critic's
             advantages, which on OffroadNav-v2 undid the clone within 10 k steps
-            (docs/training.md). 0: none.
+            (docs/training_studies.md). 0: none.
         target_kl: PPO: stop an update's epochs once the approximate KL divergence to the
             rollout's policy exceeds 1.5 x this (SB3's ``target_kl``); keeps a fine-tuned actor
             near the one that collected the data. 0: no limit (SB3's default).
