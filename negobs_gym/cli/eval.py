@@ -124,6 +124,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="paper N's pairs tightened to the close frames' near edge, as the envs' default "
         "(ObservationConfig.tighten_pairs); --no-tighten-pairs: paper N's fusion history",
     )
+    brk.add_argument(
+        "--free-track-steps",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="the most steps (10 Hz) of a free_track episode (default 150: the 15 s limit); "
+        "fewer: a quicker false-veto check",
+    )
     brk.set_defaults(handler=run_braking)
 
     pol = commands.add_parser(
@@ -264,6 +272,7 @@ def run_braking(args: argparse.Namespace) -> int:
         "model_path": args.model,
         "algo": args.algo,
         "tighten_pairs": args.tighten_pairs,
+        "free_track_steps": args.free_track_steps,
     }
     config = build_config(BrakingCampaignConfig, _toml(args), cli)
     out = run_braking_campaign(config, args.out, _options(args))

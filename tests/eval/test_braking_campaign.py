@@ -27,6 +27,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> None:
     out = tmp_path / "braking"
     args = ["eval", "braking", "--seeds", "1", "--scenarios", "ditch,free_track", "--drivers", "reckless"]
+    args += ["--free-track-steps", "20"]  # 2 s of free track instead of 15 s: a quicker false-veto check
     assert main(["-q", *args, "--out", str(out), "--no-progress"]) == 0
     lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
     assert set(lines) == {
@@ -52,6 +53,8 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         steps = [p for p in paths if p["episode"] == key]
         assert [int(p["step"]) for p in steps] == list(range(int(row["steps"]) + 1))
         assert sum(p["vetoed"] == "1" for p in steps) == int(row["vetoes"])
+    assert int(rows["free_track.reckless.0.00000"]["steps"]) == 20  # never stops without the filter
+    assert int(rows["free_track.reckless.1.00000"]["steps"]) <= 20
     assert main(["-q", "eval", "paths", str(out)]) == 0
     drawn = [Path(p).stem for p in capsys.readouterr().out.split()]
     ditch_keys = sorted(k for k in rows if k.startswith("ditch."))
@@ -108,6 +111,30 @@ def test_configurations_are_data() -> None:
         BrakingCampaignConfig(scenarios=("moon",))
     with pytest.raises(ConfigError, match="model_path"):
         BrakingCampaignConfig(drivers=("sb3",))
+
+
+def test_free_track_steps_bounds_only_the_free_track_episodes() -> None:
+    from negobs_gym.eval.braking_campaign import EPISODE_STEPS, run_episode
+
+    assert BrakingCampaignConfig().free_track_steps == EPISODE_STEPS == 150  # the 15 s limit at 10 Hz
+    for bad in (0, -1, EPISODE_STEPS + 1, 2.5, True, "20"):
+        with pytest.raises(ConfigError, match="free_track_steps"):
+            BrakingCampaignConfig(free_track_steps=bad)
+    scenarios, drivers = ("ditch", "free_track"), ("reckless",)
+    cfg = BrakingCampaignConfig(
+        seeds=1, scenarios=scenarios, drivers=drivers, filters=(False,), free_track_steps=3
+    )
+    ditch, free = episodes(cfg)
+    assert "max_steps" not in ditch.args and free.args["max_steps"] == 3  # recorded in the free track's part
+    rows = run_episode(free)
+    (row,) = _read_rows(rows["braking"])
+    assert row["scenario"] == "free_track" and row["steps"] == "3" and float(row["distance_m"]) > 0
+    assert len(rows["paths"]) == 3 + 1  # the reset's pose and one per step
+
+
+def _read_rows(lines: list[str]) -> list[dict[str, str]]:
+    """Formatted rows of :data:`COLUMNS` as dicts, as ``read_csv`` gives them."""
+    return [dict(zip(COLUMNS, line.split(","), strict=True)) for line in lines]
 
 
 def test_tighten_pairs_reaches_the_episodes_detector() -> None:
