@@ -31,6 +31,7 @@ import io
 import math
 import multiprocessing
 import multiprocessing.util
+import pickle
 import zipfile
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -52,6 +53,7 @@ from negobs_gym.sim.types import Terrain
 
 __all__ = [
     "DEMO_SEED_OFFSET",
+    "DemonstrationPool",
     "Demonstrations",
     "FitResult",
     "PolicyActor",
@@ -209,8 +211,7 @@ def collect_demonstrations(
     planner_sight_m: float = 0.0,
     planner_horizon_m: float = 0.0,
     *,
-    workers: int = 1,
-    env_factory: Callable[[], Any] | None = None,
+    pool: DemonstrationPool | None = None,
 ) -> Demonstrations:
     """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
 
@@ -220,30 +221,26 @@ def collect_demonstrations(
     plus ``N(0, noise_std)`` noise from a generator of episode k's own, clipped to [-1, 1]. The
     last episode is cut at ``steps``.
 
-    With ``workers`` > 1, episodes run in that many processes, each on its own env from
-    ``env_factory`` (``env`` only gives the observation layout) and its own copy of ``policy``,
-    which must then pickle
-    (:class:`PolicyActor`). Each episode depends on its number alone, so the steps are the same as
-    one process collects, in the same order. Torch acts on one thread either way (a result that
-    differs in its last bit can turn a drive into another episode).
+    With a ``pool`` (:class:`DemonstrationPool`), the episodes run in its processes, each on its
+    own env (``env`` only gives the observation layout) with its own copy of ``policy``, which
+    must then pickle (:class:`PolicyActor`). Each episode depends on its number alone, so the steps
+    are the same as one process collects, in the same order. Torch acts on one thread either way (a
+    result that differs in its last bit can turn a drive into another episode).
     """
     require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
-    require(isinstance(workers, int) and workers >= 1, "workers", f"must be an int >= 1, got {workers!r}")
-    require(workers == 1 or env_factory is not None, "env_factory", "workers > 1 need an env factory")
     expert = functools.partial(
         demonstrator, driver, planner_sight_m=planner_sight_m, planner_horizon_m=planner_horizon_m
     )
-    if workers == 1:
-        parts: list[_Episode] = []
+    if pool is not None:
+        parts = pool.episodes(expert, policy, first_episode, steps, noise_std, seed)
+    else:
+        parts = []
         collected = 0
         with torch_threads(1):  # as in a worker, so both act with the same arithmetic
             while collected < steps:
                 episode, left = first_episode + len(parts), steps - collected
                 parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
                 collected += len(parts[-1].actions)
-    else:
-        initargs = (env_factory, expert, policy)
-        parts = _episodes_in_processes(initargs, workers, first_episode, steps, noise_std, seed)
     return _join(parts, steps, first_episode, env.unwrapped.config.observation)
 
 
@@ -311,44 +308,87 @@ def _demonstrate_episode(
     return _Episode({key: np.stack(values) for key, values in observations.items()}, np.stack(actions))
 
 
-#: Per-process state of a demonstration worker: its env, expert and policy.
+class DemonstrationPool:
+    """``workers`` spawned processes that drive demonstration episodes for
+    :func:`collect_demonstrations`, each on its own env from ``env_factory`` (picklable).
+
+    Each process pays for its imports (torch, PyBullet) and its env once, seconds of start-up; a
+    warm start with DAgger rounds collects once per round, so it keeps one pool open for all of
+    them. What drives travels with each collection's episodes instead (the expert and the
+    learner's weights, pickled once per collection and loaded once per process), so a reused
+    process acts with the weights of the round that asked. The processes start with the first
+    episode; :meth:`close` (or leaving the ``with`` block) stops them, each closing its env.
+    """
+
+    def __init__(self, workers: int, env_factory: Callable[[], Any]) -> None:
+        require(isinstance(workers, int) and workers >= 1, "workers", f"must be an int >= 1, got {workers!r}")
+        self.workers = workers
+        context = multiprocessing.get_context("spawn")  # no inherited PyBullet state
+        self._executor = ProcessPoolExecutor(
+            workers, mp_context=context, initializer=_start_worker, initargs=(env_factory,)
+        )
+
+    def __enter__(self) -> DemonstrationPool:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the processes (queued episodes are dropped, running ones finish)."""
+        self._executor.shutdown(wait=True, cancel_futures=True)
+
+    def episodes(
+        self,
+        expert: Callable[[Terrain], Driver],
+        policy: Callable[[dict[str, np.ndarray]], np.ndarray] | None,
+        first_episode: int,
+        steps: int,
+        noise_std: float,
+        seed: int,
+    ) -> list[_Episode]:
+        """Episodes first_episode, ... until those in order hold ``steps`` steps; at most
+        ``workers - 1`` episodes beyond them are driven and dropped (waited for, so the pool is
+        idle when this returns)."""
+        actors = pickle.dumps((expert, policy))
+        done: dict[int, _Episode] = {}
+        pending: dict[Future, int] = {}
+        try:
+            episode = first_episode
+            while _steps_in_order(done, first_episode) < steps:
+                while len(pending) < self.workers and sum(len(p.actions) for p in done.values()) < steps:
+                    args = (actors, episode, steps, noise_std, seed)
+                    pending[self._executor.submit(_worker_episode, *args)] = episode
+                    episode += 1
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    done[pending.pop(future)] = future.result()
+        finally:
+            for future in pending:
+                future.cancel()
+            wait(pending)
+        return [done[k] for k in sorted(done)]
+
+
+#: Per-process state of a demonstration worker: its env and the last collection's actors.
 _worker: dict[str, Any] = {}
 
 
-def _start_worker(env_factory: Callable[[], Any], expert: Callable, policy: Any) -> None:
+def _start_worker(env_factory: Callable[[], Any]) -> None:
     torch.set_num_threads(1)  # one process per core; torch's own threads would oversubscribe them
     env = env_factory()
     # closed when the pool shuts the worker down (multiprocessing runs its finalizers at exit)
     multiprocessing.util.Finalize(env, env.close, exitpriority=0)
-    _worker.update(env=env, expert=expert, policy=policy)
+    _worker.update(env=env)
 
 
-def _worker_episode(episode: int, max_steps: int, noise_std: float, seed: int) -> _Episode:
-    env, expert, policy = _worker["env"], _worker["expert"], _worker["policy"]
-    return _demonstrate_episode(env, expert, policy, episode, max_steps, noise_std, seed)
-
-
-def _episodes_in_processes(
-    initargs: tuple, workers: int, first_episode: int, steps: int, noise_std: float, seed: int
-) -> list[_Episode]:
-    """Episodes first_episode, ... in ``workers`` processes until those in order hold ``steps``
-    steps; at most ``workers - 1`` episodes beyond them are driven and dropped."""
-    context = multiprocessing.get_context("spawn")  # no inherited PyBullet state
-    done: dict[int, _Episode] = {}
-    pending: dict[Future, int] = {}
-    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=initargs)
-    try:
-        episode = first_episode
-        while _steps_in_order(done, first_episode) < steps:
-            while len(pending) < workers and sum(len(p.actions) for p in done.values()) < steps:
-                pending[pool.submit(_worker_episode, episode, steps, noise_std, seed)] = episode
-                episode += 1
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                done[pending.pop(future)] = future.result()
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-    return [done[k] for k in sorted(done)]
+def _worker_episode(actors: bytes, episode: int, max_steps: int, noise_std: float, seed: int) -> _Episode:
+    """One episode in a worker; ``actors`` is the asking collection's pickled (expert, policy),
+    unpickled when it differs from the last one this process saw (once per collection)."""
+    if _worker.get("actors") != actors:
+        _worker.update(actors=actors, expert_policy=pickle.loads(actors))
+    expert, policy = _worker["expert_policy"]
+    return _demonstrate_episode(_worker["env"], expert, policy, episode, max_steps, noise_std, seed)
 
 
 def _steps_in_order(done: dict[int, _Episode], first_episode: int) -> int:

@@ -318,20 +318,27 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
 def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
     """Behaviour-clone a scripted driver into a new PPO model (``config.warm_start``); what
     was done, for ``train.json`` (empty without a warm start). All labelled steps are kept in
-    ``out/demonstrations.npz``."""
+    ``out/demonstrations.npz``. With ``workers`` > 1 one pool of processes drives the episodes of
+    the first collection and of every DAgger round (they start once)."""
     ws = config.warm_start
     if not ws.enabled:
         return {}
-    from negobs_gym.policies.pretrain import Demonstrations, PolicyActor, collect_demonstrations, warm_start
+    from negobs_gym.policies.pretrain import (
+        DemonstrationPool,
+        Demonstrations,
+        PolicyActor,
+        collect_demonstrations,
+        warm_start,
+    )
 
     begin = time.perf_counter()
     env = _env_factory(config)()
+    pool = DemonstrationPool(ws.workers, _env_factory(config)) if ws.workers > 1 else None
     collect = functools.partial(
         collect_demonstrations,
         planner_sight_m=ws.planner_sight_m,
         planner_horizon_m=ws.planner_horizon_m,
-        workers=ws.workers,
-        env_factory=_env_factory(config),
+        pool=pool,
     )
     try:
         if ws.demonstrations:
@@ -355,6 +362,8 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
             fit = warm_start(model, demos, ws, config.seed)
             _log_fit(round_, ws.dagger_rounds, demos, fit)
     finally:
+        if pool is not None:
+            pool.close()
         env.close()
     demos.save(out / "demonstrations.npz")
     record = {

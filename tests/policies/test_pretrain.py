@@ -17,6 +17,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
 from negobs_gym.policies.pretrain import (
     DEMO_SEED_OFFSET,
+    DemonstrationPool,
     Demonstrations,
     PolicyActor,
     collect_demonstrations,
@@ -157,9 +158,11 @@ def test_each_episode_depends_on_its_number_alone(demos) -> None:
     np.testing.assert_array_equal(later.episode_ids, 1)
 
 
-def _env_noting_its_close(marks: Path) -> Any:
-    """An OffroadNav-v2 env that appends a line to ``marks`` when it is closed."""
+def _env_noting_its_life(marks: Path) -> Any:
+    """An OffroadNav-v2 env that appends ``made`` to ``marks`` when it is made, ``closed`` when closed."""
     env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
+    with marks.open("a") as fh:
+        fh.write("made\n")
     close = env.close
 
     def close_and_note() -> None:
@@ -172,32 +175,39 @@ def _env_noting_its_close(marks: Path) -> Any:
 
 
 def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path) -> None:
-    """DAgger on OffroadNav-v2 with an untrained policy: short episodes, so several run at once."""
-    marks = tmp_path / "closed.txt"
-    factory = functools.partial(_env_noting_its_close, marks)
+    """DAgger on OffroadNav-v2 with an untrained policy: short episodes, so several run at once.
+    One pool serves two rounds, each driven by its own weights, as one process collects them."""
+    marks = tmp_path / "lives.txt"
+    factory = functools.partial(_env_noting_its_life, marks)
     learner = PolicyActor(_fresh_model().policy)
+    refitted = PolicyActor(_fresh_model(seed=1).policy)  # other weights: the next round's policy
     env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
     try:
         one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
-        two = collect_demonstrations(
-            env, 150, 0.3, 3, policy=learner, first_episode=2, workers=2, env_factory=factory
-        )
+        later = collect_demonstrations(env, 60, 0.3, 3, policy=refitted, first_episode=2)
+        with DemonstrationPool(2, factory) as pool:
+            two = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2, pool=pool)
+            again = collect_demonstrations(env, 60, 0.3, 3, policy=refitted, first_episode=2, pool=pool)
     finally:
         env.close()
-    assert marks.read_text().splitlines() == ["closed", "closed"]  # each worker closed its env
+    # the two processes started once for both rounds, and each closed its env
+    assert marks.read_text().splitlines() == ["made", "made", "closed", "closed"]
     assert one.episodes >= 3 and two.episodes == one.episodes
-    np.testing.assert_array_equal(two.episode_ids, one.episode_ids)
-    np.testing.assert_array_equal(two.actions, one.actions)
-    for key, value in one.observations.items():
-        np.testing.assert_array_equal(two.observations[key], value)
-    with pytest.raises(ConfigError, match="env_factory"):
-        collect_demonstrations(env, 10, 0.3, 3, workers=2)
+    for near, far in ((one, two), (later, again)):
+        np.testing.assert_array_equal(far.episode_ids, near.episode_ids)
+        np.testing.assert_array_equal(far.actions, near.actions)
+        for key, value in near.observations.items():
+            np.testing.assert_array_equal(far.observations[key], value)
+    # the second round's weights drove it: the same courses, other states
+    assert not np.array_equal(later.observations["state"], one.observations["state"][:60])
+    with pytest.raises(ConfigError, match="workers"):
+        DemonstrationPool(0, factory)
     with pytest.raises(ConfigError, match="workers"):
         WarmStartConfig(steps=10, workers=0)
 
 
-def _fresh_model():
-    config = TrainConfig(env=ENV, source="oracle", n_steps=64)
+def _fresh_model(seed: int = 0):
+    config = TrainConfig(env=ENV, source="oracle", n_steps=64, seed=seed)
     venv = _vec_env(config)
     model = _new_model(config, venv, (2, 36, 16))
     venv.close()
