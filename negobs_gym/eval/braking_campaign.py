@@ -140,7 +140,8 @@ def configuration_name(scenario: str, driver: str, filtered: bool) -> str:
 
 def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     """scenario x driver x filter x seed, keyed in that order. A ``free_track`` episode's args
-    hold its ``max_steps`` (``config.free_track_steps``); the others run :data:`EPISODE_STEPS`."""
+    hold its ``max_steps`` where ``config.free_track_steps`` is not :data:`EPISODE_STEPS`, which
+    the others run (so a default campaign's parts are those written before the field came)."""
     out = []
     for scenario in config.scenarios:
         for driver in config.all_drivers():
@@ -157,7 +158,7 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
                         "rig": config.rig,
                         "tighten_pairs": config.tighten_pairs,
                     }
-                    if scenario == "free_track":
+                    if scenario == "free_track" and config.free_track_steps != EPISODE_STEPS:
                         args["max_steps"] = config.free_track_steps
                     out.append(Episode(key, args))
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -126,6 +127,8 @@ def test_free_track_steps_bounds_only_the_free_track_episodes() -> None:
     )
     ditch, free = episodes(cfg)
     assert "max_steps" not in ditch.args and free.args["max_steps"] == 3  # recorded in the free track's part
+    default = episodes(dataclasses.replace(cfg, free_track_steps=EPISODE_STEPS))
+    assert all("max_steps" not in e.args for e in default)  # parts as before the field: resumable
     rows = run_episode(free)
     (row,) = _read_rows(rows["braking"])
     assert row["scenario"] == "free_track" and row["steps"] == "3" and float(row["distance_m"]) > 0
