@@ -51,6 +51,14 @@ SCENARIOS: dict[str, tuple[str, dict[str, float]]] = {
     # no obstacle at all: every veto is a false veto
     "free_track": ("rough_track", {"length_m": 160.0}),
 }
+
+
+def obstacle_free(scenario: str) -> bool:
+    """Whether a campaign scenario has no obstacle (its preset is ``rough_track``): there every
+    veto is a false one, and ``free_track_steps`` bounds its episodes."""
+    return SCENARIOS[scenario][0] == "rough_track"
+
+
 #: ``paths.csv`` of the braking and policy campaigns: the car's pose and speed at the reset and
 #: after every step of each episode (``negobs eval paths`` draws them)
 PATH_COLUMNS = ("episode", "filter", "seed", "step", "x_m", "y_m", "yaw_rad", "speed_mps", "vetoed")
@@ -139,9 +147,10 @@ def configuration_name(scenario: str, driver: str, filtered: bool) -> str:
 
 
 def episodes(config: BrakingCampaignConfig) -> list[Episode]:
-    """scenario x driver x filter x seed, keyed in that order. A ``free_track`` episode's args
-    hold its ``max_steps`` where ``config.free_track_steps`` is not :data:`EPISODE_STEPS`, which
-    the others run (so a default campaign's parts are those written before the field came)."""
+    """scenario x driver x filter x seed, keyed in that order. An obstacle-free (``free_track``)
+    episode's args hold its ``max_steps`` where ``config.free_track_steps`` is not
+    :data:`EPISODE_STEPS`, which the others run (so a default campaign's parts are those written
+    before the field came)."""
     out = []
     for scenario in config.scenarios:
         for driver in config.all_drivers():
@@ -158,7 +167,7 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
                         "rig": config.rig,
                         "tighten_pairs": config.tighten_pairs,
                     }
-                    if scenario == "free_track" and config.free_track_steps != EPISODE_STEPS:
+                    if obstacle_free(scenario) and config.free_track_steps != EPISODE_STEPS:
                         args["max_steps"] = config.free_track_steps
                     out.append(Episode(key, args))
     return out
@@ -358,7 +367,7 @@ def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
         groups.setdefault(configuration_name(row["scenario"], row["driver"], filtered), []).append(row)
     out = []
     for name, rows in groups.items():
-        obstacle = SCENARIOS[rows[0]["scenario"]][0] != "rough_track"
+        obstacle = not obstacle_free(rows[0]["scenario"])
         km = sum(float(r["distance_m"]) for r in rows) / 1000.0
         events = sum(int(r["veto_events"]) for r in rows)
         stops = [r for r in rows if obstacle and _flag(r, "stopped") and not _flag(r, "entered")]

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.braking_campaign import PATH_COLUMNS, SCENARIOS, scenario_spec
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, obstacle_free, scenario_spec
 from negobs_gym.eval.campaign import read_csv
 
 __all__ = ["draw_paths", "episode_outcome", "task_done"]
@@ -52,7 +52,7 @@ def task_done(row: dict[str, str]) -> bool:
     if not _is_braking(row):
         return row["goal"] == "1"
     failed = any(row[name] == "1" for name in OUTCOMES if name in row)
-    if SCENARIOS[row["scenario"]][0] == "rough_track":  # no obstacle: any veto is a false one
+    if obstacle_free(row["scenario"]):  # any veto is a false one
         return not failed and row["vetoes"] == "0"
     return not failed and row["stopped"] == "1"
 
