@@ -11,7 +11,15 @@ from negobs_gym.sensors.raycast.embree_packets import ISAS
 from negobs_gym.sensors.rigs import LUX_FORWARD_M
 from negobs_gym.sim.world import WorldConfig
 
-__all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvConfig", "EnvPhysicsConfig", "ObservationConfig", "RewardConfig"]
+__all__ = [
+    "CHANNELS",
+    "ROUTE_MARGIN_M",
+    "EnvConfig",
+    "EnvPhysicsConfig",
+    "ObservationConfig",
+    "PhantomConfig",
+    "RewardConfig",
+]
 
 #: Rigs of the detector observation (see ``ObservationConfig.rig``).
 RIGS: tuple[str, ...] = ("roi", "native", "reduced")
@@ -27,6 +35,78 @@ POSITIVE_DETECTORS: tuple[str, ...] = ("traversable", "structure")
 
 #: Grid channels an observation can carry, in this fixed order.
 CHANNELS: tuple[str, ...] = ("negative", "positive", "traversable", "observed")
+
+
+def _is_interval(value: object, low: float, high: float) -> bool:
+    """``value`` is a (lo, hi) pair of finite numbers with low <= lo <= hi <= high."""
+    return (
+        isinstance(value, tuple)
+        and len(value) == 2
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        and low <= value[0] <= value[1] <= high
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class PhantomConfig:
+    """False ``negative`` clusters added to an oracle grid, so that a policy trained on the ground
+    truth meets what the detectors report where no pit lies (docs/training.md, "Phantoms").
+
+    Not in either paper: the defaults copy the false clusters the detector grid shows at the start
+    of OffroadNav-v1 courses 1,000,002 and 1,000,004 (docs/training_studies.md, "Open"): the
+    HDL-64's pairs over a shadowed dip 0.6-3 m beyond the track's edge, 13-16 m ahead, 1.4-1.6 m
+    across and 1.4-2.6 m along the line of sight (9-10 cells of the 0.8 m observation), in 6 of
+    11 frames. Each phantom is a rectangle fixed in the world beside the track, drawn at
+    reset; it shows only while its centre is ``range_m`` from the vehicle, in each frame with
+    ``show_probability``. Rewards and rules never see it. Ignored by the detector source.
+
+    Attributes:
+        per_100m: Mean number of phantoms per 100 m of the track's centre line (Poisson); 0
+            (default): none, the oracle grid is the ground truth.
+        beyond_edge_m: (low, high) gap between the track's edge and a phantom's near side [m],
+            drawn uniformly, on either side.
+        across_m: (low, high) width of a phantom's rectangle across the track [m], drawn
+            uniformly.
+        along_m: (low, high) its length along the track [m], drawn uniformly.
+        range_m: (low, high) distance of a phantom's centre from the vehicle origin while it
+            can show [m].
+        show_probability: Chance that a phantom within ``range_m`` shows in a frame.
+    """
+
+    per_100m: float = 0.0
+    beyond_edge_m: tuple[float, float] = (0.5, 3.0)
+    across_m: tuple[float, float] = (0.4, 1.8)
+    along_m: tuple[float, float] = (1.2, 2.8)
+    range_m: tuple[float, float] = (12.0, 16.0)
+    show_probability: float = 0.55
+
+    def __post_init__(self) -> None:
+        require(
+            isinstance(self.per_100m, (int, float))
+            and not isinstance(self.per_100m, bool)
+            and math.isfinite(self.per_100m)
+            and 0 <= self.per_100m <= 100,
+            "per_100m",
+            f"must be a number in [0, 100], got {self.per_100m!r}",
+        )
+        for name, low in (("beyond_edge_m", 0.0), ("across_m", 0.2), ("along_m", 0.2), ("range_m", 0.0)):
+            value = getattr(self, name)
+            require(
+                _is_interval(value, low, 100.0),
+                name,
+                f"must be (low, high) with {low:g} <= low <= high <= 100 [m], got {value!r}",
+            )
+        p = self.show_probability
+        require(
+            isinstance(p, (int, float)) and not isinstance(p, bool) and 0 <= p <= 1,
+            "show_probability",
+            f"must be in [0, 1], got {p!r}",
+        )
+
+    @property
+    def enabled(self) -> bool:
+        """Whether any phantom is drawn."""
+        return self.per_100m > 0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -104,6 +184,8 @@ class ObservationConfig:
             rocks and boxes are found inside the lines (docs/training_studies.md, "The detector grid").
             False: paper T's F = I, the estimates held still in the vehicle frame; the shipped
             policies fitted on paper T's channels were trained so, and their records set it.
+        phantoms: With ``source="oracle"``, false ``negative`` clusters beside the track
+            (:class:`PhantomConfig`; none by default). Ignored by the detector source.
     """
 
     source: str = "detector"
@@ -126,6 +208,7 @@ class ObservationConfig:
     tighten_pairs: bool = True
     lux_forward_m: float = LUX_FORWARD_M
     lux_ego_motion: bool = True
+    phantoms: PhantomConfig = field(default_factory=PhantomConfig)
 
     def __post_init__(self) -> None:
         require(
@@ -208,6 +291,11 @@ class ObservationConfig:
             and math.isfinite(self.lux_forward_m),
             "lux_forward_m",
             f"must be a finite distance [m], got {self.lux_forward_m!r}",
+        )
+        require(
+            isinstance(self.phantoms, PhantomConfig),
+            "phantoms",
+            f"must be a PhantomConfig, got {type(self.phantoms).__name__}",
         )
         route = self.route_points_m
         require(

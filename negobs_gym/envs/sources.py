@@ -22,6 +22,7 @@ from gymnasium import spaces
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels
 from negobs_gym.envs.perception import DetectorGrid
+from negobs_gym.envs.phantoms import Phantoms
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle
@@ -63,7 +64,10 @@ class GridSource(abc.ABC):
 
 
 class OracleSource(GridSource):
-    """Ground truth rasterised around the vehicle's true pose (see :class:`OracleGrid`)."""
+    """Ground truth rasterised around the vehicle's true pose (see :class:`OracleGrid`), with the
+    config's phantoms, if any, in ``negative`` (:class:`~negobs_gym.envs.phantoms.Phantoms`)."""
+
+    phantoms: Phantoms | None = None
 
     def start(
         self,
@@ -75,9 +79,18 @@ class OracleSource(GridSource):
     ) -> None:
         self._vehicle = vehicle
         self.grid = OracleGrid(self.config, terrain)
+        if self.config.phantoms.enabled:
+            # a child generator: the sensors' own stream (the hazards' detectors) stays as it was
+            self.phantoms = Phantoms(self.config.phantoms, terrain.track, rng.spawn(1)[0])
+            self._cell_centres_v = self.config.grid.cell_centres().reshape(-1, 2)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
-        return self.grid.layers(self._vehicle.true_pose())
+        pose = self._vehicle.true_pose()
+        layers = self.grid.layers(pose)
+        if self.phantoms is not None and "negative" in layers:
+            phantom = self.phantoms.layer(pose, self._cell_centres_v).reshape(layers["negative"].shape)
+            layers["negative"] = layers["negative"] | phantom
+        return layers
 
 
 class DetectorSource(GridSource):

@@ -1,0 +1,83 @@
+"""Phantom ``negative`` clusters for an oracle grid: the detectors' false pits, beside the track.
+
+A policy trained on the ground truth has never seen a ``negative`` cluster where no pit lies, and
+stands still when the detector grid shows one (docs/training_studies.md, "Open"). Phantoms put
+such clusters into the oracle grid: rectangles fixed in the world beyond the track's edges that
+show, flickering, only at the distances where the detectors report theirs
+(:class:`~negobs_gym.envs.config.PhantomConfig`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from negobs_gym.core.geometry import vehicle_to_world_xy
+from negobs_gym.core.pose import Pose
+from negobs_gym.envs.config import PhantomConfig
+from negobs_gym.sim.types import Track
+
+__all__ = ["Phantoms"]
+
+
+class Phantoms:
+    """One episode's phantoms: drawn from ``rng`` at construction, shown per frame from it too.
+
+    Attributes:
+        centres_xy_m: World xy (K, 2) of the rectangles' centres.
+        yaws_rad: Their headings (the track's at their station; yaw 0 faces world +Y).
+        half_sizes_m: (K, 2) half lengths across and along the track.
+    """
+
+    def __init__(self, config: PhantomConfig, track: Track, rng: np.random.Generator) -> None:
+        self.config = config
+        self._rng = rng
+        length = track.length_m
+        count = int(rng.poisson(config.per_100m * length / 100.0))
+        stations = rng.uniform(0.0, length, count)
+        sides = rng.choice(np.array([-1.0, 1.0]), count)
+        beyond = rng.uniform(*config.beyond_edge_m, count)
+        sizes = np.stack([rng.uniform(*config.across_m, count), rng.uniform(*config.along_m, count)], axis=-1)
+        centres, yaws = track.pose_at(stations, sides * (0.5 * track.width_m + beyond + 0.5 * sizes[:, 0]))
+        # in a bend, a point beside one stretch can lie on another: keep the ones off the track
+        off_track = _distance_to_polyline(centres, np.asarray(track.centreline_xy_m, np.float64)) >= (
+            0.5 * track.width_m + 0.5 * sizes[:, 0]
+        )
+        self.centres_xy_m = centres[off_track].reshape(-1, 2)
+        self.yaws_rad = np.asarray(yaws)[off_track].reshape(-1)
+        self.half_sizes_m = 0.5 * sizes[off_track].reshape(-1, 2)
+
+    def __len__(self) -> int:
+        return len(self.centres_xy_m)
+
+    def layer(self, pose: Pose, cell_centres_v: np.ndarray) -> np.ndarray:
+        """Bool (P,): which of the vehicle-frame cell centres (P, 2) a phantom showing this frame
+        covers. Draws one number per phantom from the episode's generator every call, so the
+        stream does not depend on where the vehicle is."""
+        shown = self._rng.random(len(self)) < self.config.show_probability
+        inside = np.zeros(len(cell_centres_v), dtype=bool)
+        if not shown.any():
+            return inside
+        distance = np.hypot(self.centres_xy_m[:, 0] - pose.x, self.centres_xy_m[:, 1] - pose.y)
+        low, high = self.config.range_m
+        visible = np.nonzero(shown & (distance >= low) & (distance <= high))[0]
+        if visible.size == 0:
+            return inside
+        points = vehicle_to_world_xy(cell_centres_v, (pose.x, pose.y), pose.yaw)
+        offset = points[:, None, :] - self.centres_xy_m[visible][None, :, :]  # (P, V, 2)
+        yaw = self.yaws_rad[visible]
+        along = -np.sin(yaw) * offset[..., 0] + np.cos(yaw) * offset[..., 1]
+        across = np.cos(yaw) * offset[..., 0] + np.sin(yaw) * offset[..., 1]
+        half = self.half_sizes_m[visible]
+        covered = (np.abs(across) <= half[:, 0]) & (np.abs(along) <= half[:, 1])
+        return inside | covered.any(axis=1)
+
+
+def _distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Distance (K,) from each point (K, 2) to the nearest segment of ``polyline`` (N, 2)."""
+    if len(points) == 0:
+        return np.zeros(0)
+    a, b = polyline[:-1], polyline[1:]
+    d = b - a
+    t = np.einsum("knj,nj->kn", points[:, None, :] - a[None], d) / np.maximum((d * d).sum(axis=1), 1e-12)
+    nearest = a[None] + np.clip(t, 0.0, 1.0)[..., None] * d[None]
+    return np.linalg.norm(points[:, None, :] - nearest, axis=-1).min(axis=1)
