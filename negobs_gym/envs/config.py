@@ -57,8 +57,9 @@ class PhantomConfig:
     HDL-64's pairs over a shadowed dip 0.6-3 m beyond the track's edge, 13-16 m ahead, 1.4-1.6 m
     across and 1.4-2.6 m along the line of sight (9-10 cells of the 0.8 m observation), in 6 of
     11 frames. Each phantom is a rectangle fixed in the world beside the track, drawn at
-    reset; it shows only while its centre is ``range_m`` from the vehicle, in each frame with
-    ``show_probability``. Rewards and rules never see it. Ignored by the detector source.
+    reset; it shows only while its centre is ``range_m`` from the vehicle (beyond
+    ``oracle_range_m`` too, as the detectors' do), in each frame with ``show_probability``.
+    Rewards and rules never see it. Ignored by the detector source.
 
     Attributes:
         per_100m: Mean number of phantoms per 100 m of the track's centre line (Poisson); 0
