@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from negobs_gym.core.geometry import vehicle_to_world_xy
+from negobs_gym.core.geometry import distance_to_polyline, vehicle_to_world_xy, world_to_vehicle_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import PhantomConfig
 from negobs_gym.sim.types import Track
@@ -39,8 +39,8 @@ class Phantoms:
         sizes = np.stack([rng.uniform(*config.across_m, count), rng.uniform(*config.along_m, count)], axis=-1)
         centres, yaws = track.pose_at(stations, sides * (0.5 * track.width_m + beyond + 0.5 * sizes[:, 0]))
         # in a bend, a point beside one stretch can lie on another: keep the ones off the track
-        off_track = _distance_to_polyline(centres, np.asarray(track.centreline_xy_m, np.float64)) >= (
-            0.5 * track.width_m + 0.5 * sizes[:, 0]
+        off_track = distance_to_polyline(centres, track.centreline_xy_m) >= 0.5 * (
+            track.width_m + sizes[:, 0]
         )
         self.centres_xy_m = centres[off_track].reshape(-1, 2)
         self.yaws_rad = np.asarray(yaws)[off_track].reshape(-1)
@@ -63,21 +63,9 @@ class Phantoms:
         if visible.size == 0:
             return inside
         points = vehicle_to_world_xy(cell_centres_v, (pose.x, pose.y), pose.yaw)
-        offset = points[:, None, :] - self.centres_xy_m[visible][None, :, :]  # (P, V, 2)
-        yaw = self.yaws_rad[visible]
-        along = -np.sin(yaw) * offset[..., 0] + np.cos(yaw) * offset[..., 1]
-        across = np.cos(yaw) * offset[..., 0] + np.sin(yaw) * offset[..., 1]
-        half = self.half_sizes_m[visible]
-        covered = (np.abs(across) <= half[:, 0]) & (np.abs(along) <= half[:, 1])
-        return inside | covered.any(axis=1)
-
-
-def _distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
-    """Distance (K,) from each point (K, 2) to the nearest segment of ``polyline`` (N, 2)."""
-    if len(points) == 0:
-        return np.zeros(0)
-    a, b = polyline[:-1], polyline[1:]
-    d = b - a
-    t = np.einsum("knj,nj->kn", points[:, None, :] - a[None], d) / np.maximum((d * d).sum(axis=1), 1e-12)
-    nearest = a[None] + np.clip(t, 0.0, 1.0)[..., None] * d[None]
-    return np.linalg.norm(points[:, None, :] - nearest, axis=-1).min(axis=1)
+        for k in visible:  # the few phantoms in view; the cells are vectorised
+            local = world_to_vehicle_xy(
+                points, self.centres_xy_m[k], float(self.yaws_rad[k])
+            )  # x across, y along
+            inside |= np.all(np.abs(local) <= self.half_sizes_m[k], axis=1)
+        return inside
