@@ -15,6 +15,7 @@ import numpy as np
 from negobs_gym.errors import GeometryError
 
 __all__ = [
+    "PolygonsAhead",
     "distance_to_polyline",
     "heading_axes",
     "pad_polygons",
@@ -147,6 +148,36 @@ def polygon_in_strip_y(polygon_xy: np.ndarray, half_width: float) -> np.ndarray:
     hi = np.where(flat, np.where(inside, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
     keep = lo <= hi
     return np.concatenate([poly[keep, 1] + lo[keep] * d[keep, 1], poly[keep, 1] + hi[keep] * d[keep, 1]])
+
+
+class PolygonsAhead:
+    """Polygons (world xy) and their bounding circles: how far ahead of a pose the nearest of them
+    lies in a strip, transforming only those whose circle can reach the strip ahead."""
+
+    #: added to each circle's radius so rounding in the frame change cannot drop a polygon [m]
+    _RADIUS_MARGIN_M = 1e-6
+
+    def __init__(self, polygons: list[np.ndarray]) -> None:
+        self.polygons = [_polygon(poly, f"polygons[{k}]") for k, poly in enumerate(polygons)]
+        centres = [0.5 * (poly.min(axis=0) + poly.max(axis=0)) for poly in self.polygons]
+        self._centres = np.array(centres).reshape(-1, 2)
+        radii = [np.max(np.hypot(*(poly - c).T)) for poly, c in zip(self.polygons, centres, strict=True)]
+        self._radii = np.array(radii) + self._RADIUS_MARGIN_M
+
+    def nearest_ahead(self, origin_xy: np.ndarray, yaw_rad: float, half_width: float) -> float:
+        """Smallest y > 0 of any polygon's part inside ``|x| <= half_width`` in the vehicle frame at
+        ``origin_xy``, ``yaw_rad`` (:func:`polygon_in_strip_y`); inf when none lies there."""
+        if not self.polygons:
+            return math.inf
+        c = world_to_vehicle_xy(self._centres, origin_xy, yaw_rad)
+        reach = (np.abs(c[:, 0]) <= half_width + self._radii) & (c[:, 1] + self._radii > 0.0)
+        best = math.inf
+        for k in np.flatnonzero(reach):
+            ahead = polygon_in_strip_y(world_to_vehicle_xy(self.polygons[k], origin_xy, yaw_rad), half_width)
+            ahead = ahead[ahead > 0]
+            if ahead.size:
+                best = min(best, float(ahead.min()))
+        return best
 
 
 # --- centre lines -----------------------------------------------------------------------------

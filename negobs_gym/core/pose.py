@@ -31,7 +31,7 @@ def pose_from_matrix(position: np.ndarray, rotation: np.ndarray) -> Pose:
     """The :class:`Pose` of a vehicle-to-world ``rotation`` (3x3) at ``position``: the inverse of
     :func:`rotation_from_rpy`'s ``Rz(yaw) Rx(pitch) Ry(roll)``."""
     r = np.asarray(rotation, dtype=np.float64)
-    pitch = math.asin(float(np.clip(r[2, 1], -1.0, 1.0)))
+    pitch = math.asin(min(1.0, max(-1.0, float(r[2, 1]))))  # clipped: rounding can pass +-1
     roll = math.atan2(-r[2, 0], r[2, 2])
     yaw = math.atan2(-r[0, 1], r[1, 1])
     return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)

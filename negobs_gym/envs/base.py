@@ -20,7 +20,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from negobs_gym.core.geometry import polygon_in_strip_y, project_onto_polyline, world_to_vehicle_xy
+from negobs_gym.core.geometry import PolygonsAhead, project_onto_polyline
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
@@ -155,6 +155,9 @@ class NegObsEnv(gym.Env):
         self._entry = self._acquire_world()
         episode = self._entry.episode
         self.terrain = episode.terrain
+        self._negatives_ahead = PolygonsAhead([ob.outline_xy_m for ob in self.terrain.negative_obstacles])
+        bodies = [ob.footprint_xy_m for ob in self.terrain.positive_obstacles if not ob.in_heightfield]
+        self._positives_ahead = PolygonsAhead(bodies)
         entry = self._entry
         self._world, self._vehicle, self._monitor = entry.world, entry.vehicle, entry.monitor
         if self.scenario.ins.noisy:  # drawn only then, so noise-free specs keep their draws
@@ -446,26 +449,19 @@ class NegObsEnv(gym.Env):
     def _distance_to_negative_ahead(self, pose: Pose) -> float:
         """Ground-truth distance from the front bumper to the nearest negative-obstacle outline
         point ahead within the wheels' strip (track width + 1 m each side), inf if none."""
-        return self._distance_ahead([ob.outline_xy_m for ob in self.terrain.negative_obstacles], pose)
+        return self._distance_ahead(self._negatives_ahead, pose)
 
     def _distance_to_positive_ahead(self, pose: Pose) -> float:
         """The same for the footprints of the positive obstacles the car can hit (bodies; mounds,
         part of the ground, are not)."""
-        bodies = [ob.footprint_xy_m for ob in self.terrain.positive_obstacles if not ob.in_heightfield]
-        return self._distance_ahead(bodies, pose)
+        return self._distance_ahead(self._positives_ahead, pose)
 
-    def _distance_ahead(self, polygons: list[np.ndarray], pose: Pose) -> float:
-        """Front bumper to the nearest point of ``polygons`` (world xy) ahead in the wheels' strip."""
+    def _distance_ahead(self, polygons: PolygonsAhead, pose: Pose) -> float:
+        """Front bumper to the nearest point of ``polygons`` ahead in the wheels' strip."""
         cfg = self._vehicle.config
         half = 0.5 * cfg.track_width_m + 1.0
-        best = math.inf
-        for polygon in polygons:
-            outline = world_to_vehicle_xy(polygon, (pose.x, pose.y), pose.yaw)
-            ahead = polygon_in_strip_y(outline, half)
-            ahead = ahead[ahead > 0]
-            if ahead.size:
-                best = min(best, float(ahead.min()) - (cfg.length_m - cfg.rear_overhang_m))
-        return best
+        front_m = cfg.length_m - cfg.rear_overhang_m
+        return polygons.nearest_ahead(np.array([pose.x, pose.y]), pose.yaw, half) - front_m
 
 
 def registered_negobs_env(env_id: str) -> type[NegObsEnv] | None:

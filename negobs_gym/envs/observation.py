@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from gymnasium import spaces
 
@@ -13,7 +15,7 @@ from negobs_gym.core.geometry import (
     world_to_vehicle_xy,
 )
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import ROUTE_MARGIN_M, ObservationConfig
+from negobs_gym.envs.config import CHANNELS, ROUTE_MARGIN_M, ObservationConfig
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 
@@ -142,24 +144,32 @@ class OracleGrid:
         )
         self._track_tree = _centreline_tree(np.asarray(terrain.track.centreline_xy_m, dtype=np.float64))
 
-    def layers(self, pose: Pose) -> dict[str, np.ndarray]:
-        """Full-resolution bool layers by channel name around ``pose``."""
-        cfg = self.config
+    def layers(self, pose: Pose, channels: Sequence[str] = CHANNELS) -> dict[str, np.ndarray]:
+        """Full-resolution bool layers around ``pose``, for the named ``channels`` only (an
+        observation of ``negative`` and ``positive`` skips the track and heightfield lookups)."""
+        unknown = set(channels) - set(CHANNELS)
+        if unknown:
+            raise ValueError(f"no grid channel {sorted(unknown)}; one of {CHANNELS}")
+        shape = self.config.grid.shape
         pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
-        neg = _inside_any(pts, self._neg, self._neg_boxes)
-        pos = _inside_any(pts, self._pos, self._pos_boxes)
-        hf = self.terrain.heightfield
-        observed = np.isfinite(hf.height_at(pts))
-        track = self.terrain.track
-        lateral, _ = self._track_tree.query(pts)
-        on_track = lateral <= 0.5 * track.width_m
-        layers = {
-            "negative": neg & self._in_range,
-            "positive": pos & self._in_range,
-            "traversable": on_track & ~neg & ~pos & observed,
-            "observed": observed,
-        }
-        return {name: layer.reshape(cfg.grid.shape) for name, layer in layers.items()}
+        layers: dict[str, np.ndarray] = {}
+        if {"negative", "positive", "traversable"} & set(channels):
+            view = _bounding_box(pts)
+            neg = _inside_any(pts, self._neg, self._neg_boxes, view)
+            pos = _inside_any(pts, self._pos, self._pos_boxes, view)
+            layers["negative"], layers["positive"] = neg & self._in_range, pos & self._in_range
+        if {"traversable", "observed"} & set(channels):
+            layers["observed"] = np.isfinite(self.terrain.heightfield.height_at(pts))
+        if "traversable" in channels:
+            layers["traversable"] = self._on_track(pts) & ~neg & ~pos & layers["observed"]
+        return {name: layers[name].reshape(shape) for name in channels}
+
+    def _on_track(self, points_xy: np.ndarray) -> np.ndarray:
+        """Bool (P,): within half the track width of the centre line. The search is cut off just
+        beyond that distance (farther points get inf): the same answer, a fraction of the work."""
+        half_width = 0.5 * self.terrain.track.width_m
+        lateral, _ = self._track_tree.query(points_xy, distance_upper_bound=half_width + 0.1)
+        return lateral <= half_width
 
     def observe(self, pose: Pose) -> np.ndarray:
         """uint8 (channels, rows, cols) grid around ``pose`` (:func:`stack_channels`)."""
@@ -173,11 +183,19 @@ def _bounding_boxes(polygons: np.ndarray) -> np.ndarray:
     return np.concatenate([polygons.min(axis=1), polygons.max(axis=1)], axis=1)
 
 
-def _inside_any(points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Bool (P,): point inside any of the polygons. Only polygons whose box meets the points' box are
-    tested, each against the points inside its own box (a course's obstacles are mostly out of view)."""
+def _bounding_box(points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest x, y of ``points_xy`` (P, 2), in one pass over the points."""
+    return points_xy.min(axis=0), points_xy.max(axis=0)
+
+
+def _inside_any(
+    points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray, view: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """Bool (P,): point inside any of the polygons. Only polygons whose box meets ``view``, the
+    points' bounding box, are tested, each against the points inside its own box (a course's
+    obstacles are mostly out of view)."""
     inside = np.zeros(len(points_xy), dtype=bool)
-    lo, hi = points_xy.min(axis=0), points_xy.max(axis=0)
+    lo, hi = view
     near = np.nonzero(
         (boxes[:, 0] <= hi[0]) & (boxes[:, 2] >= lo[0]) & (boxes[:, 1] <= hi[1]) & (boxes[:, 3] >= lo[1])
     )[0]

@@ -86,7 +86,7 @@ class OracleSource(GridSource):
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         pose = self._vehicle.true_pose()
-        layers = self.grid.layers(pose)
+        layers = self.grid.layers(pose, self.config.channels)
         if self.phantoms is not None and "negative" in layers:
             phantom = self.phantoms.layer(pose, self._cell_centres_v).reshape(layers["negative"].shape)
             layers["negative"] = layers["negative"] | phantom

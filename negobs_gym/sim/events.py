@@ -3,7 +3,8 @@
 An :class:`EventMonitor` checks the vehicle after every physics step (it registers a step hook on the
 world), so a 0.3 m pit cannot slip between two 10 Hz control steps; :meth:`EventMonitor.poll` returns
 what happened since the previous poll. The wheel contacts are tested in one vectorised pass against
-only the negative obstacles whose bounding circles can reach them (a KD-tree over their centres).
+only the negative obstacles whose bounding boxes hold one of them (a box test over all of a course's
+obstacles, cheaper than a spatial index for the tens a course has).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
-from scipy.spatial import cKDTree
 
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons
 from negobs_gym.errors import ConfigError, require
@@ -86,25 +86,17 @@ class StepEvents:
         return bool(self.entered_negative_obstacle or self.trapped or self.collision or self.rollover)
 
 
-class _PolygonIndex:
-    """KD-tree over the centres of polygons' bounding circles: the polygons near a few points."""
+class _PolygonBoxes:
+    """Bounding boxes of polygons: the few polygons that can contain one of a few points."""
 
     def __init__(self, polygons: np.ndarray) -> None:
-        if len(polygons) == 0:
-            self._tree = None
-            return
-        lo, hi = polygons.min(axis=1), polygons.max(axis=1)
-        self._centres = 0.5 * (lo + hi)
-        self._radius = float(np.max(np.linalg.norm(polygons - self._centres[:, None], axis=2)))
-        self._tree = cKDTree(self._centres)
+        self._lo = polygons.min(axis=1) if len(polygons) else np.zeros((0, 2))
+        self._hi = polygons.max(axis=1) if len(polygons) else np.zeros((0, 2))
 
     def near(self, points_xy: np.ndarray) -> np.ndarray:
-        """Indices of the polygons that can contain one of ``points_xy`` (sorted)."""
-        if self._tree is None:
-            return np.empty(0, dtype=np.int64)
-        centre = 0.5 * (points_xy.min(axis=0) + points_xy.max(axis=0))
-        reach = float(np.max(np.linalg.norm(points_xy - centre, axis=1))) + self._radius
-        return np.asarray(sorted(self._tree.query_ball_point(centre, reach)), dtype=np.int64)
+        """Indices (ascending) of the polygons whose bounding box holds one of ``points_xy``."""
+        lo, hi, pts = self._lo[:, None], self._hi[:, None], points_xy[None]  # (M, 1, 2), (1, P, 2)
+        return np.flatnonzero(((lo <= pts) & (pts <= hi)).all(axis=2).any(axis=1))
 
 
 class EventMonitor:
@@ -127,7 +119,7 @@ class EventMonitor:
         self._polygons = pad_polygons(
             [o.outline_xy_m for o in negatives], name="negative_obstacles.outline_xy_m"
         )
-        self._near = _PolygonIndex(self._polygons)
+        self._near = _PolygonBoxes(self._polygons)
         self._body_to_obstacle = {body: oid for oid, body in world.obstacle_body_ids.items()}
         self._stuck_s = 0.0
         self._belly_s = 0.0
