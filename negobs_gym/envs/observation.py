@@ -34,6 +34,9 @@ __all__ = [
 #: points follow when the config asks for them (:func:`state_fields`).
 STATE_FIELDS: tuple[str, ...] = ("speed_mps", "yaw_rate_rps", "steering_rad", "goal_x_m", "goal_y_m")
 
+#: widens the box around the grid's four corner cells so rounding cannot leave a cell outside [m]
+_VIEW_MARGIN_M = 1e-6
+
 
 def grid_space(config: ObservationConfig) -> spaces.Box:
     """uint8 grid per channel, shape (channels, rows, cols): 0 = no / 1 = yes, or with
@@ -136,7 +139,9 @@ class OracleGrid:
         )
         self._neg_boxes = _bounding_boxes(self._neg)
         self._pos_boxes = _bounding_boxes(self._pos)
-        self._centres_v = config.grid.cell_centres().reshape(-1, 2)
+        centres = config.grid.cell_centres()
+        self._centres_v = centres.reshape(-1, 2)
+        self._corners_v = centres[[0, 0, -1, -1], [0, -1, 0, -1]]  # the lattice's extremes lie here
         self._in_range = (
             np.hypot(self._centres_v[:, 0], self._centres_v[:, 1]) <= config.oracle_range_m
             if config.oracle_range_m is not None
@@ -154,7 +159,8 @@ class OracleGrid:
         pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
         layers: dict[str, np.ndarray] = {}
         if {"negative", "positive", "traversable"} & set(channels):
-            view = _bounding_box(pts)
+            corners = vehicle_to_world_xy(self._corners_v, (pose.x, pose.y), pose.yaw)
+            view = corners.min(axis=0) - _VIEW_MARGIN_M, corners.max(axis=0) + _VIEW_MARGIN_M
             neg = _inside_any(pts, self._neg, self._neg_boxes, view)
             pos = _inside_any(pts, self._pos, self._pos_boxes, view)
             layers["negative"], layers["positive"] = neg & self._in_range, pos & self._in_range
@@ -183,16 +189,11 @@ def _bounding_boxes(polygons: np.ndarray) -> np.ndarray:
     return np.concatenate([polygons.min(axis=1), polygons.max(axis=1)], axis=1)
 
 
-def _bounding_box(points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest and highest x, y of ``points_xy`` (P, 2), in one pass over the points."""
-    return points_xy.min(axis=0), points_xy.max(axis=0)
-
-
 def _inside_any(
     points_xy: np.ndarray, polygons: np.ndarray, boxes: np.ndarray, view: tuple[np.ndarray, np.ndarray]
 ) -> np.ndarray:
-    """Bool (P,): point inside any of the polygons. Only polygons whose box meets ``view``, the
-    points' bounding box, are tested, each against the points inside its own box (a course's
+    """Bool (P,): point inside any of the polygons. Only polygons whose box meets ``view``, a box
+    around the points, are tested, each against the points inside its own box (a course's
     obstacles are mostly out of view)."""
     inside = np.zeros(len(points_xy), dtype=bool)
     lo, hi = view

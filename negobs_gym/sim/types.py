@@ -6,6 +6,7 @@ renderer and the evaluation. All coordinates are in the world frame (Z up), SI u
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -123,10 +124,13 @@ class Track:
     width_m: float
     border_kinds: tuple[str, str] = ("verge", "verge")  # (left, right) border of the track
 
-    @property
+    @functools.cached_property
     def stations_m(self) -> np.ndarray:
-        """Cumulative distance along the centre line at each vertex, (N,) starting at 0."""
-        return polyline_stations(self.centreline_xy_m)
+        """Cumulative distance along the centre line at each vertex, (N,) starting at 0 (read-only:
+        computed once per track)."""
+        stations = polyline_stations(self.centreline_xy_m)
+        stations.flags.writeable = False
+        return stations
 
     @property
     def length_m(self) -> float:
