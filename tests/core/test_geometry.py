@@ -8,6 +8,7 @@ from hypothesis.extra.numpy import arrays
 
 from negobs_gym.core import Pose
 from negobs_gym.core.geometry import (
+    PolygonsAhead,
     distance_to_polyline,
     heading_axes,
     pad_polygons,
@@ -189,3 +190,34 @@ def test_polygon_in_strip_y_clips_edges_to_the_strip():
     assert min(polygon_in_strip_y(slanted, 1.8)) == pytest.approx(13.2)
     with pytest.raises(GeometryError):
         polygon_in_strip_y(np.array([[0.0, 1.0], [np.nan, 2.0], [1.0, 1.0]]), 1.0)
+
+
+def _random_polygon(rng: np.random.Generator) -> np.ndarray:
+    """A rotated rectangle or triangle, 0.3-3 m across, somewhere within 30 m of the origin."""
+    corners = 3 if rng.random() < 0.3 else 4
+    angles = np.sort(rng.uniform(0.0, 2 * np.pi, corners))
+    radius = rng.uniform(0.3, 3.0, corners)
+    return rng.uniform(-30.0, 30.0, 2) + np.stack([radius * np.cos(angles), radius * np.sin(angles)], axis=1)
+
+
+def test_polygons_ahead_equal_the_nearest_over_every_polygon():
+    """Skipping the polygons whose bounding circle misses the strip ahead changes no answer."""
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(60):
+        polygons = [_random_polygon(rng) for _ in range(rng.integers(1, 25))]
+        ahead = PolygonsAhead(polygons)
+        for _ in range(10):
+            origin, yaw = rng.uniform(-20.0, 20.0, 2), float(rng.uniform(-np.pi, np.pi))
+            half = float(rng.uniform(0.5, 3.0))
+            brute = math.inf
+            for polygon in polygons:
+                y = polygon_in_strip_y(world_to_vehicle_xy(polygon, origin, yaw), half)
+                if (y > 0).any():
+                    brute = min(brute, float(y[y > 0].min()))
+            assert ahead.nearest_ahead(origin, yaw, half) == brute
+            found += math.isfinite(brute)
+    assert found > 100  # most draws have something ahead, and the test compares distances
+    assert PolygonsAhead([]).nearest_ahead(np.zeros(2), 0.0, 1.0) == math.inf
+    with pytest.raises(GeometryError):
+        PolygonsAhead([np.array([[0.0, 0.0], [1.0, np.nan], [1.0, 1.0]])])

@@ -80,6 +80,46 @@ def test_oracle_range_blanks_obstacles_beyond_it_and_keeps_the_rest(course) -> N
     assert cut > 0  # some obstacle was beyond 14 m in some view
 
 
+def _views_along(course, every: int = 40):
+    """Poses on the centre line facing along it, ``every``-th of the course's views."""
+    line = np.asarray(course.track.centreline_xy_m)
+    for k in range(0, len(line) - 1, max(1, len(line) // every)):
+        heading = line[k + 1] - line[k]
+        yield Pose(x=float(line[k, 0]), y=float(line[k, 1]), yaw=float(np.arctan2(-heading[0], heading[1])))
+
+
+def test_a_subset_of_channels_gives_those_layers_of_the_full_set(course) -> None:
+    config = ObservationConfig(source="oracle")
+    grid = OracleGrid(config, course)
+    for pose in _views_along(course, 12):
+        full = grid.layers(pose)
+        assert list(full) == ["negative", "positive", "traversable", "observed"]
+        for channels in (("negative", "positive"), ("traversable",), ("observed",), ("positive", "observed")):
+            part = grid.layers(pose, channels)
+            assert list(part) == list(channels)
+            for name in channels:
+                np.testing.assert_array_equal(part[name], full[name])
+    with pytest.raises(ValueError, match="no grid channel"):
+        grid.layers(pose, ("negative", "lidar"))
+
+
+def test_traversable_cells_are_on_the_track_by_the_full_centre_line_search(course) -> None:
+    """The on-track search stops just beyond half the track width; a search without the cut-off
+    marks the same cells."""
+    config = ObservationConfig(source="oracle")
+    grid = OracleGrid(config, course)
+    half_width = 0.5 * course.track.width_m
+    on_and_off = 0
+    for pose in _views_along(course):
+        layers = grid.layers(pose)
+        cells = vehicle_to_world_xy(config.grid.cell_centres().reshape(-1, 2), (pose.x, pose.y), pose.yaw)
+        on_track = (grid._track_tree.query(cells)[0] <= half_width).reshape(config.grid.shape)
+        expected = on_track & ~layers["negative"] & ~layers["positive"] & layers["observed"]
+        np.testing.assert_array_equal(layers["traversable"], expected)
+        on_and_off += int(on_track.any() and not on_track.all())
+    assert on_and_off > 0  # views hold cells on both sides of the edge
+
+
 def _mirror_about_heading(points: np.ndarray, pose: Pose) -> np.ndarray:
     """World points mirrored about the line through the vehicle along its heading."""
     origin = np.array([pose.x, pose.y])

@@ -8,9 +8,10 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from negobs_gym.core.geometry import pad_polygons, points_in_polygons
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim import presets
-from negobs_gym.sim.events import EventConfig, EventMonitor, StepEvents
+from negobs_gym.sim.events import EventConfig, EventMonitor, StepEvents, _PolygonBoxes
 from negobs_gym.sim.types import PositiveObstacle, Terrain
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -144,3 +145,22 @@ def test_bad_event_config_names_the_field(field, value):
     with pytest.raises(ConfigError) as err:
         EventConfig(**{field: value})
     assert err.value.field == field
+
+
+def test_the_box_prefilter_keeps_every_polygon_that_holds_a_wheel():
+    """The polygons the monitor tests exactly include each one a wheel is in, and few others."""
+    rng = np.random.default_rng(3)
+    polygons = pad_polygons(
+        [c + rng.uniform(-1.5, 1.5, (int(rng.integers(3, 7)), 2)) for c in rng.uniform(0.0, 40.0, (30, 2))]
+    )
+    boxes = _PolygonBoxes(polygons)
+    inside_some = 0
+    for _ in range(300):
+        wheels = rng.uniform(0.0, 40.0, 2) + rng.uniform(-1.5, 1.5, (4, 2))
+        holding = np.flatnonzero(points_in_polygons(wheels, polygons).any(axis=0))
+        near = boxes.near(wheels)
+        assert set(holding) <= set(near) and len(near) <= 12
+        assert np.all(np.diff(near) > 0)
+        inside_some += int(holding.size > 0)
+    assert inside_some >= 10  # the superset check is not vacuous
+    assert _PolygonBoxes(np.zeros((0, 3, 2))).near(np.zeros((4, 2))).size == 0
