@@ -170,6 +170,12 @@ class StageTimer:
         setattr(owner, attr, timed)
         self._undo.append(lambda: setattr(owner, attr, original))
 
+    def clear(self) -> None:
+        """Forget what was timed so far (a warm-up)."""
+        self.total_s.clear()
+        self.cpu_s.clear()
+        self.calls.clear()
+
     def __enter__(self) -> StageTimer:
         return self
 
@@ -184,15 +190,17 @@ Stages = dict[str, float]
 def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tuple[Stages, Stages, float, int]:
     """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s and resets
     over the vector run's episodes (``n_envs`` seeds, ``steps_each`` steps each)."""
-    envs = _episodes(_make(env_id, "detector", rig), n_envs)  # first make/reset outside the timing
     with StageTimer() as timer:
         timer.wrap(World, "step", "physics")
+        # wrapped before the envs exist: each monitor registers its bound _check as a step hook
         timer.wrap(EventMonitor, "_check", "events")
         timer.wrap(perception, "scan_rig", "scan")
         timer.wrap(NegativeObstacleDetector, "update", "paper_n")
         timer.wrap(TraversableRegionDetector, "update", "paper_t")
         timer.wrap(env_base.NegObsEnv, "step", "step")
         timer.wrap(env_base.NegObsEnv, "reset", "reset")
+        envs = _episodes(_make(env_id, "detector", rig), n_envs)
+        timer.clear()  # the first make/reset/step are outside the timing
         sps, resets = _drive(envs, steps_each)
     _close(envs)
     steps = steps_each * n_envs
