@@ -104,13 +104,19 @@ def test_a_subset_of_channels_gives_those_layers_of_the_full_set(course) -> None
 
 
 def test_traversable_cells_are_on_the_track_by_the_full_centre_line_search(course) -> None:
-    """The on-track search stops just beyond half the track width; a search without the cut-off
-    marks the same cells."""
+    """The on-track test (a coarse pass, then a search cut off just beyond half the track width
+    for the cells near the edge) marks the cells a full search of every sample does: on the
+    centre line, beside the track and far from it."""
     config = ObservationConfig(source="oracle")
     grid = OracleGrid(config, course)
     half_width = 0.5 * course.track.width_m
     on_and_off = 0
-    for pose in _views_along(course):
+    views = [
+        Pose(x=p.x + dx, y=p.y, yaw=p.yaw + turn)
+        for p in _views_along(course)
+        for dx, turn in ((0.0, 0.0), (7.0, 0.6), (-60.0, 0.0))
+    ]
+    for pose in views:
         layers = grid.layers(pose)
         cells = vehicle_to_world_xy(config.grid.cell_centres().reshape(-1, 2), (pose.x, pose.y), pose.yaw)
         on_track = (grid._track_tree.query(cells)[0] <= half_width).reshape(config.grid.shape)
