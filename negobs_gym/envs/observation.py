@@ -168,21 +168,22 @@ class OracleGrid:
             raise ValueError(f"no grid channel {sorted(unknown)}; one of {CHANNELS}")
         shape = self.config.grid.shape
         pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
+        corners = vehicle_to_world_xy(self._corners_v, (pose.x, pose.y), pose.yaw)
+        view = corners.min(axis=0) - _VIEW_MARGIN_M, corners.max(axis=0) + _VIEW_MARGIN_M  # holds pts
         layers: dict[str, np.ndarray] = {}
         if {"negative", "positive", "traversable"} & set(channels):
-            corners = vehicle_to_world_xy(self._corners_v, (pose.x, pose.y), pose.yaw)
-            view = corners.min(axis=0) - _VIEW_MARGIN_M, corners.max(axis=0) + _VIEW_MARGIN_M
             neg = _inside_any(pts, self._neg, self._neg_boxes, view)
             pos = _inside_any(pts, self._pos, self._pos_boxes, view)
             layers["negative"], layers["positive"] = neg & self._in_range, pos & self._in_range
         if {"traversable", "observed"} & set(channels):
             layers["observed"] = np.isfinite(self.terrain.heightfield.height_at(pts))
         if "traversable" in channels:
-            layers["traversable"] = self._on_track(pts) & ~neg & ~pos & layers["observed"]
+            layers["traversable"] = self._on_track(pts, view) & ~neg & ~pos & layers["observed"]
         return {name: layers[name].reshape(shape) for name in channels}
 
-    def _on_track(self, points_xy: np.ndarray) -> np.ndarray:
-        """Bool (P,): the nearest centre-line sample within half the track width.
+    def _on_track(self, points_xy: np.ndarray, view: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """Bool (P,): the nearest centre-line sample within half the track width (``view``: a box
+        holding the points).
 
         The same answer as a search of every sample, for a fraction of the work: the distance d
         to the nearest coarse sample (every 20th) bounds the nearest sample's, between d - reach
@@ -191,8 +192,9 @@ class OracleGrid:
         """
         half = 0.5 * self.terrain.track.width_m
         reach = self._coarse_reach_m
-        slack = half + reach + 1.0  # coarse samples farther than this from the view decide nothing
-        lo, hi = points_xy.min(axis=0) - slack, points_xy.max(axis=0) + slack
+        # a coarse sample farther than half + reach from every point decides nothing (+ 1 m of room)
+        slack = half + reach + 1.0
+        lo, hi = view[0] - slack, view[1] + slack
         coarse = self._coarse[np.all((self._coarse >= lo) & (self._coarse <= hi), axis=1)]
         if len(coarse) == 0:
             return np.zeros(len(points_xy), dtype=bool)
