@@ -146,12 +146,12 @@ class OracleGrid:
         self._neg_boxes = _bounding_boxes(self._neg)
         self._pos_boxes = _bounding_boxes(self._pos)
         centres = config.grid.cell_centres()
-        self._centres_v = centres.reshape(-1, 2)
+        self.cell_centres_v = centres.reshape(-1, 2)  # (P, 2), row-major: the layers' cells, flattened
         self._corners_v = centres[[0, 0, -1, -1], [0, -1, 0, -1]]  # the lattice's extremes lie here
         self._in_range = (
-            np.hypot(self._centres_v[:, 0], self._centres_v[:, 1]) <= config.oracle_range_m
+            np.hypot(self.cell_centres_v[:, 0], self.cell_centres_v[:, 1]) <= config.oracle_range_m
             if config.oracle_range_m is not None
-            else np.ones(len(self._centres_v), dtype=bool)
+            else np.ones(len(self.cell_centres_v), dtype=bool)
         )
         self._track_tree = _centreline_tree(np.asarray(terrain.track.centreline_xy_m, dtype=np.float64))
         samples = self._track_tree.data
@@ -167,7 +167,7 @@ class OracleGrid:
         if unknown:
             raise ValueError(f"no grid channel {sorted(unknown)}; one of {CHANNELS}")
         shape = self.config.grid.shape
-        pts = vehicle_to_world_xy(self._centres_v, (pose.x, pose.y), pose.yaw)
+        pts = vehicle_to_world_xy(self.cell_centres_v, (pose.x, pose.y), pose.yaw)
         corners = vehicle_to_world_xy(self._corners_v, (pose.x, pose.y), pose.yaw)
         view = corners.min(axis=0) - _VIEW_MARGIN_M, corners.max(axis=0) + _VIEW_MARGIN_M  # holds pts
         layers: dict[str, np.ndarray] = {}

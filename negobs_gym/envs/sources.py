@@ -82,13 +82,12 @@ class OracleSource(GridSource):
         if self.config.phantoms.enabled:
             # a child generator: the sensors' own stream (the hazards' detectors) stays as it was
             self.phantoms = Phantoms(self.config.phantoms, terrain.track, rng.spawn(1)[0])
-            self._cell_centres_v = self.config.grid.cell_centres().reshape(-1, 2)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         pose = self._vehicle.true_pose()
         layers = self.grid.layers(pose, self.config.channels)
         if self.phantoms is not None and "negative" in layers:
-            phantom = self.phantoms.layer(pose, self._cell_centres_v).reshape(layers["negative"].shape)
+            phantom = self.phantoms.layer(pose, self.grid.cell_centres_v).reshape(layers["negative"].shape)
             layers["negative"] = layers["negative"] | phantom
         return layers
 
