@@ -65,8 +65,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--vec-env",
         choices=VEC_ENVS,
         default=defaults.vec_env,
-        help="vector env with --envs > 1: SB3's subproc, or prefetch (spare processes reset the next "
-        "episodes beforehand; docs/performance.md) (default: %(default)s)",
+        help="vector env with --envs > 1: build_ahead (SB3's subproc whose idle workers build their "
+        "next episode's world), subproc, or prefetch (spare processes reset the next episodes "
+        "beforehand); docs/performance.md (default: %(default)s)",
     )
     parser.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default: 0)")
     parser.add_argument(

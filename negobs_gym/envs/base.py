@@ -186,7 +186,8 @@ class NegObsEnv(gym.Env):
         return self.scenario.sample(rng)
 
     def _acquire_world(self) -> CachedWorld:
-        """This episode's settled world: kept from an earlier episode on the same draw, or built.
+        """This episode's settled world: kept from an earlier episode on the same draw, held ahead
+        (:meth:`build_ahead`), or built.
 
         Without a terrain pool the key is the generator's state before the spec is drawn (after a
         hit the generator is moved on exactly as the draw would have); with
@@ -194,28 +195,65 @@ class NegObsEnv(gym.Env):
         seeded with ``k``), ``k`` drawn from the env's. Every episode starts from the settled
         state saved after the build, so a kept world gives the same episode bit for bit.
         """
-        pool = self.config.terrain_pool_size
-        if pool is None:
-            key, draw_rng = generator_key(self.np_random), self.np_random
-        else:
-            index = int(self.np_random.integers(pool))
-            key, draw_rng = f"pool-{index}", np.random.default_rng(index)
+        key, draw_rng = self._draw_key(self.np_random)
         entry = self._worlds.get(key)
         if entry is None:
-            spec = self.scenario
-            episode = self._sample_episode(draw_rng)
-            vehicle_config = VehicleConfig(
-                ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
-            )
-            settle_steps = max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s))
-            entry = build_world(episode, spec.physics, vehicle_config, settle_steps)
-            if pool is None:
-                entry.rng_state_after_draw = copy.deepcopy(self.np_random.bit_generator.state)
+            entry = self._build_world(draw_rng)
             self._worlds.put(key, entry)
-        elif pool is None:
+        elif self.config.terrain_pool_size is None:
             self.np_random.bit_generator.state = copy.deepcopy(entry.rng_state_after_draw)
         entry.restore()
         return entry
+
+    def world_cache_counts(self) -> dict[str, int]:
+        """The world cache's counters (:meth:`~negobs_gym.envs.world_cache.WorldCache.counts`): how
+        many resets found their world kept or built ahead, how many built it."""
+        return self._worlds.counts()
+
+    def _draw_key(self, rng: np.random.Generator) -> tuple[str, np.random.Generator]:
+        """The world key of the episode that ``rng`` draws next, and the generator that draws it."""
+        pool = self.config.terrain_pool_size
+        if pool is None:
+            return generator_key(rng), rng
+        index = int(rng.integers(pool))
+        return f"pool-{index}", np.random.default_rng(index)
+
+    def _build_world(self, draw_rng: np.random.Generator) -> CachedWorld:
+        """Draw the episode from ``draw_rng`` and build, settle and save its world."""
+        spec = self.scenario
+        episode = self._sample_episode(draw_rng)
+        vehicle_config = VehicleConfig(
+            ins_position_noise_m=spec.ins.position_noise_m, ins_angle_noise_deg=spec.ins.angle_noise_deg
+        )
+        settle_steps = max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s))
+        entry = build_world(episode, spec.physics, vehicle_config, settle_steps)
+        if self.config.terrain_pool_size is None:
+            entry.rng_state_after_draw = copy.deepcopy(draw_rng.bit_generator.state)
+        return entry
+
+    def build_ahead(self) -> bool:
+        """Build now the world that the next reset without a seed will use, with the grid source's
+        products of it (the ray caster), so that reset costs what a reset onto a kept world costs.
+
+        For idle time: a vector-env worker calls it while it waits
+        (:class:`~negobs_gym.envs.vector.BuildAheadVecEnv`). Nothing an episode shows changes:
+        the reset takes the world as it takes a kept one, the same episode bit for bit, and a reset
+        with a seed (another draw) closes it. Holds one more world in memory until then.
+
+        Returns:
+            Whether a world was built: False before the first reset (a seed will decide), or when
+            the next draw's world is already kept or held.
+        """
+        if self._entry is None:
+            return False
+        rng = copy.deepcopy(self.np_random)
+        key, draw_rng = self._draw_key(rng)
+        if key in self._worlds:
+            return False
+        entry = self._build_world(draw_rng)
+        self._grid_source.prepare(entry.world, entry.vehicle, entry.extras)
+        self._worlds.hold_ahead(key, entry)
+        return True
 
     def step(self, action):
         if self._vehicle is None:

@@ -39,13 +39,13 @@ from negobs_gym.detector.memory import PointHold
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
-from negobs_gym.sensors.raycast import make_caster
+from negobs_gym.sensors.raycast import RayCaster, make_caster
 from negobs_gym.sensors.rigs import LUX_FORWARD_M, Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
 from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
 
-__all__ = ["DetectorGrid", "env_rig"]
+__all__ = ["DetectorGrid", "env_rig", "world_products"]
 
 LUX_NAME = "lux"
 
@@ -88,6 +88,29 @@ def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
 HAZARD_CHANNELS = ("negative", "positive")
 
 
+def world_products(
+    config: ObservationConfig, world: World, vehicle: Vehicle, cache: dict | None = None
+) -> tuple[RayCaster, HeightEnvelope | None]:
+    """The ray caster of ``world`` and, for the ``roi`` rig, its height envelope: taken from
+    ``cache`` (one dict per world) or built into it."""
+    cache = {} if cache is None else cache
+    threads = cast_threads(config)
+    key = ("caster", config.raycast_backend, threads, config.raycast_isa)
+    if key not in cache:
+        cache[key] = make_caster(
+            world,
+            config.raycast_backend,
+            exclude_body_ids=(vehicle.body_id,),
+            threads=threads,
+            isa=config.raycast_isa,
+        )
+    if config.rig != "roi":
+        return cache[key], None
+    if "heights" not in cache:
+        cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
+    return cache[key], cache["heights"]
+
+
 class DetectorGrid:
     """Runs the rig and both detectors each control step; keeps the last frame for rendering."""
 
@@ -106,25 +129,12 @@ class DetectorGrid:
         self._vehicle = vehicle
         self._rng = rng
         self._noise = NoiseConfig(enabled=config.sensor_noise)
-        cache = {} if cache is None else cache
-        threads = cast_threads(config)
-        key = ("caster", config.raycast_backend, threads, config.raycast_isa)
-        if key not in cache:
-            cache[key] = make_caster(
-                world,
-                config.raycast_backend,
-                exclude_body_ids=(vehicle.body_id,),
-                threads=threads,
-                isa=config.raycast_isa,
-            )
-        self._caster = cache[key]
+        self._caster, heights = world_products(config, world, vehicle, cache)
         self._roi: RoiSelector | None = None
         self._roi_recent: list = []  # this episode's band sets: its casts depend on nothing else
-        if config.rig == "roi":
+        if heights is not None:
             self._roi = roi_selector(self.rig, RoiConfig(region_xy_m=config.grid.extent_xy_m))
-            if "heights" not in cache:
-                cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
-            self._heights = cache["heights"]
+            self._heights = heights
         fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"

@@ -21,7 +21,7 @@ from gymnasium import spaces
 
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels
-from negobs_gym.envs.perception import DetectorGrid
+from negobs_gym.envs.perception import DetectorGrid, world_products
 from negobs_gym.envs.phantoms import Phantoms
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
@@ -53,6 +53,11 @@ class GridSource(abc.ABC):
         """Begin an episode in ``world`` (called at every reset; ``rng`` is the sensors' generator;
         ``cache`` is a dict kept with ``world`` across episodes, for products of the world such as
         the ray caster)."""
+
+    def prepare(self, world: World, vehicle: Vehicle, cache: dict) -> None:
+        """Build into ``cache`` the products of ``world`` that :meth:`start` will take from it, ahead
+        of the episode (:meth:`~negobs_gym.envs.base.NegObsEnv.build_ahead`); none by default."""
+        return
 
     @abc.abstractmethod
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
@@ -109,6 +114,9 @@ class DetectorSource(GridSource):
         cache: dict | None = None,
     ) -> None:
         self.perception = DetectorGrid(self.config, world, vehicle, rng, cache=cache)
+
+    def prepare(self, world: World, vehicle: Vehicle, cache: dict) -> None:
+        world_products(self.config, world, vehicle, cache)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         return self.perception.observe(timestamp_s)

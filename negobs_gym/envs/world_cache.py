@@ -9,6 +9,11 @@ settling, the PyBullet state is saved (``saveState``); every episode on that wor
 included, starts from ``restoreState``, so a kept world gives the same episode bit for bit as a
 fresh one.
 
+One more world may be held *ahead* (:meth:`WorldCache.hold_ahead`): the one the next reset will
+draw, built while the process has nothing else to do (a vector-env worker waiting for the others
+or for a policy update, :class:`~negobs_gym.envs.vector.BuildAheadVecEnv`). The reset that draws
+its key takes it like a kept world; any other reset closes it.
+
 A world dropped from the cache frees its PyBullet and Embree memory into the C heap, where glibc
 keeps most of it; :func:`release_freed_memory` hands it back to the OS, so a long run of resets
 onto new terrains holds one world's memory, not the high-water mark of all the worlds it built.
@@ -97,20 +102,39 @@ class CachedWorld:
 
 
 class WorldCache:
-    """At most ``max_worlds`` settled worlds, least recently used dropped (and closed) first."""
+    """At most ``max_worlds`` settled worlds, least recently used dropped (and closed) first, and
+    at most one world held ahead of the reset that will draw it."""
 
     def __init__(self, max_worlds: int) -> None:
         self.max_worlds = max_worlds
         self._worlds: OrderedDict[str, CachedWorld] = OrderedDict()
+        self._ahead: tuple[str, CachedWorld] | None = None
         self.hits = 0
         self.misses = 0
         self.evictions = 0  # worlds dropped and closed so far
+        self.ahead_hits = 0  # gets answered by the world held ahead (counted in hits too)
 
     def __len__(self) -> int:
         return len(self._worlds)
 
+    def __contains__(self, key: str) -> bool:
+        return key in self._worlds or (self._ahead is not None and self._ahead[0] == key)
+
     def get(self, key: str) -> CachedWorld | None:
-        """The world under ``key`` (now most recently used), or None."""
+        """The world under ``key`` (now most recently used), or None.
+
+        The world held ahead under ``key`` joins the kept worlds here (closing the least recently
+        used beyond ``max_worlds``); held under another key, it can no longer be drawn and is closed.
+        """
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == key:
+            self.hits += 1
+            self.ahead_hits += 1
+            self.put(key, ahead[1])
+            return ahead[1]
+        if ahead is not None:
+            ahead[1].close()
+            self.evictions += 1
         entry = self._worlds.get(key)
         if entry is None:
             self.misses += 1
@@ -118,6 +142,25 @@ class WorldCache:
         self.hits += 1
         self._worlds.move_to_end(key)
         return entry
+
+    def counts(self) -> dict[str, int]:
+        """Kept worlds, hits (``ahead_hits`` of them on the world held ahead), misses, evictions."""
+        return {
+            "kept": len(self._worlds),
+            "held_ahead": int(self._ahead is not None),
+            "hits": self.hits,
+            "ahead_hits": self.ahead_hits,
+            "misses": self.misses,
+            "evictions": self.evictions,
+        }
+
+    def hold_ahead(self, key: str, entry: CachedWorld) -> None:
+        """Keep ``entry`` for the reset that will ask for ``key`` (replacing, and closing, any
+        world held ahead before)."""
+        if self._ahead is not None:
+            self._ahead[1].close()
+            self.evictions += 1
+        self._ahead = (key, entry)
 
     def put(self, key: str, entry: CachedWorld) -> None:
         """Add ``entry`` as the most recently used; closes the least recently used beyond the limit.
@@ -133,10 +176,13 @@ class WorldCache:
             self.evictions += 1
 
     def close(self) -> None:
-        """Close every kept world."""
+        """Close every kept world and the one held ahead."""
         for entry in self._worlds.values():
             entry.close()
         self._worlds.clear()
+        if self._ahead is not None:
+            self._ahead[1].close()
+            self._ahead = None
 
 
 def build_world(

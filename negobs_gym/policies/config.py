@@ -28,7 +28,7 @@ ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
 #: ``state`` drops the grid; the env then runs the oracle grid, the cheapest, whose output is unused.
 SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
-VEC_ENVS: tuple[str, ...] = ("subproc", "prefetch")
+VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
 DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner")
 #: Column of the steering command in an env action (throttle/brake, steering).
@@ -269,12 +269,15 @@ class TrainConfig:
             cells (:class:`~negobs_gym.safety.SafetyFilterConfig`).
         steps: Total env steps (over all envs).
         envs: Parallel envs (processes when > 1, see ``vec_env``).
-        vec_env: With ``envs`` > 1: ``"subproc"`` (SB3's ``SubprocVecEnv``: a finished episode
-            resets inside the lockstep while the other envs wait) or ``"prefetch"``
-            (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process per env resets the
-            next episode beforehand; pays off with short episodes and many envs, see
-            docs/performance.md, "Where the 2-process run loses"; twice the processes and
-            memory). The two draw different episode streams from the same seed.
+        vec_env: With ``envs`` > 1: ``"build_ahead"``
+            (:class:`~negobs_gym.envs.build_ahead.BuildAheadVecEnv`: SB3's ``SubprocVecEnv`` whose
+            workers, while they wait for a policy update or another env's reset, build the world
+            of their next episode, so most resets skip the build; one more world in memory per
+            env), ``"subproc"`` (SB3's ``SubprocVecEnv``: a finished episode builds its next world
+            inside the lockstep while the other envs wait; the same episodes as ``build_ahead``)
+            or ``"prefetch"`` (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process
+            per env resets the next episode beforehand; twice the processes and memory; another
+            episode stream from the same seed). Rates: docs/performance.md, "Vector envs".
         seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
         eval_every: Env steps between evaluations (0: only at the end).
         eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
@@ -321,7 +324,7 @@ class TrainConfig:
     stop_for_positive: bool = False
     steps: int = 100_000
     envs: int = 1
-    vec_env: str = "subproc"
+    vec_env: str = "build_ahead"
     seed: int = 0
     eval_every: int = 10_000
     eval_episodes: int = 5

@@ -148,6 +148,10 @@ def _vec_env(config: TrainConfig):
         from negobs_gym.envs.vector import PrefetchVecEnv
 
         vec_cls = PrefetchVecEnv
+    elif config.vec_env == "build_ahead":
+        from negobs_gym.envs.build_ahead import BuildAheadVecEnv
+
+        vec_cls = BuildAheadVecEnv
     else:
         vec_cls = SubprocVecEnv
     venv = VecMonitor(vec_cls([thunk] * config.envs))

@@ -36,6 +36,24 @@ def test_cache_closes_the_least_recently_used_world_beyond_its_limit():
     assert a.closed and c.closed and len(cache) == 0
 
 
+def test_a_world_held_ahead_joins_the_kept_ones_on_its_key_and_is_closed_on_any_other():
+    cache = WorldCache(1)
+    kept, ahead, stale, later = _FakeWorld(), _FakeWorld(), _FakeWorld(), _FakeWorld()
+    cache.put("kept", kept)
+    cache.hold_ahead("stale", stale)
+    cache.hold_ahead("next", ahead)  # replaces the one held before
+    assert stale.closed and "next" in cache and len(cache) == 1
+    assert cache.get("next") is ahead  # kept now, the older world dropped beyond the limit
+    assert kept.closed and not ahead.closed and len(cache) == 1
+    cache.hold_ahead("unused", later)
+    assert cache.get("next") is ahead and later.closed  # another draw: the held world is gone
+    counts = cache.counts()
+    assert counts == {"kept": 1, "held_ahead": 0, "hits": 2, "ahead_hits": 1, "misses": 0, "evictions": 3}
+    cache.hold_ahead("x", _FakeWorld())
+    cache.close()
+    assert ahead.closed and cache.counts()["held_ahead"] == 0
+
+
 def test_a_reset_onto_a_new_terrain_closes_the_last_episodes_world():
     env = gym.make("negobs_gym/OffroadNav-v0")
     base = env.unwrapped

@@ -8,6 +8,7 @@ import shutil
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from negobs_gym.errors import ConfigError
@@ -237,6 +238,21 @@ def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
 def test_two_envs_run_in_subprocesses(tmp_path: Path, vec_env: str) -> None:
     result = train(dataclasses.replace(SHORT_PPO, envs=2, n_steps=32, vec_env=vec_env), tmp_path)
     assert result.steps == 128 and result.model_path.is_file()
+
+
+@pytest.mark.slow
+def test_build_ahead_trains_the_weights_subproc_trains(tmp_path: Path) -> None:
+    """The workers' worlds built ahead change where the time goes, not one bit of the run."""
+    import stable_baselines3
+
+    weights = []
+    for vec_env in ("subproc", "build_ahead"):
+        # 128 steps per env: Braking-v1's episodes end within ~50, so most resets come after an update
+        config = dataclasses.replace(SHORT_PPO, steps=256, envs=2, n_steps=32, vec_env=vec_env)
+        result = train(config, tmp_path / vec_env)
+        model = stable_baselines3.PPO.load(result.model_path, device="cpu")
+        weights.append([p.detach().numpy() for p in model.policy.parameters()])
+    assert all(np.array_equal(a, b) for a, b in zip(*weights, strict=True))
 
 
 def test_tensorboard_only_when_installed(monkeypatch) -> None:
