@@ -31,10 +31,16 @@ def pose_from_matrix(position: np.ndarray, rotation: np.ndarray) -> Pose:
     """The :class:`Pose` of a vehicle-to-world ``rotation`` (3x3) at ``position``: the inverse of
     :func:`rotation_from_rpy`'s ``Rz(yaw) Rx(pitch) Ry(roll)``."""
     r = np.asarray(rotation, dtype=np.float64)
-    pitch = math.asin(min(1.0, max(-1.0, float(r[2, 1]))))  # clipped: rounding can pass +-1
-    roll = math.atan2(-r[2, 0], r[2, 2])
+    roll, pitch = roll_pitch_from_bottom_row(r[2, 0], r[2, 1], r[2, 2])
     yaw = math.atan2(-r[0, 1], r[1, 1])
     return Pose(float(position[0]), float(position[1]), float(position[2]), roll, pitch, yaw)
+
+
+def roll_pitch_from_bottom_row(r20: float, r21: float, r22: float) -> tuple[float, float]:
+    """Roll and pitch [rad] of a vehicle-to-world rotation (as :func:`pose_from_matrix` reads them)
+    from its bottom row alone: what a tilt check needs, without building a :class:`Pose`."""
+    pitch = math.asin(min(1.0, max(-1.0, float(r21))))  # clipped: rounding can pass +-1
+    return math.atan2(-r20, r22), pitch
 
 
 @dataclass(frozen=True)

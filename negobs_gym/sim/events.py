@@ -157,13 +157,10 @@ class EventMonitor:
                 hits = self._neg_ids[near[inside]].tolist()
                 self._entered.update(hits)
                 self.entered_ids.update(hits)
-        if self._body_to_obstacle:
-            for contact in p.getContactPoints(bodyA=veh.body_id, physicsClientId=c):
-                oid = self._body_to_obstacle.get(contact[2])
-                if oid is not None:
-                    self._collided.add(oid)
-        pose = veh.true_pose()
-        tilt_deg = math.degrees(max(abs(pose.roll), abs(pose.pitch)))
+        for body, oid in self._body_to_obstacle.items():  # not every contact: the wheels' are most
+            if p.getContactPoints(bodyA=veh.body_id, bodyB=body, physicsClientId=c):
+                self._collided.add(oid)
+        tilt_deg = math.degrees(veh.tilt_rad())
         if tilt_deg > cfg.rollover_tilt_deg:
             self._rollover = True
         throttle = veh.command[0]

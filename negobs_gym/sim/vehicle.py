@@ -21,7 +21,7 @@ import numpy as np
 import pybullet as p
 
 from negobs_gym.core.geometry import heading_axes
-from negobs_gym.core.pose import Pose, pose_from_matrix
+from negobs_gym.core.pose import Pose, pose_from_matrix, roll_pitch_from_bottom_row
 from negobs_gym.errors import ActionError, ConfigError, require
 from negobs_gym.sim.world import World
 
@@ -411,6 +411,14 @@ class Vehicle:
         """Exact pose of the vehicle frame (rear-axle centre on the ground) in the world frame."""
         com, rot = self._base()
         return pose_from_matrix(com - rot @ self._com_offset, rot)
+
+    def tilt_rad(self) -> float:
+        """The chassis's larger tilt, max(|roll|, |pitch|) [rad] of :meth:`true_pose`, read without
+        building the pose (the event checks ask at every physics sub-step)."""
+        _, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self.world.client_id)
+        r = p.getMatrixFromQuaternion(orn)
+        roll, pitch = roll_pitch_from_bottom_row(r[6], r[7], r[8])
+        return max(abs(roll), abs(pitch))
 
     def pose(self) -> Pose:
         """The INS pose: :meth:`true_pose` plus Gaussian noise when the config asks for it."""

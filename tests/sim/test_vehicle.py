@@ -161,3 +161,22 @@ def test_ackermann_inner_wheel_turns_more():
         assert left > math.radians(35) > right > 0
         cot_mean = 0.5 * (1 / math.tan(left) + 1 / math.tan(right))
         assert math.atan(1 / cot_mean) == pytest.approx(math.radians(35))
+
+
+def test_tilt_is_the_larger_of_the_true_poses_roll_and_pitch_bit_for_bit():
+    import pybullet as p
+
+    with World(flat_terrain(20, 8)) as world:
+        vehicle = Vehicle(world)
+        vehicle.reset(Pose(0.0, 5.0, 0.0, yaw=0.3))
+        c = world.client_id
+        x, y, z = p.getBasePositionAndOrientation(vehicle.body_id, physicsClientId=c)[0]
+        tilted = p.getQuaternionFromEuler([0.25, -0.15, 0.3])
+        p.resetBasePositionAndOrientation(vehicle.body_id, [x, y, z + 0.5], tilted, physicsClientId=c)
+        tilts = []
+        for _ in range(60):
+            world.step(4)
+            pose = vehicle.true_pose()
+            tilts.append(vehicle.tilt_rad())
+            assert tilts[-1] == max(abs(pose.roll), abs(pose.pitch))
+        assert tilts[0] > 0.1 > 0.05 > tilts[-1]  # dropped tilted, settled on the flat ground
