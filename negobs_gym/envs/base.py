@@ -236,7 +236,7 @@ class NegObsEnv(gym.Env):
         products of it (the ray caster), so that reset costs what a reset onto a kept world costs.
 
         For idle time: a vector-env worker calls it while it waits
-        (:class:`~negobs_gym.envs.vector.BuildAheadVecEnv`). Nothing an episode shows changes:
+        (:class:`~negobs_gym.envs.build_ahead.BuildAheadVecEnv`). Nothing an episode shows changes:
         the reset takes the world as it takes a kept one, the same episode bit for bit, and a reset
         with a seed (another draw) closes it. Holds one more world in memory until then.
 

@@ -11,7 +11,7 @@ fresh one.
 
 One more world may be held *ahead* (:meth:`WorldCache.hold_ahead`): the one the next reset will
 draw, built while the process has nothing else to do (a vector-env worker waiting for the others
-or for a policy update, :class:`~negobs_gym.envs.vector.BuildAheadVecEnv`). The reset that draws
+or for a policy update, :class:`~negobs_gym.envs.build_ahead.BuildAheadVecEnv`). The reset that draws
 its key takes it like a kept world; any other reset closes it.
 
 A world dropped from the cache frees its PyBullet and Embree memory into the C heap, where glibc
