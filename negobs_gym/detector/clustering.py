@@ -22,7 +22,6 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
-from sklearn.cluster import DBSCAN
 
 from negobs_gym.detector.pairs import close_pairs_within, range_scale
 from negobs_gym.errors import require
@@ -153,6 +152,8 @@ def _sklearn_labels(
     i: np.ndarray, j: np.ndarray, d: np.ndarray, weights: np.ndarray, config: ClusteringConfig
 ) -> np.ndarray:
     """scikit-learn's DBSCAN on the precomputed graph of the edges (i, j, d), d <= eps."""
+    from sklearn.cluster import DBSCAN  # here: scikit-learn (with scipy.stats) takes ~1.2 s to import
+
     n = len(weights)
     d = np.maximum(d, _TINY)
     graph = _csr(i, j, d, _row_value_order(i, d, j), n)

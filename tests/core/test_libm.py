@@ -46,3 +46,18 @@ def test_shapes_and_numpy_domain_rules():
     with pytest.warns(RuntimeWarning, match="divide by zero"):
         assert libm.log2(np.array([0.0]))[0] == -np.inf
     assert libm.exp(np.array([np.nan]))[0] != libm.exp(np.array([np.nan]))[0]  # NaN stays NaN
+
+
+def test_a_kernel_is_built_on_first_use_only() -> None:
+    """Importing the module builds none of the six (each costs ~0.1 s from numba's cache)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import negobs_gym.core.libm as m, numpy as np\n"
+        "assert not {'exp', 'arctan2'} & set(vars(m))\n"
+        "assert m.exp(np.array([0.0]))[0] == 1.0 and 'exp' in vars(m) and 'arctan2' not in vars(m)\n"
+        "assert 'arctan2' in dir(m)\n"
+        "try:\n    m.cos\nexcept AttributeError:\n    pass\nelse:\n    raise SystemExit('no error')\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
