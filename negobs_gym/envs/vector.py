@@ -7,7 +7,9 @@ speed) every other worker waits: with ~100-step episodes that is about a fifth o
 (docs/performance.md, "Where the 2-process run loses"). :class:`PrefetchVecEnv` runs two processes
 per slot. One steps the current episode; the other has already reset the next one, so a finished
 episode is replaced at once and the process that ran it starts resetting the episode after, beside
-the others' steps.
+the others' steps. (:class:`~negobs_gym.envs.build_ahead.BuildAheadVecEnv`, ``negobs train``'s
+default, keeps one process per env and SB3's episodes, and builds a worker's next world while the
+worker waits.)
 
 Episodes are seeded explicitly so that the spare can start early: episode ``k`` of slot ``i`` is
 reset with :func:`episode_seed` ``(base, i, k)``, ``base`` from :meth:`PrefetchVecEnv.seed`. A
