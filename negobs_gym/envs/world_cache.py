@@ -126,15 +126,13 @@ class WorldCache:
         The world held ahead under ``key`` joins the kept worlds here (closing the least recently
         used beyond ``max_worlds``); held under another key, it can no longer be drawn and is closed.
         """
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead[0] == key:
+        if self._ahead is not None and self._ahead[0] == key:
+            ahead, self._ahead = self._ahead[1], None
             self.hits += 1
             self.ahead_hits += 1
-            self.put(key, ahead[1])
-            return ahead[1]
-        if ahead is not None:
-            ahead[1].close()
-            self.evictions += 1
+            self.put(key, ahead)
+            return ahead
+        self._drop_ahead()
         entry = self._worlds.get(key)
         if entry is None:
             self.misses += 1
@@ -157,10 +155,15 @@ class WorldCache:
     def hold_ahead(self, key: str, entry: CachedWorld) -> None:
         """Keep ``entry`` for the reset that will ask for ``key`` (replacing, and closing, any
         world held ahead before)."""
+        self._drop_ahead()
+        self._ahead = (key, entry)
+
+    def _drop_ahead(self) -> None:
+        """Close the world held ahead, if any."""
         if self._ahead is not None:
             self._ahead[1].close()
+            self._ahead = None
             self.evictions += 1
-        self._ahead = (key, entry)
 
     def put(self, key: str, entry: CachedWorld) -> None:
         """Add ``entry`` as the most recently used; closes the least recently used beyond the limit.
@@ -180,9 +183,7 @@ class WorldCache:
         for entry in self._worlds.values():
             entry.close()
         self._worlds.clear()
-        if self._ahead is not None:
-            self._ahead[1].close()
-            self._ahead = None
+        self._drop_ahead()
 
 
 def build_world(
