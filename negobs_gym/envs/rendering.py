@@ -9,9 +9,10 @@ A frame has two panels side by side, both ``RenderConfig.height_px`` tall:
   last frame's LiDAR returns (sub-sampled, coloured by height in the vehicle frame), the
   detector's negative-obstacle outlines (yellow), the ground-truth outlines (white), the vehicle
   footprint, and the safety filter's state: a border (green = action passed, red = vetoed, grey =
-  no filter decision for this step) and two marks across the corridor ahead, the hazard distance d
-  (orange) and the braking distance R(v) (cyan), both measured from the rear axle as the filter
-  measures them, at decision time, and drawn straight ahead.
+  no filter decision for this step), the sides of the corridor it searched (grey, along the
+  proposed steering's arc) and two marks across that corridor, the hazard distance d (orange) and
+  the braking distance R(v) (cyan), each where the filter's arc length puts it, in the vehicle
+  frame at decision time.
 
 The frame shape depends only on the config and the observation grid's extent, so it is constant
 over an episode (``gymnasium.wrappers.RecordVideo`` needs that).
@@ -33,6 +34,7 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.errors import require
+from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.sim.render import render_top_down
 from negobs_gym.sim.types import Terrain
@@ -52,6 +54,7 @@ DETECTED_OUTLINE: Colour = (255, 230, 0)
 TRUTH_OUTLINE: Colour = (255, 255, 255)
 HAZARD_MARK: Colour = (255, 90, 0)
 BRAKING_MARK: Colour = (0, 220, 255)
+CORRIDOR: Colour = (170, 170, 170)
 BORDER_PASS: Colour = (0, 200, 0)
 BORDER_VETO: Colour = (230, 0, 0)
 BORDER_NONE: Colour = (110, 110, 110)
@@ -215,11 +218,6 @@ def _polyline(
     _stamp(img, np.interp(t, s, rows), np.interp(t, s, cols), colour, size)
 
 
-def _hline(img: np.ndarray, row: float, col0: float, col1: float, colour: Colour, size: int) -> None:
-    cols = np.arange(math.floor(col0), math.ceil(col1) + 1)
-    _stamp(img, np.full(cols.shape, row), cols, colour, size)
-
-
 def _height_colours(z_m: np.ndarray, z_range_m: tuple[float, float]) -> np.ndarray:
     """(N, 3) uint8 colours of the three-stop height ramp."""
     lo, hi = z_range_m
@@ -313,7 +311,8 @@ def _local(
     for outline in detected_outlines_m:
         _polyline(img, *to_px(outline), DETECTED_OUTLINE, closed=True, size=2)
     _polyline(img, *to_px(footprint.corners_vehicle_m()), VEHICLE, closed=True, size=2)
-    _draw_safety(img, safety, footprint, to_px, config)
+    reach_m = math.hypot(spec.ahead_m, spec.side_m)  # any arc this long leaves the panel
+    _draw_safety(img, safety, footprint, reach_m, to_px, config)
     return img
 
 
@@ -321,20 +320,30 @@ def _draw_safety(
     img: np.ndarray,
     safety: SafetyDecision | None,
     footprint: VehicleFootprint,
+    reach_m: float,
     to_px: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     config: RenderConfig,
 ) -> None:
-    """Border by the filter's decision and the d / R(v) marks ahead of the vehicle."""
+    """Border by the filter's decision; the corridor it searched and the d / R(v) marks across it."""
     b = config.border_px
     if safety is None:
         colour = BORDER_NONE
     else:
         colour = BORDER_VETO if safety.vetoed else BORDER_PASS
-        half = 0.5 * footprint.width_m + 0.5
+        corridor = safety.corridor
+        if corridor is None:  # a decision made without one: straight ahead, a little wider than the car
+            corridor = Corridor(steer_rad=0.0, wheelbase_m=1.0, half_width_m=0.5 * footprint.width_m + 0.5)
+        for side in corridor.sides_xy_m(reach_m):
+            _polyline(img, *to_px(side), CORRIDOR, closed=False, size=1)
         for d, mark in ((safety.hazard_distance_m, HAZARD_MARK), (safety.braking_distance_m, BRAKING_MARK)):
             if math.isfinite(d) and d >= 0:
-                rows, cols = to_px(np.array([[-half, d], [half, d]]))
-                _hline(img, rows[0], cols[0], cols[1], mark, config.mark_thickness_px)
+                _polyline(
+                    img,
+                    *to_px(corridor.reached_at_xy_m(d)),
+                    mark,
+                    closed=False,
+                    size=config.mark_thickness_px,
+                )
     img[:b] = colour
     img[-b:] = colour
     img[:, :b] = colour
@@ -365,8 +374,10 @@ def render_frame(
         points_vehicle_m: (N, 3) vehicle-frame LiDAR returns of the last frame; non-finite rows
             are skipped, more than ``config.max_points`` are evenly strided.
         detected_outlines_m: vehicle-frame (k, 2) outlines of the detected negative obstacles.
-        safety: the safety filter's decision for this step (border by ``vetoed``, marks at
-            ``hazard_distance_m`` and ``braking_distance_m``) or None when no filter decided.
+        safety: the safety filter's decision for this step (border by ``vetoed``, its
+            ``corridor`` drawn, marks across it at ``hazard_distance_m`` and
+            ``braking_distance_m``; straight ahead when it has no corridor) or None when no
+            filter decided.
         footprint: vehicle outline; default 2.0 x 4.5 m with 0.85 m rear overhang.
         config: layout, see :class:`RenderConfig`.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -59,3 +60,68 @@ def hazard_distance_m(
     entry = libm.arctan2(np.sqrt(beyond), np.full_like(beyond, outer))  # the outer side meets r here
     theta = np.where(theta >= entry - ENTRY_TOLERANCE_RAD, theta, theta + 2.0 * np.pi)
     return float(radius * np.min(theta))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Corridor:
+    """The corridor :func:`hazard_distance_m` searches, as a value: the filter's decision carries it
+    (:class:`~negobs_gym.safety.SafetyDecision`), so a frame can draw where the filter looked.
+
+    Attributes:
+        steer_rad: Steering angle of the proposed action (> 0 turns left, towards -X).
+        wheelbase_m: Kinematic-bicycle wheelbase.
+        half_width_m: Half the swept width (body plus the filter's margin).
+        front_length_m: Rear axle to front bumper.
+    """
+
+    steer_rad: float
+    wheelbase_m: float
+    half_width_m: float
+    front_length_m: float = 0.0
+
+    def hazard_distance_m(self, points_xy_m: np.ndarray) -> float:
+        """Arc length to the nearest of ``points_xy_m`` in the corridor (:func:`hazard_distance_m`)."""
+        return hazard_distance_m(
+            points_xy_m, self.steer_rad, self.wheelbase_m, self.half_width_m, self.front_length_m
+        )
+
+    @property
+    def _turn(self) -> tuple[float, float]:
+        """(radius of the rear-axle circle, +1 left / -1 right); radius inf on a straight path."""
+        kappa = math.tan(self.steer_rad) / self.wheelbase_m
+        if abs(kappa) < STRAIGHT_CURVATURE_PER_M:
+            return math.inf, 1.0
+        return 1.0 / abs(kappa), math.copysign(1.0, kappa)
+
+    def reached_at_xy_m(self, arc_m: float) -> np.ndarray:
+        """(2, 2) ends of the segment of corridor points :func:`hazard_distance_m` puts at ``arc_m``.
+
+        Straight: across the path at ``y = arc_m``. In a turn: along the radius at the angle
+        ``arc_m / R``, from the inner side to the outer front corner's circle, cut where that
+        circle's points are not yet reached (the front of the car sweeps them a little later).
+        """
+        radius, side = self._turn
+        h = self.half_width_m
+        if math.isinf(radius):
+            return np.array([[-h, arc_m], [h, arc_m]])
+        theta = arc_m / radius
+        outer = radius + h
+        r_far = math.hypot(outer, self.front_length_m)
+        if theta < math.atan2(self.front_length_m, outer):  # points beyond r = outer / cos(theta) enter later
+            r_far = min(r_far, outer / math.cos(theta))
+        r = np.array([radius - h, r_far])
+        return np.column_stack([side * (r * math.cos(theta) - radius), r * math.sin(theta)])
+
+    def sides_xy_m(self, length_m: float, samples: int = 64) -> np.ndarray:
+        """(2, samples, 2) inner and outer side of the rear-axle band over arc lengths 0..``length_m``
+        (left then right side on a straight path)."""
+        s = np.linspace(0.0, length_m, samples)
+        radius, side = self._turn
+        if math.isinf(radius):
+            xs = np.array([-self.half_width_m, self.half_width_m])
+            return np.stack([np.column_stack([np.full_like(s, x), s]) for x in xs])
+        theta = s / radius
+        rows = []
+        for r in (radius - self.half_width_m, radius + self.half_width_m):
+            rows.append(np.column_stack([side * (r * np.cos(theta) - radius), r * np.sin(theta)]))
+        return np.stack(rows)

@@ -7,6 +7,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from negobs_gym.safety.corridor import Corridor
+
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class SafetyDecision:
@@ -24,6 +26,8 @@ class SafetyDecision:
             filter braked whatever the distance.
         hazard_channel: Which grid channel the nearest hazard came from: ``"negative"``,
             ``"positive"`` (only with ``stop_for_positive``), or None when the corridor is clear.
+        corridor: Where the filter looked for hazards (the proposed steering's swept corridor, in
+            the vehicle frame at decision time); None in a decision made without one.
     """
 
     vetoed: bool
@@ -35,6 +39,7 @@ class SafetyDecision:
     perception_age_s: float
     perception_stale: bool
     hazard_channel: Literal["negative", "positive"] | None = None
+    corridor: Corridor | None = None
 
     @property
     def cost(self) -> float:

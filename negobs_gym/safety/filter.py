@@ -11,7 +11,7 @@ import numpy as np
 
 from negobs_gym.errors import ActionError, ConfigError, InterfaceError, require
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
-from negobs_gym.safety.corridor import hazard_distance_m
+from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
@@ -210,14 +210,16 @@ class BrakingSafetyFilter(gym.Wrapper):
         if not np.all(np.isfinite(original)):
             raise ActionError(f"action must be finite, got {original.tolist()}")
         state = self._hazard_state()
-        steer = float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad
-        half_width = 0.5 * (state.vehicle_width_m + self.config.margin_m)
-        corridor = (steer, state.wheelbase_m, half_width, state.front_length_m)
-        d = hazard_distance_m(state.negative_obstacles_xy_m, *corridor)
+        corridor = Corridor(
+            steer_rad=float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad,
+            wheelbase_m=state.wheelbase_m,
+            half_width_m=0.5 * (state.vehicle_width_m + self.config.margin_m),
+            front_length_m=state.front_length_m,
+        )
+        d = corridor.hazard_distance_m(state.negative_obstacles_xy_m)
         channel = "negative" if np.isfinite(d) else None
         if self.config.stop_for_positive:
-            positive = state.positive_obstacles_xy_m
-            d_positive = hazard_distance_m(positive, *corridor)
+            d_positive = corridor.hazard_distance_m(state.positive_obstacles_xy_m)
             if d_positive < d:
                 d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))
@@ -250,6 +252,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             perception_age_s=age,
             perception_stale=stale,
             hazard_channel=channel,
+            corridor=corridor,
         )
         return (action if not vetoed else applied), decision
 

@@ -14,7 +14,7 @@ from negobs_gym.envs import rendering
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.envs.rendering import RenderConfig, frame_shape, render_frame
 from negobs_gym.errors import ConfigError
-from negobs_gym.safety import BrakingSafetyFilter, SafetyDecision
+from negobs_gym.safety import BrakingSafetyFilter, Corridor, SafetyDecision
 from negobs_gym.sim import presets
 
 OBS = ObservationConfig()
@@ -25,7 +25,9 @@ def terrain():
     return presets.braking_track(ditch_distance_m=20.0, seed=0, rough=False)
 
 
-def _decision(vetoed: bool, hazard_distance_m: float, braking_distance_m: float) -> SafetyDecision:
+def _decision(
+    vetoed: bool, hazard_distance_m: float, braking_distance_m: float, corridor: Corridor | None = None
+) -> SafetyDecision:
     action = np.zeros(2, np.float32)
     return SafetyDecision(
         vetoed=vetoed,
@@ -36,6 +38,7 @@ def _decision(vetoed: bool, hazard_distance_m: float, braking_distance_m: float)
         applied_action=action,
         perception_age_s=0.0,
         perception_stale=False,
+        corridor=corridor,
     )
 
 
@@ -85,6 +88,19 @@ def test_hazard_and_braking_marks_are_drawn_at_their_distances(terrain) -> None:
         assert not np.array_equal(frame[_local_px(0.0, d + 1.5)], colour)
     clear = _local(_frame(terrain, safety=_decision(False, np.inf, 6.0)))
     assert not np.any(np.all(clear == rendering.HAZARD_MARK, axis=-1))  # no hazard: no d mark
+
+
+def test_in_a_turn_the_marks_and_corridor_follow_the_arc(terrain) -> None:
+    corridor = Corridor(steer_rad=0.15, wheelbase_m=2.8, half_width_m=1.2, front_length_m=3.65)
+    frame = _local(_frame(terrain, safety=_decision(True, 12.0, 9.0, corridor)))
+    for d, colour in ((12.0, rendering.HAZARD_MARK), (9.0, rendering.BRAKING_MARK)):
+        x, y = corridor.reached_at_xy_m(d).mean(axis=0)
+        assert x < -1.5  # bent well to the left of straight ahead
+        assert np.array_equal(frame[_local_px(x, y)], colour)
+        assert not np.array_equal(frame[_local_px(0.0, d)], colour)  # not drawn straight ahead
+    inner, outer = corridor.sides_xy_m(10.0, samples=5)
+    for x, y in (inner[2], outer[3]):
+        assert np.array_equal(frame[_local_px(x, y)], rendering.CORRIDOR)
 
 
 def test_lidar_points_appear_where_the_returns_are(terrain) -> None:

@@ -1,6 +1,7 @@
 import numpy as np
+import pytest
 
-from negobs_gym.safety import hazard_distance_m
+from negobs_gym.safety import Corridor, hazard_distance_m
 
 
 def test_straight():
@@ -77,3 +78,52 @@ def test_a_point_on_the_outer_side_at_its_entry_angle_is_reached_now():
     radius = wheelbase / np.tan(steer)
     d = hazard_distance_m(np.array([[1.1, 1.125]]), steer, wheelbase, half_width, front)
     assert np.isclose(d, radius * np.arctan2(1.125, radius + 1.1))  # reached at once, not a turn later
+
+
+CAR = {"wheelbase_m": 2.8, "half_width_m": 1.1, "front_length_m": 3.65}
+
+
+@pytest.mark.parametrize("steer", [0.0, 0.15, -0.15, 0.6, -0.6])
+@pytest.mark.parametrize("arc_m", [0.5, 2.0, 7.5, 14.0])
+def test_the_drawn_cross_section_is_where_the_filter_puts_arc_m(steer, arc_m):
+    corridor = Corridor(steer_rad=steer, **CAR)
+    ends = corridor.reached_at_xy_m(arc_m)
+    t = np.linspace(0.02, 0.98, 25)[:, None]
+    inside = ends[0] + t * (ends[1] - ends[0])
+    for p in inside:
+        assert corridor.hazard_distance_m(p) == pytest.approx(arc_m, rel=1e-9, abs=1e-9)
+    # past the far end: outside the corridor, or reached only later (the front sweeps it after)
+    beyond = ends[1] + 0.05 * (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
+    assert corridor.hazard_distance_m(beyond) > arc_m + 1e-6
+
+
+def test_the_cross_section_is_cut_where_the_front_has_not_yet_swept():
+    corridor = Corridor(steer_rad=0.6, **CAR)
+    radius = CAR["wheelbase_m"] / np.tan(0.6)
+    ends = corridor.reached_at_xy_m(1.0)  # 1 m of arc: the outer front corner's circle not yet reached
+    r_far = np.hypot(ends[1, 0] + radius, ends[1, 1])
+    assert (
+        radius + CAR["half_width_m"] < r_far < np.hypot(radius + CAR["half_width_m"], CAR["front_length_m"])
+    )
+    far = corridor.reached_at_xy_m(10.0)
+    assert np.hypot(far[1, 0] + radius, far[1, 1]) == pytest.approx(
+        np.hypot(radius + CAR["half_width_m"], CAR["front_length_m"])
+    )
+
+
+@pytest.mark.parametrize("steer", [0.0, 0.3, -0.3])
+def test_the_sides_bound_the_rear_axle_band(steer):
+    corridor = Corridor(steer_rad=steer, **CAR)
+    inner, outer = corridor.sides_xy_m(12.0, samples=40)
+    arc = np.linspace(0.0, 12.0, 40)
+    midpoint = 0.5 * (inner + outer)  # the rear axle's path: in the corridor at its arc length
+    got = [corridor.hazard_distance_m(p) for p in midpoint[1:]]
+    assert np.allclose(got, arc[1:], rtol=1e-9, atol=1e-9)
+    assert np.allclose(np.linalg.norm(outer - inner, axis=1), 2 * CAR["half_width_m"])
+    just_outside = outer + 0.01 * (outer - inner)  # beside the outer rear: not before a whole turn
+    assert corridor.hazard_distance_m(just_outside[0]) > 12.0
+    if steer > 0:  # a left turn bends towards -X
+        assert inner[-1, 0] < 0 and outer[-1, 0] < 0
+    assert corridor.hazard_distance_m(np.array([0.0, 5.0])) == hazard_distance_m(
+        np.array([[0.0, 5.0]]), steer, CAR["wheelbase_m"], CAR["half_width_m"], CAR["front_length_m"]
+    )

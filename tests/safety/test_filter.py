@@ -425,3 +425,14 @@ def test_filter_config_reads_flags_and_configs():
     assert filter_config(custom) is custom
     assert filter_config(True) == filter_config(np.True_) == filter_config(1) == SafetyFilterConfig()
     assert filter_config(False) is None and filter_config(np.False_) is None and filter_config(0) is None
+
+
+@pytest.mark.parametrize("steer", [-0.7, 0.0, 0.4])
+def test_the_decision_carries_the_corridor_it_searched(steer):
+    pts = np.array([[-3.0, 9.0], [0.2, 14.0], [4.0, 6.0]])
+    state = make_state(8.0, pts)
+    _, decision = BrakingSafetyFilter(FixedHazardEnv(state)).filter_action(np.array([0.5, steer], np.float32))
+    corridor = decision.corridor
+    assert corridor.steer_rad == float(np.float32(steer)) * state.max_steer_rad
+    assert (corridor.wheelbase_m, corridor.half_width_m, corridor.front_length_m) == (2.8, HW, FRONT_M)
+    assert corridor.hazard_distance_m(pts) == decision.hazard_distance_m
