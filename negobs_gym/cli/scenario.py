@@ -88,6 +88,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="with --draw: the square of half-width M metres around where the drive ended "
         "(default: the whole terrain)",
     )
+    p_run.add_argument(
+        "--video",
+        metavar="DIR",
+        default=None,
+        help="write each seed's episode to DIR/<scenario>_seed<k>.mp4: the env's frames at the "
+        "control rate, with the filter's corridor and decision (needs imageio-ffmpeg: "
+        'pip install "negobs_gym[video]")',
+    )
     add_set_option(p_run)
     p_run.set_defaults(handler=_run)
 
@@ -141,6 +149,7 @@ def _run(args: argparse.Namespace) -> int:
         workers=args.workers,
         draw_dir=args.draw,
         draw_zoom_m=args.zoom_m,
+        video_dir=args.video,
     )
     for result in results:
         print(result.line(), file=sys.stdout, flush=True)

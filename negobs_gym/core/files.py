@@ -9,28 +9,38 @@ from __future__ import annotations
 
 import os
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["write_atomic", "write_bytes_atomic", "write_text_atomic"]
+__all__ = ["atomic_target", "write_atomic", "write_bytes_atomic", "write_text_atomic"]
 
 
-def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
-    """Create or replace ``path`` atomically: ``write(tmp)`` fills a temp file in the same folder
-    (its name keeps ``path``'s suffix, for writers that choose the format by it), which is then
-    fsynced and renamed over ``path``. The file gets the usual umask permissions. Returns ``path``."""
+@contextmanager
+def atomic_target(path: str | Path) -> Iterator[Path]:
+    """A temp file's path to fill inside the ``with`` block, for writers that stream over time (a
+    video); on a clean exit it is fsynced and renamed over ``path``, on an exception removed. The
+    temp file is in ``path``'s folder (created if missing) and keeps its suffix, for writers that
+    choose the format by it; the file gets the usual umask permissions."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp{path.suffix}")
     try:
-        write(tmp)
+        yield tmp
         with open(tmp, "rb+") as written:
             os.fsync(written.fileno())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    return path
+
+
+def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
+    """Create or replace ``path`` atomically: ``write(tmp)`` fills the temp file of
+    :func:`atomic_target`. Returns ``path``."""
+    with atomic_target(path) as tmp:
+        write(tmp)
+    return Path(path)
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:

@@ -6,12 +6,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -25,6 +26,9 @@ from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import CriteriaSpec, RunSpec, ScenarioSpec
 from negobs_gym.sim.types import Terrain
+
+if TYPE_CHECKING:
+    from negobs_gym.envs.video import EpisodeVideo
 
 __all__ = [
     "DRIVERS",
@@ -186,6 +190,7 @@ def run_scenario(
     render_mode: str | None = None,
     draw_to: str | Path | None = None,
     draw_zoom_m: float | None = None,
+    video_to: str | Path | None = None,
 ) -> ScenarioResult:
     """Run one episode of ``spec`` (a spec, shipped name or TOML path) with a scripted driver.
 
@@ -202,6 +207,10 @@ def run_scenario(
             car where it ended, the vetoed steps and the result's verdict.
         draw_zoom_m: Draw only the square of this half-width around where the car ended (1000 px
             a side, to see how it ended); None: the whole terrain.
+        video_to: An MP4 to write (atomically, at the end): the env's ``rgb_array`` frame after
+            the reset and after every step, in real time (the control rate), the filter's corridor
+            and decision drawn in each (:class:`~negobs_gym.envs.video.EpisodeVideo`; needs the
+            ``video`` extra). The episode is the same with or without it.
 
     Returns:
         The episode's :class:`ScenarioResult`, with the spec's failed criteria in ``failures``.
@@ -209,92 +218,113 @@ def run_scenario(
     spec = load_scenario(spec)
     if draw_zoom_m is not None and not (np.isfinite(draw_zoom_m) and draw_zoom_m > 0):
         raise ConfigError("draw_zoom_m", f"must be finite and > 0, got {draw_zoom_m!r}")
+    if video_to is not None:
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError("render_mode", f"video_to needs 'rgb_array' frames, got {render_mode!r}")
+        render_mode = "rgb_array"
     filter = spec.run.filter if filter is None else filter
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
     env = _wrap(base, filter, spec.run)
-    try:
-        obs, info = env.reset(seed=seed)
-        name = (
-            driver
-            if isinstance(driver, str)
-            else spec.run.driver
-            if driver is None
-            else type(driver).__name__
-        )
-        pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
-        pilot.reset(seed)
-        vehicle = base.vehicle.config
-        bumper_m = vehicle.length_m - vehicle.rear_overhang_m
-        dt = 1.0 / base.config.control_hz
-        start_gap = float(info["distance_to_negative_ahead_m"])
-        entered = collision = trapped = rollover = goal = left = False
-        vetoes = false_vetoes = steps = 0
-        max_decel = 0.0
-        terminated = truncated = False
-        path, vetoed_steps = [_xy(info)], []
-        while not (terminated or truncated):
-            gaps_before = {
-                "negative": info["distance_to_negative_ahead_m"],
-                "positive": info["distance_to_positive_ahead_m"],
-            }
-            speed_before = info["speed_mps"]
-            obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
-            steps += 1
-            path.append(_xy(info))
-            if "safety" in info:
-                vetoed, hazard_m, channel = _vetoed(info["safety"])
-                if vetoed:
-                    vetoed_steps.append(steps)
-                gap_before = gaps_before[channel or "negative"]
-                vetoes += vetoed
-                false_vetoes += vetoed and gap_before + bumper_m > hazard_m + FALSE_VETO_TOLERANCE_M
-            max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
-            ev = info["events"]
-            entered |= bool(ev["entered_negative_obstacle"])
-            collision |= bool(ev["collision"])
-            trapped |= bool(ev["trapped"])
-            rollover |= bool(ev["rollover"])
-            goal |= bool(info["goal_reached"])
-            left |= bool(info["off_track"])
-        gap = float(info["distance_to_negative_ahead_m"])
-        stopped = not entered and abs(info["speed_mps"]) < spec.task.stop_speed_mps and np.isfinite(gap)
-        task_done = {
-            "reach_goal": goal,
-            "stop_before_hazard": stopped,
-            "cross": goal and not trapped,
-            "follow": goal and not left,
-        }[spec.task.kind]
-        result = ScenarioResult(
-            scenario=spec.name,
-            seed=seed,
-            driver=name,
-            filtered=filter is not False,
-            steps=steps,
-            time_s=steps * dt,
-            entered_negative_obstacle=entered,
-            stopped_before=bool(stopped),
-            stop_margin_m=gap if stopped else None,
-            start_gap_m=start_gap,
-            collision=collision,
-            trapped=trapped,
-            rollover=rollover,
-            goal_reached=goal,
-            left_track=left,
-            task_done=bool(task_done),
-            max_decel_mps2=float(max_decel),
-            vetoes=int(vetoes),
-            false_vetoes=int(false_vetoes),
-            positive_gap_m=float(info["distance_to_positive_ahead_m"]),
-            termination=tuple(info["termination"]),
-            truncated=bool(truncated and not terminated),
-            path_xy_m=tuple(path),
-            vetoed_steps=tuple(vetoed_steps),
-        )
-        result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
-        if draw_to is not None:
-            _draw(result, base.terrain, float(info["pose"][5]), Path(draw_to), draw_zoom_m)
-    finally:
-        env.close()
+    with contextlib.ExitStack() as stack:
+        stack.callback(env.close)
+        video = None
+        if video_to is not None:
+            from negobs_gym.envs.video import EpisodeVideo
+
+            video = stack.enter_context(EpisodeVideo(video_to, fps=base.config.control_hz))
+        return _run_episode(spec, driver, env, base, filter, seed, video, draw_to, draw_zoom_m)
+
+
+def _run_episode(
+    spec: ScenarioSpec,
+    driver: Driver | str | None,
+    env: gym.Env,
+    base: NegObsEnv,
+    filter: bool | SafetyFilterConfig,
+    seed: int,
+    video: EpisodeVideo | None,
+    draw_to: str | Path | None,
+    draw_zoom_m: float | None,
+) -> ScenarioResult:
+    """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped), its frames into ``video``."""
+    obs, info = env.reset(seed=seed)
+    if video is not None:
+        video.add(env.render())
+    name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
+    pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
+    pilot.reset(seed)
+    vehicle = base.vehicle.config
+    bumper_m = vehicle.length_m - vehicle.rear_overhang_m
+    dt = 1.0 / base.config.control_hz
+    start_gap = float(info["distance_to_negative_ahead_m"])
+    entered = collision = trapped = rollover = goal = left = False
+    vetoes = false_vetoes = steps = 0
+    max_decel = 0.0
+    terminated = truncated = False
+    path, vetoed_steps = [_xy(info)], []
+    while not (terminated or truncated):
+        gaps_before = {
+            "negative": info["distance_to_negative_ahead_m"],
+            "positive": info["distance_to_positive_ahead_m"],
+        }
+        speed_before = info["speed_mps"]
+        obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
+        steps += 1
+        if video is not None:
+            video.add(env.render())
+        path.append(_xy(info))
+        if "safety" in info:
+            vetoed, hazard_m, channel = _vetoed(info["safety"])
+            if vetoed:
+                vetoed_steps.append(steps)
+            gap_before = gaps_before[channel or "negative"]
+            vetoes += vetoed
+            false_vetoes += vetoed and gap_before + bumper_m > hazard_m + FALSE_VETO_TOLERANCE_M
+        max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
+        ev = info["events"]
+        entered |= bool(ev["entered_negative_obstacle"])
+        collision |= bool(ev["collision"])
+        trapped |= bool(ev["trapped"])
+        rollover |= bool(ev["rollover"])
+        goal |= bool(info["goal_reached"])
+        left |= bool(info["off_track"])
+    gap = float(info["distance_to_negative_ahead_m"])
+    stopped = not entered and abs(info["speed_mps"]) < spec.task.stop_speed_mps and np.isfinite(gap)
+    task_done = {
+        "reach_goal": goal,
+        "stop_before_hazard": stopped,
+        "cross": goal and not trapped,
+        "follow": goal and not left,
+    }[spec.task.kind]
+    result = ScenarioResult(
+        scenario=spec.name,
+        seed=seed,
+        driver=name,
+        filtered=filter is not False,
+        steps=steps,
+        time_s=steps * dt,
+        entered_negative_obstacle=entered,
+        stopped_before=bool(stopped),
+        stop_margin_m=gap if stopped else None,
+        start_gap_m=start_gap,
+        collision=collision,
+        trapped=trapped,
+        rollover=rollover,
+        goal_reached=goal,
+        left_track=left,
+        task_done=bool(task_done),
+        max_decel_mps2=float(max_decel),
+        vetoes=int(vetoes),
+        false_vetoes=int(false_vetoes),
+        positive_gap_m=float(info["distance_to_positive_ahead_m"]),
+        termination=tuple(info["termination"]),
+        truncated=bool(truncated and not terminated),
+        path_xy_m=tuple(path),
+        vetoed_steps=tuple(vetoed_steps),
+    )
+    result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
+    if draw_to is not None:
+        _draw(result, base.terrain, float(info["pose"][5]), Path(draw_to), draw_zoom_m)
     return result
 
 
@@ -307,12 +337,14 @@ def run_scenario_seeds(
     workers: int = 1,
     draw_dir: str | Path | None = None,
     draw_zoom_m: float | None = None,
+    video_dir: str | Path | None = None,
 ) -> Iterator[ScenarioResult]:
     """:func:`run_scenario` once per seed, in ``workers`` processes; results yielded in seed order.
 
     Each seed's episode is the same whatever the worker count (it depends on the seed alone).
     ``driver`` is a name here (a driver object need not survive a process boundary).
-    ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``.
+    ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``; ``video_dir``: each
+    seed's episode as ``<video_dir>/<scenario>_seed<k>.mp4`` (``video_to`` of :func:`run_scenario`).
 
     Raises:
         ConfigError: ``workers`` < 1 (when called, not at the first result).
@@ -320,7 +352,8 @@ def run_scenario_seeds(
     spec = load_scenario(spec)
     if not (isinstance(workers, int) and workers >= 1):
         raise ConfigError("workers", f"must be an int >= 1, got {workers!r}")
-    return _seed_results(spec, driver, list(seeds), filter, workers, draw_dir, draw_zoom_m)
+    outputs = {"draw_dir": draw_dir, "draw_zoom_m": draw_zoom_m, "video_dir": video_dir}
+    return _seed_results(spec, driver, list(seeds), filter, workers, **outputs)
 
 
 def _seed_results(
@@ -331,12 +364,21 @@ def _seed_results(
     workers: int,
     draw_dir: str | Path | None,
     draw_zoom_m: float | None,
+    video_dir: str | Path | None,
 ) -> Iterator[ScenarioResult]:
     """The results of :func:`run_scenario_seeds`, run as they are asked for."""
 
+    def in_dir(folder: str | Path | None, seed: int, suffix: str) -> Path | None:
+        return Path(folder) / f"{spec.name}_seed{seed}{suffix}" if folder is not None else None
+
     def kwargs(seed: int) -> dict[str, Any]:
-        png = Path(draw_dir) / f"{spec.name}_seed{seed}.png" if draw_dir is not None else None
-        return {"filter": filter, "seed": seed, "draw_to": png, "draw_zoom_m": draw_zoom_m}
+        return {
+            "filter": filter,
+            "seed": seed,
+            "draw_to": in_dir(draw_dir, seed, ".png"),
+            "draw_zoom_m": draw_zoom_m,
+            "video_to": in_dir(video_dir, seed, ".mp4"),
+        }
 
     if workers == 1 or len(seeds) < 2:
         for seed in seeds:

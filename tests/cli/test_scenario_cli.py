@@ -62,6 +62,18 @@ def test_run_exits_non_zero_exactly_when_a_named_criterion_fails(tmp_path, capsy
         assert all(line.endswith("FAIL entered_negative_obstacle") == (code == 1) for line in lines)
 
 
+def test_run_video_writes_an_mp4_per_seed(tmp_path, capsys):
+    pytest.importorskip("imageio_ffmpeg")
+    path = tmp_path / "scene.toml"
+    path.write_text(FAILING.format(entered="true"))
+    videos = tmp_path / "videos"
+    assert main(["scenario", "run", str(path), "--seeds", "2", "--video", str(videos)]) == 0
+    assert len(_lines(capsys)) == 2
+    names = sorted(p.name for p in videos.iterdir())
+    assert names == ["reckless_into_pit_seed0.mp4", "reckless_into_pit_seed1.mp4"]
+    assert all(b"ftyp" in (videos / n).read_bytes()[:16] for n in names)  # MP4 files
+
+
 def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):
     setting = ["--set", "observation.tighten_pairs=false", "--set", "episode.time_limit_s=3.5"]
     assert main(["scenario", "show", "paper_n_three_pits", *setting]) == 0

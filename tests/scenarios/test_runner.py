@@ -153,3 +153,19 @@ def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(runs, tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"pit_0.6m_seed{k}.png" for k in range(2)]
     with pytest.raises(ConfigError, match="workers"):
         run_scenario_seeds(spec, "reckless", [0], workers=0)
+
+
+def test_a_video_of_the_episode_leaves_the_episode_as_it_was(runs, tmp_path) -> None:
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    path = tmp_path / "pit.mp4"
+    result = run_scenario(spec_from_toml(PIT_SCENE), RecklessDriver(), filter=True, seed=0, video_to=path)
+    assert result == runs[True][0]
+    reader = imageio_ffmpeg.read_frames(str(path))
+    w, h = next(reader)["size"]
+    frames = [np.frombuffer(b, np.uint8).reshape(h, w, 3) for b in reader]
+    assert len(frames) == result.steps + 1  # after the reset and after every step
+    border = np.array([f[2, -3].astype(int) for f in frames[1:]])  # the local panel's right border
+    vetoed = np.all(np.abs(border - (230, 0, 0)) < 40, axis=1)
+    assert vetoed.sum() == result.vetoes  # a red border for every vetoed step, green otherwise
+    with pytest.raises(ConfigError, match="render_mode"):
+        run_scenario(spec_from_toml(PIT_SCENE), render_mode="human", video_to=path)
