@@ -89,7 +89,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "eval",
         help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy; "
-        "paths draws a policy or braking campaign's drives",
+        "paths draws a policy or braking campaign's drives, video replays a policy campaign's "
+        "episodes as MP4s",
         description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
         "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
     )
@@ -181,18 +182,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     paths.add_argument(
         "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
     )
-    paths.add_argument(
-        "--episode",
-        dest="keys",
-        action="append",
-        default=[],
-        metavar="KEY",
-        help="an episode of policy.csv's or braking.csv's episode column, repeatable (default: those "
-        "that did not do their task)",
-    )
-    paths.add_argument("--all", dest="everything", action="store_true", help="every episode")
-    paths.add_argument("--limit", type=positive_int, default=None, help="draw at most N (in key order)")
-    paths.add_argument("--to", dest="to_dir", default=None, help="folder for the PNGs (default: DIR/paths)")
+    _add_episode_choice(paths, "draw", "paths", "PNGs")
     paths.add_argument(
         "--zoom",
         dest="zoom_m",
@@ -203,6 +193,38 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: the whole terrain)",
     )
     paths.set_defaults(handler=run_paths)
+
+    video = commands.add_parser(
+        "video",
+        help="replay a policy campaign's episodes as MP4 videos of the env's frames",
+        description="Runs episodes of a `negobs eval policy --out DIR` folder again from their seeds "
+        "with the env's frames written to MP4 (the grid, the returns, the detected and true outlines, "
+        "the filter's corridor and decisions), and checks each replay against the campaign's "
+        "policy.csv and paths.csv rows: a replay that differs (a changed model file, package or "
+        "setting) is an error and leaves no video. Default: the episodes without the goal. Needs "
+        'imageio-ffmpeg (pip install "negobs_gym[video]").',
+    )
+    video.add_argument("campaign_dir", metavar="DIR", help="the folder `negobs eval policy --out` wrote")
+    _add_episode_choice(video, "replay", "videos", "MP4s")
+    video.set_defaults(handler=run_videos)
+
+
+def _add_episode_choice(parser: argparse.ArgumentParser, verb: str, folder: str, files: str) -> None:
+    """The options that choose a campaign's episodes (``negobs eval paths`` and ``video``)."""
+    parser.add_argument(
+        "--episode",
+        dest="keys",
+        action="append",
+        default=[],
+        metavar="KEY",
+        help="an episode of the campaign's episode column, repeatable (default: those that did not "
+        "do their task)",
+    )
+    parser.add_argument("--all", dest="everything", action="store_true", help="every episode")
+    parser.add_argument("--limit", type=positive_int, default=None, help=f"{verb} at most N (in key order)")
+    parser.add_argument(
+        "--to", dest="to_dir", default=None, help=f"folder for the {files} (default: DIR/{folder})"
+    )
 
 
 def _options(args: argparse.Namespace):
@@ -349,10 +371,25 @@ def run_paths(args: argparse.Namespace) -> int:
         out_dir=args.to_dir,
         zoom_m=args.zoom_m,
     )
+    return _report(written, "draw", args.campaign_dir)
+
+
+def run_videos(args: argparse.Namespace) -> int:
+    """Replay the chosen episodes into videos; prints each MP4."""
+    from negobs_gym.eval.replay import replay_videos
+
+    written = replay_videos(
+        args.campaign_dir, args.keys, everything=args.everything, limit=args.limit, out_dir=args.to_dir
+    )
+    return _report(written, "replay", args.campaign_dir)
+
+
+def _report(written: list[Path], verb: str, campaign_dir: str) -> int:
+    """Print the files written; warn when the default choice found no failed episode."""
     for path in written:
         print(path)
     if not written:
         log.warning(
-            "no episode to draw in %s (every episode did its task; --all draws them)", args.campaign_dir
+            "no episode to %s in %s (every episode did its task; --all takes all)", verb, campaign_dir
         )
     return 0

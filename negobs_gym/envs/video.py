@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.core.files import atomic_target
-from negobs_gym.errors import require
+from negobs_gym.errors import MissingDependencyError, require
 
 __all__ = ["EpisodeVideo"]
 
@@ -32,7 +32,7 @@ class EpisodeVideo:
 
     Raises:
         ConfigError: ``fps`` not finite and > 0.
-        ImportError: imageio-ffmpeg is not installed (``pip install "negobs_gym[video]"``).
+        MissingDependencyError: imageio-ffmpeg is not installed (``pip install "negobs_gym[video]"``).
     """
 
     def __init__(self, path: str | Path, fps: float = 10.0) -> None:
@@ -40,7 +40,9 @@ class EpisodeVideo:
         try:
             import imageio_ffmpeg
         except ImportError as exc:
-            raise ImportError('episode videos need imageio-ffmpeg: pip install "negobs_gym[video]"') from exc
+            raise MissingDependencyError(
+                "imageio-ffmpeg", "episode videos (extra negobs_gym[video])"
+            ) from exc
         self._ffmpeg = imageio_ffmpeg
         self.path = Path(path)
         self.fps = float(fps)

@@ -12,13 +12,14 @@ episode (:data:`COLUMNS`), and each episode's path in ``paths.csv`` (:data:`PATH
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
+
+if TYPE_CHECKING:
+    from negobs_gym.envs.video import EpisodeVideo
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -241,10 +245,17 @@ def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> 
 
 
 def run_driven_episode(
-    env: Any, driver: Any, seed: int, filtered: bool | SafetyFilterConfig, max_steps: int
+    env: Any,
+    driver: Any,
+    seed: int,
+    filtered: bool | SafetyFilterConfig,
+    max_steps: int,
+    video_to: str | Path | None = None,
 ) -> dict[str, Any]:
     """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``: True for the
     default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics.
+    ``video_to``: also write the episode's frames there (:class:`~negobs_gym.envs.video.
+    EpisodeVideo`; ``env`` renders ``rgb_array``); the metrics are the same with or without.
 
     Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
     ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
@@ -258,8 +269,29 @@ def run_driven_episode(
     guard = filter_config(filtered)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
+    with contextlib.ExitStack() as stack:
+        stack.callback(env.close)
+        video = None
+        if video_to is not None:
+            from negobs_gym.envs.video import EpisodeVideo
+
+            video = stack.enter_context(EpisodeVideo(video_to, fps=env.unwrapped.config.control_hz))
+        return _driven_episode(env, driver, seed, guard, max_steps, video)
+
+
+def _driven_episode(
+    env: Any,
+    driver: Any,
+    seed: int,
+    guard: SafetyFilterConfig | None,
+    max_steps: int,
+    video: EpisodeVideo | None,
+) -> dict[str, Any]:
+    """The episode of :func:`run_driven_episode` in ``env`` (filter applied), frames into ``video``."""
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
+    if video is not None:
+        video.add(env.render())
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
@@ -271,6 +303,8 @@ def run_driven_episode(
         gap = float(info["distance_to_negative_ahead_m"])
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
         steps += 1
+        if video is not None:
+            video.add(env.render())
         xy = np.asarray(info["pose"][:2], dtype=np.float64)
         distance += float(np.hypot(*(xy - last_xy)))
         last_xy = xy
@@ -288,7 +322,6 @@ def run_driven_episode(
         cost += float(info.get("cost", 0.0))
         still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
         done = terminated or truncated or still_s >= STANDSTILL_S
-    env.close()
     return {
         "steps": steps,
         "distance_m": distance,

@@ -23,7 +23,7 @@ from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.braking_campaign import PATH_COLUMNS, obstacle_free, scenario_spec
 from negobs_gym.eval.campaign import read_csv
 
-__all__ = ["draw_paths", "episode_outcome", "task_done"]
+__all__ = ["chosen_episodes", "draw_paths", "episode_outcome", "task_done"]
 
 #: The failure columns of the episode tables, in the order a caption names them.
 OUTCOMES = ("entered", "collision", "rollover", "trapped", "left_track")
@@ -81,6 +81,34 @@ def _terrain_and_caption(row: dict[str, str], folder: Path) -> tuple[Any, str]:
     return terrain, f"{name}: {episode_outcome(row)}, {result}, {row['vetoes']} vetoes"
 
 
+def chosen_episodes(
+    folder: Path, keys: Sequence[str], *, everything: bool, limit: int | None
+) -> tuple[dict[str, dict[str, str]], list[str]]:
+    """A policy or braking campaign's episode rows by key, and the keys chosen from them: ``keys``,
+    or where empty those that did not do their task (all with ``everything``), at most ``limit``,
+    in key order.
+
+    Raises:
+        ConfigError: no ``policy.csv`` or ``braking.csv`` and ``paths.csv`` in ``folder`` (field
+            ``campaign_dir``) or an unknown key (``keys``).
+    """
+    table = next((folder / f"{n}.csv" for n in EPISODE_TABLES if (folder / f"{n}.csv").is_file()), None)
+    require(
+        table is not None,
+        "campaign_dir",
+        f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
+    )
+    assert table is not None  # for the type checker: require raised otherwise
+    paths_csv = folder / "paths.csv"
+    require(paths_csv.is_file(), "campaign_dir", f"no paths.csv in {folder}: a campaign from before paths")
+    episodes = {r["episode"]: r for r in read_csv(table)}
+    unknown = sorted(set(keys) - set(episodes))
+    require(not unknown, "keys", f"no episodes {unknown} in {table}")
+    default = sorted(k for k, r in episodes.items() if everything or not task_done(r))
+    chosen = sorted(keys) if keys else default
+    return episodes, chosen[:limit] if limit is not None else chosen
+
+
 def draw_paths(
     campaign_dir: str | Path,
     keys: Sequence[str] = (),
@@ -110,21 +138,8 @@ def draw_paths(
     from negobs_gym.sim.render import render_drive
 
     folder = Path(campaign_dir)
-    table = next((folder / f"{n}.csv" for n in EPISODE_TABLES if (folder / f"{n}.csv").is_file()), None)
-    require(
-        table is not None,
-        "campaign_dir",
-        f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
-    )
-    assert table is not None  # for the type checker: require raised otherwise
+    episodes, chosen = chosen_episodes(folder, keys, everything=everything, limit=limit)
     paths_csv = folder / "paths.csv"
-    require(paths_csv.is_file(), "campaign_dir", f"no paths.csv in {folder}: a campaign from before paths")
-    episodes = {r["episode"]: r for r in read_csv(table)}
-    unknown = sorted(set(keys) - set(episodes))
-    require(not unknown, "keys", f"no episodes {unknown} in {table}")
-    default = sorted(k for k, r in episodes.items() if everything or not task_done(r))
-    chosen = sorted(keys) if keys else default
-    chosen = chosen[:limit] if limit is not None else chosen
     points: dict[str, list[list[float]]] = defaultdict(list)
     for row in read_csv(paths_csv):
         if row["episode"] in chosen:

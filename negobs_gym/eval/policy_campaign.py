@@ -132,21 +132,25 @@ def episodes(config: PolicyCampaignConfig) -> list[Episode]:
 
 def run_episode(episode: Episode) -> Rows:
     """One episode of the model on ``gym.make(env_id)``, or on the scenario ``env_id`` names (a
-    shipped scenario or a TOML file)."""
+    shipped scenario or a TOML file). An arg ``video_to`` (not set by :func:`episodes`; see
+    :func:`negobs_gym.eval.replay.replay_videos`) also writes its frames there."""
     import gymnasium as gym
 
     import negobs_gym  # noqa: F401 - registers the env ids
 
     a = episode.args
+    video_to = a.get("video_to")
+    render_mode = "rgb_array" if video_to is not None else None
     if a.get("source") is None and a["env_id"] in gym.registry:
-        env = gym.make(a["env_id"])
+        env = gym.make(a["env_id"], render_mode=render_mode)
     else:
         from negobs_gym.policies.training import make_task_env
 
-        env = make_task_env(a["env_id"], a["source"])
+        env = make_task_env(a["env_id"], a["source"], render_mode=render_mode)
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     guard = SafetyFilterConfig(stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
-    m = run_driven_episode(env, ModelDriver(a["model_path"], a["algo"]), a["seed"], guard, max_steps)
+    driver = ModelDriver(a["model_path"], a["algo"])
+    m = run_driven_episode(env, driver, a["seed"], guard, max_steps, video_to=video_to)
     success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"] or m["left_track"])
     label = filter_label(a["filtered"], a["stop_for_positive"])
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]

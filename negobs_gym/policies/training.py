@@ -62,10 +62,12 @@ class TrainResult:
     last_eval: dict[str, float]
 
 
-def make_task_env(env: str, source: str | None, overrides: Sequence[str] = ()) -> gym.Env:
+def make_task_env(
+    env: str, source: str | None, overrides: Sequence[str] = (), render_mode: str | None = None
+) -> gym.Env:
     """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source`` (None:
-    the env's own) and its scenario changed by ``overrides`` (``KEY.PATH=VALUE``, the commands'
-    ``--set``; :func:`negobs_gym.scenarios.apply_overrides`).
+    the env's own), its scenario changed by ``overrides`` (``KEY.PATH=VALUE``, the commands'
+    ``--set``; :func:`negobs_gym.scenarios.apply_overrides`), rendering in ``render_mode``.
 
     Raises:
         ConfigError: ``env`` names no negobs env, scenario or file (field ``env``), or a bad
@@ -74,7 +76,9 @@ def make_task_env(env: str, source: str | None, overrides: Sequence[str] = ()) -
     grid_source = "oracle" if source == "state" else source
     creator = registered_negobs_env(env)
     if creator is not None and not overrides:
-        return gym.make(env, config=_with_source(creator.default_config(), grid_source))
+        return gym.make(
+            env, config=_with_source(creator.default_config(), grid_source), render_mode=render_mode
+        )
     from negobs_gym.scenarios.library import scenario_names
     from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
 
@@ -87,7 +91,7 @@ def make_task_env(env: str, source: str | None, overrides: Sequence[str] = ()) -
         )
     spec = apply_overrides(spec_for_env(env), overrides)
     cls = creator or NegObsEnv  # the registered classes only name their scenario
-    return cls(config=_with_source(spec.env_config(), grid_source), scenario=spec)
+    return cls(config=_with_source(spec.env_config(), grid_source), scenario=spec, render_mode=render_mode)
 
 
 def _with_source(config: EnvConfig, source: str | None) -> EnvConfig:

@@ -1,4 +1,5 @@
-"""A policy campaign's paths.csv and `negobs eval paths`, which draws the drives over their terrains."""
+"""A policy campaign's paths.csv, `negobs eval paths` (the drives over their terrains) and `negobs eval
+video` (episodes replayed into MP4s, checked against the record)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 from negobs_gym.cli import main
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome
+from negobs_gym.eval.replay import ReplayMismatch, replay_videos
 
 
 @pytest.fixture(scope="module")
@@ -79,3 +81,30 @@ def test_an_outcome_names_every_failure_or_the_goal() -> None:
     assert episode_outcome(row) == "no goal"
     assert episode_outcome({**row, "goal": "1"}) == "goal"
     assert episode_outcome({**row, "entered": "1", "left_track": "1"}) == "entered + left_track"
+
+
+def test_eval_video_replays_the_recorded_episode_and_checks_it(campaign: Path, tmp_path: Path, capsys) -> None:
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    rows = read_csv(campaign / "policy.csv")
+    key = next(r["episode"] for r in rows if r["filter"] == "filter")
+    out = tmp_path / "videos"
+    assert main(["-q", "eval", "video", str(campaign), "--episode", key, "--to", str(out)]) == 0
+    assert capsys.readouterr().out.split() == [str(out / f"{key}.mp4")]
+    reader = imageio_ffmpeg.read_frames(str(out / f"{key}.mp4"))
+    next(reader)
+    steps = int(next(r["steps"] for r in rows if r["episode"] == key))
+    assert sum(1 for _ in reader) == steps + 1  # the reset's frame and one per step
+    # a record that the replay does not reproduce: an error, and no video of another episode
+    tampered = tmp_path / "tampered"
+    tampered.mkdir()
+    for name in ("policy.csv", "summary.json", "scenario.toml"):
+        (tampered / name).write_bytes((campaign / name).read_bytes())
+    lines = (campaign / "paths.csv").read_text().splitlines(keepends=True)
+    changed = next(i for i, line in enumerate(lines) if line.startswith(f"{key},") and ",5," in line)
+    lines[changed] = lines[changed].replace(",5,", ",5,9", 1)  # step 5's x changed
+    (tampered / "paths.csv").write_text("".join(lines))
+    with pytest.raises(ReplayMismatch, match=r"paths.csv rows differ .* at row 5"):
+        replay_videos(tampered, [key], out_dir=tmp_path / "v2")
+    assert not list((tmp_path / "v2").iterdir())
+    assert main(["eval", "video", str(tmp_path)]) == 2
+    assert "no policy.csv" in capsys.readouterr().err
