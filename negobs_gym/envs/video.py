@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -20,7 +21,7 @@ import numpy as np
 from negobs_gym.core.files import atomic_target
 from negobs_gym.errors import MissingDependencyError, require
 
-__all__ = ["EpisodeVideo"]
+__all__ = ["EpisodeVideo", "optional_video"]
 
 
 class EpisodeVideo:
@@ -98,3 +99,14 @@ class EpisodeVideo:
             target.__exit__(type(error), error, error.__traceback__)
             raise
         target.__exit__(exc_type, exc, tb)
+
+
+@contextlib.contextmanager
+def optional_video(path: str | Path | None, fps: float = 10.0) -> Iterator[EpisodeVideo | None]:
+    """An :class:`EpisodeVideo` of ``path`` for the ``with`` block, or None when ``path`` is None
+    (callers that record on request: ``if video is not None: video.add(env.render())``)."""
+    if path is None:
+        yield None
+        return
+    with EpisodeVideo(path, fps=fps) as video:
+        yield video

@@ -19,18 +19,16 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from negobs_gym.envs.config import RIGS
+from negobs_gym.envs.video import EpisodeVideo, optional_video
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
-
-if TYPE_CHECKING:
-    from negobs_gym.envs.video import EpisodeVideo
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -269,13 +267,7 @@ def run_driven_episode(
     guard = filter_config(filtered)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
-    with contextlib.ExitStack() as stack:
-        stack.callback(env.close)
-        video = None
-        if video_to is not None:
-            from negobs_gym.envs.video import EpisodeVideo
-
-            video = stack.enter_context(EpisodeVideo(video_to, fps=env.unwrapped.config.control_hz))
+    with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.config.control_hz) as video:
         return _driven_episode(env, driver, seed, guard, max_steps, video)
 
 

@@ -12,7 +12,7 @@ import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -20,15 +20,13 @@ import numpy as np
 from negobs_gym.drivers import DRIVER_NAMES, Driver
 from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.envs.video import EpisodeVideo, optional_video
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import CriteriaSpec, RunSpec, ScenarioSpec
 from negobs_gym.sim.types import Terrain
-
-if TYPE_CHECKING:
-    from negobs_gym.envs.video import EpisodeVideo
 
 __all__ = [
     "DRIVERS",
@@ -225,13 +223,7 @@ def run_scenario(
     filter = spec.run.filter if filter is None else filter
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
     env = _wrap(base, filter, spec.run)
-    with contextlib.ExitStack() as stack:
-        stack.callback(env.close)
-        video = None
-        if video_to is not None:
-            from negobs_gym.envs.video import EpisodeVideo
-
-            video = stack.enter_context(EpisodeVideo(video_to, fps=base.config.control_hz))
+    with contextlib.closing(env), optional_video(video_to, fps=base.config.control_hz) as video:
         return _run_episode(spec, driver, env, base, filter, seed, video, draw_to, draw_zoom_m)
 
 

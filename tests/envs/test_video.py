@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from negobs_gym.envs.video import EpisodeVideo
+from negobs_gym.envs.video import EpisodeVideo, optional_video
 from negobs_gym.errors import ConfigError
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
@@ -78,3 +78,11 @@ def test_a_frame_of_another_size_and_an_empty_video_are_refused(tmp_path) -> Non
     for fps in (0.0, -1.0, float("nan")):
         with pytest.raises(ConfigError, match="fps"):
             EpisodeVideo(tmp_path / "d.mp4", fps=fps)
+
+
+def test_optional_video_records_only_when_given_a_path(tmp_path) -> None:
+    with optional_video(None) as video:
+        assert video is None
+    with optional_video(tmp_path / "v.mp4", fps=5) as video:
+        video.add(_frames(1)[0])
+    assert video.fps == 5 and (tmp_path / "v.mp4").is_file()
