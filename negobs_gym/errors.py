@@ -18,7 +18,14 @@ class ConfigError(NegobsError, ValueError):
 
     def __init__(self, field: str, message: str) -> None:
         self.field = field
+        self.message = message
         super().__init__(f"{field}: {message}")
+
+    def __reduce__(self) -> tuple:
+        # pickled with the constructor's own arguments: an error raised in a worker process
+        # (campaigns, scenario seeds, vector envs) reaches the parent as itself, not as a
+        # TypeError from rebuilding it out of its one-string ``args``
+        return type(self), (self.field, self.message)
 
 
 class ScanError(NegobsError, ValueError):
@@ -46,7 +53,11 @@ class MissingDependencyError(NegobsError, ImportError):
 
     def __init__(self, package: str, feature: str) -> None:
         self.package = package
+        self.feature = feature
         super().__init__(f"{feature} needs the optional package {package!r}: pip install {package}")
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.package, self.feature)  # as ConfigError's
 
 
 class InterfaceError(NegobsError, TypeError):
