@@ -48,3 +48,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except NegobsError as error:  # the package's own, expected failures: one line, no traceback
         log.error("negobs %s: %s", args.command, error)
         return 2
+    except OSError as error:
+        if error.filename is None or args.verbose:  # not a file the user named: keep the traceback
+            raise
+        log.error("negobs %s: %s", args.command, error)  # e.g. [Errno 13] Permission denied: 'out'
+        return 2

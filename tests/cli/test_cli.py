@@ -44,3 +44,14 @@ def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path):
         main(["-q", "demo", "--out", str(out), "--no-detection", "--eval-out", str(tmp_path / "none")]) == 0
     )
     assert not (tmp_path / "none").exists()
+
+
+def test_a_path_that_cannot_be_written_is_one_line_and_a_traceback_with_verbose(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    args = ["scenario", "render", "paper_t_straight", "--out", str(blocker / "frame.png")]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "[Errno" in err[0] and str(blocker) in err[0]  # no traceback
+    with pytest.raises(OSError):
+        main(["-v", *args])

@@ -83,7 +83,9 @@ def test_an_outcome_names_every_failure_or_the_goal() -> None:
     assert episode_outcome({**row, "entered": "1", "left_track": "1"}) == "entered + left_track"
 
 
-def test_eval_video_replays_the_recorded_episode_and_checks_it(campaign: Path, tmp_path: Path, capsys) -> None:
+def test_eval_video_replays_the_recorded_episode_and_checks_it(
+    campaign: Path, tmp_path: Path, capsys
+) -> None:
     imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
     rows = read_csv(campaign / "policy.csv")
     key = next(r["episode"] for r in rows if r["filter"] == "filter")
