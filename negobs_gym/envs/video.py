@@ -51,6 +51,7 @@ class EpisodeVideo:
         self._shape: tuple[int, ...] | None = None
         self._writer: Any = None
         self._target: contextlib.AbstractContextManager[Path] | None = None
+        self._tmp = self.path  # the temp file ffmpeg writes, from __enter__ on
 
     def __enter__(self) -> EpisodeVideo:
         self._target = atomic_target(self.path)
