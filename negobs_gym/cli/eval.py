@@ -89,8 +89,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "eval",
         help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy; "
-        "paths draws a policy or braking campaign's drives, video replays a policy campaign's "
-        "episodes as MP4s",
+        "paths draws a policy or braking campaign's drives, video replays a policy or braking "
+        "campaign's episodes as MP4s",
         description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
         "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
     )
@@ -196,15 +196,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     video = commands.add_parser(
         "video",
-        help="replay a policy campaign's episodes as MP4 videos of the env's frames",
-        description="Runs episodes of a `negobs eval policy --out DIR` folder again from their seeds "
-        "with the env's frames written to MP4 (the grid, the returns, the detected and true outlines, "
-        "the filter's corridor and decisions), and checks each replay against the campaign's "
-        "policy.csv and paths.csv rows: a replay that differs (a changed model file, package or "
-        "setting) is an error and leaves no video. Default: the episodes without the goal. Needs "
+        help="replay a policy or braking campaign's episodes as MP4 videos of the env's frames",
+        description="Runs episodes of a `negobs eval policy|braking --out DIR` folder again from the "
+        "arguments they ran with (DIR/parts) with the env's frames written to MP4 (the grid, the "
+        "returns, the detected and true outlines, the filter's corridor and decisions), and checks "
+        "each replay against the campaign's recorded rows: a replay that differs (a changed model "
+        "file, package or setting) is an error and leaves no video. Default: the episodes that did "
+        "not do their task. Needs "
         'imageio-ffmpeg (pip install "negobs_gym[video]").',
     )
-    video.add_argument("campaign_dir", metavar="DIR", help="the folder `negobs eval policy --out` wrote")
+    video.add_argument(
+        "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
+    )
     _add_episode_choice(video, "replay", "videos", "MP4s")
     video.set_defaults(handler=run_videos)
 

@@ -197,10 +197,12 @@ def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) ->
     return dataclasses.replace(spec, observation=observation)
 
 
-def _scenario_env(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) -> Any:
+def _scenario_env(
+    scenario: str, rig: str, oracle: bool, tighten_pairs: bool, render_mode: str | None = None
+) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
-    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs))
+    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs), render_mode=render_mode)
 
 
 class ModelDriver(PolicyDriver):
@@ -347,12 +349,15 @@ def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> 
 
 
 def run_episode(episode: Episode) -> Rows:
-    """One braking episode of :func:`episodes`; one row of :data:`COLUMNS`."""
+    """One braking episode of :func:`episodes`; one row of :data:`COLUMNS`. An arg ``video_to`` (not
+    set by :func:`episodes`; :func:`negobs_gym.eval.replay.replay_videos`) also writes its frames."""
     a = episode.args
+    video_to = a.get("video_to")
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
-    env = _scenario_env(a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"])
+    render_mode = "rgb_array" if video_to is not None else None
+    env = _scenario_env(a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"], render_mode)
     max_steps = a.get("max_steps", EPISODE_STEPS)
-    metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], max_steps)
+    metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], max_steps, video_to=video_to)
     label = "filter" if a["filtered"] else "nofilter"
     row = [episode.key, a["scenario"], a["driver"], label, a["seed"]]
     return {

@@ -1,21 +1,23 @@
-"""Videos of a policy campaign's episodes, replayed from their seeds and checked against the record.
+"""Videos of a campaign's episodes, replayed from the arguments they ran with and checked against
+the rows they wrote.
 
-An episode depends only on its seed, the model and the settings the campaign recorded
-(``summary.json``'s config, the row's env and filter; docs/determinism.md), so it can be run again
-with the env's frames written to an MP4 instead of keeping frames for every episode of a campaign.
-:func:`replay_videos` checks each replay against the campaign's own rows (the episode's
-``policy.csv`` line and every ``paths.csv`` line, as text): the video is of the episode in the
-table, or the replay raises (a changed model file, package version or setting) and leaves no video.
+An episode depends only on the arguments its campaign gave it (model, env or scenario, grid
+source, rig, filter, seed; docs/determinism.md), and a policy or braking campaign keeps them with
+the episode's rows in ``parts/<key>.json``. :func:`replay_videos` runs the episode again from them
+with the env's frames written to an MP4, and compares every row the replay gives (the episode
+table's line and each ``paths.csv`` line, as text) with the recorded ones: the video is of the
+episode in the tables, or the replay raises (a changed model file, package version or setting)
+and leaves no video.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from negobs_gym.errors import NegobsError, require
-from negobs_gym.eval.campaign import Episode
+from negobs_gym.eval.campaign import PARTS_DIR, Episode, Rows
 from negobs_gym.eval.paths import chosen_episodes
 
 __all__ = ["ReplayMismatch", "replay_videos"]
@@ -25,10 +27,19 @@ class ReplayMismatch(NegobsError, RuntimeError):
     """A replayed episode's rows differ from the campaign's: the video would show another episode."""
 
 
-def _lines_of(csv_path: Path, key: str) -> list[str]:
-    """The lines of ``csv_path`` whose first column is ``key``, as written."""
-    lines = csv_path.read_text(encoding="utf-8").splitlines()[1:]
-    return [line for line in lines if line.split(",", 1)[0] == key]
+def _episode_runner(folder: Path) -> Callable[[Episode], Rows]:
+    """The campaign's episode function: a policy campaign's or a braking campaign's."""
+    if (folder / "policy.csv").is_file():
+        from negobs_gym.eval.policy_campaign import run_episode
+    else:
+        from negobs_gym.eval.braking_campaign import run_episode
+    return run_episode
+
+
+def _first_difference(replayed: list[str], recorded: list[str]) -> int:
+    """Index of the first row that differs (or the shorter length)."""
+    pairs = zip(replayed, recorded, strict=False)
+    return next((k for k, (a, b) in enumerate(pairs) if a != b), min(len(replayed), len(recorded)))
 
 
 def replay_videos(
@@ -39,10 +50,10 @@ def replay_videos(
     limit: int | None = None,
     out_dir: str | Path | None = None,
 ) -> list[Path]:
-    """Replay episodes of a ``negobs eval policy --out`` folder into ``<out_dir>/<key>.mp4``.
+    """Replay episodes of a ``negobs eval policy|braking --out`` folder into ``<out_dir>/<key>.mp4``.
 
     Args:
-        keys: the episodes (``policy.csv``'s ``episode`` column); empty: those that did not do
+        keys: the episodes (the episode table's ``episode`` column); empty: those that did not do
             their task, or all of them with ``everything`` (as :func:`~negobs_gym.eval.paths.
             draw_paths` chooses).
         limit: replay at most this many (in key order).
@@ -52,49 +63,34 @@ def replay_videos(
         The MP4s written, in key order.
 
     Raises:
-        ConfigError: not a policy campaign's folder with its ``summary.json`` (field
-            ``campaign_dir``) or an unknown key (``keys``).
+        ConfigError: not a policy or braking campaign's folder (field ``campaign_dir``), an unknown
+            key (``keys``), or an episode whose part does not record its arguments (a campaign
+            from before they were recorded).
         ReplayMismatch: a replay's rows differ from the campaign's; its video is removed.
     """
-    from negobs_gym.eval.policy_campaign import run_episode
     from negobs_gym.scenarios.overrides import recorded_env_in
 
     folder = Path(campaign_dir)
-    episodes, chosen = chosen_episodes(folder, keys, everything=everything, limit=limit)
-    policy_csv, summary = folder / "policy.csv", folder / "summary.json"
-    require(
-        policy_csv.is_file() and summary.is_file(),
-        "campaign_dir",
-        f"no policy.csv and summary.json in {folder}: videos replay `negobs eval policy --out` folders",
-    )
-    config = json.loads(summary.read_text(encoding="utf-8"))["config"]
+    _, chosen = chosen_episodes(folder, keys, everything=everything, limit=limit)
+    run_episode = _episode_runner(folder)
     out = Path(out_dir) if out_dir is not None else folder / "videos"
     written = []
     for key in chosen:
-        row = episodes[key]
+        part = folder / PARTS_DIR / f"{key}.json"
+        record = json.loads(part.read_text(encoding="utf-8")) if part.is_file() else {}
+        require("args" in record, key, f"{part} does not record the episode's arguments: rerun the campaign")
+        args = dict(record["args"])
+        if "env_id" in args:  # a policy episode: its --set scenario as it can be found now
+            args["env_id"] = recorded_env_in(args["env_id"], folder)
         video = out / f"{key}.mp4"
-        args = {
-            "model_path": config["model_path"],
-            "env_id": recorded_env_in(row["env"], folder),
-            "algo": config["algo"],
-            "source": config["source"],
-            "stop_for_positive": config["stop_for_positive"],
-            "filtered": row["filter"] != "nofilter",
-            "seed": int(row["seed"]),
-            "video_to": video,
-        }
-        replayed = run_episode(Episode(key, args))
-        for table, csv_path in (("policy", policy_csv), ("paths", folder / "paths.csv")):
-            recorded = _lines_of(csv_path, key)
-            if replayed[table] != recorded:
+        replayed = run_episode(Episode(key, {**args, "video_to": video}))
+        for table, recorded in sorted(record["rows"].items()):
+            if replayed.get(table) != recorded:
                 video.unlink(missing_ok=True)
-                step = next(
-                    (k for k, (a, b) in enumerate(zip(replayed[table], recorded, strict=False)) if a != b),
-                    min(len(recorded), len(replayed[table])),
-                )
                 raise ReplayMismatch(
-                    f"episode {key}: the replay's {csv_path.name} rows differ from the campaign's at row "
-                    f"{step} (model file, package version or settings changed since the campaign ran)"
+                    f"episode {key}: the replay's {table}.csv rows differ from the campaign's at row "
+                    f"{_first_difference(replayed.get(table, []), recorded)} (model file, package "
+                    "version or settings changed since the campaign ran)"
                 )
         written.append(video)
     return written

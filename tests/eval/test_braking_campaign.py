@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 from pathlib import Path
 
@@ -66,6 +67,11 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         and episode_outcome(rows[ditch_keys[1]]) == "stopped"
     )
     assert (out / "paths" / "ditch.reckless.0.00000.png").read_bytes()[:8] == PNG
+    # `negobs eval video` replays the episode that entered the ditch, checked against its rows
+    if importlib.util.find_spec("imageio_ffmpeg") is not None:
+        assert main(["-q", "eval", "video", str(out), "--episode", "ditch.reckless.0.00000"]) == 0
+        assert capsys.readouterr().out.split() == [str(out / "videos" / "ditch.reckless.0.00000.mp4")]
+        assert (out / "videos" / "ditch.reckless.0.00000.mp4").stat().st_size > 0
 
 
 def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:

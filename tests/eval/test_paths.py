@@ -3,6 +3,8 @@ video` (episodes replayed into MP4s, checked against the record)."""
 
 from __future__ import annotations
 
+import json
+import shutil
 from pathlib import Path
 
 import matplotlib.image as mpimg
@@ -98,15 +100,17 @@ def test_eval_video_replays_the_recorded_episode_and_checks_it(
     assert sum(1 for _ in reader) == steps + 1  # the reset's frame and one per step
     # a record that the replay does not reproduce: an error, and no video of another episode
     tampered = tmp_path / "tampered"
-    tampered.mkdir()
-    for name in ("policy.csv", "summary.json", "scenario.toml"):
-        (tampered / name).write_bytes((campaign / name).read_bytes())
-    lines = (campaign / "paths.csv").read_text().splitlines(keepends=True)
-    changed = next(i for i, line in enumerate(lines) if line.startswith(f"{key},") and ",5," in line)
-    lines[changed] = lines[changed].replace(",5,", ",5,9", 1)  # step 5's x changed
-    (tampered / "paths.csv").write_text("".join(lines))
+    shutil.copytree(campaign, tampered, ignore=shutil.ignore_patterns("paths", "videos"))
+    part = tampered / "parts" / f"{key}.json"
+    record = json.loads(part.read_text())
+    record["rows"]["paths"][5] = record["rows"]["paths"][5].replace(",5,", ",5,9", 1)  # step 5's x
+    part.write_text(json.dumps(record))
     with pytest.raises(ReplayMismatch, match=r"paths.csv rows differ .* at row 5"):
         replay_videos(tampered, [key], out_dir=tmp_path / "v2")
     assert not list((tmp_path / "v2").iterdir())
+    del record["args"]  # a part from before the arguments were recorded
+    part.write_text(json.dumps(record))
+    assert main(["eval", "video", str(tampered), "--episode", key]) == 2
+    assert "does not record the episode's arguments" in capsys.readouterr().err
     assert main(["eval", "video", str(tmp_path)]) == 2
     assert "no policy.csv" in capsys.readouterr().err
