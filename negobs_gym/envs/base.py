@@ -171,6 +171,7 @@ class NegObsEnv(gym.Env):
         if self._worlds.evictions > evictions:  # the dropped world's last references are gone now
             release_freed_memory()
         self._steps = 0
+        self._applied: np.ndarray | None = None  # the last step's clipped action, for the frames' caption
         self._still_s = 0.0
         self._entered = False
         self._stop_rewarded = False
@@ -264,6 +265,7 @@ class NegObsEnv(gym.Env):
         if not np.all(np.isfinite(a)):
             raise ActionError(f"action must be finite, got {a.tolist()}")
         a = np.clip(a, -1.0, 1.0)
+        self._applied = a
         self._vehicle.apply(max(a[0], 0.0), max(-a[0], 0.0), a[1])
         self._world.step(self._substeps)
         self._steps += 1
@@ -361,11 +363,13 @@ class NegObsEnv(gym.Env):
         """
         if self.render_mode is None or self._vehicle is None:
             return None
-        from negobs_gym.envs.rendering import VehicleFootprint, render_frame
+        from negobs_gym.envs.rendering import VehicleFootprint, caption_lines, render_frame
 
         perception = self.perception
         detection = perception.detection if perception is not None else None
         overlay = self._render_overlay
+        # only the decision taken for the step that led to this state (see set_render_overlay)
+        safety = overlay[1] if overlay is not None and overlay[0] == len(self._path) else None
         cfg = self._vehicle.config
         frame = render_frame(
             self.terrain,
@@ -377,12 +381,14 @@ class NegObsEnv(gym.Env):
             detected_outlines_m=[o.outline_xy_m for o in detection.obstacles]
             if detection is not None
             else (),
-            # only the decision taken for the step that led to this state (see set_render_overlay)
-            safety=overlay[1] if overlay is not None and overlay[0] == len(self._path) else None,
+            safety=safety,
             footprint=VehicleFootprint(
                 width_m=cfg.width_m, length_m=cfg.length_m, rear_overhang_m=cfg.rear_overhang_m
             ),
             config=self.scenario.render,
+            caption=caption_lines(
+                self._steps / self.config.control_hz, self._vehicle.speed_mps(), self._applied, safety
+            ),
         )
         if self.render_mode == "human":
             from negobs_gym.envs.rendering import show_frame

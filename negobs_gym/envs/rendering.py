@@ -3,8 +3,10 @@
 A frame has two panels side by side, both ``RenderConfig.height_px`` tall:
 
 - **overview** (left): the whole terrain (hillshade, ground-truth obstacles), the vehicle's path
-  and footprint. The terrain image comes from :func:`negobs_gym.sim.render.render_top_down` once
-  per terrain and height (cached); path and vehicle are drawn on a copy each frame.
+  and footprint, and a caption the caller gives (the envs: time, speed, applied action, the
+  filter's d and R(v); Pillow's default font). The terrain image comes from
+  :func:`negobs_gym.sim.render.render_top_down` once per terrain and height (cached); path and
+  vehicle are drawn on a copy each frame.
 - **local** (right): the vehicle-centred observation grid (vehicle driving up the image), with the
   last frame's LiDAR returns (sub-sampled, coloured by height in the vehicle frame), the
   detector's negative-obstacle outlines (yellow), the ground-truth outlines (white), the vehicle
@@ -39,7 +41,7 @@ from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.sim.render import render_top_down
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["RenderConfig", "VehicleFootprint", "frame_shape", "render_frame", "show_frame"]
+__all__ = ["RenderConfig", "VehicleFootprint", "caption_lines", "frame_shape", "render_frame", "show_frame"]
 
 Colour = tuple[int, int, int]
 
@@ -55,6 +57,8 @@ TRUTH_OUTLINE: Colour = (255, 255, 255)
 HAZARD_MARK: Colour = (255, 90, 0)
 BRAKING_MARK: Colour = (0, 220, 255)
 CORRIDOR: Colour = (170, 170, 170)
+CAPTION_BOX: Colour = (20, 20, 20)
+CAPTION_TEXT: Colour = (255, 255, 255)
 BORDER_PASS: Colour = (0, 200, 0)
 BORDER_VETO: Colour = (230, 0, 0)
 BORDER_NONE: Colour = (110, 110, 110)
@@ -74,6 +78,8 @@ class RenderConfig:
             vehicle frame's origin is on the ground, so pit floors are blue and obstacles orange.
         border_px: Width of the safety-state border around the local panel.
         mark_thickness_px: Thickness of the hazard / braking distance marks.
+        caption: Write the caption lines the caller gives (the envs: time, speed, applied action,
+            d and R(v)) at the top left of the overview.
     """
 
     height_px: int = 480
@@ -82,6 +88,7 @@ class RenderConfig:
     point_z_range_m: tuple[float, float] = (-1.0, 1.0)
     border_px: int = 5
     mark_thickness_px: int = 3
+    caption: bool = True
 
     def __post_init__(self) -> None:
         require(
@@ -107,6 +114,7 @@ class RenderConfig:
             "point_z_range_m",
             f"must be finite (low, high) with low < high, got {self.point_z_range_m!r}",
         )
+        require(isinstance(self.caption, bool), "caption", f"must be a bool, got {self.caption!r}")
         for name in ("border_px", "mark_thickness_px"):
             v = getattr(self, name)
             require(isinstance(v, int) and 1 <= v <= 20, name, f"must be an int in [1, 20], got {v!r}")
@@ -316,6 +324,42 @@ def _local(
     return img
 
 
+def caption_lines(
+    time_s: float, speed_mps: float, action: np.ndarray | None, safety: SafetyDecision | None
+) -> list[str]:
+    """The envs' frame caption: episode time and speed, the action the last step applied (None
+    before the first step), and the safety filter's d, R(v) and veto when it decided that step."""
+    lines = [f"t {time_s:5.1f} s  {3.6 * speed_mps:5.1f} km/h"]
+    if action is not None:
+        lines.append(f"throttle {action[0]:+.2f} steer {action[1]:+.2f}")
+    if safety is not None:
+        d_m = safety.hazard_distance_m
+        d = f"{d_m:.1f} m" if math.isfinite(d_m) else "clear"
+        lines.append(f"d {d}  R {safety.braking_distance_m:.1f} m" + ("  VETO" if safety.vetoed else ""))
+    return lines
+
+
+@functools.cache
+def _caption_font() -> Any:
+    from PIL import ImageFont
+
+    return ImageFont.load_default()
+
+
+def _write_caption(img: np.ndarray, lines: Sequence[str]) -> None:
+    """White ``lines`` on a dark box at the top left of ``img`` (Pillow's own font: matplotlib,
+    which every install has, depends on Pillow)."""
+    from PIL import Image, ImageDraw
+
+    text = "\n".join(lines)
+    canvas = Image.fromarray(img)
+    draw = ImageDraw.Draw(canvas)
+    _, _, right, bottom = draw.multiline_textbbox((4, 3), text, font=_caption_font(), spacing=2)
+    draw.rectangle((0, 0, right + 3, bottom + 3), fill=CAPTION_BOX)
+    draw.multiline_text((4, 3), text, fill=CAPTION_TEXT, font=_caption_font(), spacing=2)
+    img[:] = np.asarray(canvas)
+
+
 def _draw_safety(
     img: np.ndarray,
     safety: SafetyDecision | None,
@@ -362,6 +406,7 @@ def render_frame(
     safety: SafetyDecision | None = None,
     footprint: VehicleFootprint | None = None,
     config: RenderConfig | None = None,
+    caption: Sequence[str] = (),
 ) -> np.ndarray:
     """(H, W, 3) uint8 frame: whole-terrain overview on the left, vehicle-centred view on the right.
 
@@ -380,6 +425,7 @@ def render_frame(
             filter decided.
         footprint: vehicle outline; default 2.0 x 4.5 m with 0.85 m rear overhang.
         config: layout, see :class:`RenderConfig`.
+        caption: lines of text for the top left of the overview (drawn when ``config.caption``).
 
     Raises:
         ValueError: ``grid`` does not have the observation shape of ``obs_config``.
@@ -387,6 +433,8 @@ def render_frame(
     config = config if config is not None else RenderConfig()
     footprint = footprint if footprint is not None else VehicleFootprint()
     overview = _overview(terrain, pose, path_xy_m, footprint, config)
+    if config.caption and caption:
+        _write_caption(overview, caption)
     local = _local(
         terrain, pose, grid, obs_config, points_vehicle_m, detected_outlines_m, safety, footprint, config
     )

@@ -226,3 +226,40 @@ def test_a_counting_grid_draws_the_cells_a_maximum_draws() -> None:
     (most, frame_max), (count, frame_count) = frames
     assert count.max() > 1 and np.array_equal(most, count > 0)  # obstacles in sight, counted
     np.testing.assert_array_equal(frame_max, frame_count)
+
+
+def test_a_caption_is_written_at_the_top_left_of_the_overview_only(terrain) -> None:
+    plain = _frame(terrain)
+    captioned = _frame(terrain, caption=["t   1.0 s   25.0 km/h", "throttle +1.00 steer +0.00"])
+    changed = np.argwhere(np.any(plain != captioned, axis=-1))
+    assert len(changed) > 0
+    assert changed[:, 0].max() < 40 and changed[:, 1].max() < RenderConfig().overview_width_px
+    box = captioned[1, 1]
+    assert np.array_equal(box, rendering.CAPTION_BOX)
+    text = np.all(captioned > 180, axis=-1) & np.any(plain != captioned, axis=-1)
+    assert text.sum() > 50  # the letters: light (anti-aliased) pixels the caption put there
+    off = _frame(terrain, caption=["t 1.0 s"], config=RenderConfig(caption=False))
+    assert np.array_equal(off, plain)
+    with pytest.raises(ConfigError, match="caption"):
+        RenderConfig(caption="yes")
+
+
+def test_caption_lines_name_time_speed_action_and_the_filters_distances() -> None:
+    assert rendering.caption_lines(0.0, 0.0, None, None) == ["t   0.0 s    0.0 km/h"]
+    lines = rendering.caption_lines(4.2, 6.944, np.array([0.5, -0.25]), _decision(True, 9.75, 10.5))
+    assert lines == ["t   4.2 s   25.0 km/h", "throttle +0.50 steer -0.25", "d 9.8 m  R 10.5 m  VETO"]
+    assert rendering.caption_lines(1.0, 1.0, None, _decision(False, np.inf, 2.0))[1] == "d clear  R 2.0 m"
+
+
+def test_env_frames_carry_the_caption() -> None:
+    frames = {}
+    for caption in (True, False):
+        env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array")
+        spec = env.unwrapped.scenario
+        env.unwrapped.scenario = dataclasses.replace(spec, render=RenderConfig(caption=caption))
+        env.reset(seed=0)
+        env.step(np.array([0.5, 0.2], np.float32))
+        frames[caption] = env.render()
+        env.close()
+    differ = np.argwhere(np.any(frames[True] != frames[False], axis=-1))
+    assert len(differ) > 0 and differ[:, 0].max() < 40  # the caption box, and nothing else
