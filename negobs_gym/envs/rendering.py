@@ -329,7 +329,8 @@ def caption_lines(
 ) -> list[str]:
     """The envs' frame caption: episode time and speed, the action the last step applied (None
     before the first step), and the safety filter's d, R(v) and veto when it decided that step."""
-    lines = [f"t {time_s:5.1f} s  {3.6 * speed_mps:5.1f} km/h"]
+    speed_kmh = round(3.6 * speed_mps, 1) + 0.0  # + 0.0: a standstill's -0.0 reads 0.0
+    lines = [f"t {time_s:5.1f} s  {speed_kmh:5.1f} km/h"]
     if action is not None:
         lines.append(f"throttle {action[0]:+.2f} steer {action[1]:+.2f}")
     if safety is not None:

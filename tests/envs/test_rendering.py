@@ -246,6 +246,7 @@ def test_a_caption_is_written_at_the_top_left_of_the_overview_only(terrain) -> N
 
 def test_caption_lines_name_time_speed_action_and_the_filters_distances() -> None:
     assert rendering.caption_lines(0.0, 0.0, None, None) == ["t   0.0 s    0.0 km/h"]
+    assert rendering.caption_lines(0.0, -0.001, None, None) == ["t   0.0 s    0.0 km/h"]  # not -0.0
     lines = rendering.caption_lines(4.2, 6.944, np.array([0.5, -0.25]), _decision(True, 9.75, 10.5))
     assert lines == ["t   4.2 s   25.0 km/h", "throttle +0.50 steer -0.25", "d 9.8 m  R 10.5 m  VETO"]
     assert rendering.caption_lines(1.0, 1.0, None, _decision(False, np.inf, 2.0))[1] == "d clear  R 2.0 m"
