@@ -369,7 +369,9 @@ class NegObsEnv(gym.Env):
         detection = perception.detection if perception is not None else None
         overlay = self._render_overlay
         # only the decision taken for the step that led to this state (see set_render_overlay)
-        safety = overlay[1] if overlay is not None and overlay[0] == len(self._path) else None
+        safety, decision_pose = (
+            overlay[1:] if overlay is not None and overlay[0] == len(self._path) else (None, None)
+        )
         cfg = self._vehicle.config
         frame = render_frame(
             self.terrain,
@@ -382,6 +384,7 @@ class NegObsEnv(gym.Env):
             if detection is not None
             else (),
             safety=safety,
+            decision_pose=decision_pose,
             footprint=VehicleFootprint(
                 width_m=cfg.width_m, length_m=cfg.length_m, rear_overhang_m=cfg.rear_overhang_m
             ),
@@ -405,7 +408,8 @@ class NegObsEnv(gym.Env):
         the filter) show it, whatever the wrapper order. Frames of later steps without a decision
         show no filter state.
         """
-        self._render_overlay = None if decision is None else (len(self._path) + 1, decision)
+        pose = self._vehicle.true_pose() if self._vehicle is not None else None  # where it decided
+        self._render_overlay = None if decision is None else (len(self._path) + 1, decision, pose)
 
     def close(self) -> None:
         self._close_world()

@@ -13,8 +13,8 @@ A frame has two panels side by side, both ``RenderConfig.height_px`` tall:
   footprint, and the safety filter's state: a border (green = action passed, red = vetoed, grey =
   no filter decision for this step), the sides of the corridor it searched (grey, along the
   proposed steering's arc) and two marks across that corridor, the hazard distance d (orange) and
-  the braking distance R(v) (cyan), each where the filter's arc length puts it, in the vehicle
-  frame at decision time.
+  the braking distance R(v) (cyan), each where the filter's arc length puts it, laid out from the
+  pose at which the filter decided (the previous step's).
 
 The frame shape depends only on the config and the observation grid's extent, so it is constant
 over an episode (``gymnasium.wrappers.RecordVideo`` needs that).
@@ -293,6 +293,7 @@ def _local(
     points_vehicle_m: np.ndarray | None,
     detected_outlines_m: Sequence[np.ndarray],
     safety: SafetyDecision | None,
+    decision_pose: Pose | None,
     footprint: VehicleFootprint,
     config: RenderConfig,
 ) -> np.ndarray:
@@ -320,7 +321,15 @@ def _local(
         _polyline(img, *to_px(outline), DETECTED_OUTLINE, closed=True, size=2)
     _polyline(img, *to_px(footprint.corners_vehicle_m()), VEHICLE, closed=True, size=2)
     reach_m = math.hypot(spec.ahead_m, spec.side_m)  # any arc this long leaves the panel
-    _draw_safety(img, safety, footprint, reach_m, to_px, config)
+    if decision_pose is None:
+        decision_px = to_px
+    else:  # the corridor lies where it was when the filter decided: into the current frame
+
+        def decision_px(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            world = vehicle_to_world_xy(xy, (decision_pose.x, decision_pose.y), decision_pose.yaw)
+            return to_px(world_to_vehicle_xy(world, (pose.x, pose.y), pose.yaw))
+
+    _draw_safety(img, safety, footprint, reach_m, decision_px, config)
     return img
 
 
@@ -405,6 +414,7 @@ def render_frame(
     points_vehicle_m: np.ndarray | None = None,
     detected_outlines_m: Sequence[np.ndarray] = (),
     safety: SafetyDecision | None = None,
+    decision_pose: Pose | None = None,
     footprint: VehicleFootprint | None = None,
     config: RenderConfig | None = None,
     caption: Sequence[str] = (),
@@ -424,6 +434,9 @@ def render_frame(
             ``corridor`` drawn, marks across it at ``hazard_distance_m`` and
             ``braking_distance_m``; straight ahead when it has no corridor) or None when no
             filter decided.
+        decision_pose: the true pose at which the filter decided (the step before ``pose``): the
+            corridor and marks, in that pose's vehicle frame, are drawn where they lie in the
+            current one; None draws them in the current frame.
         footprint: vehicle outline; default 2.0 x 4.5 m with 0.85 m rear overhang.
         config: layout, see :class:`RenderConfig`.
         caption: lines of text for the top left of the overview (drawn when ``config.caption``).
@@ -437,7 +450,16 @@ def render_frame(
     if config.caption and caption:
         _write_caption(overview, caption)
     local = _local(
-        terrain, pose, grid, obs_config, points_vehicle_m, detected_outlines_m, safety, footprint, config
+        terrain,
+        pose,
+        grid,
+        obs_config,
+        points_vehicle_m,
+        detected_outlines_m,
+        safety,
+        decision_pose,
+        footprint,
+        config,
     )
     return np.concatenate([overview, local], axis=1)
 

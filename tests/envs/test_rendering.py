@@ -90,6 +90,14 @@ def test_hazard_and_braking_marks_are_drawn_at_their_distances(terrain) -> None:
     assert not np.any(np.all(clear == rendering.HAZARD_MARK, axis=-1))  # no hazard: no d mark
 
 
+def test_marks_are_laid_out_from_the_pose_where_the_filter_decided(terrain) -> None:
+    decided_at = Pose(x=0.0, y=-1.5, yaw=0.0)  # the step before: 1.5 m behind the current pose
+    frame = _local(_frame(terrain, safety=_decision(True, 12.0, 6.0), decision_pose=decided_at))
+    for d, colour in ((12.0, rendering.HAZARD_MARK), (6.0, rendering.BRAKING_MARK)):
+        assert np.array_equal(frame[_local_px(0.0, d - 1.5)], colour)  # where the filter measured
+        assert not np.array_equal(frame[_local_px(0.0, d)], colour)
+
+
 def test_in_a_turn_the_marks_and_corridor_follow_the_arc(terrain) -> None:
     corridor = Corridor(steer_rad=0.15, wheelbase_m=2.8, half_width_m=1.2, front_length_m=3.65)
     frame = _local(_frame(terrain, safety=_decision(True, 12.0, 9.0, corridor)))
