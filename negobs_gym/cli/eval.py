@@ -179,9 +179,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "ended, the vetoed steps and the outcome. Default: the episodes that did not do their task "
         "(no goal; braking: no stop before the obstacle, or a veto on the obstacle-free track).",
     )
-    paths.add_argument(
-        "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
-    )
     _add_episode_choice(paths, "draw", "paths", "PNGs")
     paths.add_argument(
         "--zoom",
@@ -205,15 +202,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "not do their task. Needs "
         'imageio-ffmpeg (pip install "negobs_gym[video]").',
     )
-    video.add_argument(
-        "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
-    )
     _add_episode_choice(video, "replay", "videos", "MP4s")
     video.set_defaults(handler=run_videos)
 
 
 def _add_episode_choice(parser: argparse.ArgumentParser, verb: str, folder: str, files: str) -> None:
-    """The options that choose a campaign's episodes (``negobs eval paths`` and ``video``)."""
+    """The campaign folder and the options that choose its episodes (``negobs eval paths``, ``video``)."""
+    parser.add_argument(
+        "campaign_dir", metavar="DIR", help="the folder `negobs eval policy|braking --out` wrote"
+    )
     parser.add_argument(
         "--episode",
         dest="keys",
