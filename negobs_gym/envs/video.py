@@ -14,14 +14,15 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, SupportsFloat
 
+import gymnasium as gym
 import numpy as np
 
 from negobs_gym.core.files import atomic_target
 from negobs_gym.errors import MissingDependencyError, require
 
-__all__ = ["EpisodeVideo", "optional_video"]
+__all__ = ["EpisodeVideo", "FrameRecorder", "optional_video", "recording"]
 
 
 class EpisodeVideo:
@@ -111,3 +112,27 @@ def optional_video(path: str | Path | None, fps: float = 10.0) -> Iterator[Episo
         return
     with EpisodeVideo(path, fps=fps) as video:
         yield video
+
+
+class FrameRecorder(gym.Wrapper):
+    """Adds ``env.render()`` to ``video`` after every reset and step, so a driving loop records
+    without knowing it (wrap outermost: a safety filter inside has set its decision by then)."""
+
+    def __init__(self, env: gym.Env, video: EpisodeVideo) -> None:
+        super().__init__(env)
+        self.video = video
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        out = self.env.reset(**kwargs)
+        self.video.add(self.env.render())
+        return out
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        out = self.env.step(action)
+        self.video.add(self.env.render())
+        return out
+
+
+def recording(env: gym.Env, video: EpisodeVideo | None) -> gym.Env:
+    """``env`` recording into ``video`` (:class:`FrameRecorder`), or ``env`` itself when None."""
+    return env if video is None else FrameRecorder(env, video)

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from negobs_gym.envs.config import RIGS
-from negobs_gym.envs.video import EpisodeVideo, optional_video
+from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.policies.observation import PolicyDriver
@@ -270,7 +270,7 @@ def run_driven_episode(
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
     with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.config.control_hz) as video:
-        return _driven_episode(env, driver, seed, guard, max_steps, video)
+        return _driven_episode(recording(env, video), driver, seed, guard, max_steps)
 
 
 def _driven_episode(
@@ -279,13 +279,10 @@ def _driven_episode(
     seed: int,
     guard: SafetyFilterConfig | None,
     max_steps: int,
-    video: EpisodeVideo | None,
 ) -> dict[str, Any]:
-    """The episode of :func:`run_driven_episode` in ``env`` (filter applied), frames into ``video``."""
+    """The episode of :func:`run_driven_episode` in ``env`` (filter applied)."""
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
-    if video is not None:
-        video.add(env.render())
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
@@ -297,8 +294,6 @@ def _driven_episode(
         gap = float(info["distance_to_negative_ahead_m"])
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
         steps += 1
-        if video is not None:
-            video.add(env.render())
         xy = np.asarray(info["pose"][:2], dtype=np.float64)
         distance += float(np.hypot(*(xy - last_xy)))
         last_xy = xy

@@ -20,7 +20,7 @@ import numpy as np
 from negobs_gym.drivers import DRIVER_NAMES, Driver
 from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
-from negobs_gym.envs.video import EpisodeVideo, optional_video
+from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
@@ -224,7 +224,7 @@ def run_scenario(
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
     env = _wrap(base, filter, spec.run)
     with contextlib.closing(env), optional_video(video_to, fps=base.config.control_hz) as video:
-        return _run_episode(spec, driver, env, base, filter, seed, video, draw_to, draw_zoom_m)
+        return _run_episode(spec, driver, recording(env, video), base, filter, seed, draw_to, draw_zoom_m)
 
 
 def _run_episode(
@@ -234,14 +234,11 @@ def _run_episode(
     base: NegObsEnv,
     filter: bool | SafetyFilterConfig,
     seed: int,
-    video: EpisodeVideo | None,
     draw_to: str | Path | None,
     draw_zoom_m: float | None,
 ) -> ScenarioResult:
-    """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped), its frames into ``video``."""
+    """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped)."""
     obs, info = env.reset(seed=seed)
-    if video is not None:
-        video.add(env.render())
     name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
     pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
     pilot.reset(seed)
@@ -262,8 +259,6 @@ def _run_episode(
         speed_before = info["speed_mps"]
         obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
         steps += 1
-        if video is not None:
-            video.add(env.render())
         path.append(_xy(info))
         if "safety" in info:
             vetoed, hazard_m, channel = _vetoed(info["safety"])

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
-from negobs_gym.envs.video import EpisodeVideo, optional_video
+from negobs_gym.envs.video import EpisodeVideo, optional_video, recording
 from negobs_gym.errors import ConfigError
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
@@ -86,3 +87,36 @@ def test_optional_video_records_only_when_given_a_path(tmp_path) -> None:
     with optional_video(tmp_path / "v.mp4", fps=5) as video:
         video.add(_frames(1)[0])
     assert video.fps == 5 and (tmp_path / "v.mp4").is_file()
+
+
+class _CountingEnv(gym.Env):
+    """Renders a frame whose colour is the number of steps taken."""
+
+    observation_space = gym.spaces.Discrete(1)
+    action_space = gym.spaces.Discrete(1)
+
+    def reset(self, *, seed=None, options=None):
+        self.k = 0
+        return 0, {}
+
+    def step(self, action):
+        self.k += 1
+        return 0, 0.0, False, False, {}
+
+    def render(self):
+        return _frames(self.k + 1)[self.k]
+
+
+def test_a_recording_env_adds_a_frame_after_the_reset_and_every_step(tmp_path) -> None:
+    env = _CountingEnv()
+    assert recording(env, None) is env
+    with optional_video(tmp_path / "v.mp4") as video:
+        wrapped = recording(env, video)
+        wrapped.reset(seed=0)
+        for _ in range(4):
+            wrapped.step(0)
+    assert video.frames == 5
+    _, decoded = _decode(tmp_path / "v.mp4")
+    sent = [_frames(k + 1)[k] for k in range(5)]
+    for got, want in zip(decoded, sent, strict=True):
+        assert np.abs(got.astype(int).mean(axis=(0, 1)) - want[0, 0]).max() < 6
