@@ -22,6 +22,7 @@ __all__ = [
     "points_in_polygon",
     "points_in_polygons",
     "polygon_in_strip_y",
+    "polygon_outline_points",
     "polyline_stations",
     "project_onto_polyline",
     "vehicle_to_world_xy",
@@ -150,6 +151,21 @@ def polygon_in_strip_y(polygon_xy: np.ndarray, half_width: float) -> np.ndarray:
     return np.concatenate([poly[keep, 1] + lo[keep] * d[keep, 1], poly[keep, 1] + hi[keep] * d[keep, 1]])
 
 
+def polygon_outline_points(polygon_xy: np.ndarray, spacing_m: float) -> np.ndarray:
+    """(M, 2) points along the closed polygon's edges, at most ``spacing_m`` apart: every vertex,
+    then each edge cut into equal parts. A region's nearest point along any sweep that enters it
+    through its outline is one of these to within ``spacing_m``."""
+    poly = _polygon(polygon_xy, "polygon_xy")
+    if not (math.isfinite(spacing_m) and spacing_m > 0):
+        raise GeometryError(f"spacing_m: expected a finite value > 0, got {spacing_m!r}")
+    d = np.roll(poly, -1, axis=0) - poly
+    parts = np.maximum(np.ceil(np.hypot(d[:, 0], d[:, 1]) / spacing_m), 1).astype(np.int64)
+    edge = np.repeat(np.arange(len(poly)), parts)
+    first = np.cumsum(parts) - parts  # index of each edge's first point
+    t = (np.arange(int(parts.sum())) - first[edge]) / parts[edge]
+    return poly[edge] + t[:, None] * d[edge]
+
+
 class PolygonsAhead:
     """Polygons (world xy) and their bounding circles: how far ahead of a pose the nearest of them
     lies in a strip, transforming only those whose circle can reach the strip ahead."""
@@ -163,6 +179,7 @@ class PolygonsAhead:
         self._centres = np.array(centres).reshape(-1, 2)
         radii = [np.max(np.hypot(*(poly - c).T)) for poly, c in zip(self.polygons, centres, strict=True)]
         self._radii = np.array(radii) + self._RADIUS_MARGIN_M
+        self._outlines: dict[float, np.ndarray] = {}
 
     def nearest_ahead(self, origin_xy: np.ndarray, yaw_rad: float, half_width: float) -> float:
         """Smallest y > 0 of any polygon's part inside ``|x| <= half_width`` in the vehicle frame at
@@ -178,6 +195,14 @@ class PolygonsAhead:
             if ahead.size:
                 best = min(best, float(ahead.min()))
         return best
+
+    def outline_points(self, origin_xy: np.ndarray, yaw_rad: float, spacing_m: float) -> np.ndarray:
+        """(M, 2) points along every polygon's outline (:func:`polygon_outline_points`) in the
+        vehicle frame at ``origin_xy``, ``yaw_rad``; the world points are sampled once per spacing."""
+        if spacing_m not in self._outlines:
+            rows = [polygon_outline_points(poly, spacing_m) for poly in self.polygons]
+            self._outlines[spacing_m] = np.concatenate(rows) if rows else np.zeros((0, 2))
+        return world_to_vehicle_xy(self._outlines[spacing_m], origin_xy, yaw_rad)
 
 
 # --- centre lines -----------------------------------------------------------------------------

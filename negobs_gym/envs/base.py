@@ -14,7 +14,7 @@ import copy
 import dataclasses
 import logging
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -37,6 +37,7 @@ from negobs_gym.envs.world_cache import (
 )
 from negobs_gym.errors import ActionError, ConfigError, ResetNeeded
 from negobs_gym.safety.braking import BrakingConfig
+from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.protocol import HazardState
 from negobs_gym.sim.events import EventMonitor, StepEvents
@@ -49,7 +50,11 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = ["NegObsEnv", "registered_negobs_env"]
+__all__ = ["TRUE_OUTLINE_SPACING_M", "NegObsEnv", "registered_negobs_env"]
+
+#: true obstacle outlines are sampled this densely for :meth:`NegObsEnv.true_hazard_distance_m`
+#: (its error along the corridor is at most this) [m]
+TRUE_OUTLINE_SPACING_M = 0.05
 
 
 def _load_spec(scenario: ScenarioSpec | str) -> ScenarioSpec:
@@ -503,6 +508,27 @@ class NegObsEnv(gym.Env):
         """The same for the footprints of the positive obstacles the car can hit (bodies; mounds,
         part of the ground, are not)."""
         return self._distance_ahead(self._positives_ahead, pose)
+
+    def true_hazard_distance_m(
+        self,
+        corridor: Corridor,
+        pose: Pose | np.ndarray,
+        channel: Literal["negative", "positive"] = "negative",
+    ) -> float:
+        """Ground truth of a safety filter's hazard distance: arc length along ``corridor`` (laid
+        out from ``pose``, as the filter's decision at that pose did) to the nearest true outline
+        of ``channel``'s obstacles (negative: the pits' rims; positive: the footprints of the bodies
+        the car can hit), sampled every :data:`TRUE_OUTLINE_SPACING_M`; inf when none lies in it.
+
+        The evaluation's check of a veto (``ScenarioResult.false_vetoes``) compares this with the
+        distance the filter acted on. ``pose``: a :class:`Pose` or the array of ``info["pose"]``.
+        """
+        if channel not in ("negative", "positive"):
+            raise ConfigError("channel", f"expected 'negative' or 'positive', got {channel!r}")
+        pose = pose if isinstance(pose, Pose) else Pose.from_array(np.asarray(pose, dtype=np.float64))
+        polygons = self._negatives_ahead if channel == "negative" else self._positives_ahead
+        points = polygons.outline_points(np.array([pose.x, pose.y]), pose.yaw, TRUE_OUTLINE_SPACING_M)
+        return corridor.hazard_distance_m(points)
 
     def _distance_ahead(self, polygons: PolygonsAhead, pose: Pose) -> float:
         """Front bumper to the nearest point of ``polygons`` ahead in the wheels' strip."""

@@ -58,4 +58,5 @@ class SafetyDecision:
             "perception_age_s": self.perception_age_s,
             "perception_stale": self.perception_stale,
             "hazard_channel": self.hazard_channel,
+            "corridor": self.corridor,
         }

@@ -101,7 +101,8 @@ class BrakingSafetyFilter(gym.Wrapper):
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
-    original_action, applied_action, perception_age_s, perception_stale, hazard_channel).
+    original_action, applied_action, perception_age_s, perception_stale, hazard_channel,
+    corridor: the :class:`~negobs_gym.safety.Corridor` searched, a frozen value).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
     at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
     step is :attr:`last_decision`; an env implementing :class:`DecisionSink` receives it before

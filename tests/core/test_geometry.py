@@ -15,6 +15,7 @@ from negobs_gym.core.geometry import (
     points_in_polygon,
     points_in_polygons,
     polygon_in_strip_y,
+    polygon_outline_points,
     polyline_stations,
     project_onto_polyline,
     vehicle_to_world_xy,
@@ -221,3 +222,37 @@ def test_polygons_ahead_equal_the_nearest_over_every_polygon():
     assert PolygonsAhead([]).nearest_ahead(np.zeros(2), 0.0, 1.0) == math.inf
     with pytest.raises(GeometryError):
         PolygonsAhead([np.array([[0.0, 0.0], [1.0, np.nan], [1.0, 1.0]])])
+
+
+def _on_outline(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Distance of each point to the nearest edge of the closed polygon."""
+    closed = np.vstack([polygon, polygon[:1]])
+    return np.array([distance_to_polyline(p[None], closed)[0] for p in points])
+
+
+def test_polygon_outline_points_walk_every_edge_at_most_the_spacing_apart():
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        polygon = _random_polygon(rng)
+        spacing = float(rng.uniform(0.02, 0.5))
+        pts = polygon_outline_points(polygon, spacing)
+        gaps = np.hypot(*np.diff(np.vstack([pts, pts[:1]]), axis=0).T)
+        assert gaps.max() <= spacing + 1e-12  # consecutive points, the last back to the first
+        assert np.allclose(_on_outline(pts, polygon), 0.0, atol=1e-9)
+        assert all(np.any(np.all(pts == v, axis=1)) for v in polygon)  # every vertex, exactly
+        perimeter = np.hypot(*np.diff(np.vstack([polygon, polygon[:1]]), axis=0).T).sum()
+        assert len(pts) <= len(polygon) + perimeter / spacing
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(GeometryError, match="spacing_m"):
+            polygon_outline_points(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), bad)
+
+
+def test_polygons_ahead_outline_points_are_in_the_vehicle_frame():
+    square = np.array([[10.0, 20.0], [11.0, 20.0], [11.0, 21.0], [10.0, 21.0]])
+    ahead = PolygonsAhead([square, square + 5.0])
+    origin, yaw = np.array([10.5, 15.0]), 0.3
+    pts = ahead.outline_points(origin, yaw, 0.1)
+    world = np.vstack([polygon_outline_points(p, 0.1) for p in (square, square + 5.0)])
+    assert np.allclose(pts, world_to_vehicle_xy(world, origin, yaw))
+    assert np.array_equal(ahead.outline_points(origin, yaw, 0.1), pts)  # sampled once, same answer
+    assert PolygonsAhead([]).outline_points(origin, yaw, 0.1).shape == (0, 2)

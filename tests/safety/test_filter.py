@@ -436,3 +436,6 @@ def test_the_decision_carries_the_corridor_it_searched(steer):
     assert corridor.steer_rad == float(np.float32(steer)) * state.max_steer_rad
     assert (corridor.wheelbase_m, corridor.half_width_m, corridor.front_length_m) == (2.8, HW, FRONT_M)
     assert corridor.hazard_distance_m(pts) == decision.hazard_distance_m
+    assert decision.as_dict()["corridor"] is corridor  # info["safety"] carries it (frozen)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        corridor.steer_rad = 0.0  # type: ignore[misc]

@@ -74,6 +74,48 @@ def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
         assert not r.collision and not r.goal_reached and r.time_s < 9.0
 
 
+# a 3 x 3 m pit 16 m on and 5 m left of the start line, the filter's cells held 2 s
+TURN_SCENE = """
+name = "pit_left_in_a_turn"
+terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "stopped"]
+[terrain.course]
+length_m = 45.0
+[[obstacles]]
+kind = "pit"
+length_m = 3.0
+width_m = 3.0
+depth_m = 0.6
+station_m = 16.0
+lateral_m = -5.0
+[start]
+speed_mps = 5.0
+[episode]
+time_limit_s = 8.0
+[observation]
+hazard_hold_s = 2.0
+"""
+
+
+class _SteadyLeftTurn:
+    """Full throttle, steering 0.3 of full lock to the left: towards the pit beside the line."""
+
+    def reset(self, seed: int) -> None:
+        pass
+
+    def act(self, obs, info) -> np.ndarray:
+        return np.array([1.0, 0.3], np.float32)
+
+
+def test_vetoes_are_judged_along_the_corridor_the_filter_searched() -> None:
+    """Turning towards a pit, the filter vetoes for it while it lies beside the straight line
+    ahead: judged against the ground truth straight ahead, 16 of these 20 vetoes were counted
+    false; judged along the steering's arc, none is."""
+    r = run_scenario(spec_from_toml(TURN_SCENE), _SteadyLeftTurn(), filter=True, seed=0)
+    assert not r.entered_negative_obstacle and r.termination == ("stopped",)
+    assert not r.stopped_before  # standing, with no pit straight ahead: it lies on the arc
+    assert r.vetoes >= 10 and r.false_vetoes == 0
+
+
 def test_criteria_check_each_named_bound() -> None:
     result = ScenarioResult(
         scenario="x", seed=0, driver="d", filtered=True, steps=10, time_s=1.0,
