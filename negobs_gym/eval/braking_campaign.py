@@ -27,6 +27,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.vetoes import is_false_veto
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -89,6 +90,7 @@ COLUMNS = (
     "first_veto_gap_m",
     "vetoes",
     "veto_events",
+    "false_vetoes",
     "cost",
 )
 
@@ -263,6 +265,8 @@ def run_driven_episode(
     from the centre line than half the track width); ``left_track`` is whether that ended the
     episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
     ``(x, y, yaw, speed, vetoed)`` per step (world metres, radians, m/s, bool), the reset's first.
+    ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
+    corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`).
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -286,12 +290,13 @@ def _driven_episode(
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
+    false_vetoes = 0
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
     path = [_path_point(info, False)]
     while not done and steps < max_steps:
-        gap = float(info["distance_to_negative_ahead_m"])
+        before, gap = info, float(info["distance_to_negative_ahead_m"])
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
         steps += 1
         xy = np.asarray(info["pose"][:2], dtype=np.float64)
@@ -305,6 +310,7 @@ def _driven_episode(
         if vetoed:
             vetoes += 1
             veto_events += not was_vetoed
+            false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
             first_veto = gap if math.isnan(first_veto) else first_veto
         was_vetoed = vetoed
         path.append(_path_point(info, vetoed))
@@ -328,6 +334,7 @@ def _driven_episode(
         "first_veto_gap_m": first_veto,
         "vetoes": vetoes,
         "veto_events": veto_events,
+        "false_vetoes": false_vetoes,
         "cost": cost,
         "path": path,
     }

@@ -3,7 +3,9 @@
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
 rollover or trap during the episode, and it did not end by leaving the track), the failure events,
 whether leaving the track ended it (OffroadNav-v2's ``off_track`` rule), goal reached, progress
-along the track, distance driven, the filter's vetoes, the summed constraint ``cost``
+along the track, distance driven, the filter's vetoes and the false ones among them (no true
+obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`), the
+summed constraint ``cost``
 (``info["cost"]``) and the steps that ended off the track (farther from the centre line than half
 the track width: the obstacles of OffroadNav lie on the track, so a policy that drives beside it
 meets none).
@@ -44,6 +46,7 @@ COLUMNS = (
     "distance_m",
     "steps",
     "vetoes",
+    "false_vetoes",
     "cost",
     "off_track_steps",
 )
@@ -60,6 +63,7 @@ SUMMED = (
     "progress_m",
     "distance_m",
     "vetoes",
+    "false_vetoes",
     "cost",
     "steps",
     "off_track_steps",
@@ -160,8 +164,8 @@ def run_episode(episode: Episode) -> Rows:
 
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
-    track ended, mean progress, distance driven, vetoes (and per km driven), cost, steps, and the
-    share of them that ended off the track.
+    track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
+    driven), cost, steps, and the share of them that ended off the track.
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -184,13 +188,16 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["progress_m"] += float(r["progress_m"])
         s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])
+        s["false_vetoes"] += int(r["false_vetoes"])
         s["cost"] += float(r["cost"])
         s["steps"] += int(r["steps"])
         s["off_track_steps"] += int(r["off_track_steps"])
     for s in out.values():
         s["success_rate"] = s["successes"] / s["episodes"]
         s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
-        s["vetoes_per_km"] = s["vetoes"] / (s["distance_m"] / 1000.0) if s["distance_m"] > 0 else 0.0
+        km = s["distance_m"] / 1000.0
+        s["vetoes_per_km"] = s["vetoes"] / km if km > 0 else 0.0
+        s["false_vetoes_per_km"] = s["false_vetoes"] / km if km > 0 else 0.0
         s["off_track_share"] = s["off_track_steps"] / s["steps"] if s["steps"] > 0 else 0.0
     return out
 

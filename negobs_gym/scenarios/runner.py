@@ -22,7 +22,8 @@ from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
-from negobs_gym.safety import BrakingSafetyFilter, Corridor
+from negobs_gym.eval.vetoes import is_false_veto, is_veto
+from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
 from negobs_gym.scenarios.spec import CriteriaSpec, RunSpec, ScenarioSpec
@@ -30,25 +31,12 @@ from negobs_gym.sim.types import Terrain
 
 __all__ = [
     "DRIVERS",
-    "FALSE_VETO_LATERAL_TOLERANCE_M",
-    "FALSE_VETO_TOLERANCE_M",
     "ScenarioResult",
     "check_criteria",
     "make_driver",
     "run_scenario",
     "run_scenario_seeds",
 ]
-
-#: A veto is false when the nearest true obstacle of the vetoing channel (negative, or positive
-#: when the filter stopped for the positive channel) along the filter's corridor, widened by
-#: :data:`FALSE_VETO_LATERAL_TOLERANCE_M`, is farther than the distance the filter acted on plus
-#: this [m] (the detected near edge may lie up to a ring gap before the rim; the paper gives no
-#: such figure, 2 m is the braking benchmark's tolerance).
-FALSE_VETO_TOLERANCE_M = 2.0
-#: Each side of the corridor is widened by this for that check [m]: a grid cell the filter reads
-#: may lie up to its diagonal (0.28 m on paper N's 20 cm grid, Sec. 4) outside the outline the
-#: detector drew, and that outline a cell or so outside the true rim (engineering choice).
-FALSE_VETO_LATERAL_TOLERANCE_M = 0.5
 
 #: Driver names a spec's ``run.driver`` or ``negobs scenario run --driver`` accepts.
 DRIVERS: tuple[str, ...] = DRIVER_NAMES
@@ -81,11 +69,9 @@ class ScenarioResult:
         vetoes: Steps whose action the filter replaced.
         false_vetoes: Vetoes with no true obstacle of the vetoing channel (negative, or positive
             with ``stop_for_positive``) within the filter's hazard distance plus
-            :data:`FALSE_VETO_TOLERANCE_M`, along the corridor the filter searched (its proposed
-            steering's arc, laid out from the pose where it decided,
-            :meth:`NegObsEnv.true_hazard_distance_m`) widened by
-            :data:`FALSE_VETO_LATERAL_TOLERANCE_M` each side; a filter whose decision carries no
-            corridor is checked against the ground truth straight ahead in the wheels' strip.
+            :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M`, along the corridor the filter
+            searched (its proposed steering's arc, laid out from the pose where it decided;
+            :func:`~negobs_gym.eval.vetoes.is_false_veto`).
         positive_gap_m: Gap left at the end to the nearest positive obstacle ahead in the wheels'
             strip (inf: none) [m].
         termination: Termination rules that ended the episode (empty: truncated).
@@ -182,25 +168,6 @@ def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig, run: RunSpec) -> gym.
     return BrakingSafetyFilter(env, config=filter)
 
 
-def _vetoed(record: Any) -> tuple[bool, float, str | None, Corridor | None]:
-    """(vetoed, hazard distance, hazard channel, corridor) of the filter's decision record for one
-    step (channel and corridor None where the record has none)."""
-    get = record.get if isinstance(record, dict) else lambda key: getattr(record, key, None)
-    return bool(get("vetoed")), float(get("hazard_distance_m")), get("hazard_channel"), get("corridor")
-
-
-def _true_hazard_m(
-    base: NegObsEnv, before: dict[str, Any], corridor: Corridor | None, channel: str, bumper_m: float
-) -> float:
-    """Ground truth of a veto's hazard distance from the rear axle, at the pose where the filter
-    decided (``before``: the info of the step before): along its corridor widened by
-    :data:`FALSE_VETO_LATERAL_TOLERANCE_M`, else straight ahead in the wheels' strip."""
-    if corridor is None:
-        return float(before[f"distance_to_{channel}_ahead_m"]) + bumper_m
-    wide = dataclasses.replace(corridor, half_width_m=corridor.half_width_m + FALSE_VETO_LATERAL_TOLERANCE_M)
-    return base.true_hazard_distance_m(wide, before["pose"], channel)
-
-
 def run_scenario(
     spec: ScenarioSpec | str | Path,
     driver: Driver | str | None = None,
@@ -264,8 +231,6 @@ def _run_episode(
     name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
     pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
     pilot.reset(seed)
-    vehicle = base.vehicle.config
-    bumper_m = vehicle.length_m - vehicle.rear_overhang_m
     dt = 1.0 / base.config.control_hz
     start_gap = float(info["distance_to_negative_ahead_m"])
     entered = collision = trapped = rollover = goal = left = False
@@ -279,13 +244,10 @@ def _run_episode(
         obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
         steps += 1
         path.append(_xy(info))
-        if "safety" in info:
-            vetoed, hazard_m, channel, corridor = _vetoed(info["safety"])
-            if vetoed:
-                vetoed_steps.append(steps)
-                vetoes += 1
-                truth_m = _true_hazard_m(base, before, corridor, channel or "negative", bumper_m)
-                false_vetoes += truth_m > hazard_m + FALSE_VETO_TOLERANCE_M
+        if is_veto(info.get("safety")):
+            vetoed_steps.append(steps)
+            vetoes += 1
+            false_vetoes += is_false_veto(base, info["safety"], before)
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
         ev = info["events"]
         entered |= bool(ev["entered_negative_obstacle"])

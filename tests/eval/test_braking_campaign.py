@@ -55,6 +55,15 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         steps = [p for p in paths if p["episode"] == key]
         assert [int(p["step"]) for p in steps] == list(range(int(row["steps"]) + 1))
         assert sum(p["vetoed"] == "1" for p in steps) == int(row["vetoes"])
+    # the filter's vetoes for the ditch are for the ditch; on the free track, any is false
+    assert (
+        int(rows["ditch.reckless.1.00000"]["vetoes"]) > 0
+        and rows["ditch.reckless.1.00000"]["false_vetoes"] == "0"
+    )
+    free = rows["free_track.reckless.1.00000"]
+    assert (
+        free["false_vetoes"] == free["vetoes"] and rows["free_track.reckless.0.00000"]["false_vetoes"] == "0"
+    )
     assert int(rows["free_track.reckless.0.00000"]["steps"]) == 20  # never stops without the filter
     assert int(rows["free_track.reckless.1.00000"]["steps"]) <= 20
     assert main(["-q", "eval", "paths", str(out)]) == 0
@@ -91,7 +100,7 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
             0,
             0,
         ]
-        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 3.0])
+        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, 3.0])
 
     csv = tmp_path / "b.csv"
     rows = [

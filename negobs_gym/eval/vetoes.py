@@ -1,0 +1,75 @@
+"""Was a safety-filter veto for a real hazard? The ground truth of the distance it acted on.
+
+The filter (:class:`~negobs_gym.safety.BrakingSafetyFilter`) vetoes when the nearest detected
+hazard along the corridor of the proposed steering is closer than R(v) (paper N, Eq. 18). A veto
+is *false* when no true obstacle of the channel it came from lies in that corridor within the
+distance it acted on plus a tolerance: the detectors reported what is not there. The scenario
+runner and the campaigns' driven episodes count them the same way, with these functions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.safety.corridor import Corridor
+
+__all__ = [
+    "FALSE_VETO_LATERAL_TOLERANCE_M",
+    "FALSE_VETO_TOLERANCE_M",
+    "is_false_veto",
+    "is_veto",
+    "veto_truth_m",
+]
+
+#: A veto is false when the nearest true obstacle of the vetoing channel (negative, or positive
+#: when the filter stopped for the positive channel) along the filter's corridor, widened by
+#: :data:`FALSE_VETO_LATERAL_TOLERANCE_M`, is farther than the distance the filter acted on plus
+#: this [m] (the detected near edge may lie up to a ring gap before the rim; the paper gives no
+#: such figure, 2 m is the braking benchmark's tolerance).
+FALSE_VETO_TOLERANCE_M = 2.0
+#: Each side of the corridor is widened by this for that check [m]: a grid cell the filter reads
+#: may lie up to its diagonal (0.28 m on paper N's 20 cm grid, Sec. 4) outside the outline the
+#: detector drew, and that outline a cell or so outside the true rim (engineering choice).
+FALSE_VETO_LATERAL_TOLERANCE_M = 0.5
+
+
+def _field(record: Mapping[str, Any] | Any, name: str) -> Any:
+    """A field of a decision record: ``info["safety"]`` (a dict) or a ``SafetyDecision``; None
+    where the record has none (a filter of another kind)."""
+    return record.get(name) if isinstance(record, Mapping) else getattr(record, name, None)
+
+
+def is_veto(record: Mapping[str, Any] | Any | None) -> bool:
+    """Whether a step's decision record (``info.get("safety")``; None: no filter) is a veto."""
+    return record is not None and bool(_field(record, "vetoed"))
+
+
+def veto_truth_m(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: Mapping[str, Any]) -> float:
+    """Ground truth of the hazard distance a decision acted on, from the rear axle [m] (inf: none).
+
+    Along the decision's corridor (``record["corridor"]``) widened by
+    :data:`FALSE_VETO_LATERAL_TOLERANCE_M`, laid out from the pose where the filter decided
+    (``info_before``: the info of the reset or step before), against the true outlines of the
+    obstacles of the decision's channel (:meth:`NegObsEnv.true_hazard_distance_m`). A record
+    without a corridor is judged straight ahead in the wheels' strip (``info_before``'s
+    ``distance_to_<channel>_ahead_m``).
+    """
+    channel = _field(record, "hazard_channel") or "negative"
+    corridor: Corridor | None = _field(record, "corridor")
+    if corridor is None:
+        car = env.vehicle.config
+        return float(info_before[f"distance_to_{channel}_ahead_m"]) + car.length_m - car.rear_overhang_m
+    wide = dataclasses.replace(corridor, half_width_m=corridor.half_width_m + FALSE_VETO_LATERAL_TOLERANCE_M)
+    return env.true_hazard_distance_m(wide, info_before["pose"], channel)
+
+
+def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: Mapping[str, Any]) -> bool:
+    """The decision vetoed, and no true obstacle lies within the distance it acted on plus
+    :data:`FALSE_VETO_TOLERANCE_M` along its corridor (:func:`veto_truth_m`)."""
+    if not is_veto(record):
+        return False
+    acted_on_m = float(_field(record, "hazard_distance_m"))
+    return veto_truth_m(env, record, info_before) > acted_on_m + FALSE_VETO_TOLERANCE_M

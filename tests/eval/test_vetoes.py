@@ -1,0 +1,83 @@
+"""is_false_veto / veto_truth_m: a veto judged against the true obstacles along its corridor."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from negobs_gym.envs import NegObsEnv
+from negobs_gym.eval.vetoes import FALSE_VETO_LATERAL_TOLERANCE_M, is_false_veto, is_veto, veto_truth_m
+from negobs_gym.safety import Corridor, SafetyDecision
+from negobs_gym.scenarios import spec_from_toml
+
+# a pit 6 m left of the start line, 12 m on; the next pit on the line 30 m on
+SCENE = """
+name = "pit_left"
+[terrain.course]
+length_m = 50.0
+[[obstacles]]
+kind = "pit"
+length_m = 1.5
+width_m = 1.5
+station_m = 12.0
+lateral_m = -6.0
+[[obstacles]]
+kind = "pit"
+length_m = 1.0
+width_m = 2.5
+station_m = 30.0
+[observation]
+source = "oracle"
+"""
+
+
+@pytest.fixture(scope="module")
+def env_info() -> tuple[NegObsEnv, dict]:
+    env = NegObsEnv(scenario=spec_from_toml(SCENE))
+    _, info = env.reset(seed=0)
+    yield env, info
+    env.close()
+
+
+def _record(d_m: float, steer_rad: float | None, vetoed: bool = True) -> dict:
+    corridor = None if steer_rad is None else Corridor(steer_rad=steer_rad, wheelbase_m=2.8, half_width_m=1.2)
+    return {"vetoed": vetoed, "hazard_distance_m": d_m, "hazard_channel": "negative", "corridor": corridor}
+
+
+def test_a_veto_on_the_arc_towards_the_pit_is_real_and_straight_ahead_is_false(env_info) -> None:
+    env, info = env_info
+    left = _record(11.0, 0.18)  # R = 15 m: the arc runs through the pit 6 m left, 12 m on
+    truth = veto_truth_m(env, left, info)
+    assert 8.0 < truth < 13.0 and not is_false_veto(env, left, info)
+    straight = _record(11.0, 0.0)  # the same distance straight ahead: the pit on the line is 30 m on
+    assert veto_truth_m(env, straight, info) > 25.0 and is_false_veto(env, straight, info)
+    # without a corridor (a filter of another kind): straight ahead, from info's gap
+    assert veto_truth_m(env, _record(11.0, None), info) == pytest.approx(
+        info["distance_to_negative_ahead_m"]
+        + env.vehicle.config.length_m
+        - env.vehicle.config.rear_overhang_m
+    )
+    assert is_false_veto(env, _record(11.0, None), info)
+
+
+def test_the_tolerances_bound_what_counts_as_false(env_info) -> None:
+    env, info = env_info
+    truth = veto_truth_m(env, _record(0.0, 0.18), info)
+    assert not is_false_veto(env, _record(truth - 1.9, 0.18), info)  # within 2 m before the rim
+    assert is_false_veto(env, _record(truth - 2.1, 0.18), info)
+    # the truth is taken along the filter's corridor widened by the lateral tolerance each side
+    widened = Corridor(steer_rad=0.18, wheelbase_m=2.8, half_width_m=1.2 + FALSE_VETO_LATERAL_TOLERANCE_M)
+    assert env.true_hazard_distance_m(widened, info["pose"]) == truth
+
+
+def test_only_vetoes_are_judged() -> None:
+    decision = SafetyDecision(
+        vetoed=True, hazard_distance_m=3.0, braking_distance_m=5.0, safe_speed_mps=1.0,
+        original_action=np.zeros(2, np.float32), applied_action=np.zeros(2, np.float32),
+        perception_age_s=0.0, perception_stale=False,
+    )  # fmt: skip
+    assert is_veto(decision) and is_veto({"vetoed": True}) and not is_veto({"vetoed": False})
+    assert not is_veto(None)  # no filter
+    assert not is_false_veto(None, _record(math.inf, 0.0, vetoed=False), {})  # type: ignore[arg-type]
