@@ -68,7 +68,8 @@ def veto_truth_m(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: M
 
 def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: Mapping[str, Any]) -> bool:
     """The decision vetoed, and no true obstacle lies within the distance it acted on plus
-    :data:`FALSE_VETO_TOLERANCE_M` along its corridor (:func:`veto_truth_m`)."""
+    :data:`FALSE_VETO_TOLERANCE_M` along its corridor (:func:`veto_truth_m`). A veto for missing or
+    stale perception acted on no distance (d = inf) and is never false."""
     if not is_veto(record):
         return False
     acted_on_m = float(_field(record, "hazard_distance_m"))
