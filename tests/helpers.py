@@ -92,3 +92,29 @@ def odometry(store, stamp_ns: int, x_m: float):
             twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
         ),
     )
+
+
+# oracle grid (no detector needed): a 1.5 m pit 12 m on and 6 m left of the start line (a steering
+# of 0.18 rad, R = 15 m, runs through it), a pit on the line 30 m on, a rock on the line 8 m on
+PITS_BESIDE_AND_AHEAD_SCENE = """
+name = "pits_beside_and_ahead"
+[terrain.course]
+length_m = 50.0
+[[obstacles]]
+kind = "pit"
+length_m = 1.5
+width_m = 1.5
+station_m = 12.0
+lateral_m = -6.0
+[[obstacles]]
+kind = "pit"
+length_m = 1.0
+width_m = 2.5
+station_m = 30.0
+[[positive_obstacles]]
+kind = "rock"
+station_m = 8.0
+lateral_m = 0.0
+[observation]
+source = "oracle"
+"""

@@ -353,6 +353,7 @@ def run_policy(args: argparse.Namespace) -> int:
             f"left_track={int(s['left_track'])} mean_progress_m={s['mean_progress_m']:.2f} "
             f"vetoes={int(s['vetoes'])} "
             f"vetoes_per_km={s['vetoes_per_km']:.1f} false_vetoes={int(s['false_vetoes'])} "
+            f"missed_vetoes={int(s['missed_vetoes'])} "
             f"cost={s['cost']:.1f} "
             f"off_track_share={s['off_track_share']:.3f}"
         )

@@ -27,7 +27,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import is_false_veto
+from negobs_gym.eval.vetoes import is_false_veto, is_missed_veto
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -91,6 +91,7 @@ COLUMNS = (
     "vetoes",
     "veto_events",
     "false_vetoes",
+    "missed_vetoes",
     "cost",
 )
 
@@ -266,7 +267,9 @@ def run_driven_episode(
     episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
     ``(x, y, yaw, speed, vetoed)`` per step (world metres, radians, m/s, bool), the reset's first.
     ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
-    corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`).
+    corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`); ``missed_vetoes``: the
+    steps it let through with a true hazard well inside R(v)
+    (:func:`~negobs_gym.eval.vetoes.is_missed_veto`).
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -290,7 +293,8 @@ def _driven_episode(
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
-    false_vetoes = 0
+    false_vetoes = missed_vetoes = 0
+    positive = guard is not None and guard.stop_for_positive
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
@@ -311,6 +315,8 @@ def _driven_episode(
             vetoes += 1
             veto_events += not was_vetoed
             false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
+        elif guard is not None:
+            missed_vetoes += is_missed_veto(env.unwrapped, info["safety"], before, positive=positive)
             first_veto = gap if math.isnan(first_veto) else first_veto
         was_vetoed = vetoed
         path.append(_path_point(info, vetoed))
@@ -335,6 +341,7 @@ def _driven_episode(
         "vetoes": vetoes,
         "veto_events": veto_events,
         "false_vetoes": false_vetoes,
+        "missed_vetoes": missed_vetoes,
         "cost": cost,
         "path": path,
     }

@@ -5,7 +5,8 @@ rollover or trap during the episode, and it did not end by leaving the track), t
 whether leaving the track ended it (OffroadNav-v2's ``off_track`` rule), goal reached, progress
 along the track, distance driven, the filter's vetoes and the false ones among them (no true
 obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`), the
-summed constraint ``cost``
+steps it let through with a true hazard well inside R(v) (missed vetoes,
+:func:`~negobs_gym.eval.vetoes.is_missed_veto`), the summed constraint ``cost``
 (``info["cost"]``) and the steps that ended off the track (farther from the centre line than half
 the track width: the obstacles of OffroadNav lie on the track, so a policy that drives beside it
 meets none).
@@ -47,6 +48,7 @@ COLUMNS = (
     "steps",
     "vetoes",
     "false_vetoes",
+    "missed_vetoes",
     "cost",
     "off_track_steps",
 )
@@ -64,6 +66,7 @@ SUMMED = (
     "distance_m",
     "vetoes",
     "false_vetoes",
+    "missed_vetoes",
     "cost",
     "steps",
     "off_track_steps",
@@ -165,7 +168,7 @@ def run_episode(episode: Episode) -> Rows:
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
     track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
-    driven), cost, steps, and the share of them that ended off the track.
+    driven), missed vetoes, cost, steps, and the share of them that ended off the track.
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -189,6 +192,7 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])
         s["false_vetoes"] += int(r["false_vetoes"])
+        s["missed_vetoes"] += int(r["missed_vetoes"])
         s["cost"] += float(r["cost"])
         s["steps"] += int(r["steps"])
         s["off_track_steps"] += int(r["off_track_steps"])

@@ -1,10 +1,13 @@
-"""Was a safety-filter veto for a real hazard? The ground truth of the distance it acted on.
+"""Was a safety-filter veto for a real hazard, and did it miss one? Judged on the ground truth.
 
 The filter (:class:`~negobs_gym.safety.BrakingSafetyFilter`) vetoes when the nearest detected
 hazard along the corridor of the proposed steering is closer than R(v) (paper N, Eq. 18). A veto
 is *false* when no true obstacle of the channel it came from lies in that corridor within the
-distance it acted on plus a tolerance: the detectors reported what is not there. The scenario
-runner and the campaigns' driven episodes count them the same way, with these functions.
+distance it acted on plus a tolerance: the detectors reported what is not there. A step is a
+*missed veto* when the filter let the action through while a true obstacle lay in that corridor
+more than the same tolerance inside R(v): the detectors did not report it, or reported it farther
+than it is. The scenario runner and the campaigns' driven episodes count both with these
+functions.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ __all__ = [
     "FALSE_VETO_LATERAL_TOLERANCE_M",
     "FALSE_VETO_TOLERANCE_M",
     "is_false_veto",
+    "is_missed_veto",
     "is_veto",
     "veto_truth_m",
 ]
@@ -57,13 +61,20 @@ def veto_truth_m(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: M
     without a corridor is judged straight ahead in the wheels' strip (``info_before``'s
     ``distance_to_<channel>_ahead_m``).
     """
-    channel = _field(record, "hazard_channel") or "negative"
     corridor: Corridor | None = _field(record, "corridor")
+    if corridor is not None:
+        widen_m = FALSE_VETO_LATERAL_TOLERANCE_M
+        corridor = dataclasses.replace(corridor, half_width_m=corridor.half_width_m + widen_m)
+    return _truth_m(env, corridor, info_before, _field(record, "hazard_channel") or "negative")
+
+
+def _truth_m(env: NegObsEnv, corridor: Corridor | None, before: Mapping[str, Any], channel: str) -> float:
+    """True distance from the rear axle to ``channel``'s nearest obstacle along ``corridor`` at the
+    pose of ``before``; straight ahead in the wheels' strip when ``corridor`` is None."""
     if corridor is None:
         car = env.vehicle.config
-        return float(info_before[f"distance_to_{channel}_ahead_m"]) + car.length_m - car.rear_overhang_m
-    wide = dataclasses.replace(corridor, half_width_m=corridor.half_width_m + FALSE_VETO_LATERAL_TOLERANCE_M)
-    return env.true_hazard_distance_m(wide, info_before["pose"], channel)
+        return float(before[f"distance_to_{channel}_ahead_m"]) + car.length_m - car.rear_overhang_m
+    return env.true_hazard_distance_m(corridor, before["pose"], channel)
 
 
 def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: Mapping[str, Any]) -> bool:
@@ -74,3 +85,26 @@ def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: 
         return False
     acted_on_m = float(_field(record, "hazard_distance_m"))
     return veto_truth_m(env, record, info_before) > acted_on_m + FALSE_VETO_TOLERANCE_M
+
+
+def is_missed_veto(
+    env: NegObsEnv,
+    record: Mapping[str, Any] | Any | None,
+    info_before: Mapping[str, Any],
+    *,
+    positive: bool = False,
+) -> bool:
+    """The filter decided the step and let the action through, while a true obstacle lay along the
+    corridor it searched (not widened) more than :data:`FALSE_VETO_TOLERANCE_M` inside R(v) at
+    the decision's speed (``braking_distance_m``): a hazard it should have stopped for.
+
+    Negative obstacles always; positive ones too with ``positive`` (a filter that stops for the
+    positive channel, ``SafetyFilterConfig.stop_for_positive``). A record without a corridor is
+    judged straight ahead in the wheels' strip. No record (no filter): False.
+    """
+    if record is None or is_veto(record):
+        return False
+    corridor = _field(record, "corridor")
+    channels = ("negative", "positive") if positive else ("negative",)
+    truth_m = min(_truth_m(env, corridor, info_before, channel) for channel in channels)
+    return truth_m + FALSE_VETO_TOLERANCE_M < float(_field(record, "braking_distance_m"))

@@ -22,7 +22,7 @@ from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.vetoes import is_false_veto, is_veto
+from negobs_gym.eval.vetoes import is_false_veto, is_missed_veto, is_veto
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -72,6 +72,11 @@ class ScenarioResult:
             :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M`, along the corridor the filter
             searched (its proposed steering's arc, laid out from the pose where it decided;
             :func:`~negobs_gym.eval.vetoes.is_false_veto`).
+        missed_vetoes: Steps the filter let through while a true obstacle lay along its corridor
+            more than :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M` inside R(v)
+            (negative; positive too with ``stop_for_positive``;
+            :func:`~negobs_gym.eval.vetoes.is_missed_veto`): hazards the detectors did not
+            report in time. 0 without the filter.
         positive_gap_m: Gap left at the end to the nearest positive obstacle ahead in the wheels'
             strip (inf: none) [m].
         termination: Termination rules that ended the episode (empty: truncated).
@@ -104,6 +109,7 @@ class ScenarioResult:
     positive_gap_m: float
     termination: tuple[str, ...]
     truncated: bool
+    missed_vetoes: int = 0
     failures: tuple[str, ...] = ()
     path_xy_m: tuple[tuple[float, float], ...] = ()
     vetoed_steps: tuple[int, ...] = ()
@@ -127,6 +133,7 @@ class ScenarioResult:
             f"margin_m={margin} collision={int(self.collision)} positive_gap_m={positive_gap} "
             f"goal={int(self.goal_reached)} "
             f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
+            f"missed_vetoes={self.missed_vetoes} "
             f"time_s={self.time_s:.1f} end={end} {verdict}"
         )
 
@@ -147,6 +154,7 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
         "max_decel_mps2": lambda v: result.max_decel_mps2 <= v,
         "max_vetoes": lambda v: result.vetoes <= v,
         "max_false_vetoes": lambda v: result.false_vetoes <= v,
+        "max_missed_vetoes": lambda v: result.missed_vetoes <= v,
         "max_time_s": lambda v: result.time_s <= v,
     }
     return tuple(name for name, value in criteria.named.items() if not checks[name](value))
@@ -160,12 +168,13 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
     )
 
 
-def _wrap(env: gym.Env, filter: bool | SafetyFilterConfig, run: RunSpec) -> gym.Env:
+def _guard(filter: bool | SafetyFilterConfig, run: RunSpec) -> SafetyFilterConfig | None:
+    """The filter's settings (None: no filter); True takes the spec's ``run.stop_for_positive``."""
     if filter is False:
-        return env
+        return None
     if not isinstance(filter, SafetyFilterConfig):
         filter = SafetyFilterConfig(stop_for_positive=run.stop_for_positive)
-    return BrakingSafetyFilter(env, config=filter)
+    return filter
 
 
 def run_scenario(
@@ -211,9 +220,10 @@ def run_scenario(
         render_mode = "rgb_array"
     filter = spec.run.filter if filter is None else filter
     base = NegObsEnv(scenario=spec, render_mode=render_mode)
-    env = _wrap(base, filter, spec.run)
+    guard = _guard(filter, spec.run)
+    env = base if guard is None else BrakingSafetyFilter(base, config=guard)
     with contextlib.closing(env), optional_video(video_to, fps=base.config.control_hz) as video:
-        return _run_episode(spec, driver, recording(env, video), base, filter, seed, draw_to, draw_zoom_m)
+        return _run_episode(spec, driver, recording(env, video), base, guard, seed, draw_to, draw_zoom_m)
 
 
 def _run_episode(
@@ -221,12 +231,13 @@ def _run_episode(
     driver: Driver | str | None,
     env: gym.Env,
     base: NegObsEnv,
-    filter: bool | SafetyFilterConfig,
+    guard: SafetyFilterConfig | None,
     seed: int,
     draw_to: str | Path | None,
     draw_zoom_m: float | None,
 ) -> ScenarioResult:
-    """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped)."""
+    """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped; behind the filter
+    ``guard`` unless None)."""
     obs, info = env.reset(seed=seed)
     name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
     pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
@@ -234,7 +245,8 @@ def _run_episode(
     dt = 1.0 / base.config.control_hz
     start_gap = float(info["distance_to_negative_ahead_m"])
     entered = collision = trapped = rollover = goal = left = False
-    vetoes = false_vetoes = steps = 0
+    vetoes = false_vetoes = missed_vetoes = steps = 0
+    positive = guard is not None and guard.stop_for_positive
     max_decel = 0.0
     terminated = truncated = False
     path, vetoed_steps = [_xy(info)], []
@@ -248,6 +260,8 @@ def _run_episode(
             vetoed_steps.append(steps)
             vetoes += 1
             false_vetoes += is_false_veto(base, info["safety"], before)
+        else:
+            missed_vetoes += is_missed_veto(base, info.get("safety"), before, positive=positive)
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
         ev = info["events"]
         entered |= bool(ev["entered_negative_obstacle"])
@@ -268,7 +282,7 @@ def _run_episode(
         scenario=spec.name,
         seed=seed,
         driver=name,
-        filtered=filter is not False,
+        filtered=guard is not None,
         steps=steps,
         time_s=steps * dt,
         entered_negative_obstacle=entered,
@@ -284,6 +298,7 @@ def _run_episode(
         max_decel_mps2=float(max_decel),
         vetoes=int(vetoes),
         false_vetoes=int(false_vetoes),
+        missed_vetoes=int(missed_vetoes),
         positive_gap_m=float(info["distance_to_positive_ahead_m"]),
         termination=tuple(info["termination"]),
         truncated=bool(truncated and not terminated),

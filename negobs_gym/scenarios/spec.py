@@ -323,6 +323,7 @@ class CriteriaSpec:
     max_decel_mps2: float | None = None
     max_vetoes: int | None = None
     max_false_vetoes: int | None = None
+    max_missed_vetoes: int | None = None
     max_time_s: float | None = None
 
     def __post_init__(self) -> None:

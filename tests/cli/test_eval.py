@@ -74,9 +74,9 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     km = float(episode["distance_m"]) / 1000
     per_km = int(episode["vetoes"]) / km if km else 0
     assert float(fields["vetoes_per_km"]) == pytest.approx(per_km, abs=0.051)
-    assert fields["false_vetoes"] == episode["false_vetoes"] and int(episode["false_vetoes"]) <= int(
-        episode["vetoes"]
-    )
+    assert fields["false_vetoes"] == episode["false_vetoes"]
+    assert int(episode["false_vetoes"]) <= int(episode["vetoes"])
+    assert fields["missed_vetoes"] == episode["missed_vetoes"]
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0

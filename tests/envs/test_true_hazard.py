@@ -14,35 +14,12 @@ from negobs_gym.envs import NegObsEnv
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import Corridor
 from negobs_gym.scenarios import spec_from_toml
-
-# two pits, one left of the start line and one on it, and a rock; oracle grid (no detector needed)
-SCENE = """
-name = "pits_left_and_ahead"
-[terrain.course]
-length_m = 50.0
-[[obstacles]]
-kind = "pit"
-length_m = 1.5
-width_m = 1.5
-station_m = 12.0
-lateral_m = -6.0
-[[obstacles]]
-kind = "pit"
-length_m = 1.0
-width_m = 2.5
-station_m = 30.0
-[[positive_obstacles]]
-kind = "rock"
-station_m = 20.0
-lateral_m = 4.0
-[observation]
-source = "oracle"
-"""
+from tests.helpers import PITS_BESIDE_AND_AHEAD_SCENE
 
 
 @pytest.fixture(scope="module")
 def env() -> NegObsEnv:
-    env = NegObsEnv(scenario=spec_from_toml(SCENE))
+    env = NegObsEnv(scenario=spec_from_toml(PITS_BESIDE_AND_AHEAD_SCENE))
     env.reset(seed=0)
     yield env
     env.close()
@@ -68,7 +45,7 @@ def test_it_is_the_corridor_distance_to_the_obstacles_areas(env: NegObsEnv) -> N
     rocks = [ob.footprint_xy_m for ob in env.terrain.positive_obstacles if not ob.in_heightfield]
     assert len(pits) == 2 and len(rocks) == 1
     found = set()
-    for steer in (0.0, 0.1, 0.18, 0.25, -0.054, -0.3):  # 0.18: through the left pit; -0.054: the rock
+    for steer in (0.0, 0.1, 0.18, 0.25, -0.054, -0.3):  # 0.18: through the left pit; 0.0: the rock
         corridor = Corridor(
             steer_rad=steer, wheelbase_m=car.wheelbase_m, half_width_m=1.2, front_length_m=3.6
         )

@@ -64,6 +64,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     assert (
         free["false_vetoes"] == free["vetoes"] and rows["free_track.reckless.0.00000"]["false_vetoes"] == "0"
     )
+    assert {r["missed_vetoes"] for r in rows.values()} == {"0"}  # stopped in time, or no filter to miss
     assert int(rows["free_track.reckless.0.00000"]["steps"]) == 20  # never stops without the filter
     assert int(rows["free_track.reckless.1.00000"]["steps"]) <= 20
     assert main(["-q", "eval", "paths", str(out)]) == 0
@@ -100,7 +101,7 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
             0,
             0,
         ]
-        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, 3.0])
+        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, 0, 3.0])
 
     csv = tmp_path / "b.csv"
     rows = [

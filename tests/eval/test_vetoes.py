@@ -8,42 +8,36 @@ import numpy as np
 import pytest
 
 from negobs_gym.envs import NegObsEnv
-from negobs_gym.eval.vetoes import FALSE_VETO_LATERAL_TOLERANCE_M, is_false_veto, is_veto, veto_truth_m
+from negobs_gym.eval.vetoes import (
+    FALSE_VETO_LATERAL_TOLERANCE_M,
+    FALSE_VETO_TOLERANCE_M,
+    is_false_veto,
+    is_missed_veto,
+    is_veto,
+    veto_truth_m,
+)
 from negobs_gym.safety import Corridor, SafetyDecision
 from negobs_gym.scenarios import spec_from_toml
-
-# a pit 6 m left of the start line, 12 m on; the next pit on the line 30 m on
-SCENE = """
-name = "pit_left"
-[terrain.course]
-length_m = 50.0
-[[obstacles]]
-kind = "pit"
-length_m = 1.5
-width_m = 1.5
-station_m = 12.0
-lateral_m = -6.0
-[[obstacles]]
-kind = "pit"
-length_m = 1.0
-width_m = 2.5
-station_m = 30.0
-[observation]
-source = "oracle"
-"""
+from tests.helpers import PITS_BESIDE_AND_AHEAD_SCENE
 
 
 @pytest.fixture(scope="module")
 def env_info() -> tuple[NegObsEnv, dict]:
-    env = NegObsEnv(scenario=spec_from_toml(SCENE))
+    env = NegObsEnv(scenario=spec_from_toml(PITS_BESIDE_AND_AHEAD_SCENE))
     _, info = env.reset(seed=0)
     yield env, info
     env.close()
 
 
-def _record(d_m: float, steer_rad: float | None, vetoed: bool = True) -> dict:
+def _record(d_m: float, steer_rad: float | None, vetoed: bool = True, r_m: float = 8.0) -> dict:
     corridor = None if steer_rad is None else Corridor(steer_rad=steer_rad, wheelbase_m=2.8, half_width_m=1.2)
-    return {"vetoed": vetoed, "hazard_distance_m": d_m, "hazard_channel": "negative", "corridor": corridor}
+    return {
+        "vetoed": vetoed,
+        "hazard_distance_m": d_m,
+        "braking_distance_m": r_m,
+        "hazard_channel": "negative",
+        "corridor": corridor,
+    }
 
 
 def test_a_veto_on_the_arc_towards_the_pit_is_real_and_straight_ahead_is_false(env_info) -> None:
@@ -81,3 +75,23 @@ def test_only_vetoes_are_judged() -> None:
     assert is_veto(decision) and is_veto({"vetoed": True}) and not is_veto({"vetoed": False})
     assert not is_veto(None)  # no filter
     assert not is_false_veto(None, _record(math.inf, 0.0, vetoed=False), {})  # type: ignore[arg-type]
+
+
+def test_a_step_let_through_with_a_true_hazard_well_inside_r_is_a_missed_veto(env_info) -> None:
+    env, info = env_info
+    truth = veto_truth_m(env, _record(0.0, 0.18), info)  # the left pit along the arc, widened
+    along = env.true_hazard_distance_m(_record(0.0, 0.18)["corridor"], info["pose"])  # as searched
+    assert along >= truth
+    passed = dict(_record(math.inf, 0.18, vetoed=False))
+    assert is_missed_veto(env, {**passed, "braking_distance_m": along + FALSE_VETO_TOLERANCE_M + 0.1}, info)
+    assert not is_missed_veto(
+        env, {**passed, "braking_distance_m": along + FALSE_VETO_TOLERANCE_M - 0.1}, info
+    )
+    vetoed = _record(along, 0.18, vetoed=True, r_m=along + 10.0)
+    assert not is_missed_veto(env, vetoed, info)  # it stopped for it
+    assert not is_missed_veto(env, None, info)  # no filter
+    # the rock on the line 8 m on: missed only by a filter that stops for positive obstacles
+    straight = _record(math.inf, 0.0, vetoed=False, r_m=20.0)
+    rock_m = env.true_hazard_distance_m(straight["corridor"], info["pose"], "positive")
+    assert rock_m < 12.0 and not is_missed_veto(env, straight, info)  # the pit on the line is 30 m on
+    assert is_missed_veto(env, straight, info, positive=True)

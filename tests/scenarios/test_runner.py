@@ -109,11 +109,25 @@ class _SteadyLeftTurn:
 def test_vetoes_are_judged_along_the_corridor_the_filter_searched() -> None:
     """Turning towards a pit, the filter vetoes for it while it lies beside the straight line
     ahead: judged against the ground truth straight ahead, 16 of these 20 vetoes were counted
-    false; judged along the steering's arc, none is."""
+    false; judged along the steering's arc, none is. Holding the pit's cells, it misses none."""
     r = run_scenario(spec_from_toml(TURN_SCENE), _SteadyLeftTurn(), filter=True, seed=0)
     assert not r.entered_negative_obstacle and r.termination == ("stopped",)
     assert not r.stopped_before  # standing, with no pit straight ahead: it lies on the arc
-    assert r.vetoes >= 10 and r.false_vetoes == 0
+    assert r.vetoes >= 10 and r.false_vetoes == 0 and r.missed_vetoes == 0
+
+
+def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
+    """The same turn as paper N's filter reads it, each frame alone: creeping on after its stop,
+    the pit's cells leave the grid as its rim nears the front bumper, the corridor looks clear, and
+    the car drives in; every step let through with the pit 2 m inside R(v) is a missed veto."""
+    spec = spec_from_toml(TURN_SCENE.replace("hazard_hold_s = 2.0", "hazard_hold_s = 0.0"))
+    spec = dataclasses.replace(spec, criteria=CriteriaSpec(max_missed_vetoes=0))
+    r = run_scenario(spec, _SteadyLeftTurn(), filter=True, seed=0)
+    assert r.entered_negative_obstacle and r.vetoes > 0 and r.false_vetoes == 0
+    assert r.missed_vetoes >= 3 and r.failures == ("max_missed_vetoes",)
+    assert f" missed_vetoes={r.missed_vetoes} " in r.line()
+    plain = run_scenario(spec, _SteadyLeftTurn(), filter=False, seed=0)
+    assert plain.entered_negative_obstacle and plain.missed_vetoes == 0  # no filter, nothing to miss
 
 
 def test_criteria_check_each_named_bound() -> None:
@@ -133,6 +147,10 @@ def test_criteria_check_each_named_bound() -> None:
         "max_false_vetoes",
         "max_time_s",
     )
+    assert check_criteria(CriteriaSpec(max_missed_vetoes=0), result) == ()
+    assert check_criteria(
+        CriteriaSpec(max_missed_vetoes=1), dataclasses.replace(result, missed_vetoes=2)
+    ) == ("max_missed_vetoes",)
     assert check_criteria(CriteriaSpec(max_decel_mps2=5.0, goal_reached=True), result) == (
         "goal_reached",
         "max_decel_mps2",
