@@ -392,6 +392,7 @@ class ConfigurationSummary:
     false_vetoes_per_km: float | None  # obstacle-free scenarios only
     stop_margins_m: list[float]  # final gap of the stops before the obstacle
     first_veto_gaps_m: list[float]
+    missed_vetoes: int = 0  # steps let through with a true hazard 2 m inside R(v) (eval.vetoes)
 
 
 def _flag(row: Mapping[str, str], key: str) -> bool:
@@ -424,6 +425,7 @@ def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
                 first_veto_gaps_m=[
                     float(r["first_veto_gap_m"]) for r in rows if math.isfinite(float(r["first_veto_gap_m"]))
                 ],
+                missed_vetoes=sum(int(r["missed_vetoes"]) for r in rows),
             )
         )
     return out
@@ -441,6 +443,8 @@ def summary_line(s: ConfigurationSummary) -> str:
         text += f" false_vetoes_per_km={s.false_vetoes_per_km:.2f} ({s.veto_events} in {s.km:.3f} km)"
     if s.stop_margins_m:
         text += f" median_stop_margin_m={float(np.median(s.stop_margins_m)):.2f}"
+    if s.name.endswith("/filter"):
+        text += f" missed_vetoes={s.missed_vetoes}"
     return text
 
 
@@ -457,6 +461,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
             "-" if not s.stop_margins_m else float(np.median(s.stop_margins_m)),
             "-" if not s.first_veto_gaps_m else float(np.median(s.first_veto_gaps_m)),
             "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
+            s.missed_vetoes if s.name.endswith("/filter") else "-",
             s.km,
         ]
         for s in summaries
@@ -469,6 +474,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
         "median stop margin [m]",
         "median first-veto gap [m]",
         "false vetoes per km",
+        "missed vetoes",
         "km",
     ]
     return "# Braking campaign at 25 km/h\n\n" + key_value_table(header, rows) + "\n"

@@ -17,6 +17,7 @@ from negobs_gym.eval.braking_campaign import (
     BrakingCampaignConfig,
     ConfigurationSummary,
     episodes,
+    report_markdown,
     summarize,
     summary_line,
 )
@@ -41,6 +42,8 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     # never braking, the reckless driver enters the ditch; behind the filter it stops before it
     assert "stopped_before=0/1 entries=1/1" in lines["ditch/reckless/nofilter"]
     assert "stopped_before=1/1 entries=0/1" in lines["ditch/reckless/filter"]
+    assert lines["ditch/reckless/filter"].endswith(" missed_vetoes=0")
+    assert "missed_vetoes" not in lines["ditch/reckless/nofilter"]
     assert "false_vetoes_per_km=" in lines["free_track/reckless/filter"]
     summaries = [ConfigurationSummary(**d) for d in json.loads((out / "summary.json").read_text())]
     ditch = next(s for s in summaries if s.name == "ditch/reckless/filter")
@@ -85,7 +88,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
 
 
 def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
-    def row(scenario, flt, seed, entered, stopped, final_gap, veto_gap, events, dist):
+    def row(scenario, flt, seed, entered, stopped, final_gap, veto_gap, events, dist, missed=0):
         values = [
             f"{scenario}.r.{seed}",
             scenario,
@@ -101,12 +104,14 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
             0,
             0,
         ]
-        return ",".join(str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, 0, 3.0])
+        return ",".join(
+            str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, missed, 3.0]
+        )
 
     csv = tmp_path / "b.csv"
     rows = [
         row("ditch", "filter", 0, 0, 1, 2.5, 9.0, 1, 26.0),
-        row("ditch", "filter", 1, 1, 0, -1.0, 4.0, 1, 31.0),
+        row("ditch", "filter", 1, 1, 0, -1.0, 4.0, 1, 31.0, missed=4),
         row("free_track", "filter", 0, 0, 0, "inf", "nan", 2, 500.0),
         row("free_track", "filter", 1, 0, 0, "inf", "nan", 0, 500.0),
     ]
@@ -117,6 +122,8 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
     assert ditch.false_vetoes_per_km is None
     assert free.false_vetoes_per_km == pytest.approx(2.0) and free.stopped_before == 0
     assert summary_line(ditch).startswith("ditch/reckless/filter stopped_before=1/2")
+    assert ditch.missed_vetoes == 4 and summary_line(ditch).endswith(" missed_vetoes=4")
+    assert "| 4 |" in report_markdown([ditch])
 
 
 def test_configurations_are_data() -> None:
