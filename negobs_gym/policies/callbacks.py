@@ -31,7 +31,8 @@ __all__ = [
 ]
 
 #: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean);
-#: ``off_track`` counts the episodes with a step off the track (on OffroadNav-v2 the rule ends them).
+#: ``off_track`` counts the episodes with a step off the track (on OffroadNav-v2 the rule ends them);
+#: ``false_vetoes`` / ``missed_vetoes`` as :mod:`negobs_gym.eval.vetoes` judges the filter's steps.
 EVAL_COLUMNS = (
     "step",
     "episodes",
@@ -43,6 +44,8 @@ EVAL_COLUMNS = (
     "off_track",
     "mean_progress_m",
     "vetoes",
+    "false_vetoes",
+    "missed_vetoes",
     "cost",
     "wall_s",
 )
@@ -165,6 +168,8 @@ class EvalCallback(BaseCallback):
             "off_track": sum(int(e["off_track_steps"]) > 0 for e in episodes),
             "mean_progress_m": sum(float(e["progress_m"]) for e in episodes) / max(n, 1),
             "vetoes": sum(int(e["vetoes"]) for e in episodes),
+            "false_vetoes": sum(int(e["false_vetoes"]) for e in episodes),
+            "missed_vetoes": sum(int(e["missed_vetoes"]) for e in episodes),
             "cost": sum(float(e["cost"]) for e in episodes),
             "wall_s": time.perf_counter() - start,
         }
