@@ -176,8 +176,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="draw a policy or braking campaign's drives over their terrains (PNG per episode)",
         description="Draws episodes of a `negobs eval policy --out DIR` or `negobs eval braking --out "
         "DIR` folder from its paths.csv: the terrain with its obstacles, the path, where the car "
-        "ended, the vetoed steps and the outcome. Default: the episodes that did not do their task "
-        "(no goal; braking: no stop before the obstacle, or a veto on the obstacle-free track).",
+        "ended, the vetoed steps, the missed vetoes and the outcome. Default: the episodes that did "
+        "not do their task (no goal; braking: no stop before the obstacle, or a veto on the "
+        "obstacle-free track).",
     )
     _add_episode_choice(paths, "draw", "paths", "PNGs")
     paths.add_argument(

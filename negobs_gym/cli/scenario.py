@@ -77,7 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DIR",
         default=None,
         help="write each seed's drive over its terrain to DIR/<scenario>_seed<k>.png (path, end pose, "
-        "vetoed steps, verdict)",
+        "vetoed steps, missed vetoes, verdict)",
     )
     p_run.add_argument(
         "--zoom",

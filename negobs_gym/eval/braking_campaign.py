@@ -64,7 +64,18 @@ def obstacle_free(scenario: str) -> bool:
 
 #: ``paths.csv`` of the braking and policy campaigns: the car's pose and speed at the reset and
 #: after every step of each episode (``negobs eval paths`` draws them)
-PATH_COLUMNS = ("episode", "filter", "seed", "step", "x_m", "y_m", "yaw_rad", "speed_mps", "vetoed")
+PATH_COLUMNS = (
+    "episode",
+    "filter",
+    "seed",
+    "step",
+    "x_m",
+    "y_m",
+    "yaw_rad",
+    "speed_mps",
+    "vetoed",
+    "missed_veto",
+)
 DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
 OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
 TIME_LIMIT_S = 15.0  # Braking-v0's episode length: 104 m at 25 km/h
@@ -265,7 +276,8 @@ def run_driven_episode(
     ``off_track_steps`` counts the steps that ended off the track (``info["off_track"]``: farther
     from the centre line than half the track width); ``left_track`` is whether that ended the
     episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
-    ``(x, y, yaw, speed, vetoed)`` per step (world metres, radians, m/s, bool), the reset's first.
+    ``(x, y, yaw, speed, vetoed, missed_veto)`` per step (world metres, radians, m/s, bools), the
+    reset's first.
     ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
     corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`); ``missed_vetoes``: the
     steps it let through with a true hazard well inside R(v)
@@ -298,7 +310,7 @@ def _driven_episode(
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
-    path = [_path_point(info, False)]
+    path = [_path_point(info, False, False)]
     while not done and steps < max_steps:
         before, gap = info, float(info["distance_to_negative_ahead_m"])
         obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
@@ -315,11 +327,12 @@ def _driven_episode(
             vetoes += 1
             veto_events += not was_vetoed
             false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
-        elif guard is not None:
-            missed_vetoes += is_missed_veto(env.unwrapped, info["safety"], before, positive=positive)
             first_veto = gap if math.isnan(first_veto) else first_veto
+        missed = guard is not None and not vetoed
+        missed = missed and is_missed_veto(env.unwrapped, info["safety"], before, positive=positive)
+        missed_vetoes += missed
         was_vetoed = vetoed
-        path.append(_path_point(info, vetoed))
+        path.append(_path_point(info, vetoed, missed))
         cost += float(info.get("cost", 0.0))
         still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
         done = terminated or truncated or still_s >= STANDSTILL_S
@@ -347,9 +360,11 @@ def _driven_episode(
     }
 
 
-def _path_point(info: dict[str, Any], vetoed: bool) -> tuple[float, float, float, float, bool]:
+def _path_point(
+    info: dict[str, Any], vetoed: bool, missed: bool
+) -> tuple[float, float, float, float, bool, bool]:
     x, y, _, _, _, yaw = (float(v) for v in info["pose"])
-    return x, y, yaw, float(info["speed_mps"]), vetoed
+    return x, y, yaw, float(info["speed_mps"]), vetoed, missed
 
 
 def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> list[str]:

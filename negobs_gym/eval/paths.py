@@ -5,7 +5,8 @@
 car's pose and speed at the reset and after every step). :func:`draw_paths` rebuilds each chosen
 episode's terrain from its env or scenario and seed (the terrain depends on nothing else) and
 writes ``<key>.png``: the terrain with the ground-truth obstacles, the path (yellow), the car where
-the episode ended (orange), the steps the safety filter vetoed (magenta dots) and a caption with
+the episode ended (orange), the steps the safety filter vetoed (magenta dots), the steps it let
+through with a true hazard well inside R(v) (cyan crosses, missed vetoes) and a caption with
 the outcome. By default it draws the episodes that did not do their task (no goal; for braking, no
 stop before the obstacle, or a veto on the obstacle-free track), the ones to look at.
 """
@@ -143,6 +144,7 @@ def draw_paths(
     points: dict[str, list[list[float]]] = defaultdict(list)
     for row in read_csv(paths_csv):
         if row["episode"] in chosen:
+            row.setdefault("missed_veto", "0")  # a campaign from before missed vetoes were counted
             points[row["episode"]].append([float(row[c]) for c in PATH_COLUMNS[4:]])
     out = Path(out_dir) if out_dir is not None else folder / "paths"
     written = []
@@ -150,8 +152,8 @@ def draw_paths(
         if not points[key]:
             raise ConfigError(key, f"no rows in {paths_csv}: a campaign from before paths were recorded")
         terrain, caption = _terrain_and_caption(episodes[key], folder)
-        x, y, yaw, _, vetoed = np.asarray(points[key]).T
+        x, y, yaw, _, vetoed, missed = np.asarray(points[key]).T
         path = out / f"{key}.png"
-        render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path, zoom_m)
+        render_drive(terrain, np.column_stack([x, y]), yaw[-1], vetoed > 0, caption, path, zoom_m, missed > 0)
         written.append(path)
     return written

@@ -85,6 +85,7 @@ class ScenarioResult:
         path_xy_m: The rear-axle centre's world position at the reset and after every step [m].
         vetoed_steps: The steps (1-based, indices into ``path_xy_m``) whose action the filter
             replaced.
+        missed_steps: The steps (indices into ``path_xy_m``) counted in ``missed_vetoes``.
     """
 
     scenario: str
@@ -113,6 +114,7 @@ class ScenarioResult:
     failures: tuple[str, ...] = ()
     path_xy_m: tuple[tuple[float, float], ...] = ()
     vetoed_steps: tuple[int, ...] = ()
+    missed_steps: tuple[int, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -200,7 +202,7 @@ def run_scenario(
         seed: Episode seed (terrain draws, sensor noise, the driver's ``reset``).
         render_mode: Passed to the env (e.g. to keep frames for a failing test).
         draw_to: A PNG to write at the end (atomically): the terrain from above with the path, the
-            car where it ended, the vetoed steps and the result's verdict.
+            car where it ended, the vetoed steps, the missed vetoes and the result's verdict.
         draw_zoom_m: Draw only the square of this half-width around where the car ended (1000 px
             a side, to see how it ended); None: the whole terrain.
         video_to: An MP4 to write (atomically, at the end): the env's ``rgb_array`` frame after
@@ -245,11 +247,11 @@ def _run_episode(
     dt = 1.0 / base.config.control_hz
     start_gap = float(info["distance_to_negative_ahead_m"])
     entered = collision = trapped = rollover = goal = left = False
-    vetoes = false_vetoes = missed_vetoes = steps = 0
+    vetoes = false_vetoes = steps = 0
     positive = guard is not None and guard.stop_for_positive
     max_decel = 0.0
     terminated = truncated = False
-    path, vetoed_steps = [_xy(info)], []
+    path, vetoed_steps, missed_steps = [_xy(info)], [], []
     while not (terminated or truncated):
         before = info
         speed_before = info["speed_mps"]
@@ -260,8 +262,8 @@ def _run_episode(
             vetoed_steps.append(steps)
             vetoes += 1
             false_vetoes += is_false_veto(base, info["safety"], before)
-        else:
-            missed_vetoes += is_missed_veto(base, info.get("safety"), before, positive=positive)
+        elif is_missed_veto(base, info.get("safety"), before, positive=positive):
+            missed_steps.append(steps)
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
         ev = info["events"]
         entered |= bool(ev["entered_negative_obstacle"])
@@ -298,12 +300,13 @@ def _run_episode(
         max_decel_mps2=float(max_decel),
         vetoes=int(vetoes),
         false_vetoes=int(false_vetoes),
-        missed_vetoes=int(missed_vetoes),
+        missed_vetoes=len(missed_steps),
         positive_gap_m=float(info["distance_to_positive_ahead_m"]),
         termination=tuple(info["termination"]),
         truncated=bool(truncated and not terminated),
         path_xy_m=tuple(path),
         vetoed_steps=tuple(vetoed_steps),
+        missed_steps=tuple(missed_steps),
     )
     result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
     if draw_to is not None:
@@ -390,6 +393,7 @@ def _draw(
     verdict = "PASS" if result.passed else "FAIL " + ",".join(result.failures)
     filtered = "filter" if result.filtered else "no filter"
     caption = f"{result.scenario} seed {result.seed} {result.driver}, {filtered}: {verdict}"
-    vetoed = np.zeros(len(result.path_xy_m), dtype=bool)
+    vetoed, missed = np.zeros((2, len(result.path_xy_m)), dtype=bool)
     vetoed[list(result.vetoed_steps)] = True
-    render_drive(terrain, np.asarray(result.path_xy_m), yaw_rad, vetoed, caption, out_path, zoom_m)
+    missed[list(result.missed_steps)] = True
+    render_drive(terrain, np.asarray(result.path_xy_m), yaw_rad, vetoed, caption, out_path, zoom_m, missed)

@@ -27,6 +27,7 @@ POSITIVE_COLOUR = "blue"
 PATH_COLOUR = "yellow"
 VEHICLE_COLOUR = "orange"
 MARK_COLOUR = "magenta"
+MISSED_COLOUR = "cyan"
 TRACK_EDGE_COLOUR = "white"
 
 
@@ -123,6 +124,7 @@ def render_top_down(
     vehicle_size_m: tuple[float, float] = (2.0, 4.5),
     rear_overhang_m: float = 0.85,
     marks_xy_m: np.ndarray | None = None,
+    missed_xy_m: np.ndarray | None = None,
     caption: str | None = None,
     view_m: tuple[float, float, float, float] | None = None,
 ) -> np.ndarray:
@@ -138,6 +140,8 @@ def render_top_down(
         vehicle_size_m: (width, length) of the footprint [m].
         rear_overhang_m: distance from the rear axle (pose origin) back to the rear bumper [m].
         marks_xy_m: (M, 2) world points drawn as dots (e.g. where the safety filter vetoed).
+        missed_xy_m: (K, 2) world points drawn as crosses (where the filter let the car on with a
+            true hazard well inside its braking distance: missed vetoes).
         caption: one line of text drawn at the top left.
         view_m: the world window ``(x0, x1, y0, y1)`` to draw [m]; None: the whole terrain.
 
@@ -176,6 +180,9 @@ def render_top_down(
     if marks_xy_m is not None:
         marks = np.asarray(marks_xy_m, dtype=np.float64).reshape(-1, 2)
         ax.plot(marks[:, 0], marks[:, 1], ".", color=MARK_COLOUR, ms=4)
+    if missed_xy_m is not None:
+        missed = np.asarray(missed_xy_m, dtype=np.float64).reshape(-1, 2)
+        ax.plot(missed[:, 0], missed[:, 1], "x", color=MISSED_COLOUR, ms=6, mew=1.5)
     if vehicle_pose is not None:
         width, length = vehicle_size_m
         x, y, yaw = float(vehicle_pose.x), float(vehicle_pose.y), float(vehicle_pose.yaw)
@@ -211,10 +218,12 @@ def render_drive(
     caption: str,
     out_path: str | os.PathLike,
     zoom_m: float | None = None,
+    missed: np.ndarray | None = None,
 ) -> np.ndarray:
     """One drive from above (``negobs eval paths``, ``negobs scenario run --draw``): the path, the
     car where it ended (at the path's last point, heading ``end_yaw_rad``), the path's points where
-    ``vetoed`` (a bool per point) as marks, and ``caption``; written to ``out_path``. ``zoom_m``:
+    ``vetoed`` (a bool per point) as marks, those where ``missed`` (a bool per point: missed
+    vetoes, :mod:`negobs_gym.eval.vetoes`) as crosses, and ``caption``; written to ``out_path``. ``zoom_m``:
     only the square of that half-width around where the car ended (1000 px a side), to see how it
     ended; None: the whole terrain."""
     path = np.asarray(path_xy_m, dtype=np.float64).reshape(-1, 2)
@@ -225,7 +234,10 @@ def render_drive(
         if not (np.isfinite(zoom_m) and zoom_m > 0):
             raise ConfigError("zoom_m", f"must be finite and > 0, got {zoom_m!r}")
         view = (end.x - zoom_m, end.x + zoom_m, end.y - zoom_m, end.y + zoom_m)
-    return render_top_down(terrain, path, end, out_path, marks_xy_m=marks, caption=caption, view_m=view)
+    crosses = None if missed is None else path[np.asarray(missed, dtype=bool)]
+    return render_top_down(
+        terrain, path, end, out_path, marks_xy_m=marks, missed_xy_m=crosses, caption=caption, view_m=view
+    )
 
 
 def write_png_atomic(image: np.ndarray, out_path: Path) -> None:

@@ -49,6 +49,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     ditch = next(s for s in summaries if s.name == "ditch/reckless/filter")
     assert len(ditch.stop_margins_m) == 1 and ditch.stop_margins_m[0] > 0
     assert len(ditch.first_veto_gaps_m) == 1 and ditch.first_veto_gaps_m[0] > ditch.stop_margins_m[0]
+    assert ditch.first_veto_gaps_m[0] < 12.0  # the gap when it first braked, not at the start (20-40 m)
     for png in ("stop_margins.png", "first_veto.png"):
         assert (out / png).read_bytes()[:8] == PNG
     # every step's pose in paths.csv; `negobs eval paths` draws the runs that did not do their task
@@ -58,6 +59,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         steps = [p for p in paths if p["episode"] == key]
         assert [int(p["step"]) for p in steps] == list(range(int(row["steps"]) + 1))
         assert sum(p["vetoed"] == "1" for p in steps) == int(row["vetoes"])
+        assert sum(p["missed_veto"] == "1" for p in steps) == int(row["missed_vetoes"])
     # the filter's vetoes for the ditch are for the ditch; on the free track, any is false
     assert (
         int(rows["ditch.reckless.1.00000"]["vetoes"]) > 0

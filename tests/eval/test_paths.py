@@ -41,6 +41,7 @@ def test_paths_hold_every_step_of_every_episode(campaign: Path) -> None:
         driven = float(np.hypot(*np.diff(xy, axis=0).T).sum())
         assert driven == pytest.approx(float(episode["distance_m"]), abs=1e-4 * len(rows))
         assert sum(r["vetoed"] == "1" for r in rows) == int(episode["vetoes"])
+        assert sum(r["missed_veto"] == "1" for r in rows) == int(episode["missed_vetoes"])
         assert float(rows[-1]["speed_mps"]) > 0.5  # the policy drives off within the 2 s
 
 
@@ -76,6 +77,18 @@ def test_eval_paths_draws_the_episodes(campaign: Path, tmp_path: Path, capsys) -
     assert "no episodes ['9.9999999']" in capsys.readouterr().err
     assert main(["eval", "paths", str(tmp_path)]) == 2
     assert "no policy.csv" in capsys.readouterr().err
+
+
+def test_eval_paths_draws_a_campaign_from_before_missed_vetoes(
+    campaign: Path, tmp_path: Path, capsys
+) -> None:
+    old = tmp_path / "old"
+    shutil.copytree(campaign, old, ignore=shutil.ignore_patterns("paths", "videos"))
+    lines = (old / "paths.csv").read_text().splitlines()
+    assert lines[0].endswith(",vetoed,missed_veto")
+    (old / "paths.csv").write_text("\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n")
+    assert main(["-q", "eval", "paths", str(old), "--all"]) == 0  # drawn without crosses
+    assert len(capsys.readouterr().out.split()) == 2
 
 
 def test_an_outcome_names_every_failure_or_the_goal() -> None:

@@ -125,6 +125,8 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     r = run_scenario(spec, _SteadyLeftTurn(), filter=True, seed=0)
     assert r.entered_negative_obstacle and r.vetoes > 0 and r.false_vetoes == 0
     assert r.missed_vetoes >= 3 and r.failures == ("max_missed_vetoes",)
+    assert len(r.missed_steps) == r.missed_vetoes and not set(r.missed_steps) & set(r.vetoed_steps)
+    assert max(r.missed_steps) > max(r.vetoed_steps)  # after its stop, on the way in
     assert f" missed_vetoes={r.missed_vetoes} " in r.line()
     plain = run_scenario(spec, _SteadyLeftTurn(), filter=False, seed=0)
     assert plain.entered_negative_obstacle and plain.missed_vetoes == 0  # no filter, nothing to miss

@@ -11,7 +11,7 @@ import pytest
 from negobs_gym.core import Pose
 from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim import presets
-from negobs_gym.sim.render import render_top_down
+from negobs_gym.sim.render import render_drive, render_top_down
 
 
 def _pixel(terrain, xy, shape):
@@ -101,3 +101,16 @@ def test_marks_and_caption_are_drawn() -> None:
     assert r > 200 and g < 80 and b > 200  # magenta
     assert not np.array_equal(plain[:20, :60], marked[:20, :60])  # the caption's box, top left
     assert np.array_equal(plain[-50:], marked[-50:])  # nothing else changed far from both
+
+
+def test_missed_vetoes_are_drawn_as_crosses_of_their_own_colour() -> None:
+    terrain = presets.rough_track(length_m=40.0, seed=0, resolution_m=0.2)
+    path = np.array([[0.0, 5.0], [0.0, 12.0], [0.0, 20.0], [0.0, 28.0]])
+    vetoed, missed = np.array([0, 1, 0, 0], bool), np.array([0, 0, 1, 0], bool)
+    image = render_drive(terrain, path, 0.0, vetoed, "", None, None, missed)
+    row, col = _pixel(terrain, path[2], image.shape)
+    r, g, b = (int(v) for v in image[row, col])
+    assert r < 80 and g > 200 and b > 200  # cyan, at the missed step's point
+    without = render_drive(terrain, path, 0.0, vetoed, "", None, None)
+    changed = np.flatnonzero(np.any(image != without, axis=(1, 2)))
+    assert changed.size and abs(changed.min() - row) <= 10 and abs(changed.max() - row) <= 10  # only there
