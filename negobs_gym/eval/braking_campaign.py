@@ -328,8 +328,7 @@ def _driven_episode(
             veto_events += not was_vetoed
             false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
             first_veto = gap if math.isnan(first_veto) else first_veto
-        missed = guard is not None and not vetoed
-        missed = missed and is_missed_veto(env.unwrapped, info["safety"], before, positive=positive)
+        missed = is_missed_veto(env.unwrapped, info.get("safety"), before, positive=positive)
         missed_vetoes += missed
         was_vetoed = vetoed
         path.append(_path_point(info, vetoed, missed))

@@ -72,11 +72,6 @@ class ScenarioResult:
             :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M`, along the corridor the filter
             searched (its proposed steering's arc, laid out from the pose where it decided;
             :func:`~negobs_gym.eval.vetoes.is_false_veto`).
-        missed_vetoes: Steps the filter let through while a true obstacle lay along its corridor
-            more than :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M` inside R(v)
-            (negative; positive too with ``stop_for_positive``;
-            :func:`~negobs_gym.eval.vetoes.is_missed_veto`): hazards the detectors did not
-            report in time. 0 without the filter.
         positive_gap_m: Gap left at the end to the nearest positive obstacle ahead in the wheels'
             strip (inf: none) [m].
         termination: Termination rules that ended the episode (empty: truncated).
@@ -85,7 +80,8 @@ class ScenarioResult:
         path_xy_m: The rear-axle centre's world position at the reset and after every step [m].
         vetoed_steps: The steps (1-based, indices into ``path_xy_m``) whose action the filter
             replaced.
-        missed_steps: The steps (indices into ``path_xy_m``) counted in ``missed_vetoes``.
+        missed_steps: The steps (indices into ``path_xy_m``) the filter let through with a true
+            hazard well inside R(v) (:attr:`missed_vetoes` counts them).
     """
 
     scenario: str
@@ -110,11 +106,18 @@ class ScenarioResult:
     positive_gap_m: float
     termination: tuple[str, ...]
     truncated: bool
-    missed_vetoes: int = 0
     failures: tuple[str, ...] = ()
     path_xy_m: tuple[tuple[float, float], ...] = ()
     vetoed_steps: tuple[int, ...] = ()
     missed_steps: tuple[int, ...] = ()
+
+    @property
+    def missed_vetoes(self) -> int:
+        """Steps the filter let through while a true obstacle lay along its corridor more than
+        :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M` inside R(v) (negative; positive too
+        with ``stop_for_positive``; :func:`~negobs_gym.eval.vetoes.is_missed_veto`): hazards the
+        detectors did not report in time. 0 without the filter."""
+        return len(self.missed_steps)
 
     @property
     def passed(self) -> bool:
@@ -300,7 +303,6 @@ def _run_episode(
         max_decel_mps2=float(max_decel),
         vetoes=int(vetoes),
         false_vetoes=int(false_vetoes),
-        missed_vetoes=len(missed_steps),
         positive_gap_m=float(info["distance_to_positive_ahead_m"]),
         termination=tuple(info["termination"]),
         truncated=bool(truncated and not terminated),

@@ -151,7 +151,7 @@ def test_criteria_check_each_named_bound() -> None:
     )
     assert check_criteria(CriteriaSpec(max_missed_vetoes=0), result) == ()
     assert check_criteria(
-        CriteriaSpec(max_missed_vetoes=1), dataclasses.replace(result, missed_vetoes=2)
+        CriteriaSpec(max_missed_vetoes=1), dataclasses.replace(result, missed_steps=(4, 5))
     ) == ("max_missed_vetoes",)
     assert check_criteria(CriteriaSpec(max_decel_mps2=5.0, goal_reached=True), result) == (
         "goal_reached",
