@@ -309,6 +309,7 @@ def run_braking(args: argparse.Namespace) -> int:
 def run_policy(args: argparse.Namespace) -> int:
     """The policy evaluation; prints one line per filter setting."""
     from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
+    from negobs_gym.eval.vetoes import format_veto_error
 
     filters = {"off": (False,), "on": (True,), "both": (False, True), None: None}[args.filter]
     cli = {
@@ -355,6 +356,7 @@ def run_policy(args: argparse.Namespace) -> int:
             f"vetoes={int(s['vetoes'])} "
             f"vetoes_per_km={s['vetoes_per_km']:.1f} false_vetoes={int(s['false_vetoes'])} "
             f"missed_vetoes={int(s['missed_vetoes'])} "
+            f"veto_error_m={format_veto_error(s['max_veto_error_m'])} "
             f"cost={s['cost']:.1f} "
             f"off_track_share={s['off_track_share']:.3f}"
         )

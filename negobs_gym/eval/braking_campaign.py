@@ -27,7 +27,13 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import is_false_veto, is_missed_veto
+from negobs_gym.eval.vetoes import (
+    format_veto_error,
+    is_false_veto,
+    is_missed_veto,
+    largest_veto_error_m,
+    veto_error_m,
+)
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -103,6 +109,7 @@ COLUMNS = (
     "veto_events",
     "false_vetoes",
     "missed_vetoes",
+    "max_veto_error_m",
     "cost",
 )
 
@@ -281,7 +288,9 @@ def run_driven_episode(
     ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
     corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`); ``missed_vetoes``: the
     steps it let through with a true hazard well inside R(v)
-    (:func:`~negobs_gym.eval.vetoes.is_missed_veto`).
+    (:func:`~negobs_gym.eval.vetoes.is_missed_veto`); ``max_veto_error_m``: the largest distance a
+    veto acted on minus its ground truth (:func:`~negobs_gym.eval.vetoes.veto_error_m`; > 0: the
+    filter saw the hazard farther than it was), NaN when no veto had a true obstacle to judge by.
     """
     from negobs_gym.safety import BrakingSafetyFilter
 
@@ -306,6 +315,7 @@ def _driven_episode(
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
     false_vetoes = missed_vetoes = 0
+    errors: list[float | None] = []
     positive = guard is not None and guard.stop_for_positive
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
@@ -327,6 +337,7 @@ def _driven_episode(
             vetoes += 1
             veto_events += not was_vetoed
             false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
+            errors.append(veto_error_m(env.unwrapped, info["safety"], before))
             first_veto = gap if math.isnan(first_veto) else first_veto
         missed = is_missed_veto(env.unwrapped, info.get("safety"), before, positive=positive)
         missed_vetoes += missed
@@ -354,9 +365,14 @@ def _driven_episode(
         "veto_events": veto_events,
         "false_vetoes": false_vetoes,
         "missed_vetoes": missed_vetoes,
+        "max_veto_error_m": _or_nan(largest_veto_error_m(errors)),
         "cost": cost,
         "path": path,
     }
+
+
+def _or_nan(value: float | None) -> float:
+    return math.nan if value is None else value
 
 
 def _path_point(
@@ -407,6 +423,7 @@ class ConfigurationSummary:
     stop_margins_m: list[float]  # final gap of the stops before the obstacle
     first_veto_gaps_m: list[float]
     missed_vetoes: int = 0  # steps let through with a true hazard 2 m inside R(v) (eval.vetoes)
+    max_veto_error_m: float | None = None  # largest veto distance minus its truth (eval.vetoes)
 
 
 def _flag(row: Mapping[str, str], key: str) -> bool:
@@ -440,6 +457,7 @@ def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
                     float(r["first_veto_gap_m"]) for r in rows if math.isfinite(float(r["first_veto_gap_m"]))
                 ],
                 missed_vetoes=sum(int(r["missed_vetoes"]) for r in rows),
+                max_veto_error_m=largest_veto_error_m(float(r["max_veto_error_m"]) for r in rows),
             )
         )
     return out
@@ -458,7 +476,7 @@ def summary_line(s: ConfigurationSummary) -> str:
     if s.stop_margins_m:
         text += f" median_stop_margin_m={float(np.median(s.stop_margins_m)):.2f}"
     if s.name.endswith("/filter"):
-        text += f" missed_vetoes={s.missed_vetoes}"
+        text += f" missed_vetoes={s.missed_vetoes} veto_error_m={format_veto_error(s.max_veto_error_m)}"
     return text
 
 
@@ -476,6 +494,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
             "-" if not s.first_veto_gaps_m else float(np.median(s.first_veto_gaps_m)),
             "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
             s.missed_vetoes if s.name.endswith("/filter") else "-",
+            "-" if s.max_veto_error_m is None else s.max_veto_error_m,
             s.km,
         ]
         for s in summaries
@@ -489,6 +508,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
         "median first-veto gap [m]",
         "false vetoes per km",
         "missed vetoes",
+        "largest veto error [m]",
         "km",
     ]
     return "# Braking campaign at 25 km/h\n\n" + key_value_table(header, rows) + "\n"

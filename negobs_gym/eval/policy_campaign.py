@@ -7,9 +7,10 @@ along the track, distance driven, the filter's vetoes and the false ones among t
 obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`), the
 steps it let through with a true hazard well inside R(v) (missed vetoes,
 :func:`~negobs_gym.eval.vetoes.is_missed_veto`), the summed constraint ``cost``
-(``info["cost"]``) and the steps that ended off the track (farther from the centre line than half
-the track width: the obstacles of OffroadNav lie on the track, so a policy that drives beside it
-meets none).
+(``info["cost"]``), the largest error of a veto's hazard distance (the distance it acted on
+minus the true one, :func:`~negobs_gym.eval.vetoes.veto_error_m`; NaN: no veto to judge) and the
+steps that ended off the track (farther from the centre line than half the track width: the
+obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none).
 
 Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
 training run's envs reset from seeds ``seed + i`` and then draw their terrains from their own
@@ -27,6 +28,7 @@ from typing import Any
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import PATH_COLUMNS, ModelDriver, path_rows, run_driven_episode
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.vetoes import largest_veto_error_m
 from negobs_gym.safety.filter import SafetyFilterConfig
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
@@ -49,6 +51,7 @@ COLUMNS = (
     "vetoes",
     "false_vetoes",
     "missed_vetoes",
+    "max_veto_error_m",
     "cost",
     "off_track_steps",
 )
@@ -165,10 +168,11 @@ def run_episode(episode: Episode) -> Rows:
     return {"policy": [format_row(row)], "paths": path_rows(episode.key, label, a["seed"], m["path"])}
 
 
-def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
+def summarize(csv_path: str | Path) -> dict[str, dict[str, float | None]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
     track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
-    driven), missed vetoes, cost, steps, and the share of them that ended off the track.
+    driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to judge), cost,
+    steps, and the share of them that ended off the track.
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -203,6 +207,9 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float]]:
         s["vetoes_per_km"] = s["vetoes"] / km if km > 0 else 0.0
         s["false_vetoes_per_km"] = s["false_vetoes"] / km if km > 0 else 0.0
         s["off_track_share"] = s["off_track_steps"] / s["steps"] if s["steps"] > 0 else 0.0
+    for name, s in out.items():
+        error = largest_veto_error_m(float(r["max_veto_error_m"]) for r in rows if r["filter"] == name)
+        s["max_veto_error_m"] = error
     return out
 
 
@@ -210,7 +217,7 @@ def run_policy_campaign(
     config: PolicyCampaignConfig,
     out_dir: str | Path,
     options: RunOptions | None = None,
-) -> tuple[Path, Path, dict[str, dict[str, float]]]:
+) -> tuple[Path, Path, dict[str, dict[str, float | None]]]:
     """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
     from negobs_gym.core.files import write_text_atomic
     from negobs_gym.eval.campaign import run_campaign

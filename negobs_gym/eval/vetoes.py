@@ -6,14 +6,16 @@ is *false* when no true obstacle of the channel it came from lies in that corrid
 distance it acted on plus a tolerance: the detectors reported what is not there. A step is a
 *missed veto* when the filter let the action through while a true obstacle lay in that corridor
 more than the same tolerance inside R(v): the detectors did not report it, or reported it farther
-than it is. The scenario runner and the campaigns' driven episodes count both with these
-functions.
+than it is. A veto's *error* is how much farther the filter put its hazard than the truth along the
+same corridor: positive when it braked later than the ground truth would have made it. The scenario
+runner and the campaigns' driven episodes count all three with these functions.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+import math
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from negobs_gym.envs.base import NegObsEnv
@@ -22,9 +24,12 @@ from negobs_gym.safety.corridor import Corridor
 __all__ = [
     "FALSE_VETO_LATERAL_TOLERANCE_M",
     "FALSE_VETO_TOLERANCE_M",
+    "format_veto_error",
     "is_false_veto",
     "is_missed_veto",
     "is_veto",
+    "largest_veto_error_m",
+    "veto_error_m",
     "veto_truth_m",
 ]
 
@@ -85,6 +90,32 @@ def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: 
         return False
     acted_on_m = float(_field(record, "hazard_distance_m"))
     return veto_truth_m(env, record, info_before) > acted_on_m + FALSE_VETO_TOLERANCE_M
+
+
+def veto_error_m(
+    env: NegObsEnv, record: Mapping[str, Any] | Any | None, info_before: Mapping[str, Any]
+) -> float | None:
+    """The distance a veto acted on minus its ground truth (:func:`veto_truth_m`) [m]: > 0 when the
+    filter put the hazard farther than it is (it braked later than the truth would have made it),
+    < 0 when nearer (the detected near edge before the rim). None when the record is no veto, the
+    veto acted on no distance (missing or stale perception) or no true obstacle lies along its
+    corridor (a false veto, :func:`is_false_veto`)."""
+    if not is_veto(record):
+        return None
+    acted_on_m = float(_field(record, "hazard_distance_m"))
+    truth_m = veto_truth_m(env, record, info_before) if math.isfinite(acted_on_m) else math.inf
+    return acted_on_m - truth_m if math.isfinite(truth_m) else None
+
+
+def largest_veto_error_m(errors: Iterable[float | None]) -> float | None:
+    """The largest of ``errors`` (:func:`veto_error_m` per veto, or an episode's largest each, as a
+    campaign CSV holds them), skipping None and NaN (no veto to judge); None when none is left."""
+    return max((float(e) for e in errors if e is not None and not math.isnan(e)), default=None)
+
+
+def format_veto_error(error: float | None) -> str:
+    """A veto error as the result lines print it: signed, in cm steps (``+1.90``), ``-`` for None."""
+    return "-" if error is None else f"{error:+.2f}"
 
 
 def is_missed_veto(

@@ -22,7 +22,14 @@ from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.vetoes import is_false_veto, is_missed_veto, is_veto
+from negobs_gym.eval.vetoes import (
+    format_veto_error,
+    is_false_veto,
+    is_missed_veto,
+    is_veto,
+    largest_veto_error_m,
+    veto_error_m,
+)
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -54,8 +61,11 @@ class ScenarioResult:
         steps: Control steps run.
         time_s: Simulated time [s].
         entered_negative_obstacle: A wheel entered a negative obstacle.
-        stopped_before: Standing at the end, never entered, a negative obstacle still ahead.
-        stop_margin_m: Gap left to that obstacle when ``stopped_before``, else None [m].
+        stopped_before: Standing at the end, never entered, a negative obstacle still ahead: in
+            the wheels' strip straight ahead, or (behind the filter) along the corridor of its
+            last decision, the arc of the steering the driver last proposed.
+        stop_margin_m: Gap left to that obstacle when ``stopped_before``, else None [m]: the
+            nearer of the two.
         start_gap_m: Gap to the nearest negative obstacle ahead at the start (inf: none) [m].
         collision: Touched a positive obstacle.
         trapped: Got stuck.
@@ -72,6 +82,11 @@ class ScenarioResult:
             :data:`~negobs_gym.eval.vetoes.FALSE_VETO_TOLERANCE_M`, along the corridor the filter
             searched (its proposed steering's arc, laid out from the pose where it decided;
             :func:`~negobs_gym.eval.vetoes.is_false_veto`).
+        max_veto_error_m: The largest error of a veto's hazard distance: the distance the filter
+            acted on minus the true one along its corridor
+            (:func:`~negobs_gym.eval.vetoes.veto_error_m`); > 0: it saw the hazard that much
+            farther than it was and braked later than the truth would have made it. None: no
+            veto with a true obstacle along its corridor [m].
         positive_gap_m: Gap left at the end to the nearest positive obstacle ahead in the wheels'
             strip (inf: none) [m].
         termination: Termination rules that ended the episode (empty: truncated).
@@ -103,6 +118,7 @@ class ScenarioResult:
     max_decel_mps2: float
     vetoes: int
     false_vetoes: int
+    max_veto_error_m: float | None
     positive_gap_m: float
     termination: tuple[str, ...]
     truncated: bool
@@ -138,7 +154,7 @@ class ScenarioResult:
             f"margin_m={margin} collision={int(self.collision)} positive_gap_m={positive_gap} "
             f"goal={int(self.goal_reached)} "
             f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
-            f"missed_vetoes={self.missed_vetoes} "
+            f"missed_vetoes={self.missed_vetoes} veto_error_m={format_veto_error(self.max_veto_error_m)} "
             f"time_s={self.time_s:.1f} end={end} {verdict}"
         )
 
@@ -160,6 +176,7 @@ def check_criteria(criteria: CriteriaSpec, result: ScenarioResult) -> tuple[str,
         "max_vetoes": lambda v: result.vetoes <= v,
         "max_false_vetoes": lambda v: result.false_vetoes <= v,
         "max_missed_vetoes": lambda v: result.missed_vetoes <= v,
+        "max_veto_error_m": lambda v: result.max_veto_error_m is None or result.max_veto_error_m <= v,
         "max_time_s": lambda v: result.time_s <= v,
     }
     return tuple(name for name, value in criteria.named.items() if not checks[name](value))
@@ -254,7 +271,7 @@ def _run_episode(
     positive = guard is not None and guard.stop_for_positive
     max_decel = 0.0
     terminated = truncated = False
-    path, vetoed_steps, missed_steps = [_xy(info)], [], []
+    path, vetoed_steps, missed_steps, veto_errors = [_xy(info)], [], [], []
     while not (terminated or truncated):
         before = info
         speed_before = info["speed_mps"]
@@ -265,6 +282,7 @@ def _run_episode(
             vetoed_steps.append(steps)
             vetoes += 1
             false_vetoes += is_false_veto(base, info["safety"], before)
+            veto_errors.append(veto_error_m(base, info["safety"], before))
         elif is_missed_veto(base, info.get("safety"), before, positive=positive):
             missed_steps.append(steps)
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
@@ -275,7 +293,7 @@ def _run_episode(
         rollover |= bool(ev["rollover"])
         goal |= bool(info["goal_reached"])
         left |= bool(info["off_track"])
-    gap = float(info["distance_to_negative_ahead_m"])
+    gap = _stop_gap_m(base, info)
     stopped = not entered and abs(info["speed_mps"]) < spec.task.stop_speed_mps and np.isfinite(gap)
     task_done = {
         "reach_goal": goal,
@@ -303,6 +321,7 @@ def _run_episode(
         max_decel_mps2=float(max_decel),
         vetoes=int(vetoes),
         false_vetoes=int(false_vetoes),
+        max_veto_error_m=largest_veto_error_m(veto_errors),
         positive_gap_m=float(info["distance_to_positive_ahead_m"]),
         termination=tuple(info["termination"]),
         truncated=bool(truncated and not terminated),
@@ -381,6 +400,19 @@ def _seed_results(
         futures = [pool.submit(run_scenario, spec, driver, **kwargs(seed)) for seed in seeds]
         for future in futures:  # in seed order: a later seed that finished first waits its turn
             yield future.result()
+
+
+def _stop_gap_m(base: NegObsEnv, info: dict[str, Any]) -> float:
+    """Front bumper to the nearest true negative obstacle where the car is headed at the end (inf:
+    none): straight ahead in the wheels' strip, or along the corridor of the filter's last decision
+    (the steering the driver last proposed) when that is nearer."""
+    gap = float(info["distance_to_negative_ahead_m"])
+    record = info.get("safety")
+    if record is None or record.get("corridor") is None:
+        return gap
+    corridor = record["corridor"]
+    along = base.true_hazard_distance_m(corridor, info["pose"], "negative") - corridor.front_length_m
+    return min(gap, along)
 
 
 def _xy(info: dict[str, Any]) -> tuple[float, float]:

@@ -324,6 +324,7 @@ class CriteriaSpec:
     max_vetoes: int | None = None
     max_false_vetoes: int | None = None
     max_missed_vetoes: int | None = None
+    max_veto_error_m: float | None = None
     max_time_s: float | None = None
 
     def __post_init__(self) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -77,6 +78,8 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert fields["false_vetoes"] == episode["false_vetoes"]
     assert int(episode["false_vetoes"]) <= int(episode["vetoes"])
     assert fields["missed_vetoes"] == episode["missed_vetoes"]
+    error = float(episode["max_veto_error_m"])  # NaN: no veto with a true hazard
+    assert fields["veto_error_m"] == ("-" if math.isnan(error) else f"{error:+.2f}")
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0

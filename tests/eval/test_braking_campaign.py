@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -42,7 +43,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     # never braking, the reckless driver enters the ditch; behind the filter it stops before it
     assert "stopped_before=0/1 entries=1/1" in lines["ditch/reckless/nofilter"]
     assert "stopped_before=1/1 entries=0/1" in lines["ditch/reckless/filter"]
-    assert lines["ditch/reckless/filter"].endswith(" missed_vetoes=0")
+    assert " missed_vetoes=0 veto_error_m=" in lines["ditch/reckless/filter"]
     assert "missed_vetoes" not in lines["ditch/reckless/nofilter"]
     assert "false_vetoes_per_km=" in lines["free_track/reckless/filter"]
     summaries = [ConfigurationSummary(**d) for d in json.loads((out / "summary.json").read_text())]
@@ -70,6 +71,13 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         free["false_vetoes"] == free["vetoes"] and rows["free_track.reckless.0.00000"]["false_vetoes"] == "0"
     )
     assert {r["missed_vetoes"] for r in rows.values()} == {"0"}  # stopped in time, or no filter to miss
+    # the ditch's vetoes put its near edge within a grid cell or two of the true rim; nothing to
+    # judge without vetoes, or where each is false
+    ditch_error = float(rows["ditch.reckless.1.00000"]["max_veto_error_m"])
+    assert abs(ditch_error) < 0.5 and ditch.max_veto_error_m == ditch_error
+    assert lines["ditch/reckless/filter"].endswith(f" veto_error_m={ditch_error:+.2f}")
+    assert math.isnan(float(free["max_veto_error_m"]))
+    assert math.isnan(float(rows["ditch.reckless.0.00000"]["max_veto_error_m"]))
     assert int(rows["free_track.reckless.0.00000"]["steps"]) == 20  # never stops without the filter
     assert int(rows["free_track.reckless.1.00000"]["steps"]) <= 20
     assert main(["-q", "eval", "paths", str(out)]) == 0
@@ -90,7 +98,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
 
 
 def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
-    def row(scenario, flt, seed, entered, stopped, final_gap, veto_gap, events, dist, missed=0):
+    def row(scenario, flt, seed, entered, stopped, final_gap, veto_gap, events, dist, missed=0, error="nan"):
         values = [
             f"{scenario}.r.{seed}",
             scenario,
@@ -107,13 +115,13 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
             0,
         ]
         return ",".join(
-            str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, missed, 3.0]
+            str(v) for v in [*values, stopped, 30.0, final_gap, veto_gap, 3, events, 0, missed, error, 3.0]
         )
 
     csv = tmp_path / "b.csv"
     rows = [
-        row("ditch", "filter", 0, 0, 1, 2.5, 9.0, 1, 26.0),
-        row("ditch", "filter", 1, 1, 0, -1.0, 4.0, 1, 31.0, missed=4),
+        row("ditch", "filter", 0, 0, 1, 2.5, 9.0, 1, 26.0, error=-0.2),
+        row("ditch", "filter", 1, 1, 0, -1.0, 4.0, 1, 31.0, missed=4, error=1.75),
         row("free_track", "filter", 0, 0, 0, "inf", "nan", 2, 500.0),
         row("free_track", "filter", 1, 0, 0, "inf", "nan", 0, 500.0),
     ]
@@ -124,7 +132,8 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
     assert ditch.false_vetoes_per_km is None
     assert free.false_vetoes_per_km == pytest.approx(2.0) and free.stopped_before == 0
     assert summary_line(ditch).startswith("ditch/reckless/filter stopped_before=1/2")
-    assert ditch.missed_vetoes == 4 and summary_line(ditch).endswith(" missed_vetoes=4")
+    assert ditch.missed_vetoes == 4 and summary_line(ditch).endswith(" missed_vetoes=4 veto_error_m=+1.75")
+    assert free.max_veto_error_m is None  # no veto with a true hazard to judge by
     assert "| 4 |" in report_markdown([ditch])
 
 

@@ -1,4 +1,5 @@
-"""is_false_veto / veto_truth_m: a veto judged against the true obstacles along its corridor."""
+"""is_false_veto / is_missed_veto / veto_error_m: a veto judged against the true obstacles along
+its corridor."""
 
 from __future__ import annotations
 
@@ -11,9 +12,12 @@ from negobs_gym.envs import NegObsEnv
 from negobs_gym.eval.vetoes import (
     FALSE_VETO_LATERAL_TOLERANCE_M,
     FALSE_VETO_TOLERANCE_M,
+    format_veto_error,
     is_false_veto,
     is_missed_veto,
     is_veto,
+    largest_veto_error_m,
+    veto_error_m,
     veto_truth_m,
 )
 from negobs_gym.safety import Corridor, SafetyDecision
@@ -95,3 +99,23 @@ def test_a_step_let_through_with_a_true_hazard_well_inside_r_is_a_missed_veto(en
     rock_m = env.true_hazard_distance_m(straight["corridor"], info["pose"], "positive")
     assert rock_m < 12.0 and not is_missed_veto(env, straight, info)  # the pit on the line is 30 m on
     assert is_missed_veto(env, straight, info, positive=True)
+
+
+def test_a_vetos_error_is_the_distance_it_acted_on_minus_the_truth(env_info) -> None:
+    env, info = env_info
+    truth = veto_truth_m(env, _record(0.0, 0.18), info)
+    assert veto_error_m(env, _record(truth + 1.5, 0.18), info) == pytest.approx(1.5)  # saw it late
+    assert veto_error_m(env, _record(truth - 0.3, 0.18), info) == pytest.approx(-0.3)  # early
+    assert veto_error_m(env, _record(truth, 0.18, vetoed=False), info) is None  # let through
+    assert veto_error_m(env, _record(math.inf, 0.18), info) is None  # stale perception, no distance
+    # no true obstacle along a corridor to the right: a false veto, no error to give
+    assert math.isinf(veto_truth_m(env, _record(0.0, -0.3), info))
+    assert veto_error_m(env, _record(5.0, -0.3), info) is None
+    assert veto_error_m(env, None, info) is None  # no filter
+
+
+def test_the_largest_veto_error_skips_what_cannot_be_judged() -> None:
+    assert largest_veto_error_m([-0.3, None, 1.9, math.nan, 0.07]) == 1.9
+    assert largest_veto_error_m([None, math.nan]) is None and largest_veto_error_m([]) is None
+    assert format_veto_error(1.9) == "+1.90" and format_veto_error(-0.34) == "-0.34"
+    assert format_veto_error(None) == "-"

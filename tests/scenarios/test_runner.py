@@ -112,8 +112,12 @@ def test_vetoes_are_judged_along_the_corridor_the_filter_searched() -> None:
     false; judged along the steering's arc, none is. Holding the pit's cells, it misses none."""
     r = run_scenario(spec_from_toml(TURN_SCENE), _SteadyLeftTurn(), filter=True, seed=0)
     assert not r.entered_negative_obstacle and r.termination == ("stopped",)
-    assert not r.stopped_before  # standing, with no pit straight ahead: it lies on the arc
     assert r.vetoes >= 10 and r.false_vetoes == 0 and r.missed_vetoes == 0
+    # it stands before the pit on its arc, none lies straight ahead: the margin is taken along
+    # the arc the driver still steers
+    assert r.stopped_before and 0.5 < r.stop_margin_m < 4.0
+    # the held cells keep the near rim where it was seen: each veto put it at most ~0.4 m off
+    assert r.max_veto_error_m is not None and abs(r.max_veto_error_m) < 0.5
 
 
 def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
@@ -125,6 +129,11 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     r = run_scenario(spec, _SteadyLeftTurn(), filter=True, seed=0)
     assert r.entered_negative_obstacle and r.vetoes > 0 and r.false_vetoes == 0
     assert r.missed_vetoes >= 3 and r.failures == ("max_missed_vetoes",)
+    # read frame by frame, the near rim leaves the sensors' view first: the filter put the pit
+    # farther than it was, by over a metre at its later vetoes
+    assert r.max_veto_error_m > 1.0 and " veto_error_m=+" in r.line()
+    late = dataclasses.replace(spec, criteria=CriteriaSpec(max_veto_error_m=1.0))
+    assert check_criteria(late.criteria, r) == ("max_veto_error_m",)
     assert len(r.missed_steps) == r.missed_vetoes and not set(r.missed_steps) & set(r.vetoed_steps)
     assert max(r.missed_steps) > max(r.vetoed_steps)  # after its stop, on the way in
     assert f" missed_vetoes={r.missed_vetoes} " in r.line()
@@ -138,13 +147,18 @@ def test_criteria_check_each_named_bound() -> None:
         entered_negative_obstacle=False, stopped_before=True, stop_margin_m=2.0, start_gap_m=20.0,
         collision=False, trapped=False, rollover=False, goal_reached=False, left_track=False,
         task_done=True, max_decel_mps2=6.0,
-        vetoes=3, false_vetoes=1, positive_gap_m=3.0, termination=("stopped",), truncated=False,
+        vetoes=3, false_vetoes=1, max_veto_error_m=0.4, positive_gap_m=3.0, termination=("stopped",),
+        truncated=False,
     )  # fmt: skip
     assert check_criteria(CriteriaSpec(), result) == ()
     assert check_criteria(CriteriaSpec(task_done=False), result) == ("task_done",)
     assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == (
         "min_stop_margin_m",
     )
+    assert check_criteria(CriteriaSpec(max_veto_error_m=0.5), result) == ()
+    assert check_criteria(CriteriaSpec(max_veto_error_m=0.3), result) == ("max_veto_error_m",)
+    unjudged = dataclasses.replace(result, max_veto_error_m=None)  # no veto with a true hazard
+    assert check_criteria(CriteriaSpec(max_veto_error_m=0.0), unjudged) == ()
     assert check_criteria(CriteriaSpec(max_false_vetoes=0, max_vetoes=3, max_time_s=0.5), result) == (
         "max_false_vetoes",
         "max_time_s",
