@@ -365,14 +365,10 @@ def _driven_episode(
         "veto_events": veto_events,
         "false_vetoes": false_vetoes,
         "missed_vetoes": missed_vetoes,
-        "max_veto_error_m": _or_nan(largest_veto_error_m(errors)),
+        "max_veto_error_m": largest_veto_error_m(errors, math.nan),
         "cost": cost,
         "path": path,
     }
-
-
-def _or_nan(value: float | None) -> float:
-    return math.nan if value is None else value
 
 
 def _path_point(

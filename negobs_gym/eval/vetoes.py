@@ -107,10 +107,11 @@ def veto_error_m(
     return acted_on_m - truth_m if math.isfinite(truth_m) else None
 
 
-def largest_veto_error_m(errors: Iterable[float | None]) -> float | None:
+def largest_veto_error_m(errors: Iterable[float | None], missing: float | None = None) -> float | None:
     """The largest of ``errors`` (:func:`veto_error_m` per veto, or an episode's largest each, as a
-    campaign CSV holds them), skipping None and NaN (no veto to judge); None when none is left."""
-    return max((float(e) for e in errors if e is not None and not math.isnan(e)), default=None)
+    campaign CSV holds them), skipping None and NaN (no veto to judge); ``missing`` when none is
+    left (None; a CSV cell takes NaN)."""
+    return max((float(e) for e in errors if e is not None and not math.isnan(e)), default=missing)
 
 
 def format_veto_error(error: float | None) -> str:

@@ -7,6 +7,7 @@ return only, so these three are small callbacks of our own. Files are written at
 from __future__ import annotations
 
 import logging
+import math
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -18,6 +19,7 @@ from tqdm.auto import tqdm
 
 from negobs_gym.core.files import write_atomic, write_text_atomic
 from negobs_gym.eval.campaign import format_row, read_csv
+from negobs_gym.eval.vetoes import largest_veto_error_m
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +34,8 @@ __all__ = [
 
 #: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean);
 #: ``off_track`` counts the episodes with a step off the track (on OffroadNav-v2 the rule ends them);
-#: ``false_vetoes`` / ``missed_vetoes`` as :mod:`negobs_gym.eval.vetoes` judges the filter's steps.
+#: ``false_vetoes`` / ``missed_vetoes`` as :mod:`negobs_gym.eval.vetoes` judges the filter's steps,
+#: ``max_veto_error_m`` the largest veto error of the evaluation's episodes (NaN: no veto to judge).
 EVAL_COLUMNS = (
     "step",
     "episodes",
@@ -46,6 +49,7 @@ EVAL_COLUMNS = (
     "vetoes",
     "false_vetoes",
     "missed_vetoes",
+    "max_veto_error_m",
     "cost",
     "wall_s",
 )
@@ -170,6 +174,7 @@ class EvalCallback(BaseCallback):
             "vetoes": sum(int(e["vetoes"]) for e in episodes),
             "false_vetoes": sum(int(e["false_vetoes"]) for e in episodes),
             "missed_vetoes": sum(int(e["missed_vetoes"]) for e in episodes),
+            "max_veto_error_m": largest_veto_error_m((e["max_veto_error_m"] for e in episodes), math.nan),
             "cost": sum(float(e["cost"]) for e in episodes),
             "wall_s": time.perf_counter() - start,
         }

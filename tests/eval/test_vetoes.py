@@ -117,5 +117,7 @@ def test_a_vetos_error_is_the_distance_it_acted_on_minus_the_truth(env_info) -> 
 def test_the_largest_veto_error_skips_what_cannot_be_judged() -> None:
     assert largest_veto_error_m([-0.3, None, 1.9, math.nan, 0.07]) == 1.9
     assert largest_veto_error_m([None, math.nan]) is None and largest_veto_error_m([]) is None
+    assert math.isnan(largest_veto_error_m([None], math.nan))  # a CSV cell's "no veto to judge"
+    assert largest_veto_error_m([0.0], math.nan) == 0.0
     assert format_veto_error(1.9) == "+1.90" and format_veto_error(-0.34) == "-0.34"
     assert format_veto_error(None) == "-"
