@@ -95,15 +95,21 @@ def is_false_veto(env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: 
 def veto_error_m(
     env: NegObsEnv, record: Mapping[str, Any] | Any | None, info_before: Mapping[str, Any]
 ) -> float | None:
-    """The distance a veto acted on minus its ground truth (:func:`veto_truth_m`) [m]: > 0 when the
-    filter put the hazard farther than it is (it braked later than the truth would have made it),
-    < 0 when nearer (the detected near edge before the rim). None when the record is no veto, the
-    veto acted on no distance (missing or stale perception) or no true obstacle lies along its
-    corridor (a false veto, :func:`is_false_veto`)."""
+    """The distance a veto acted on minus the true distance to the nearest obstacle of its channel
+    along the corridor it searched, not widened [m]: > 0 when the filter put the hazard farther
+    than it is (it braked later than the truth would have made it), < 0 when nearer (the detected
+    near edge before the rim). Not widened as for :func:`veto_truth_m`: a pit just beside the
+    corridor, which the widening takes in, is not the hazard the filter braked for and would read
+    as lateness. None when the record is no veto, the veto acted on no distance (missing or stale
+    perception) or no true obstacle lies in the corridor (a false veto, or one for cells at its
+    edge). A record without a corridor is judged straight ahead in the wheels' strip."""
     if not is_veto(record):
         return None
     acted_on_m = float(_field(record, "hazard_distance_m"))
-    truth_m = veto_truth_m(env, record, info_before) if math.isfinite(acted_on_m) else math.inf
+    if not math.isfinite(acted_on_m):
+        return None
+    channel = _field(record, "hazard_channel") or "negative"
+    truth_m = _truth_m(env, _field(record, "corridor"), info_before, channel)
     return acted_on_m - truth_m if math.isfinite(truth_m) else None
 
 

@@ -103,7 +103,8 @@ def test_a_step_let_through_with_a_true_hazard_well_inside_r_is_a_missed_veto(en
 
 def test_a_vetos_error_is_the_distance_it_acted_on_minus_the_truth(env_info) -> None:
     env, info = env_info
-    truth = veto_truth_m(env, _record(0.0, 0.18), info)
+    truth = env.true_hazard_distance_m(_record(0.0, 0.18)["corridor"], info["pose"])  # not widened
+    assert truth >= veto_truth_m(env, _record(0.0, 0.18), info)
     assert veto_error_m(env, _record(truth + 1.5, 0.18), info) == pytest.approx(1.5)  # saw it late
     assert veto_error_m(env, _record(truth - 0.3, 0.18), info) == pytest.approx(-0.3)  # early
     assert veto_error_m(env, _record(truth, 0.18, vetoed=False), info) is None  # let through
@@ -112,6 +113,12 @@ def test_a_vetos_error_is_the_distance_it_acted_on_minus_the_truth(env_info) -> 
     assert math.isinf(veto_truth_m(env, _record(0.0, -0.3), info))
     assert veto_error_m(env, _record(5.0, -0.3), info) is None
     assert veto_error_m(env, None, info) is None  # no filter
+    # a wide straight corridor that ends 0.25 m short of the left pit: widened, it takes the pit in
+    # (the veto is not false), but the error is judged in the corridor as searched, whose nearest
+    # true pit is the one on the line 30 m on: far beyond d, so early, not late
+    wide = {**_record(11.0, 0.0), "corridor": Corridor(steer_rad=0.0, wheelbase_m=2.8, half_width_m=5.0)}
+    assert not is_false_veto(env, wide, info)
+    assert veto_error_m(env, wide, info) < -15.0
 
 
 def test_the_largest_veto_error_skips_what_cannot_be_judged() -> None:

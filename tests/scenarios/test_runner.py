@@ -213,6 +213,18 @@ def test_the_filter_stops_for_a_rock_only_when_told() -> None:
     assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
 
 
+def test_the_filter_stops_for_a_pit_in_a_bend_where_the_car_turns() -> None:
+    """Pure pursuit follows a 30 m radius bend at 25 km/h, steering left all the way; the filter
+    judges the pit under its inner wheels along that arc and stops before it. Without the filter
+    the car drives in."""
+    r = run_scenario("pit_in_a_bend_25kmh", seed=0)
+    assert r.passed, r.line()
+    assert r.stopped_before and 1.0 < r.stop_margin_m < 4.0 and r.vetoes > 10
+    assert r.max_veto_error_m is not None and abs(r.max_veto_error_m) < 0.5
+    plain = run_scenario("pit_in_a_bend_25kmh", filter=False, seed=0)
+    assert plain.entered_negative_obstacle and "entered_negative_obstacle" in plain.failures
+
+
 @pytest.mark.parametrize("zoom_m", [0.0, -2.0, math.nan, math.inf])
 def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) -> None:
     with pytest.raises(ConfigError, match="draw_zoom_m"):
