@@ -171,8 +171,8 @@ def run_episode(episode: Episode) -> Rows:
 def summarize(csv_path: str | Path) -> dict[str, dict[str, float | None]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
     track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
-    driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to judge), cost,
-    steps, and the share of them that ended off the track.
+    driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
+    judge), cost, steps, and the share of them that ended off the track.
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -208,8 +208,8 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float | None]]:
         s["false_vetoes_per_km"] = s["false_vetoes"] / km if km > 0 else 0.0
         s["off_track_share"] = s["off_track_steps"] / s["steps"] if s["steps"] > 0 else 0.0
     for name, s in out.items():
-        error = largest_veto_error_m(float(r["max_veto_error_m"]) for r in rows if r["filter"] == name)
-        s["max_veto_error_m"] = error
+        errors = (float(r["max_veto_error_m"]) for r in rows if r["filter"] == name)
+        s["max_veto_error_m"] = largest_veto_error_m(errors)
     return out
 
 
