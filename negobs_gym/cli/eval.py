@@ -116,7 +116,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(brk, "outputs/eval/braking")
     brk.add_argument("--scenarios", default=None, help="comma-separated subset of the scenarios")
     brk.add_argument("--drivers", default=None, help="comma-separated subset of reckless,constant_speed")
-    brk.add_argument("--model", default=None, help="a saved SB3 model: adds the driver 'sb3'")
+    brk.add_argument(
+        "--model", default=None, help="a saved SB3 model or a shipped policy's name: adds the driver 'sb3'"
+    )
     brk.add_argument("--algo", default=None, help="its stable-baselines3 class (default PPO)")
     brk.add_argument(
         "--tighten-pairs",

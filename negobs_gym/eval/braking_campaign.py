@@ -122,7 +122,7 @@ class BrakingCampaignConfig:
     scenarios: tuple[str, ...] = tuple(SCENARIOS)
     drivers: tuple[str, ...] = DRIVERS
     filters: tuple[bool, ...] = (False, True)
-    model_path: str | None = None  # a saved SB3 model: adds the driver "sb3"
+    model_path: str | None = None  # a saved SB3 model or a shipped policy's name: adds the driver "sb3"
     algo: str = "PPO"  # its stable-baselines3 class
     rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
     tighten_pairs: bool = True  # ObservationConfig.tighten_pairs of the detector the filter reads
@@ -143,6 +143,10 @@ class BrakingCampaignConfig:
             "driver 'sb3' needs a saved model",
         )
         require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
+        if self.model_path is not None:
+            from negobs_gym.policies.baselines import resolve_model
+
+            resolve_model(self.model_path)  # exists, or names a shipped policy; kept as given
         require(
             isinstance(self.tighten_pairs, bool),
             "tighten_pairs",
@@ -227,7 +231,8 @@ def _scenario_env(
 
 
 class ModelDriver(PolicyDriver):
-    """A saved stable-baselines3 model as a driver (deterministic actions).
+    """A saved stable-baselines3 model as a driver (deterministic actions); ``path`` may name a
+    shipped policy instead (:func:`~negobs_gym.policies.baselines.resolve_model`).
 
     Observations are adapted to the model's space (:func:`~negobs_gym.policies.match_observation`),
     so a model trained by ``negobs train`` (flat grid, or the state alone) runs on the raw env.
@@ -240,14 +245,14 @@ class ModelDriver(PolicyDriver):
         import stable_baselines3
         import torch
 
+        from negobs_gym.policies.baselines import resolve_model
+
         torch.set_num_threads(1)
 
         cls = getattr(stable_baselines3, algo, None)
         if cls is None:
             raise ConfigError("algo", f"stable_baselines3 has no algorithm {algo!r}")
-        if not Path(path).exists() and not Path(f"{path}.zip").exists():
-            raise ConfigError("model_path", f"no saved model at {path}")
-        super().__init__(cls.load(path, device="cpu"))
+        super().__init__(cls.load(resolve_model(path), device="cpu"))
 
 
 def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:

@@ -84,7 +84,9 @@ class PolicyCampaignConfig:
     own, the detector grid for every registered id), e.g. to evaluate an oracle-trained policy on
     what the vehicle's detectors see. ``stop_for_positive``: the filtered episodes' filter also
     stops for the grid's positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`);
-    their rows say ``filter_positive`` instead of ``filter``.
+    their rows say ``filter_positive`` instead of ``filter``. ``model_path``: a saved model, or
+    the name of a shipped policy, which the episodes' records keep as a name (resolved where each
+    runs), so a campaign folder replays on another install (``negobs eval video``).
     """
 
     model_path: str
@@ -112,7 +114,7 @@ class PolicyCampaignConfig:
         )
         from negobs_gym.policies.baselines import resolve_model
 
-        object.__setattr__(self, "model_path", resolve_model(self.model_path))
+        resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
 
 
 def filter_label(filtered: bool, stop_for_positive: bool) -> str:

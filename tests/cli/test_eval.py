@@ -127,6 +127,10 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     spec = spec_from_toml((tmp_path / "shipped" / "scenario.toml").read_text())
     assert spec.observation.tighten_pairs and spec.episode.time_limit_s == 0.3
     assert spec.observation.lux_forward_m == 2.0 and not spec.observation.lux_ego_motion
+    # the episode's record keeps the shipped policy's name, not this install's path to it, so the
+    # folder replays wherever the package is installed
+    (part,) = (tmp_path / "shipped" / "parts").glob("*.json")
+    assert json.loads(part.read_text())["args"]["model_path"] == "ppo_offroad_nav_v2_detector_clone"
     (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
     assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)

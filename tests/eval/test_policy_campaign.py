@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.braking_campaign import run_driven_episode
+from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
 from negobs_gym.eval.campaign import format_row
-from negobs_gym.eval.policy_campaign import COLUMNS, summarize
+from negobs_gym.eval.policy_campaign import COLUMNS, PolicyCampaignConfig, summarize
 from negobs_gym.policies.training import make_task_env
 
 
@@ -68,3 +68,14 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     old.write_text(",".join(kept) + "\n" + ",".join("0" for _ in kept) + "\n")
     with pytest.raises(ConfigError, match=r"lacks the columns \['left_track'\]"):
         summarize(old)
+
+
+def test_a_shipped_policy_is_named_in_the_config_and_loaded_by_name() -> None:
+    config = PolicyCampaignConfig(model_path="ppo_offroad_nav_v1")
+    assert config.model_path == "ppo_offroad_nav_v1"  # not this install's path to it
+    driver = ModelDriver("ppo_offroad_nav_v1")
+    assert driver.model.observation_space is not None
+    with pytest.raises(ConfigError, match="model_path"):
+        PolicyCampaignConfig(model_path="no_such_policy")
+    with pytest.raises(ConfigError, match="model_path"):
+        ModelDriver("no_such_policy")
