@@ -168,3 +168,31 @@ def test_terrain_pool_gives_each_index_its_own_terrain():
         seen[key] = np.array(heights)
     assert 1 < len(seen) <= 3 and len(env.unwrapped._worlds) <= 3
     env.close()
+
+
+def _frames(seed: int) -> np.ndarray:
+    """The ``rgb_array`` frames of a Braking-v1 episode's reset and first steps at full throttle."""
+    env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array")
+    env.reset(seed=seed)
+    frames = [env.render()]
+    for _ in range(4):
+        env.step(np.array([1.0, 0.0], np.float32))
+        frames.append(env.render())
+    env.close()
+    return np.stack(frames)
+
+
+def test_same_seed_same_frames_in_another_process(tmp_path):
+    """Rendering draws from no generator: the frames (what `negobs eval video` encodes) are the
+    episode's, pixel for pixel, in any process."""
+    out = tmp_path / "frames.npy"
+    code = (
+        "import sys, numpy as np\n"
+        f"sys.path.insert(0, {str(ROOT)!r})\n"
+        "from tests.envs.test_episode_determinism import _frames\n"
+        f"np.save({str(out)!r}, _frames(seed=3))\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300)
+    here = _frames(seed=3)
+    assert here.std() > 0 and not np.array_equal(here[0], here[-1])  # a picture that moves
+    assert np.array_equal(here, np.load(out))
