@@ -31,3 +31,6 @@ def test_filter_stops_before_my_ditch(seed):
     result = run_scenario(SCENE, "reckless", filter=True, seed=seed)
     assert result.stopped_before and not result.entered_negative_obstacle, result.line()
     assert result.stop_margin_m > 0.5 and result.false_vetoes == 0
+    # judged on the ground truth: no step let through with the ditch well inside R(v), and no veto
+    # that put the ditch more than half a metre beyond where it is
+    assert result.missed_vetoes == 0 and result.max_veto_error_m < 0.5
