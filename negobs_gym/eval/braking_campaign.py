@@ -27,13 +27,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import (
-    format_veto_error,
-    is_false_veto,
-    is_missed_veto,
-    largest_veto_error_m,
-    veto_error_m,
-)
+from negobs_gym.eval.vetoes import VetoTally, format_veto_error, largest_veto_error_m
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -318,10 +312,8 @@ def _driven_episode(
     obs, info = env.reset(seed=seed)
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
-    first_veto, vetoes, veto_events, cost, still_s, steps, distance = math.nan, 0, 0, 0.0, 0.0, 0, 0.0
-    false_vetoes = missed_vetoes = 0
-    errors: list[float | None] = []
-    positive = guard is not None and guard.stop_for_positive
+    first_veto, veto_events, cost, still_s, steps, distance = math.nan, 0, 0.0, 0.0, 0, 0.0
+    tally = VetoTally(positive=guard is not None and guard.stop_for_positive)
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
     goal, was_vetoed, done, off_track_steps = False, False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
@@ -337,15 +329,10 @@ def _driven_episode(
             events[k] |= bool(info["events"][k])
         goal |= bool(info.get("goal_reached", False))
         off_track_steps += bool(info.get("off_track", False))
-        vetoed = bool(guard is not None and info["safety"]["vetoed"])
+        vetoed, missed = tally.add(env.unwrapped, info.get("safety"), before, steps)
         if vetoed:
-            vetoes += 1
             veto_events += not was_vetoed
-            false_vetoes += is_false_veto(env.unwrapped, info["safety"], before)
-            errors.append(veto_error_m(env.unwrapped, info["safety"], before))
             first_veto = gap if math.isnan(first_veto) else first_veto
-        missed = is_missed_veto(env.unwrapped, info.get("safety"), before, positive=positive)
-        missed_vetoes += missed
         was_vetoed = vetoed
         path.append(_path_point(info, vetoed, missed))
         cost += float(info.get("cost", 0.0))
@@ -366,11 +353,11 @@ def _driven_episode(
         "start_gap_m": start_gap,
         "final_gap_m": float(info["distance_to_negative_ahead_m"]),
         "first_veto_gap_m": first_veto,
-        "vetoes": vetoes,
+        "vetoes": len(tally.vetoed_steps),
         "veto_events": veto_events,
-        "false_vetoes": false_vetoes,
-        "missed_vetoes": missed_vetoes,
-        "max_veto_error_m": largest_veto_error_m(errors, math.nan),
+        "false_vetoes": tally.false_vetoes,
+        "missed_vetoes": len(tally.missed_steps),
+        "max_veto_error_m": largest_veto_error_m(tally.errors_m, math.nan),
         "cost": cost,
         "path": path,
     }

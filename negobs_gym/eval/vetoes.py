@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 from negobs_gym.envs.base import NegObsEnv
@@ -24,6 +25,7 @@ from negobs_gym.safety.corridor import Corridor
 __all__ = [
     "FALSE_VETO_LATERAL_TOLERANCE_M",
     "FALSE_VETO_TOLERANCE_M",
+    "VetoTally",
     "format_veto_error",
     "is_false_veto",
     "is_missed_veto",
@@ -146,3 +148,45 @@ def is_missed_veto(
     channels = ("negative", "positive") if positive else ("negative",)
     truth_m = min(_truth_m(env, corridor, info_before, channel) for channel in channels)
     return truth_m + FALSE_VETO_TOLERANCE_M < float(_field(record, "braking_distance_m"))
+
+
+@dataclass
+class VetoTally:
+    """One episode's filtered steps judged on the ground truth, step by step (:meth:`add`): the
+    vetoed and missed steps, the false vetoes and each judged veto's error. The scenario runner
+    and the campaigns' driven episodes keep one per episode.
+
+    ``positive``: the filter stops for positive obstacles too (missed vetoes count them).
+    """
+
+    positive: bool = False
+    vetoed_steps: list[int] = field(default_factory=list)
+    missed_steps: list[int] = field(default_factory=list)
+    false_vetoes: int = 0
+    errors_m: list[float] = field(default_factory=list)
+
+    def add(
+        self,
+        env: NegObsEnv,
+        record: Mapping[str, Any] | Any | None,
+        info_before: Mapping[str, Any],
+        step: int,
+    ) -> tuple[bool, bool]:
+        """Judge ``step``'s decision record (``info.get("safety")``; None: no filter) made at the
+        pose of ``info_before``; returns (vetoed, missed veto)."""
+        if is_veto(record):
+            self.vetoed_steps.append(step)
+            self.false_vetoes += is_false_veto(env, record, info_before)
+            error = veto_error_m(env, record, info_before)
+            if error is not None:
+                self.errors_m.append(error)
+            return True, False
+        missed = is_missed_veto(env, record, info_before, positive=self.positive)
+        if missed:
+            self.missed_steps.append(step)
+        return False, missed
+
+    @property
+    def max_error_m(self) -> float | None:
+        """The largest judged veto error (None: no veto to judge)."""
+        return largest_veto_error_m(self.errors_m)

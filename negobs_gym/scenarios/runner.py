@@ -22,14 +22,7 @@ from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.vetoes import (
-    format_veto_error,
-    is_false_veto,
-    is_missed_veto,
-    is_veto,
-    largest_veto_error_m,
-    veto_error_m,
-)
+from negobs_gym.eval.vetoes import VetoTally, format_veto_error
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -267,24 +260,18 @@ def _run_episode(
     dt = 1.0 / base.config.control_hz
     start_gap = float(info["distance_to_negative_ahead_m"])
     entered = collision = trapped = rollover = goal = left = False
-    vetoes = false_vetoes = steps = 0
-    positive = guard is not None and guard.stop_for_positive
+    steps = 0
+    tally = VetoTally(positive=guard is not None and guard.stop_for_positive)
     max_decel = 0.0
     terminated = truncated = False
-    path, vetoed_steps, missed_steps, veto_errors = [_xy(info)], [], [], []
+    path = [_xy(info)]
     while not (terminated or truncated):
         before = info
         speed_before = info["speed_mps"]
         obs, _, terminated, truncated, info = env.step(pilot.act(obs, info))
         steps += 1
         path.append(_xy(info))
-        if is_veto(info.get("safety")):
-            vetoed_steps.append(steps)
-            vetoes += 1
-            false_vetoes += is_false_veto(base, info["safety"], before)
-            veto_errors.append(veto_error_m(base, info["safety"], before))
-        elif is_missed_veto(base, info.get("safety"), before, positive=positive):
-            missed_steps.append(steps)
+        tally.add(base, info.get("safety"), before, steps)
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
         ev = info["events"]
         entered |= bool(ev["entered_negative_obstacle"])
@@ -319,15 +306,15 @@ def _run_episode(
         left_track=left,
         task_done=bool(task_done),
         max_decel_mps2=float(max_decel),
-        vetoes=int(vetoes),
-        false_vetoes=int(false_vetoes),
-        max_veto_error_m=largest_veto_error_m(veto_errors),
+        vetoes=len(tally.vetoed_steps),
+        false_vetoes=tally.false_vetoes,
+        max_veto_error_m=tally.max_error_m,
         positive_gap_m=float(info["distance_to_positive_ahead_m"]),
         termination=tuple(info["termination"]),
         truncated=bool(truncated and not terminated),
         path_xy_m=tuple(path),
-        vetoed_steps=tuple(vetoed_steps),
-        missed_steps=tuple(missed_steps),
+        vetoed_steps=tuple(tally.vetoed_steps),
+        missed_steps=tuple(tally.missed_steps),
     )
     result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
     if draw_to is not None:

@@ -12,6 +12,7 @@ from negobs_gym.envs import NegObsEnv
 from negobs_gym.eval.vetoes import (
     FALSE_VETO_LATERAL_TOLERANCE_M,
     FALSE_VETO_TOLERANCE_M,
+    VetoTally,
     format_veto_error,
     is_false_veto,
     is_missed_veto,
@@ -128,3 +129,21 @@ def test_the_largest_veto_error_skips_what_cannot_be_judged() -> None:
     assert largest_veto_error_m([0.0], math.nan) == 0.0
     assert format_veto_error(1.9) == "+1.90" and format_veto_error(-0.34) == "-0.34"
     assert format_veto_error(None) == "-"
+
+
+def test_a_tally_judges_each_step_once(env_info) -> None:
+    env, info = env_info
+    truth = env.true_hazard_distance_m(_record(0.0, 0.18)["corridor"], info["pose"])
+    tally = VetoTally()
+    steps = [
+        _record(truth + 0.4, 0.18),  # a real veto, 0.4 m late
+        _record(11.0, 0.0),  # a false one: the pit on the line is 30 m on
+        _record(math.inf, 0.18, vetoed=False, r_m=truth + FALSE_VETO_TOLERANCE_M + 0.1),  # missed
+        _record(math.inf, 0.18, vetoed=False, r_m=1.0),  # let through, nothing near
+        None,  # no filter
+    ]
+    judged = [tally.add(env, record, info, step) for step, record in enumerate(steps, start=1)]
+    assert judged == [(True, False), (True, False), (False, True), (False, False), (False, False)]
+    assert tally.vetoed_steps == [1, 2] and tally.missed_steps == [3] and tally.false_vetoes == 1
+    assert tally.max_error_m == pytest.approx(0.4) and len(tally.errors_m) == 2  # the false one: -18 m
+    assert VetoTally().max_error_m is None
