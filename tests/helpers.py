@@ -118,3 +118,16 @@ lateral_m = 0.0
 [observation]
 source = "oracle"
 """
+
+
+def write_vetoes_csv(path, judged) -> None:
+    """A hand-made campaign ``vetoes.csv``: one row per (episode, filter label, kind, error_m) of
+    ``judged``, the other cells fixed (d 8 m, R 9 m at 5 m/s, truth d - error)."""
+    from negobs_gym.eval.braking_campaign import VETO_COLUMNS
+    from negobs_gym.eval.campaign import format_row
+
+    lines = [
+        format_row([key, label, 0, 1, kind, 5.0, 9.0, 8.0, 8.0 - e, e, "negative", 0, 0, 1.0, 0.0, -1.0, 0.0])
+        for key, label, kind, e in judged
+    ]
+    path.write_text(",".join(VETO_COLUMNS) + "\n" + "\n".join(lines) + "\n")

@@ -303,7 +303,15 @@ def run_braking(args: argparse.Namespace) -> int:
     out = run_braking_campaign(config, args.out, _options(args))
     for s in out.summaries:
         print(summary_line(s))  # the campaign's result on stdout, one line per configuration
-    for path in (out.table_md, out.summary_json, out.csv, out.margins_png, out.first_veto_png):
+    for path in (
+        out.table_md,
+        out.summary_json,
+        out.csv,
+        out.vetoes_csv,
+        out.margins_png,
+        out.first_veto_png,
+        out.veto_errors_png,
+    ):
         log.info("wrote %s", path)
     return 0
 
@@ -359,6 +367,7 @@ def run_policy(args: argparse.Namespace) -> int:
             f"vetoes_per_km={s['vetoes_per_km']:.1f} false_vetoes={int(s['false_vetoes'])} "
             f"missed_vetoes={int(s['missed_vetoes'])} "
             f"veto_error_m={format_veto_error(s['max_veto_error_m'])} "
+            f"median_veto_error_m={format_veto_error(s['median_veto_error_m'])} "
             f"cost={s['cost']:.1f} "
             f"off_track_share={s['off_track_share']:.3f}"
         )

@@ -4,8 +4,9 @@ Configurations are data: every scenario of :data:`SCENARIOS` (paper N's pit size
 ditch, a narrow trench, an off-centre pit, an obstacle-free track for false vetoes) x every driver
 (scripted drivers of :mod:`negobs_gym.drivers`, optionally a saved SB3 model) x filter off / on
 (:class:`~negobs_gym.safety.BrakingSafetyFilter`), each run on seeds 0..n-1. One CSV row per
-episode (:data:`COLUMNS`), and each episode's path in ``paths.csv`` (:data:`PATH_COLUMNS`, drawn by
-``negobs eval paths``); :func:`summarize` turns the CSV into per-configuration counts.
+episode (:data:`COLUMNS`), each episode's path in ``paths.csv`` (:data:`PATH_COLUMNS`, drawn by
+``negobs eval paths``), and each veto and missed veto judged on the ground truth in ``vetoes.csv``
+(:data:`VETO_COLUMNS`); :func:`summarize` turns the CSVs into per-configuration counts.
 
 :func:`run_driven_episode` is also what ``negobs eval policy`` runs on a registered env id.
 """
@@ -16,8 +17,8 @@ import contextlib
 import dataclasses
 import json
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import VetoTally, format_veto_error, largest_veto_error_m
+from negobs_gym.eval.vetoes import VetoJudgement, VetoTally, format_veto_error, largest_veto_error_m
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -75,6 +76,28 @@ PATH_COLUMNS = (
     "speed_mps",
     "vetoed",
     "missed_veto",
+)
+#: ``vetoes.csv`` of the braking and policy campaigns: one row per veto (``kind`` = ``veto``) and
+#: per missed veto (``missed``) of the filtered episodes, judged on the ground truth
+#: (:class:`~negobs_gym.eval.vetoes.VetoJudgement`; ``error_m`` NaN where there is none to give)
+VETO_COLUMNS = (
+    "episode",
+    "filter",
+    "seed",
+    "step",
+    "kind",
+    "speed_mps",
+    "braking_distance_m",
+    "hazard_distance_m",
+    "true_distance_m",
+    "error_m",
+    "channel",
+    "false_veto",
+    "perception_stale",
+    "proposed_longitudinal",
+    "proposed_steer",
+    "applied_longitudinal",
+    "applied_steer",
 )
 DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
 OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
@@ -283,7 +306,8 @@ def run_driven_episode(
     from the centre line than half the track width); ``left_track`` is whether that ended the
     episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
     ``(x, y, yaw, speed, vetoed, missed_veto)`` per step (world metres, radians, m/s, bools), the
-    reset's first.
+    reset's first; ``judgements`` each veto and missed veto
+    (:class:`~negobs_gym.eval.vetoes.VetoJudgement`).
     ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
     corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`); ``missed_vetoes``: the
     steps it let through with a true hazard well inside R(v)
@@ -360,6 +384,7 @@ def _driven_episode(
         "max_veto_error_m": largest_veto_error_m(tally.errors_m, math.nan),
         "cost": cost,
         "path": path,
+        "judgements": tally.judgements,
     }
 
 
@@ -373,6 +398,23 @@ def _path_point(
 def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> list[str]:
     """An episode's ``path`` (:func:`run_driven_episode`) as rows of :data:`PATH_COLUMNS`."""
     return [format_row([key, filter_label, seed, step, *point]) for step, point in enumerate(path)]
+
+
+def veto_rows(key: str, filter_label: str, seed: int, judgements: Sequence[VetoJudgement]) -> list[str]:
+    """An episode's vetoes and missed vetoes (:func:`run_driven_episode`'s ``judgements``) as rows
+    of :data:`VETO_COLUMNS`."""
+    return [
+        format_row(
+            [
+                *(key, filter_label, seed, j.step, "veto" if j.vetoed else "missed", j.speed_mps),
+                *(j.braking_distance_m, j.hazard_distance_m, j.true_distance_m),
+                *(math.nan if j.error_m is None else j.error_m, j.channel, j.false_veto, j.perception_stale),
+                *j.proposed_action,
+                *j.applied_action,
+            ]
+        )
+        for j in judgements
+    ]
 
 
 def run_episode(episode: Episode) -> Rows:
@@ -390,6 +432,7 @@ def run_episode(episode: Episode) -> Rows:
     return {
         "braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])],
         "paths": path_rows(episode.key, label, a["seed"], metrics["path"]),
+        "vetoes": veto_rows(episode.key, label, a["seed"], metrics["judgements"]),
     }
 
 
@@ -412,18 +455,38 @@ class ConfigurationSummary:
     first_veto_gaps_m: list[float]
     missed_vetoes: int = 0  # steps let through with a true hazard 2 m inside R(v) (eval.vetoes)
     max_veto_error_m: float | None = None  # largest veto distance minus its truth (eval.vetoes)
+    veto_errors_m: list[float] = field(default_factory=list)  # every judged veto's (vetoes.csv)
+
+    @property
+    def median_veto_error_m(self) -> float | None:
+        """The median of :attr:`veto_errors_m` (None: none judged, or no ``vetoes.csv`` read)."""
+        return float(np.median(self.veto_errors_m)) if self.veto_errors_m else None
 
 
 def _flag(row: Mapping[str, str], key: str) -> bool:
     return row[key] == "1"
 
 
-def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
-    """Per-configuration totals from the campaign CSV, in the CSV's configuration order."""
+def veto_errors_by(vetoes_csv: str | Path, group: Callable[[dict[str, str]], str]) -> dict[str, list[float]]:
+    """Every judged veto error of a ``vetoes.csv`` (:data:`VETO_COLUMNS`; vetoes whose ``error_m``
+    is not NaN), in row order, grouped by ``group(row)``."""
+    out: dict[str, list[float]] = {}
+    for row in read_csv(vetoes_csv):
+        if row["kind"] == "veto" and not math.isnan(float(row["error_m"])):
+            out.setdefault(group(row), []).append(float(row["error_m"]))
+    return out
+
+
+def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> list[ConfigurationSummary]:
+    """Per-configuration totals from the campaign CSV, in the CSV's configuration order; with its
+    ``vetoes.csv`` each configuration's veto errors too (:attr:`ConfigurationSummary.veto_errors_m`)."""
     groups: dict[str, list[dict[str, str]]] = {}
+    names: dict[str, str] = {}  # episode -> configuration
     for row in read_csv(csv_path):
-        filtered = row["filter"] == "filter"
-        groups.setdefault(configuration_name(row["scenario"], row["driver"], filtered), []).append(row)
+        name = configuration_name(row["scenario"], row["driver"], row["filter"] == "filter")
+        groups.setdefault(name, []).append(row)
+        names[row["episode"]] = name
+    errors = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, lambda r: names[r["episode"]])
     out = []
     for name, rows in groups.items():
         obstacle = not obstacle_free(rows[0]["scenario"])
@@ -446,6 +509,7 @@ def summarize(csv_path: str | Path) -> list[ConfigurationSummary]:
                 ],
                 missed_vetoes=sum(int(r["missed_vetoes"]) for r in rows),
                 max_veto_error_m=largest_veto_error_m(float(r["max_veto_error_m"]) for r in rows),
+                veto_errors_m=errors.get(name, []),
             )
         )
     return out
@@ -465,6 +529,8 @@ def summary_line(s: ConfigurationSummary) -> str:
         text += f" median_stop_margin_m={float(np.median(s.stop_margins_m)):.2f}"
     if s.name.endswith("/filter"):
         text += f" missed_vetoes={s.missed_vetoes} veto_error_m={format_veto_error(s.max_veto_error_m)}"
+        if s.veto_errors_m:
+            text += f" median_veto_error_m={format_veto_error(s.median_veto_error_m)}"
     return text
 
 
@@ -482,6 +548,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
             "-" if not s.first_veto_gaps_m else float(np.median(s.first_veto_gaps_m)),
             "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
             s.missed_vetoes if s.name.endswith("/filter") else "-",
+            "-" if s.median_veto_error_m is None else s.median_veto_error_m,
             "-" if s.max_veto_error_m is None else s.max_veto_error_m,
             s.km,
         ]
@@ -496,6 +563,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
         "median first-veto gap [m]",
         "false vetoes per km",
         "missed vetoes",
+        "median veto error [m]",
         "largest veto error [m]",
         "km",
     ]
@@ -511,7 +579,9 @@ class BrakingOutputs:
     table_md: Path
     margins_png: Path
     first_veto_png: Path
+    veto_errors_png: Path
     summaries: list[ConfigurationSummary]
+    vetoes_csv: Path
 
 
 def run_braking_campaign(
@@ -525,9 +595,10 @@ def run_braking_campaign(
     from negobs_gym.eval.plots import distribution_plot
 
     out = Path(out_dir)
-    tables = {"braking": COLUMNS, "paths": PATH_COLUMNS}
-    csv = run_campaign(run_episode, episodes(config), out, tables, options, "braking episodes")["braking"]
-    summaries = summarize(csv)
+    tables = {"braking": COLUMNS, "paths": PATH_COLUMNS, "vetoes": VETO_COLUMNS}
+    csvs = run_campaign(run_episode, episodes(config), out, tables, options, "braking episodes")
+    csv = csvs["braking"]
+    summaries = summarize(csv, csvs["vetoes"])
     obstacle = [s for s in summaries if s.obstacle]
     return BrakingOutputs(
         csv=csv,
@@ -545,5 +616,12 @@ def run_braking_campaign(
             "First-veto distance of the filtered runs",
             out / "first_veto.png",
         ),
+        veto_errors_png=distribution_plot(
+            {s.name: s.veto_errors_m for s in summaries if s.name.endswith("/filter")},
+            "distance the filter acted on minus the true one along its corridor [m]",
+            "Veto errors of the filtered runs (> 0: the hazard seen farther than it was)",
+            out / "veto_errors.png",
+        ),
         summaries=summaries,
+        vetoes_csv=csvs["vetoes"],
     )

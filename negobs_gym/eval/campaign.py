@@ -227,13 +227,22 @@ def assemble_csv(
 ) -> Path:
     """Write ``table``'s rows of every episode, episodes sorted by key, under ``header``, atomically.
 
+    Every episode function returns each of its tables, empty where the episode has no row in it,
+    so a part without ``table`` is one kept by ``resume`` from a version that had no such table.
+
     Raises:
         ConfigError: a row whose field count is not the header's (a part kept by ``resume`` from a
-            campaign whose table had other columns, e.g. written by another version).
+            campaign whose table had other columns, e.g. written by another version), or a part
+            without the table.
     """
     lines = [",".join(header)]
     for key in sorted(results):
-        for row in results[key].get(table, []):
+        require(
+            table in results[key],
+            f"{PARTS_DIR}/{key}.json",
+            f"has no {table!r} table: a kept part from a campaign without it; rerun without resume",
+        )
+        for row in results[key][table]:
             fields = row.count(",") + 1
             require(
                 fields == len(header),

@@ -10,7 +10,10 @@ steps it let through with a true hazard well inside R(v) (missed vetoes,
 (``info["cost"]``), the largest error of a veto's hazard distance (the distance it acted on
 minus the true one, :func:`~negobs_gym.eval.vetoes.veto_error_m`; NaN: no veto to judge) and the
 steps that ended off the track (farther from the centre line than half the track width: the
-obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none).
+obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none). Each
+veto and missed veto, judged on the ground truth, is a row of ``vetoes.csv``
+(:data:`~negobs_gym.eval.braking_campaign.VETO_COLUMNS`), each step of each episode one of
+``paths.csv``.
 
 Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
 training run's envs reset from seeds ``seed + i`` and then draw their terrains from their own
@@ -25,8 +28,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from negobs_gym.errors import require
-from negobs_gym.eval.braking_campaign import PATH_COLUMNS, ModelDriver, path_rows, run_driven_episode
+from negobs_gym.eval.braking_campaign import (
+    PATH_COLUMNS,
+    VETO_COLUMNS,
+    ModelDriver,
+    path_rows,
+    run_driven_episode,
+    veto_errors_by,
+    veto_rows,
+)
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.eval.vetoes import largest_veto_error_m
 from negobs_gym.safety.filter import SafetyFilterConfig
@@ -167,14 +180,22 @@ def run_episode(episode: Episode) -> Rows:
     label = filter_label(a["filtered"], a["stop_for_positive"])
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
-    return {"policy": [format_row(row)], "paths": path_rows(episode.key, label, a["seed"], m["path"])}
+    return {
+        "policy": [format_row(row)],
+        "paths": path_rows(episode.key, label, a["seed"], m["path"]),
+        "vetoes": veto_rows(episode.key, label, a["seed"], m["judgements"]),
+    }
 
 
-def summarize(csv_path: str | Path) -> dict[str, dict[str, float | None]]:
+def summarize(
+    csv_path: str | Path, vetoes_csv: str | Path | None = None
+) -> dict[str, dict[str, float | None]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
     track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
     driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
-    judge), cost, steps, and the share of them that ended off the track.
+    judge), cost, steps, and the share of them that ended off the track. With the campaign's
+    ``vetoes.csv``, also the median of every judged veto's error (``median_veto_error_m``; None:
+    none judged, or no ``vetoes.csv`` given).
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -212,6 +233,11 @@ def summarize(csv_path: str | Path) -> dict[str, dict[str, float | None]]:
     for name, s in out.items():
         errors = (float(r["max_veto_error_m"]) for r in rows if r["filter"] == name)
         s["max_veto_error_m"] = largest_veto_error_m(errors)
+        s["median_veto_error_m"] = None
+    if vetoes_csv is not None:
+        judged = veto_errors_by(vetoes_csv, lambda r: r["filter"])
+        for name, s in out.items():
+            s["median_veto_error_m"] = float(np.median(judged[name])) if name in judged else None
     return out
 
 
@@ -225,8 +251,9 @@ def run_policy_campaign(
     from negobs_gym.eval.campaign import run_campaign
 
     out = Path(out_dir)
-    tables = {"policy": COLUMNS, "paths": PATH_COLUMNS}
-    csv = run_campaign(run_episode, episodes(config), out, tables, options, "policy episodes")["policy"]
-    summary = summarize(csv)
+    tables = {"policy": COLUMNS, "paths": PATH_COLUMNS, "vetoes": VETO_COLUMNS}
+    csvs = run_campaign(run_episode, episodes(config), out, tables, options, "policy episodes")
+    csv = csvs["policy"]
+    summary = summarize(csv, csvs["vetoes"])
     text = json.dumps({"config": dataclasses.asdict(config), "summary": summary}, indent=1, sort_keys=True)
     return csv, write_text_atomic(out / "summary.json", text), summary

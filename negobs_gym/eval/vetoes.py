@@ -25,6 +25,7 @@ from negobs_gym.safety.corridor import Corridor
 __all__ = [
     "FALSE_VETO_LATERAL_TOLERANCE_M",
     "FALSE_VETO_TOLERANCE_M",
+    "VetoJudgement",
     "VetoTally",
     "format_veto_error",
     "is_false_veto",
@@ -144,26 +145,83 @@ def is_missed_veto(
     """
     if record is None or is_veto(record):
         return False
-    corridor = _field(record, "corridor")
+    return _inside_braking_distance(_nearest_truth(env, record, info_before, positive)[0], record)
+
+
+def _nearest_truth(
+    env: NegObsEnv, record: Mapping[str, Any] | Any, info_before: Mapping[str, Any], positive: bool
+) -> tuple[float, str]:
+    """The nearest true obstacle along the decision's corridor as searched (negative; positive too
+    with ``positive``): its distance [m] (inf: none) and channel."""
     channels = ("negative", "positive") if positive else ("negative",)
-    truth_m = min(_truth_m(env, corridor, info_before, channel) for channel in channels)
+    corridor = _field(record, "corridor")
+    return min((_truth_m(env, corridor, info_before, channel), channel) for channel in channels)
+
+
+def _inside_braking_distance(truth_m: float, record: Mapping[str, Any] | Any) -> bool:
+    """A true obstacle more than :data:`FALSE_VETO_TOLERANCE_M` inside the decision's R(v)."""
     return truth_m + FALSE_VETO_TOLERANCE_M < float(_field(record, "braking_distance_m"))
+
+
+@dataclass(frozen=True)
+class VetoJudgement:
+    """One veto or missed veto judged on the ground truth (a row of a campaign's ``vetoes.csv``).
+
+    Attributes:
+        step: The episode's step (1-based) the filter decided.
+        vetoed: True: a veto; False: a missed veto (:func:`is_missed_veto`).
+        speed_mps: The forward speed the filter decided at (the record's ``speed_mps``; the step
+            before's ``info["speed_mps"]`` for a record without one).
+        braking_distance_m: R(v) at that speed (paper N, Eq. 18).
+        hazard_distance_m: The distance the filter acted on (inf: nothing detected in the
+            corridor, or missing or stale perception).
+        true_distance_m: The nearest true obstacle of ``channel`` along the corridor as searched,
+            not widened (inf: none): what :func:`veto_error_m` and :func:`is_missed_veto` compare
+            with.
+        channel: The veto's hazard channel (``negative`` when it gave none); for a missed veto the
+            channel of the nearest true obstacle.
+        false_veto: :func:`is_false_veto`.
+        perception_stale: The filter braked for missing or stale perception.
+        proposed_action: The driver's action (longitudinal, steering; NaN where the record has none).
+        applied_action: The action the env received.
+    """
+
+    step: int
+    vetoed: bool
+    speed_mps: float
+    braking_distance_m: float
+    hazard_distance_m: float
+    true_distance_m: float
+    channel: str
+    false_veto: bool
+    perception_stale: bool
+    proposed_action: tuple[float, float]
+    applied_action: tuple[float, float]
+
+    @property
+    def error_m(self) -> float | None:
+        """:func:`veto_error_m` of a veto (None for a missed veto, d = inf or no true obstacle)."""
+        judged = self.vetoed and math.isfinite(self.hazard_distance_m) and math.isfinite(self.true_distance_m)
+        return self.hazard_distance_m - self.true_distance_m if judged else None
+
+
+def _action(record: Mapping[str, Any] | Any, name: str) -> tuple[float, float]:
+    action = _field(record, name)
+    return (math.nan, math.nan) if action is None else (float(action[0]), float(action[1]))
 
 
 @dataclass
 class VetoTally:
-    """One episode's filtered steps judged on the ground truth, step by step (:meth:`add`): the
-    vetoed and missed steps, the false vetoes and each judged veto's error. The scenario runner
-    and the campaigns' driven episodes keep one per episode.
+    """One episode's filtered steps judged on the ground truth, step by step (:meth:`add`): each
+    veto and missed veto as a :class:`VetoJudgement`, and from them the vetoed and missed steps,
+    the false vetoes and each judged veto's error. The scenario runner and the campaigns' driven
+    episodes keep one per episode.
 
     ``positive``: the filter stops for positive obstacles too (missed vetoes count them).
     """
 
     positive: bool = False
-    vetoed_steps: list[int] = field(default_factory=list)
-    missed_steps: list[int] = field(default_factory=list)
-    false_vetoes: int = 0
-    errors_m: list[float] = field(default_factory=list)
+    judgements: list[VetoJudgement] = field(default_factory=list)
 
     def add(
         self,
@@ -174,17 +232,55 @@ class VetoTally:
     ) -> tuple[bool, bool]:
         """Judge ``step``'s decision record (``info.get("safety")``; None: no filter) made at the
         pose of ``info_before``; returns (vetoed, missed veto)."""
-        if is_veto(record):
-            self.vetoed_steps.append(step)
-            self.false_vetoes += is_false_veto(env, record, info_before)
-            error = veto_error_m(env, record, info_before)
-            if error is not None:
-                self.errors_m.append(error)
-            return True, False
-        missed = is_missed_veto(env, record, info_before, positive=self.positive)
-        if missed:
-            self.missed_steps.append(step)
-        return False, missed
+        if record is None:
+            return False, False
+        vetoed = is_veto(record)
+        if vetoed:
+            channel = _field(record, "hazard_channel") or "negative"
+            truth_m = _truth_m(env, _field(record, "corridor"), info_before, channel)
+            false_veto = is_false_veto(env, record, info_before)
+        else:
+            truth_m, channel = _nearest_truth(env, record, info_before, self.positive)
+            false_veto = False
+            if not _inside_braking_distance(truth_m, record):  # let through, rightly
+                return False, False
+        speed_mps = _field(record, "speed_mps")
+        self.judgements.append(
+            VetoJudgement(
+                step=step,
+                vetoed=vetoed,
+                speed_mps=float(info_before["speed_mps"] if speed_mps is None else speed_mps),
+                braking_distance_m=float(_field(record, "braking_distance_m")),
+                hazard_distance_m=float(_field(record, "hazard_distance_m")),
+                true_distance_m=float(truth_m),
+                channel=channel,
+                false_veto=false_veto,
+                perception_stale=bool(_field(record, "perception_stale")),
+                proposed_action=_action(record, "original_action"),
+                applied_action=_action(record, "applied_action"),
+            )
+        )
+        return vetoed, not vetoed
+
+    @property
+    def vetoed_steps(self) -> list[int]:
+        """The steps whose action the filter replaced."""
+        return [j.step for j in self.judgements if j.vetoed]
+
+    @property
+    def missed_steps(self) -> list[int]:
+        """The steps the filter let through with a true hazard well inside R(v)."""
+        return [j.step for j in self.judgements if not j.vetoed]
+
+    @property
+    def false_vetoes(self) -> int:
+        """Vetoes with no true obstacle where the filter saw its hazard."""
+        return sum(j.false_veto for j in self.judgements)
+
+    @property
+    def errors_m(self) -> list[float]:
+        """Each judged veto's error (:attr:`VetoJudgement.error_m`), in step order."""
+        return [e for e in (j.error_m for j in self.judgements) if e is not None]
 
     @property
     def max_error_m(self) -> float | None:

@@ -18,6 +18,7 @@ class SafetyDecision:
         vetoed: The proposed action was replaced.
         hazard_distance_m: Arc length to the nearest detected hazard in the corridor (inf = clear).
         braking_distance_m: R(v) at the current speed (Eq. 18).
+        speed_mps: The current forward speed v the decision was made at (>= 0).
         safe_speed_mps: Largest v with R(v) <= hazard distance.
         original_action: The action proposed (float32, shape (2,)).
         applied_action: The action passed to the env.
@@ -33,6 +34,7 @@ class SafetyDecision:
     vetoed: bool
     hazard_distance_m: float
     braking_distance_m: float
+    speed_mps: float
     safe_speed_mps: float
     original_action: np.ndarray
     applied_action: np.ndarray
@@ -52,6 +54,7 @@ class SafetyDecision:
             "vetoed": self.vetoed,
             "hazard_distance_m": self.hazard_distance_m,
             "braking_distance_m": self.braking_distance_m,
+            "speed_mps": self.speed_mps,
             "safe_speed_mps": self.safe_speed_mps,
             "original_action": self.original_action.copy(),
             "applied_action": self.applied_action.copy(),

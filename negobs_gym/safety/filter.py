@@ -100,7 +100,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
-    braking_distance_m (R(v) at the current speed), safe_speed_mps (largest v with R(v) <= d),
+    braking_distance_m (R(v) at the current speed), speed_mps (that speed, forward, >= 0),
+    safe_speed_mps (largest v with R(v) <= d),
     original_action, applied_action, perception_age_s, perception_stale, hazard_channel,
     corridor: the :class:`~negobs_gym.safety.Corridor` searched, a frozen value).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
@@ -247,6 +248,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             vetoed=vetoed,
             hazard_distance_m=d,
             braking_distance_m=float(self._r(state.speed_mps)),
+            speed_mps=float(state.speed_mps),
             safe_speed_mps=float(max_safe_speed_mps(d, self.config.braking)),
             original_action=original.copy(),
             applied_action=applied.copy(),

@@ -22,7 +22,7 @@ from negobs_gym.drivers import make_driver as make_named_driver
 from negobs_gym.envs.base import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.vetoes import VetoTally, format_veto_error
+from negobs_gym.eval.vetoes import VetoJudgement, VetoTally, format_veto_error
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.scenarios.library import load_scenario
@@ -90,6 +90,9 @@ class ScenarioResult:
             replaced.
         missed_steps: The steps (indices into ``path_xy_m``) the filter let through with a true
             hazard well inside R(v) (:attr:`missed_vetoes` counts them).
+        veto_judgements: Each veto and missed veto in step order, with the speed, R(v), the
+            distance the filter acted on, the true one and the actions
+            (:class:`~negobs_gym.eval.vetoes.VetoJudgement`).
     """
 
     scenario: str
@@ -119,6 +122,7 @@ class ScenarioResult:
     path_xy_m: tuple[tuple[float, float], ...] = ()
     vetoed_steps: tuple[int, ...] = ()
     missed_steps: tuple[int, ...] = ()
+    veto_judgements: tuple[VetoJudgement, ...] = ()
 
     @property
     def missed_vetoes(self) -> int:
@@ -315,6 +319,7 @@ def _run_episode(
         path_xy_m=tuple(path),
         vetoed_steps=tuple(tally.vetoed_steps),
         missed_steps=tuple(tally.missed_steps),
+        veto_judgements=tuple(tally.judgements),
     )
     result = dataclasses.replace(result, failures=check_criteria(spec.criteria, result))
     if draw_to is not None:

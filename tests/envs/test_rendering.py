@@ -33,6 +33,7 @@ def _decision(
         vetoed=vetoed,
         hazard_distance_m=hazard_distance_m,
         braking_distance_m=braking_distance_m,
+        speed_mps=0.0,
         safe_speed_mps=0.0,
         original_action=action,
         applied_action=action,

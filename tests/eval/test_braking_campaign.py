@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from negobs_gym.cli import main
@@ -15,6 +16,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import (
     COLUMNS,
     SCENARIOS,
+    VETO_COLUMNS,
     BrakingCampaignConfig,
     ConfigurationSummary,
     episodes,
@@ -24,6 +26,8 @@ from negobs_gym.eval.braking_campaign import (
 )
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome, task_done
+from negobs_gym.safety import braking_distance_m
+from tests.helpers import write_vetoes_csv
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -51,7 +55,7 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     assert len(ditch.stop_margins_m) == 1 and ditch.stop_margins_m[0] > 0
     assert len(ditch.first_veto_gaps_m) == 1 and ditch.first_veto_gaps_m[0] > ditch.stop_margins_m[0]
     assert ditch.first_veto_gaps_m[0] < 12.0  # the gap when it first braked, not at the start (20-40 m)
-    for png in ("stop_margins.png", "first_veto.png"):
+    for png in ("stop_margins.png", "first_veto.png", "veto_errors.png"):
         assert (out / png).read_bytes()[:8] == PNG
     # every step's pose in paths.csv; `negobs eval paths` draws the runs that did not do their task
     rows = {r["episode"]: r for r in read_csv(out / "braking.csv")}
@@ -75,8 +79,36 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     # judge without vetoes, or where each is false
     ditch_error = float(rows["ditch.reckless.1.00000"]["max_veto_error_m"])
     assert abs(ditch_error) < 0.5 and ditch.max_veto_error_m == ditch_error
-    assert lines["ditch/reckless/filter"].endswith(f" veto_error_m={ditch_error:+.2f}")
+    median = float(np.median(ditch.veto_errors_m))
+    assert lines["ditch/reckless/filter"].endswith(
+        f" veto_error_m={ditch_error:+.2f} median_veto_error_m={median:+.2f}"
+    )
     assert math.isnan(float(free["max_veto_error_m"]))
+    # vetoes.csv: each veto (and missed veto) of the filtered runs, judged on the ground truth
+    vetoes = read_csv(out / "vetoes.csv")
+    assert list(vetoes[0]) == list(VETO_COLUMNS)
+    for key, row in rows.items():
+        judged = [v for v in vetoes if v["episode"] == key]
+        assert sum(v["kind"] == "veto" for v in judged) == int(row["vetoes"])
+        assert sum(v["kind"] == "missed" for v in judged) == int(row["missed_vetoes"])
+        assert sum(v["false_veto"] == "1" for v in judged) == int(row["false_vetoes"])
+        errors = [float(v["error_m"]) for v in judged if not math.isnan(float(v["error_m"]))]
+        assert max(errors, default=math.nan) == pytest.approx(float(row["max_veto_error_m"]), nan_ok=True)
+        steps = [p for p in paths if p["episode"] == key]
+        for v in judged:  # the step it decided at, the speed of the step before, R(v) of Eq. 18
+            assert steps[int(v["step"])]["vetoed"] == "1"
+            before_mps = max(0.0, float(steps[int(v["step"]) - 1]["speed_mps"]))  # forward speed
+            assert float(v["speed_mps"]) == pytest.approx(before_mps, abs=1e-6)
+            assert float(v["braking_distance_m"]) == pytest.approx(
+                float(braking_distance_m(float(v["speed_mps"]))), abs=1e-5
+            )
+            assert float(v["applied_longitudinal"]) < float(v["proposed_longitudinal"])  # it braked
+    ditch_vetoes = [v for v in vetoes if v["episode"] == "ditch.reckless.1.00000"]
+    assert [float(v["error_m"]) for v in ditch_vetoes] == pytest.approx(ditch.veto_errors_m, abs=1e-6)
+    assert all(float(v["true_distance_m"]) < float(v["hazard_distance_m"]) + 0.5 for v in ditch_vetoes)
+    free_vetoes = [v for v in vetoes if v["episode"] == "free_track.reckless.1.00000"]
+    assert all(v["false_veto"] == "1" and v["error_m"] == "nan" for v in free_vetoes)  # nothing there
+    assert not [v for v in vetoes if v["filter"] == "nofilter"]
     assert math.isnan(float(rows["ditch.reckless.0.00000"]["max_veto_error_m"]))
     assert int(rows["free_track.reckless.0.00000"]["steps"]) == 20  # never stops without the filter
     assert int(rows["free_track.reckless.1.00000"]["steps"]) <= 20
@@ -135,6 +167,18 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
     assert ditch.missed_vetoes == 4 and summary_line(ditch).endswith(" missed_vetoes=4 veto_error_m=+1.75")
     assert free.max_veto_error_m is None  # no veto with a true hazard to judge by
     assert "| 4 |" in report_markdown([ditch])
+    assert ditch.veto_errors_m == [] and ditch.median_veto_error_m is None  # no vetoes.csv read
+    # with vetoes.csv: every judged veto's error, per configuration (missed and unjudged skipped)
+    vetoes = tmp_path / "vetoes.csv"
+    nan = float("nan")
+    judged = [("ditch.r.0", "veto", -0.2), ("ditch.r.1", "veto", 1.75), ("ditch.r.1", "veto", 0.1)]
+    judged += [("ditch.r.1", "missed", nan), ("ditch.r.1", "veto", nan), ("free_track.r.0", "veto", nan)]
+    write_vetoes_csv(vetoes, [(key, "filter", kind, e) for key, kind, e in judged])
+    ditch, free = summarize(csv, vetoes)
+    assert ditch.veto_errors_m == [-0.2, 1.75, 0.1] and ditch.median_veto_error_m == pytest.approx(0.1)
+    assert free.veto_errors_m == [] and free.median_veto_error_m is None
+    assert summary_line(ditch).endswith(" veto_error_m=+1.75 median_veto_error_m=+0.10")
+    assert "| 4 | 0.100 | 1.750 |" in report_markdown([ditch])  # missed, median, largest
 
 
 def test_configurations_are_data() -> None:

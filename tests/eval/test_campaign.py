@@ -124,3 +124,9 @@ def test_a_kept_part_with_other_columns_is_a_clear_error(tmp_path) -> None:
     with pytest.raises(ConfigError, match=r"rows\[e001\].*2 fields, the table's header 3.*without resume"):
         assemble_csv(results, "rows", ["episode", "k", "x"], tmp_path / "out.csv")
     assert not (tmp_path / "out.csv").exists()
+    # a part kept from a version whose episodes wrote no such table: an error, not missing rows
+    results = {"e000": {"rows": ["e000,0,0.5"], "more": []}, "e001": {"rows": ["e001,0,0.7"]}}
+    assert assemble_csv(results, "rows", ["episode", "k", "x"], tmp_path / "rows.csv").is_file()
+    with pytest.raises(ConfigError, match=r"parts/e001.json.*no 'more' table.*without resume"):
+        assemble_csv(results, "more", ["episode"], tmp_path / "more.csv")
+    assert not (tmp_path / "more.csv").exists()

@@ -12,6 +12,7 @@ from negobs_gym.eval.braking_campaign import ModelDriver, run_driven_episode
 from negobs_gym.eval.campaign import format_row
 from negobs_gym.eval.policy_campaign import COLUMNS, PolicyCampaignConfig, summarize
 from negobs_gym.policies.training import make_task_env
+from tests.helpers import write_vetoes_csv
 
 
 class FixedAction:
@@ -63,6 +64,14 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     assert s["filter"]["left_track"] == 0 and s["filter"]["successes"] == 2
     assert s["nofilter"]["off_track_share"] == 1.0
     assert s["nofilter"]["left_track"] == 1 and s["nofilter"]["success_rate"] == 0.0
+    assert s["filter"]["median_veto_error_m"] is None  # no vetoes.csv given
+    vetoes = tmp_path / "vetoes.csv"  # the median of every judged veto's error, per filter setting
+    nan = float("nan")
+    judged = [("veto", 0.3), ("veto", -0.1), ("veto", 2.0), ("missed", nan), ("veto", nan)]
+    write_vetoes_csv(vetoes, [("filter.0", "filter", kind, e) for kind, e in judged])
+    s = summarize(path, vetoes)
+    assert s["filter"]["median_veto_error_m"] == pytest.approx(0.3)
+    assert s["nofilter"]["median_veto_error_m"] is None
     old = tmp_path / "old.csv"  # written before the left_track column
     kept = [c for c in COLUMNS if c != "left_track"]
     old.write_text(",".join(kept) + "\n" + ",".join("0" for _ in kept) + "\n")

@@ -3,6 +3,7 @@ its corridor."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -73,7 +74,7 @@ def test_the_tolerances_bound_what_counts_as_false(env_info) -> None:
 
 def test_only_vetoes_are_judged() -> None:
     decision = SafetyDecision(
-        vetoed=True, hazard_distance_m=3.0, braking_distance_m=5.0, safe_speed_mps=1.0,
+        vetoed=True, hazard_distance_m=3.0, braking_distance_m=5.0, speed_mps=0.0, safe_speed_mps=1.0,
         original_action=np.zeros(2, np.float32), applied_action=np.zeros(2, np.float32),
         perception_age_s=0.0, perception_stale=False,
     )  # fmt: skip
@@ -147,3 +148,31 @@ def test_a_tally_judges_each_step_once(env_info) -> None:
     assert tally.vetoed_steps == [1, 2] and tally.missed_steps == [3] and tally.false_vetoes == 1
     assert tally.max_error_m == pytest.approx(0.4) and len(tally.errors_m) == 2  # the false one: -18 m
     assert VetoTally().max_error_m is None
+    # each veto and missed veto kept, with what it was judged on
+    late, false, missed = tally.judgements
+    assert [j.step for j in tally.judgements] == [1, 2, 3]
+    assert (late.vetoed, false.vetoed, missed.vetoed) == (True, True, False)
+    assert late.true_distance_m == truth == missed.true_distance_m and late.error_m == pytest.approx(0.4)
+    assert not late.false_veto and false.false_veto and false.error_m < -15.0  # the pit on the line
+    assert missed.error_m is None and missed.channel == "negative"
+    assert missed.braking_distance_m == truth + FALSE_VETO_TOLERANCE_M + 0.1
+    assert late.speed_mps == info["speed_mps"]  # a record without its speed: the step before's
+    assert all(math.isnan(v) for v in late.proposed_action + late.applied_action)  # nor its actions
+
+
+def test_a_judgement_keeps_the_filters_speed_and_actions(env_info) -> None:
+    env, info = env_info
+    corridor = Corridor(steer_rad=0.18, wheelbase_m=2.8, half_width_m=1.2)
+    decision = SafetyDecision(
+        vetoed=True, hazard_distance_m=9.0, braking_distance_m=10.5, speed_mps=6.9, safe_speed_mps=5.0,
+        original_action=np.array([1.0, 0.5], np.float32), applied_action=np.array([-1.0, 0.5], np.float32),
+        perception_age_s=0.0, perception_stale=False, hazard_channel="negative", corridor=corridor,
+    )  # fmt: skip
+    tally = VetoTally()
+    assert tally.add(env, decision, info, 7) == (True, False)
+    (judged,) = tally.judgements
+    assert judged.speed_mps == 6.9 and judged.proposed_action == (1.0, 0.5)
+    assert judged.applied_action == (-1.0, 0.5) and judged.step == 7
+    assert judged.error_m == pytest.approx(veto_error_m(env, decision, info))
+    assert tally.add(env, decision.as_dict(), info, 8) == (True, False)  # info["safety"] alike
+    assert tally.judgements[1] == dataclasses.replace(judged, step=8)

@@ -10,6 +10,7 @@ import pytest
 
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ConfigError
+from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M
 from negobs_gym.scenarios import ScenarioResult, run_scenario, run_scenario_seeds, spec_from_toml
 from negobs_gym.scenarios.runner import check_criteria
 from negobs_gym.scenarios.spec import CriteriaSpec
@@ -136,6 +137,16 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     assert check_criteria(late.criteria, r) == ("max_veto_error_m",)
     assert len(r.missed_steps) == r.missed_vetoes and not set(r.missed_steps) & set(r.vetoed_steps)
     assert max(r.missed_steps) > max(r.vetoed_steps)  # after its stop, on the way in
+    # each judgement says how: the first veto saw the rim where it was, the later ones farther
+    # (the near rim leaving view), and on the way in nothing was detected at all (d = inf)
+    vetoes = [j for j in r.veto_judgements if j.vetoed]
+    missed = [j for j in r.veto_judgements if not j.vetoed]
+    assert [j.step for j in vetoes] == list(r.vetoed_steps)
+    assert [j.step for j in missed] == list(r.missed_steps)
+    assert abs(vetoes[0].error_m) < 0.5 and max(j.error_m for j in vetoes) == r.max_veto_error_m
+    assert all(math.isinf(j.hazard_distance_m) for j in missed)
+    assert all(j.true_distance_m + FALSE_VETO_TOLERANCE_M < j.braking_distance_m for j in missed)
+    assert all(j.applied_action == j.proposed_action for j in missed)
     assert f" missed_vetoes={r.missed_vetoes} " in r.line()
     plain = run_scenario(spec, _SteadyLeftTurn(), filter=False, seed=0)
     assert plain.entered_negative_obstacle and plain.missed_vetoes == 0  # no filter, nothing to miss
