@@ -486,7 +486,16 @@ def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> lis
         name = configuration_name(row["scenario"], row["driver"], row["filter"] == "filter")
         groups.setdefault(name, []).append(row)
         names[row["episode"]] = name
-    errors = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, lambda r: names[r["episode"]])
+
+    def configuration(veto: dict[str, str]) -> str:
+        require(
+            veto["episode"] in names,
+            "vetoes_csv",
+            f"{vetoes_csv} has episode {veto['episode']!r}, which {csv_path} lacks: not the same campaign's",
+        )
+        return names[veto["episode"]]
+
+    errors = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration)
     out = []
     for name, rows in groups.items():
         obstacle = not obstacle_free(rows[0]["scenario"])

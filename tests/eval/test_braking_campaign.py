@@ -179,6 +179,9 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
     assert free.veto_errors_m == [] and free.median_veto_error_m is None
     assert summary_line(ditch).endswith(" veto_error_m=+1.75 median_veto_error_m=+0.10")
     assert "| 4 | 0.100 | 1.750 |" in report_markdown([ditch])  # missed, median, largest
+    write_vetoes_csv(vetoes, [("trench.r.0", "filter", "veto", 0.1)])  # another campaign's
+    with pytest.raises(ConfigError, match=r"vetoes_csv.*'trench.r.0'.*not the same campaign's"):
+        summarize(csv, vetoes)
 
 
 def test_configurations_are_data() -> None:
