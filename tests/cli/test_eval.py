@@ -7,11 +7,13 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from negobs_gym.cli import main
 from negobs_gym.cli.eval import build_config, load_toml
 from negobs_gym.errors import ConfigError
+from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
 from negobs_gym.scenarios import spec_from_toml
 
@@ -80,6 +82,13 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert fields["missed_vetoes"] == episode["missed_vetoes"]
     error = float(episode["max_veto_error_m"])  # NaN: no veto with a true hazard
     assert fields["veto_error_m"] == ("-" if math.isnan(error) else f"{error:+.2f}")
+    # each veto judged in vetoes.csv: as many rows as the episode's vetoes and missed vetoes
+    vetoes = read_csv(out / "vetoes.csv")
+    assert sum(v["kind"] == "veto" for v in vetoes) == int(episode["vetoes"])
+    assert sum(v["kind"] == "missed" for v in vetoes) == int(episode["missed_vetoes"])
+    judged = [float(v["error_m"]) for v in vetoes if v["kind"] == "veto" and v["error_m"] != "nan"]
+    median = f"{float(np.median(judged)):+.2f}" if judged else "-"
+    assert fields["median_veto_error_m"] == median
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0
