@@ -112,8 +112,12 @@ def veto_error_m(
     if not math.isfinite(acted_on_m):
         return None
     channel = _field(record, "hazard_channel") or "negative"
-    truth_m = _truth_m(env, _field(record, "corridor"), info_before, channel)
-    return acted_on_m - truth_m if math.isfinite(truth_m) else None
+    return _error_m(acted_on_m, _truth_m(env, _field(record, "corridor"), info_before, channel))
+
+
+def _error_m(acted_on_m: float, truth_m: float) -> float | None:
+    """A veto's error: what it acted on minus the truth (None unless both are finite)."""
+    return acted_on_m - truth_m if math.isfinite(acted_on_m) and math.isfinite(truth_m) else None
 
 
 def largest_veto_error_m(errors: Iterable[float | None], missing: float | None = None) -> float | None:
@@ -201,8 +205,7 @@ class VetoJudgement:
     @property
     def error_m(self) -> float | None:
         """:func:`veto_error_m` of a veto (None for a missed veto, d = inf or no true obstacle)."""
-        judged = self.vetoed and math.isfinite(self.hazard_distance_m) and math.isfinite(self.true_distance_m)
-        return self.hazard_distance_m - self.true_distance_m if judged else None
+        return _error_m(self.hazard_distance_m, self.true_distance_m) if self.vetoed else None
 
 
 def _action(record: Mapping[str, Any] | Any, name: str) -> tuple[float, float]:
