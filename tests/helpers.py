@@ -123,8 +123,8 @@ source = "oracle"
 def write_vetoes_csv(path, judged) -> None:
     """A hand-made campaign ``vetoes.csv``: one row per (episode, filter label, kind, error_m) of
     ``judged``, the other cells fixed (d 8 m, R 9 m at 5 m/s, truth d - error)."""
-    from negobs_gym.eval.braking_campaign import VETO_COLUMNS
     from negobs_gym.eval.campaign import format_row
+    from negobs_gym.eval.vetoes import VETO_COLUMNS
 
     lines = [
         format_row([key, label, 0, 1, kind, 5.0, 9.0, 8.0, 8.0 - e, e, "negative", 0, 0, 1.0, 0.0, -1.0, 0.0])

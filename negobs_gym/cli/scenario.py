@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import logging
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -96,6 +97,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "control rate, with the filter's corridor and decision (needs imageio-ffmpeg: "
         'pip install "negobs_gym[video]")',
     )
+    p_run.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="also write the run's tables into DIR: results.csv (a row per seed), vetoes.csv (each "
+        "veto and missed veto, judged on the ground truth), paths.csv and scenario.toml (the spec "
+        "as run; files already there are replaced)",
+    )
     add_set_option(p_run)
     p_run.set_defaults(handler=_run)
 
@@ -134,32 +143,42 @@ def _spec(args: argparse.Namespace) -> ScenarioSpec:
 
 def _run(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import run_scenario_seeds
+    from negobs_gym.scenarios.tables import check_table_name, write_scenario_tables
 
     if args.zoom_m is not None and not args.draw:
         raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
-    spec = _spec(args)
-    if args.stop_for_positive:
-        spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=True))
-    failed = 0
-    results = run_scenario_seeds(
+    spec = _run_spec(args)
+    if args.out is not None:
+        check_table_name(spec.name)
+    results = []
+    for result in run_scenario_seeds(
         spec,
-        args.driver,
-        range(args.seed, args.seed + args.seeds),
-        filter=args.filter,
+        seeds=range(args.seed, args.seed + args.seeds),
         workers=args.workers,
         draw_dir=args.draw,
         draw_zoom_m=args.zoom_m,
         video_dir=args.video,
-    )
-    for result in results:
+    ):
         print(result.line(), file=sys.stdout, flush=True)
-        failed += not result.passed
-    return 1 if failed else 0
+        results.append(result)
+    if args.out is not None:
+        written = write_scenario_tables(args.out, spec, results)
+        logging.getLogger("negobs_gym.cli").info("wrote %s", ", ".join(map(str, written)))
+    return 1 if any(not r.passed for r in results) else 0
+
+
+def _run_spec(args: argparse.Namespace) -> ScenarioSpec:
+    """The spec with ``--set``, and ``--driver``, ``--filter`` and ``--stop-for-positive`` folded
+    into its ``[run]`` table: what ran, as ``scenario.toml`` records it."""
+    spec = _spec(args)
+    changes = {"driver": args.driver, "filter": args.filter}
+    if args.stop_for_positive:
+        changes["stop_for_positive"] = True
+    changes = {k: v for k, v in changes.items() if v is not None}
+    return dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
 
 
 def _render(args: argparse.Namespace) -> int:
-    import logging
-
     from negobs_gym.envs.base import NegObsEnv
     from negobs_gym.sim.render import write_png_atomic
 

@@ -28,7 +28,13 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import VetoJudgement, VetoTally, format_veto_error, largest_veto_error_m
+from negobs_gym.eval.vetoes import (
+    VETO_COLUMNS,
+    VetoTally,
+    format_veto_error,
+    largest_veto_error_m,
+    veto_rows,
+)
 from negobs_gym.policies.observation import PolicyDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
@@ -76,28 +82,6 @@ PATH_COLUMNS = (
     "speed_mps",
     "vetoed",
     "missed_veto",
-)
-#: ``vetoes.csv`` of the braking and policy campaigns: one row per veto (``kind`` = ``veto``) and
-#: per missed veto (``missed``) of the filtered episodes, judged on the ground truth
-#: (:class:`~negobs_gym.eval.vetoes.VetoJudgement`; ``error_m`` NaN where there is none to give)
-VETO_COLUMNS = (
-    "episode",
-    "filter",
-    "seed",
-    "step",
-    "kind",
-    "speed_mps",
-    "braking_distance_m",
-    "hazard_distance_m",
-    "true_distance_m",
-    "error_m",
-    "channel",
-    "false_veto",
-    "perception_stale",
-    "proposed_longitudinal",
-    "proposed_steer",
-    "applied_longitudinal",
-    "applied_steer",
 )
 DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
 OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
@@ -398,23 +382,6 @@ def _path_point(
 def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> list[str]:
     """An episode's ``path`` (:func:`run_driven_episode`) as rows of :data:`PATH_COLUMNS`."""
     return [format_row([key, filter_label, seed, step, *point]) for step, point in enumerate(path)]
-
-
-def veto_rows(key: str, filter_label: str, seed: int, judgements: Sequence[VetoJudgement]) -> list[str]:
-    """An episode's vetoes and missed vetoes (:func:`run_driven_episode`'s ``judgements``) as rows
-    of :data:`VETO_COLUMNS`."""
-    return [
-        format_row(
-            [
-                *(key, filter_label, seed, j.step, "veto" if j.vetoed else "missed", j.speed_mps),
-                *(j.braking_distance_m, j.hazard_distance_m, j.true_distance_m),
-                *(math.nan if j.error_m is None else j.error_m, j.channel, j.false_veto, j.perception_stale),
-                *j.proposed_action,
-                *j.applied_action,
-            ]
-        )
-        for j in judgements
-    ]
 
 
 def run_episode(episode: Episode) -> Rows:

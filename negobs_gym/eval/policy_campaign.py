@@ -12,7 +12,7 @@ minus the true one, :func:`~negobs_gym.eval.vetoes.veto_error_m`; NaN: no veto t
 steps that ended off the track (farther from the centre line than half the track width: the
 obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none). Each
 veto and missed veto, judged on the ground truth, is a row of ``vetoes.csv``
-(:data:`~negobs_gym.eval.braking_campaign.VETO_COLUMNS`), each step of each episode one of
+(:data:`~negobs_gym.eval.vetoes.VETO_COLUMNS`), each step of each episode one of
 ``paths.csv``.
 
 Seeds start at ``first_seed`` (default 1,000,000, the seeds ``negobs train`` evaluates on): a
@@ -33,15 +33,13 @@ import numpy as np
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import (
     PATH_COLUMNS,
-    VETO_COLUMNS,
     ModelDriver,
     path_rows,
     run_driven_episode,
     veto_errors_by,
-    veto_rows,
 )
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.vetoes import largest_veto_error_m
+from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
 from negobs_gym.safety.filter import SafetyFilterConfig
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)

@@ -15,16 +15,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.eval.campaign import format_row
 from negobs_gym.safety.corridor import Corridor
 
 __all__ = [
     "FALSE_VETO_LATERAL_TOLERANCE_M",
     "FALSE_VETO_TOLERANCE_M",
+    "VETO_COLUMNS",
     "VetoJudgement",
     "VetoTally",
     "format_veto_error",
@@ -33,6 +35,7 @@ __all__ = [
     "is_veto",
     "largest_veto_error_m",
     "veto_error_m",
+    "veto_rows",
     "veto_truth_m",
 ]
 
@@ -289,3 +292,44 @@ class VetoTally:
     def max_error_m(self) -> float | None:
         """The largest judged veto error (None: no veto to judge)."""
         return largest_veto_error_m(self.errors_m)
+
+
+#: ``vetoes.csv`` of the braking and policy campaigns and of ``negobs scenario run --out``: one row
+#: per veto (``kind`` = ``veto``) and per missed veto (``missed``) of the filtered episodes, judged
+#: on the ground truth (:class:`VetoJudgement`; ``error_m`` NaN where there is none to give)
+VETO_COLUMNS = (
+    "episode",
+    "filter",
+    "seed",
+    "step",
+    "kind",
+    "speed_mps",
+    "braking_distance_m",
+    "hazard_distance_m",
+    "true_distance_m",
+    "error_m",
+    "channel",
+    "false_veto",
+    "perception_stale",
+    "proposed_longitudinal",
+    "proposed_steer",
+    "applied_longitudinal",
+    "applied_steer",
+)
+
+
+def veto_rows(key: str, filter_label: str, seed: int, judgements: Sequence[VetoJudgement]) -> list[str]:
+    """An episode's vetoes and missed vetoes (a :class:`VetoTally`'s ``judgements``) as rows
+    of :data:`VETO_COLUMNS`."""
+    return [
+        format_row(
+            [
+                *(key, filter_label, seed, j.step, "veto" if j.vetoed else "missed", j.speed_mps),
+                *(j.braking_distance_m, j.hazard_distance_m, j.true_distance_m),
+                *(math.nan if j.error_m is None else j.error_m, j.channel, j.false_veto, j.perception_stale),
+                *j.proposed_action,
+                *j.applied_action,
+            ]
+        )
+        for j in judgements
+    ]

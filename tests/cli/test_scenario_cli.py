@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from negobs_gym.cli import main
+from negobs_gym.eval.campaign import read_csv
 from negobs_gym.scenarios import load_scenario, scenario_names, spec_from_toml
 
 PAPER_SCENES = [
@@ -72,6 +73,32 @@ def test_run_video_writes_an_mp4_per_seed(tmp_path, capsys):
     names = sorted(p.name for p in videos.iterdir())
     assert names == ["reckless_into_pit_seed0.mp4", "reckless_into_pit_seed1.mp4"]
     assert all(b"ftyp" in (videos / n).read_bytes()[:16] for n in names)  # MP4 files
+
+
+def test_run_out_writes_tables_that_the_written_spec_reproduces(tmp_path, capsys):
+    """--out: the spec as run (driver and filter folded in) runs again to the same tables, in one
+    process as in two."""
+    path = tmp_path / "scene.toml"
+    path.write_text(FAILING.format(entered="false"))
+    first, again = tmp_path / "first", tmp_path / "again"
+    args = ["--seeds", "2", "--workers", "2", "--driver", "constant_speed", "--filter", "--out", str(first)]
+    code = main(["scenario", "run", str(path), *args])
+    lines = _lines(capsys)
+    ran = spec_from_toml((first / "scenario.toml").read_text())
+    assert (ran.run.driver, ran.run.filter) == ("constant_speed", True)
+    results = read_csv(first / "results.csv")
+    assert [(r["seed"], r["driver"], r["filter"]) for r in results] == [
+        ("0", "constant_speed", "filter"),
+        ("1", "constant_speed", "filter"),
+    ]
+    assert [r["passed"] == "1" for r in results] == [line.endswith("PASS") for line in lines]
+    assert code == (0 if all(r["passed"] == "1" for r in results) else 1)
+    assert read_csv(first / "vetoes.csv")  # the filter vetoed: the tables compared below hold rows
+    rerun = ["scenario", "run", str(first / "scenario.toml"), "--seeds", "2", "--out", str(again)]
+    assert main(rerun) == code
+    assert _lines(capsys) == lines
+    for name in ("results.csv", "vetoes.csv", "paths.csv", "scenario.toml"):
+        assert (again / name).read_bytes() == (first / name).read_bytes(), name
 
 
 def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):

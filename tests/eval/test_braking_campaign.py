@@ -16,7 +16,6 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import (
     COLUMNS,
     SCENARIOS,
-    VETO_COLUMNS,
     BrakingCampaignConfig,
     ConfigurationSummary,
     episodes,
@@ -26,6 +25,7 @@ from negobs_gym.eval.braking_campaign import (
 )
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome, task_done
+from negobs_gym.eval.vetoes import VETO_COLUMNS
 from negobs_gym.safety import braking_distance_m
 from tests.helpers import write_vetoes_csv
 
