@@ -121,13 +121,16 @@ source = "oracle"
 
 
 def write_vetoes_csv(path, judged) -> None:
-    """A hand-made campaign ``vetoes.csv``: one row per (episode, filter label, kind, error_m) of
-    ``judged``, the other cells fixed (d 8 m, R 9 m at 5 m/s, truth d - error)."""
+    """A hand-made campaign ``vetoes.csv``: one row per (episode, filter label, kind, error_m[,
+    onset]) of ``judged`` (onset: 1 for a veto unless given), the other cells fixed (d 8 m, R 9 m
+    at 5 m/s, truth d - error)."""
     from negobs_gym.eval.campaign import format_row
     from negobs_gym.eval.vetoes import VETO_COLUMNS
 
-    lines = [
-        format_row([key, label, 0, 1, kind, 5.0, 9.0, 8.0, 8.0 - e, e, "negative", 0, 0, 1.0, 0.0, -1.0, 0.0])
-        for key, label, kind, e in judged
-    ]
+    def row(key, label, kind, error, onset=None):
+        onset = kind == "veto" if onset is None else onset
+        fixed = (5.0, 9.0, 8.0, 8.0 - error, error, "negative", 0, 0, 1.0, 0.0, -1.0, 0.0)
+        return format_row([key, label, 0, 1, kind, onset, *fixed])
+
+    lines = [row(*judgement) for judgement in judged]
     path.write_text(",".join(VETO_COLUMNS) + "\n" + "\n".join(lines) + "\n")

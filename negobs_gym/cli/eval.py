@@ -368,6 +368,7 @@ def run_policy(args: argparse.Namespace) -> int:
             f"missed_vetoes={int(s['missed_vetoes'])} "
             f"veto_error_m={format_veto_error(s['max_veto_error_m'])} "
             f"median_veto_error_m={format_veto_error(s['median_veto_error_m'])} "
+            f"median_onset_veto_error_m={format_veto_error(s['median_onset_veto_error_m'])} "
             f"cost={s['cost']:.1f} "
             f"off_track_share={s['off_track_share']:.3f}"
         )

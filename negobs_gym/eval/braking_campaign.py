@@ -423,23 +423,39 @@ class ConfigurationSummary:
     missed_vetoes: int = 0  # steps let through with a true hazard 2 m inside R(v) (eval.vetoes)
     max_veto_error_m: float | None = None  # largest veto distance minus its truth (eval.vetoes)
     veto_errors_m: list[float] = field(default_factory=list)  # every judged veto's (vetoes.csv)
+    onset_veto_errors_m: list[float] = field(default_factory=list)  # the onset vetoes' alone
 
     @property
     def median_veto_error_m(self) -> float | None:
         """The median of :attr:`veto_errors_m` (None: none judged, or no ``vetoes.csv`` read)."""
-        return float(np.median(self.veto_errors_m)) if self.veto_errors_m else None
+        return _median(self.veto_errors_m)
+
+    @property
+    def median_onset_veto_error_m(self) -> float | None:
+        """The median of :attr:`onset_veto_errors_m`: where the braking events began, against the
+        truth (None: none judged, or no ``vetoes.csv`` read)."""
+        return _median(self.onset_veto_errors_m)
+
+
+def _median(values: Sequence[float]) -> float | None:
+    return float(np.median(values)) if values else None
 
 
 def _flag(row: Mapping[str, str], key: str) -> bool:
     return row[key] == "1"
 
 
-def veto_errors_by(vetoes_csv: str | Path, group: Callable[[dict[str, str]], str]) -> dict[str, list[float]]:
+def veto_errors_by(
+    vetoes_csv: str | Path, group: Callable[[dict[str, str]], str], *, onsets_only: bool = False
+) -> dict[str, list[float]]:
     """Every judged veto error of a ``vetoes.csv`` (:data:`VETO_COLUMNS`; vetoes whose ``error_m``
-    is not NaN), in row order, grouped by ``group(row)``."""
+    is not NaN), in row order, grouped by ``group(row)``; with ``onsets_only`` the onset vetoes'
+    alone (``onset`` = 1: those that began a braking event)."""
     out: dict[str, list[float]] = {}
     for row in read_csv(vetoes_csv):
-        if row["kind"] == "veto" and not math.isnan(float(row["error_m"])):
+        if row["kind"] != "veto" or math.isnan(float(row["error_m"])):
+            continue
+        if not onsets_only or row["onset"] == "1":
             out.setdefault(group(row), []).append(float(row["error_m"]))
     return out
 
@@ -463,6 +479,7 @@ def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> lis
         return names[veto["episode"]]
 
     errors = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration)
+    onsets = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration, onsets_only=True)
     out = []
     for name, rows in groups.items():
         obstacle = not obstacle_free(rows[0]["scenario"])
@@ -486,6 +503,7 @@ def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> lis
                 missed_vetoes=sum(int(r["missed_vetoes"]) for r in rows),
                 max_veto_error_m=largest_veto_error_m(float(r["max_veto_error_m"]) for r in rows),
                 veto_errors_m=errors.get(name, []),
+                onset_veto_errors_m=onsets.get(name, []),
             )
         )
     return out
@@ -507,6 +525,7 @@ def summary_line(s: ConfigurationSummary) -> str:
         text += f" missed_vetoes={s.missed_vetoes} veto_error_m={format_veto_error(s.max_veto_error_m)}"
         if s.veto_errors_m:
             text += f" median_veto_error_m={format_veto_error(s.median_veto_error_m)}"
+            text += f" median_onset_veto_error_m={format_veto_error(s.median_onset_veto_error_m)}"
     return text
 
 
@@ -525,6 +544,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
             "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
             s.missed_vetoes if s.name.endswith("/filter") else "-",
             "-" if s.median_veto_error_m is None else s.median_veto_error_m,
+            "-" if s.median_onset_veto_error_m is None else s.median_onset_veto_error_m,
             "-" if s.max_veto_error_m is None else s.max_veto_error_m,
             s.km,
         ]
@@ -540,6 +560,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
         "false vetoes per km",
         "missed vetoes",
         "median veto error [m]",
+        "median onset veto error [m]",
         "largest veto error [m]",
         "km",
     ]

@@ -193,7 +193,8 @@ def summarize(
     driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
     judge), cost, steps, and the share of them that ended off the track. With the campaign's
     ``vetoes.csv``, also the median of every judged veto's error (``median_veto_error_m``; None:
-    none judged, or no ``vetoes.csv`` given).
+    none judged, or no ``vetoes.csv`` given) and of the onset vetoes' alone, those that began a
+    braking event (``median_onset_veto_error_m``).
 
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
@@ -231,11 +232,12 @@ def summarize(
     for name, s in out.items():
         errors = (float(r["max_veto_error_m"]) for r in rows if r["filter"] == name)
         s["max_veto_error_m"] = largest_veto_error_m(errors)
-        s["median_veto_error_m"] = None
+        s["median_veto_error_m"] = s["median_onset_veto_error_m"] = None
     if vetoes_csv is not None:
-        judged = veto_errors_by(vetoes_csv, lambda r: r["filter"])
-        for name, s in out.items():
-            s["median_veto_error_m"] = float(np.median(judged[name])) if name in judged else None
+        for key, onsets_only in (("median_veto_error_m", False), ("median_onset_veto_error_m", True)):
+            judged = veto_errors_by(vetoes_csv, lambda r: r["filter"], onsets_only=onsets_only)
+            for name, s in out.items():
+                s[key] = float(np.median(judged[name])) if name in judged else None
     return out
 
 

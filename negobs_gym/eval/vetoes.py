@@ -191,6 +191,8 @@ class VetoJudgement:
         perception_stale: The filter braked for missing or stale perception.
         proposed_action: The driver's action (longitudinal, steering; NaN where the record has none).
         applied_action: The action the env received.
+        onset: A veto whose step before was not vetoed: the filter's decision to start braking
+            (a run of consecutive vetoes is one braking event; the ones after it hold the brake).
     """
 
     step: int
@@ -204,6 +206,7 @@ class VetoJudgement:
     perception_stale: bool
     proposed_action: tuple[float, float]
     applied_action: tuple[float, float]
+    onset: bool = False
 
     @property
     def error_m(self) -> float | None:
@@ -251,6 +254,8 @@ class VetoTally:
             if not _inside_braking_distance(truth_m, record):  # let through, rightly
                 return False, False
         speed_mps = _field(record, "speed_mps")
+        last = self.judgements[-1] if self.judgements else None
+        held = last is not None and last.vetoed and last.step == step - 1
         self.judgements.append(
             VetoJudgement(
                 step=step,
@@ -264,6 +269,7 @@ class VetoTally:
                 perception_stale=bool(_field(record, "perception_stale")),
                 proposed_action=_action(record, "original_action"),
                 applied_action=_action(record, "applied_action"),
+                onset=vetoed and not held,
             )
         )
         return vetoed, not vetoed
@@ -289,6 +295,12 @@ class VetoTally:
         return [e for e in (j.error_m for j in self.judgements) if e is not None]
 
     @property
+    def onset_errors_m(self) -> list[float]:
+        """The judged errors of the onset vetoes (:attr:`VetoJudgement.onset`) alone: where each
+        braking event began, against the truth."""
+        return [e for e in (j.error_m for j in self.judgements if j.onset) if e is not None]
+
+    @property
     def max_error_m(self) -> float | None:
         """The largest judged veto error (None: no veto to judge)."""
         return largest_veto_error_m(self.errors_m)
@@ -296,13 +308,15 @@ class VetoTally:
 
 #: ``vetoes.csv`` of the braking and policy campaigns and of ``negobs scenario run --out``: one row
 #: per veto (``kind`` = ``veto``) and per missed veto (``missed``) of the filtered episodes, judged
-#: on the ground truth (:class:`VetoJudgement`; ``error_m`` NaN where there is none to give)
+#: on the ground truth (:class:`VetoJudgement`; ``error_m`` NaN where there is none to give;
+#: ``onset`` 1 for a veto that began a braking event)
 VETO_COLUMNS = (
     "episode",
     "filter",
     "seed",
     "step",
     "kind",
+    "onset",
     "speed_mps",
     "braking_distance_m",
     "hazard_distance_m",
@@ -324,7 +338,7 @@ def veto_rows(key: str, filter_label: str, seed: int, judgements: Sequence[VetoJ
     return [
         format_row(
             [
-                *(key, filter_label, seed, j.step, "veto" if j.vetoed else "missed", j.speed_mps),
+                *(key, filter_label, seed, j.step, "veto" if j.vetoed else "missed", j.onset, j.speed_mps),
                 *(j.braking_distance_m, j.hazard_distance_m, j.true_distance_m),
                 *(math.nan if j.error_m is None else j.error_m, j.channel, j.false_veto, j.perception_stale),
                 *j.proposed_action,

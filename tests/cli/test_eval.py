@@ -89,6 +89,8 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     judged = [float(v["error_m"]) for v in vetoes if v["kind"] == "veto" and v["error_m"] != "nan"]
     median = f"{float(np.median(judged)):+.2f}" if judged else "-"
     assert fields["median_veto_error_m"] == median
+    onsets = [float(v["error_m"]) for v in vetoes if v["onset"] == "1" and v["error_m"] != "nan"]
+    assert fields["median_onset_veto_error_m"] == (f"{float(np.median(onsets)):+.2f}" if onsets else "-")
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0

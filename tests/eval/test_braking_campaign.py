@@ -79,10 +79,9 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     # judge without vetoes, or where each is false
     ditch_error = float(rows["ditch.reckless.1.00000"]["max_veto_error_m"])
     assert abs(ditch_error) < 0.5 and ditch.max_veto_error_m == ditch_error
-    median = float(np.median(ditch.veto_errors_m))
-    assert lines["ditch/reckless/filter"].endswith(
-        f" veto_error_m={ditch_error:+.2f} median_veto_error_m={median:+.2f}"
-    )
+    median, onset = np.median(ditch.veto_errors_m), np.median(ditch.onset_veto_errors_m)
+    medians = f" median_veto_error_m={median:+.2f} median_onset_veto_error_m={onset:+.2f}"
+    assert lines["ditch/reckless/filter"].endswith(f" veto_error_m={ditch_error:+.2f}{medians}")
     assert math.isnan(float(free["max_veto_error_m"]))
     # vetoes.csv: each veto (and missed veto) of the filtered runs, judged on the ground truth
     vetoes = read_csv(out / "vetoes.csv")
@@ -92,6 +91,11 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         assert sum(v["kind"] == "veto" for v in judged) == int(row["vetoes"])
         assert sum(v["kind"] == "missed" for v in judged) == int(row["missed_vetoes"])
         assert sum(v["false_veto"] == "1" for v in judged) == int(row["false_vetoes"])
+        # an onset is a veto whose step before was no veto: one per braking event
+        vetoed = {int(v["step"]) for v in judged if v["kind"] == "veto"}
+        onsets = [int(v["step"]) for v in judged if v["onset"] == "1"]
+        assert onsets == sorted(s for s in vetoed if s - 1 not in vetoed)
+        assert len(onsets) == int(row["veto_events"])
         errors = [float(v["error_m"]) for v in judged if not math.isnan(float(v["error_m"]))]
         assert max(errors, default=math.nan) == pytest.approx(float(row["max_veto_error_m"]), nan_ok=True)
         steps = [p for p in paths if p["episode"] == key]
@@ -105,6 +109,8 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
             assert float(v["applied_longitudinal"]) < float(v["proposed_longitudinal"])  # it braked
     ditch_vetoes = [v for v in vetoes if v["episode"] == "ditch.reckless.1.00000"]
     assert [float(v["error_m"]) for v in ditch_vetoes] == pytest.approx(ditch.veto_errors_m, abs=1e-6)
+    onset_errors = [float(v["error_m"]) for v in ditch_vetoes if v["onset"] == "1"]
+    assert onset_errors == pytest.approx(ditch.onset_veto_errors_m, abs=1e-6) and len(onset_errors) >= 1
     assert all(float(v["true_distance_m"]) < float(v["hazard_distance_m"]) + 0.5 for v in ditch_vetoes)
     free_vetoes = [v for v in vetoes if v["episode"] == "free_track.reckless.1.00000"]
     assert all(v["false_veto"] == "1" and v["error_m"] == "nan" for v in free_vetoes)  # nothing there
@@ -171,14 +177,19 @@ def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:
     # with vetoes.csv: every judged veto's error, per configuration (missed and unjudged skipped)
     vetoes = tmp_path / "vetoes.csv"
     nan = float("nan")
-    judged = [("ditch.r.0", "veto", -0.2), ("ditch.r.1", "veto", 1.75), ("ditch.r.1", "veto", 0.1)]
+    judged = [("ditch.r.0", "veto", -0.2), ("ditch.r.1", "veto", 1.75, False), ("ditch.r.1", "veto", 0.1)]
     judged += [("ditch.r.1", "missed", nan), ("ditch.r.1", "veto", nan), ("free_track.r.0", "veto", nan)]
-    write_vetoes_csv(vetoes, [(key, "filter", kind, e) for key, kind, e in judged])
+    write_vetoes_csv(vetoes, [(key, "filter", *judgement) for key, *judgement in judged])
     ditch, free = summarize(csv, vetoes)
     assert ditch.veto_errors_m == [-0.2, 1.75, 0.1] and ditch.median_veto_error_m == pytest.approx(0.1)
+    assert ditch.onset_veto_errors_m == [-0.2, 0.1]  # the held veto (onset 0) left out
+    assert ditch.median_onset_veto_error_m == pytest.approx(-0.05)
     assert free.veto_errors_m == [] and free.median_veto_error_m is None
-    assert summary_line(ditch).endswith(" veto_error_m=+1.75 median_veto_error_m=+0.10")
-    assert "| 4 | 0.100 | 1.750 |" in report_markdown([ditch])  # missed, median, largest
+    assert free.median_onset_veto_error_m is None
+    assert summary_line(ditch).endswith(
+        " veto_error_m=+1.75 median_veto_error_m=+0.10 median_onset_veto_error_m=-0.05"
+    )
+    assert "| 4 | 0.100 | -0.050 | 1.750 |" in report_markdown([ditch])  # missed, medians, largest
     write_vetoes_csv(vetoes, [("trench.r.0", "filter", "veto", 0.1)])  # another campaign's
     with pytest.raises(ConfigError, match=r"vetoes_csv.*'trench.r.0'.*not the same campaign's"):
         summarize(csv, vetoes)

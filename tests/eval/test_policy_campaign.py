@@ -67,11 +67,12 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     assert s["filter"]["median_veto_error_m"] is None  # no vetoes.csv given
     vetoes = tmp_path / "vetoes.csv"  # the median of every judged veto's error, per filter setting
     nan = float("nan")
-    judged = [("veto", 0.3), ("veto", -0.1), ("veto", 2.0), ("missed", nan), ("veto", nan)]
-    write_vetoes_csv(vetoes, [("filter.0", "filter", kind, e) for kind, e in judged])
+    judged = [("veto", 0.3, 1), ("veto", -0.1, 0), ("veto", 2.0, 1), ("missed", nan, 0), ("veto", nan, 1)]
+    write_vetoes_csv(vetoes, [("filter.0", "filter", *judgement) for judgement in judged])
     s = summarize(path, vetoes)
     assert s["filter"]["median_veto_error_m"] == pytest.approx(0.3)
-    assert s["nofilter"]["median_veto_error_m"] is None
+    assert s["filter"]["median_onset_veto_error_m"] == pytest.approx(1.15)  # 0.3 and 2.0 began events
+    assert s["nofilter"]["median_veto_error_m"] is None and s["nofilter"]["median_onset_veto_error_m"] is None
     old = tmp_path / "old.csv"  # written before the left_track column
     kept = [c for c in COLUMNS if c != "left_track"]
     old.write_text(",".join(kept) + "\n" + ",".join("0" for _ in kept) + "\n")

@@ -158,6 +158,10 @@ def test_a_tally_judges_each_step_once(env_info) -> None:
     assert missed.braking_distance_m == truth + FALSE_VETO_TOLERANCE_M + 0.1
     assert late.speed_mps == info["speed_mps"]  # a record without its speed: the step before's
     assert all(math.isnan(v) for v in late.proposed_action + late.applied_action)  # nor its actions
+    # an onset is a veto whose step before was no veto: step 2 held the brake step 1 began
+    assert (late.onset, false.onset, missed.onset) == (True, False, False)
+    assert tally.add(env, _record(truth - 0.1, 0.18), info, 6) == (True, False)
+    assert tally.judgements[-1].onset and tally.onset_errors_m == pytest.approx([0.4, -0.1])
 
 
 def test_a_judgement_keeps_the_filters_speed_and_actions(env_info) -> None:
@@ -175,4 +179,4 @@ def test_a_judgement_keeps_the_filters_speed_and_actions(env_info) -> None:
     assert judged.applied_action == (-1.0, 0.5) and judged.step == 7
     assert judged.error_m == pytest.approx(veto_error_m(env, decision, info))
     assert tally.add(env, decision.as_dict(), info, 8) == (True, False)  # info["safety"] alike
-    assert tally.judgements[1] == dataclasses.replace(judged, step=8)
+    assert judged.onset and tally.judgements[1] == dataclasses.replace(judged, step=8, onset=False)  # held
