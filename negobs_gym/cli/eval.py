@@ -206,6 +206,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'imageio-ffmpeg (pip install "negobs_gym[video]").',
     )
     _add_episode_choice(video, "replay", "videos", "MP4s")
+    video.add_argument(
+        "--model",
+        default=None,
+        metavar="PATH",
+        help="the model the episodes ran, where it lies now (the campaign records the path it was "
+        "given; a saved model moved since); the replay is still checked against the record",
+    )
     video.set_defaults(handler=run_videos)
 
 
@@ -396,7 +403,12 @@ def run_videos(args: argparse.Namespace) -> int:
     from negobs_gym.eval.replay import replay_videos
 
     written = replay_videos(
-        args.campaign_dir, args.keys, everything=args.everything, limit=args.limit, out_dir=args.to_dir
+        args.campaign_dir,
+        args.keys,
+        everything=args.everything,
+        limit=args.limit,
+        out_dir=args.to_dir,
+        model=args.model,
     )
     return _report(written, "replay", args.campaign_dir)
 

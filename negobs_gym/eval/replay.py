@@ -49,6 +49,7 @@ def replay_videos(
     everything: bool = False,
     limit: int | None = None,
     out_dir: str | Path | None = None,
+    model: str | Path | None = None,
 ) -> list[Path]:
     """Replay episodes of a ``negobs eval policy|braking --out`` folder into ``<out_dir>/<key>.mp4``.
 
@@ -58,18 +59,25 @@ def replay_videos(
             draw_paths` chooses).
         limit: replay at most this many (in key order).
         out_dir: the videos' folder (default ``campaign_dir/videos``).
+        model: the model the episodes ran, where it lies now (a saved model moved since, or a
+            folder copied to another machine; the record keeps the path it was given). The replay
+            is still checked against the record, so another model is refused as a mismatch.
 
     Returns:
         The MP4s written, in key order.
 
     Raises:
         ConfigError: not a policy or braking campaign's folder (field ``campaign_dir``), an unknown
-            key (``keys``), or an episode whose part does not record its arguments (a campaign
-            from before they were recorded).
+            key (``keys``), an episode whose part does not record its arguments (a campaign
+            from before they were recorded), no model at ``model``, or ``model`` given for an
+            episode of a scripted driver (field ``model``).
         ReplayMismatch: a replay's rows differ from the campaign's; its video is removed.
     """
+    from negobs_gym.policies.baselines import resolve_model
     from negobs_gym.scenarios.overrides import recorded_env_in
 
+    if model is not None:
+        model = resolve_model(str(model), "model")
     folder = Path(campaign_dir)
     _, chosen = chosen_episodes(folder, keys, everything=everything, limit=limit)
     run_episode = _episode_runner(folder)
@@ -82,6 +90,11 @@ def replay_videos(
         args = dict(record["args"])
         if "env_id" in args:  # a policy episode: its --set scenario as it can be found now
             args["env_id"] = recorded_env_in(args["env_id"], folder)
+        if model is not None:
+            require(
+                args.get("model_path") is not None, "model", f"episode {key} ran a scripted driver, no model"
+            )
+            args["model_path"] = model
         video = out / f"{key}.mp4"
         replayed = run_episode(Episode(key, {**args, "video_to": video}))
         for table, recorded in sorted(record["rows"].items()):

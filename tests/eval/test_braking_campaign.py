@@ -133,6 +133,9 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
         assert main(["-q", "eval", "video", str(out), "--episode", "ditch.reckless.0.00000"]) == 0
         assert capsys.readouterr().out.split() == [str(out / "videos" / "ditch.reckless.0.00000.mp4")]
         assert (out / "videos" / "ditch.reckless.0.00000.mp4").stat().st_size > 0
+        model = ["--model", "ppo_offroad_nav_v1"]  # a scripted driver's episode ran no model
+        assert main(["eval", "video", str(out), "--episode", "ditch.reckless.0.00000", *model]) == 2
+        assert "ran a scripted driver, no model" in capsys.readouterr().err
 
 
 def test_summarize_counts_hand_made_rows(tmp_path: Path) -> None:

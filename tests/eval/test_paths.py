@@ -15,6 +15,7 @@ from negobs_gym.cli import main
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome
 from negobs_gym.eval.replay import ReplayMismatch, replay_videos
+from negobs_gym.policies.baselines import resolve_model
 
 
 @pytest.fixture(scope="module")
@@ -127,3 +128,29 @@ def test_eval_video_replays_the_recorded_episode_and_checks_it(
     assert "does not record the episode's arguments" in capsys.readouterr().err
     assert main(["eval", "video", str(tmp_path)]) == 2
     assert "no policy.csv" in capsys.readouterr().err
+
+
+def test_eval_video_finds_a_moved_model_with_model(campaign: Path, tmp_path: Path, capsys) -> None:
+    """--model: the model where it lies now; another model's replay is refused as a mismatch."""
+    pytest.importorskip("imageio_ffmpeg")
+    key = next(r["episode"] for r in read_csv(campaign / "policy.csv") if r["filter"] == "filter")
+    moved = tmp_path / "moved"  # the campaign of a saved model that has moved since
+    shutil.copytree(campaign, moved, ignore=shutil.ignore_patterns("paths", "videos"))
+    part = moved / "parts" / f"{key}.json"
+    record = json.loads(part.read_text())
+    record["args"]["model_path"] = str(tmp_path / "gone" / "model.zip")
+    part.write_text(json.dumps(record))
+    args = ["eval", "video", str(moved), "--episode", key, "--to", str(tmp_path / "v")]
+    assert main(args) == 2
+    assert "no saved model at" in capsys.readouterr().err
+    shipped = Path(resolve_model("ppo_offroad_nav_v1"))
+    model = tmp_path / "models" / "mine.zip"
+    model.parent.mkdir()
+    shutil.copy(shipped, model)
+    assert main(["-q", *args, "--model", str(model)]) == 0
+    assert capsys.readouterr().out.split() == [str(tmp_path / "v" / f"{key}.mp4")]
+    other = resolve_model("ppo_offroad_nav_v1_detector_filter")  # the same spaces, other weights
+    with pytest.raises(ReplayMismatch):
+        replay_videos(moved, [key], out_dir=tmp_path / "v2", model=other)
+    assert main([*args, "--model", str(tmp_path / "nothing.zip")]) == 2
+    assert "model: no saved model at" in capsys.readouterr().err
