@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from negobs_gym.cli.common import add_set_option, non_negative_int, positive_float, positive_int
 from negobs_gym.errors import ConfigError
+from negobs_gym.policies.config import ALGORITHMS
 
 if TYPE_CHECKING:
     from negobs_gym.scenarios import ScenarioSpec
@@ -52,8 +53,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "fails a criterion named in the spec's [criteria], 0 when all pass.",
     )
     p_run.add_argument("spec", metavar="SPEC", help="shipped scenario name or TOML file")
+    pilot = p_run.add_mutually_exclusive_group()
+    pilot.add_argument(
+        "--driver",
+        choices=DRIVER_CHOICES,
+        help="scripted driver (default: the spec's run.policy when set, else its run.driver)",
+    )
+    pilot.add_argument(
+        "--policy",
+        metavar="MODEL",
+        help="a trained policy drives: a saved stable-baselines3 model or a shipped policy's name "
+        "(negobs policy list); run.policy",
+    )
     p_run.add_argument(
-        "--driver", choices=DRIVER_CHOICES, help="scripted driver (default: the spec's run.driver)"
+        "--algo",
+        choices=ALGORITHMS,
+        default=None,
+        help="the algorithm that saved --policy's model (default: the spec's run.policy_algo, PPO)",
     )
     filt = p_run.add_mutually_exclusive_group()
     filt.add_argument(
@@ -150,6 +166,8 @@ def _run(args: argparse.Namespace) -> int:
     spec = _run_spec(args)
     if args.out is not None:
         check_table_name(spec.name)
+    if spec.run.policy:
+        _check_policy(spec)
     results = []
     for result in run_scenario_seeds(
         spec,
@@ -171,11 +189,27 @@ def _run_spec(args: argparse.Namespace) -> ScenarioSpec:
     """The spec with ``--set``, and ``--driver``, ``--filter`` and ``--stop-for-positive`` folded
     into its ``[run]`` table: what ran, as ``scenario.toml`` records it."""
     spec = _spec(args)
-    changes = {"driver": args.driver, "filter": args.filter}
+    changes = {"driver": args.driver, "filter": args.filter, "policy_algo": args.algo}
+    if args.driver is not None:
+        changes["policy"] = ""  # the scripted driver named drives, not the spec's policy
+    if args.policy is not None:
+        changes["policy"] = args.policy
     if args.stop_for_positive:
         changes["stop_for_positive"] = True
     changes = {k: v for k, v in changes.items() if v is not None}
     return dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
+
+
+def _check_policy(spec: ScenarioSpec) -> None:
+    """Before the first episode: the spec's policy exists (else a ConfigError naming
+    ``run.policy``), and the log names the env it was fitted on, to compare with the scenario's."""
+    from negobs_gym.policies.baselines import recorded_env, resolve_model
+    from negobs_gym.scenarios import describe_overrides
+
+    resolve_model(spec.run.policy, "run.policy")
+    recorded = recorded_env(spec.run.policy)
+    fitted = "no record of the env it was fitted on" if recorded is None else describe_overrides(*recorded)
+    logging.getLogger("negobs_gym.cli").info("%s drives (%s)", spec.run.policy, fitted)
 
 
 def _render(args: argparse.Namespace) -> int:

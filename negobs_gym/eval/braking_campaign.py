@@ -35,7 +35,7 @@ from negobs_gym.eval.vetoes import (
     largest_veto_error_m,
     veto_rows,
 )
-from negobs_gym.policies.observation import PolicyDriver
+from negobs_gym.policies.model_driver import ModelDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
@@ -229,31 +229,6 @@ def _scenario_env(
     from negobs_gym.envs.base import NegObsEnv
 
     return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs), render_mode=render_mode)
-
-
-class ModelDriver(PolicyDriver):
-    """A saved stable-baselines3 model as a driver (deterministic actions); ``path`` may name a
-    shipped policy instead (:func:`~negobs_gym.policies.baselines.resolve_model`).
-
-    Observations are adapted to the model's space (:func:`~negobs_gym.policies.match_observation`),
-    so a model trained by ``negobs train`` (flat grid, or the state alone) runs on the raw env.
-    Loading one sets torch to one intra-op thread in this process, as training does
-    (``TrainConfig.torch_threads``: the network is too small to gain from more, and with two
-    threads on busy cores one ``predict`` took 45 ms instead of 1 ms).
-    """
-
-    def __init__(self, path: str, algo: str = "PPO") -> None:
-        import stable_baselines3
-        import torch
-
-        from negobs_gym.policies.baselines import resolve_model
-
-        torch.set_num_threads(1)
-
-        cls = getattr(stable_baselines3, algo, None)
-        if cls is None:
-            raise ConfigError("algo", f"stable_baselines3 has no algorithm {algo!r}")
-        super().__init__(cls.load(resolve_model(path), device="cpu"))
 
 
 def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:

@@ -33,13 +33,13 @@ import numpy as np
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import (
     PATH_COLUMNS,
-    ModelDriver,
     path_rows,
     run_driven_episode,
     veto_errors_by,
 )
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
+from negobs_gym.policies.model_driver import ModelDriver
 from negobs_gym.safety.filter import SafetyFilterConfig
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)

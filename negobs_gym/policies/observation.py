@@ -17,6 +17,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from negobs_gym.errors import ConfigError
+
 __all__ = ["PolicyDriver", "PolicyObservation", "match_observation"]
 
 
@@ -77,17 +79,28 @@ def match_observation(observation: Mapping[str, Any], space: spaces.Space) -> An
 
 
 class PolicyDriver:
-    """An SB3 model as a driver (``reset(seed)``, ``act(obs, info)``) on a raw env's observations."""
+    """An SB3 model as a driver (``reset(seed)``, ``act(obs, info)``) on a raw env's observations;
+    ``name`` is how errors and results name it."""
 
-    def __init__(self, model: Any) -> None:
+    def __init__(self, model: Any, name: str = "the model") -> None:
         self.model = model
+        self.name = name
 
     def reset(self, seed: int | None = None) -> None:
         """Stateless policy."""
 
     def act(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
-        """The model's deterministic action for ``obs`` (adapted with :func:`match_observation`)."""
-        action, _ = self.model.predict(
-            match_observation(obs, self.model.observation_space), deterministic=True
-        )
+        """The model's deterministic action for ``obs`` (adapted with :func:`match_observation`).
+
+        Raises:
+            ConfigError: ``obs`` does not fit the model's observation space (field ``policy``):
+                the env observes something else than the model was trained on.
+        """
+        try:
+            observation = match_observation(obs, self.model.observation_space)
+        except ValueError as error:
+            raise ConfigError(
+                "policy", f"the env's observation does not fit {self.name}'s: {error}"
+            ) from None
+        action, _ = self.model.predict(observation, deterministic=True)
         return np.asarray(action, dtype=np.float32)

@@ -49,7 +49,8 @@ class ScenarioResult:
     Attributes:
         scenario: The spec's name.
         seed: Episode seed.
-        driver: Driver name (or class name of a driver object).
+        driver: The scripted driver's name, the policy's (``run.policy``: a saved model's path or a
+            shipped policy's name), or a driver object's ``name`` (else its class name).
         filtered: The safety filter guarded the driver.
         steps: Control steps run.
         time_s: Simulated time [s].
@@ -187,6 +188,19 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
     )
 
 
+def _pilot(spec: ScenarioSpec, driver: Driver | str | None, terrain: Terrain) -> tuple[Driver, str]:
+    """An episode's driver and its name in the result: ``driver`` (an object, or a scripted
+    driver's name), else the spec's ``run.policy`` when it names one, else its ``run.driver``."""
+    if driver is not None and not isinstance(driver, str):
+        return driver, str(getattr(driver, "name", type(driver).__name__))
+    if driver is None and spec.run.policy:
+        from negobs_gym.policies.model_driver import ModelDriver
+
+        return ModelDriver(spec.run.policy, spec.run.policy_algo), spec.run.policy
+    name = driver or spec.run.driver
+    return make_driver(name, spec, terrain), name
+
+
 def _guard(filter: bool | SafetyFilterConfig, run: RunSpec) -> SafetyFilterConfig | None:
     """The filter's settings (None: no filter); True takes the spec's ``run.stop_for_positive``."""
     if filter is False:
@@ -211,8 +225,9 @@ def run_scenario(
 
     Args:
         spec: The scenario.
-        driver: A driver name (:data:`DRIVERS`), a :class:`~negobs_gym.drivers.Driver`, or None
-            for the spec's ``run.driver``.
+        driver: A driver name (:data:`DRIVERS`), a :class:`~negobs_gym.drivers.Driver` (e.g. a
+            trained model, :class:`~negobs_gym.policies.model_driver.ModelDriver`), or None for
+            the spec's ``run.policy`` when it names one, else its ``run.driver``.
         filter: True (the Eq. 18 defaults, stopping for positive obstacles when the spec's
             ``run.stop_for_positive`` says so), a :class:`SafetyFilterConfig` (used as it is),
             False, or None for the spec's ``run.filter``.
@@ -258,8 +273,7 @@ def _run_episode(
     """The episode of :func:`run_scenario` in ``env`` (``base`` unwrapped; behind the filter
     ``guard`` unless None)."""
     obs, info = env.reset(seed=seed)
-    name = driver if isinstance(driver, str) else spec.run.driver if driver is None else type(driver).__name__
-    pilot = make_driver(name, spec, base.terrain) if driver is None or isinstance(driver, str) else driver
+    pilot, name = _pilot(spec, driver, base.terrain)
     pilot.reset(seed)
     dt = 1.0 / base.config.control_hz
     start_gap = float(info["distance_to_negative_ahead_m"])
@@ -329,7 +343,7 @@ def _run_episode(
 
 def run_scenario_seeds(
     spec: ScenarioSpec | str | Path,
-    driver: str | None = None,
+    driver: Driver | str | None = None,
     seeds: Sequence[int] = (0,),
     *,
     filter: bool | SafetyFilterConfig | None = None,
@@ -341,7 +355,9 @@ def run_scenario_seeds(
     """:func:`run_scenario` once per seed, in ``workers`` processes; results yielded in seed order.
 
     Each seed's episode is the same whatever the worker count (it depends on the seed alone).
-    ``driver`` is a name here (a driver object need not survive a process boundary).
+    ``driver`` is a name, None, or a driver that pickles (a
+    :class:`~negobs_gym.policies.model_driver.ModelDriver` pickles as its model's path) when
+    ``workers`` > 1.
     ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``; ``video_dir``: each
     seed's episode as ``<video_dir>/<scenario>_seed<k>.mp4`` (``video_to`` of :func:`run_scenario`).
 
@@ -357,7 +373,7 @@ def run_scenario_seeds(
 
 def _seed_results(
     spec: ScenarioSpec,
-    driver: str | None,
+    driver: Driver | str | None,
     seeds: list[int],
     filter: bool | SafetyFilterConfig | None,
     workers: int,

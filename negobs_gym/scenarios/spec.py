@@ -58,6 +58,7 @@ TerminationRule = Literal[
 #: Names a spec's ``terminations`` may list (see :mod:`negobs_gym.envs.hooks`).
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
 DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner"]
+PolicyAlgo = Literal["PPO", "SAC"]  # negobs_gym.policies.config.ALGORITHMS
 
 
 def _draw(value: Number, rng: np.random.Generator) -> float:
@@ -283,9 +284,14 @@ class InsSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class RunSpec:
-    """Defaults of ``negobs scenario run``: the scripted driver and whether the safety filter guards it."""
+    """Defaults of ``negobs scenario run``: the scripted driver (or a trained policy) and whether
+    the safety filter guards it."""
 
     driver: DriverName = "reckless"
+    # a trained policy drives instead of `driver`: a saved stable-baselines3 model's path or a
+    # shipped policy's name (`negobs policy list`); empty: the scripted driver
+    policy: str = ""
+    policy_algo: PolicyAlgo = "PPO"  # the algorithm that saved `policy`
     filter: bool = True
     # the filter also stops for the grid's positive-obstacle cells (SafetyFilterConfig.stop_for_positive)
     stop_for_positive: bool = False

@@ -101,6 +101,28 @@ def test_run_out_writes_tables_that_the_written_spec_reproduces(tmp_path, capsys
         assert (again / name).read_bytes() == (first / name).read_bytes(), name
 
 
+def test_run_policy_drives_and_is_recorded_in_the_spec(tmp_path, capsys):
+    """--policy: a trained policy drives; scenario.toml records it (run.policy), --driver takes the
+    wheel back, and a policy that does not exist is refused before the first episode."""
+    short = ["--set", "episode.time_limit_s=1"]
+    out = tmp_path / "policy"
+    run = ["scenario", "run", "offroad_nav_v1", *short, "--out", str(out)]
+    assert main([*run, "--policy", "ppo_offroad_nav_v1"]) == 0
+    assert "driver=ppo_offroad_nav_v1 " in _lines(capsys)[0]
+    ran = spec_from_toml((out / "scenario.toml").read_text()).run
+    assert (ran.policy, ran.policy_algo) == ("ppo_offroad_nav_v1", "PPO")
+    assert read_csv(out / "results.csv")[0]["driver"] == "ppo_offroad_nav_v1"
+    scripted = ["scenario", "run", str(out / "scenario.toml"), "--driver", "reckless", "--out", str(out)]
+    assert main(scripted) == 0
+    assert "driver=reckless " in _lines(capsys)[0]
+    assert spec_from_toml((out / "scenario.toml").read_text()).run.policy == ""
+    assert main([*run, "--policy", str(tmp_path / "no_model.zip")]) == 2
+    assert "run.policy: no saved model at" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: one driver or the other
+        main([*run, "--policy", "ppo_offroad_nav_v1", "--driver", "reckless"])
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
 def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):
     setting = ["--set", "observation.tighten_pairs=false", "--set", "episode.time_limit_s=3.5"]
     assert main(["scenario", "show", "paper_n_three_pits", *setting]) == 0

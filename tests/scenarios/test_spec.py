@@ -75,6 +75,7 @@ def test_ranges_are_drawn_from_the_given_generator_only() -> None:
         ({"render": {"height_px": 31}}, "render.height_px"),
         ({"ins": {"position_noise_m": float("nan")}}, "ins.position_noise_m"),
         ({"criteria": {"max_vetoes": -1}}, "criteria.max_vetoes"),
+        ({"run": {"policy": "ppo_offroad_nav_v1", "policy_algo": "DQN"}}, "run.policy_algo"),
         ({"terrain": {"course": {"length_m": 40.0, "bogus": 1}}}, "terrain.course.bogus"),
         ({"terrain": {"preset": "braking_track", "params": {"seed": 3}}}, "terrain.params.seed"),
         ({"terrain": {"preset": "no_such_preset"}}, "terrain.preset"),

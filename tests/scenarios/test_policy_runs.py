@@ -1,0 +1,46 @@
+"""A trained policy as a scenario's driver (``run.policy``): the episode ``negobs eval policy``
+drives, bit for bit, in one process or several."""
+
+from __future__ import annotations
+
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.campaign import format_value, read_csv
+from negobs_gym.policies.model_driver import ModelDriver
+from negobs_gym.scenarios import load_scenario, run_scenario, run_scenario_seeds
+from negobs_gym.scenarios.overrides import apply_overrides
+
+SETTINGS = ["episode.time_limit_s=2", "run.policy=ppo_offroad_nav_v1"]
+
+
+@pytest.fixture(scope="module")
+def spec():
+    """OffroadNav-v1's scenario for 2 s (20 steps), the shipped v1 policy driving behind the filter."""
+    return apply_overrides(load_scenario("offroad_nav_v1"), SETTINGS)
+
+
+def test_the_policy_drives_the_episode_eval_policy_drives(spec, tmp_path) -> None:
+    args = "-q eval policy ppo_offroad_nav_v1 --env negobs_gym/OffroadNav-v1 --seeds 1 --first-seed 7"
+    args = [*args.split(), "--filter", "on", "--set", SETTINGS[0], "--out", str(tmp_path), "--no-progress"]
+    assert main(args) == 0
+    result = run_scenario(spec, seed=7, filter=True)
+    assert result.driver == "ppo_offroad_nav_v1" and result.steps == 20
+    recorded = [(row["x_m"], row["y_m"]) for row in read_csv(tmp_path / "paths.csv")]
+    assert [(format_value(x), format_value(y)) for x, y in result.path_xy_m] == recorded
+    assert result.path_xy_m[-1][1] - result.path_xy_m[0][1] > 2.0  # it drove off
+
+
+def test_a_model_driver_reaches_worker_processes_as_its_path(spec) -> None:
+    driver = ModelDriver("ppo_offroad_nav_v1")
+    serial = [run_scenario(spec, driver, seed=s) for s in (3, 4)]
+    assert list(run_scenario_seeds(spec, driver, (3, 4), workers=2)) == serial
+    assert list(run_scenario_seeds(spec, None, (3, 4), workers=2)) == serial  # run.policy: the same
+    assert {r.driver for r in serial} == {"ppo_offroad_nav_v1"}
+
+
+def test_an_observation_the_policy_was_not_trained_on_is_named() -> None:
+    spec = apply_overrides(load_scenario("paper_n_mud_pit"), SETTINGS)  # a 4-channel grid, v1 saw 2
+    with pytest.raises(ConfigError, match=r"policy: the env's observation does not fit ppo_offroad_nav_v1's"):
+        run_scenario(spec, seed=0)
