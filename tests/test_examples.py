@@ -45,7 +45,7 @@ def test_train_ppo_saves_a_model_and_its_evaluations(tmp_path: Path, monkeypatch
 
 def test_my_scenario_example_passes_on_its_first_seed() -> None:
     """``python -m pytest examples/test_my_scenario.py`` as its docstring says, on the first of
-    its three seeds: pytest collects the example and its test passes."""
+    its three seeds (and the policy's one seed): pytest collects the example and its tests pass."""
     command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-k", "0]"]
     done = subprocess.run(
         [*command, str(EXAMPLES / "test_my_scenario.py")],
@@ -55,4 +55,4 @@ def test_my_scenario_example_passes_on_its_first_seed() -> None:
         cwd=EXAMPLES.parent,
     )
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "1 passed, 2 deselected" in done.stdout
+    assert "2 passed, 2 deselected" in done.stdout
