@@ -8,6 +8,36 @@ import numpy as np
 
 HAS_PROC_STATM = os.path.exists("/proc/self/statm")
 
+# a 0.6 m deep pit under both wheel tracks at a station drawn from the env's generator
+PIT_SCENE = """
+name = "pit_0.6m"
+terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "goal", "stopped"]
+
+[terrain.course]
+length_m = 45.0
+
+[[obstacles]]
+kind = "pit"
+length_m = 1.0
+width_m = 2.5
+depth_m = 0.6
+station_m = [14.0, 20.0]
+
+[start]
+speed_mps = 6.944444444444445
+
+[episode]
+time_limit_s = 9.0
+
+[task]
+kind = "stop_before_hazard"
+
+[criteria]
+entered_negative_obstacle = false
+stopped_before = true
+min_stop_margin_m = 0.5
+"""
+
 
 def rss_mb() -> float:
     """Resident set size of this process [MB] (Linux /proc)."""

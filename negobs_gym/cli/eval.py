@@ -387,14 +387,7 @@ def run_paths(args: argparse.Namespace) -> int:
     """Draw the chosen episodes; logs each PNG."""
     from negobs_gym.eval.paths import draw_paths
 
-    written = draw_paths(
-        args.campaign_dir,
-        args.keys,
-        everything=args.everything,
-        limit=args.limit,
-        out_dir=args.to_dir,
-        zoom_m=args.zoom_m,
-    )
+    written = draw_paths(args.campaign_dir, args.keys, zoom_m=args.zoom_m, **_choice(args))
     return _report(written, "draw", args.campaign_dir)
 
 
@@ -402,15 +395,13 @@ def run_videos(args: argparse.Namespace) -> int:
     """Replay the chosen episodes into videos; prints each MP4."""
     from negobs_gym.eval.replay import replay_videos
 
-    written = replay_videos(
-        args.campaign_dir,
-        args.keys,
-        everything=args.everything,
-        limit=args.limit,
-        out_dir=args.to_dir,
-        model=args.model,
-    )
+    written = replay_videos(args.campaign_dir, args.keys, model=args.model, **_choice(args))
     return _report(written, "replay", args.campaign_dir)
+
+
+def _choice(args: argparse.Namespace) -> dict[str, Any]:
+    """The options of :func:`_add_episode_choice` besides the folder and keys, as keyword arguments."""
+    return {"everything": args.everything, "limit": args.limit, "out_dir": args.to_dir}
 
 
 def _report(written: list[Path], verb: str, campaign_dir: str) -> int:

@@ -14,36 +14,7 @@ from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M
 from negobs_gym.scenarios import ScenarioResult, run_scenario, run_scenario_seeds, spec_from_toml
 from negobs_gym.scenarios.runner import check_criteria
 from negobs_gym.scenarios.spec import CriteriaSpec
-
-# a 0.6 m deep pit under both wheel tracks at a station drawn from the env's generator
-PIT_SCENE = """
-name = "pit_0.6m"
-terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "goal", "stopped"]
-
-[terrain.course]
-length_m = 45.0
-
-[[obstacles]]
-kind = "pit"
-length_m = 1.0
-width_m = 2.5
-depth_m = 0.6
-station_m = [14.0, 20.0]
-
-[start]
-speed_mps = 6.944444444444445
-
-[episode]
-time_limit_s = 9.0
-
-[task]
-kind = "stop_before_hazard"
-
-[criteria]
-entered_negative_obstacle = false
-stopped_before = true
-min_stop_margin_m = 0.5
-"""
+from tests.helpers import PIT_SCENE
 
 
 @pytest.fixture(scope="module")

@@ -12,28 +12,7 @@ from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.vetoes import VETO_COLUMNS
 from negobs_gym.scenarios import ScenarioResult, run_scenario, spec_from_toml
 from negobs_gym.scenarios.tables import PATH_COLUMNS, RESULT_COLUMNS, TABLE_FILES, write_scenario_tables
-
-# the reckless driver behind the filter towards a 0.6 m deep pit: vetoes on every seed
-PIT_SCENE = """
-name = "pit_tables"
-terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "goal", "stopped"]
-[terrain.course]
-length_m = 40.0
-[[obstacles]]
-kind = "pit"
-length_m = 1.0
-width_m = 2.5
-depth_m = 0.6
-station_m = [14.0, 18.0]
-[start]
-speed_mps = 6.944444444444445
-[episode]
-time_limit_s = 7.0
-[task]
-kind = "stop_before_hazard"
-[criteria]
-stopped_before = true
-"""
+from tests.helpers import PIT_SCENE
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +22,7 @@ def spec():
 
 @pytest.fixture(scope="module")
 def results(spec) -> list[ScenarioResult]:
+    """The reckless driver behind the filter towards a 0.6 m deep pit: vetoes on every seed."""
     return [run_scenario(spec, seed=seed) for seed in (3, 4)]
 
 
@@ -60,7 +40,7 @@ def test_results_hold_one_row_per_seed_with_the_results_fields(results, tables) 
     rows = tables["results"]
     assert list(rows[0]) == list(RESULT_COLUMNS)
     keys = [(r["episode"], int(r["seed"])) for r in rows]
-    assert keys == [("pit_tables_seed3", 3), ("pit_tables_seed4", 4)]
+    assert keys == [("pit_0.6m_seed3", 3), ("pit_0.6m_seed4", 4)]
     for row, r in zip(rows, results, strict=True):
         assert r.vetoes > 0 and r.stopped_before  # the fixture's premise
         assert (row["filter"], row["driver"], row["passed"]) == ("filter", "reckless", "1")
@@ -76,7 +56,7 @@ def test_vetoes_hold_each_judgement_of_each_seed(results, tables) -> None:
     rows = tables["vetoes"]
     assert list(rows[0]) == list(VETO_COLUMNS)
     for r in results:
-        mine = [row for row in rows if row["episode"] == f"pit_tables_seed{r.seed}"]
+        mine = [row for row in rows if row["episode"] == f"pit_0.6m_seed{r.seed}"]
         assert len(mine) == len(r.veto_judgements) and sum(row["kind"] == "veto" for row in mine) == r.vetoes
         for row, j in zip(mine, r.veto_judgements, strict=True):
             assert int(row["step"]) == j.step
