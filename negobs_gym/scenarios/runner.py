@@ -134,6 +134,12 @@ class ScenarioResult:
         return len(self.missed_steps)
 
     @property
+    def veto_events(self) -> int:
+        """Braking events: runs of consecutive vetoed steps, each begun by an onset veto
+        (:attr:`~negobs_gym.eval.vetoes.VetoJudgement.onset`; the braking campaign's ``veto_events``)."""
+        return sum(j.onset for j in self.veto_judgements)
+
+    @property
     def passed(self) -> bool:
         """Every criterion named in the spec held."""
         return not self.failures

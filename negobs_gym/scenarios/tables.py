@@ -50,6 +50,7 @@ RESULT_COLUMNS = (
     "left_track",
     "max_decel_mps2",
     "vetoes",
+    "veto_events",
     "false_vetoes",
     "missed_vetoes",
     "max_veto_error_m",
@@ -92,7 +93,8 @@ def _result_row(r: ScenarioResult) -> str:
             *(_episode(r), r.scenario, r.seed, r.driver, _filter_label(r), r.passed, ";".join(r.failures)),
             *(r.task_done, r.steps, r.time_s, r.entered_negative_obstacle, r.stopped_before),
             *(nan_if_none(r.stop_margin_m), r.start_gap_m, r.collision, r.trapped, r.rollover),
-            *(r.goal_reached, r.left_track, r.max_decel_mps2, r.vetoes, r.false_vetoes, r.missed_vetoes),
+            *(r.goal_reached, r.left_track, r.max_decel_mps2, r.vetoes, r.veto_events, r.false_vetoes),
+            r.missed_vetoes,
             *(nan_if_none(r.max_veto_error_m), r.positive_gap_m, ";".join(r.termination), r.truncated),
         ]
     )

@@ -55,8 +55,11 @@ def test_results_hold_one_row_per_seed_with_the_results_fields(results, tables) 
 def test_vetoes_hold_each_judgement_of_each_seed(results, tables) -> None:
     rows = tables["vetoes"]
     assert list(rows[0]) == list(VETO_COLUMNS)
-    for r in results:
+    for r, result_row in zip(results, tables["results"], strict=True):
         mine = [row for row in rows if row["episode"] == f"pit_0.6m_seed{r.seed}"]
+        onsets = [int(row["step"]) for row in mine if row["onset"] == "1"]
+        assert onsets == [s for s in r.vetoed_steps if s - 1 not in r.vetoed_steps]
+        assert len(onsets) == r.veto_events == int(result_row["veto_events"]) >= 1
         assert len(mine) == len(r.veto_judgements) and sum(row["kind"] == "veto" for row in mine) == r.vetoes
         for row, j in zip(mine, r.veto_judgements, strict=True):
             assert int(row["step"]) == j.step
