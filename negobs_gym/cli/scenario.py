@@ -48,11 +48,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     p_run = sub.add_parser(
         "run",
-        help="run a scenario with a scripted driver; one line per seed; exit 1 if a criterion fails",
-        description="Runs SPEC once per seed and prints a result line each. Exits 1 when a seed "
-        "fails a criterion named in the spec's [criteria], 0 when all pass.",
+        help="run scenarios with a scripted driver or a trained policy; one line per seed; exit 1 if "
+        "a criterion fails",
+        description="Runs each SPEC once per seed, one after the other, and prints a result line "
+        "each. Exits 1 when a seed fails a criterion named in its spec's [criteria], 0 when all pass.",
     )
-    p_run.add_argument("spec", metavar="SPEC", help="shipped scenario name or TOML file")
+    p_run.add_argument(
+        "specs", nargs="+", metavar="SPEC", help="shipped scenario names or TOML files (a suite: several)"
+    )
     pilot = p_run.add_mutually_exclusive_group()
     pilot.add_argument(
         "--driver",
@@ -117,9 +120,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--out",
         metavar="DIR",
         default=None,
-        help="also write the run's tables into DIR: results.csv (a row per seed), vetoes.csv (each "
-        "veto and missed veto, judged on the ground truth), paths.csv and scenario.toml (the spec "
-        "as run; files already there are replaced)",
+        help="also write the run's tables into DIR (DIR/<scenario> each with several SPECs): "
+        "results.csv (a row per seed), vetoes.csv (each veto and missed veto, judged on the ground "
+        "truth), paths.csv and scenario.toml (the spec as run; files already there are replaced)",
     )
     add_set_option(p_run)
     p_run.set_defaults(handler=_run)
@@ -149,12 +152,12 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
-def _spec(args: argparse.Namespace) -> ScenarioSpec:
-    """The SPEC argument's scenario with the ``--set`` changes."""
+def _spec(args: argparse.Namespace, name: str | None = None) -> ScenarioSpec:
+    """The scenario ``name`` (default: the SPEC argument) with the ``--set`` changes."""
     from negobs_gym.scenarios import load_scenario
     from negobs_gym.scenarios.overrides import apply_overrides
 
-    return apply_overrides(load_scenario(args.spec), args.overrides)
+    return apply_overrides(load_scenario(args.spec if name is None else name), args.overrides)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -163,32 +166,42 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.zoom_m is not None and not args.draw:
         raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
-    spec = _run_spec(args)
+    specs = [_run_spec(args, name) for name in args.specs]  # every spec checked before any episode
+    names = [spec.name for spec in specs]
     if args.out is not None:
-        check_table_name(spec.name)
-    if spec.run.policy:
-        _check_policy(spec)
-    results = []
-    for result in run_scenario_seeds(
-        spec,
-        seeds=range(args.seed, args.seed + args.seeds),
-        workers=args.workers,
-        draw_dir=args.draw,
-        draw_zoom_m=args.zoom_m,
-        video_dir=args.video,
-    ):
-        print(result.line(), file=sys.stdout, flush=True)
-        results.append(result)
-    if args.out is not None:
-        written = write_scenario_tables(args.out, spec, results)
-        logging.getLogger("negobs_gym.cli").info("wrote %s", ", ".join(map(str, written)))
-    return 1 if any(not r.passed for r in results) else 0
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ConfigError("SPEC", f"{twice} named twice: their tables would share DIR/<scenario>")
+        for name in names:
+            check_table_name(name)
+    for policy in sorted({spec.run.policy for spec in specs} - {""}):
+        _check_policy(policy)
+    failed = False
+    for spec in specs:
+        results = []
+        for result in run_scenario_seeds(
+            spec,
+            seeds=range(args.seed, args.seed + args.seeds),
+            workers=args.workers,
+            draw_dir=args.draw,
+            draw_zoom_m=args.zoom_m,
+            video_dir=args.video,
+        ):
+            print(result.line(), file=sys.stdout, flush=True)
+            results.append(result)
+        failed |= any(not r.passed for r in results)
+        if args.out is not None:
+            out = Path(args.out) if len(specs) == 1 else Path(args.out) / spec.name
+            written = write_scenario_tables(out, spec, results)
+            logging.getLogger("negobs_gym.cli").info("wrote %s", ", ".join(map(str, written)))
+    return 1 if failed else 0
 
 
-def _run_spec(args: argparse.Namespace) -> ScenarioSpec:
-    """The spec with ``--set``, and ``--driver``, ``--filter`` and ``--stop-for-positive`` folded
-    into its ``[run]`` table: what ran, as ``scenario.toml`` records it."""
-    spec = _spec(args)
+def _run_spec(args: argparse.Namespace, name: str) -> ScenarioSpec:
+    """The scenario ``name`` with ``--set``, and ``--driver``, ``--policy``, ``--algo``,
+    ``--filter`` and ``--stop-for-positive`` folded into its ``[run]`` table: what ran, as
+    ``scenario.toml`` records it."""
+    spec = _spec(args, name)
     changes = {"driver": args.driver, "filter": args.filter, "policy_algo": args.algo}
     if args.driver is not None:
         changes["policy"] = ""  # the scripted driver named drives, not the spec's policy
@@ -200,16 +213,16 @@ def _run_spec(args: argparse.Namespace) -> ScenarioSpec:
     return dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
 
 
-def _check_policy(spec: ScenarioSpec) -> None:
-    """Before the first episode: the spec's policy exists (else a ConfigError naming
+def _check_policy(policy: str) -> None:
+    """Before the first episode: a spec's policy exists (else a ConfigError naming
     ``run.policy``), and the log names the env it was fitted on, to compare with the scenario's."""
     from negobs_gym.policies.baselines import recorded_env, resolve_model
     from negobs_gym.scenarios import describe_overrides
 
-    resolve_model(spec.run.policy, "run.policy")
-    recorded = recorded_env(spec.run.policy)
+    resolve_model(policy, "run.policy")
+    recorded = recorded_env(policy)
     fitted = "no record of the env it was fitted on" if recorded is None else describe_overrides(*recorded)
-    logging.getLogger("negobs_gym.cli").info("%s drives (%s)", spec.run.policy, fitted)
+    logging.getLogger("negobs_gym.cli").info("%s drives (%s)", policy, fitted)
 
 
 def _render(args: argparse.Namespace) -> int:

@@ -101,6 +101,32 @@ def test_run_out_writes_tables_that_the_written_spec_reproduces(tmp_path, capsys
         assert (again / name).read_bytes() == (first / name).read_bytes(), name
 
 
+def test_run_several_specs_as_a_suite(tmp_path, capsys):
+    """Several SPECs run one after the other, each checked before any episode; --out gives each
+    its folder; exit 1 when any seed of any spec fails."""
+    passing, failing = tmp_path / "a.toml", tmp_path / "b.toml"
+    passing.write_text(FAILING.format(entered="true").replace('"reckless_into_pit"', '"scene_a"'))
+    failing.write_text(FAILING.format(entered="false").replace('"reckless_into_pit"', '"scene_b"'))
+    out = tmp_path / "suite"
+    assert main(["scenario", "run", str(passing), str(failing), "--seeds", "2", "--out", str(out)]) == 1
+    lines = _lines(capsys)
+    assert [line.split()[:2] for line in lines] == [
+        ["scene_a", "seed=0"],
+        ["scene_a", "seed=1"],
+        ["scene_b", "seed=0"],
+        ["scene_b", "seed=1"],
+    ]
+    assert [line.endswith("PASS") for line in lines] == [True, True, False, False]
+    for name, passed in (("scene_a", "1"), ("scene_b", "0")):
+        assert [r["passed"] for r in read_csv(out / name / "results.csv")] == [passed, passed]
+        assert spec_from_toml((out / name / "scenario.toml").read_text()).name == name
+    assert main(["scenario", "run", str(passing), str(passing), "--out", str(out)]) == 2
+    assert "['scene_a'] named twice" in capsys.readouterr().err
+    assert main(["scenario", "run", str(passing), "no_such_scene"]) == 2
+    captured = capsys.readouterr()
+    assert "unknown scenario" in captured.err and captured.out == ""  # no episode ran
+
+
 def test_run_policy_drives_and_is_recorded_in_the_spec(tmp_path, capsys):
     """--policy: a trained policy drives; scenario.toml records it (run.policy), --driver takes the
     wheel back, and a policy that does not exist is refused before the first episode."""
