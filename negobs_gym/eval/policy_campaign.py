@@ -3,8 +3,9 @@
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
 rollover or trap during the episode, and it did not end by leaving the track), the failure events,
 whether leaving the track ended it (OffroadNav-v2's ``off_track`` rule), goal reached, progress
-along the track, distance driven, the filter's vetoes and the false ones among them (no true
-obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`), the
+along the track, distance driven, the filter's vetoes (steps) and the false ones among them (no
+true obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`),
+the braking events they make up (runs of vetoed steps, each begun by an onset veto), the
 steps it let through with a true hazard well inside R(v) (missed vetoes,
 :func:`~negobs_gym.eval.vetoes.is_missed_veto`), the summed constraint ``cost``
 (``info["cost"]``), the largest error of a veto's hazard distance (the distance it acted on
@@ -60,6 +61,7 @@ COLUMNS = (
     "distance_m",
     "steps",
     "vetoes",
+    "veto_events",
     "false_vetoes",
     "missed_vetoes",
     "max_veto_error_m",
@@ -79,6 +81,7 @@ SUMMED = (
     "progress_m",
     "distance_m",
     "vetoes",
+    "veto_events",
     "false_vetoes",
     "missed_vetoes",
     "cost",
@@ -189,8 +192,8 @@ def summarize(
     csv_path: str | Path, vetoes_csv: str | Path | None = None
 ) -> dict[str, dict[str, float | None]]:
     """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
-    track ended, mean progress, distance driven, vetoes and false vetoes (and each per km
-    driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
+    track ended, mean progress, distance driven, vetoes, veto events and false vetoes (and each
+    per km driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
     judge), cost, steps, and the share of them that ended off the track. With the campaign's
     ``vetoes.csv``, also the median of every judged veto's error (``median_veto_error_m``; None:
     none judged, or no ``vetoes.csv`` given) and of the onset vetoes' alone, those that began a
@@ -217,6 +220,7 @@ def summarize(
         s["progress_m"] += float(r["progress_m"])
         s["distance_m"] += float(r["distance_m"])
         s["vetoes"] += int(r["vetoes"])
+        s["veto_events"] += int(r["veto_events"])
         s["false_vetoes"] += int(r["false_vetoes"])
         s["missed_vetoes"] += int(r["missed_vetoes"])
         s["cost"] += float(r["cost"])
@@ -227,6 +231,7 @@ def summarize(
         s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
         km = s["distance_m"] / 1000.0
         s["vetoes_per_km"] = s["vetoes"] / km if km > 0 else 0.0
+        s["veto_events_per_km"] = s["veto_events"] / km if km > 0 else 0.0
         s["false_vetoes_per_km"] = s["false_vetoes"] / km if km > 0 else 0.0
         s["off_track_share"] = s["off_track_steps"] / s["steps"] if s["steps"] > 0 else 0.0
     for name, s in out.items():

@@ -78,6 +78,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     per_km = int(episode["vetoes"]) / km if km else 0
     assert float(fields["vetoes_per_km"]) == pytest.approx(per_km, abs=0.051)
     assert fields["false_vetoes"] == episode["false_vetoes"]
+    assert fields["veto_events"] == episode["veto_events"]  # the onset vetoes of vetoes.csv below
     assert int(episode["false_vetoes"]) <= int(episode["vetoes"])
     assert fields["missed_vetoes"] == episode["missed_vetoes"]
     error = float(episode["max_veto_error_m"])  # NaN: no veto with a true hazard
@@ -86,6 +87,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     vetoes = read_csv(out / "vetoes.csv")
     assert sum(v["kind"] == "veto" for v in vetoes) == int(episode["vetoes"])
     assert sum(v["kind"] == "missed" for v in vetoes) == int(episode["missed_vetoes"])
+    assert sum(v["onset"] == "1" for v in vetoes) == int(episode["veto_events"])
     judged = [float(v["error_m"]) for v in vetoes if v["kind"] == "veto" and v["error_m"] != "nan"]
     median = f"{float(np.median(judged)):+.2f}" if judged else "-"
     assert fields["median_veto_error_m"] == median
