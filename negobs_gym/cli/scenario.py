@@ -176,7 +176,8 @@ def _run(args: argparse.Namespace) -> int:
             check_table_name(name)
     for policy in sorted({spec.run.policy for spec in specs} - {""}):
         _check_policy(policy)
-    failed = False
+    log = logging.getLogger("negobs_gym.cli")
+    runs, failed = 0, []
     for spec in specs:
         results = []
         for result in run_scenario_seeds(
@@ -189,11 +190,16 @@ def _run(args: argparse.Namespace) -> int:
         ):
             print(result.line(), file=sys.stdout, flush=True)
             results.append(result)
-        failed |= any(not r.passed for r in results)
+        runs += len(results)
+        failed += [f"{r.scenario} seed={r.seed}" for r in results if not r.passed]
         if args.out is not None:
             out = Path(args.out) if len(specs) == 1 else Path(args.out) / spec.name
             written = write_scenario_tables(out, spec, results)
-            logging.getLogger("negobs_gym.cli").info("wrote %s", ", ".join(map(str, written)))
+            log.info("wrote %s", ", ".join(map(str, written)))
+    if failed:
+        log.warning("%d of %d runs failed a criterion: %s", len(failed), runs, ", ".join(failed))
+    else:
+        log.info("all %d runs passed", runs)
     return 1 if failed else 0
 
 

@@ -109,7 +109,8 @@ def test_run_several_specs_as_a_suite(tmp_path, capsys):
     failing.write_text(FAILING.format(entered="false").replace('"reckless_into_pit"', '"scene_b"'))
     out = tmp_path / "suite"
     assert main(["scenario", "run", str(passing), str(failing), "--seeds", "2", "--out", str(out)]) == 1
-    lines = _lines(capsys)
+    captured = capsys.readouterr()
+    lines = captured.out.splitlines()
     assert [line.split()[:2] for line in lines] == [
         ["scene_a", "seed=0"],
         ["scene_a", "seed=1"],
@@ -117,6 +118,7 @@ def test_run_several_specs_as_a_suite(tmp_path, capsys):
         ["scene_b", "seed=1"],
     ]
     assert [line.endswith("PASS") for line in lines] == [True, True, False, False]
+    assert "2 of 4 runs failed a criterion: scene_b seed=0, scene_b seed=1" in captured.err
     for name, passed in (("scene_a", "1"), ("scene_b", "0")):
         assert [r["passed"] for r in read_csv(out / name / "results.csv")] == [passed, passed]
         assert spec_from_toml((out / name / "scenario.toml").read_text()).name == name
