@@ -162,19 +162,20 @@ def _spec(args: argparse.Namespace, name: str | None = None) -> ScenarioSpec:
 
 def _run(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import run_scenario_seeds
-    from negobs_gym.scenarios.tables import check_table_name, write_scenario_tables
+    from negobs_gym.scenarios.tables import check_csv_text, write_scenario_tables
 
     if args.zoom_m is not None and not args.draw:
         raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
     specs = [_run_spec(args, name) for name in args.specs]  # every spec checked before any episode
     names = [spec.name for spec in specs]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice and (args.out or args.draw or args.video):
+        raise ConfigError("SPEC", f"{twice} named twice: their files would share the scenario's name")
+    policies = sorted({spec.run.policy for spec in specs} - {""})
     if args.out is not None:
-        twice = sorted({n for n in names if names.count(n) > 1})
-        if twice:
-            raise ConfigError("SPEC", f"{twice} named twice: their tables would share DIR/<scenario>")
-        for name in names:
-            check_table_name(name)
-    for policy in sorted({spec.run.policy for spec in specs} - {""}):
+        for field, text in [("name", n) for n in names] + [("run.policy", p) for p in policies]:
+            check_csv_text(field, text)
+    for policy in policies:
         _check_policy(policy)
     log = logging.getLogger("negobs_gym.cli")
     runs, failed = 0, []

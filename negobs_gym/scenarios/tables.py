@@ -23,7 +23,7 @@ from negobs_gym.eval.vetoes import VETO_COLUMNS, veto_rows
 from negobs_gym.scenarios.runner import ScenarioResult
 from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
 
-__all__ = ["PATH_COLUMNS", "RESULT_COLUMNS", "TABLE_FILES", "check_table_name", "write_scenario_tables"]
+__all__ = ["PATH_COLUMNS", "RESULT_COLUMNS", "TABLE_FILES", "check_csv_text", "write_scenario_tables"]
 
 #: ``results.csv``: one row per seed. ``passed`` = no criterion failed; ``failures`` and
 #: ``termination`` are ``;``-separated names (empty: none); ``stop_margin_m`` and
@@ -65,13 +65,14 @@ PATH_COLUMNS = ("episode", "seed", "step", "x_m", "y_m", "vetoed", "missed_veto"
 TABLE_FILES = ("results.csv", "vetoes.csv", "paths.csv", "scenario.toml")
 
 
-def check_table_name(name: str) -> None:
-    """Raise a ConfigError when a scenario's name cannot stand in a CSV cell (a comma, quote or
-    line break): a run with ``--out`` checks this before its first episode."""
+def check_csv_text(field: str, text: str) -> None:
+    """Raise a ConfigError naming ``field`` when ``text`` (a scenario's or a policy's name) cannot
+    stand in a CSV cell (a comma, quote or line break): a run with ``--out`` checks its names
+    before its first episode."""
     require(
-        not any(c in name for c in ',"\n\r'),
-        "name",
-        f"must hold no comma, quote or line break to be written to CSV, got {name!r}",
+        not any(c in text for c in ',"\n\r'),
+        field,
+        f"must hold no comma, quote or line break to be written to CSV, got {text!r}",
     )
 
 
@@ -88,16 +89,37 @@ def _result_row(r: ScenarioResult) -> str:
     def nan_if_none(value: float | None) -> float:
         return math.nan if value is None else value
 
-    return format_row(
-        [
-            *(_episode(r), r.scenario, r.seed, r.driver, _filter_label(r), r.passed, ";".join(r.failures)),
-            *(r.task_done, r.steps, r.time_s, r.entered_negative_obstacle, r.stopped_before),
-            *(nan_if_none(r.stop_margin_m), r.start_gap_m, r.collision, r.trapped, r.rollover),
-            *(r.goal_reached, r.left_track, r.max_decel_mps2, r.vetoes, r.veto_events, r.false_vetoes),
-            r.missed_vetoes,
-            *(nan_if_none(r.max_veto_error_m), r.positive_gap_m, ";".join(r.termination), r.truncated),
-        ]
-    )
+    values = {
+        "episode": _episode(r),
+        "scenario": r.scenario,
+        "seed": r.seed,
+        "driver": r.driver,
+        "filter": _filter_label(r),
+        "passed": r.passed,
+        "failures": ";".join(r.failures),
+        "task_done": r.task_done,
+        "steps": r.steps,
+        "time_s": r.time_s,
+        "entered": r.entered_negative_obstacle,
+        "stopped_before": r.stopped_before,
+        "stop_margin_m": nan_if_none(r.stop_margin_m),
+        "start_gap_m": r.start_gap_m,
+        "collision": r.collision,
+        "trapped": r.trapped,
+        "rollover": r.rollover,
+        "goal": r.goal_reached,
+        "left_track": r.left_track,
+        "max_decel_mps2": r.max_decel_mps2,
+        "vetoes": r.vetoes,
+        "veto_events": r.veto_events,
+        "false_vetoes": r.false_vetoes,
+        "missed_vetoes": r.missed_vetoes,
+        "max_veto_error_m": nan_if_none(r.max_veto_error_m),
+        "positive_gap_m": r.positive_gap_m,
+        "termination": ";".join(r.termination),
+        "truncated": r.truncated,
+    }
+    return format_row(values[c] for c in RESULT_COLUMNS)
 
 
 def _path_rows(r: ScenarioResult) -> list[str]:
@@ -119,10 +141,13 @@ def write_scenario_tables(
     each atomically (a file already there is replaced whole); returns their paths.
 
     Raises:
-        ConfigError: ``spec.name`` cannot stand in a CSV cell (:func:`check_table_name`).
+        ConfigError: the scenario's or a driver's name cannot stand in a CSV cell
+            (:func:`check_csv_text`), before anything is written.
     """
-    check_table_name(spec.name)
     results = list(results)
+    check_csv_text("name", spec.name)
+    for r in results:
+        check_csv_text("driver", r.driver)
     out = Path(out_dir)
     tables = {
         "results.csv": _csv(RESULT_COLUMNS, (_result_row(r) for r in results)),

@@ -85,3 +85,7 @@ def test_a_name_a_csv_cell_cannot_hold_is_refused_before_writing(spec, results, 
     with pytest.raises(ConfigError, match=r"name.*comma"):
         write_scenario_tables(tmp_path / "out", dataclasses.replace(spec, name="pit, wide"), results)
     assert not (tmp_path / "out").exists()
+    renamed = [dataclasses.replace(r, driver='my "best" policy') for r in results]  # a driver's name too
+    with pytest.raises(ConfigError, match=r"driver: must hold no comma, quote"):
+        write_scenario_tables(tmp_path / "out", spec, renamed)
+    assert not (tmp_path / "out").exists()
