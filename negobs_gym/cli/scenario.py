@@ -175,8 +175,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.out is not None:
         for field, text in [("name", n) for n in names] + [("run.policy", p) for p in policies]:
             check_csv_text(field, text)
-    for policy in policies:
-        _check_policy(policy)
+    for spec in specs:
+        if spec.run.policy:
+            _check_policy(spec)
     log = logging.getLogger("negobs_gym.cli")
     runs, failed = 0, []
     for spec in specs:
@@ -220,16 +221,27 @@ def _run_spec(args: argparse.Namespace, name: str) -> ScenarioSpec:
     return dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
 
 
-def _check_policy(policy: str) -> None:
-    """Before the first episode: a spec's policy exists (else a ConfigError naming
-    ``run.policy``), and the log names the env it was fitted on, to compare with the scenario's."""
+def _check_policy(spec: ScenarioSpec) -> None:
+    """Before the first episode: the spec's policy exists (else a ConfigError naming
+    ``run.policy``); the log names the env it was fitted on, and warns when the model was fitted
+    with ``--set`` settings that the scenario does not have (a grid it was not fitted on)."""
     from negobs_gym.policies.baselines import recorded_env, resolve_model
     from negobs_gym.scenarios import describe_overrides
+    from negobs_gym.scenarios.overrides import apply_overrides
 
+    policy, log = spec.run.policy, logging.getLogger("negobs_gym.cli")
     resolve_model(policy, "run.policy")
     recorded = recorded_env(policy)
     fitted = "no record of the env it was fitted on" if recorded is None else describe_overrides(*recorded)
-    logging.getLogger("negobs_gym.cli").info("%s drives (%s)", policy, fitted)
+    log.info("%s drives %s (%s)", policy, spec.name, fitted)
+    if recorded is not None and apply_overrides(spec, recorded[1]) != spec:
+        settings = " ".join(f"--set {s}" for s in recorded[1])
+        log.warning(
+            "%s was fitted with %s, which %s lacks: add them to drive it on its own grid",
+            policy,
+            settings,
+            spec.name,
+        )
 
 
 def _render(args: argparse.Namespace) -> int:

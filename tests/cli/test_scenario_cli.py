@@ -151,6 +151,19 @@ def test_run_policy_drives_and_is_recorded_in_the_spec(tmp_path, capsys):
     assert "not allowed with argument" in capsys.readouterr().err
 
 
+def test_run_policy_warns_when_the_scenario_lacks_its_fitted_settings(capsys):
+    """A model fitted with --set settings (its record) on a scenario without them: a warning that
+    names them; with them, none."""
+    fitted = "observation.tighten_pairs=false observation.lux_forward_m=2.0 observation.lux_ego_motion=false"
+    run = ["scenario", "run", "offroad_nav_v2", "--policy", "ppo_offroad_nav_v2_detector_clone"]
+    run += ["--set", "episode.time_limit_s=0.1"]
+    assert main(run) == 0
+    warning = "ppo_offroad_nav_v2_detector_clone was fitted with --set " + " --set ".join(fitted.split())
+    assert f"{warning}, which offroad_nav_v2 lacks" in capsys.readouterr().err
+    assert main([*run, *(f"--set={s}" for s in fitted.split())]) == 0
+    assert "was fitted with" not in capsys.readouterr().err
+
+
 def test_set_changes_a_setting_of_show_and_run(tmp_path, capsys):
     setting = ["--set", "observation.tighten_pairs=false", "--set", "episode.time_limit_s=3.5"]
     assert main(["scenario", "show", "paper_n_three_pits", *setting]) == 0
