@@ -295,10 +295,10 @@ def _driven_episode(
     obs, info = env.reset(seed=seed)
     dt = 1.0 / env.unwrapped.config.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
-    first_veto, veto_events, cost, still_s, steps, distance = math.nan, 0, 0.0, 0.0, 0, 0.0
+    first_veto, cost, still_s, steps, distance = math.nan, 0.0, 0.0, 0, 0.0
     tally = VetoTally(positive=guard is not None and guard.stop_for_positive)
     events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
-    goal, was_vetoed, done, off_track_steps = False, False, False, 0
+    goal, done, off_track_steps = False, False, 0
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
     path = [_path_point(info, False, False)]
     while not done and steps < max_steps:
@@ -313,10 +313,8 @@ def _driven_episode(
         goal |= bool(info.get("goal_reached", False))
         off_track_steps += bool(info.get("off_track", False))
         vetoed, missed = tally.add(env.unwrapped, info.get("safety"), before, steps)
-        if vetoed:
-            veto_events += not was_vetoed
-            first_veto = gap if math.isnan(first_veto) else first_veto
-        was_vetoed = vetoed
+        if vetoed and math.isnan(first_veto):
+            first_veto = gap
         path.append(_path_point(info, vetoed, missed))
         cost += float(info.get("cost", 0.0))
         still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
@@ -337,7 +335,7 @@ def _driven_episode(
         "final_gap_m": float(info["distance_to_negative_ahead_m"]),
         "first_veto_gap_m": first_veto,
         "vetoes": len(tally.vetoed_steps),
-        "veto_events": veto_events,
+        "veto_events": tally.veto_events,
         "false_vetoes": tally.false_vetoes,
         "missed_vetoes": len(tally.missed_steps),
         "max_veto_error_m": largest_veto_error_m(tally.errors_m, math.nan),
@@ -403,16 +401,17 @@ class ConfigurationSummary:
     @property
     def median_veto_error_m(self) -> float | None:
         """The median of :attr:`veto_errors_m` (None: none judged, or no ``vetoes.csv`` read)."""
-        return _median(self.veto_errors_m)
+        return median_or_none(self.veto_errors_m)
 
     @property
     def median_onset_veto_error_m(self) -> float | None:
         """The median of :attr:`onset_veto_errors_m`: where the braking events began, against the
         truth (None: none judged, or no ``vetoes.csv`` read)."""
-        return _median(self.onset_veto_errors_m)
+        return median_or_none(self.onset_veto_errors_m)
 
 
-def _median(values: Sequence[float]) -> float | None:
+def median_or_none(values: Sequence[float]) -> float | None:
+    """The median of ``values``; None when there are none."""
     return float(np.median(values)) if values else None
 
 
@@ -421,18 +420,21 @@ def _flag(row: Mapping[str, str], key: str) -> bool:
 
 
 def veto_errors_by(
-    vetoes_csv: str | Path, group: Callable[[dict[str, str]], str], *, onsets_only: bool = False
-) -> dict[str, list[float]]:
+    vetoes_csv: str | Path, group: Callable[[dict[str, str]], str]
+) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
     """Every judged veto error of a ``vetoes.csv`` (:data:`VETO_COLUMNS`; vetoes whose ``error_m``
-    is not NaN), in row order, grouped by ``group(row)``; with ``onsets_only`` the onset vetoes'
-    alone (``onset`` = 1: those that began a braking event)."""
-    out: dict[str, list[float]] = {}
+    is not NaN), in row order, grouped by ``group(row)``; and the same of the onset vetoes alone
+    (``onset`` = 1: those that began a braking event). One pass over the file."""
+    errors: dict[str, list[float]] = {}
+    onsets: dict[str, list[float]] = {}
     for row in read_csv(vetoes_csv):
         if row["kind"] != "veto" or math.isnan(float(row["error_m"])):
             continue
-        if not onsets_only or row["onset"] == "1":
-            out.setdefault(group(row), []).append(float(row["error_m"]))
-    return out
+        key, error = group(row), float(row["error_m"])
+        errors.setdefault(key, []).append(error)
+        if row["onset"] == "1":
+            onsets.setdefault(key, []).append(error)
+    return errors, onsets
 
 
 def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> list[ConfigurationSummary]:
@@ -453,8 +455,7 @@ def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> lis
         )
         return names[veto["episode"]]
 
-    errors = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration)
-    onsets = {} if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration, onsets_only=True)
+    errors, onsets = ({}, {}) if vetoes_csv is None else veto_errors_by(vetoes_csv, configuration)
     out = []
     for name, rows in groups.items():
         obstacle = not obstacle_free(rows[0]["scenario"])

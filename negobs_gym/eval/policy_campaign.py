@@ -29,11 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import (
     PATH_COLUMNS,
+    median_or_none,
     path_rows,
     run_driven_episode,
     veto_errors_by,
@@ -239,10 +238,10 @@ def summarize(
         s["max_veto_error_m"] = largest_veto_error_m(errors)
         s["median_veto_error_m"] = s["median_onset_veto_error_m"] = None
     if vetoes_csv is not None:
-        for key, onsets_only in (("median_veto_error_m", False), ("median_onset_veto_error_m", True)):
-            judged = veto_errors_by(vetoes_csv, lambda r: r["filter"], onsets_only=onsets_only)
-            for name, s in out.items():
-                s[key] = float(np.median(judged[name])) if name in judged else None
+        errors, onsets = veto_errors_by(vetoes_csv, lambda r: r["filter"])
+        for name, s in out.items():
+            s["median_veto_error_m"] = median_or_none(errors.get(name, []))
+            s["median_onset_veto_error_m"] = median_or_none(onsets.get(name, []))
     return out
 
 

@@ -301,6 +301,11 @@ class VetoTally:
         return [e for e in (j.error_m for j in self.judgements if j.onset) if e is not None]
 
     @property
+    def veto_events(self) -> int:
+        """Braking events: runs of consecutive vetoed steps, one per onset veto."""
+        return sum(j.onset for j in self.judgements)
+
+    @property
     def max_error_m(self) -> float | None:
         """The largest judged veto error (None: no veto to judge)."""
         return largest_veto_error_m(self.errors_m)

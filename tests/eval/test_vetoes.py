@@ -162,6 +162,7 @@ def test_a_tally_judges_each_step_once(env_info) -> None:
     assert (late.onset, false.onset, missed.onset) == (True, False, False)
     assert tally.add(env, _record(truth - 0.1, 0.18), info, 6) == (True, False)
     assert tally.judgements[-1].onset and tally.onset_errors_m == pytest.approx([0.4, -0.1])
+    assert tally.veto_events == 2  # steps 1-2 and step 6
 
 
 def test_a_judgement_keeps_the_filters_speed_and_actions(env_info) -> None:
