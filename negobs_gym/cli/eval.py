@@ -215,6 +215,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     video.set_defaults(handler=run_videos)
 
+    compare = commands.add_parser(
+        "compare",
+        help="two policy or braking campaigns (or two groups of one) episode against episode: "
+        "rates with 95%% intervals, exact McNemar and Wilcoxon signed-rank tests",
+        description="Pairs the episodes of two `negobs eval policy|braking --out` folders by seed "
+        "(braking: scenario and seed) and compares each outcome (goal, entries, stops before the "
+        "obstacle, ...) with the exact McNemar test and each measure (progress, gaps, braking "
+        "events) with the Wilcoxon signed-rank test; prints markdown tables. A side is DIR or "
+        "DIR:GROUP, GROUP a filter setting of a policy campaign (nofilter, filter, "
+        "filter_positive) or a driver/filter of a braking campaign (reckless/filter). With one "
+        "side only: its folder's two groups (a policy campaign run with --filter both).",
+    )
+    compare.add_argument("a", metavar="A", help="DIR or DIR:GROUP")
+    compare.add_argument(
+        "b", metavar="B", nargs="?", default=None, help="DIR or DIR:GROUP (default: A's other group)"
+    )
+    compare.add_argument(
+        "--out", default=None, metavar="DIR", help="also write compare.md and compare.json there"
+    )
+    compare.set_defaults(handler=run_compare)
+
 
 def _add_episode_choice(parser: argparse.ArgumentParser, verb: str, folder: str, files: str) -> None:
     """The campaign folder and the options that choose its episodes (``negobs eval paths``, ``video``)."""
@@ -326,6 +347,7 @@ def run_braking(args: argparse.Namespace) -> int:
 def run_policy(args: argparse.Namespace) -> int:
     """The policy evaluation; prints one line per filter setting."""
     from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
+    from negobs_gym.eval.stats import format_interval
     from negobs_gym.eval.vetoes import format_veto_error
 
     filters = {"off": (False,), "on": (True,), "both": (False, True), None: None}[args.filter]
@@ -368,6 +390,9 @@ def run_policy(args: argparse.Namespace) -> int:
         print(
             f"{label}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
             f"goal={int(s['goals'])}/{int(s['episodes'])} "
+            f"success_interval={format_interval(s['success_interval'])} "
+            f"goal_interval={format_interval(s['goal_interval'])} "
+            f"entry_interval={format_interval(s['entry_interval'])} "
             f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
             f"left_track={int(s['left_track'])} mean_progress_m={s['mean_progress_m']:.2f} "
             f"vetoes={int(s['vetoes'])} "
@@ -398,6 +423,17 @@ def run_videos(args: argparse.Namespace) -> int:
 
     written = replay_videos(args.campaign_dir, args.keys, model=args.model, **_choice(args))
     return _report(written, "replay", args.campaign_dir)
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    """Compare two campaign sides; prints the tables."""
+    from negobs_gym.eval.compare import compare_campaigns, load_sides, write_comparison
+
+    comparison = compare_campaigns(*load_sides(args.a, args.b))
+    print(comparison.markdown(), end="")
+    if args.out is not None:
+        log.info("wrote %s and %s", *write_comparison(comparison, args.out))
+    return 0
 
 
 def _choice(args: argparse.Namespace) -> dict[str, Any]:

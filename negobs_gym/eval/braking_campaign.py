@@ -28,6 +28,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.stats import format_interval
 from negobs_gym.eval.vetoes import (
     VETO_COLUMNS,
     VetoTally,
@@ -399,6 +400,13 @@ class ConfigurationSummary:
     onset_veto_errors_m: list[float] = field(default_factory=list)  # the onset vetoes' alone
 
     @property
+    def stopped_before_interval(self) -> tuple[float, float] | None:
+        """The 95 % Wilson interval of the stopped-before rate (None: an obstacle-free scenario)."""
+        from negobs_gym.eval.stats import rate_interval
+
+        return rate_interval(self.stopped_before, self.episodes) if self.obstacle else None
+
+    @property
     def median_veto_error_m(self) -> float | None:
         """The median of :attr:`veto_errors_m` (None: none judged, or no ``vetoes.csv`` read)."""
         return median_or_none(self.veto_errors_m)
@@ -493,6 +501,8 @@ def summary_json(summaries: Sequence[ConfigurationSummary]) -> str:
 def summary_line(s: ConfigurationSummary) -> str:
     """The one-line result of a configuration, e.g. ``ditch/reckless/filter stopped_before=9/10 ...``."""
     text = f"{s.name} stopped_before={s.stopped_before}/{s.episodes} entries={s.entries}/{s.episodes}"
+    if s.obstacle:
+        text += f" stopped_before_interval={format_interval(s.stopped_before_interval)}"
     if s.false_vetoes_per_km is not None:
         text += f" false_vetoes_per_km={s.false_vetoes_per_km:.2f} ({s.veto_events} in {s.km:.3f} km)"
     if s.stop_margins_m:
@@ -515,6 +525,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
             s.episodes,
             s.entries,
             s.stopped_before,
+            format_interval(s.stopped_before_interval),
             "-" if not s.stop_margins_m else float(np.median(s.stop_margins_m)),
             "-" if not s.first_veto_gaps_m else float(np.median(s.first_veto_gaps_m)),
             "-" if s.false_vetoes_per_km is None else s.false_vetoes_per_km,
@@ -531,6 +542,7 @@ def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
         "episodes",
         "entries",
         "stopped before",
+        "stopped before (95 % interval)",
         "median stop margin [m]",
         "median first-veto gap [m]",
         "false vetoes per km",

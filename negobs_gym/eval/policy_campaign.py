@@ -38,6 +38,7 @@ from negobs_gym.eval.braking_campaign import (
     veto_errors_by,
 )
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
 from negobs_gym.policies.model_driver import ModelDriver
 from negobs_gym.safety.filter import SafetyFilterConfig
@@ -187,11 +188,10 @@ def run_episode(episode: Episode) -> Rows:
     }
 
 
-def summarize(
-    csv_path: str | Path, vetoes_csv: str | Path | None = None
-) -> dict[str, dict[str, float | None]]:
-    """Per filter setting: episodes, success rate, entries, collisions, episodes that leaving the
-    track ended, mean progress, distance driven, vetoes, veto events and false vetoes (and each
+def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> dict[str, dict[str, Any]]:
+    """Per filter setting: episodes, success rate, entries, collisions (each rate of the four with
+    its 95 % Wilson interval, ``goal_interval`` etc.), episodes that leaving the track ended, mean
+    progress, distance driven, vetoes, veto events and false vetoes (and each
     per km driven), missed vetoes, the largest veto error (``max_veto_error_m``; None: no veto to
     judge), cost, steps, and the share of them that ended off the track. With the campaign's
     ``vetoes.csv``, also the median of every judged veto's error (``median_veto_error_m``; None:
@@ -201,7 +201,7 @@ def summarize(
     Raises:
         ConfigError: the CSV lacks columns of :data:`COLUMNS` (written by an older version).
     """
-    out: dict[str, dict[str, float]] = {}
+    out: dict[str, dict[str, Any]] = {}
     rows = read_csv(csv_path)
     missing = [c for c in COLUMNS if rows and c not in rows[0]]
     require(not missing, "csv_path", f"{csv_path} lacks the columns {missing}: written by an older version")
@@ -226,7 +226,15 @@ def summarize(
         s["steps"] += int(r["steps"])
         s["off_track_steps"] += int(r["off_track_steps"])
     for s in out.values():
-        s["success_rate"] = s["successes"] / s["episodes"]
+        n = int(s["episodes"])
+        for count, rate in (
+            ("successes", "success"),
+            ("goals", "goal"),
+            ("entries", "entry"),
+            ("collisions", "collision"),
+        ):
+            s[f"{rate}_rate"] = s[count] / n
+            s[f"{rate}_interval"] = rate_interval(int(s[count]), n)
         s["mean_progress_m"] = s.pop("progress_m") / s["episodes"]
         km = s["distance_m"] / 1000.0
         s["vetoes_per_km"] = s["vetoes"] / km if km > 0 else 0.0
@@ -249,7 +257,7 @@ def run_policy_campaign(
     config: PolicyCampaignConfig,
     out_dir: str | Path,
     options: RunOptions | None = None,
-) -> tuple[Path, Path, dict[str, dict[str, float | None]]]:
+) -> tuple[Path, Path, dict[str, dict[str, Any]]]:
     """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
     from negobs_gym.core.files import write_text_atomic
     from negobs_gym.eval.campaign import run_campaign

@@ -15,6 +15,7 @@ from negobs_gym.cli.eval import build_config, load_toml
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
+from negobs_gym.eval.stats import format_interval, rate_interval
 from negobs_gym.scenarios import spec_from_toml
 
 
@@ -81,6 +82,10 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert fields["veto_events"] == episode["veto_events"]  # the onset vetoes of vetoes.csv below
     assert int(episode["false_vetoes"]) <= int(episode["vetoes"])
     assert fields["missed_vetoes"] == episode["missed_vetoes"]
+    # the rates' 95 % Wilson intervals: one episode, no goal
+    assert fields["goal_interval"] == format_interval(rate_interval(0, 1)) == "0.00-0.79"
+    success = int(episode["success"])
+    assert fields["success_interval"] == format_interval(rate_interval(success, 1))
     error = float(episode["max_veto_error_m"])  # NaN: no veto with a true hazard
     assert fields["veto_error_m"] == ("-" if math.isnan(error) else f"{error:+.2f}")
     # each veto judged in vetoes.csv: as many rows as the episode's vetoes and missed vetoes

@@ -50,6 +50,14 @@ def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> 
     assert " missed_vetoes=0 veto_error_m=" in lines["ditch/reckless/filter"]
     assert "missed_vetoes" not in lines["ditch/reckless/nofilter"]
     assert "false_vetoes_per_km=" in lines["free_track/reckless/filter"]
+    # the stopped-before rate's 95 % Wilson interval, where there is an obstacle to stop for
+    assert "stopped_before_interval=0.21-1.00" in lines["ditch/reckless/filter"]
+    assert "stopped_before_interval" not in lines["free_track/reckless/filter"]
+    # the two filter settings episode against episode: the filter alone stopped before the ditch
+    assert main(["eval", "compare", f"{out}:reckless/nofilter", f"{out}:reckless/filter"]) == 0
+    compared = capsys.readouterr().out
+    assert "2 episodes paired by seed" in compared
+    assert "| stopped_before | 1 | 0 (0.00-0.79) | 1 (0.21-1.00) | 0 | 1 | -1.00 | 1 |" in compared
     summaries = [ConfigurationSummary(**d) for d in json.loads((out / "summary.json").read_text())]
     ditch = next(s for s in summaries if s.name == "ditch/reckless/filter")
     assert len(ditch.stop_margins_m) == 1 and ditch.stop_margins_m[0] > 0
