@@ -44,3 +44,35 @@ def test_an_observation_the_policy_was_not_trained_on_is_named() -> None:
     spec = apply_overrides(load_scenario("paper_n_mud_pit"), SETTINGS)  # a 4-channel grid, v1 saw 2
     with pytest.raises(ConfigError, match=r"policy: the env's observation does not fit ppo_offroad_nav_v1's"):
         run_scenario(spec, seed=0)
+
+
+def test_a_spec_file_reads_its_policy_beside_it(tmp_path, monkeypatch) -> None:
+    from negobs_gym.policies.baselines import resolve_model
+    from negobs_gym.scenarios import spec_to_toml
+
+    suite = tmp_path / "suite"
+    (suite / "models").mkdir(parents=True)
+    (suite / "models" / "mine.zip").write_bytes(open(resolve_model("ppo_offroad_nav_v1"), "rb").read())
+    for name, policy in [
+        ("beside", "models/mine.zip"),
+        ("stem", "models/mine"),
+        ("shipped", "ppo_offroad_nav_v1"),
+    ]:
+        text = spec_to_toml(apply_overrides(load_scenario("offroad_nav_v1"), [f"run.policy={policy}"]))
+        (suite / f"{name}.toml").write_text(text)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # the models do not lie under the working directory
+    assert load_scenario(suite / "beside.toml").run.policy == str(suite / "models" / "mine.zip")
+    assert load_scenario(suite / "stem.toml").run.policy == str(suite / "models" / "mine")
+    assert load_scenario(suite / "shipped.toml").run.policy == "ppo_offroad_nav_v1"  # a name stays one
+    # a path to no model beside the file stays as written (read from the working directory)
+    (elsewhere / "models").mkdir()
+    (elsewhere / "models" / "other.zip").write_bytes(b"")
+    text = spec_to_toml(apply_overrides(load_scenario("offroad_nav_v1"), ["run.policy=models/other.zip"]))
+    (suite / "cwd.toml").write_text(text)
+    assert load_scenario(suite / "cwd.toml").run.policy == "models/other.zip"
+    # the CLI runs the suite's spec from here (it refused a model it could not find: exit 2)
+    run = ["-q", "scenario", "run", str(suite / "beside.toml"), "--seeds", "1"]
+    assert main([*run, "--set", "episode.time_limit_s=0.3", "--out", str(tmp_path / "out")]) == 0
+    assert read_csv(tmp_path / "out" / "results.csv")[0]["driver"] == str(suite / "models" / "mine.zip")
