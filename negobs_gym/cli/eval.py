@@ -389,11 +389,11 @@ def run_policy(args: argparse.Namespace) -> int:
     for name, s in summary.items():
         print(
             f"{label}/{name} success={int(s['successes'])}/{int(s['episodes'])} "
-            f"goal={int(s['goals'])}/{int(s['episodes'])} "
             f"success_interval={format_interval(s['success_interval'])} "
+            f"goal={int(s['goals'])}/{int(s['episodes'])} "
             f"goal_interval={format_interval(s['goal_interval'])} "
-            f"entry_interval={format_interval(s['entry_interval'])} "
-            f"entries={int(s['entries'])} collisions={int(s['collisions'])} "
+            f"entries={int(s['entries'])} entry_interval={format_interval(s['entry_interval'])} "
+            f"collisions={int(s['collisions'])} "
             f"left_track={int(s['left_track'])} mean_progress_m={s['mean_progress_m']:.2f} "
             f"vetoes={int(s['vetoes'])} "
             f"vetoes_per_km={s['vetoes_per_km']:.1f} veto_events={int(s['veto_events'])} "
@@ -430,7 +430,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from negobs_gym.eval.compare import compare_campaigns, load_sides, write_comparison
 
     comparison = compare_campaigns(*load_sides(args.a, args.b))
-    print(comparison.markdown(), end="")
+    print(comparison.markdown(), end="", flush=True)  # before the log line on a shared terminal
     if args.out is not None:
         log.info("wrote %s and %s", *write_comparison(comparison, args.out))
     return 0
