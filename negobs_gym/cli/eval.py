@@ -84,13 +84,13 @@ def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``eval``: its three campaign commands and ``paths``, which draws a policy or braking
-    campaign's drives."""
+    """Add ``eval``: its three campaign commands, ``paths`` and ``video``, which draw and replay a
+    policy or braking campaign's drives, and ``compare``, which tests two campaigns seed by seed."""
     parser = subparsers.add_parser(
         "eval",
         help="evaluation campaigns: detection recall (paper N Tables 6/7, Fig. 16), braking, a policy; "
         "paths draws a policy or braking campaign's drives, video replays a policy or braking "
-        "campaign's episodes as MP4s",
+        "campaign's episodes as MP4s, compare tests two campaigns seed by seed",
         description="Evaluation campaigns: detection recall and false alarms, braking at 25 km/h, "
         "a saved policy. Each writes CSVs, a JSON summary, tables and PNGs under --out.",
     )
@@ -217,15 +217,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     compare = commands.add_parser(
         "compare",
-        help="two policy or braking campaigns (or two groups of one) episode against episode: "
-        "rates with 95%% intervals, exact McNemar and Wilcoxon signed-rank tests",
-        description="Pairs the episodes of two `negobs eval policy|braking --out` folders by seed "
-        "(braking: scenario and seed) and compares each outcome (goal, entries, stops before the "
-        "obstacle, ...) with the exact McNemar test and each measure (progress, gaps, braking "
-        "events) with the Wilcoxon signed-rank test; prints markdown tables. A side is DIR or "
-        "DIR:GROUP, GROUP a filter setting of a policy campaign (nofilter, filter, "
-        "filter_positive) or a driver/filter of a braking campaign (reckless/filter). With one "
-        "side only: its folder's two groups (a policy campaign run with --filter both).",
+        help="two policy or braking campaigns or scenario runs (or two groups of one) episode "
+        "against episode: rates with 95%% intervals, exact McNemar and Wilcoxon signed-rank tests",
+        description="Pairs the episodes of two `negobs eval policy|braking --out` or `negobs "
+        "scenario run --out` folders by seed (braking, scenario: scenario and seed) and compares "
+        "each outcome (goal, entries, stops before the obstacle, ...) with the exact McNemar test "
+        "and each measure (progress, gaps, braking events) with the Wilcoxon signed-rank test; "
+        "prints markdown tables. A side is DIR or DIR:GROUP, GROUP a filter setting of a policy "
+        "campaign (nofilter, filter, filter_positive) or a driver/filter of a braking campaign or "
+        "scenario run (reckless/filter, ppo_offroad_nav_v1/nofilter). With one side only: its "
+        "folder's two groups (a policy campaign run with --filter both).",
     )
     compare.add_argument("a", metavar="A", help="DIR or DIR:GROUP")
     compare.add_argument(

@@ -1,12 +1,13 @@
 """Two campaigns, or two groups of one, compared episode against episode on the seeds both ran.
 
-A side is a ``negobs eval policy`` or ``negobs eval braking`` output folder and one group of its
-episodes: a filter setting of a policy campaign (``nofilter``, ``filter``, ``filter_positive``), a
-driver and filter of a braking campaign (``reckless/filter``). Episodes pair by seed (policy) or
-by scenario and seed (braking): within one env's terrain settings a seed is one course, so the
-two sides met the same ground. Each outcome is tested with the exact McNemar test, each measure
-with the Wilcoxon signed-rank test (:mod:`negobs_gym.eval.stats`); the rates carry their Wilson
-intervals. Reads the CSVs only: no simulator is imported.
+A side is a ``negobs eval policy``, ``negobs eval braking`` or ``negobs scenario run`` output
+folder and one group of its episodes: a filter setting of a policy campaign (``nofilter``,
+``filter``, ``filter_positive``), a driver and filter of a braking campaign or a scenario run
+(``reckless/filter``). Episodes pair by seed (policy) or by scenario and seed (braking, scenario):
+within one env's terrain settings a seed is one course, so the two sides met the same ground.
+Each outcome is tested with the exact McNemar test, each measure with the Wilcoxon signed-rank
+test (:mod:`negobs_gym.eval.stats`); the rates carry their Wilson intervals. Reads the CSVs
+only: no simulator is imported.
 """
 
 from __future__ import annotations
@@ -96,6 +97,17 @@ KINDS = {
         ),
         measures=("final_gap_m", "first_veto_gap_m", "veto_events"),
     ),
+    "scenario": _Kind(
+        table="results",
+        key=lambda row: (row["scenario"], row["seed"]),
+        group=lambda row: f"{row['driver']}/{row['filter']}",
+        context="scenario",
+        outcomes=tuple(
+            _Outcome(name, _flag(name))
+            for name in ("passed", "task_done", "entered", "stopped_before", "collision", "goal")
+        ),
+        measures=("stop_margin_m", "max_decel_mps2", "veto_events"),
+    ),
 }
 
 
@@ -104,7 +116,7 @@ class CampaignSide:
     """One group of one campaign's episodes, by pair key."""
 
     folder: Path
-    kind: str  # "policy" or "braking"
+    kind: str  # "policy", "braking" or "scenario"
     group: str
     rows: dict[tuple[str, ...], dict[str, str]]
     driven: tuple[str, ...]  # the env ids (policy) or scenarios (braking) its episodes ran
@@ -128,7 +140,8 @@ def _groups(folder: Path) -> tuple[str, dict[str, list[dict[str, str]]]]:
     require(
         len(found) == 1,
         "campaign_dir",
-        f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
+        f"no policy.csv, braking.csv or results.csv in {folder}: not a `negobs eval policy|braking "
+        "--out` or `negobs scenario run --out` folder",
     )
     kind = KINDS[found[0]]
     groups: dict[str, list[dict[str, str]]] = {}
@@ -141,7 +154,7 @@ def load_side(folder: str | Path, group: str | None = None) -> CampaignSide:
     """One group of a campaign folder; ``group`` may be left out where the folder has only one.
 
     Raises:
-        ConfigError: not a policy or braking campaign folder (field ``campaign_dir``), or the group
+        ConfigError: not a policy, braking or scenario folder (field ``campaign_dir``), or the group
             is missing, unknown or ambiguous (field ``group``, naming the folder's groups).
     """
     folder = Path(folder)

@@ -119,7 +119,34 @@ def test_bad_sides_are_refused_naming_the_problem(tmp_path: Path, capsys) -> Non
     with pytest.raises(ConfigError, match=r"holds the groups \['filter'\]: name both sides"):
         load_sides(str(other))
     assert main(["eval", "compare", str(tmp_path)]) == 2
-    assert "not a `negobs eval policy|braking --out` folder" in capsys.readouterr().err
+    assert (
+        "not a `negobs eval policy|braking --out` or `negobs scenario run --out` folder"
+        in capsys.readouterr().err
+    )
     assert split_side(f"{pol}:nofilter") == (pol, "nofilter") and split_side(str(pol)) == (pol, None)
     written = write_comparison(compare_campaigns(*load_sides(str(pol))), tmp_path / "new" / "dir")
     assert [p.exists() for p in written] == [True, True]
+
+
+def test_scenario_runs_compare_by_driver_and_filter(tmp_path: Path) -> None:
+    from negobs_gym.scenarios.tables import RESULT_COLUMNS
+
+    def run(folder: str, driver: str, flt: str, stops: list[int]) -> Path:
+        rows = [
+            {"episode": f"pit_seed{seed}", "scenario": "pit", "seed": seed, "driver": driver, "filter": flt}
+            | {"passed": stop, "stopped_before": stop, "entered": 1 - stop, "stop_margin_m": 2.0 + seed}
+            for seed, stop in enumerate(stops)
+        ]
+        return write_table(tmp_path / folder / "results.csv", RESULT_COLUMNS, rows)
+
+    on, off = run("on", "ppo_offroad_nav_v1", "filter", [1] * 7), run("off", "reckless", "nofilter", [0] * 7)
+    c = compare_campaigns(*load_sides(str(on), str(off)))
+    assert (c.a.kind, c.a.group, c.b.group, c.pairs) == (
+        "scenario",
+        "ppo_offroad_nav_v1/filter",
+        "reckless/nofilter",
+        7,
+    )
+    stops = next(r for r in c.rates if r.name == "stopped_before")
+    assert (stops.a_only, stops.p_value) == (7, pytest.approx(2 / 2**7))  # seven seeds, all one way
+    assert next(s for s in c.shifts if s.name == "stop_margin_m").median_difference == 0.0
