@@ -262,7 +262,10 @@ class DetectionSummary:
     ``occurrences[s][d]`` is Table 6 (ground-truth obstacle-frames per size and distance bin),
     ``recalled[mode][s][d]`` the recalled ones (Table 7 = recalled / occurrences). False alarms
     per mode: ``total``, ``on_track``, ``off_track`` counts. ``fig16[mode][d]`` is the recall of
-    25-34-cell obstacles per distance bin (None where none was seen).
+    25-34-cell obstacles per distance bin (None where none was seen), ``fig16_interval[mode][d]``
+    its 95 % interval, ``[low, high]``, from resampling the courses (seeds) with replacement
+    (:func:`~negobs_gym.eval.stats.seed_bootstrap_interval`; None where none was seen, or with one
+    course only; empty in summaries written before it).
     """
 
     episodes: int
@@ -274,6 +277,7 @@ class DetectionSummary:
     recalled: dict[str, list[list[int]]]
     false_alarms: dict[str, dict[str, int]]
     fig16: dict[str, list[float | None]]
+    fig16_interval: dict[str, list[list[float] | None]] = field(default_factory=dict)
 
     def recall(self, mode: str = "fused") -> np.ndarray:
         """Table 7 recall of ``mode`` (NaN where nothing was seen)."""
@@ -313,7 +317,11 @@ def summarize(
     occurrences = np.zeros(shape, dtype=np.int64)
     np.add.at(occurrences, (s[ok], d[ok]), 1)
     fig_rows = (cells >= FIG16_CELLS[0]) & (cells < FIG16_CELLS[1]) & (d >= 0) & (d < shape[1])
-    recalled, fig16, false_alarms = {}, {}, {}
+    recalled, fig16, fig16_interval, false_alarms = {}, {}, {}, {}
+    courses, course = np.unique(
+        np.array([int(r["seed"]) for r in obs_rows], dtype=np.int64), return_inverse=True
+    )
+    per_course = (course[fig_rows], d[fig_rows])  # Fig. 16 counts per (course, distance bin)
     for m in SENSOR_MODES:
         hit = np.array([r[f"recalled_{m}"] == "1" for r in obs_rows], dtype=bool)
         table = np.zeros(shape, dtype=np.int64)
@@ -323,6 +331,7 @@ def summarize(
         hit_d = np.bincount(d[fig_rows], weights=hit[fig_rows], minlength=shape[1])
         with np.errstate(invalid="ignore", divide="ignore"):
             fig16[m] = _nan_to_none(np.where(seen_d > 0, hit_d / np.maximum(seen_d, 1), np.nan))
+        fig16_interval[m] = _course_intervals(hit[fig_rows], per_course, (courses.size, shape[1]))
         on = sum(int(r[f"false_alarms_on_{m}"]) for r in frame_rows)
         off = sum(int(r[f"false_alarms_off_{m}"]) for r in frame_rows)
         false_alarms[m] = {"total": on + off, "on_track": on, "off_track": off}
@@ -336,7 +345,32 @@ def summarize(
         recalled=recalled,
         false_alarms=false_alarms,
         fig16=fig16,
+        fig16_interval=fig16_interval,
     )
+
+
+def _course_intervals(
+    hit: np.ndarray, index: tuple[np.ndarray, np.ndarray], shape: tuple[int, int]
+) -> list[list[float] | None]:
+    """Per distance bin, the recall's interval over courses resampled (None: unseen, or 1 course)."""
+    from negobs_gym.eval.stats import seed_bootstrap_interval
+
+    if shape[0] < 2:
+        return [None] * shape[1]
+    seen, hits = np.zeros(shape), np.zeros(shape)
+    np.add.at(seen, index, 1.0)
+    np.add.at(hits, index, hit.astype(float))
+    low, high = seed_bootstrap_interval(hits, seen)
+    return [None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)]
+
+
+def _fig16_cell(summary: DetectionSummary, mode: str, j: int) -> str:
+    """A Fig. 16 table cell: the recall and, where known, its 95 % interval over the courses."""
+    value = summary.fig16[mode][j]
+    if value is None:
+        return "-"
+    interval = summary.fig16_interval.get(mode, [None] * len(summary.fig16[mode]))[j]
+    return f"{value:.3f}" if interval is None else f"{value:.3f} ({interval[0]:.2f}-{interval[1]:.2f})"
 
 
 def report_markdown(summary: DetectionSummary) -> str:
@@ -372,15 +406,11 @@ def report_markdown(summary: DetectionSummary) -> str:
         key_value_table(
             ["mode", "count", "per frame", "per km", "on track per km", "off track per km"], fa_rows
         ),
-        "## Fig. 16: recall of 25-34-cell obstacles",
+        "## Fig. 16: recall of 25-34-cell obstacles (95 % interval over the courses)",
         key_value_table(
             ["distance", "paper N fused", *SENSOR_MODES],
             [
-                [
-                    d,
-                    paper,
-                    *("-" if summary.fig16[m][j] is None else summary.fig16[m][j] for m in SENSOR_MODES),
-                ]
+                [d, paper, *(_fig16_cell(summary, m, j) for m in SENSOR_MODES)]
                 for j, (d, paper) in enumerate(zip(summary.distance_bins, paper_n_fig16_fused(), strict=True))
             ],
         ),

@@ -22,6 +22,7 @@ from negobs_gym.eval.detection_campaign import (
     DetectionCampaignConfig,
     DetectionSummary,
     episodes,
+    report_markdown,
     summarize,
 )
 from negobs_gym.eval.tables import PAPER_N_TABLE6, PAPER_N_TABLE7, paper_n_fig16_fused
@@ -106,6 +107,24 @@ def test_summarize_bins_hand_made_rows(tmp_path: Path) -> None:
     assert s.false_alarms["hdl32"] == {"total": 2, "on_track": 2, "off_track": 0}
     rates = s.false_alarm_rates("fused")
     assert rates["per_frame"] == 2.0 and rates["total_per_km"] == pytest.approx(4000.0)
+    assert s.fig16_interval["fused"] == [None] * 7  # one course: nothing to resample
+
+
+def test_fig16_intervals_resample_the_courses(tmp_path: Path) -> None:
+    # four courses see a 25-cell pit at 6-8 m on 10 frames each: two recall it every frame, two never
+    obstacles, frames = tmp_path / "o.csv", tmp_path / "f.csv"
+    rows = [f"c{c},{c},{k},pit-0,25,7.0,{int(c < 2)},1,0" for c in range(4) for k in range(10)]
+    obstacles.write_text(",".join(OBSTACLE_COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    frames.write_text(",".join(FRAME_COLUMNS) + "\n" + f"c0,0,0,5.0,0.5,0.0,{'0,0,0,' * 2}0,0,0\n")
+    s = summarize(obstacles, frames, DetectionEvalConfig())
+    assert s.fig16["fused"][0] == 0.5
+    low, high = s.fig16_interval["fused"][0]
+    # the frames of a course are not independent: the interval spans the courses' spread (every
+    # resample of four courses lies in 0..1), far wider than 20 of 40 frames as binomial draws
+    assert low <= 0.25 and high >= 0.75
+    assert s.fig16_interval["hdl64"][0] == [1.0, 1.0]  # every course, every frame
+    assert s.fig16_interval["fused"][1] is None  # nothing seen at 8-10 m
+    assert "0.500 (" in report_markdown(s)
 
 
 def test_paper_reference_values() -> None:

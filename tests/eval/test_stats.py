@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from negobs_gym.errors import ConfigError
@@ -77,3 +78,37 @@ def test_paired_tests_refuse_unpaired_values(a: list[float], b: list[float], mat
     if match != "finite":
         with pytest.raises(ConfigError, match=match):
             paired_rate("goal", [x > 0 for x in a], [x > 0 for x in b])
+
+
+def test_seed_bootstrap_narrows_with_more_courses_and_is_reproducible() -> None:
+    from negobs_gym.eval.stats import seed_bootstrap_interval
+
+    rng = np.random.default_rng(3)
+    seen = rng.integers(5, 15, size=(6, 3)).astype(float)
+    seen[:, 2] = 0  # a bin no course saw
+    hits = np.floor(seen * rng.uniform(0.2, 0.9, size=(6, 1)))  # each course its own recall
+    low, high = seed_bootstrap_interval(hits, seen)
+    assert np.isnan(low[2]) and np.isnan(high[2])
+    pooled = hits[:, :2].sum(0) / seen[:, :2].sum(0)
+    assert np.all((low[:2] <= pooled) & (pooled <= high[:2]))
+    again = seed_bootstrap_interval(hits, seen)
+    np.testing.assert_array_equal(np.nan_to_num(low), np.nan_to_num(again[0]))  # deterministic
+    # the same courses four times over: the spread of a mean of 4x the courses, about half as wide
+    low4, high4 = seed_bootstrap_interval(np.tile(hits, (4, 1)), np.tile(seen, (4, 1)))
+    ratio = (high4[:2] - low4[:2]) / (high[:2] - low[:2])
+    assert np.all((ratio > 0.35) & (ratio < 0.7))
+
+
+@pytest.mark.parametrize(
+    ("hits", "seen", "match"),
+    [
+        (np.ones((3, 2)), np.ones((3, 3)), "like seen"),
+        (np.ones((1, 2)), np.ones((1, 2)), "at least 2 seeds"),
+        (np.full((3, 2), 2.0), np.ones((3, 2)), "0..seen"),
+    ],
+)
+def test_seed_bootstrap_refuses_bad_counts(hits, seen, match: str) -> None:
+    from negobs_gym.eval.stats import seed_bootstrap_interval
+
+    with pytest.raises(ConfigError, match=match):
+        seed_bootstrap_interval(hits, seen)
