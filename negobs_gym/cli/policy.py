@@ -33,8 +33,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def summary_line(name: str, record: dict[str, Any]) -> str:
     """One line of ``negobs policy list``: name, env with its settings, algorithm and steps (a
-    behaviour clone has none), and the recorded evaluation without the filter (``-`` where the
-    record has none)."""
+    behaviour clone has none), and the recorded evaluation without the filter, the goal rate with
+    its 95 % Wilson interval (``-`` where the record has none)."""
     from negobs_gym.scenarios.overrides import describe_overrides
 
     env = describe_overrides(str(record.get("env", "-")), tuple(record.get("set", ())))
@@ -42,9 +42,12 @@ def summary_line(name: str, record: dict[str, Any]) -> str:
     trained = f"{record.get('algo', '-')} {steps:,} steps" if steps else "cloned, no RL step"
     result = record.get("evaluation", {}).get("nofilter")
     if isinstance(result, dict) and {"episodes", "goal"} <= result.keys():
+        from negobs_gym.eval.stats import format_interval, rate_interval
+
+        goals, episodes = int(result["goal"]), int(result["episodes"])
         measured = (
-            f"goal {result['goal']}/{result['episodes']}, entries {result.get('entries', '-')}, "
-            f"collisions {result.get('collisions', '-')} (no filter)"
+            f"goal {goals}/{episodes} ({format_interval(rate_interval(goals, episodes))}), "
+            f"entries {result.get('entries', '-')}, collisions {result.get('collisions', '-')} (no filter)"
         )
     else:
         measured = "-"

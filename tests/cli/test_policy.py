@@ -3,6 +3,7 @@
 import json
 
 from negobs_gym.cli import main
+from negobs_gym.eval.stats import format_interval, rate_interval
 from negobs_gym.policies.baselines import baseline_names, baseline_record
 
 
@@ -17,10 +18,15 @@ def test_list_gives_each_shipped_policy_its_env_settings_and_recorded_result(cap
         assert env.startswith(record["env"])
         assert all(setting in env for setting in record.get("set", ()))  # what eval policy applies
         result = record["evaluation"]["nofilter"]
-        assert f"goal {result['goal']}/{result['episodes']}," in line
+        interval = format_interval(rate_interval(result["goal"], result["episodes"]))
+        assert f"goal {result['goal']}/{result['episodes']} ({interval})," in line
     detector = next(line for line in lines if line.startswith("ppo_offroad_nav_v2_detector_clone "))
     assert "observation.lux_forward_m=2.0" in detector and "cloned, no RL step" in detector
     assert "PPO 100,000 steps" in next(line for line in lines if line.startswith("ppo_offroad_nav_v1 "))
+    # 45 and 53 goals of 100 for the two oracle-grid clones: intervals that overlap
+    assert "goal 53/100 (0.43-0.62)" in next(
+        line for line in lines if line.startswith("ppo_offroad_nav_v2_clone_160k ")
+    )
 
 
 def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(capsys) -> None:
