@@ -68,6 +68,23 @@ def _flag(column: str) -> Callable[[Row], bool]:
     return lambda row: row[column] == "1"
 
 
+def _flags(*columns: str) -> tuple[_Outcome, ...]:
+    """Outcomes read straight from 0/1 columns, judged on every pair."""
+    return tuple(_Outcome(column, _flag(column)) for column in columns)
+
+
+def _per_scenario(table: str, outcomes: tuple[_Outcome, ...], measures: tuple[str, ...]) -> _Kind:
+    """A table of scenario episodes: paired by scenario and seed, grouped by driver and filter."""
+    return _Kind(
+        table=table,
+        key=lambda row: (row["scenario"], row["seed"]),
+        group=lambda row: f"{row['driver']}/{row['filter']}",
+        context="scenario",
+        outcomes=outcomes,
+        measures=measures,
+    )
+
+
 def _obstacle(row: Row) -> bool:
     """A braking episode with an obstacle ahead: the obstacle-free track's gap is infinite."""
     return math.isfinite(float(row["start_gap_m"]))
@@ -79,34 +96,23 @@ KINDS = {
         key=lambda row: (row["seed"],),
         group=lambda row: row["filter"],
         context="env",
-        outcomes=tuple(
-            _Outcome(name, _flag(name)) for name in ("success", "goal", "entered", "collision", "left_track")
-        ),
+        outcomes=_flags("success", "goal", "entered", "collision", "left_track"),
         measures=("progress_m", "distance_m", "veto_events"),
     ),
-    "braking": _Kind(
-        table="braking",
-        key=lambda row: (row["scenario"], row["seed"]),
-        group=lambda row: f"{row['driver']}/{row['filter']}",
-        context="scenario",
-        outcomes=(
+    "braking": _per_scenario(
+        "braking",
+        (
             _Outcome("stopped_before", lambda r: r["stopped"] == "1" and r["entered"] != "1", _obstacle),
             _Outcome("entered", _flag("entered"), _obstacle),
             _Outcome("collision", _flag("collision")),
             _Outcome("vetoed_free_track", lambda r: int(r["vetoes"]) > 0, lambda r: not _obstacle(r)),
         ),
-        measures=("final_gap_m", "first_veto_gap_m", "veto_events"),
+        ("final_gap_m", "first_veto_gap_m", "veto_events"),
     ),
-    "scenario": _Kind(
-        table="results",
-        key=lambda row: (row["scenario"], row["seed"]),
-        group=lambda row: f"{row['driver']}/{row['filter']}",
-        context="scenario",
-        outcomes=tuple(
-            _Outcome(name, _flag(name))
-            for name in ("passed", "task_done", "entered", "stopped_before", "collision", "goal")
-        ),
-        measures=("stop_margin_m", "max_decel_mps2", "veto_events"),
+    "scenario": _per_scenario(
+        "results",
+        _flags("passed", "task_done", "entered", "stopped_before", "collision", "goal"),
+        ("stop_margin_m", "max_decel_mps2", "veto_events"),
     ),
 }
 
