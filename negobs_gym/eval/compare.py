@@ -62,6 +62,7 @@ class _Kind:
     context: str  # the column that names what was driven (env id, scenario)
     outcomes: tuple[_Outcome, ...]
     measures: tuple[str, ...]
+    reads: tuple[str, ...]  # every column the above read: a table without them is refused
 
 
 def _flag(column: str) -> Callable[[Row], bool]:
@@ -73,7 +74,9 @@ def _flags(*columns: str) -> tuple[_Outcome, ...]:
     return tuple(_Outcome(column, _flag(column)) for column in columns)
 
 
-def _per_scenario(table: str, outcomes: tuple[_Outcome, ...], measures: tuple[str, ...]) -> _Kind:
+def _per_scenario(
+    table: str, outcomes: tuple[_Outcome, ...], measures: tuple[str, ...], reads: tuple[str, ...]
+) -> _Kind:
     """A table of scenario episodes: paired by scenario and seed, grouped by driver and filter."""
     return _Kind(
         table=table,
@@ -82,6 +85,7 @@ def _per_scenario(table: str, outcomes: tuple[_Outcome, ...], measures: tuple[st
         context="scenario",
         outcomes=outcomes,
         measures=measures,
+        reads=("scenario", "seed", "driver", "filter", *measures, *reads),
     )
 
 
@@ -90,14 +94,19 @@ def _obstacle(row: Row) -> bool:
     return math.isfinite(float(row["start_gap_m"]))
 
 
+POLICY_OUTCOMES = ("success", "goal", "entered", "collision", "left_track")
+POLICY_MEASURES = ("progress_m", "distance_m", "veto_events")
+SCENARIO_OUTCOMES = ("passed", "task_done", "entered", "stopped_before", "collision", "goal")
+
 KINDS = {
     "policy": _Kind(
         table="policy",
         key=lambda row: (row["seed"],),
         group=lambda row: row["filter"],
         context="env",
-        outcomes=_flags("success", "goal", "entered", "collision", "left_track"),
-        measures=("progress_m", "distance_m", "veto_events"),
+        outcomes=_flags(*POLICY_OUTCOMES),
+        measures=POLICY_MEASURES,
+        reads=("seed", "filter", "env", *POLICY_OUTCOMES, *POLICY_MEASURES),
     ),
     "braking": _per_scenario(
         "braking",
@@ -108,11 +117,13 @@ KINDS = {
             _Outcome("vetoed_free_track", lambda r: int(r["vetoes"]) > 0, lambda r: not _obstacle(r)),
         ),
         ("final_gap_m", "first_veto_gap_m", "veto_events"),
+        ("stopped", "entered", "collision", "vetoes", "start_gap_m"),
     ),
     "scenario": _per_scenario(
         "results",
-        _flags("passed", "task_done", "entered", "stopped_before", "collision", "goal"),
+        _flags(*SCENARIO_OUTCOMES),
         ("stop_margin_m", "max_decel_mps2", "veto_events"),
+        SCENARIO_OUTCOMES,
     ),
 }
 
@@ -150,8 +161,12 @@ def _groups(folder: Path) -> tuple[str, dict[str, list[dict[str, str]]]]:
         "--out` or `negobs scenario run --out` folder",
     )
     kind = KINDS[found[0]]
+    table = folder / f"{kind.table}.csv"
+    rows = read_csv(table)
+    missing = [c for c in kind.reads if rows and c not in rows[0]]
+    require(not missing, "campaign_dir", f"{table} lacks the columns {missing}: written by an older version")
     groups: dict[str, list[dict[str, str]]] = {}
-    for row in read_csv(folder / f"{kind.table}.csv"):
+    for row in rows:
         groups.setdefault(kind.group(row), []).append(row)
     return found[0], groups
 

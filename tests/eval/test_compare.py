@@ -123,6 +123,12 @@ def test_bad_sides_are_refused_naming_the_problem(tmp_path: Path, capsys) -> Non
         "not a `negobs eval policy|braking --out` or `negobs scenario run --out` folder"
         in capsys.readouterr().err
     )
+    old = tmp_path / "old"  # a policy.csv from before the veto_events column
+    write_table(old / "policy.csv", tuple(c for c in POLICY_COLUMNS if c != "veto_events"), [{"seed": 0}])
+    with pytest.raises(
+        ConfigError, match=r"lacks the columns \['veto_events'\]: written by an older version"
+    ):
+        load_side(old)
     assert split_side(f"{pol}:nofilter") == (pol, "nofilter") and split_side(str(pol)) == (pol, None)
     written = write_comparison(compare_campaigns(*load_sides(str(pol))), tmp_path / "new" / "dir")
     assert [p.exists() for p in written] == [True, True]
