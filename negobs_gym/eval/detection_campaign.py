@@ -264,8 +264,8 @@ class DetectionSummary:
     per mode: ``total``, ``on_track``, ``off_track`` counts. ``fig16[mode][d]`` is the recall of
     25-34-cell obstacles per distance bin (None where none was seen), ``fig16_interval[mode][d]``
     its 95 % interval, ``[low, high]``, from resampling the courses (seeds) with replacement
-    (:func:`~negobs_gym.eval.stats.seed_bootstrap_interval`; None where none was seen, or with one
-    course only; empty in summaries written before it).
+    (:func:`~negobs_gym.eval.stats.seed_bootstrap_interval`; None where fewer than two courses saw
+    such an obstacle; empty in summaries written before it).
     """
 
     episodes: int
@@ -352,7 +352,7 @@ def summarize(
 def _course_intervals(
     hit: np.ndarray, index: tuple[np.ndarray, np.ndarray], shape: tuple[int, int]
 ) -> list[list[float] | None]:
-    """Per distance bin, the recall's interval over courses resampled (None: unseen, or 1 course)."""
+    """Per distance bin, the recall's interval over courses resampled (None: seen by < 2 courses)."""
     from negobs_gym.eval.stats import seed_bootstrap_interval
 
     if shape[0] < 2:

@@ -64,8 +64,9 @@ def seed_bootstrap_interval(
     A detection campaign's frames are not independent draws: one course's consecutive frames see
     the same pit from nearly the same place, so a binomial interval over frames would be far too
     narrow. Its seeds are independent, so they are what is resampled (a cluster bootstrap). A
-    resample that saw nothing in a column is dropped for that column; a column seen by no seed is
-    NaN. Deterministic for a given ``seed``.
+    resample that saw nothing in a column is dropped for that column; a column seen by fewer than
+    two seeds is NaN (one seed's rate resampled is that rate again: no interval). Deterministic for
+    a given ``seed``.
 
     Raises:
         ConfigError: shapes that differ or are not 2-D, negative counts, hits above seen, or fewer
@@ -86,7 +87,7 @@ def seed_bootstrap_interval(
         rate = np.where(pooled_seen > 0, hits[rows].sum(axis=1) / pooled_seen, np.nan)
     tail = 50.0 * (1.0 - confidence)
     low, high = np.full(hits.shape[1], np.nan), np.full(hits.shape[1], np.nan)
-    some = np.any(np.isfinite(rate), axis=0)
+    some = np.count_nonzero(seen > 0, axis=0) >= 2
     if some.any():
         low[some], high[some] = np.nanpercentile(rate[:, some], [tail, 100.0 - tail], axis=0)
     return low, high

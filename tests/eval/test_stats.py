@@ -84,11 +84,12 @@ def test_seed_bootstrap_narrows_with_more_courses_and_is_reproducible() -> None:
     from negobs_gym.eval.stats import seed_bootstrap_interval
 
     rng = np.random.default_rng(3)
-    seen = rng.integers(5, 15, size=(6, 3)).astype(float)
+    seen = rng.integers(5, 15, size=(6, 4)).astype(float)
     seen[:, 2] = 0  # a bin no course saw
+    seen[1:, 3] = 0  # a bin one course saw
     hits = np.floor(seen * rng.uniform(0.2, 0.9, size=(6, 1)))  # each course its own recall
     low, high = seed_bootstrap_interval(hits, seen)
-    assert np.isnan(low[2]) and np.isnan(high[2])
+    assert np.isnan(low[2:]).all() and np.isnan(high[2:]).all()
     pooled = hits[:, :2].sum(0) / seen[:, :2].sum(0)
     assert np.all((low[:2] <= pooled) & (pooled <= high[:2]))
     again = seed_bootstrap_interval(hits, seen)
