@@ -316,22 +316,15 @@ def summarize(
     ok = (s >= 0) & (s < shape[0]) & (d >= 0) & (d < shape[1])
     occurrences = np.zeros(shape, dtype=np.int64)
     np.add.at(occurrences, (s[ok], d[ok]), 1)
-    fig_rows = (cells >= FIG16_CELLS[0]) & (cells < FIG16_CELLS[1]) & (d >= 0) & (d < shape[1])
     recalled, fig16, fig16_interval, false_alarms = {}, {}, {}, {}
-    courses, course = np.unique(
-        np.array([int(r["seed"]) for r in obs_rows], dtype=np.int64), return_inverse=True
-    )
-    per_course = (course[fig_rows], d[fig_rows])  # Fig. 16 counts per (course, distance bin)
+    by_course = _fig16_by_course(obs_rows, config)
     for m in SENSOR_MODES:
         hit = np.array([r[f"recalled_{m}"] == "1" for r in obs_rows], dtype=bool)
         table = np.zeros(shape, dtype=np.int64)
         np.add.at(table, (s[ok], d[ok]), hit[ok].astype(np.int64))
         recalled[m] = table.tolist()
-        seen_d = np.bincount(d[fig_rows], minlength=shape[1])
-        hit_d = np.bincount(d[fig_rows], weights=hit[fig_rows], minlength=shape[1])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            fig16[m] = _nan_to_none(np.where(seen_d > 0, hit_d / np.maximum(seen_d, 1), np.nan))
-        fig16_interval[m] = _course_intervals(hit[fig_rows], per_course, (courses.size, shape[1]))
+        fig16[m] = _nan_to_none(by_course.recall(m))
+        fig16_interval[m] = by_course.intervals(m)
         on = sum(int(r[f"false_alarms_on_{m}"]) for r in frame_rows)
         off = sum(int(r[f"false_alarms_off_{m}"]) for r in frame_rows)
         false_alarms[m] = {"total": on + off, "on_track": on, "off_track": off}
@@ -349,19 +342,52 @@ def summarize(
     )
 
 
-def _course_intervals(
-    hit: np.ndarray, index: tuple[np.ndarray, np.ndarray], shape: tuple[int, int]
-) -> list[list[float] | None]:
-    """Per distance bin, the recall's interval over courses resampled (None: seen by < 2 courses)."""
-    from negobs_gym.eval.stats import seed_bootstrap_interval
+@dataclass(frozen=True)
+class CourseCounts:
+    """Fig. 16's obstacle-frames (25-34 cells, per distance bin) counted per course: the unit a
+    campaign's uncertainty is resampled in (a course's frames see the same pits)."""
 
-    if shape[0] < 2:
-        return [None] * shape[1]
-    seen, hits = np.zeros(shape), np.zeros(shape)
+    seeds: np.ndarray  # (courses,)
+    seen: np.ndarray  # (courses, distance bins)
+    recalled: dict[str, np.ndarray]  # per sensor mode, like seen
+
+    def recall(self, mode: str) -> np.ndarray:
+        """Per distance bin, the recall pooled over the courses (NaN where none was seen)."""
+        seen = self.seen.sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(seen > 0, self.recalled[mode].sum(axis=0) / np.maximum(seen, 1), np.nan)
+
+    def intervals(self, mode: str) -> list[list[float] | None]:
+        """Per distance bin, the 95 % interval of the pooled recall over the courses resampled
+        (None: seen by fewer than two courses)."""
+        from negobs_gym.eval.stats import seed_bootstrap_interval
+
+        if self.seeds.size < 2:
+            return [None] * self.seen.shape[1]
+        low, high = seed_bootstrap_interval(self.recalled[mode], self.seen)
+        return [None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)]
+
+
+def fig16_counts_by_course(obstacles_csv: str | Path, config: DetectionEvalConfig) -> CourseCounts:
+    """The per-course Fig. 16 counts of a campaign's ``obstacles.csv``."""
+    return _fig16_by_course(read_csv(obstacles_csv), config)
+
+
+def _fig16_by_course(rows: list[dict[str, str]], config: DetectionEvalConfig) -> CourseCounts:
+    edges = config.distance_bin_edges_m
+    cells = np.array([int(r["cells"]) for r in rows], dtype=np.int64)
+    d = np.digitize(np.array([float(r["centre_distance_m"]) for r in rows], dtype=np.float64), edges) - 1
+    fig = (cells >= FIG16_CELLS[0]) & (cells < FIG16_CELLS[1]) & (d >= 0) & (d < len(edges) - 1)
+    seeds, course = np.unique(np.array([int(r["seed"]) for r in rows], dtype=np.int64), return_inverse=True)
+    shape, index = (seeds.size, len(edges) - 1), (course[fig], d[fig])
+    seen = np.zeros(shape)
     np.add.at(seen, index, 1.0)
-    np.add.at(hits, index, hit.astype(float))
-    low, high = seed_bootstrap_interval(hits, seen)
-    return [None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)]
+    recalled = {}
+    for m in SENSOR_MODES:
+        recalled[m] = np.zeros(shape)
+        hit = np.array([r[f"recalled_{m}"] == "1" for r in rows], dtype=float)
+        np.add.at(recalled[m], index, hit[fig])
+    return CourseCounts(seeds, seen, recalled)
 
 
 def _fig16_cell(summary: DetectionSummary, mode: str, j: int) -> str:

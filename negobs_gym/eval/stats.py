@@ -27,6 +27,7 @@ __all__ = [
     "paired_rate",
     "paired_shift",
     "rate_interval",
+    "seed_bootstrap_difference",
     "seed_bootstrap_interval",
 ]
 
@@ -72,6 +73,43 @@ def seed_bootstrap_interval(
         ConfigError: shapes that differ or are not 2-D, negative counts, hits above seen, or fewer
             than 2 rows.
     """
+    hits, seen = _counts(hits, seen)
+    rows = _resampled_rows(hits.shape[0], confidence, resamples, seed)
+    return _percentiles(_pooled_rate(hits, seen, rows), _seen_twice(seen), confidence)
+
+
+def seed_bootstrap_difference(
+    a: tuple[np.ndarray, np.ndarray],
+    b: tuple[np.ndarray, np.ndarray],
+    *,
+    confidence: float = CONFIDENCE,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pooled rate of ``a`` minus that of ``b`` per column, each a ``(hits, seen)`` pair whose
+    rows are the same seeds, and its percentile interval from resampling the seeds together (a
+    paired cluster bootstrap: a seed's course counts on both sides or on neither). NaN where fewer
+    than two seeds saw the column on either side.
+
+    Raises:
+        ConfigError: as :func:`seed_bootstrap_interval`, or sides of different shapes.
+    """
+    (hits_a, seen_a), (hits_b, seen_b) = _counts(*a), _counts(*b)
+    require(
+        hits_a.shape == hits_b.shape,
+        "b",
+        f"must be (seeds, bins) like a, got {hits_b.shape} and {hits_a.shape}",
+    )
+    rows = _resampled_rows(hits_a.shape[0], confidence, resamples, seed)
+    every = np.arange(hits_a.shape[0])[None, :]
+    difference = _pooled_rate(hits_a, seen_a, every)[0] - _pooled_rate(hits_b, seen_b, every)[0]
+    resampled = _pooled_rate(hits_a, seen_a, rows) - _pooled_rate(hits_b, seen_b, rows)
+    enough = _seen_twice(seen_a) & _seen_twice(seen_b)
+    low, high = _percentiles(resampled, enough, confidence)
+    return np.where(enough, difference, np.nan), low, high
+
+
+def _counts(hits: np.ndarray, seen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     hits, seen = np.asarray(hits, dtype=float), np.asarray(seen, dtype=float)
     require(
         hits.ndim == 2 and hits.shape == seen.shape,
@@ -80,16 +118,30 @@ def seed_bootstrap_interval(
     )
     require(hits.shape[0] >= 2, "hits", f"needs at least 2 seeds to resample, got {hits.shape[0]}")
     require(bool(np.all((hits >= 0) & (hits <= seen))), "hits", "must lie in 0..seen in every cell")
+    return hits, seen
+
+
+def _resampled_rows(n: int, confidence: float, resamples: int, seed: int) -> np.ndarray:
     require(0.0 < confidence < 1.0, "confidence", f"must lie in (0, 1), got {confidence}")
-    rows = np.random.default_rng(seed).integers(0, hits.shape[0], size=(resamples, hits.shape[0]))
-    pooled_seen = seen[rows].sum(axis=1)  # (resamples, bins)
+    return np.random.default_rng(seed).integers(0, n, size=(resamples, n))
+
+
+def _pooled_rate(hits: np.ndarray, seen: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Per resample (row of ``rows``) and column, the pooled rate; NaN where it saw nothing."""
+    pooled_seen = seen[rows].sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        rate = np.where(pooled_seen > 0, hits[rows].sum(axis=1) / pooled_seen, np.nan)
+        return np.where(pooled_seen > 0, hits[rows].sum(axis=1) / pooled_seen, np.nan)
+
+
+def _seen_twice(seen: np.ndarray) -> np.ndarray:
+    return np.count_nonzero(seen > 0, axis=0) >= 2
+
+
+def _percentiles(values: np.ndarray, columns: np.ndarray, confidence: float) -> tuple[np.ndarray, np.ndarray]:
     tail = 50.0 * (1.0 - confidence)
-    low, high = np.full(hits.shape[1], np.nan), np.full(hits.shape[1], np.nan)
-    some = np.count_nonzero(seen > 0, axis=0) >= 2
-    if some.any():
-        low[some], high[some] = np.nanpercentile(rate[:, some], [tail, 100.0 - tail], axis=0)
+    low, high = np.full(values.shape[1], np.nan), np.full(values.shape[1], np.nan)
+    if columns.any():
+        low[columns], high[columns] = np.nanpercentile(values[:, columns], [tail, 100.0 - tail], axis=0)
     return low, high
 
 
