@@ -428,9 +428,20 @@ def run_videos(args: argparse.Namespace) -> int:
 
 def run_compare(args: argparse.Namespace) -> int:
     """Compare two campaign sides; prints the tables."""
-    from negobs_gym.eval.compare import compare_campaigns, load_sides, write_comparison
+    from negobs_gym.eval.compare import (
+        compare_campaigns,
+        compare_detection_campaigns,
+        is_detection_folder,
+        load_sides,
+        write_comparison,
+    )
 
-    comparison = compare_campaigns(*load_sides(args.a, args.b))
+    if is_detection_folder(args.a):
+        if args.b is None:
+            raise ConfigError("B", "a detection campaign is compared with another one: name both folders")
+        comparison = compare_detection_campaigns(args.a, args.b)
+    else:
+        comparison = compare_campaigns(*load_sides(args.a, args.b))
     print(comparison.markdown(), end="", flush=True)  # before the log line on a shared terminal
     if args.out is not None:
         log.info("wrote %s and %s", *write_comparison(comparison, args.out))

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from negobs_gym.errors import require
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.stats import (
@@ -335,7 +337,147 @@ def compare_campaigns(a: CampaignSide, b: CampaignSide) -> Comparison:
     )
 
 
-def write_comparison(comparison: Comparison, out_dir: str | Path) -> tuple[Path, Path]:
+@dataclass(frozen=True)
+class DetectionComparison:
+    """Two detection campaigns' Fig. 16 recall on their common courses, per mode and distance bin:
+    each side's recall and interval, and the difference A - B with its paired-bootstrap interval."""
+
+    a: Path
+    b: Path
+    courses: int
+    only_a: int  # courses of A that B did not drive
+    only_b: int
+    distance_bins: tuple[str, ...]
+    modes: dict[str, dict[str, list[Any]]]  # mode -> recall_a, recall_b, difference, interval (each per bin)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data (None where a bin was seen by fewer than two courses)."""
+        return {**dataclasses.asdict(self), "a": str(self.a), "b": str(self.b), "confidence": CONFIDENCE}
+
+    def markdown(self) -> str:
+        """One table per sensor mode under a line naming the campaigns and the courses."""
+        from negobs_gym.eval.tables import key_value_table
+
+        head = f"A = {self.a}, B = {self.b}: Fig. 16 recall (25-34-cell pits), {self.courses} courses in both"
+        if self.only_a or self.only_b:
+            head += f"; left out, driven by one only: {self.only_a} of A, {self.only_b} of B"
+        parts = [head]
+        for mode, m in self.modes.items():
+            rows = [_detection_row(d, m, j) for j, d in enumerate(self.distance_bins)]
+            header = [
+                "distance",
+                "A recall",
+                "B recall",
+                "A - B",
+                f"{_INTERVAL} of A - B (courses resampled)",
+            ]
+            parts += [f"## {mode}", key_value_table(header, rows)]
+        return "\n\n".join(parts) + "\n"
+
+
+def _detection_row(distance: str, m: dict[str, list[Any]], j: int) -> tuple[str, ...]:
+    recalls = (_value(m["recall_a"][j]), _value(m["recall_b"][j]))
+    return distance, *recalls, _value(m["difference"][j], "+.3f"), format_interval(m["interval"][j])
+
+
+def _value(v: float | None, spec: str = ".3f") -> str:
+    return "-" if v is None else format(v, spec)
+
+
+def is_detection_folder(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a ``negobs eval detection --out`` campaign."""
+    return (Path(folder) / "obstacles.csv").is_file() and (Path(folder) / "frames.csv").is_file()
+
+
+def compare_detection_campaigns(a: str | Path, b: str | Path) -> DetectionComparison:
+    """Pair two detection campaigns by course (seed) and give, per sensor mode and distance bin,
+    each Fig. 16 recall and the difference with its interval from resampling the common courses
+    together (:func:`~negobs_gym.eval.stats.seed_bootstrap_difference`). A seed is the same course
+    only with the same frames, so a seed driven for different frame counts is refused.
+
+    Raises:
+        ConfigError: a folder that is no detection campaign (field ``campaign_dir``), no common
+            course or fewer than two (``pairs``), or a course driven for different frame counts.
+    """
+    from negobs_gym.eval.detection import DetectionEvalConfig
+    from negobs_gym.eval.detection_campaign import SENSOR_MODES, fig16_counts_by_course
+    from negobs_gym.eval.stats import seed_bootstrap_difference
+    from negobs_gym.eval.tables import bin_labels
+
+    folders = Path(a), Path(b)
+    for folder in folders:
+        require(
+            is_detection_folder(folder),
+            "campaign_dir",
+            f"no obstacles.csv and frames.csv in {folder}: not a `negobs eval detection --out` folder",
+        )
+    require(folders[0].resolve() != folders[1].resolve(), "b", f"{a} is compared with itself")
+    frames = [_frames_by_seed(folder) for folder in folders]
+    common = sorted(set(frames[0]) & set(frames[1]))
+    require(
+        len(common) >= 2, "pairs", f"{a} and {b} have {len(common)} course(s) in common; resampling needs two"
+    )
+    differ = [seed for seed in common if frames[0][seed] != frames[1][seed]]
+    require(
+        not differ,
+        "pairs",
+        f"courses {differ[:5]} ran {[frames[0][s] for s in differ[:5]]} frames in {a} and "
+        f"{[frames[1][s] for s in differ[:5]]} in {b}: a seed is one course only at one frame count",
+    )
+    config = DetectionEvalConfig()
+    counts = [fig16_counts_by_course(folder / "obstacles.csv", config) for folder in folders]
+    modes = {}
+    for mode in SENSOR_MODES:
+        sides = [(_rows(c.recalled[mode], c.seeds, common), _rows(c.seen, c.seeds, common)) for c in counts]
+        difference, low, high = seed_bootstrap_difference(sides[0], sides[1])
+        recall = [_pooled(hits, seen) for hits, seen in sides]
+        modes[mode] = {
+            "recall_a": _nan_to_none(recall[0]),
+            "recall_b": _nan_to_none(recall[1]),
+            "difference": _nan_to_none(difference),
+            "interval": [
+                None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)
+            ],
+        }
+    return DetectionComparison(
+        folders[0],
+        folders[1],
+        len(common),
+        len(frames[0]) - len(common),
+        len(frames[1]) - len(common),
+        tuple(bin_labels(config.distance_bin_edges_m, " m")),
+        modes,
+    )
+
+
+def _frames_by_seed(folder: Path) -> dict[int, int]:
+    frames: dict[int, int] = {}
+    for row in read_csv(folder / "frames.csv"):
+        frames[int(row["seed"])] = frames.get(int(row["seed"]), 0) + 1
+    return frames
+
+
+def _rows(counts: np.ndarray, seeds: np.ndarray, common: list[int]) -> np.ndarray:
+    """``counts``' rows of the ``common`` seeds, zeros for a seed with no row (no pit in view)."""
+    out = np.zeros((len(common), counts.shape[1]))
+    where = {int(s): i for i, s in enumerate(seeds)}
+    for k, seed in enumerate(common):
+        if seed in where:
+            out[k] = counts[where[seed]]
+    return out
+
+
+def _pooled(hits: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    total = seen.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total > 0, hits.sum(axis=0) / np.maximum(total, 1), np.nan)
+
+
+def _nan_to_none(values: np.ndarray) -> list[float | None]:
+    return [None if not math.isfinite(v) else float(v) for v in np.asarray(values, dtype=float)]
+
+
+def write_comparison(comparison: Comparison | DetectionComparison, out_dir: str | Path) -> tuple[Path, Path]:
     """``compare.md`` and ``compare.json`` in ``out_dir``, each written atomically."""
     from negobs_gym.core.files import write_text_atomic
 

@@ -11,7 +11,15 @@ from negobs_gym.cli import main
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import COLUMNS as BRAKING_COLUMNS
 from negobs_gym.eval.campaign import format_row
-from negobs_gym.eval.compare import compare_campaigns, load_side, load_sides, split_side, write_comparison
+from negobs_gym.eval.compare import (
+    compare_campaigns,
+    compare_detection_campaigns,
+    load_side,
+    load_sides,
+    split_side,
+    write_comparison,
+)
+from negobs_gym.eval.detection_campaign import FRAME_COLUMNS, OBSTACLE_COLUMNS
 from negobs_gym.eval.policy_campaign import COLUMNS as POLICY_COLUMNS
 
 
@@ -156,3 +164,54 @@ def test_scenario_runs_compare_by_driver_and_filter(tmp_path: Path) -> None:
     stops = next(r for r in c.rates if r.name == "stopped_before")
     assert (stops.a_only, stops.p_value) == (7, pytest.approx(2 / 2**7))  # seven seeds, all one way
     assert next(s for s in c.shifts if s.name == "stop_margin_m").median_difference == 0.0
+
+
+def detection_campaign(folder: Path, recalled: dict[int, list[int]], frames: int = 10) -> Path:
+    """A detection campaign's CSVs: per seed, whether the fused detector recalled a 25-cell pit at
+    7 m on each of its frames (HDL-64 and HDL-32 alone: never)."""
+    folder.mkdir(parents=True)
+    obstacles = [
+        f"seed{seed:05d},{seed},{k},pit-0,25,7.0,{hit},0,0"
+        for seed, hits in recalled.items()
+        for k, hit in enumerate(hits)
+    ]
+    rows = [
+        f"seed{seed:05d},{seed},{k},5.0,0.5,0.0,0,0,0,0,0,0,0,0,0" for seed in recalled for k in range(frames)
+    ]
+    (folder / "obstacles.csv").write_text(",".join(OBSTACLE_COLUMNS) + "\n" + "\n".join(obstacles) + "\n")
+    (folder / "frames.csv").write_text(",".join(FRAME_COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    return folder
+
+
+def test_two_detection_campaigns_pair_by_course(tmp_path: Path, capsys) -> None:
+    # A recalls the pit on every frame of four courses; B on half of two courses' frames and on
+    # every frame of the other two; seed 9 is A's alone
+    a = detection_campaign(tmp_path / "a", {s: [1] * 10 for s in (0, 1, 2, 3, 9)})
+    b = detection_campaign(tmp_path / "b", {0: [1, 0] * 5, 1: [0, 1] * 5, 2: [1] * 10, 3: [1] * 10})
+    c = compare_detection_campaigns(a, b)
+    assert (c.courses, c.only_a, c.only_b) == (4, 1, 0)
+    fused = c.modes["fused"]
+    assert (fused["recall_a"][0], fused["recall_b"][0]) == (1.0, 0.75)  # 6-8 m: 40 of 40, 30 of 40
+    assert fused["difference"][0] == pytest.approx(0.25) and fused["recall_a"][1] is None
+    low, high = fused["interval"][0]
+    # resampling four courses: no half-recalled course (difference 0) up to all four (0.5)
+    assert low == pytest.approx(0.0) and high == pytest.approx(0.5) and fused["interval"][1] is None
+    assert c.modes["hdl64"]["difference"][0] == 0.0
+    assert main(["eval", "compare", str(a), str(b), "--out", str(tmp_path / "cmp")]) == 0
+    printed = capsys.readouterr().out
+    assert "| 6-8 m | 1.000 | 0.750 | +0.250 | 0.00-0.50 |" in printed
+    assert json.loads((tmp_path / "cmp" / "compare.json").read_text())["courses"] == 4
+
+
+def test_detection_comparisons_refuse_other_drives(tmp_path: Path, capsys) -> None:
+    a = detection_campaign(tmp_path / "a", {0: [1] * 10, 1: [1] * 10})
+    shorter = detection_campaign(tmp_path / "short", {0: [1] * 5, 1: [1] * 5}, frames=5)
+    with pytest.raises(ConfigError, match=r"courses \[0, 1\] ran \[10, 10\] frames"):
+        compare_detection_campaigns(a, shorter)
+    one = detection_campaign(tmp_path / "one", {0: [1] * 10})
+    with pytest.raises(ConfigError, match=r"have 1 course\(s\) in common; resampling needs two"):
+        compare_detection_campaigns(a, one)
+    with pytest.raises(ConfigError, match="not a `negobs eval detection --out` folder"):
+        compare_detection_campaigns(a, tmp_path)
+    assert main(["eval", "compare", str(a)]) == 2
+    assert "name both folders" in capsys.readouterr().err
