@@ -217,8 +217,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     compare = commands.add_parser(
         "compare",
-        help="two policy or braking campaigns or scenario runs (or two groups of one) episode "
-        "against episode: rates with 95%% intervals, exact McNemar and Wilcoxon signed-rank tests",
+        help="two policy, braking or detection campaigns or scenario runs (or two groups of one) "
+        "episode against episode: rates with 95%% intervals, exact McNemar and Wilcoxon signed-rank "
+        "tests; detection: recall differences over the courses",
         description="Pairs the episodes of two `negobs eval policy|braking --out` or `negobs "
         "scenario run --out` folders by seed (braking, scenario: scenario and seed) and compares "
         "each outcome (goal, entries, stops before the obstacle, ...) with the exact McNemar test "
@@ -226,7 +227,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "prints markdown tables. A side is DIR or DIR:GROUP, GROUP a filter setting of a policy "
         "campaign (nofilter, filter, filter_positive) or a driver/filter of a braking campaign or "
         "scenario run (reckless/filter, ppo_offroad_nav_v1/nofilter). With one side only: its "
-        "folder's two groups (a policy campaign run with --filter both).",
+        "folder's two groups (a policy campaign run with --filter both). Two `negobs eval "
+        "detection --out` folders: Fig. 16 recall per mode and distance on their common courses, "
+        "the difference with a 95% interval from resampling the courses.",
     )
     compare.add_argument("a", metavar="A", help="DIR or DIR:GROUP")
     compare.add_argument(
