@@ -6,8 +6,12 @@ folder and one group of its episodes: a filter setting of a policy campaign (``n
 (``reckless/filter``). Episodes pair by seed (policy) or by scenario and seed (braking, scenario):
 within one env's terrain settings a seed is one course, so the two sides met the same ground.
 Each outcome is tested with the exact McNemar test, each measure with the Wilcoxon signed-rank
-test (:mod:`negobs_gym.eval.stats`); the rates carry their Wilson intervals. Reads the CSVs
-only: no simulator is imported.
+test (:mod:`negobs_gym.eval.stats`); the rates carry their Wilson intervals.
+
+Two ``negobs eval detection`` campaigns pair by course instead: their rows are obstacle-frames,
+correlated within a course, so the Fig. 16 recall difference per distance bin gets an interval
+from resampling the common courses together rather than a frame-level test. Reads the CSVs only:
+no simulator is imported.
 """
 
 from __future__ import annotations
@@ -37,7 +41,10 @@ from negobs_gym.eval.stats import (
 __all__ = [
     "CampaignSide",
     "Comparison",
+    "DetectionComparison",
     "compare_campaigns",
+    "compare_detection_campaigns",
+    "is_detection_folder",
     "load_side",
     "load_sides",
     "split_side",
@@ -340,7 +347,7 @@ def compare_campaigns(a: CampaignSide, b: CampaignSide) -> Comparison:
 @dataclass(frozen=True)
 class DetectionComparison:
     """Two detection campaigns' Fig. 16 recall on their common courses, per mode and distance bin:
-    each side's recall and interval, and the difference A - B with its paired-bootstrap interval."""
+    each side's recall, and the difference A - B with its paired-bootstrap interval."""
 
     a: Path
     b: Path
@@ -393,7 +400,9 @@ def compare_detection_campaigns(a: str | Path, b: str | Path) -> DetectionCompar
     """Pair two detection campaigns by course (seed) and give, per sensor mode and distance bin,
     each Fig. 16 recall and the difference with its interval from resampling the common courses
     together (:func:`~negobs_gym.eval.stats.seed_bootstrap_difference`). A seed is the same course
-    only with the same frames, so a seed driven for different frame counts is refused.
+    only with the same frames, so a seed driven for different frame counts is refused. The
+    distance bins are :class:`~negobs_gym.eval.DetectionEvalConfig`'s defaults (paper N Table 7),
+    applied to each row's recorded distance; the recall flags are each campaign's own.
 
     Raises:
         ConfigError: a folder that is no detection campaign (field ``campaign_dir``), no common
