@@ -28,7 +28,7 @@ from negobs_gym.envs.config import RIGS
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
-from negobs_gym.eval.stats import format_interval
+from negobs_gym.eval.stats import format_interval, rate_interval
 from negobs_gym.eval.vetoes import (
     VETO_COLUMNS,
     VetoTally,
@@ -402,8 +402,6 @@ class ConfigurationSummary:
     @property
     def stopped_before_interval(self) -> tuple[float, float] | None:
         """The 95 % Wilson interval of the stopped-before rate (None: an obstacle-free scenario)."""
-        from negobs_gym.eval.stats import rate_interval
-
         return rate_interval(self.stopped_before, self.episodes) if self.obstacle else None
 
     @property

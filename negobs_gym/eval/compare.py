@@ -24,8 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from negobs_gym.errors import require
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.stats import (
@@ -410,7 +408,7 @@ def compare_detection_campaigns(a: str | Path, b: str | Path) -> DetectionCompar
     """
     from negobs_gym.eval.detection import DetectionEvalConfig
     from negobs_gym.eval.detection_campaign import SENSOR_MODES, fig16_counts_by_course
-    from negobs_gym.eval.stats import seed_bootstrap_difference
+    from negobs_gym.eval.stats import interval_list, nan_to_none, seed_bootstrap_difference
     from negobs_gym.eval.tables import bin_labels
 
     folders = Path(a), Path(b)
@@ -434,19 +432,16 @@ def compare_detection_campaigns(a: str | Path, b: str | Path) -> DetectionCompar
         f"{[frames[1][s] for s in differ[:5]]} in {b}: a seed is one course only at one frame count",
     )
     config = DetectionEvalConfig()
-    counts = [fig16_counts_by_course(folder / "obstacles.csv", config) for folder in folders]
+    on_common = [fig16_counts_by_course(folder / "obstacles.csv", config).on(common) for folder in folders]
     modes = {}
     for mode in SENSOR_MODES:
-        sides = [(_rows(c.recalled[mode], c.seeds, common), _rows(c.seen, c.seeds, common)) for c in counts]
-        difference, low, high = seed_bootstrap_difference(sides[0], sides[1])
-        recall = [_pooled(hits, seen) for hits, seen in sides]
+        sides = [(c.recalled[mode], c.seen) for c in on_common]
+        difference, low, high = seed_bootstrap_difference(*sides)
         modes[mode] = {
-            "recall_a": _nan_to_none(recall[0]),
-            "recall_b": _nan_to_none(recall[1]),
-            "difference": _nan_to_none(difference),
-            "interval": [
-                None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)
-            ],
+            "recall_a": nan_to_none(on_common[0].recall(mode)),
+            "recall_b": nan_to_none(on_common[1].recall(mode)),
+            "difference": nan_to_none(difference),
+            "interval": interval_list(low, high),
         }
     return DetectionComparison(
         folders[0],
@@ -466,33 +461,13 @@ def _frames_by_seed(folder: Path) -> dict[int, int]:
     return frames
 
 
-def _rows(counts: np.ndarray, seeds: np.ndarray, common: list[int]) -> np.ndarray:
-    """``counts``' rows of the ``common`` seeds, zeros for a seed with no row (no pit in view)."""
-    out = np.zeros((len(common), counts.shape[1]))
-    where = {int(s): i for i, s in enumerate(seeds)}
-    for k, seed in enumerate(common):
-        if seed in where:
-            out[k] = counts[where[seed]]
-    return out
-
-
-def _pooled(hits: np.ndarray, seen: np.ndarray) -> np.ndarray:
-    total = seen.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(total > 0, hits.sum(axis=0) / np.maximum(total, 1), np.nan)
-
-
-def _nan_to_none(values: np.ndarray) -> list[float | None]:
-    return [None if not math.isfinite(v) else float(v) for v in np.asarray(values, dtype=float)]
-
-
 def write_comparison(comparison: Comparison | DetectionComparison, out_dir: str | Path) -> tuple[Path, Path]:
     """``compare.md`` and ``compare.json`` in ``out_dir``, each written atomically."""
     from negobs_gym.core.files import write_text_atomic
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(comparison.as_dict(), indent=1, sort_keys=True)
-    return write_text_atomic(out / "compare.md", comparison.markdown()), write_text_atomic(
-        out / "compare.json", text
+    markdown = write_text_atomic(out / "compare.md", comparison.markdown())
+    return markdown, write_text_atomic(
+        out / "compare.json", json.dumps(comparison.as_dict(), indent=1, sort_keys=True)
     )

@@ -33,6 +33,7 @@ from negobs_gym.eval.detection import (
     track_border_mask,
     world_outline_to_vehicle,
 )
+from negobs_gym.eval.stats import interval_list, nan_to_none, seed_bootstrap_interval
 from negobs_gym.eval.tables import bin_labels
 
 BRAKING_SPEED_MPS = 25.0 / 3.6  # paper N §4: the ALV drives at most 25 km/h off-road
@@ -251,10 +252,6 @@ def run_episode(episode: Episode) -> Rows:
 # -- summary -----------------------------------------------------------------------------------
 
 
-def _nan_to_none(values: np.ndarray) -> list:
-    return [None if not math.isfinite(v) else float(v) for v in np.asarray(values, dtype=float).ravel()]
-
-
 @dataclass(frozen=True)
 class DetectionSummary:
     """Campaign totals in paper N's layouts; round-trips through :meth:`to_json` / :meth:`from_json`.
@@ -309,21 +306,19 @@ def summarize(
     frame_rows = read_csv(frames_csv)
     size_edges, dist_edges = config.size_bin_edges_cells, config.distance_bin_edges_m
     shape = (len(size_edges) - 1, len(dist_edges) - 1)
-    cells = np.array([int(r["cells"]) for r in obs_rows], dtype=np.int64)
-    dist = np.array([float(r["centre_distance_m"]) for r in obs_rows], dtype=np.float64)
-    s = np.digitize(cells, size_edges) - 1
-    d = np.digitize(dist, dist_edges) - 1
+    rows = _ObstacleRows.parse(obs_rows, config)
+    s = np.digitize(rows.cells, size_edges) - 1
+    d = rows.distance_bin
     ok = (s >= 0) & (s < shape[0]) & (d >= 0) & (d < shape[1])
     occurrences = np.zeros(shape, dtype=np.int64)
     np.add.at(occurrences, (s[ok], d[ok]), 1)
     recalled, fig16, fig16_interval, false_alarms = {}, {}, {}, {}
-    by_course = _fig16_by_course(obs_rows, config)
+    by_course = rows.fig16_by_course(shape[1])
     for m in SENSOR_MODES:
-        hit = np.array([r[f"recalled_{m}"] == "1" for r in obs_rows], dtype=bool)
         table = np.zeros(shape, dtype=np.int64)
-        np.add.at(table, (s[ok], d[ok]), hit[ok].astype(np.int64))
+        np.add.at(table, (s[ok], d[ok]), rows.recalled[m][ok].astype(np.int64))
         recalled[m] = table.tolist()
-        fig16[m] = _nan_to_none(by_course.recall(m))
+        fig16[m] = nan_to_none(by_course.recall(m))
         fig16_interval[m] = by_course.intervals(m)
         on = sum(int(r[f"false_alarms_on_{m}"]) for r in frame_rows)
         off = sum(int(r[f"false_alarms_off_{m}"]) for r in frame_rows)
@@ -347,7 +342,7 @@ class CourseCounts:
     """Fig. 16's obstacle-frames (25-34 cells, per distance bin) counted per course: the unit a
     campaign's uncertainty is resampled in (a course's frames see the same pits)."""
 
-    seeds: np.ndarray  # (courses,)
+    seeds: np.ndarray  # (courses,), ascending
     seen: np.ndarray  # (courses, distance bins)
     recalled: dict[str, np.ndarray]  # per sensor mode, like seen
 
@@ -360,34 +355,66 @@ class CourseCounts:
     def intervals(self, mode: str) -> list[list[float] | None]:
         """Per distance bin, the 95 % interval of the pooled recall over the courses resampled
         (None: seen by fewer than two courses)."""
-        from negobs_gym.eval.stats import seed_bootstrap_interval
-
         if self.seeds.size < 2:
             return [None] * self.seen.shape[1]
-        low, high = seed_bootstrap_interval(self.recalled[mode], self.seen)
-        return [None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)]
+        return interval_list(*seed_bootstrap_interval(self.recalled[mode], self.seen))
+
+    def on(self, seeds: np.ndarray) -> CourseCounts:
+        """The counts of ``seeds`` in their order, zeros for a course with no row here (no pit of
+        Fig. 16's sizes in view)."""
+        seeds = np.asarray(seeds, dtype=np.int64)
+        at = np.searchsorted(self.seeds, seeds)
+        here = at < self.seeds.size
+        here[here] = self.seeds[at[here]] == seeds[here]
+
+        def take(counts: np.ndarray) -> np.ndarray:
+            out = np.zeros((seeds.size, counts.shape[1]))
+            out[here] = counts[at[here]]
+            return out
+
+        return CourseCounts(seeds, take(self.seen), {m: take(c) for m, c in self.recalled.items()})
 
 
 def fig16_counts_by_course(obstacles_csv: str | Path, config: DetectionEvalConfig) -> CourseCounts:
     """The per-course Fig. 16 counts of a campaign's ``obstacles.csv``."""
-    return _fig16_by_course(read_csv(obstacles_csv), config)
+    return _ObstacleRows.parse(read_csv(obstacles_csv), config).fig16_by_course(
+        len(config.distance_bin_edges_m) - 1
+    )
 
 
-def _fig16_by_course(rows: list[dict[str, str]], config: DetectionEvalConfig) -> CourseCounts:
-    edges = config.distance_bin_edges_m
-    cells = np.array([int(r["cells"]) for r in rows], dtype=np.int64)
-    d = np.digitize(np.array([float(r["centre_distance_m"]) for r in rows], dtype=np.float64), edges) - 1
-    fig = (cells >= FIG16_CELLS[0]) & (cells < FIG16_CELLS[1]) & (d >= 0) & (d < len(edges) - 1)
-    seeds, course = np.unique(np.array([int(r["seed"]) for r in rows], dtype=np.int64), return_inverse=True)
-    shape, index = (seeds.size, len(edges) - 1), (course[fig], d[fig])
-    seen = np.zeros(shape)
-    np.add.at(seen, index, 1.0)
-    recalled = {}
-    for m in SENSOR_MODES:
-        recalled[m] = np.zeros(shape)
-        hit = np.array([r[f"recalled_{m}"] == "1" for r in rows], dtype=float)
-        np.add.at(recalled[m], index, hit[fig])
-    return CourseCounts(seeds, seen, recalled)
+@dataclass(frozen=True)
+class _ObstacleRows:
+    """``obstacles.csv`` as columns: each row's course, rim cells, distance bin and recall flags."""
+
+    seeds: np.ndarray
+    cells: np.ndarray
+    distance_bin: np.ndarray  # -1 or beyond the last: outside the bins
+    recalled: dict[str, np.ndarray]  # per sensor mode, bool
+
+    @classmethod
+    def parse(cls, rows: list[dict[str, str]], config: DetectionEvalConfig) -> _ObstacleRows:
+        dist = np.array([float(r["centre_distance_m"]) for r in rows], dtype=np.float64)
+        return cls(
+            seeds=np.array([int(r["seed"]) for r in rows], dtype=np.int64),
+            cells=np.array([int(r["cells"]) for r in rows], dtype=np.int64),
+            distance_bin=np.digitize(dist, config.distance_bin_edges_m) - 1,
+            recalled={
+                m: np.array([r[f"recalled_{m}"] == "1" for r in rows], dtype=bool) for m in SENSOR_MODES
+            },
+        )
+
+    def fig16_by_course(self, bins: int) -> CourseCounts:
+        d = self.distance_bin
+        fig = (self.cells >= FIG16_CELLS[0]) & (self.cells < FIG16_CELLS[1]) & (d >= 0) & (d < bins)
+        seeds, course = np.unique(self.seeds, return_inverse=True)
+        index = (course[fig], d[fig])
+        seen = np.zeros((seeds.size, bins))
+        np.add.at(seen, index, 1.0)
+        recalled = {}
+        for m, hit in self.recalled.items():
+            recalled[m] = np.zeros((seeds.size, bins))
+            np.add.at(recalled[m], index, hit[fig].astype(float))
+        return CourseCounts(seeds, seen, recalled)
 
 
 def _fig16_cell(summary: DetectionSummary, mode: str, j: int) -> str:

@@ -24,6 +24,8 @@ __all__ = [
     "PairedRate",
     "PairedShift",
     "format_interval",
+    "interval_list",
+    "nan_to_none",
     "paired_rate",
     "paired_shift",
     "rate_interval",
@@ -143,6 +145,16 @@ def _percentiles(values: np.ndarray, columns: np.ndarray, confidence: float) -> 
     if columns.any():
         low[columns], high[columns] = np.nanpercentile(values[:, columns], [tail, 100.0 - tail], axis=0)
     return low, high
+
+
+def interval_list(low: np.ndarray, high: np.ndarray) -> list[list[float] | None]:
+    """Per column ``[low, high]`` as plain floats for JSON; None where there is no interval (NaN)."""
+    return [None if np.isnan(lo) else [float(lo), float(hi)] for lo, hi in zip(low, high, strict=True)]
+
+
+def nan_to_none(values: np.ndarray) -> list[float | None]:
+    """``values`` as plain floats for JSON; None for NaN and infinities."""
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=float).ravel()]
 
 
 def format_interval(interval: tuple[float, float] | None, digits: int = 2) -> str:

@@ -199,3 +199,24 @@ def test_killed_campaign_resumes_to_the_same_csv(tmp_path: Path) -> None:
     assert main(["-q", *args, "--out", str(tmp_path / "whole")]) == 0
     for name in ("obstacles.csv", "frames.csv"):
         assert (killed / name).read_bytes() == (tmp_path / "whole" / name).read_bytes()
+
+
+def test_course_counts_on_other_seeds_fill_courses_without_rows(tmp_path: Path) -> None:
+    from negobs_gym.eval.detection_campaign import fig16_counts_by_course
+
+    obstacles = tmp_path / "o.csv"
+    rows = ["c3,3,0,pit-0,25,7.0,1,0,0", "c3,3,1,pit-0,25,9.0,0,0,0", "c5,5,0,pit-0,30,7.5,1,1,0"]
+    obstacles.write_text(",".join(OBSTACLE_COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    counts = fig16_counts_by_course(obstacles, DetectionEvalConfig())
+    assert counts.seeds.tolist() == [3, 5] and counts.seen[:, :2].tolist() == [[1, 1], [1, 0]]
+    # seed 4 drove past no pit of Fig. 16's sizes (no row), seed 9 lies beyond every seed here
+    on = counts.on([5, 4, 3, 9])
+    assert on.seeds.tolist() == [5, 4, 3, 9]
+    assert on.seen[:, :2].tolist() == [[1, 0], [0, 0], [1, 1], [0, 0]]
+    assert on.recalled["fused"][:, 0].tolist() == [1, 0, 1, 0] and on.recalled["hdl64"][:, 0].tolist() == [
+        1,
+        0,
+        0,
+        0,
+    ]
+    assert on.recall("fused")[:2].tolist() == [1.0, 0.0]
