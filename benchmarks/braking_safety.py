@@ -15,9 +15,11 @@ are ``narrow_stopped_before=<k>/<n>`` and, last, ``stopped_before=<k>/<n>`` of t
 
 The detector tightens paper N's pairs to the close frames' near edge, as the envs do by default
 (``ObservationConfig.tighten_pairs``); ``--no-tighten-pairs`` runs paper N's fusion history.
+``--scan-every K`` casts a frame every K-th control step and carries it between
+(``ObservationConfig.scan_every``; the filter's timeout allows the frames' age).
 
 Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow trench_narrow]
-     [--no-baseline] [--no-tighten-pairs]
+     [--no-baseline] [--no-tighten-pairs] [--scan-every K]
 """
 
 from __future__ import annotations
@@ -51,6 +53,12 @@ def main() -> None:
         default=True,
         help="ObservationConfig.tighten_pairs (docs/detector_features.md, 'Near edge')",
     )
+    parser.add_argument(
+        "--scan-every",
+        type=int,
+        default=1,
+        help="ObservationConfig.scan_every: a LiDAR frame every K control steps (docs/performance.md)",
+    )
     args = parser.parse_args()
     config = BrakingCampaignConfig(
         seeds=args.episodes,
@@ -58,6 +66,7 @@ def main() -> None:
         drivers=("reckless",),
         filters=(True,) if args.no_baseline else (False, True),
         tighten_pairs=args.tighten_pairs,
+        scan_every=args.scan_every,
     )
     options = RunOptions(backend=Backend(workers=args.workers), resume=args.resume, progress=False)
     t0 = time.perf_counter()

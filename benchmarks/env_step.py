@@ -8,7 +8,10 @@ Configurations (the env's registered config with ``ObservationConfig`` changed):
   and the detectors' neighbourhoods need it, + LUX; both detectors every step);
 - ``rig=native``: the full 360 deg native rig + LUX;
 - ``rig=reduced``: the old half-resolution rig;
-- ``obs=oracle``: the ground-truth grid (no sensors), for comparison.
+- ``obs=oracle``: the ground-truth grid (no sensors), for comparison;
+- ``scan_every=k`` (``--scan-every``, default 2,3): the default rig with a LiDAR frame every k-th
+  step, carried to the current pose between (``ObservationConfig.scan_every``), in one process
+  and in ``--envs`` processes (``PrefetchVecEnv``).
 
 Reset cost: the mean over an episode stream with a new seed each, with a new terrain every
 episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
@@ -55,14 +58,14 @@ from negobs_gym.sim.world import World
 ACTION = np.array([0.5, 0.0], np.float32)
 
 
-def _make(env_id: str, source: str, rig: str, threads: int | None = None):
+def _make(env_id: str, source: str, rig: str, threads: int | None = None, scan_every: int = 1):
     def thunk():
         # "module:id" makes gymnasium import negobs_gym (and so register) inside a subprocess
         spec_id = f"negobs_gym:{env_id}"
         probe = gym.make(spec_id)
         cfg = probe.unwrapped.default_config()
         probe.close()
-        obs = dataclasses.replace(cfg.observation, source=source, rig=rig)
+        obs = dataclasses.replace(cfg.observation, source=source, rig=rig, scan_every=scan_every)
         if threads is not None:
             obs = dataclasses.replace(obs, raycast_threads=threads)
         return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs))
@@ -244,7 +247,7 @@ def _fmt(ms: dict[str, float]) -> str:
 
 
 def _run_vec(
-    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str
+    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str, scan_every: int = 1
 ) -> tuple[float, dict[str, float]]:
     """Steps/s of an ``n_envs``-slot vector env (all its steps), ``kind`` ``"prefetch"``
     (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`, seeded 0: the episodes of :func:`_drive`) or
@@ -256,7 +259,7 @@ def _run_vec(
     ``subproc``: waits for a spare, pipes, the main process)."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    thunks = [_clocked(_make(env_id, source, rig)) for _ in range(n_envs)]
+    thunks = [_clocked(_make(env_id, source, rig, scan_every=scan_every)) for _ in range(n_envs)]
     venv = PrefetchVecEnv(thunks) if kind == "prefetch" else SubprocVecEnv(thunks)
     venv.seed(0)
     venv.reset()
@@ -293,9 +296,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200, help="control steps per configuration")
     parser.add_argument("--envs", type=int, default=2, help="processes of the vectorized run")
     parser.add_argument("--skip-others", action="store_true", help="only the default rig")
+    parser.add_argument(
+        "--scan-every", default="2,3", help="comma-separated ObservationConfig.scan_every values ('' = none)"
+    )
     args = parser.parse_args()
     if args.steps < 1 or args.envs < 1:
         parser.error("--steps and --envs must be >= 1")
+    every = [int(k) for k in args.scan_every.split(",") if k.strip()]
+    if any(k < 1 for k in every):
+        parser.error(f"--scan-every takes ints >= 1, got {args.scan_every!r}")
     default_rig = negobs_gym.envs.config.ObservationConfig().rig
     t0 = time.perf_counter()
     env = _make(args.env_id, "detector", default_rig)()
@@ -332,6 +341,17 @@ def main() -> None:
         )
         alone_note = f"one process alone: step_cpu {alone_cpu_ms:.1f}"
         print(f"lockstep_ms vec={kind} ({alone_note}): {_fmt(lockstep)}")
+    for k in every:
+        envs = _episodes(_clocked(_make(args.env_id, "detector", default_rig, scan_every=k)), args.envs)
+        one, _ = _drive(envs, each)
+        cpu_ms = 1e3 * sum(e.cpu_s for e in envs) / max(1, sum(e.steps for e in envs))
+        _close(envs)
+        vec, _ = _run_vec(args.env_id, "detector", default_rig, each, args.envs, "prefetch", scan_every=k)
+        print(
+            f"obs=detector rig={default_rig} scan_every={k} processes=1 steps_per_s={one:.1f} "
+            f"step_cpu_ms={cpu_ms:.1f} ratio_to_every_step={one / sps:.2f}; processes={args.envs} "
+            f"vec=prefetch steps_per_s={vec:.1f}"
+        )
     print(f"train_steps_per_s={sps:.1f}")
 
 

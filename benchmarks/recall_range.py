@@ -20,11 +20,17 @@ over the recalled frames of each bin, along the track; a pit confirmed far out k
 frames' early edge unless ``--tighten``, ``FusionConfig.tighten_on_match``) and
 ``near_edge_lead_6_12_m=``, its mean over 6-12 m, where the safety filter stops.
 
+``--scan-every 1,2,3`` also evaluates the envs' ``ObservationConfig.scan_every``: the detectors
+get every k-th frame only, and the frames between are judged on the last detection's outlines
+carried from its INS pose to theirs (as the envs carry their grid); after the main table's lines, one
+table per further k and ``scan_every_<k>_max_drop=<the largest fused recall drop against the first
+k over the 6-20 m bins>``.
+
 ``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
 run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
 
 Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|roi|reduced] [--cache DIR]
-     [--bin-by centre|nearest] [--tighten]
+     [--bin-by centre|nearest] [--tighten] [--scan-every 1,2,3]
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.grid import GridSpec, carry_points
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import SENSOR_MODES, FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
@@ -156,10 +162,12 @@ def near_edge_lead_m(outlines: list[np.ndarray], truth: np.ndarray) -> float:
 
 
 def evaluate(
-    rig: Rig, drives: list[dict], matching: DetectionEvalConfig, fusion: FusionConfig
+    rig: Rig, drives: list[dict], matching: DetectionEvalConfig, fusion: FusionConfig, scan_every: int = 1
 ) -> tuple[dict[str, RecallTable], np.ndarray, np.ndarray]:
     """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive), and per
-    fused frame the pit centre's distance and :func:`near_edge_lead_m`."""
+    fused frame the pit centre's distance and :func:`near_edge_lead_m`. The detectors get every
+    ``scan_every``-th frame; the frames between are judged on the last detection carried to
+    their INS pose."""
     detectors = {
         m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m, fusion=fusion)) for m in SENSOR_MODES
     }
@@ -168,15 +176,18 @@ def evaluate(
     for drive in drives:
         for det in detectors.values():
             det.reset()
+        last: dict[str, tuple[Pose, list[np.ndarray]]] = {}
         for k in range(len(drive["ins"])):
-            scans = frame_scans(rig, drive, k)
             ins = Pose.from_array(drive["ins"][k])
             truth = world_outline_to_vehicle(
                 drive["outline"], Pose.from_array(drive["truth"][k]), drive["rim_z"]
             )
+            scans = frame_scans(rig, drive, k) if k % scan_every == 0 else None
             for mode, det in detectors.items():
-                detection = det.update(scans, ins)
-                outlines = [o.outline_xy_m for o in detection.obstacles]
+                if scans is not None:
+                    last[mode] = (ins, [o.outline_xy_m for o in det.update(scans, ins).obstacles])
+                seen_at, seen = last[mode]
+                outlines = [carry_points(o, seen_at, ins) for o in seen] if scans is None else seen
                 tables[mode].add(match_frame(outlines, [truth], GRID, matching))
                 if mode == "fused":
                     distances.append(float(np.hypot(*truth[:, :2].mean(axis=0))))
@@ -196,7 +207,15 @@ def main() -> None:
         help="distance of a pit: its cells' centre (paper N §4.2, default) or its nearest cell",
     )
     parser.add_argument("--tighten", action="store_true", help="FusionConfig(tighten_on_match=True)")
+    parser.add_argument(
+        "--scan-every",
+        default="1",
+        help="comma-separated ObservationConfig.scan_every values; the first is the main table",
+    )
     args = parser.parse_args()
+    every = [int(k) for k in args.scan_every.split(",")]
+    if not every or min(every) < 1:
+        parser.error(f"--scan-every takes ints >= 1, got {args.scan_every!r}")
     matching = DetectionEvalConfig(size_bin_edges_cells=SIZE_BINS, bin_distance=args.bin_by)
     rig = RIGS[args.rig]()
     drives = [
@@ -204,13 +223,14 @@ def main() -> None:
         for seed in range(args.seeds)
         for size in PAPER_N_PIT_SIZES_M
     ]
-    tables, distances, leads = evaluate(rig, drives, matching, FusionConfig(tighten_on_match=args.tighten))
+    fusion = FusionConfig(tighten_on_match=args.tighten)
+    tables, distances, leads = evaluate(rig, drives, matching, fusion, every[0])
     edges = matching.distance_bin_edges_m
     bins = [f"{lo:.0f}-{hi:.0f} m" for lo, hi in itertools.pairwise(edges)]
     recall = {m: t.recall()[0] for m, t in tables.items()}
     print(
         f"{len(drives)} drives ({args.seeds} seeds x {len(PAPER_N_PIT_SIZES_M)} pit sizes), rig {args.rig}, "
-        f"distance bins by the pit's {args.bin_by}, tighten_on_match={args.tighten}"
+        f"distance bins by the pit's {args.bin_by}, tighten_on_match={args.tighten}, scan_every={every[0]}"
     )
     print(f"frames per bin: {' '.join(str(n) for n in tables['fused'].seen[0])}")
     print(f"{'mode':<14}" + "".join(f"{b:>9}" for b in bins))
@@ -235,6 +255,13 @@ def main() -> None:
     beyond = np.asarray(edges[:-1]) >= 14.0
     ok = bool(np.all(recall["hdl32"][beyond] >= recall["hdl64"][beyond]))
     print(f"fig16_order={'ok' if ok else 'violated'}")
+    for k in every[1:]:
+        other, _, _ = evaluate(rig, drives, matching, fusion, k)
+        print(f"scan_every={k}: a detector frame every {k} steps, the frames between carried")
+        for mode, label in (("fused", "fused"), ("hdl64", "HDL-64 only"), ("hdl32", "HDL-32 only")):
+            print(f"{label:<14}" + "".join(f"{r:9.2f}" for r in other[mode].recall()[0]))
+        drop = recall["fused"] - other["fused"].recall()[0]
+        print(f"scan_every_{k}_max_drop={np.nanmax(drop):.2f} (fused, against scan_every={every[0]})")
 
 
 if __name__ == "__main__":

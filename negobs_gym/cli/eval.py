@@ -128,6 +128,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(ObservationConfig.tighten_pairs); --no-tighten-pairs: paper N's fusion history",
     )
     brk.add_argument(
+        "--scan-every",
+        type=positive_int,
+        default=None,
+        metavar="K",
+        help="a LiDAR frame every K control steps, carried between (ObservationConfig.scan_every; "
+        "default 1: every step)",
+    )
+    brk.add_argument(
         "--free-track-steps",
         type=positive_int,
         default=None,
@@ -329,6 +337,7 @@ def run_braking(args: argparse.Namespace) -> int:
         "model_path": args.model,
         "algo": args.algo,
         "tighten_pairs": args.tighten_pairs,
+        "scan_every": args.scan_every,
         "free_track_steps": args.free_track_steps,
     }
     config = build_config(BrakingCampaignConfig, _toml(args), cli)

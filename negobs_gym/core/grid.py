@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from negobs_gym.core.compiled import kernel
+from negobs_gym.core.pose import Pose
 from negobs_gym.errors import require
 
 
@@ -97,6 +98,31 @@ class GridSpec:
         x = -self.side_m + (col + 0.5) * self.cell_m
         y = -self.back_m + (row + 0.5) * self.cell_m
         return np.stack([x, y], axis=1).astype(float)
+
+    def carry_index(self, seen_at: Pose, now: Pose) -> np.ndarray:
+        """(rows, cols) flat index, into a grid laid at pose ``seen_at``, of the cell under each
+        cell centre of the grid at pose ``now`` (-1 where it falls outside): moves a layer seen
+        at ``seen_at`` into the grid at ``now`` (ego-motion, nearest cell; :func:`carry_layer`)."""
+        centres = self.cell_centres()
+        ground = np.concatenate([centres, np.zeros((*self.shape, 1))], axis=-1)
+        earlier = seen_at.to_vehicle(now.to_world(ground))[..., :2]
+        row, col, inside = self.cell_of(earlier)
+        return np.where(inside, row * self.cols + col, -1)
+
+
+def carry_layer(layer: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``layer`` (rows, cols) moved by :meth:`GridSpec.carry_index`'s ``index``; cells it does
+    not cover are False (unseen)."""
+    flat = np.asarray(layer).ravel()
+    return np.where(index >= 0, flat[np.maximum(index, 0)], False)
+
+
+def carry_points(xy: np.ndarray, seen_at: Pose, now: Pose) -> np.ndarray:
+    """(N, 2) vehicle-frame points seen at pose ``seen_at``, on the ground plane, in the
+    vehicle frame of ``now``."""
+    pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    ground = np.column_stack([pts, np.zeros(len(pts))])
+    return now.to_vehicle(seen_at.to_world(ground))[:, :2]
 
 
 @kernel

@@ -353,6 +353,13 @@ class NegObsEnv(gym.Env):
         return self._vehicle
 
     @property
+    def max_perception_age_s(self) -> float:
+        """The oldest :meth:`hazard_state` data gets between two LiDAR frames [s]: 0 with a frame
+        every step, ``(scan_every - 1) / control_hz`` with ``ObservationConfig.scan_every`` (the
+        safety filter refuses a ``perception_timeout_s`` that is not above it)."""
+        return (self.config.observation.scan_every - 1) / self.config.control_hz
+
+    @property
     def perception(self) -> DetectorGrid | None:
         """The running LiDAR rig and detectors (last scans and detection), or None before they start."""
         return self._detector.perception if self._detector is not None else None
@@ -385,7 +392,7 @@ class NegObsEnv(gym.Env):
             self._last_grid,
             self.config.observation,
             points_vehicle_m=perception.points_vehicle() if perception is not None else None,
-            detected_outlines_m=[o.outline_xy_m for o in detection.obstacles]
+            detected_outlines_m=[perception.to_current(o.outline_xy_m) for o in detection.obstacles]
             if detection is not None
             else (),
             safety=safety,

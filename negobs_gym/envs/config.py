@@ -130,6 +130,13 @@ class ObservationConfig:
         raycast_isa: Embree's kernels: ``"native"`` (the CPU's widest, fastest) or one instruction
             set (``"avx2"``: the same scans on every AVX2 or AVX-512 CPU; docs/determinism.md).
         sensor_noise: Range noise and dropout on the simulated scans.
+        scan_every: Cast the rig and run the detectors every this many control steps (1, the
+            default: every step, the sensors' 10 Hz as in both papers). Between two frames the
+            last frame's channels and the safety filter's hazard cells are carried to the current
+            INS pose (ego-motion, as paper N's fusion registers frames), so a step costs physics
+            only; the hazards then age up to ``scan_every - 1`` control periods, which the safety
+            filter's ``perception_timeout_s`` (0.2 s) must allow. Ignored by the oracle source.
+            Rates, recall and braking: docs/performance.md, "Scanning every k-th step".
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
         downsample: Integer block size for pooling the grid (1 = full resolution).
@@ -195,6 +202,7 @@ class ObservationConfig:
     raycast_threads: int | None = None
     raycast_isa: str = "native"
     sensor_noise: bool = True
+    scan_every: int = 1
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
     downsample: int = 4
@@ -229,6 +237,11 @@ class ObservationConfig:
             or (isinstance(self.raycast_threads, int) and 1 <= self.raycast_threads <= 64),
             "raycast_threads",
             f"must be None or an int in [1, 64], got {self.raycast_threads!r}",
+        )
+        require(
+            type(self.scan_every) is int and self.scan_every >= 1,
+            "scan_every",
+            f"must be an int >= 1 (control steps per LiDAR frame), got {self.scan_every!r}",
         )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(

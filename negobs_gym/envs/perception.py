@@ -2,7 +2,9 @@
 
 One frame per control step (the sensors' 10 Hz): the paper N rig (native or reduced) plus paper T's
 bumper LUX are cast from the vehicle's true pose with sensor noise from the env's generator, and the
-detectors get the INS pose, exactly as on a real vehicle. Channels on the observation grid:
+detectors get the INS pose, exactly as on a real vehicle. With ``ObservationConfig.scan_every`` = k
+> 1 a frame is cast every k-th step only, and the steps between carry the last frame's channels
+and hazard cells to the current INS pose. Channels on the observation grid:
 
 - ``negative``: cells of paper N's detector (:class:`~negobs_gym.detector.NegativeObstacleDetector`);
 - ``positive``: obstacle cells of paper T's detector
@@ -22,6 +24,7 @@ import os
 
 import numpy as np
 
+from negobs_gym.core.grid import carry_layer, carry_points
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import (
@@ -37,7 +40,7 @@ from negobs_gym.detector import (
 )
 from negobs_gym.detector.memory import PointHold
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.lidar import frame_noise_key, scan_rig
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import RayCaster, make_caster
 from negobs_gym.sensors.rigs import LUX_FORWARD_M, Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
@@ -112,7 +115,8 @@ def world_products(
 
 
 class DetectorGrid:
-    """Runs the rig and both detectors each control step; keeps the last frame for rendering."""
+    """Runs the rig and both detectors each control step (or every ``config.scan_every``-th, the
+    last frame carried between); keeps the last frame for rendering."""
 
     def __init__(
         self,
@@ -157,11 +161,25 @@ class DetectorGrid:
         self.positive: np.ndarray | None = None  # the last frame's positive-obstacle layer
         self._hazard_holds = {name: PointHold(config.hazard_hold_s) for name in HAZARD_CHANNELS}
         self._hazards = {name: np.empty((0, 2)) for name in HAZARD_CHANNELS}
+        self._steps_to_frame = 0  # control steps until the next frame is cast (0: at this one)
+        self._frame: tuple[Pose, dict[str, np.ndarray], dict[str, np.ndarray]] | None = None
+        self._pose: Pose | None = None  # INS pose of the last observe()
 
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
-        """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel."""
-        true_pose = self._vehicle.true_pose()
+        """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel.
+
+        Between two frames (``config.scan_every`` > 1) nothing is cast: the last frame's layers
+        and hazard cells are carried to the current INS pose, and ``stamp_s`` stays the frame's.
+        """
         ins_pose: Pose = self._vehicle.pose()
+        self._pose = ins_pose
+        if self._steps_to_frame > 0:
+            self._steps_to_frame -= 1
+            # the key a frame would take: the frames that are cast get an every-step run's noise
+            frame_noise_key(self._rng, self._noise)
+            return self._carried(ins_pose)
+        self._steps_to_frame = self.config.scan_every - 1
+        true_pose = self._vehicle.true_pose()
         subsets = None
         if self._roi is not None:
             subsets = self._roi.subsets_for_bands(
@@ -186,17 +204,50 @@ class DetectorGrid:
         self.positive = positive
         for name, layer in zip(HAZARD_CHANNELS, (self.detection.grid, positive), strict=True):
             self._hazards[name] = self._held_cells(name, layer, ins_pose, float(timestamp_s))
-        return {
+        layers = {
             "negative": self.detection.grid,
             "positive": positive,
             "traversable": np.asarray(self.region.traversable, dtype=bool),
             "observed": self._observed(),
         }
+        if self.config.scan_every > 1:
+            self._frame = (ins_pose, layers, dict(self._hazards))
+        return layers
+
+    @property
+    def pose(self) -> Pose | None:
+        """INS pose of the last ``observe()`` (None before the first)."""
+        return self._pose
+
+    @property
+    def frame_pose(self) -> Pose | None:
+        """INS pose of the last cast frame (with ``scan_every`` 1: of the last ``observe()``)."""
+        return self._frame[0] if self._frame is not None else self._pose
+
+    def _carried(self, pose: Pose) -> dict[str, np.ndarray]:
+        """The last frame's layers and hazard cells moved from its INS pose to ``pose``."""
+        frame_pose, layers, hazards = self._frame
+        index = self.config.grid.carry_index(frame_pose, pose)
+        for name in HAZARD_CHANNELS:
+            self._hazards[name] = carry_points(hazards[name], frame_pose, pose)
+        return {name: carry_layer(layer, index) for name, layer in layers.items()}
+
+    def to_current(self, points: np.ndarray) -> np.ndarray:
+        """Vehicle-frame points (N, 2 or 3) of the last frame in the vehicle frame of the last
+        ``observe()`` (the same points when that was a frame)."""
+        if self._frame is None or self._frame[0] == self._pose:
+            return points
+        frame_pose = self._frame[0]
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.shape[-1] == 2:
+            return carry_points(pts, frame_pose, self._pose)
+        return self._pose.to_vehicle(frame_pose.to_world(pts))
 
     def points_vehicle(self) -> np.ndarray:
-        """(N, 3) vehicle-frame returns of the last frame, all sensors (for rendering)."""
+        """(N, 3) returns of the last frame, all sensors, in the vehicle frame of the last
+        ``observe()`` (for rendering)."""
         pts = [s.points_vehicle[np.isfinite(s.ranges_m)] for s in self.scans.values()]
-        return np.concatenate(pts) if pts else np.empty((0, 3))
+        return self.to_current(np.concatenate(pts)) if pts else np.empty((0, 3))
 
     def negative_cells_xy_m(self) -> np.ndarray:
         """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells, plus those of

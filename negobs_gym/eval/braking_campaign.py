@@ -128,6 +128,7 @@ class BrakingCampaignConfig:
     algo: str = "PPO"  # its stable-baselines3 class
     rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
     tighten_pairs: bool = True  # ObservationConfig.tighten_pairs of the detector the filter reads
+    scan_every: int = 1  # ObservationConfig.scan_every: a LiDAR frame every this many steps
     # the most steps (10 Hz) of a free_track episode: the 15 s limit's 150 by default; fewer give a
     # quicker (shorter-distance) false-veto check, the obstacle scenarios keep their 150
     free_track_steps: int = EPISODE_STEPS
@@ -155,6 +156,11 @@ class BrakingCampaignConfig:
             f"must be a bool, got {self.tighten_pairs!r}",
         )
         require(
+            type(self.scan_every) is int and self.scan_every >= 1,
+            "scan_every",
+            f"must be an int >= 1, got {self.scan_every!r}",
+        )
+        require(
             isinstance(self.free_track_steps, int)
             and not isinstance(self.free_track_steps, bool)
             and 1 <= self.free_track_steps <= EPISODE_STEPS,
@@ -178,8 +184,8 @@ def configuration_name(scenario: str, driver: str, filtered: bool) -> str:
 def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     """scenario x driver x filter x seed, keyed in that order. An obstacle-free (``free_track``)
     episode's args hold its ``max_steps`` where ``config.free_track_steps`` is not
-    :data:`EPISODE_STEPS`, which the others run (so a default campaign's parts are those written
-    before the field came)."""
+    :data:`EPISODE_STEPS`, which the others run, and every episode's its ``scan_every`` where
+    that is not 1 (so a default campaign's parts are those written before the fields came)."""
     out = []
     for scenario in config.scenarios:
         for driver in config.all_drivers():
@@ -198,11 +204,13 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
                     }
                     if obstacle_free(scenario) and config.free_track_steps != EPISODE_STEPS:
                         args["max_steps"] = config.free_track_steps
+                    if config.scan_every != 1:
+                        args["scan_every"] = config.scan_every
                     out.append(Episode(key, args))
     return out
 
 
-def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) -> Any:
+def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool, scan_every: int = 1) -> Any:
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
@@ -219,17 +227,27 @@ def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool) ->
     # scripted drivers ignore the observation: the oracle grid skips the sensors unless the
     # filter asks for the detector (it always sees obstacles through the detector grid)
     observation = dataclasses.replace(
-        spec.observation, rig=rig, source="oracle" if oracle else "detector", tighten_pairs=tighten_pairs
+        spec.observation,
+        rig=rig,
+        source="oracle" if oracle else "detector",
+        tighten_pairs=tighten_pairs,
+        scan_every=scan_every,
     )
     return dataclasses.replace(spec, observation=observation)
 
 
 def _scenario_env(
-    scenario: str, rig: str, oracle: bool, tighten_pairs: bool, render_mode: str | None = None
+    scenario: str,
+    rig: str,
+    oracle: bool,
+    tighten_pairs: bool,
+    render_mode: str | None = None,
+    scan_every: int = 1,
 ) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
-    return NegObsEnv(scenario=scenario_spec(scenario, rig, oracle, tighten_pairs), render_mode=render_mode)
+    spec = scenario_spec(scenario, rig, oracle, tighten_pairs, scan_every)
+    return NegObsEnv(scenario=spec, render_mode=render_mode)
 
 
 def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:
@@ -256,7 +274,9 @@ def run_driven_episode(
     video_to: str | Path | None = None,
 ) -> dict[str, Any]:
     """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``: True for the
-    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics.
+    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics. With True
+    on an env that casts a LiDAR frame every k-th step (``ObservationConfig.scan_every``) the
+    filter's ``perception_timeout_s`` is the default's plus the env's ``max_perception_age_s``.
     ``video_to``: also write the episode's frames there (:class:`~negobs_gym.envs.video.
     EpisodeVideo`; ``env`` renders ``rgb_array``); the metrics are the same with or without.
 
@@ -278,6 +298,9 @@ def run_driven_episode(
     from negobs_gym.safety import BrakingSafetyFilter
 
     guard = filter_config(filtered)
+    age = float(getattr(env.unwrapped, "max_perception_age_s", 0.0))
+    if filtered is True and age > 0:  # frames every k steps: the default allowance beyond their age
+        guard = dataclasses.replace(guard, perception_timeout_s=guard.perception_timeout_s + age)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
     with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.config.control_hz) as video:
@@ -365,7 +388,9 @@ def run_episode(episode: Episode) -> Rows:
     video_to = a.get("video_to")
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
     render_mode = "rgb_array" if video_to is not None else None
-    env = _scenario_env(a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"], render_mode)
+    env = _scenario_env(
+        a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"], render_mode, a.get("scan_every", 1)
+    )
     max_steps = a.get("max_steps", EPISODE_STEPS)
     metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], max_steps, video_to=video_to)
     label = "filter" if a["filtered"] else "nofilter"

@@ -153,6 +153,14 @@ class BrakingSafetyFilter(gym.Wrapper):
             self.config = config
         else:
             self.config = SafetyFilterConfig(braking=BrakingConfig(**braking_kw), **filter_kw)
+        age = float(getattr(env.unwrapped, "max_perception_age_s", 0.0))
+        if not age < self.config.perception_timeout_s:
+            raise ConfigError(
+                "perception_timeout_s",
+                f"{self.config.perception_timeout_s} s is not above the {age:.3g} s the env's hazards "
+                f"age between two LiDAR frames (observation.scan_every): the filter would brake at "
+                f"every step between frames; give it a longer timeout",
+            )
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
 

@@ -127,7 +127,13 @@ class DecisionSink(Protocol):
 
 @runtime_checkable
 class HazardSource(Protocol):
-    """An env (or its ``unwrapped``) the braking safety filter can read hazards from."""
+    """An env (or its ``unwrapped``) the braking safety filter can read hazards from.
+
+    An env whose perception runs slower than its control steps may also tell the oldest its
+    hazard data gets in normal running, ``max_perception_age_s`` [s] (NegObsEnv does); the filter
+    refuses a ``perception_timeout_s`` that is not above it, which would brake at every step
+    between two frames.
+    """
 
     def hazard_state(self) -> HazardState:
         """The current :class:`HazardState` (after ``reset`` or the last ``step``)."""

@@ -85,3 +85,40 @@ def test_centres_of_a_mask_are_those_cells_centres():
     mask = np.random.default_rng(0).random(grid.shape) < 0.05
     assert np.array_equal(grid.centres_of(mask), grid.cell_centres()[mask])
     assert grid.centres_of(np.zeros(grid.shape, bool)).shape == (0, 2)
+
+
+def test_carry_index_moves_a_layer_by_the_vehicles_motion():
+    """Driving 3 cells forward moves a seen cell 3 rows nearer; cells that come into view are unseen."""
+    from negobs_gym.core.grid import carry_layer
+    from negobs_gym.core.pose import Pose
+
+    grid = GridSpec(ahead_m=4.0, back_m=0.0, side_m=1.0)
+    layer = np.zeros(grid.shape, dtype=bool)
+    layer[15, 2] = True
+    layer[0, 0] = True  # the row the car drives over: it leaves the grid
+    seen_at = Pose(x=5.0, y=-2.0, yaw=0.0)
+    now = Pose(x=5.0, y=-2.0 + 3 * grid.cell_m + 0.01, yaw=0.0)
+    moved = carry_layer(layer, grid.carry_index(seen_at, now))
+    assert moved.dtype == bool and moved.shape == grid.shape
+    assert np.argwhere(moved).tolist() == [[12, 2]]
+    assert not moved[-3:].any()  # the rows ahead that the earlier grid did not cover
+    np.testing.assert_array_equal(carry_layer(layer, grid.carry_index(seen_at, seen_at)), layer)
+
+
+def test_carry_follows_a_turn_and_agrees_with_carried_points():
+    """After a 90 deg left turn on the spot a cell 1 m ahead lies 1 m to the right; the cell under a
+    carried cell centre is the cell the carried layer sets."""
+    from negobs_gym.core.grid import carry_layer, carry_points
+    from negobs_gym.core.pose import Pose
+
+    grid = GridSpec(ahead_m=3.0, back_m=3.0, side_m=3.0)
+    layer = np.zeros(grid.shape, dtype=bool)
+    ahead = np.array([[0.1, 1.1]])  # a cell centre 1.1 m ahead, 0.1 m right
+    row, col, _ = grid.cell_of(ahead)
+    layer[row[0], col[0]] = True
+    seen_at, now = Pose(x=1.0, y=2.0, yaw=0.3), Pose(x=1.0, y=2.0, yaw=0.3 + np.pi / 2)
+    moved = carry_layer(layer, grid.carry_index(seen_at, now))
+    there = carry_points(ahead, seen_at, now)
+    np.testing.assert_allclose(there, [[1.1, -0.1]], atol=1e-12)  # vehicle frame: x right, y forward
+    r, c, inside = grid.cell_of(there)
+    assert inside.all() and np.argwhere(moved).tolist() == [[r[0], c[0]]]

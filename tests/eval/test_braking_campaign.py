@@ -256,3 +256,23 @@ def test_tighten_pairs_reaches_the_episodes_detector() -> None:
         )
     with pytest.raises(ConfigError, match="tighten_pairs"):
         BrakingCampaignConfig(tighten_pairs="yes")
+
+
+def test_scan_every_reaches_the_episode_and_the_filter_allows_the_frames_age() -> None:
+    """``scan_every`` lies in the episodes' args only where it is not 1 (default parts resume); a
+    filtered reckless episode with a frame every 3 steps runs with the default timeout plus the
+    frames' 0.2 s age, never stale, and stops before the ditch."""
+    from negobs_gym.eval.braking_campaign import run_episode
+
+    cfg = BrakingCampaignConfig(
+        seeds=1, scenarios=("ditch",), drivers=("reckless",), filters=(True,), scan_every=3
+    )
+    (episode,) = episodes(cfg)
+    assert episode.args["scan_every"] == 3
+    assert all("scan_every" not in e.args for e in episodes(dataclasses.replace(cfg, scan_every=1)))
+    for bad in (0, 1.5, True):
+        with pytest.raises(ConfigError, match="scan_every"):
+            BrakingCampaignConfig(scan_every=bad)
+    (row,) = _read_rows(run_episode(episode)["braking"])
+    assert row["entered"] in ("0", "False") and row["stopped"] in ("1", "True")
+    assert 0 < float(row["final_gap_m"]) and float(row["first_veto_gap_m"]) < 16.0  # vetoed by distance

@@ -1,0 +1,85 @@
+"""``ObservationConfig.scan_every``: a LiDAR frame every k-th control step, carried between."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from negobs_gym.core.grid import carry_layer, carry_points
+from negobs_gym.envs.config import EnvConfig, ObservationConfig
+from negobs_gym.envs.scenarios import BrakingEnv
+from negobs_gym.errors import ConfigError
+from negobs_gym.safety import BrakingSafetyFilter
+
+COAST = np.array([0.0, 0.0], np.float32)
+
+
+def _env(scan_every: int, **observation) -> BrakingEnv:
+    """Braking-v0 at 25 km/h from the start (paper N §4), a frame every ``scan_every`` steps."""
+    cfg = replace(EnvConfig(), start_speed_mps=25 / 3.6)
+    return BrakingEnv(
+        replace(cfg, observation=replace(cfg.observation, scan_every=scan_every, **observation))
+    )
+
+
+def _ranges(env: BrakingEnv) -> np.ndarray:
+    return np.concatenate([s.ranges_m.ravel() for s in env.perception.scans.values()])
+
+
+def test_frames_equal_an_every_step_runs_and_the_steps_between_carry_the_last_one() -> None:
+    """Same seed and actions: every other step's scans are those of a frame-every-step env, bit for
+    bit (the noise key of a skipped frame is drawn all the same); between frames nothing is cast,
+    the grid is the last frame's moved to the current INS pose and so are the filter's hazards,
+    which age one control period."""
+    every, pair = _env(1), _env(2, downsample=1)
+    every.reset(seed=1)
+    obs, _ = pair.reset(seed=1)
+    carried = hazards_carried = 0
+    for step in range(31):
+        if step:
+            every.step(COAST)
+            obs, *_ = pair.step(COAST)
+        perception = pair.perception
+        hazards = pair.hazard_state()
+        if step % 2 == 0:
+            np.testing.assert_array_equal(_ranges(pair), _ranges(every))
+            assert perception.frame_pose == perception.pose
+            assert hazards.perception_age_s == 0.0
+            frame_obs, frame_hazards, frame_pose = obs["grid"], hazards, perception.pose
+            frame_scans = perception.scans
+            continue
+        assert perception.scans is frame_scans and perception.frame_pose == frame_pose
+        assert hazards.perception_age_s == pytest.approx(0.1)
+        index = perception.config.grid.carry_index(frame_pose, perception.pose)
+        np.testing.assert_array_equal(obs["grid"], [carry_layer(layer, index) for layer in frame_obs])
+        np.testing.assert_allclose(
+            hazards.negative_obstacles_xy_m,
+            carry_points(frame_hazards.negative_obstacles_xy_m, frame_pose, perception.pose),
+        )
+        carried += int(obs["grid"][-1].any() and not np.array_equal(obs["grid"], frame_obs))
+        hazards_carried += len(hazards.negative_obstacles_xy_m) > 0
+    assert carried == 15 and hazards_carried >= 5  # every step between frames: moved, not copied
+    assert pair.max_perception_age_s == pytest.approx(0.1) and every.max_perception_age_s == 0.0
+    every.close()
+    pair.close()
+
+
+def test_the_filter_refuses_a_timeout_the_frames_age_past() -> None:
+    """A frame every 3 steps ages the hazards 0.2 s: the default 0.2 s timeout would brake at every
+    step between frames, so it is refused by name; a longer one is taken."""
+    env = _env(3)
+    assert env.max_perception_age_s == pytest.approx(0.2)
+    with pytest.raises(ConfigError, match=r"perception_timeout_s.*scan_every"):
+        BrakingSafetyFilter(env)
+    guarded = BrakingSafetyFilter(env, perception_timeout_s=0.35)
+    guarded.reset(seed=0)
+    for _ in range(6):
+        guarded.step(COAST)
+        assert not guarded.last_decision.perception_stale
+    guarded.close()
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2", None])
+def test_bad_scan_every_is_refused(bad) -> None:
+    with pytest.raises(ConfigError, match="scan_every"):
+        ObservationConfig(scan_every=bad)
