@@ -16,7 +16,7 @@ are ``narrow_stopped_before=<k>/<n>`` and, last, ``stopped_before=<k>/<n>`` of t
 The detector tightens paper N's pairs to the close frames' near edge, as the envs do by default
 (``ObservationConfig.tighten_pairs``); ``--no-tighten-pairs`` runs paper N's fusion history.
 ``--scan-every K`` casts a frame every K-th control step and carries it between
-(``ObservationConfig.scan_every``; the filter's timeout allows the frames' age).
+(``ObservationConfig.scan_every``; the filter's timeout counts from the frames' own age).
 
 Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow trench_narrow]
      [--no-baseline] [--no-tighten-pairs] [--scan-every K]

@@ -356,7 +356,7 @@ class NegObsEnv(gym.Env):
     def max_perception_age_s(self) -> float:
         """The oldest :meth:`hazard_state` data gets between two LiDAR frames [s]: 0 with a frame
         every step, ``(scan_every - 1) / control_hz`` with ``ObservationConfig.scan_every`` (the
-        safety filter refuses a ``perception_timeout_s`` that is not above it)."""
+        safety filter's ``perception_timeout_s`` counts from there)."""
         return (self.config.observation.scan_every - 1) / self.config.control_hz
 
     @property

@@ -134,8 +134,9 @@ class ObservationConfig:
             default: every step, the sensors' 10 Hz as in both papers). Between two frames the
             last frame's channels and the safety filter's hazard cells are carried to the current
             INS pose (ego-motion, as paper N's fusion registers frames), so a step costs physics
-            only; the hazards then age up to ``scan_every - 1`` control periods, which the safety
-            filter's ``perception_timeout_s`` (0.2 s) must allow. Ignored by the oracle source.
+            only; the hazards then age up to ``scan_every - 1`` control periods
+            (``NegObsEnv.max_perception_age_s``), from which the safety filter's
+            ``perception_timeout_s`` counts. Ignored by the oracle source.
             Rates, recall and braking: docs/performance.md, "Scanning every k-th step".
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).

@@ -274,9 +274,7 @@ def run_driven_episode(
     video_to: str | Path | None = None,
 ) -> dict[str, Any]:
     """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``: True for the
-    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics. With True
-    on an env that casts a LiDAR frame every k-th step (``ObservationConfig.scan_every``) the
-    filter's ``perception_timeout_s`` is the default's plus the env's ``max_perception_age_s``.
+    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics.
     ``video_to``: also write the episode's frames there (:class:`~negobs_gym.envs.video.
     EpisodeVideo`; ``env`` renders ``rgb_array``); the metrics are the same with or without.
 
@@ -298,9 +296,6 @@ def run_driven_episode(
     from negobs_gym.safety import BrakingSafetyFilter
 
     guard = filter_config(filtered)
-    age = float(getattr(env.unwrapped, "max_perception_age_s", 0.0))
-    if filtered is True and age > 0:  # frames every k steps: the default allowance beyond their age
-        guard = dataclasses.replace(guard, perception_timeout_s=guard.perception_timeout_s + age)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
     with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.config.control_hz) as video:

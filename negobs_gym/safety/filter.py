@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal, SupportsFloat
 
@@ -25,9 +26,11 @@ class SafetyFilterConfig:
     braking: BrakingConfig = field(default_factory=BrakingConfig)
     margin_m: float = 0.4  # added to the vehicle width for the corridor (engineering choice) [m]
     mode: Literal["brake", "cap_speed"] = "brake"
-    # Oldest hazard data the filter acts on [s]; older or missing -> full brake. Not in paper N:
-    # two periods of its 10 Hz LiDAR / control loop, so one late frame (jitter) is tolerated and a
-    # second is not (at 25 km/h the car covers 1.4 m in 0.2 s that no scan has looked at).
+    # Oldest hazard data the filter acts on [s], beyond the age the env's frames reach between two
+    # of them (its max_perception_age_s, 0 when it scans every step); older or missing -> full
+    # brake. Not in paper N: two periods of its 10 Hz LiDAR / control loop, so one late frame
+    # (jitter) is tolerated and a second is not (at 25 km/h the car covers 1.4 m in 0.2 s that no
+    # scan has looked at).
     perception_timeout_s: float = 0.2
     # Hysteresis after a veto [m]: until an action passes again, it must keep this much more than
     # R(v'). Not in paper N: without it a driver pushing against the filter creeps on at d ~ R(0) = B,
@@ -91,8 +94,9 @@ class BrakingSafetyFilter(gym.Wrapper):
     changed; safe actions pass bit-identical.
 
     Fail-safe: when the env has no perception yet, or its hazard data is older than
-    ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``), the
-    filter commands full brake whatever the distance.
+    ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``) beyond
+    the age the env says its frames reach between two of them (``max_perception_age_s``, read
+    once here; 0 when absent), the filter commands full brake whatever the distance.
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
@@ -153,14 +157,11 @@ class BrakingSafetyFilter(gym.Wrapper):
             self.config = config
         else:
             self.config = SafetyFilterConfig(braking=BrakingConfig(**braking_kw), **filter_kw)
-        age = float(getattr(env.unwrapped, "max_perception_age_s", 0.0))
-        if not age < self.config.perception_timeout_s:
-            raise ConfigError(
-                "perception_timeout_s",
-                f"{self.config.perception_timeout_s} s is not above the {age:.3g} s the env's hazards "
-                f"age between two LiDAR frames (observation.scan_every): the filter would brake at "
-                f"every step between frames; give it a longer timeout",
-            )
+        frame_age = getattr(env.unwrapped, "max_perception_age_s", 0.0)
+        if not (isinstance(frame_age, (int, float)) and math.isfinite(frame_age) and frame_age >= 0):
+            raise InterfaceError(f"max_perception_age_s must be finite and >= 0 [s], got {frame_age!r}")
+        #: the env's hazards age this much between two frames in normal running (scan_every > 1)
+        self.frame_age_s = float(frame_age)
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
 
@@ -234,7 +235,7 @@ class BrakingSafetyFilter(gym.Wrapper):
                 d, channel = d_positive, "positive"
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
-        stale = not age <= self.config.perception_timeout_s
+        stale = not age <= self.config.perception_timeout_s + self.frame_age_s
         vetoed = stale or not self._is_safe(state, d, proposed)
         applied = original
         if vetoed:

@@ -130,9 +130,8 @@ class HazardSource(Protocol):
     """An env (or its ``unwrapped``) the braking safety filter can read hazards from.
 
     An env whose perception runs slower than its control steps may also tell the oldest its
-    hazard data gets in normal running, ``max_perception_age_s`` [s] (NegObsEnv does); the filter
-    refuses a ``perception_timeout_s`` that is not above it, which would brake at every step
-    between two frames.
+    hazard data gets in normal running, ``max_perception_age_s`` [s] (NegObsEnv does, with
+    ``ObservationConfig.scan_every`` > 1); the filter's ``perception_timeout_s`` counts from there.
     """
 
     def hazard_state(self) -> HazardState:

@@ -64,18 +64,20 @@ def test_frames_equal_an_every_step_runs_and_the_steps_between_carry_the_last_on
     pair.close()
 
 
-def test_the_filter_refuses_a_timeout_the_frames_age_past() -> None:
-    """A frame every 3 steps ages the hazards 0.2 s: the default 0.2 s timeout would brake at every
-    step between frames, so it is refused by name; a longer one is taken."""
+def test_the_filters_timeout_counts_from_the_frames_own_age() -> None:
+    """A frame every 3 steps ages the hazards up to 0.2 s, the default timeout: the filter reads
+    that age from the env and is never stale between frames."""
     env = _env(3)
     assert env.max_perception_age_s == pytest.approx(0.2)
-    with pytest.raises(ConfigError, match=r"perception_timeout_s.*scan_every"):
-        BrakingSafetyFilter(env)
-    guarded = BrakingSafetyFilter(env, perception_timeout_s=0.35)
+    guarded = BrakingSafetyFilter(env)
+    assert guarded.frame_age_s == pytest.approx(0.2)
     guarded.reset(seed=0)
-    for _ in range(6):
+    ages = []
+    for _ in range(9):
         guarded.step(COAST)
+        ages.append(guarded.last_decision.perception_age_s)
         assert not guarded.last_decision.perception_stale
+    assert max(ages) == pytest.approx(0.2)
     guarded.close()
 
 

@@ -260,8 +260,8 @@ def test_tighten_pairs_reaches_the_episodes_detector() -> None:
 
 def test_scan_every_reaches_the_episode_and_the_filter_allows_the_frames_age() -> None:
     """``scan_every`` lies in the episodes' args only where it is not 1 (default parts resume); a
-    filtered reckless episode with a frame every 3 steps runs with the default timeout plus the
-    frames' 0.2 s age, never stale, and stops before the ditch."""
+    filtered reckless episode with a frame every 3 steps (hazards up to 0.2 s old, from which the
+    filter's timeout counts) vetoes by distance, not by staleness, and stops before the ditch."""
     from negobs_gym.eval.braking_campaign import run_episode
 
     cfg = BrakingCampaignConfig(

@@ -234,6 +234,22 @@ def test_config_form_is_used():
     assert any(i["safety"]["vetoed"] for i in infos)
 
 
+def test_stale_counts_from_the_envs_frame_age() -> None:
+    """An env whose frames come every 3 steps (``max_perception_age_s`` 0.2 s): hazards 0.35 s old
+    are within the default 0.2 s timeout beyond that age, 0.45 s old are stale; a bad age is refused."""
+    for age_s, stale in ((0.35, False), (0.45, True)):
+        source = FixedHazardEnv(
+            make_state(0.0, np.zeros((0, 2)), time_s=10.0, perception_time_s=10.0 - age_s)
+        )
+        source.max_perception_age_s = 0.2
+        _, rec = BrakingSafetyFilter(source).filter_action(np.array([0.5, 0.0], np.float32))
+        assert rec.perception_stale is stale
+    for bad in (-0.1, float("nan"), "0.2"):
+        source.max_perception_age_s = bad
+        with pytest.raises(InterfaceError, match="max_perception_age_s"):
+            BrakingSafetyFilter(source)
+
+
 @settings(max_examples=100, deadline=None)
 @given(
     **DECISION_CASE,
