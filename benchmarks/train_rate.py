@@ -1,7 +1,8 @@
 """End-to-end PPO training rate per vector env: where a `negobs train` run's time goes.
 
 Run: ``python benchmarks/train_rate.py [--steps 4096] [--rounds 2] [--vec-env subproc --vec-env build_ahead]
-[--env negobs_gym/OffroadNav-v1] [--source oracle] [--envs 2] [--n-steps 512] [--batch-size 128]``
+[--env negobs_gym/OffroadNav-v1] [--source oracle] [--envs 2] [--n-steps 512] [--batch-size 128]
+[--set KEY=VALUE]``
 
 Each round trains a fresh PPO model (seed 0, no evaluation but the final one-episode check, no
 checkpoints) once per vector env, the vector envs alternating, so a slow phase of the machine
@@ -10,11 +11,17 @@ updates, resets and the final evaluation), the seconds spent collecting rollouts
 updates, and the workers' world counts (``misses``: resets that built their world, ``ahead_hits``:
 resets that found it built ahead). The last line is ``<vec_env>_over_<first>=<ratio>`` of the
 mean rates, for each vector env after the first.
+
+``--set KEY=VALUE`` (repeatable, as ``negobs train --set``) adds, in every round and for every
+vector env, a run on the scenario with those settings right after the run without them, and
+prints ``set_over_base=<ratio>`` of their mean rates last (e.g. ``--source detector --set
+observation.scan_every=2``: a LiDAR frame every other step).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import statistics
 import tempfile
 from collections import Counter
@@ -27,6 +34,7 @@ from stable_baselines3.common.vec_env import SubprocVecEnv
 from negobs_gym.envs.vector import PrefetchVecEnv
 from negobs_gym.policies.config import VEC_ENVS, TrainConfig
 from negobs_gym.policies.training import train
+from negobs_gym.scenarios import env_with_overrides
 
 
 def _count_worlds_at_close(owner: type, counts: Counter) -> None:
@@ -78,15 +86,20 @@ def main() -> None:
     parser.add_argument("--envs", type=int, default=2)
     parser.add_argument("--n-steps", type=int, default=512)
     parser.add_argument("--batch-size", type=int, default=128)
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
     if args.steps < 1 or args.rounds < 1 or args.envs < 2:
         parser.error("--steps and --rounds must be >= 1, --envs >= 2 (a vector env of processes)")
     vec_envs = args.vec_env or ["subproc", "build_ahead"]
-    rates: dict[str, list[float]] = {name: [] for name in vec_envs}
+    scenario_dir = tempfile.TemporaryDirectory()
+    variants = {"base": args.env}
+    if args.overrides:
+        variants["set"] = env_with_overrides(args.env, args.overrides, scenario_dir.name)
+    rates: dict[tuple[str, str], list[float]] = {(n, v): [] for n in vec_envs for v in variants}
     for round_ in range(args.rounds):
-        for name in vec_envs:
+        for name, (variant, env) in itertools.product(vec_envs, variants.items()):
             config = TrainConfig(
-                env=args.env,
+                env=env,
                 source=args.source,
                 steps=args.steps,
                 envs=args.envs,
@@ -100,14 +113,19 @@ def main() -> None:
                 progress=False,
             )
             got = run_once(config)
-            rates[name].append(got["session_steps_per_s"])
+            rates[name, variant].append(got["session_steps_per_s"])
             figures = " ".join(f"{k}={v:.1f}" if isinstance(v, float) else f"{k}={v}" for k, v in got.items())
-            print(f"round={round_} vec_env={name} env={args.env} source={args.source} {figures}", flush=True)
+            label = f"{args.env} {' '.join(args.overrides)}" if variant == "set" else args.env
+            print(f"round={round_} vec_env={name} env={label} source={args.source} {figures}", flush=True)
+    scenario_dir.cleanup()
+    mean = {key: statistics.fmean(r) for key, r in rates.items()}
     first = vec_envs[0]
-    for name in vec_envs:
-        print(f"vec_env={name} mean_session_steps_per_s={statistics.fmean(rates[name]):.1f}")
+    for (name, variant), rate in mean.items():
+        print(f"vec_env={name} variant={variant} mean_session_steps_per_s={rate:.1f}")
     for name in vec_envs[1:]:
-        print(f"{name}_over_{first}={statistics.fmean(rates[name]) / statistics.fmean(rates[first]):.3f}")
+        print(f"{name}_over_{first}={mean[name, 'base'] / mean[first, 'base']:.3f}")
+    if args.overrides:
+        print(f"set_over_base={statistics.fmean(mean[n, 'set'] / mean[n, 'base'] for n in vec_envs):.3f}")
 
 
 if __name__ == "__main__":
