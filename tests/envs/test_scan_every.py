@@ -14,12 +14,11 @@ from negobs_gym.safety import BrakingSafetyFilter
 COAST = np.array([0.0, 0.0], np.float32)
 
 
-def _env(scan_every: int, **observation) -> BrakingEnv:
+def _env(scan_every: int, render_mode: str | None = None, **observation) -> BrakingEnv:
     """Braking-v0 at 25 km/h from the start (paper N §4), a frame every ``scan_every`` steps."""
     cfg = replace(EnvConfig(), start_speed_mps=25 / 3.6)
-    return BrakingEnv(
-        replace(cfg, observation=replace(cfg.observation, scan_every=scan_every, **observation))
-    )
+    observation = replace(cfg.observation, scan_every=scan_every, **observation)
+    return BrakingEnv(replace(cfg, observation=observation), render_mode=render_mode)
 
 
 def _ranges(env: BrakingEnv) -> np.ndarray:
@@ -62,6 +61,24 @@ def test_frames_equal_an_every_step_runs_and_the_steps_between_carry_the_last_on
     assert pair.max_perception_age_s == pytest.approx(0.1) and every.max_perception_age_s == 0.0
     every.close()
     pair.close()
+
+
+def test_the_rendered_returns_follow_the_car_between_frames() -> None:
+    """The frame drawn between two scans puts the last scan's returns where they lie now."""
+    env = _env(2, render_mode="rgb_array")
+    env.reset(seed=0)
+    perception = env.perception
+    at_frame = perception.points_vehicle()
+    env.step(COAST)  # between frames
+    assert perception.frame_pose != perception.pose
+    np.testing.assert_allclose(
+        perception.points_vehicle(),
+        perception.pose.to_vehicle(perception.frame_pose.to_world(at_frame)),
+    )
+    assert perception.points_vehicle()[:, 1].mean() < at_frame[:, 1].mean() - 0.5  # 0.7 m driven
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3
+    env.close()
 
 
 def test_the_filters_timeout_counts_from_the_frames_own_age() -> None:
