@@ -133,6 +133,7 @@ class NegObsEnv(gym.Env):
         self._substeps = max(1, round(1.0 / (self.config.control_hz * physics.time_step_s)))
         self._worlds = WorldCache(self.config.world_cache_size)
         self._entry: CachedWorld | None = None
+        self._env_steps = 0  # steps since the env was made, over episodes (ObservationConfig.scan_clock)
         self._world: World | None = None
         self._vehicle: Vehicle | None = None
         self._monitor: EventMonitor | None = None
@@ -185,6 +186,7 @@ class NegObsEnv(gym.Env):
         self._path = [(pose.x, pose.y)]
         self._last_grid = None
         obs = self._observe()
+        self._align_frames()
         return obs, self._info(StepOutcome(events=StepEvents()), {}, ())
 
     def _sample_episode(self, rng: np.random.Generator) -> SampledScenario:
@@ -274,6 +276,7 @@ class NegObsEnv(gym.Env):
         self._vehicle.apply(max(a[0], 0.0), max(-a[0], 0.0), a[1])
         self._world.step(self._substeps)
         self._steps += 1
+        self._env_steps += 1
         outcome = self._outcome(self._monitor.poll())
         rewards = self._reward(outcome)
         fired = self._is_terminated(outcome)
@@ -469,6 +472,12 @@ class NegObsEnv(gym.Env):
         self._detector = DetectorSource(detector_obs)
         self._detector.start(self._world, self._vehicle, self.terrain, self._sensor_rng, self._entry.extras)
         self._detector.layers(self._world.sim_time_s)
+        self._align_frames()
+
+    def _align_frames(self) -> None:
+        """After a first frame: put the next ones on the env's step clock where the config asks."""
+        if self._detector is not None and self.config.observation.scan_clock == "env":
+            self._detector.perception.align_frames(self._env_steps)
 
     def _observe(self) -> dict[str, np.ndarray]:
         t = self._world.sim_time_s

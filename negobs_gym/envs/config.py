@@ -25,6 +25,8 @@ __all__ = [
 RIGS: tuple[str, ...] = ("roi", "native", "reduced")
 #: How ``ObservationConfig.downsample`` pools each block of fine cells.
 POOLINGS: tuple[str, ...] = ("max", "count")
+#: Step counts that pick the frames with ``ObservationConfig.scan_every`` > 1.
+SCAN_CLOCKS: tuple[str, ...] = ("episode", "env")
 
 #: Route-point components are clipped to +- (farthest route distance + this) [m]: the vehicle may
 #: stand this far off the centre line and still see its route inside the bounds.
@@ -137,6 +139,14 @@ class ObservationConfig:
             only; the hazards then age up to ``scan_every - 1`` control periods
             (``NegObsEnv.max_perception_age_s``), from which the safety filter's
             ``perception_timeout_s`` counts. Ignored by the oracle source.
+        scan_clock: With ``scan_every`` > 1, which step count picks the frames after the reset's
+            (always a frame): ``"episode"`` (default: the episode's steps k, 2k, ...; the same
+            seed gives the same episode whatever the env ran before) or ``"env"`` (the steps at
+            which the env's count of steps since it was made is a multiple of k: the envs of a
+            lockstep vector env, which all step together, then cast on the same steps, so a
+            lockstep step waits for one frame at most every k steps instead of at nearly every
+            step once their episodes have ended at different steps; an episode then depends on
+            how many steps the env ran before it).
             Rates, recall and braking: docs/performance.md, "Scanning every k-th step".
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
@@ -204,6 +214,7 @@ class ObservationConfig:
     raycast_isa: str = "native"
     sensor_noise: bool = True
     scan_every: int = 1
+    scan_clock: str = "episode"
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
     downsample: int = 4
@@ -243,6 +254,11 @@ class ObservationConfig:
             type(self.scan_every) is int and self.scan_every >= 1,
             "scan_every",
             f"must be an int >= 1 (control steps per LiDAR frame), got {self.scan_every!r}",
+        )
+        require(
+            self.scan_clock in SCAN_CLOCKS,
+            "scan_clock",
+            f"must be one of {SCAN_CLOCKS}, got {self.scan_clock!r}",
         )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(

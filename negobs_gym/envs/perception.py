@@ -214,6 +214,11 @@ class DetectorGrid:
             self._frame = (ins_pose, layers, dict(self._hazards))
         return layers
 
+    def align_frames(self, env_steps: int) -> None:
+        """Cast the next frames at the steps where the env's step count, ``env_steps`` now, is a
+        multiple of ``config.scan_every`` (``scan_clock = "env"``; call after the reset's frame)."""
+        self._steps_to_frame = (-(env_steps + 1)) % self.config.scan_every
+
     @property
     def pose(self) -> Pose | None:
         """INS pose of the last ``observe()`` (None before the first)."""

@@ -102,3 +102,25 @@ def test_the_filters_timeout_counts_from_the_frames_own_age() -> None:
 def test_bad_scan_every_is_refused(bad) -> None:
     with pytest.raises(ConfigError, match="scan_every"):
         ObservationConfig(scan_every=bad)
+    with pytest.raises(ConfigError, match="scan_clock"):
+        ObservationConfig(scan_clock="wall")
+
+
+@pytest.mark.parametrize("clock", ["episode", "env"])
+def test_scan_clock_puts_the_frames_on_the_episodes_or_the_envs_steps(clock: str) -> None:
+    """k = 3 over two episodes of one env, the first ended after 4 steps: ``"episode"`` casts at
+    each episode's steps 3, 6, ... (the env's 3, then 7 and 10); ``"env"`` at the env's steps 3,
+    6, 9 (multiples of 3 since it was made), as every env of a lockstep vector env would; each
+    reset casts a frame."""
+    env = _env(3, scan_clock=clock)
+    frames, count = [], 0
+    for seed, steps in ((0, 4), (1, 7)):
+        env.reset(seed=seed)
+        assert env.hazard_state().perception_age_s == 0.0
+        for _ in range(steps):
+            env.step(COAST)
+            count += 1
+            if env.hazard_state().perception_age_s == 0.0:
+                frames.append(count)
+    assert frames == ([3, 7, 10] if clock == "episode" else [3, 6, 9])
+    env.close()
