@@ -23,7 +23,7 @@ frames' early edge unless ``--tighten``, ``FusionConfig.tighten_on_match``) and
 ``--scan-every 1,2,3`` also evaluates the envs' ``ObservationConfig.scan_every``: the detectors
 get every k-th frame only, and the frames between are judged on the last detection's outlines
 carried from its INS pose to theirs (as the envs carry their grid); after the main table's lines, one
-table per further k and ``scan_every_<k>_max_drop=<the largest fused recall drop against the first
+table per further k, its fused false alarms per frame and ``scan_every_<k>_max_drop=<the largest fused recall drop against the first
 k over the 6-20 m bins>``.
 
 ``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
@@ -212,6 +212,7 @@ def main() -> None:
         default="1",
         help="comma-separated ObservationConfig.scan_every values; the first is the main table",
     )
+
     args = parser.parse_args()
     every = [int(k) for k in args.scan_every.split(",")]
     if not every or min(every) < 1:
@@ -261,6 +262,7 @@ def main() -> None:
         for mode, label in (("fused", "fused"), ("hdl64", "HDL-64 only"), ("hdl32", "HDL-32 only")):
             print(f"{label:<14}" + "".join(f"{r:9.2f}" for r in other[mode].recall()[0]))
         drop = recall["fused"] - other["fused"].recall()[0]
+        print(f"false alarms per frame (fused): {other['fused'].false_alarms_per_frame():.3f}")
         print(f"scan_every_{k}_max_drop={np.nanmax(drop):.2f} (fused, against scan_every={every[0]})")
 
 
