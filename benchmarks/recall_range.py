@@ -22,9 +22,9 @@ frames' early edge unless ``--tighten``, ``FusionConfig.tighten_on_match``) and
 
 ``--scan-every 1,2,3`` also evaluates the envs' ``ObservationConfig.scan_every``: the detectors
 get every k-th frame only, and the frames between are judged on the last detection's outlines
-carried from its INS pose to theirs (as the envs carry their grid); after the main table's lines, one
-table per further k, its fused false alarms per frame and ``scan_every_<k>_max_drop=<the largest fused recall drop against the first
-k over the 6-20 m bins>``.
+carried from its INS pose to theirs (as the envs carry their grid). After the main table's lines
+come, per further k, its table, its fused false alarms per frame and
+``scan_every_<k>_max_drop=`` (the largest fused recall drop against the first k, 6-20 m bins).
 
 ``--cache DIR`` keeps the cast scans (float32 ranges + poses, one ``.npz`` per drive) so a second
 run with another detector skips the ray casting (the cast dominates: ~0.3 s per frame).
@@ -212,7 +212,6 @@ def main() -> None:
         default="1",
         help="comma-separated ObservationConfig.scan_every values; the first is the main table",
     )
-
     args = parser.parse_args()
     every = [int(k) for k in args.scan_every.split(",")]
     if not every or min(every) < 1:

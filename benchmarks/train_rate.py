@@ -91,10 +91,25 @@ def main() -> None:
     if args.steps < 1 or args.rounds < 1 or args.envs < 2:
         parser.error("--steps and --rounds must be >= 1, --envs >= 2 (a vector env of processes)")
     vec_envs = args.vec_env or ["subproc", "build_ahead"]
-    scenario_dir = tempfile.TemporaryDirectory()
+    with tempfile.TemporaryDirectory() as scenario_dir:
+        rates = run_rounds(args, vec_envs, scenario_dir)
+    mean = {key: statistics.fmean(r) for key, r in rates.items()}
+    first = vec_envs[0]
+    for (name, variant), rate in mean.items():
+        print(f"vec_env={name} variant={variant} mean_session_steps_per_s={rate:.1f}")
+    for name in vec_envs[1:]:
+        print(f"{name}_over_{first}={mean[name, 'base'] / mean[first, 'base']:.3f}")
+    if args.overrides:
+        print(f"set_over_base={statistics.fmean(mean[n, 'set'] / mean[n, 'base'] for n in vec_envs):.3f}")
+
+
+def run_rounds(
+    args: argparse.Namespace, vec_envs: list[str], scenario_dir: str
+) -> dict[tuple[str, str], list]:
+    """``session_steps_per_s`` of every run by (vector env, ``base`` or ``set``), each printed."""
     variants = {"base": args.env}
     if args.overrides:
-        variants["set"] = env_with_overrides(args.env, args.overrides, scenario_dir.name)
+        variants["set"] = env_with_overrides(args.env, args.overrides, scenario_dir)
     rates: dict[tuple[str, str], list[float]] = {(n, v): [] for n in vec_envs for v in variants}
     for round_ in range(args.rounds):
         for name, (variant, env) in itertools.product(vec_envs, variants.items()):
@@ -117,15 +132,7 @@ def main() -> None:
             figures = " ".join(f"{k}={v:.1f}" if isinstance(v, float) else f"{k}={v}" for k, v in got.items())
             label = f"{args.env} {' '.join(args.overrides)}" if variant == "set" else args.env
             print(f"round={round_} vec_env={name} env={label} source={args.source} {figures}", flush=True)
-    scenario_dir.cleanup()
-    mean = {key: statistics.fmean(r) for key, r in rates.items()}
-    first = vec_envs[0]
-    for (name, variant), rate in mean.items():
-        print(f"vec_env={name} variant={variant} mean_session_steps_per_s={rate:.1f}")
-    for name in vec_envs[1:]:
-        print(f"{name}_over_{first}={mean[name, 'base'] / mean[first, 'base']:.3f}")
-    if args.overrides:
-        print(f"set_over_base={statistics.fmean(mean[n, 'set'] / mean[n, 'base'] for n in vec_envs):.3f}")
+    return rates
 
 
 if __name__ == "__main__":
