@@ -16,10 +16,12 @@ are ``narrow_stopped_before=<k>/<n>`` and, last, ``stopped_before=<k>/<n>`` of t
 The detector tightens paper N's pairs to the close frames' near edge, as the envs do by default
 (``ObservationConfig.tighten_pairs``); ``--no-tighten-pairs`` runs paper N's fusion history.
 ``--scan-every K`` casts a frame every K-th control step and carries it between
-(``ObservationConfig.scan_every``; the filter's timeout counts from the frames' own age).
+(``ObservationConfig.scan_every``; the filter's timeout counts from the frames' own age);
+``--far-from M`` casts and detects the grid's part beyond M metres between them
+(``ObservationConfig.scan_far_from_m``).
 
 Run: python benchmarks/braking_safety.py [--episodes 100] [--workers 2] [--narrow trench_narrow]
-     [--no-baseline] [--no-tighten-pairs] [--scan-every K]
+     [--no-baseline] [--no-tighten-pairs] [--scan-every K] [--far-from M]
 """
 
 from __future__ import annotations
@@ -59,6 +61,14 @@ def main() -> None:
         default=1,
         help="ObservationConfig.scan_every: a LiDAR frame every K control steps (docs/performance.md)",
     )
+    parser.add_argument(
+        "--far-from",
+        type=float,
+        default=None,
+        metavar="M",
+        help="ObservationConfig.scan_far_from_m: with --scan-every K > 1, cast and detect the grid "
+        "beyond M metres between frames",
+    )
     args = parser.parse_args()
     config = BrakingCampaignConfig(
         seeds=args.episodes,
@@ -67,6 +77,7 @@ def main() -> None:
         filters=(True,) if args.no_baseline else (False, True),
         tighten_pairs=args.tighten_pairs,
         scan_every=args.scan_every,
+        scan_far_from_m=args.far_from,
     )
     options = RunOptions(backend=Backend(workers=args.workers), resume=args.resume, progress=False)
     t0 = time.perf_counter()

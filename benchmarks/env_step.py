@@ -1,6 +1,7 @@
 """Control steps per second of a negobs env with the detector grid, per stage, per rig, per process count.
 
-Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]``
+Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]
+[--skip-others] [--scan-every 2,3] [--far-from 12]``
 
 Configurations (the env's registered config with ``ObservationConfig`` changed):
 
@@ -11,7 +12,8 @@ Configurations (the env's registered config with ``ObservationConfig`` changed):
 - ``obs=oracle``: the ground-truth grid (no sensors), for comparison;
 - ``scan_every=k`` (``--scan-every``, default 2,3): the default rig with a LiDAR frame every k-th
   step, carried to the current pose between (``ObservationConfig.scan_every``), in one process
-  and in ``--envs`` processes (``PrefetchVecEnv``).
+  and in ``--envs`` processes (``PrefetchVecEnv``); with ``--far-from M`` each k also with the
+  grid's part beyond M metres cast and detected between frames (``scan_far_from_m``).
 
 Reset cost: the mean over an episode stream with a new seed each, with a new terrain every
 episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
@@ -58,14 +60,17 @@ from negobs_gym.sim.world import World
 ACTION = np.array([0.5, 0.0], np.float32)
 
 
-def _make(env_id: str, source: str, rig: str, threads: int | None = None, scan_every: int = 1):
+def _make(env_id: str, source: str, rig: str, threads: int | None = None, **observation):
+    """An env factory: ``env_id``'s registered config with the observation's source, rig,
+    raycast threads and further ``observation`` fields changed."""
+
     def thunk():
         # "module:id" makes gymnasium import negobs_gym (and so register) inside a subprocess
         spec_id = f"negobs_gym:{env_id}"
         probe = gym.make(spec_id)
         cfg = probe.unwrapped.default_config()
         probe.close()
-        obs = dataclasses.replace(cfg.observation, source=source, rig=rig, scan_every=scan_every)
+        obs = dataclasses.replace(cfg.observation, source=source, rig=rig, **observation)
         if threads is not None:
             obs = dataclasses.replace(obs, raycast_threads=threads)
         return gym.make(spec_id, config=dataclasses.replace(cfg, observation=obs))
@@ -247,7 +252,7 @@ def _fmt(ms: dict[str, float]) -> str:
 
 
 def _run_vec(
-    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str, scan_every: int = 1
+    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str, **observation
 ) -> tuple[float, dict[str, float]]:
     """Steps/s of an ``n_envs``-slot vector env (all its steps), ``kind`` ``"prefetch"``
     (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`, seeded 0: the episodes of :func:`_drive`) or
@@ -259,7 +264,7 @@ def _run_vec(
     ``subproc``: waits for a spare, pipes, the main process)."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    thunks = [_clocked(_make(env_id, source, rig, scan_every=scan_every)) for _ in range(n_envs)]
+    thunks = [_clocked(_make(env_id, source, rig, **observation)) for _ in range(n_envs)]
     venv = PrefetchVecEnv(thunks) if kind == "prefetch" else SubprocVecEnv(thunks)
     venv.seed(0)
     venv.reset()
@@ -298,6 +303,13 @@ def main() -> None:
     parser.add_argument("--skip-others", action="store_true", help="only the default rig")
     parser.add_argument(
         "--scan-every", default="2,3", help="comma-separated ObservationConfig.scan_every values ('' = none)"
+    )
+    parser.add_argument(
+        "--far-from",
+        type=float,
+        default=None,
+        metavar="M",
+        help="also run each --scan-every value with ObservationConfig.scan_far_from_m=M",
     )
     args = parser.parse_args()
     if args.steps < 1 or args.envs < 1:
@@ -341,14 +353,17 @@ def main() -> None:
         )
         alone_note = f"one process alone: step_cpu {alone_cpu_ms:.1f}"
         print(f"lockstep_ms vec={kind} ({alone_note}): {_fmt(lockstep)}")
-    for k in every:
-        envs = _episodes(_clocked(_make(args.env_id, "detector", default_rig, scan_every=k)), args.envs)
+    fars = (None,) if args.far_from is None else (None, args.far_from)
+    for k, far in ((k, far) for k in every for far in fars):
+        observation = {"scan_every": k, "scan_far_from_m": far}
+        envs = _episodes(_clocked(_make(args.env_id, "detector", default_rig, **observation)), args.envs)
         one, _ = _drive(envs, each)
         cpu_ms = 1e3 * sum(e.cpu_s for e in envs) / max(1, sum(e.steps for e in envs))
         _close(envs)
-        vec, _ = _run_vec(args.env_id, "detector", default_rig, each, args.envs, "prefetch", scan_every=k)
+        vec, _ = _run_vec(args.env_id, "detector", default_rig, each, args.envs, "prefetch", **observation)
+        label = f"scan_every={k}" + ("" if far is None else f" scan_far_from_m={far:g}")
         print(
-            f"obs=detector rig={default_rig} scan_every={k} processes=1 steps_per_s={one:.1f} "
+            f"obs=detector rig={default_rig} {label} processes=1 steps_per_s={one:.1f} "
             f"step_cpu_ms={cpu_ms:.1f} ratio_to_every_step={one / sps:.2f}; processes={args.envs} "
             f"vec=prefetch steps_per_s={vec:.1f}"
         )

@@ -36,6 +36,7 @@ Run: python benchmarks/recall_range.py [--seeds 8] [--rig native|roi|reduced] [-
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import os
 import tempfile
@@ -49,6 +50,7 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import SENSOR_MODES, FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.detector.grid import convex_overlap_mask
 from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.envs.perception import far_region
 from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
@@ -161,13 +163,42 @@ def near_edge_lead_m(outlines: list[np.ndarray], truth: np.ndarray) -> float:
     return max(leads) if leads else float("nan")
 
 
+class FarFrames:
+    """The part of a frame the envs cast between frames with ``ObservationConfig.scan_far_from_m``:
+    the rays that can return a point in the grid beyond ``from_m`` (a fixed height band of
+    +-1.5 m, which holds the drives' pits and rough ground; the envs take theirs from the
+    terrain), and that box as the detector's coverage."""
+
+    def __init__(self, rig: Rig, from_m: float) -> None:
+        self.coverage_xy_m = far_region(ObservationConfig().grid.extent_xy_m, from_m)
+        subsets = RoiSelector(rig, RoiConfig(region_xy_m=self.coverage_xy_m)).subsets(-1.5, 1.5)
+        self.masks = {}
+        for m in rig.mounts:
+            mask = np.zeros(m.model.n_lasers * m.model.n_columns, dtype=bool)
+            mask[subsets[m.name].index] = True
+            self.masks[m.name] = mask.reshape(m.model.n_lasers, m.model.n_columns)
+
+    def scans(self, rig: Rig, drive: dict, k: int) -> dict[str, StructuredScan]:
+        """Frame ``k``'s scans with the rays outside the far part as no return."""
+        whole = frame_scans(rig, drive, k)
+        return {
+            name: dataclasses.replace(s, ranges_m=np.where(self.masks[name], s.ranges_m, np.nan))
+            for name, s in whole.items()
+        }
+
+
 def evaluate(
-    rig: Rig, drives: list[dict], matching: DetectionEvalConfig, fusion: FusionConfig, scan_every: int = 1
+    rig: Rig,
+    drives: list[dict],
+    matching: DetectionEvalConfig,
+    fusion: FusionConfig,
+    scan_every: int = 1,
+    far: FarFrames | None = None,
 ) -> tuple[dict[str, RecallTable], np.ndarray, np.ndarray]:
     """Recall tables per sensor mode over ``drives`` (each mode's detector reset per drive), and per
     fused frame the pit centre's distance and :func:`near_edge_lead_m`. The detectors get every
     ``scan_every``-th frame; the frames between are judged on the last detection carried to
-    their INS pose."""
+    their INS pose, or with ``far`` on the detection of their far part."""
     detectors = {
         m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m, fusion=fusion)) for m in SENSOR_MODES
     }
@@ -182,10 +213,17 @@ def evaluate(
             truth = world_outline_to_vehicle(
                 drive["outline"], Pose.from_array(drive["truth"][k]), drive["rim_z"]
             )
-            scans = frame_scans(rig, drive, k) if k % scan_every == 0 else None
+            coverage = None
+            if k % scan_every == 0:
+                scans = frame_scans(rig, drive, k)
+            elif far is not None:
+                scans, coverage = far.scans(rig, drive, k), far.coverage_xy_m
+            else:
+                scans = None
             for mode, det in detectors.items():
                 if scans is not None:
-                    last[mode] = (ins, [o.outline_xy_m for o in det.update(scans, ins).obstacles])
+                    detection = det.update(scans, ins, coverage)
+                    last[mode] = (ins, [o.outline_xy_m for o in detection.obstacles])
                 seen_at, seen = last[mode]
                 outlines = [carry_points(o, seen_at, ins) for o in seen] if scans is None else seen
                 tables[mode].add(match_frame(outlines, [truth], GRID, matching))
@@ -211,6 +249,14 @@ def main() -> None:
         "--scan-every",
         default="1",
         help="comma-separated ObservationConfig.scan_every values; the first is the main table",
+    )
+    parser.add_argument(
+        "--far-from",
+        type=float,
+        default=None,
+        metavar="M",
+        help="ObservationConfig.scan_far_from_m for the further --scan-every values: the frames "
+        "between get the grid's part beyond M metres instead of a carried detection",
     )
     args = parser.parse_args()
     every = [int(k) for k in args.scan_every.split(",")]
@@ -255,9 +301,11 @@ def main() -> None:
     beyond = np.asarray(edges[:-1]) >= 14.0
     ok = bool(np.all(recall["hdl32"][beyond] >= recall["hdl64"][beyond]))
     print(f"fig16_order={'ok' if ok else 'violated'}")
+    far = None if args.far_from is None else FarFrames(rig, args.far_from)
     for k in every[1:]:
-        other, _, _ = evaluate(rig, drives, matching, fusion, k)
-        print(f"scan_every={k}: a detector frame every {k} steps, the frames between carried")
+        other, _, _ = evaluate(rig, drives, matching, fusion, k, far)
+        between = "carried" if far is None else f"detected beyond {args.far_from:g} m"
+        print(f"scan_every={k}: a detector frame every {k} steps, the frames between {between}")
         for mode, label in (("fused", "fused"), ("hdl64", "HDL-64 only"), ("hdl32", "HDL-32 only")):
             print(f"{label:<14}" + "".join(f"{r:9.2f}" for r in other[mode].recall()[0]))
         drop = recall["fused"] - other["fused"].recall()[0]

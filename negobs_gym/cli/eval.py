@@ -136,6 +136,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "default 1: every step)",
     )
     brk.add_argument(
+        "--scan-far-from",
+        type=float,
+        default=None,
+        metavar="M",
+        help="with --scan-every K > 1: the steps between frames cast and detect the grid's part "
+        "beyond M metres (ObservationConfig.scan_far_from_m; 12 keeps the every-step recall)",
+    )
+    brk.add_argument(
         "--free-track-steps",
         type=positive_int,
         default=None,
@@ -338,6 +346,7 @@ def run_braking(args: argparse.Namespace) -> int:
         "algo": args.algo,
         "tighten_pairs": args.tighten_pairs,
         "scan_every": args.scan_every,
+        "scan_far_from_m": args.scan_far_from,
         "free_track_steps": args.free_track_steps,
     }
     config = build_config(BrakingCampaignConfig, _toml(args), cli)

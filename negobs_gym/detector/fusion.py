@@ -144,8 +144,18 @@ class PairFusion:
     def __len__(self) -> int:
         return int(self._p.shape[0])
 
-    def update(self, pairs: Mapping[str, FeaturePairs], pose: Pose) -> FusedPairs:
+    def update(
+        self,
+        pairs: Mapping[str, FeaturePairs],
+        pose: Pose,
+        coverage_xy_m: tuple[float, float, float, float] | None = None,
+    ) -> FusedPairs:
         """Fuse this frame's pairs (vehicle frame) at INS ``pose``.
+
+        ``coverage_xy_m``: the vehicle-frame box ``(x_min, x_max, y_min, y_max)`` the frame's
+        scans covered, for a partial frame (None: the whole ground). Only history pairs with A and
+        B inside it take Eq. 16's miss update: where no sensor looked, not detecting a pair is no
+        evidence against it (the paper's frames are whole; documented deviation for partial ones).
 
         Raises:
             ScanError: ``pose`` has a non-finite value, or a pair has a non-finite A/B.
@@ -200,6 +210,8 @@ class PairFusion:
             age = np.concatenate([age, np.zeros(n_new, dtype=np.int64)])
             matched_any = np.concatenate([matched_any, np.ones(n_new, dtype=bool)])
         miss = ~matched_any
+        if coverage_xy_m is not None:
+            miss &= in_box(a_v, coverage_xy_m) & in_box(b_v, coverage_xy_m)
         if np.any(miss):
             p[miss] = bayes_miss(p[miss], cfg.likelihood("default"))
         a_all, b_all, p_all, age_all = a_v, b_v, p, age
@@ -221,6 +233,13 @@ class PairFusion:
         if sensor in cfg.range_scaled_sensors:
             reach *= range_scale(fp.a_m, fp.b_m, cfg.match_full_range_m, cfg.max_match_scale)
         return reach
+
+
+def in_box(points_m: np.ndarray, box_xy_m: tuple[float, float, float, float]) -> np.ndarray:
+    """(N,) bool: the points' xy inside the closed box ``(x_min, x_max, y_min, y_max)``."""
+    x0, x1, y0, y1 = box_xy_m
+    x, y = points_m[:, 0], points_m[:, 1]
+    return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
 
 
 def _tighten(a_v: np.ndarray, b_v: np.ndarray, i: np.ndarray, a_f: np.ndarray, close: np.ndarray) -> None:

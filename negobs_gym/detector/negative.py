@@ -23,7 +23,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.clustering import ClusteringConfig, DetectedObstacle, cluster_obstacles
 from negobs_gym.detector.config import Hdl32FeatureConfig, Hdl64FeatureConfig
-from negobs_gym.detector.fusion import FusedPairs, FusionConfig, PairFusion
+from negobs_gym.detector.fusion import FusedPairs, FusionConfig, PairFusion, in_box
 from negobs_gym.detector.grid import obstacle_grid
 from negobs_gym.detector.hdl32 import extract_hdl32_pairs
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
@@ -153,6 +153,31 @@ def within_roi(
     return FeaturePairs(pairs.sensor, pairs.a_m[keep], pairs.b_m[keep], pairs.c_m[keep])
 
 
+def within_box(pairs: FeaturePairs, box_xy_m: tuple[float, float, float, float]) -> FeaturePairs:
+    """The pairs whose A and B both lie in the vehicle-frame box ``(x_min, x_max, y_min, y_max)``."""
+    keep = in_box(pairs.a_m, box_xy_m) & in_box(pairs.b_m, box_xy_m)
+    return FeaturePairs(pairs.sensor, pairs.a_m[keep], pairs.b_m[keep], pairs.c_m[keep])
+
+
+def check_coverage(
+    coverage_xy_m: tuple[float, float, float, float] | None,
+) -> tuple[float, float, float, float] | None:
+    """``coverage_xy_m`` as four floats, or None; ScanError when it is not a finite, non-empty box."""
+    if coverage_xy_m is None:
+        return None
+    try:
+        x0, x1, y0, y1 = (float(v) for v in coverage_xy_m)
+    except (TypeError, ValueError):
+        raise ScanError(
+            f"coverage_xy_m: must be (x_min, x_max, y_min, y_max), got {coverage_xy_m!r}"
+        ) from None
+    if not (all(math.isfinite(v) for v in (x0, x1, y0, y1)) and x0 < x1 and y0 < y1):
+        raise ScanError(
+            f"coverage_xy_m: must be finite with x_min < x_max and y_min < y_max, got {coverage_xy_m!r}"
+        )
+    return x0, x1, y0, y1
+
+
 class NegativeObstacleDetector:
     """Paper N's detector (§3): call :meth:`update` once per synchronised frame of scans.
 
@@ -169,17 +194,30 @@ class NegativeObstacleDetector:
         """Forget the pair history."""
         self._fusion.reset()
 
-    def update(self, scans: Mapping[str, StructuredScan], pose: Pose) -> Detection:
+    def update(
+        self,
+        scans: Mapping[str, StructuredScan],
+        pose: Pose,
+        coverage_xy_m: tuple[float, float, float, float] | None = None,
+    ) -> Detection:
         """Detect negative obstacles in one frame of ``scans`` taken at INS ``pose``.
+
+        ``coverage_xy_m`` declares a partial frame: the vehicle-frame box ``(x_min, x_max, y_min,
+        y_max)`` whose returns the scans hold (e.g. only the far part of the grid was cast). The
+        frame's pairs outside it are dropped (their features may miss neighbours that were not
+        cast), and the history outside it is neither hit nor missed (:meth:`PairFusion.update`).
+        None (default): a whole frame, as in paper N.
 
         Handling of bad input: NaN ranges are missing returns (the scan format); an empty mapping or
         scans with no returns give no new pairs (the history still ages). Raises if
         ``pose`` has NaN/inf, if a value is not a :class:`StructuredScan`, or if ``scans`` is
         non-empty but holds none of the configured sensor names (a misnamed rig) — as
-        :class:`~negobs_gym.errors.ScanError` (a ``ValueError``).
+        :class:`~negobs_gym.errors.ScanError` (a ``ValueError``); a malformed ``coverage_xy_m``
+        is a ``ScanError`` too.
         """
         cfg = self.config
         check_frame(scans, pose)
+        coverage = check_coverage(coverage_xy_m)
         known = cfg.hdl64_sensors + cfg.hdl32_sensors
         if scans and not set(scans) & set(known):
             raise ScanError(f"scans has sensors {sorted(scans)}, none of the configured {list(known)}")
@@ -197,8 +235,9 @@ class NegativeObstacleDetector:
             else:
                 pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
                 margin = cfg.hdl32_far_wall_margin_m
-            frame_pairs[name] = within_roi(pairs, cfg.max_range_m, ground, margin)
-        fused = self._fusion.update(frame_pairs, pose)
+            pairs = within_roi(pairs, cfg.max_range_m, ground, margin)
+            frame_pairs[name] = pairs if coverage is None else within_box(pairs, coverage)
+        fused = self._fusion.update(frame_pairs, pose, coverage)
         ok = fused.confirmed
         clusters = cluster_obstacles(fused.a_m[ok], fused.b_m[ok], cfg.clustering)
         confirmed_index = np.flatnonzero(ok)

@@ -381,7 +381,6 @@ class NegObsEnv(gym.Env):
         from negobs_gym.envs.rendering import VehicleFootprint, caption_lines, render_frame
 
         perception = self.perception
-        detection = perception.detection if perception is not None else None
         overlay = self._render_overlay
         # only the decision taken for the step that led to this state (see set_render_overlay)
         safety, decision_pose = (
@@ -395,9 +394,7 @@ class NegObsEnv(gym.Env):
             self._last_grid,
             self.config.observation,
             points_vehicle_m=perception.points_vehicle() if perception is not None else None,
-            detected_outlines_m=[perception.to_current(o.outline_xy_m) for o in detection.obstacles]
-            if detection is not None
-            else (),
+            detected_outlines_m=perception.detected_outlines() if perception is not None else (),
             safety=safety,
             decision_pose=decision_pose,
             footprint=VehicleFootprint(

@@ -148,6 +148,14 @@ class ObservationConfig:
             step once their episodes have ended at different steps; an episode then depends on
             how many steps the env ran before it).
             Rates, recall and braking: docs/performance.md, "Scanning every k-th step".
+        scan_far_from_m: With ``scan_every`` > 1, the steps between frames cast the grid's part
+            beyond this forward distance [m] (with the whole LUX) and run paper N's detector on
+            it as a partial frame (its fusion updates only the pairs there) and paper T on the
+            LUX; the near part is carried. Paper N's fusion confirms a pit after three hits, so
+            far pits, which the rig sees for few frames before they come near, need every frame;
+            near ones are seen for many. None (default): nothing cast between frames. 12.0 keeps
+            the every-step rig's recall in every 2 m bin from 6 to 20 m at k = 2 and 3
+            (docs/performance.md, "Casting the far part between frames").
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
         downsample: Integer block size for pooling the grid (1 = full resolution).
@@ -215,6 +223,7 @@ class ObservationConfig:
     sensor_noise: bool = True
     scan_every: int = 1
     scan_clock: str = "episode"
+    scan_far_from_m: float | None = None
     channels: tuple[str, ...] = CHANNELS
     grid: GridSpec = field(default_factory=lambda: GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4))
     downsample: int = 4
@@ -260,6 +269,18 @@ class ObservationConfig:
             "scan_clock",
             f"must be one of {SCAN_CLOCKS}, got {self.scan_clock!r}",
         )
+        if self.scan_far_from_m is not None:
+            far = self.scan_far_from_m
+            require(
+                isinstance(far, int | float) and not isinstance(far, bool) and math.isfinite(far),
+                "scan_far_from_m",
+                f"must be None or a finite distance [m], got {far!r}",
+            )
+            require(
+                self.grid.extent_xy_m[2] < far < self.grid.extent_xy_m[3],
+                "scan_far_from_m",
+                f"must lie inside the grid's forward extent {self.grid.extent_xy_m[2:]}, got {far!r}",
+            )
         require(len(self.channels) > 0, "channels", "must name at least one channel")
         require(
             all(c in CHANNELS for c in self.channels) and len(set(self.channels)) == len(self.channels),

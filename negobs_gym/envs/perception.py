@@ -38,6 +38,7 @@ from negobs_gym.detector import (
     TraversableRegion,
     TraversableRegionDetector,
 )
+from negobs_gym.detector.fusion import in_box
 from negobs_gym.detector.memory import PointHold
 from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.sensors.lidar import frame_noise_key, scan_rig
@@ -87,6 +88,14 @@ def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
     return RoiSelector(rig, config)
 
 
+def far_region(
+    extent_xy_m: tuple[float, float, float, float], from_m: float
+) -> tuple[float, float, float, float]:
+    """The part ``(x_min, x_max, y_min, y_max)`` of a grid extent from ``from_m`` forward."""
+    x0, x1, y0, y1 = extent_xy_m
+    return (x0, x1, max(y0, from_m), y1)
+
+
 #: The grid channels whose cells the safety filter reads (``hazard_state()``).
 HAZARD_CHANNELS = ("negative", "positive")
 
@@ -94,7 +103,8 @@ HAZARD_CHANNELS = ("negative", "positive")
 def world_products(
     config: ObservationConfig, world: World, vehicle: Vehicle, cache: dict | None = None
 ) -> tuple[RayCaster, HeightEnvelope | None]:
-    """The ray caster of ``world`` and, for the ``roi`` rig, its height envelope: taken from
+    """The ray caster of ``world`` and, for the ``roi`` rig or ``scan_far_from_m``, its height
+    envelope: taken from
     ``cache`` (one dict per world) or built into it."""
     cache = {} if cache is None else cache
     threads = cast_threads(config)
@@ -107,7 +117,7 @@ def world_products(
             threads=threads,
             isa=config.raycast_isa,
         )
-    if config.rig != "roi":
+    if config.rig != "roi" and not (config.scan_every > 1 and config.scan_far_from_m is not None):
         return cache[key], None
     if "heights" not in cache:
         cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
@@ -136,9 +146,15 @@ class DetectorGrid:
         self._caster, heights = world_products(config, world, vehicle, cache)
         self._roi: RoiSelector | None = None
         self._roi_recent: list = []  # this episode's band sets: its casts depend on nothing else
-        if heights is not None:
+        self._heights = heights
+        if heights is not None and config.rig == "roi":
             self._roi = roi_selector(self.rig, RoiConfig(region_xy_m=config.grid.extent_xy_m))
-            self._heights = heights
+        self._far: RoiSelector | None = None  # casts the grid's far part between frames
+        self._far_recent: list = []
+        self._far_scans: dict[str, StructuredScan] | None = None  # this step's far part, if any
+        if heights is not None and config.scan_every > 1 and config.scan_far_from_m is not None:
+            box = far_region(config.grid.extent_xy_m, config.scan_far_from_m)
+            self._far = roi_selector(self.rig, RoiConfig(region_xy_m=box))
         fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"
@@ -175,10 +191,13 @@ class DetectorGrid:
         self._pose = ins_pose
         if self._steps_to_frame > 0:
             self._steps_to_frame -= 1
+            if self._far is not None:
+                return self._far_part(ins_pose, timestamp_s)
             # the key a frame would take: the frames that are cast get an every-step run's noise
             frame_noise_key(self._rng, self._noise)
             return self._carried(ins_pose)
         self._steps_to_frame = self.config.scan_every - 1
+        self._far_scans = None
         true_pose = self._vehicle.true_pose()
         subsets = None
         if self._roi is not None:
@@ -208,10 +227,43 @@ class DetectorGrid:
             "negative": self.detection.grid,
             "positive": positive,
             "traversable": np.asarray(self.region.traversable, dtype=bool),
-            "observed": self._observed(),
+            "observed": self._observed(self.scans),
         }
         if self.config.scan_every > 1:
             self._frame = (ins_pose, layers, dict(self._hazards))
+        return layers
+
+    def _far_part(self, ins_pose: Pose, timestamp_s: float) -> dict[str, np.ndarray]:
+        """A step between frames with ``config.scan_far_from_m``: the grid's part beyond it cast
+        (and the whole LUX), paper N's detector run on it as a partial frame and paper T on the
+        LUX; the rest of the last frame carried to ``ins_pose``. ``stamp_s`` stays the last whole
+        frame's: the near part of the grid is that old."""
+        true_pose = self._vehicle.true_pose()
+        subsets = self._far.subsets_for_bands(
+            self._heights.bands(true_pose, self._far.tiles), self._far_recent
+        )
+        scans = scan_rig(
+            self.rig,
+            self._caster,
+            true_pose,
+            noise=self._noise,
+            rng=self._rng,  # one key per step, as a whole frame: the rays cast equal its rays
+            timestamp_s=timestamp_s,
+            subsets=subsets,
+        )
+        self._far_scans = scans
+        layers = self._carried(ins_pose)
+        self.detection = self.negative.update(scans, ins_pose, self._far.config.region_xy_m)
+        layers["negative"] = self.detection.grid
+        self._hazards["negative"] = self._held_cells("negative", self.detection.grid, ins_pose, timestamp_s)
+        if self.structure is None:  # the structure channel needs the whole frame: carried
+            self.region = self.traversable.update(scans[LUX_NAME], ins_pose)
+            layers["positive"] = np.asarray(self.region.positive_obstacles, dtype=bool)
+            layers["traversable"] = np.asarray(self.region.traversable, dtype=bool)
+            self._hazards["positive"] = self._held_cells(
+                "positive", layers["positive"], ins_pose, timestamp_s
+            )
+        layers["observed"] = layers["observed"] | self._observed(scans)
         return layers
 
     def align_frames(self, env_steps: int) -> None:
@@ -250,9 +302,21 @@ class DetectorGrid:
 
     def points_vehicle(self) -> np.ndarray:
         """(N, 3) returns of the last frame, all sensors, in the vehicle frame of the last
-        ``observe()`` (for rendering)."""
-        pts = [s.points_vehicle[np.isfinite(s.ranges_m)] for s in self.scans.values()]
-        return self.to_current(np.concatenate(pts)) if pts else np.empty((0, 3))
+        ``observe()`` (for rendering); on a step that cast the far part, its returns replace the
+        frame's there."""
+        pts = self.to_current(_returns(self.scans))
+        if self._far_scans is None:
+            return pts
+        box = self._far.config.region_xy_m
+        return np.concatenate([pts[~in_box(pts, box)], _returns(self._far_scans)])
+
+    def detected_outlines(self) -> list[np.ndarray]:
+        """Outlines (vertices, 2) of the last detection's obstacles in the vehicle frame of the
+        last ``observe()``."""
+        if self.detection is None:
+            return []
+        outlines = [o.outline_xy_m for o in self.detection.obstacles]
+        return outlines if self._far_scans is not None else [self.to_current(o) for o in outlines]
 
     def negative_cells_xy_m(self) -> np.ndarray:
         """(N, 2) vehicle-frame centres of the last frame's negative-obstacle cells, plus those of
@@ -273,9 +337,15 @@ class DetectorGrid:
         held = self._hazard_holds[name].recall_and_keep(points, pose, stamp_s)
         return np.concatenate([cells, held[:, :2]])
 
-    def _observed(self) -> np.ndarray:
+    def _observed(self, scans: dict[str, StructuredScan]) -> np.ndarray:
         """Cells holding a return, from each scan's points as they are (no gathered copy)."""
         mask = np.zeros(self.config.grid.shape, dtype=bool)
-        for s in self.scans.values():
+        for s in scans.values():
             mask |= self.config.grid.occupied(s.points_vehicle[..., :2])
         return mask
+
+
+def _returns(scans: dict[str, StructuredScan]) -> np.ndarray:
+    """(N, 3) vehicle-frame returns of all ``scans`` (the rays with a range)."""
+    pts = [s.points_vehicle[np.isfinite(s.ranges_m)] for s in scans.values()]
+    return np.concatenate(pts) if pts else np.empty((0, 3))

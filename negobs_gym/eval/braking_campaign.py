@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.envs.config import RIGS
+from negobs_gym.envs.config import RIGS, ObservationConfig
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
@@ -129,6 +129,7 @@ class BrakingCampaignConfig:
     rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
     tighten_pairs: bool = True  # ObservationConfig.tighten_pairs of the detector the filter reads
     scan_every: int = 1  # ObservationConfig.scan_every: a LiDAR frame every this many steps
+    scan_far_from_m: float | None = None  # ObservationConfig.scan_far_from_m: cast beyond it between
     # the most steps (10 Hz) of a free_track episode: the 15 s limit's 150 by default; fewer give a
     # quicker (shorter-distance) false-veto check, the obstacle scenarios keep their 150
     free_track_steps: int = EPISODE_STEPS
@@ -160,6 +161,8 @@ class BrakingCampaignConfig:
             "scan_every",
             f"must be an int >= 1, got {self.scan_every!r}",
         )
+        if self.scan_far_from_m is not None:  # the field's own checks, with its name
+            ObservationConfig(scan_every=self.scan_every, scan_far_from_m=self.scan_far_from_m)
         require(
             isinstance(self.free_track_steps, int)
             and not isinstance(self.free_track_steps, bool)
@@ -185,7 +188,8 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
     """scenario x driver x filter x seed, keyed in that order. An obstacle-free (``free_track``)
     episode's args hold its ``max_steps`` where ``config.free_track_steps`` is not
     :data:`EPISODE_STEPS`, which the others run, and every episode's its ``scan_every`` where
-    that is not 1 (so a default campaign's parts are those written before the fields came)."""
+    that is not 1 and its ``scan_far_from_m`` where set (so a default campaign's parts are those
+    written before the fields came)."""
     out = []
     for scenario in config.scenarios:
         for driver in config.all_drivers():
@@ -206,11 +210,20 @@ def episodes(config: BrakingCampaignConfig) -> list[Episode]:
                         args["max_steps"] = config.free_track_steps
                     if config.scan_every != 1:
                         args["scan_every"] = config.scan_every
+                    if config.scan_far_from_m is not None:
+                        args["scan_far_from_m"] = config.scan_far_from_m
                     out.append(Episode(key, args))
     return out
 
 
-def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool, scan_every: int = 1) -> Any:
+def scenario_spec(
+    scenario: str,
+    rig: str,
+    oracle: bool,
+    tighten_pairs: bool,
+    scan_every: int = 1,
+    scan_far_from_m: float | None = None,
+) -> Any:
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
@@ -232,6 +245,7 @@ def scenario_spec(scenario: str, rig: str, oracle: bool, tighten_pairs: bool, sc
         source="oracle" if oracle else "detector",
         tighten_pairs=tighten_pairs,
         scan_every=scan_every,
+        scan_far_from_m=scan_far_from_m,
     )
     return dataclasses.replace(spec, observation=observation)
 
@@ -243,10 +257,11 @@ def _scenario_env(
     tighten_pairs: bool,
     render_mode: str | None = None,
     scan_every: int = 1,
+    scan_far_from_m: float | None = None,
 ) -> Any:
     from negobs_gym.envs.base import NegObsEnv
 
-    spec = scenario_spec(scenario, rig, oracle, tighten_pairs, scan_every)
+    spec = scenario_spec(scenario, rig, oracle, tighten_pairs, scan_every, scan_far_from_m)
     return NegObsEnv(scenario=spec, render_mode=render_mode)
 
 
@@ -384,7 +399,13 @@ def run_episode(episode: Episode) -> Rows:
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
     render_mode = "rgb_array" if video_to is not None else None
     env = _scenario_env(
-        a["scenario"], a["rig"], a["driver"] != "sb3", a["tighten_pairs"], render_mode, a.get("scan_every", 1)
+        a["scenario"],
+        a["rig"],
+        a["driver"] != "sb3",
+        a["tighten_pairs"],
+        render_mode,
+        a.get("scan_every", 1),
+        a.get("scan_far_from_m"),
     )
     max_steps = a.get("max_steps", EPISODE_STEPS)
     metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], max_steps, video_to=video_to)

@@ -151,3 +151,24 @@ def test_tighten_on_match_ignores_pairs_hit_only_by_the_range_scaled_reach():
     r = f.update({"hdl32_left": beside}, POSE0)
     assert len(r) == 2
     assert sorted(r.a_m[:, 1].tolist()) == pytest.approx([15.0, 16.0])
+
+
+def test_a_partial_frame_misses_only_the_pairs_it_covers():
+    """Eq. 16 applies where the frame looked: with ``coverage_xy_m`` (a partial frame) a pair
+    outside the box keeps its posterior, one inside is missed, one straddling the edge is kept."""
+    f = PairFusion()
+    pairs = {
+        "hdl64": _pair(
+            "hdl64", [[0, 8, 0], [0, 15, 0], [3, 11.5, 0]], [[0, 9, -0.5], [0, 16, -0.5], [3, 12.5, -0.5]]
+        )
+    }
+    for _ in range(3):
+        confirmed = f.update(pairs, POSE0)
+    assert confirmed.confirmed.all()
+    r = f.update({}, POSE0, coverage_xy_m=(-6.4, 6.4, 12.0, 25.6))
+    np.testing.assert_allclose(r.posterior, [27 / 28, 13.5 / 14.5, 27 / 28])  # odds 27 x 0.4 / 0.8
+    assert r.confirmed.tolist() == [True, False, True]
+    whole = PairFusion()
+    for _ in range(3):
+        whole.update(pairs, POSE0)
+    assert not whole.update({}, POSE0).confirmed.any()  # a whole frame misses all three

@@ -9,7 +9,7 @@ from negobs_gym.core import GridSpec, Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.detector.synthetic import Hole, hdl32_side_scan, hdl64_scan
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, ScanError
 
 POSE0 = Pose(x=0.0, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
 PIT_8M = Hole.ahead(8.0, width_m=1.0, length_m=1.0, depth_m=0.8)
@@ -140,6 +140,24 @@ def test_bad_input_raises_value_error_naming_it():
         detector.update({"hdl64": np.zeros((64, 10))}, POSE0)
     with pytest.raises(TypeError, match="NegativeDetectorConfig"):
         NegativeObstacleDetector(config={"mode": "fused"})
+    for coverage in ((0.0, 1.0, 2.0), (1.0, -1.0, 0.0, 20.0), (-6.0, 6.0, np.nan, 20.0), "far"):
+        with pytest.raises(ScanError, match="coverage_xy_m"):
+            detector.update(scans, POSE0, coverage)
+
+
+def test_a_partial_frame_keeps_its_pairs_inside_the_coverage_and_the_history_outside_it():
+    """A frame declared to cover only the ground beyond 12 m: the 8 m pit's pairs of this frame are
+    dropped, but the pit confirmed by earlier whole frames stays in the grid (not missed where
+    the frame did not look); a whole frame without it removes it."""
+    detector = NegativeObstacleDetector()
+    detector.update(_rig_scans([PIT_8M]), POSE0)
+    far = (-6.4, 6.4, 12.0, 25.6)
+    detection = detector.update(_rig_scans([PIT_8M]), POSE0, far)
+    assert all(len(p) == 0 for p in detection.frame_pairs.values())
+    truth = _hole_cells(PIT_8M, detection.grid_spec)
+    assert (detection.grid & truth).sum() >= 0.8 * truth.sum()
+    assert detector.update(_rig_scans([]), POSE0, far).grid.any()
+    assert not detector.update(_rig_scans([]), POSE0).grid.any()
 
 
 @pytest.mark.parametrize(
