@@ -19,6 +19,7 @@ An empty scan (zero columns) is valid and yields no detections.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -43,19 +44,23 @@ def ray_directions(elevation_rad: np.ndarray, azimuth_rad: np.ndarray) -> np.nda
     return np.stack(np.broadcast_arrays(ce * np.sin(a), ce * np.cos(a), np.sin(e)), axis=-1)
 
 
-_DIRECTION_TABLES: dict[tuple[bytes, ...], np.ndarray] = {}
-_MAX_DIRECTION_TABLES = 16  # a rig of 4 sensors keeps a sensor-frame and a vehicle-frame table each
+_DIRECTION_TABLES: OrderedDict[tuple[bytes, ...], np.ndarray] = OrderedDict()
+# a rig of 4 sensors keeps a sensor-frame and a vehicle-frame table each, and as many per column
+# crop its scans come in (sensors.roi.RaySubset.columns: a whole ROI frame's and a far part's)
+_MAX_DIRECTION_TABLES = 24
 
 
 def _cached_table(key: tuple[bytes, ...], build) -> np.ndarray:
-    """``build()`` kept for the last few keys (a rig reuses its angle tables every frame)."""
+    """``build()`` kept for the most recently used keys (a rig reuses its angle tables every frame)."""
     table = _DIRECTION_TABLES.get(key)
     if table is None:
         if len(_DIRECTION_TABLES) >= _MAX_DIRECTION_TABLES:
-            _DIRECTION_TABLES.pop(next(iter(_DIRECTION_TABLES)))
+            _DIRECTION_TABLES.popitem(last=False)
         table = build()
         table.flags.writeable = False
         _DIRECTION_TABLES[key] = table
+    else:
+        _DIRECTION_TABLES.move_to_end(key)
     return table
 
 

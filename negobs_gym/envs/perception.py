@@ -212,6 +212,7 @@ class DetectorGrid:
             rng=self._rng,
             timestamp_s=timestamp_s,
             subsets=subsets,
+            crop=subsets is not None,
         )
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
@@ -250,6 +251,7 @@ class DetectorGrid:
             rng=self._rng,  # one key per step, as a whole frame: the rays cast equal its rays
             timestamp_s=timestamp_s,
             subsets=subsets,
+            crop=True,
         )
         self._far_scans = scans
         layers = self._carried(ins_pose)

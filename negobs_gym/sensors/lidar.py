@@ -103,12 +103,14 @@ def scan(
     timestamp_s: float = 0.0,
     rays: np.ndarray | None = None,
     noise_key: int | None = None,
+    columns: tuple[int, int] | None = None,
 ) -> StructuredScan:
     """One structured scan of ``mount`` at vehicle ``pose``; noise on by default (needs ``rng``).
 
     ``rays`` (flat laser-major indices) casts only those rays; the others are NaN. Noise is keyed
     per ray (``noise_key``, else one draw from ``rng``), so a ray gets the same range whether the
-    full scan or a subset is cast.
+    full scan or a subset is cast. ``columns`` (``[start, stop)``, holding every ray of ``rays``)
+    crops the range image to those columns (:class:`~negobs_gym.sensors.roi.RaySubset`).
     """
     m = mount.model
     cfg = noise or NoiseConfig()
@@ -130,10 +132,14 @@ def scan(
         ranges = np.full(m.n_lasers * m.n_columns, np.nan)
         ranges[index] = hit
         ranges = ranges.reshape(m.n_lasers, m.n_columns)
+    azimuth = m.azimuth_rad
+    if columns is not None:
+        ranges = np.ascontiguousarray(ranges[:, columns[0] : columns[1]])
+        azimuth = azimuth[columns[0] : columns[1]]
     return StructuredScan(
         sensor=mount.name,
         ranges_m=ranges,
-        azimuth_rad=m.azimuth_rad,
+        azimuth_rad=azimuth,
         elevation_rad=m.elevation_rad,
         rotation=mount.rotation_matrix,
         translation_m=np.asarray(mount.translation_m),
@@ -151,12 +157,15 @@ def scan_rig(
     rng: np.random.Generator | None = None,
     timestamp_s: float = 0.0,
     subsets: dict | None = None,
+    crop: bool = False,
 ) -> dict[str, StructuredScan]:
     """Scans of every sensor of ``rig``, keyed by mount name.
 
     ``subsets`` (sensor name -> :class:`~negobs_gym.sensors.roi.RaySubset`, from
     :class:`~negobs_gym.sensors.roi.RoiSelector`) casts only those rays of each sensor; the rays
-    cast equal the full scan's. One draw from ``rng`` keys the whole frame's noise.
+    cast equal the full scan's. One draw from ``rng`` keys the whole frame's noise. ``crop``
+    crops each subset's range image to its column span (``RaySubset.columns``): the detectors
+    find the same features on fewer columns (docs/performance.md).
     """
     cfg = noise or NoiseConfig()
     key = frame_noise_key(rng, cfg)
@@ -171,5 +180,6 @@ def scan_rig(
             timestamp_s=timestamp_s,
             rays=None if sub is None else sub.index,
             noise_key=key,
+            columns=sub.columns if crop and sub is not None else None,
         )
     return out

@@ -97,9 +97,17 @@ class RoiConfig:
 
 @dataclass(frozen=True)
 class RaySubset:
-    """The rays of one sensor to cast: flat (laser-major) indices into its full direction table."""
+    """The rays of one sensor to cast: flat (laser-major) indices into its full direction table.
+
+    ``columns`` is the half-open column span ``[start, stop)`` of the range image that holds every
+    ray of the subset and ``RoiConfig.column_margin`` columns more either side (None: all
+    columns). A scan cropped to it (``scan_rig(..., crop=True)``) gives the detectors the same
+    features: their column windows reach at most ``column_margin`` columns and none wraps around
+    the seam, so past the margin a crop's edge reads as the full image's columns of no return.
+    """
 
     index: np.ndarray  # (k,) int32, increasing
+    columns: tuple[int, int] | None = None
 
     @property
     def size(self) -> int:
@@ -361,5 +369,10 @@ class RoiSelector:
     def _subset(self, mount: SensorMount, key: BandKey) -> RaySubset:
         if mount.name in self.config.full_sensors:
             return self._full[mount.name]
-        index = np.flatnonzero(self.mask(mount, key)).astype(np.int32)
-        return RaySubset(index)
+        mask = self.mask(mount, key)
+        index = np.flatnonzero(mask).astype(np.int32)
+        cast = np.flatnonzero(mask.any(axis=0))
+        if cast.size == 0:
+            return RaySubset(index, (0, 0))
+        pad = self.config.column_margin
+        return RaySubset(index, (max(0, int(cast[0]) - pad), min(mask.shape[1], int(cast[-1]) + 1 + pad)))

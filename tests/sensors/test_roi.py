@@ -110,7 +110,17 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
     subsets = sel.subsets_for_bands(heights.bands(pose, sel.tiles))
     roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets)
     native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9))
+    cropped = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets, crop=True)
     p_remove(world, vehicle)  # the module's world is shared: leave it as it was
+    for name, scan in cropped.items():  # the cast columns and their margin, nothing else
+        start, stop = subsets[name].columns or (0, roi[name].shape[1])
+        assert stop - start < roi[name].shape[1] or name == "lux"
+        np.testing.assert_array_equal(scan.ranges_m, roi[name].ranges_m[:, start:stop])
+        np.testing.assert_array_equal(scan.azimuth_rad, roi[name].azimuth_rad[start:stop])
+        assert np.isnan(np.delete(roi[name].ranges_m, np.s_[start:stop], axis=1)).all()
+        margin = RoiConfig().column_margin  # columns of no return either side, as in the full image
+        edge = np.isnan(scan.ranges_m).all(axis=0)
+        assert (start == 0 or edge[:margin].all()) and (stop == roi[name].shape[1] or edge[-margin:].all())
     for name, full in native.items():
         cast = np.zeros(full.ranges_m.size, bool)
         cast[subsets[name].index] = True
@@ -124,7 +134,8 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
 
 
 def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
-    """Approach a 0.6 m ditch from 20 m to 6 m: the detector's grid is the same on both scans.
+    """Approach a 0.6 m ditch from 20 m to 6 m: the detector's grid is the same on both scans,
+    and on the ROI scans cropped to their cast columns (``crop=True``) everything is the same.
 
     The in-grid pairs are the same but for the bumps (paper N §3.1: a rise then a fall along one
     laser) that run past the cast window: a laser whose ring follows the ditch sees it as one bump
@@ -135,6 +146,7 @@ def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
     near_y = float(outline[:, 1].min())
     config = NegativeDetectorConfig(grid=GRID)
     det_roi, det_native = NegativeObstacleDetector(config), NegativeObstacleDetector(config)
+    det_cropped = NegativeObstacleDetector(config)
     sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
     seen = pairs_seen = native_pairs = missing = 0
     vehicle = None
@@ -149,8 +161,15 @@ def test_detections_on_roi_scans_equal_native_frame_by_frame(ditch_world):
         rng_seed = 100 + k
         roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed), subsets=subsets)
         native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed))
+        cropped = scan_rig(RIG, caster, pose, rng=np.random.default_rng(rng_seed), subsets=subsets, crop=True)
         a = det_roi.update(roi, pose)
         b = det_native.update(native, pose)
+        c = det_cropped.update(cropped, pose)  # the range images cropped to the cast columns: the same
+        np.testing.assert_array_equal(c.grid, a.grid)
+        np.testing.assert_array_equal(c.pairs.a_m, a.pairs.a_m)
+        np.testing.assert_array_equal(c.pairs.posterior, a.pairs.posterior)
+        for name in a.frame_pairs:
+            np.testing.assert_array_equal(c.frame_pairs[name].b_m, a.frame_pairs[name].b_m)
         np.testing.assert_array_equal(a.grid, b.grid, err_msg=f"frame at {distance} m")
         for name in a.frame_pairs:  # pairs outside the grid (B up to 20 m to the side) are not read
             got = {tuple(p) for p in _in_grid(a.frame_pairs[name].b_m)}
