@@ -31,9 +31,9 @@ def _returns_in(scan, box) -> np.ndarray:
 
 def test_the_far_part_is_cast_and_detected_as_an_every_step_run_does_there() -> None:
     """k = 2, far part from 12 m, against a frame every step (same seed and actions), driving at
-    the 1 m ditch: at each step between frames every return the every-step scan has beyond 12 m
-    is cast, with the same range (the same points); paper N's pairs of that part are the every-step frame's; its
-    grid marks the ditch as the every-step grid does; paper T ran on the LUX; the near part of
+    the 1 m ditch: at each step between frames the returns beyond 12 m are the every-step scan's
+    (same rays, same ranges); paper N's pairs of that part are the every-step frame's; its grid
+    marks the ditch as the every-step grid does; paper T ran on the LUX; the near part of
     ``observed`` is the last frame's moved; the hazards' age is the whole frame's."""
     every, pair = _env(1), _env(2, scan_far_from_m=FAR_M)
     every.reset(seed=1)
