@@ -53,6 +53,13 @@ def test_bad_config_and_missing_ray_exit_2(tmp_path: Path, monkeypatch, capsys) 
     assert "negobs_gym[ray]" in capsys.readouterr().err
 
 
+def test_braking_refuses_a_far_part_outside_the_grid_naming_it(tmp_path: Path, capsys) -> None:
+    out = ["--out", str(tmp_path / "o"), "--seeds", "1"]
+    assert main(["eval", "braking", "--scan-every", "3", "--scan-far-from", "40", *out]) == 2
+    assert "scan_far_from_m" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     import gymnasium as gym
     from stable_baselines3 import PPO

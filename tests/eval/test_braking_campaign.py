@@ -276,3 +276,18 @@ def test_scan_every_reaches_the_episode_and_the_filter_allows_the_frames_age() -
     (row,) = _read_rows(run_episode(episode)["braking"])
     assert row["entered"] in ("0", "False") and row["stopped"] in ("1", "True")
     assert 0 < float(row["final_gap_m"]) and float(row["first_veto_gap_m"]) < 16.0  # vetoed by distance
+
+
+def test_scan_far_from_m_reaches_the_episodes_observation_only_where_set() -> None:
+    from negobs_gym.eval.braking_campaign import scenario_spec
+
+    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), filters=(True,))
+    assert all("scan_far_from_m" not in e.args for e in episodes(cfg))
+    far = dataclasses.replace(cfg, scan_every=3, scan_far_from_m=12.0)
+    (episode,) = episodes(far)
+    assert episode.args["scan_far_from_m"] == 12.0 and episode.args["scan_every"] == 3
+    spec = scenario_spec("ditch", "roi", False, True, 3, 12.0)
+    assert spec.observation.scan_far_from_m == 12.0 and spec.observation.scan_every == 3
+    for bad in (40.0, float("nan"), "12"):
+        with pytest.raises(ConfigError, match="scan_far_from_m"):
+            BrakingCampaignConfig(scan_every=3, scan_far_from_m=bad)
