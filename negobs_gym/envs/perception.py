@@ -104,8 +104,7 @@ def world_products(
     config: ObservationConfig, world: World, vehicle: Vehicle, cache: dict | None = None
 ) -> tuple[RayCaster, HeightEnvelope | None]:
     """The ray caster of ``world`` and, for the ``roi`` rig or ``scan_far_from_m``, its height
-    envelope: taken from
-    ``cache`` (one dict per world) or built into it."""
+    envelope: taken from ``cache`` (one dict per world) or built into it."""
     cache = {} if cache is None else cache
     threads = cast_threads(config)
     key = ("caster", config.raycast_backend, threads, config.raycast_isa)
@@ -126,7 +125,8 @@ def world_products(
 
 class DetectorGrid:
     """Runs the rig and both detectors each control step (or every ``config.scan_every``-th, the
-    last frame carried between); keeps the last frame for rendering."""
+    last frame carried between, with ``config.scan_far_from_m`` the grid's far part cast and
+    detected between); keeps the last frame for rendering."""
 
     def __init__(
         self,
@@ -174,7 +174,7 @@ class DetectorGrid:
         self.detection: Detection | None = None
         self.region: TraversableRegion | None = None
         self.stamp_s: float | None = None  # sensing time of the last frame (None before the first)
-        self.positive: np.ndarray | None = None  # the last frame's positive-obstacle layer
+        self.positive: np.ndarray | None = None  # the last positive-obstacle layer detected
         self._hazard_holds = {name: PointHold(config.hazard_hold_s) for name in HAZARD_CHANNELS}
         self._hazards = {name: np.empty((0, 2)) for name in HAZARD_CHANNELS}
         self._steps_to_frame = 0  # control steps until the next frame is cast (0: at this one)
@@ -262,6 +262,7 @@ class DetectorGrid:
             self.region = self.traversable.update(scans[LUX_NAME], ins_pose)
             layers["positive"] = np.asarray(self.region.positive_obstacles, dtype=bool)
             layers["traversable"] = np.asarray(self.region.traversable, dtype=bool)
+            self.positive = layers["positive"]
             self._hazards["positive"] = self._held_cells(
                 "positive", layers["positive"], ins_pose, timestamp_s
             )
