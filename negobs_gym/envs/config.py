@@ -136,7 +136,7 @@ class ObservationConfig:
             default: every step, the sensors' 10 Hz as in both papers). Between two frames the
             last frame's channels and the safety filter's hazard cells are carried to the current
             INS pose (ego-motion, as paper N's fusion registers frames), so a step costs physics
-            only; the hazards then age up to ``scan_every - 1`` control periods
+            only (unless ``scan_far_from_m``); the hazards then age up to ``scan_every - 1`` control periods
             (``NegObsEnv.max_perception_age_s``), from which the safety filter's
             ``perception_timeout_s`` counts. Ignored by the oracle source.
         scan_clock: With ``scan_every`` > 1, which step count picks the frames after the reset's

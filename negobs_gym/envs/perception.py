@@ -280,6 +280,17 @@ class DetectorGrid:
         return self._pose
 
     @property
+    def far_scans(self) -> dict[str, StructuredScan] | None:
+        """This step's scans of the grid's far part (``config.scan_far_from_m``), cropped to their
+        cast columns; None on a whole frame's step or a carried one."""
+        return self._far_scans
+
+    @property
+    def far_region_xy_m(self) -> tuple[float, float, float, float] | None:
+        """The vehicle-frame box the far-part steps cast and detect (None without them)."""
+        return None if self._far is None else self._far.config.region_xy_m
+
+    @property
     def frame_pose(self) -> Pose | None:
         """INS pose of the last cast frame (with ``scan_every`` 1: of the last ``observe()``)."""
         return self._frame[0] if self._frame is not None else self._pose

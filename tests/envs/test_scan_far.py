@@ -50,7 +50,7 @@ def test_the_far_part_is_cast_and_detected_as_an_every_step_run_does_there() -> 
             frame_observed, frame_pose = obs["grid"][observed], p.pose
             continue
         assert pair.hazard_state().perception_age_s == pytest.approx(0.1)
-        for name, scan in p._far_scans.items():
+        for name, scan in p.far_scans.items():
             np.testing.assert_array_equal(_returns_in(scan, box), _returns_in(e.scans[name], box))
         for name, pairs in p.detection.frame_pairs.items():
             native = e.detection.frame_pairs[name]
@@ -75,8 +75,8 @@ def test_the_rendered_returns_beyond_the_far_edge_are_the_steps_own() -> None:
     env.step(COAST)  # between frames
     perception = env.perception
     points = perception.points_vehicle()
-    box = perception._far.config.region_xy_m
-    far = np.concatenate([s.points_vehicle[np.isfinite(s.ranges_m)] for s in perception._far_scans.values()])
+    box = perception.far_region_xy_m
+    far = np.concatenate([s.points_vehicle[np.isfinite(s.ranges_m)] for s in perception.far_scans.values()])
     np.testing.assert_array_equal(points[in_box(points, box)], far[in_box(far, box)])
     assert (~in_box(points, box)).sum() > 1000  # the near part: the last frame's returns
     frame = env.render()
