@@ -10,6 +10,7 @@ import numpy as np
 from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan, ray_directions
+from negobs_gym.errors import ConfigError
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast.base import RayCaster
 from negobs_gym.sensors.rigs import Rig, SensorMount
@@ -134,6 +135,12 @@ def scan(
         ranges = ranges.reshape(m.n_lasers, m.n_columns)
     azimuth = m.azimuth_rad
     if columns is not None:
+        start, stop = columns
+        cols = index % m.n_columns
+        if not (0 <= start <= stop <= m.n_columns and np.all((cols >= start) & (cols < stop))):
+            raise ConfigError(
+                "columns", f"must be [start, stop) within 0..{m.n_columns} holding every ray cast"
+            )
         ranges = np.ascontiguousarray(ranges[:, columns[0] : columns[1]])
         azimuth = azimuth[columns[0] : columns[1]]
     return StructuredScan(

@@ -10,6 +10,7 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.errors import ConfigError
+from negobs_gym.sensors.lidar import scan as scan_one
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast import make_caster
@@ -111,6 +112,13 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
     roi = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets)
     native = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9))
     cropped = scan_rig(RIG, caster, pose, rng=np.random.default_rng(9), subsets=subsets, crop=True)
+    hdl64 = subsets["hdl64"]
+    first_cast = int(hdl64.index.min() % RIG.mount("hdl64").model.n_columns)
+    for bad in ((5, 2), (0, 10**6), (first_cast + 1, hdl64.columns[1])):  # the last drops rays cast
+        with pytest.raises(ConfigError, match="columns"):
+            scan_one(
+                RIG.mount("hdl64"), caster, pose, rng=np.random.default_rng(9), rays=hdl64.index, columns=bad
+            )
     p_remove(world, vehicle)  # the module's world is shared: leave it as it was
     for name, scan in cropped.items():  # the cast columns and their margin, nothing else
         start, stop = subsets[name].columns or (0, roi[name].shape[1])
