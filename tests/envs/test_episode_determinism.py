@@ -90,16 +90,22 @@ def test_kept_world_replays_the_episode_bit_for_bit():
     _assert_same(first, again)
 
 
+def _in_another_process(names: str, *lines: str, env: dict | None = None) -> None:
+    """Run ``lines`` in a fresh Python process that imported ``names`` from this module."""
+    code = "\n".join(
+        [
+            "import sys, numpy as np, gymnasium as gym",
+            f"sys.path.insert(0, {str(ROOT)!r})",
+            f"from tests.envs.test_episode_determinism import {names}",
+            *lines,
+        ]
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300, env=env)
+
+
 def test_same_seed_same_episode_in_another_process(tmp_path):
     out = tmp_path / "episode.npz"
-    code = (
-        "import sys, numpy as np, gymnasium as gym\n"
-        f"sys.path.insert(0, {str(ROOT)!r})\n"
-        "from tests.envs.test_episode_determinism import _rollout, ENV_ID\n"
-        "env = gym.make(ENV_ID)\n"
-        f"np.savez({str(out)!r}, **_rollout(env, seed=11))\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300)
+    _in_another_process("_rollout, ENV_ID", f"np.savez({str(out)!r}, **_rollout(gym.make(ENV_ID), seed=11))")
     env = gym.make(ENV_ID)
     here = _rollout(env, seed=11)
     env.close()
@@ -118,13 +124,9 @@ def _far_part_env() -> gym.Env:
 
 def test_far_part_steps_give_the_same_episode_in_another_process(tmp_path):
     out = tmp_path / "episode.npz"
-    code = (
-        "import sys, numpy as np\n"
-        f"sys.path.insert(0, {str(ROOT)!r})\n"
-        "from tests.envs.test_episode_determinism import _far_part_env, _rollout\n"
-        f"np.savez({str(out)!r}, **_rollout(_far_part_env(), seed=11))\n"
+    _in_another_process(
+        "_far_part_env, _rollout", f"np.savez({str(out)!r}, **_rollout(_far_part_env(), seed=11))"
     )
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300)
     env = _far_part_env()
     here = _rollout(env, seed=11)
     env.close()
@@ -164,15 +166,11 @@ def test_same_seed_same_scans_on_an_avx2_cpu(tmp_path):
     differ there (checked), so any of them left on the episode's path would show.
     """
     out = tmp_path / "episode.npz"
-    code = (
-        "import math, sys, numpy as np\n"
-        f"sys.path.insert(0, {str(ROOT)!r})\n"
-        "from tests.envs.test_episode_determinism import _numpy_takes_avx512_paths, _pinned_rollout\n"
-        "assert not _numpy_takes_avx512_paths(), 'numpy still takes its AVX-512 routines'\n"
-        f"np.savez({str(out)!r}, **_pinned_rollout(seed=13))\n"
-    )
-    subprocess.run(
-        [sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300, env={**os.environ, **_NO_AVX512}
+    _in_another_process(
+        "_numpy_takes_avx512_paths, _pinned_rollout",
+        "assert not _numpy_takes_avx512_paths(), 'numpy still takes its AVX-512 routines'",
+        f"np.savez({str(out)!r}, **_pinned_rollout(seed=13))",
+        env={**os.environ, **_NO_AVX512},
     )
     here = _pinned_rollout(seed=13)
     assert np.isfinite(here["scans"]).mean() > 0.2
@@ -214,13 +212,7 @@ def test_same_seed_same_frames_in_another_process(tmp_path):
     """Rendering draws from no generator: the frames (what `negobs eval video` encodes) are the
     episode's, pixel for pixel, in any process."""
     out = tmp_path / "frames.npy"
-    code = (
-        "import sys, numpy as np\n"
-        f"sys.path.insert(0, {str(ROOT)!r})\n"
-        "from tests.envs.test_episode_determinism import _frames\n"
-        f"np.save({str(out)!r}, _frames(seed=3))\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300)
+    _in_another_process("_frames", f"np.save({str(out)!r}, _frames(seed=3))")
     here = _frames(seed=3)
     assert here.std() > 0 and not np.array_equal(here[0], here[-1])  # a picture that moves
     assert np.array_equal(here, np.load(out))
