@@ -50,7 +50,6 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import SENSOR_MODES, FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.detector.grid import convex_overlap_mask
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.envs.perception import far_region
 from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster
@@ -170,7 +169,7 @@ class FarFrames:
     terrain), and that box as the detector's coverage."""
 
     def __init__(self, rig: Rig, from_m: float) -> None:
-        self.coverage_xy_m = far_region(ObservationConfig().grid.extent_xy_m, from_m)
+        self.coverage_xy_m = ObservationConfig(scan_every=2, scan_far_from_m=from_m).far_region_xy_m
         subsets = RoiSelector(rig, RoiConfig(region_xy_m=self.coverage_xy_m)).subsets(-1.5, 1.5)
         self.masks = {}
         for m in rig.mounts:

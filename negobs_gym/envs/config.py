@@ -136,8 +136,8 @@ class ObservationConfig:
             default: every step, the sensors' 10 Hz as in both papers). Between two frames the
             last frame's channels and the safety filter's hazard cells are carried to the current
             INS pose (ego-motion, as paper N's fusion registers frames), so a step costs physics
-            only (unless ``scan_far_from_m``); the hazards then age up to ``scan_every - 1`` control periods
-            (``NegObsEnv.max_perception_age_s``), from which the safety filter's
+            only (unless ``scan_far_from_m``); the hazards then age up to ``scan_every - 1``
+            control periods (``NegObsEnv.max_perception_age_s``), from which the safety filter's
             ``perception_timeout_s`` counts. Ignored by the oracle source.
         scan_clock: With ``scan_every`` > 1, which step count picks the frames after the reset's
             (always a frame): ``"episode"`` (default: the episode's steps k, 2k, ...; the same
@@ -370,6 +370,15 @@ class ObservationConfig:
         """(channels, rows, cols) of the observed grid after down-sampling."""
         rows, cols = self.grid.shape
         return (len(self.channels), rows // self.downsample, cols // self.downsample)
+
+    @property
+    def far_region_xy_m(self) -> tuple[float, float, float, float] | None:
+        """The vehicle-frame box ``(x_min, x_max, y_min, y_max)`` the steps between frames cast and
+        detect: the grid's extent from ``scan_far_from_m`` forward (None: no far-part steps)."""
+        if self.scan_every == 1 or self.scan_far_from_m is None:
+            return None
+        x0, x1, _, y1 = self.grid.extent_xy_m
+        return (x0, x1, float(self.scan_far_from_m), y1)
 
 
 @dataclass(frozen=True, kw_only=True)

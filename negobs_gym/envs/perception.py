@@ -88,14 +88,6 @@ def roi_selector(rig: Rig, config: RoiConfig) -> RoiSelector:
     return RoiSelector(rig, config)
 
 
-def far_region(
-    extent_xy_m: tuple[float, float, float, float], from_m: float
-) -> tuple[float, float, float, float]:
-    """The part ``(x_min, x_max, y_min, y_max)`` of a grid extent from ``from_m`` forward."""
-    x0, x1, y0, y1 = extent_xy_m
-    return (x0, x1, max(y0, from_m), y1)
-
-
 #: The grid channels whose cells the safety filter reads (``hazard_state()``).
 HAZARD_CHANNELS = ("negative", "positive")
 
@@ -116,7 +108,7 @@ def world_products(
             threads=threads,
             isa=config.raycast_isa,
         )
-    if config.rig != "roi" and not (config.scan_every > 1 and config.scan_far_from_m is not None):
+    if config.rig != "roi" and config.far_region_xy_m is None:
         return cache[key], None
     if "heights" not in cache:
         cache["heights"] = HeightEnvelope(world, exclude_body_ids=(vehicle.body_id,))
@@ -152,9 +144,8 @@ class DetectorGrid:
         self._far: RoiSelector | None = None  # casts the grid's far part between frames
         self._far_recent: list = []
         self._far_scans: dict[str, StructuredScan] | None = None  # this step's far part, if any
-        if heights is not None and config.scan_every > 1 and config.scan_far_from_m is not None:
-            box = far_region(config.grid.extent_xy_m, config.scan_far_from_m)
-            self._far = roi_selector(self.rig, RoiConfig(region_xy_m=box))
+        if config.far_region_xy_m is not None:
+            self._far = roi_selector(self.rig, RoiConfig(region_xy_m=config.far_region_xy_m))
         fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
         self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"
@@ -184,8 +175,9 @@ class DetectorGrid:
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel.
 
-        Between two frames (``config.scan_every`` > 1) nothing is cast: the last frame's layers
-        and hazard cells are carried to the current INS pose, and ``stamp_s`` stays the frame's.
+        Between two frames (``config.scan_every`` > 1) the last frame's layers and hazard cells
+        are carried to the current INS pose, and ``stamp_s`` stays the frame's; with
+        ``config.scan_far_from_m`` the grid's far part is cast and detected too (:meth:`_far_part`).
         """
         ins_pose: Pose = self._vehicle.pose()
         self._pose = ins_pose
@@ -198,22 +190,7 @@ class DetectorGrid:
             return self._carried(ins_pose)
         self._steps_to_frame = self.config.scan_every - 1
         self._far_scans = None
-        true_pose = self._vehicle.true_pose()
-        subsets = None
-        if self._roi is not None:
-            subsets = self._roi.subsets_for_bands(
-                self._heights.bands(true_pose, self._roi.tiles), self._roi_recent
-            )
-        self.scans = scan_rig(
-            self.rig,
-            self._caster,
-            true_pose,
-            noise=self._noise,
-            rng=self._rng,
-            timestamp_s=timestamp_s,
-            subsets=subsets,
-            crop=subsets is not None,
-        )
+        self.scans = self._cast(self._roi, self._roi_recent, timestamp_s)
         self.detection = self.negative.update(self.scans, ins_pose)
         self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
         self.stamp_s = float(timestamp_s)
@@ -239,23 +216,11 @@ class DetectorGrid:
         (and the whole LUX), paper N's detector run on it as a partial frame and paper T on the
         LUX; the rest of the last frame carried to ``ins_pose``. ``stamp_s`` stays the last whole
         frame's: the near part of the grid is that old."""
-        true_pose = self._vehicle.true_pose()
-        subsets = self._far.subsets_for_bands(
-            self._heights.bands(true_pose, self._far.tiles), self._far_recent
-        )
-        scans = scan_rig(
-            self.rig,
-            self._caster,
-            true_pose,
-            noise=self._noise,
-            rng=self._rng,  # one key per step, as a whole frame: the rays cast equal its rays
-            timestamp_s=timestamp_s,
-            subsets=subsets,
-            crop=True,
-        )
+        # one noise key per step, as a whole frame: the far rays equal an every-step run's
+        scans = self._cast(self._far, self._far_recent, timestamp_s)
         self._far_scans = scans
         layers = self._carried(ins_pose)
-        self.detection = self.negative.update(scans, ins_pose, self._far.config.region_xy_m)
+        self.detection = self.negative.update(scans, ins_pose, self.config.far_region_xy_m)
         layers["negative"] = self.detection.grid
         self._hazards["negative"] = self._held_cells("negative", self.detection.grid, ins_pose, timestamp_s)
         if self.structure is None:  # the structure channel needs the whole frame: carried
@@ -268,6 +233,27 @@ class DetectorGrid:
             )
         layers["observed"] = layers["observed"] | self._observed(scans)
         return layers
+
+    def _cast(
+        self, selector: RoiSelector | None, recent: list, timestamp_s: float
+    ) -> dict[str, StructuredScan]:
+        """The rig cast from the true pose: the rays ``selector`` picks for the current height
+        bands (``recent``: this episode's band sets), their range images cropped to the cast
+        columns; every ray without a selector."""
+        true_pose = self._vehicle.true_pose()
+        subsets = None
+        if selector is not None:
+            subsets = selector.subsets_for_bands(self._heights.bands(true_pose, selector.tiles), recent)
+        return scan_rig(
+            self.rig,
+            self._caster,
+            true_pose,
+            noise=self._noise,
+            rng=self._rng,
+            timestamp_s=timestamp_s,
+            subsets=subsets,
+            crop=subsets is not None,
+        )
 
     def align_frames(self, env_steps: int) -> None:
         """Cast the next frames at the steps where the env's step count, ``env_steps`` now, is a
@@ -288,7 +274,7 @@ class DetectorGrid:
     @property
     def far_region_xy_m(self) -> tuple[float, float, float, float] | None:
         """The vehicle-frame box the far-part steps cast and detect (None without them)."""
-        return None if self._far is None else self._far.config.region_xy_m
+        return self.config.far_region_xy_m
 
     @property
     def frame_pose(self) -> Pose | None:
@@ -321,7 +307,7 @@ class DetectorGrid:
         pts = self.to_current(_returns(self.scans))
         if self._far_scans is None:
             return pts
-        box = self._far.config.region_xy_m
+        box = self.config.far_region_xy_m
         return np.concatenate([pts[~in_box(pts, box)], _returns(self._far_scans)])
 
     def detected_outlines(self) -> list[np.ndarray]:

@@ -41,6 +41,8 @@ def test_the_far_part_is_cast_and_detected_as_an_every_step_run_does_there() -> 
     observed = CHANNELS.index("observed")
     frame_observed, frame_pose = obs["grid"][observed], pair.perception.pose
     box = (-6.4, 6.4, FAR_M, 25.6)
+    assert pair.perception.far_region_xy_m == box and every.perception.far_region_xy_m is None
+    assert ObservationConfig(scan_far_from_m=FAR_M).far_region_xy_m is None  # no steps between frames
     marked = 0
     for step in range(1, 41):
         every.step(COAST)
