@@ -36,6 +36,13 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _orthonormal(rot: np.ndarray) -> bool:
+    """``np.allclose(rot @ rot.T, I, atol=1e-6)`` (rtol 1e-5) written out: ~10x faster, and it
+    runs for every scan of every frame."""
+    eye = np.eye(3)
+    return bool(np.all(np.abs(rot @ rot.T - eye) <= 1e-6 + 1e-5 * eye))
+
+
 def ray_directions(elevation_rad: np.ndarray, azimuth_rad: np.ndarray) -> np.ndarray:
     """Unit ray directions in the sensor frame, shape (lasers, columns, 3)."""
     e = np.asarray(elevation_rad, dtype=np.float64)[:, None]
@@ -140,7 +147,7 @@ class StructuredScan:
             raise ScanError(f"{name}: azimuths and elevations must be finite")
         if az.size > 1 and not (np.diff(az) > 0).all():
             raise ScanError(f"{name}: azimuths must be strictly increasing (sort the columns)")
-        if rot.shape != (3, 3) or not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6):
+        if rot.shape != (3, 3) or not _orthonormal(rot):
             raise ScanError(f"{name}: rotation must be a 3x3 orthonormal matrix")
         if trans.shape != (3,) or not np.isfinite(trans).all():
             raise ScanError(f"{name}: translation must be 3 finite values")

@@ -127,22 +127,24 @@ def scan(
     hit[hit < m.min_range_m] = np.nan
     hit = apply_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name))
     hit[(hit < m.min_range_m) | (hit > m.max_range_m)] = np.nan
-    if rays is None:
-        ranges = hit.reshape(m.n_lasers, m.n_columns)
-    else:
-        ranges = np.full(m.n_lasers * m.n_columns, np.nan)
-        ranges[index] = hit
-        ranges = ranges.reshape(m.n_lasers, m.n_columns)
+    n_columns = m.n_columns
     azimuth = m.azimuth_rad
-    if columns is not None:
+    if rays is None:
+        ranges = hit.reshape(m.n_lasers, n_columns)
+    elif columns is None:
+        ranges = np.full(m.n_lasers * n_columns, np.nan)
+        ranges[index] = hit
+        ranges = ranges.reshape(m.n_lasers, n_columns)
+    else:  # the cropped image directly: no full-size image to fill and copy from
         start, stop = columns
-        cols = index % m.n_columns
-        if not (0 <= start <= stop <= m.n_columns and np.all((cols >= start) & (cols < stop))):
+        laser, col = np.divmod(index, n_columns)
+        if not (0 <= start <= stop <= n_columns and np.all((col >= start) & (col < stop))):
             raise ConfigError(
-                "columns", f"must be [start, stop) within 0..{m.n_columns} holding every ray cast"
+                "columns", f"must be [start, stop) within 0..{n_columns} holding every ray cast"
             )
-        ranges = np.ascontiguousarray(ranges[:, columns[0] : columns[1]])
-        azimuth = azimuth[columns[0] : columns[1]]
+        ranges = np.full((m.n_lasers, stop - start), np.nan)
+        ranges[laser, col - start] = hit
+        azimuth = azimuth[start:stop]
     return StructuredScan(
         sensor=mount.name,
         ranges_m=ranges,

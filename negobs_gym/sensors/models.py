@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -74,20 +75,28 @@ class LidarModel:
 
     @property
     def azimuth_rad(self) -> np.ndarray:
-        """(columns,) strictly increasing firing azimuths [rad], centred on sensor +Y."""
-        res = self.azimuth_resolution_deg
-        if self.hfov_deg >= 360.0:
-            n = round(360.0 / res)
-            az = -180.0 + res * np.arange(n)
-        else:
-            n = math.floor(self.hfov_deg / res + 1e-9) + 1
-            az = -0.5 * self.hfov_deg + res * np.arange(n)
-        return np.deg2rad(az)
+        """(columns,) strictly increasing firing azimuths [rad], centred on sensor +Y (read-only:
+        one table per resolution and field of view, shared by every scan)."""
+        return _azimuths(self.azimuth_resolution_deg, self.hfov_deg)
 
     @property
     def n_columns(self) -> int:
         """Number of columns of a scan."""
-        return int(self.azimuth_rad.size)
+        return int(_azimuths(self.azimuth_resolution_deg, self.hfov_deg).size)
+
+
+@lru_cache(maxsize=32)
+def _azimuths(resolution_deg: float, hfov_deg: float) -> np.ndarray:
+    """Firing azimuths [rad] of a model (scans ask for them several times a frame)."""
+    if hfov_deg >= 360.0:
+        n = round(360.0 / resolution_deg)
+        az = -180.0 + resolution_deg * np.arange(n)
+    else:
+        n = math.floor(hfov_deg / resolution_deg + 1e-9) + 1
+        az = -0.5 * hfov_deg + resolution_deg * np.arange(n)
+    az = np.deg2rad(az)
+    az.flags.writeable = False
+    return az
 
 
 def hdl64e_s2(azimuth_resolution_deg: float = 0.09) -> LidarModel:

@@ -87,16 +87,45 @@ def apply_keyed_noise(
     r = np.array(ranges_m, dtype=np.float64)
     if not config.enabled or r.size == 0:
         return r
-    index = np.asarray(ray_index).reshape(r.shape).reshape(-1)
+    index = np.asarray(ray_index, dtype=np.int64).reshape(r.shape).reshape(-1)
     flat = r.reshape(-1)
     hit = np.flatnonzero(~np.isnan(flat))  # a miss stays NaN whatever its draw: draw for the hits only
-    bits = _ray_bits(key, index[hit])
-    scale = np.float32(1.0 / 2**24)
-    u1 = ((bits >> np.uint64(40)).astype(np.float32) + np.float32(0.5)) * scale
-    u2 = (((bits >> np.uint64(16)) & np.uint64(0xFFFFFF)).astype(np.float32) + np.float32(0.5)) * scale
-    u3 = (bits & np.uint64(0xFFFF)).astype(np.float32) * np.float32(1.0 / 2**16)
+    u1, u2, u3 = _uniforms(np.uint64(key), index, hit)
+    # numpy's float32 log and cos (SIMD): a compiled libm call can differ in the last bit
     normal = np.sqrt(np.float32(-2.0) * np.log(u1)) * np.cos(np.float32(2.0 * np.pi) * u2)
-    noisy = flat[hit] + config.range_sigma_m * normal
-    noisy[(u3 < np.float32(config.dropout_prob)) | (noisy < 0)] = np.nan
-    flat[hit] = noisy
+    _add_noise(flat, hit, normal, u3, np.float32(config.range_sigma_m), np.float32(config.dropout_prob))
     return r
+
+
+@kernel
+def _uniforms(
+    key: np.uint64, index: np.ndarray, hit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per position in ``hit``, three uniforms from the 64 bits of ray ``index[hit]``
+    (:func:`_ray_bits`): 24 + 24 bits in (0, 1) for Box-Muller, 16 bits in [0, 1) for the dropout.
+    Every step is exact in float32, so this equals the numpy spelling bit for bit; the bits go
+    through int32 (they fit) because int64 -> float32 does not vectorise."""
+    seed = _splitmix64(key)
+    n = hit.size
+    u1 = np.empty(n, dtype=np.float32)
+    u2 = np.empty(n, dtype=np.float32)
+    u3 = np.empty(n, dtype=np.float32)
+    scale = np.float32(1.0 / 2**24)
+    for j in range(n):
+        bits = _splitmix64(np.uint64(index[hit[j]]) ^ seed)
+        u1[j] = (np.float32(np.int32(bits >> np.uint64(40))) + np.float32(0.5)) * scale
+        mid = np.int32((bits >> np.uint64(16)) & np.uint64(0xFFFFFF))
+        u2[j] = (np.float32(mid) + np.float32(0.5)) * scale
+        u3[j] = np.float32(np.int32(bits & np.uint64(0xFFFF))) * np.float32(1.0 / 2**16)
+    return u1, u2, u3
+
+
+@kernel
+def _add_noise(
+    flat: np.ndarray, hit: np.ndarray, normal: np.ndarray, u3: np.ndarray, sigma: np.float32, drop: np.float32
+) -> None:
+    """In place: ``flat[hit] += sigma * normal`` (the product in float32, as numpy promotes a
+    Python float with a float32 array), NaN where ``u3 < drop`` or the result is negative."""
+    for j in range(hit.size):
+        v = flat[hit[j]] + np.float64(sigma * normal[j])
+        flat[hit[j]] = np.nan if (u3[j] < drop or v < 0) else v
