@@ -48,6 +48,7 @@ from negobs_gym.detector.traversable.region import (
     points_mask,
     region_mask,
     region_polygon,
+    sector_pad_rad,
     shadow_mask,
     shadow_polygon,
 )
@@ -124,6 +125,8 @@ class TraversableRegionDetector:
         self._polar_origin: tuple[float, float] | None = None
         self._cell_bearing = np.zeros(self.grid.shape)
         self._cell_range = np.zeros(self.grid.shape)
+        self._cell_pad = np.zeros(self.grid.shape)
+        self._shadow_slack_m = self.grid.cell_m / math.sqrt(2.0)  # half a cell diagonal
         self._held = PointHold(self.config.obstacle_hold_s)  # obstacle points of recent frames
         self._last_pose: Pose | None = None  # the previous frame's, for kalman_ego_motion
 
@@ -146,14 +149,17 @@ class TraversableRegionDetector:
             raise ScanError(f"{scan.sensor}: lasers must be in detector order (ascending elevation)")
         return scan
 
-    def _polar(self, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _polar(self, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bearing, range and shadow-sector pad (:func:`sector_pad_rad`) of every cell from the
+        sensor origin O, kept while O stays put (a fixed mount)."""
         key = (float(origin[0]), float(origin[1]))
         if self._polar_origin != key:
             d = self._centres - origin
             self._cell_bearing = libm.arctan2(d[..., 0], d[..., 1])
             self._cell_range = np.hypot(d[..., 0], d[..., 1])
+            self._cell_pad = sector_pad_rad(self._cell_range, self._shadow_slack_m)
             self._polar_origin = key
-        return self._cell_bearing, self._cell_range
+        return self._cell_bearing, self._cell_range, self._cell_pad
 
     def _carried(self, pose: Pose, sensor_xy_m: tuple[float, float]) -> np.ndarray:
         """The filters' points carried from the last frame's pose to ``pose``, each side's along
@@ -230,12 +236,11 @@ class TraversableRegionDetector:
         positive = points_mask(self.grid, obstacle_xy)
         shadows: list[np.ndarray] = []
         if obstacles:
-            bearing, rng = self._polar(origin)
+            bearing, rng, pad = self._polar(origin)
             far_range = float(np.hypot(self.grid.side_m, self.grid.ahead_m) + np.hypot(*origin))
-            slack = self.grid.cell_m / math.sqrt(2.0)
             for c in obstacles:
                 shadows.append(shadow_polygon(c, origin, far_range))
-                traversable &= ~shadow_mask(bearing, rng, c, origin, slack)
+                traversable &= ~shadow_mask(bearing, rng, c, origin, self._shadow_slack_m, pad)
         traversable &= ~positive
         feasible = feasible_mask(self._centres, traversable, left, right, obstacles, cfg)
         reachable = reachable_mask(feasible, self._paths, exempt_below_y_m=near_y)

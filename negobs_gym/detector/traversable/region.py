@@ -70,6 +70,7 @@ def shadow_mask(
     cluster: ObstacleCluster,
     origin_xy_m: np.ndarray,
     slack_m: float,
+    cell_pad_rad: np.ndarray | None = None,
 ) -> np.ndarray:
     """Cells at or behind the cluster's near face inside its angular sector seen from O.
 
@@ -79,13 +80,20 @@ def shadow_mask(
         cluster: The obstacle.
         origin_xy_m: O, the sensor origin in vehicle XY.
         slack_m: Cells this close in front of the face count as obstacle (half a cell diagonal).
+        cell_pad_rad: :func:`sector_pad_rad` of these cells and ``slack_m``, when the caller keeps
+            it (it depends on neither the cluster nor the frame); computed when None.
     """
     bearing, rng = _near_face(cluster, origin_xy_m)
-    # Widen the sector by the angle a cell subtends so the sector edge cells are cut too.
-    pad = libm.arcsin(np.clip(slack_m / np.maximum(cell_range_m, slack_m), -1.0, 1.0))
+    pad = sector_pad_rad(cell_range_m, slack_m) if cell_pad_rad is None else cell_pad_rad
     in_sector = (cell_bearing_rad >= bearing[0] - pad) & (cell_bearing_rad <= bearing[-1] + pad)
     face_range = np.interp(cell_bearing_rad, bearing, rng)
     return in_sector & (cell_range_m >= face_range - slack_m)
+
+
+def sector_pad_rad(cell_range_m: np.ndarray, slack_m: float) -> np.ndarray:
+    """The angle each cell subtends (``slack_m`` at its range) as seen from O: a shadow's sector is
+    widened by it so the cells on the sector's edges are cut too."""
+    return libm.arcsin(np.clip(slack_m / np.maximum(cell_range_m, slack_m), -1.0, 1.0))
 
 
 def points_mask(grid: GridSpec, points_xy_m: np.ndarray) -> np.ndarray:

@@ -7,7 +7,13 @@ from matplotlib.path import Path
 
 from negobs_gym.core import GridSpec
 from negobs_gym.detector.traversable import BoundaryLine, ObstacleCluster
-from negobs_gym.detector.traversable.region import region_mask, region_polygon, shadow_mask, shadow_polygon
+from negobs_gym.detector.traversable.region import (
+    region_mask,
+    region_polygon,
+    sector_pad_rad,
+    shadow_mask,
+    shadow_polygon,
+)
 
 GRID = GridSpec()
 CENTRES = GRID.cell_centres()
@@ -35,6 +41,10 @@ def test_shadow_is_the_sector_behind_the_near_face() -> None:
     d = CENTRES - ORIGIN
     bearing, rng = np.arctan2(d[..., 0], d[..., 1]), np.hypot(d[..., 0], d[..., 1])
     mask = shadow_mask(bearing, rng, cluster, ORIGIN, GRID.cell_m / np.sqrt(2))
+    kept_pad = sector_pad_rad(rng, GRID.cell_m / np.sqrt(2))  # as the detector keeps it per origin
+    np.testing.assert_array_equal(
+        shadow_mask(bearing, rng, cluster, ORIGIN, GRID.cell_m / np.sqrt(2), kept_pad), mask
+    )
     poly = shadow_polygon(cluster, ORIGIN, 60.0)
     ref = Path(poly).contains_points(CENTRES.reshape(-1, 2)).reshape(mask.shape)
     assert ref.sum() > 100 and not (ref & ~mask).any()  # every cell of the polygon is cut
