@@ -471,6 +471,19 @@ class NegObsEnv(gym.Env):
         self._detector.layers(self._world.sim_time_s)
         self._align_frames()
 
+    def sync_scan_clock(self, env_steps: int) -> None:
+        """Set the step count that ``ObservationConfig.scan_clock = "env"`` puts the frames on to
+        ``env_steps`` and move the next frames onto it (no effect with the episode clock).
+
+        A vector env whose slots swap processes (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`:
+        a spare resets the next episode without stepping) calls it with its own step count when
+        a process takes over a slot, so that all its slots cast on the same steps.
+        """
+        if isinstance(env_steps, bool) or not isinstance(env_steps, (int, np.integer)) or env_steps < 0:
+            raise ConfigError("env_steps", f"must be an int >= 0, got {env_steps!r}")
+        self._env_steps = int(env_steps)
+        self._align_frames()
+
     def _align_frames(self) -> None:
         """After a first frame: put the next ones on the env's step clock where the config asks."""
         if self._detector is not None and self.config.observation.scan_clock == "env":

@@ -146,7 +146,8 @@ class ObservationConfig:
             lockstep vector env, which all step together, then cast on the same steps, so a
             lockstep step waits for one frame at most every k steps instead of at nearly every
             step once their episodes have ended at different steps; an episode then depends on
-            how many steps the env ran before it).
+            how many steps the env ran before it; a vector env may set that count,
+            ``NegObsEnv.sync_scan_clock``, as ``PrefetchVecEnv`` does).
             Rates, recall and braking: docs/performance.md, "Scanning every k-th step".
         scan_far_from_m: With ``scan_every`` > 1, the steps between frames cast the grid's part
             beyond this forward distance [m] (with the whole LUX) and run paper N's detector on

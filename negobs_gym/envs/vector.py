@@ -142,10 +142,13 @@ class PrefetchVecEnv(VecEnv):
         self._episode = [0] * len(env_fns)
         self._base_seed: int | None = None
         self._base = 0  # base seed of the running episodes
+        self._steps = 0  # steps of the vector env since it was made: its slots' scan clock
         self._started = False
         self.closed = False
         try:
             observation_space, action_space = self._active[0].request("spaces")
+            # negobs envs with ObservationConfig.scan_clock = "env" cast on the vector's steps
+            self._clocked = bool(self._active[0].request("has_attr", "sync_scan_clock"))
             super().__init__(len(env_fns), observation_space, action_space)
         except BaseException:
             self.close()
@@ -173,6 +176,7 @@ class PrefetchVecEnv(VecEnv):
         self._base = base
         for i in range(self.num_envs):
             o, self.reset_infos[i] = self._active[i].finish_reset()
+            self._sync_clock(i)
             obs.append(o)
         self._reset_options()
         self._started = True
@@ -186,6 +190,7 @@ class PrefetchVecEnv(VecEnv):
 
     def step_wait(self) -> tuple[Any, np.ndarray, np.ndarray, list[dict]]:
         obs, rewards, dones, infos = [], [], [], []
+        self._steps += 1
         for i in range(self.num_envs):
             o, reward, terminated, truncated, info = self._active[i].receive_step()
             done = bool(terminated or truncated)
@@ -195,6 +200,7 @@ class PrefetchVecEnv(VecEnv):
                 info["terminal_observation"] = o
                 o, self.reset_infos[i] = self._spare[i].finish_reset()
                 self._active[i], self._spare[i] = self._spare[i], self._active[i]
+                self._sync_clock(i)
                 self._episode[i] += 1
                 self._spare[i].start_reset(episode_seed(self._base, i, self._episode[i] + 1))
             obs.append(o)
@@ -202,6 +208,13 @@ class PrefetchVecEnv(VecEnv):
             dones.append(done)
             infos.append(info)
         return _stack(obs, self.observation_space), np.asarray(rewards), np.asarray(dones), infos
+
+    def _sync_clock(self, slot: int) -> None:
+        """Put the frames of slot ``slot``'s stepping process on the vector's step count: its
+        spare reset the episode without stepping, so its own count lags the other slots'
+        (``ObservationConfig.scan_clock = "env"``; ``NegObsEnv.sync_scan_clock``)."""
+        if self._clocked:
+            self._active[slot].request("method", ("sync_scan_clock", (self._steps,), {}))
 
     def wait_for_spares(self) -> None:
         """Block until every spare process has reset its episode (e.g. before timing a run: right

@@ -86,6 +86,8 @@ def serve(remote: Any, parent_remote: Any, factory: EnvFactory) -> None:
                 out = env.get_wrapper_attr(data[0])(*data[1], **data[2])
             elif cmd == "get_attr":
                 out = env.get_wrapper_attr(data)
+            elif cmd == "has_attr":
+                out = env.has_wrapper_attr(data)
             elif cmd == "set_attr":
                 out = setattr(env, data[0], data[1])
             elif cmd == "is_wrapped":

@@ -8,8 +8,10 @@ import sys
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
+from negobs_gym.errors import ConfigError
 
 _ROLLOUT = """
 import json, gymnasium as gym, numpy as np, negobs_gym
@@ -186,3 +188,65 @@ def test_prefetch_vec_env_reports_an_env_that_cannot_be_built() -> None:
 
     with pytest.raises(RuntimeError, match="this env cannot be built"):
         PrefetchVecEnv([_make_broken])
+
+
+class _FrameFlag(gym.Wrapper):
+    """Adds ``info["frame"]``: whether this step cast a whole LiDAR frame (its hazards are fresh)."""
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info = dict(info, frame=self.env.unwrapped.hazard_state().perception_age_s == 0.0)
+        return obs, reward, terminated, truncated, info
+
+
+def _clocked_braking(episode_steps: int) -> gym.Env:
+    """Braking-v0 with a frame every 3rd step on the env's clock, cut to ``episode_steps``."""
+    from dataclasses import replace
+
+    from negobs_gym.envs import BrakingEnv, EnvConfig
+
+    cfg = EnvConfig()
+    observation = replace(cfg.observation, scan_every=3, scan_clock="env")
+    env = gym.wrappers.TimeLimit(BrakingEnv(replace(cfg, observation=observation)), episode_steps)
+    return _FrameFlag(env)
+
+
+def _clocked_braking_4() -> gym.Env:
+    return _clocked_braking(4)
+
+
+def _clocked_braking_5() -> gym.Env:
+    return _clocked_braking(5)
+
+
+def test_prefetch_vec_env_puts_its_slots_frames_on_its_own_steps() -> None:
+    """scan_clock = "env": the slots' episodes end at different steps (4 and 5 long) and their
+    spares reset without stepping, yet both slots cast on the vector's steps 3, 6, 9, ..."""
+    from negobs_gym.envs.vector import PrefetchVecEnv
+
+    venv = PrefetchVecEnv([_clocked_braking_4, _clocked_braking_5])
+    venv.seed(2)
+    venv.reset()
+    frames, dones = [], []
+    for k in range(13):
+        _, _, done, infos = venv.step(_actions(k))
+        frames.append([info["frame"] for info in infos])
+        dones.append(done.tolist())
+    venv.close()
+    assert sum(d[0] for d in dones) == 3 and sum(d[1] for d in dones) == 2  # several swaps each
+    assert frames == [[(k + 1) % 3 == 0] * 2 for k in range(13)]
+
+
+def test_sync_scan_clock_moves_the_next_frames_and_refuses_bad_counts() -> None:
+    env = _clocked_braking(50).unwrapped
+    env.reset(seed=0)
+    env.sync_scan_clock(7)  # the next frame at count 9: two steps on
+    fresh = []
+    for _ in range(4):
+        env.step(np.array([0.0, 0.0], np.float32))
+        fresh.append(env.hazard_state().perception_age_s == 0.0)
+    assert fresh == [False, True, False, False]
+    for bad in (-1, 2.0, True, "3"):
+        with pytest.raises(ConfigError, match="env_steps"):
+            env.sync_scan_clock(bad)
+    env.close()
