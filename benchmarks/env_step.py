@@ -1,7 +1,7 @@
 """Control steps per second of a negobs env with the detector grid, per stage, per rig, per process count.
 
 Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]
-[--skip-others] [--scan-every 2,3] [--far-from 12]``
+[--skip-others] [--scan-every 2,3] [--far-from 12] [--scan-clock env|episode]``
 
 Configurations (the env's registered config with ``ObservationConfig`` changed):
 
@@ -13,7 +13,8 @@ Configurations (the env's registered config with ``ObservationConfig`` changed):
 - ``scan_every=k`` (``--scan-every``, default 2,3): the default rig with a LiDAR frame every k-th
   step, carried to the current pose between (``ObservationConfig.scan_every``), in one process
   and in ``--envs`` processes (``PrefetchVecEnv``); with ``--far-from M`` each k also with the
-  grid's part beyond M metres cast and detected between frames (``scan_far_from_m``).
+  grid's part beyond M metres cast and detected between frames (``scan_far_from_m``). Frames on
+  the env's step clock by default (``--scan-clock env``: the processes cast on the same steps).
 
 Reset cost: the mean over an episode stream with a new seed each, with a new terrain every
 episode (the default, 10 episodes) and with ``terrain_pool_size=8`` (100 episodes: 8 builds,
@@ -311,6 +312,12 @@ def main() -> None:
         metavar="M",
         help="also run each --scan-every value with ObservationConfig.scan_far_from_m=M",
     )
+    parser.add_argument(
+        "--scan-clock",
+        choices=("env", "episode"),
+        default="env",
+        help="ObservationConfig.scan_clock of the --scan-every runs (env: processes cast on the same steps)",
+    )
     args = parser.parse_args()
     if args.steps < 1 or args.envs < 1:
         parser.error("--steps and --envs must be >= 1")
@@ -355,13 +362,14 @@ def main() -> None:
         print(f"lockstep_ms vec={kind} ({alone_note}): {_fmt(lockstep)}")
     fars = (None,) if args.far_from is None else (None, args.far_from)
     for k, far in ((k, far) for k in every for far in fars):
-        observation = {"scan_every": k, "scan_far_from_m": far}
+        observation = {"scan_every": k, "scan_far_from_m": far, "scan_clock": args.scan_clock}
         envs = _episodes(_clocked(_make(args.env_id, "detector", default_rig, **observation)), args.envs)
         one, _ = _drive(envs, each)
         cpu_ms = 1e3 * sum(e.cpu_s for e in envs) / max(1, sum(e.steps for e in envs))
         _close(envs)
         vec, _ = _run_vec(args.env_id, "detector", default_rig, each, args.envs, "prefetch", **observation)
         label = f"scan_every={k}" + ("" if far is None else f" scan_far_from_m={far:g}")
+        label += f" scan_clock={args.scan_clock}"
         print(
             f"obs=detector rig={default_rig} {label} processes=1 steps_per_s={one:.1f} "
             f"step_cpu_ms={cpu_ms:.1f} ratio_to_every_step={one / sps:.2f}; processes={args.envs} "
