@@ -59,20 +59,6 @@ def _splitmix64(x: np.uint64) -> np.uint64:
     return z ^ (z >> np.uint64(31))
 
 
-@kernel
-def _keyed_bits(key: np.uint64, index: np.ndarray) -> np.ndarray:
-    seed = _splitmix64(key)
-    out = np.empty(index.size, dtype=np.uint64)
-    for k in range(index.size):
-        out[k] = _splitmix64(np.uint64(index[k]) ^ seed)
-    return out
-
-
-def _ray_bits(key: int, index: np.ndarray) -> np.ndarray:
-    """64 random bits per ray that depend only on (key, index): a counter-based generator."""
-    return _keyed_bits(np.uint64(key), np.asarray(index, dtype=np.int64).reshape(-1))
-
-
 def apply_keyed_noise(
     ranges_m: np.ndarray, ray_index: np.ndarray, config: NoiseConfig, key: int
 ) -> np.ndarray:
@@ -101,8 +87,9 @@ def apply_keyed_noise(
 def _uniforms(
     key: np.uint64, index: np.ndarray, hit: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per position in ``hit``, three uniforms from the 64 bits of ray ``index[hit]``
-    (:func:`_ray_bits`): 24 + 24 bits in (0, 1) for Box-Muller, 16 bits in [0, 1) for the dropout.
+    """Per position in ``hit``, three uniforms from the 64 random bits of ray ``index[hit]``, a
+    counter-based draw that depends only on (key, index): SplitMix64 of the index xor the mixed
+    key. 24 + 24 bits give (0, 1) uniforms for Box-Muller, 16 bits a [0, 1) one for the dropout.
     Every step is exact in float32, so this equals the numpy spelling bit for bit; the bits go
     through int32 (they fit) because int64 -> float32 does not vectorise."""
     seed = _splitmix64(key)
