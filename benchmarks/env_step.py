@@ -25,8 +25,11 @@ car leaves the winding track after ~100 steps, so resets weigh as they do early 
 default rig runs over the same episodes, those of a ``PrefetchVecEnv`` seeded 0 (slot ``i``'s
 episode ``k`` seeded ``episode_seed(0, i, k)``, ``--steps / --envs`` steps per slot): in one
 process, one env after the other, with per-stage timers (physics = ``World.step``, of which the
-event checks; scan synthesis; paper N's detector; paper T's detector; the rest of the step:
-observation stacking, info, Python glue; the reset); in one process casting with one thread, as
+event checks; scan synthesis on the calling thread, waits for the cast's pool thread included;
+paper N's detector; paper T's detector, which runs while the largest sensor is cast on the pool
+thread; the rest of the step: observation stacking, info, Python glue; the reset; CPU: each
+stage's on the calling thread, and ``cast_threads`` the pool threads' per step); in one process
+casting with one thread, as
 each worker does; and vectorized (``--envs`` slots; steps/s counts the steps of all of them) with
 ``negobs_gym.envs.vector.PrefetchVecEnv`` (a spare process per slot resets the next episode) and,
 for comparison, SB3's ``SubprocVecEnv`` (seeded 0; its workers reset inside the lockstep, from
@@ -55,6 +58,7 @@ from negobs_gym.detector import NegativeObstacleDetector, TraversableRegionDetec
 from negobs_gym.envs import base as env_base
 from negobs_gym.envs import perception
 from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
+from negobs_gym.sensors.lidar import PendingRigScan
 from negobs_gym.sim.events import EventMonitor
 from negobs_gym.sim.world import World
 
@@ -152,15 +156,17 @@ def _close(envs: list[gym.Env]) -> None:
 
 
 class StageTimer:
-    """Wraps functions with accumulating wall-clock and process-CPU timers (restored on exit).
+    """Wraps functions with accumulating wall-clock and CPU timers (restored on exit).
 
-    CPU time (all threads of this process) is what a stage costs whatever else loads the
-    machine; wall time is what a trainer waits.
+    CPU time is what a stage costs whatever else loads the machine (``cpu_s``: all threads of
+    this process; ``thread_s``: the calling thread's, where the Embree pool threads run beside
+    it); wall time is what a trainer waits.
     """
 
     def __init__(self) -> None:
         self.total_s: dict[str, float] = defaultdict(float)
         self.cpu_s: dict[str, float] = defaultdict(float)
+        self.thread_s: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
         self._undo: list[Callable[[], None]] = []
 
@@ -168,12 +174,13 @@ class StageTimer:
         original = getattr(owner, attr)
 
         def timed(*args, **kwargs):
-            t0, c0 = time.perf_counter(), time.process_time()
+            t0, c0, h0 = time.perf_counter(), time.process_time(), time.thread_time()
             try:
                 return original(*args, **kwargs)
             finally:
                 self.total_s[stage] += time.perf_counter() - t0
                 self.cpu_s[stage] += time.process_time() - c0
+                self.thread_s[stage] += time.thread_time() - h0
                 self.calls[stage] += 1
 
         setattr(owner, attr, timed)
@@ -183,6 +190,7 @@ class StageTimer:
         """Forget what was timed so far (a warm-up)."""
         self.total_s.clear()
         self.cpu_s.clear()
+        self.thread_s.clear()
         self.calls.clear()
 
     def __enter__(self) -> StageTimer:
@@ -198,12 +206,15 @@ Stages = dict[str, float]
 
 def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tuple[Stages, Stages, float, int]:
     """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s and resets
-    over the vector run's episodes (``n_envs`` seeds, ``steps_each`` steps each)."""
+    over the vector run's episodes (``n_envs`` seeds, ``steps_each`` steps each). The stages' CPU
+    is the calling thread's, ``cast_threads`` the Embree pool threads' (a step's process CPU less
+    its calling thread's)."""
     with StageTimer() as timer:
         timer.wrap(World, "step", "physics")
         # wrapped before the envs exist: each monitor registers its bound _check as a step hook
         timer.wrap(EventMonitor, "_check", "events")
-        timer.wrap(perception, "scan_rig", "scan")
+        timer.wrap(perception, "start_rig_scan", "scan")
+        timer.wrap(PendingRigScan, "scan", "scan")  # each sensor's cast, or the wait for it
         timer.wrap(NegativeObstacleDetector, "update", "paper_n")
         timer.wrap(TraversableRegionDetector, "update", "paper_t")
         timer.wrap(env_base.NegObsEnv, "step", "step")
@@ -213,7 +224,9 @@ def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tupl
         sps, resets = _drive(envs, steps_each)
     _close(envs)
     steps = steps_each * n_envs
-    return _per_step(timer.total_s, steps, resets), _per_step(timer.cpu_s, steps, resets), sps, resets
+    cpu_ms = _per_step(timer.thread_s, steps, resets)
+    cpu_ms["cast_threads"] = 1e3 * (timer.cpu_s["step"] - timer.thread_s["step"]) / steps
+    return _per_step(timer.total_s, steps, resets), cpu_ms, sps, resets
 
 
 def _per_step(t: dict[str, float], steps: int, resets: int) -> dict[str, float]:

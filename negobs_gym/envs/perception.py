@@ -41,7 +41,7 @@ from negobs_gym.detector import (
 from negobs_gym.detector.fusion import in_box
 from negobs_gym.detector.memory import PointHold
 from negobs_gym.envs.config import ObservationConfig
-from negobs_gym.sensors.lidar import frame_noise_key, scan_rig
+from negobs_gym.sensors.lidar import PendingRigScan, frame_noise_key, start_rig_scan
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import RayCaster, make_caster
 from negobs_gym.sensors.rigs import LUX_FORWARD_M, Rig, paper_n_rig, paper_n_rig_reduced, paper_t_rig
@@ -190,9 +190,11 @@ class DetectorGrid:
             return self._carried(ins_pose)
         self._steps_to_frame = self.config.scan_every - 1
         self._far_scans = None
-        self.scans = self._cast(self._roi, self._roi_recent, timestamp_s)
+        frame = self._cast(self._roi, self._roi_recent, timestamp_s)
+        # paper T first: it reads the LUX alone, so it runs while the largest sensor is cast
+        self.region = self.traversable.update(frame.scan(LUX_NAME), ins_pose)
+        self.scans = frame.result()
         self.detection = self.negative.update(self.scans, ins_pose)
-        self.region = self.traversable.update(self.scans[LUX_NAME], ins_pose)
         self.stamp_s = float(timestamp_s)
         if self.structure is not None:
             positive = self.structure.update(self.scans, ins_pose, self.detection.ground_map)
@@ -217,14 +219,16 @@ class DetectorGrid:
         LUX; the rest of the last frame carried to ``ins_pose``. ``stamp_s`` stays the last whole
         frame's: the near part of the grid is that old."""
         # one noise key per step, as a whole frame: the far rays equal an every-step run's
-        scans = self._cast(self._far, self._far_recent, timestamp_s)
+        frame = self._cast(self._far, self._far_recent, timestamp_s)
+        if self.structure is None:  # the structure channel needs the whole frame: carried
+            self.region = self.traversable.update(frame.scan(LUX_NAME), ins_pose)
+        scans = frame.result()
         self._far_scans = scans
         layers = self._carried(ins_pose)
         self.detection = self.negative.update(scans, ins_pose, self.config.far_region_xy_m)
         layers["negative"] = self.detection.grid
         self._hazards["negative"] = self._held_cells("negative", self.detection.grid, ins_pose, timestamp_s)
-        if self.structure is None:  # the structure channel needs the whole frame: carried
-            self.region = self.traversable.update(scans[LUX_NAME], ins_pose)
+        if self.structure is None:
             layers["positive"] = np.asarray(self.region.positive_obstacles, dtype=bool)
             layers["traversable"] = np.asarray(self.region.traversable, dtype=bool)
             self.positive = layers["positive"]
@@ -234,17 +238,16 @@ class DetectorGrid:
         layers["observed"] = layers["observed"] | self._observed(scans)
         return layers
 
-    def _cast(
-        self, selector: RoiSelector | None, recent: list, timestamp_s: float
-    ) -> dict[str, StructuredScan]:
-        """The rig cast from the true pose: the rays ``selector`` picks for the current height
-        bands (``recent``: this episode's band sets), their range images cropped to the cast
-        columns; every ray without a selector."""
+    def _cast(self, selector: RoiSelector | None, recent: list, timestamp_s: float) -> PendingRigScan:
+        """The rig's frame from the true pose, started (the largest sensor casting on the caster's
+        pool threads): the rays ``selector`` picks for the current height bands (``recent``: this
+        episode's band sets), their range images cropped to the cast columns; every ray without
+        a selector."""
         true_pose = self._vehicle.true_pose()
         subsets = None
         if selector is not None:
             subsets = selector.subsets_for_bands(self._heights.bands(true_pose, selector.tiles), recent)
-        return scan_rig(
+        return start_rig_scan(
             self.rig,
             self._caster,
             true_pose,

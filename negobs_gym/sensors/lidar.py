@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import zlib
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -113,9 +114,19 @@ def scan(
     full scan or a subset is cast. ``columns`` (``[start, stop)``, holding every ray of ``rays``)
     crops the range image to those columns (:class:`~negobs_gym.sensors.roi.RaySubset`).
     """
-    m = mount.model
     cfg = noise or NoiseConfig()
     key = frame_noise_key(rng, cfg) if noise_key is None else noise_key
+    index, o, d = _aim(mount, pose, rays)
+    hit = caster.cast(o, d, mount.model.max_range_m) if index.size else np.empty(0)
+    return _finish(mount, pose, hit, index, rays is None, cfg, key, columns, timestamp_s)
+
+
+def _aim(
+    mount: SensorMount, pose: Pose, rays: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The flat indices, world origins (one broadcast row) and world directions of the rays of
+    ``mount`` to cast at vehicle ``pose`` (``rays``: a subset's indices; None: all)."""
+    m = mount.model
     if rays is None:
         index = np.arange(m.n_lasers * m.n_columns)
         d = rotate_planes(*direction_planes(mount), pose.rotation)
@@ -123,13 +134,29 @@ def scan(
         index = np.asarray(rays)
         d = rotate_planes(*direction_planes(mount), pose.rotation, index)
     o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
-    hit = caster.cast(o, d, m.max_range_m) if index.size else np.empty(0)
+    return index, o, d
+
+
+def _finish(
+    mount: SensorMount,
+    pose: Pose,
+    hit: np.ndarray,
+    index: np.ndarray,
+    every_ray: bool,
+    cfg: NoiseConfig,
+    key: int,
+    columns: tuple[int, int] | None,
+    timestamp_s: float,
+) -> StructuredScan:
+    """The scan of ``mount`` from the caster's ranges ``hit`` of rays ``index`` (``every_ray``:
+    all of them, in order): sensor range limits, keyed noise, the (cropped) range image."""
+    m = mount.model
     hit[hit < m.min_range_m] = np.nan
     hit = apply_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name))
     hit[(hit < m.min_range_m) | (hit > m.max_range_m)] = np.nan
     n_columns = m.n_columns
     azimuth = m.azimuth_rad
-    if rays is None:
+    if every_ray:
         ranges = hit.reshape(m.n_lasers, n_columns)
     elif columns is None:
         ranges = np.full(m.n_lasers * n_columns, np.nan)
@@ -176,19 +203,120 @@ def scan_rig(
     crops each subset's range image to its column span (``RaySubset.columns``): the detectors
     find the same features on fewer columns (docs/performance.md).
     """
+    frame = start_rig_scan(
+        rig, caster, pose, noise=noise, rng=rng, timestamp_s=timestamp_s, subsets=subsets, crop=crop
+    )
+    return frame.result()
+
+
+def start_rig_scan(
+    rig: Rig,
+    caster: RayCaster,
+    pose: Pose,
+    *,
+    noise: NoiseConfig | None = None,
+    rng: np.random.Generator | None = None,
+    timestamp_s: float = 0.0,
+    subsets: dict | None = None,
+    crop: bool = False,
+) -> PendingRigScan:
+    """:func:`scan_rig`'s frame, started: the sensor with the most rays begins casting on the
+    caster's pool threads where it has them (``start_cast``, :class:`EmbreeCaster`), and the
+    calling thread asks for the scans it wants first (:meth:`PendingRigScan.scan`) while that
+    runs. The scans are the same whatever the order they are asked in. Arguments as
+    :func:`scan_rig`'s; the frame's noise key is drawn here."""
     cfg = noise or NoiseConfig()
-    key = frame_noise_key(rng, cfg)
-    out = {}
-    for mt in rig.mounts:
-        sub = subsets.get(mt.name) if subsets is not None else None
-        out[mt.name] = scan(
-            mt,
-            caster,
-            pose,
-            noise=cfg,
-            timestamp_s=timestamp_s,
-            rays=None if sub is None else sub.index,
-            noise_key=key,
-            columns=sub.columns if crop and sub is not None else None,
-        )
-    return out
+    return PendingRigScan(rig, caster, pose, cfg, frame_noise_key(rng, cfg), timestamp_s, subsets, crop)
+
+
+class PendingRigScan:
+    """One frame of a rig's scans, each cast when first asked for (:func:`start_rig_scan`)."""
+
+    def __init__(
+        self,
+        rig: Rig,
+        caster: RayCaster,
+        pose: Pose,
+        noise: NoiseConfig,
+        noise_key: int,
+        timestamp_s: float,
+        subsets: dict | None,
+        crop: bool,
+    ) -> None:
+        self._mounts = {mt.name: mt for mt in rig.mounts}
+        self._caster, self._pose, self._noise, self._key = caster, pose, noise, noise_key
+        self._timestamp_s = timestamp_s
+        subsets = subsets or {}
+        self._rays = {name: getattr(subsets.get(name), "index", None) for name in self._mounts}
+        self._columns = {
+            name: subsets[name].columns if crop and subsets.get(name) is not None else None
+            for name in self._mounts
+        }
+        self._scans: dict[str, StructuredScan] = {}
+        self._started: dict[str, tuple[Any, np.ndarray]] = {}  # name -> (pending cast, ray indices)
+        start = getattr(caster, "start_cast", None)
+        if start is not None and self._mounts:
+            name = max(self._mounts, key=self._ray_count)
+            index, o, d = _aim(self._mounts[name], pose, self._rays[name])
+            if index.size:
+                self._started[name] = (start(o, d, self._mounts[name].model.max_range_m), index)
+
+    def _ray_count(self, name: str) -> int:
+        rays = self._rays[name]
+        model = self._mounts[name].model
+        return model.n_lasers * model.n_columns if rays is None else len(rays)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The rig's sensors, in its order."""
+        return tuple(self._mounts)
+
+    def scan(self, name: str) -> StructuredScan:
+        """The scan of sensor ``name``: cast now on the calling thread, or, for the sensor started
+        on the pool threads, the rays they have not taken cast now and theirs waited for.
+
+        Raises:
+            ConfigError: ``name`` is not a sensor of the rig.
+        """
+        done = self._scans.get(name)
+        if done is not None:
+            return done
+        if name not in self._mounts:
+            raise ConfigError("name", f"no sensor {name!r} in the rig (sensors: {list(self._mounts)})")
+        mount, rays, columns = self._mounts[name], self._rays[name], self._columns[name]
+        started = self._started.pop(name, None)
+        if started is None:
+            done = scan(
+                mount,
+                self._caster,
+                self._pose,
+                noise=self._noise,
+                timestamp_s=self._timestamp_s,
+                rays=rays,
+                noise_key=self._key,
+                columns=columns,
+            )
+        else:
+            pending, index = started
+            hit = pending.result()
+            done = _finish(
+                mount,
+                self._pose,
+                hit,
+                index,
+                rays is None,
+                self._noise,
+                self._key,
+                columns,
+                self._timestamp_s,
+            )
+        self._scans[name] = done
+        return done
+
+    def result(self) -> dict[str, StructuredScan]:
+        """Every sensor's scan, keyed by mount name in the rig's order: the sensors not asked for
+        yet cast on this thread first, the one started on the pool threads last."""
+        for name in self._mounts:
+            if name not in self._started:
+                self.scan(name)
+        return {name: self.scan(name) for name in self._mounts}

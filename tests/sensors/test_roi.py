@@ -11,7 +11,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.errors import ConfigError
 from negobs_gym.sensors.lidar import scan as scan_one
-from negobs_gym.sensors.lidar import scan_rig
+from negobs_gym.sensors.lidar import scan_rig, start_rig_scan
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_t_rig
@@ -219,3 +219,32 @@ def test_threaded_embree_cast_equals_one_thread(ditch_world):
     assert np.isfinite(one).mean() > 0.3
     with pytest.raises(ConfigError, match="threads"):
         EmbreeConfig(threads=0)
+
+
+def test_a_started_rig_frame_gives_scan_rigs_scans_in_any_order(ditch_world):
+    """``start_rig_scan`` casts the largest sensor on the caster's pool thread while the others are
+    asked for: every scan equals ``scan_rig``'s (one thread) whatever the order."""
+    pytest.importorskip("embreex")
+    from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig
+
+    ditch_y = float(np.asarray(ditch_world.terrain.negative_obstacles[0].outline_xy_m)[:, 1].min())
+    vehicle = _vehicle_at(ditch_world, 12.0, ditch_y)
+    one = EmbreeCaster.from_world(ditch_world, (vehicle.body_id,), config=EmbreeConfig(threads=1))
+    two = EmbreeCaster.from_world(ditch_world, (vehicle.body_id,), config=EmbreeConfig(threads=2))
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    pose = vehicle.true_pose()
+    subsets = sel.subsets_for_bands(HeightEnvelope(ditch_world, (vehicle.body_id,)).bands(pose, sel.tiles))
+    p_remove(ditch_world, vehicle)  # the module's world is shared: leave it as it was
+    for subs in (None, subsets):
+        expected = scan_rig(RIG, one, pose, rng=np.random.default_rng(9), subsets=subs, crop=True)
+        frame = start_rig_scan(RIG, two, pose, rng=np.random.default_rng(9), subsets=subs, crop=True)
+        assert frame.names == tuple(mt.name for mt in RIG.mounts)
+        asked = [frame.scan(name) for name in reversed(frame.names)]  # the LUX first, the HDL-64 last
+        got = frame.result()
+        assert list(got) == list(expected) and [got[n] for n in reversed(frame.names)] == asked
+        for name, s in expected.items():
+            np.testing.assert_array_equal(got[name].ranges_m, s.ranges_m)
+            np.testing.assert_array_equal(got[name].azimuth_rad, s.azimuth_rad)
+        assert np.isfinite(got["hdl64"].ranges_m).sum() > 10_000
+        with pytest.raises(ConfigError, match="no sensor 'velodyne'"):
+            frame.scan("velodyne")

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections.abc import Iterable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -57,9 +58,10 @@ class EmbreeConfig:
             vehicle still drives on the physics heightfield).
         auto_update: Re-read dynamic bodies' poses before every :meth:`EmbreeCaster.cast` (the
             scene is rebuilt only when a pose changed); False = call ``update_dynamic`` yourself.
-        threads: Threads one :meth:`EmbreeCaster.cast` splits its rays over (Embree traverses
-            without the GIL; every ray's result is the same whatever the split). 1 in processes
-            that share the cores with others (vector-env workers).
+        threads: Threads one :meth:`EmbreeCaster.cast` shares its rays with (Embree traverses
+            without the GIL; every ray's result is the same whatever the split): the calling
+            thread and ``threads - 1`` pool threads (:meth:`EmbreeCaster.start_cast`). 1 in
+            processes that share the cores with others (vector-env workers).
         ray_packets: Build scenes over shared buffers and cast 16-ray packets through Embree's C
             API (``embree_packets``: same distances bit for bit, scene builds 3-4x and casts
             1.24-1.32x faster); False, or where embreex's library is not found, uses embreex's
@@ -105,6 +107,9 @@ class EmbreeConfig:
 
 
 _POOLS: dict[int, tuple[int, ThreadPoolExecutor]] = {}
+# Rays below which a cast stays on the calling thread, and the smallest chunk a thread takes of a
+# shared cast: ~0.5 ms of Embree, so a chunk costs far more than taking it.
+_SHARE_MIN_RAYS = 4096
 
 
 def _thread_pool(n_threads: int) -> ThreadPoolExecutor:
@@ -115,6 +120,78 @@ def _thread_pool(n_threads: int) -> ThreadPoolExecutor:
         entry = (pid, ThreadPoolExecutor(max_workers=n_threads, thread_name_prefix="embree"))
         _POOLS[n_threads] = entry
     return entry[1]
+
+
+class _SharedRays:
+    """The rays of one static-scene cast, taken in chunks by whichever thread is free: pool
+    threads from the front, the thread waiting for the result from the back. The split follows
+    each part's real cost (near and far rays differ ~2x), and every ray's distance is the same
+    whatever chunk it is cast in."""
+
+    def __init__(self, scene: _Scene, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> None:
+        self._scene, self._o, self._d, self._tmax = scene, o32, d32, tmax
+        self.out = np.empty(o32.shape[0])
+        self._lock = threading.Lock()
+        self._front, self._back = 0, o32.shape[0]  # rays [front, back) are not taken yet
+        # pool threads take big chunks (each chunk is a GIL round trip), the waiting thread small
+        # ones, so both run out of work at about the same time
+        self._front_chunk = max(_SHARE_MIN_RAYS, o32.shape[0] // 8)
+
+    def _take(self, size: int, from_front: bool) -> tuple[int, int] | None:
+        with self._lock:
+            if self._front >= self._back:
+                return None
+            if from_front:
+                lo, hi = self._front, min(self._back, self._front + size)
+                self._front = hi
+            else:
+                lo, hi = max(self._front, self._back - size), self._back
+                self._back = lo
+        return lo, hi
+
+    def _cast(self, lo: int, hi: int) -> None:
+        self.out[lo:hi] = self._scene.cast(self._o[lo:hi], self._d[lo:hi], self._tmax[lo:hi])
+
+    def cast_from_front(self) -> None:
+        """A pool thread's part: chunks from the front until none is left."""
+        while (span := self._take(self._front_chunk, True)) is not None:
+            self._cast(*span)
+
+    def cast_from_back(self, chunk: int | None) -> None:
+        """The waiting thread's part: chunks of ``chunk`` rays (None: all left) from the back."""
+        size = len(self.out) if chunk is None else chunk
+        while (span := self._take(size, False)) is not None:
+            self._cast(*span)
+
+
+class PendingCast:
+    """A cast started by :meth:`EmbreeCaster.start_cast`; :meth:`result` gives its ranges."""
+
+    def __init__(
+        self,
+        rays: _SharedRays,
+        helpers: list[Future],
+        dynamic: _Scene | None,
+        o32: np.ndarray,
+        d32: np.ndarray,
+        tmax: np.ndarray,
+        max_range_m: float,
+    ) -> None:
+        self._rays, self._helpers, self._dynamic = rays, helpers, dynamic
+        self._o32, self._d32, self._tmax, self._max_range_m = o32, d32, tmax, max_range_m
+
+    def result(self) -> np.ndarray:
+        """Ranges [m] of the first hit along each ray (NaN: none within range). The calling thread
+        casts the rays no pool thread has taken yet, then waits for the pool threads' chunks."""
+        self._rays.cast_from_back(_SHARE_MIN_RAYS if self._helpers else None)
+        for helper in self._helpers:
+            if not helper.cancel():  # a helper still queued behind other work is not waited for
+                helper.result()  # re-raises a pool thread's error
+        t = self._rays.out
+        if self._dynamic is not None:
+            t = np.minimum(t, self._dynamic.cast(self._o32, self._d32, self._tmax))
+        t[t > self._max_range_m] = np.inf
+        return np.where(np.isfinite(t), t, np.nan)
 
 
 class _Scene:
@@ -285,24 +362,14 @@ class EmbreeCaster:
         self._dynamic = self._scene(world_mesh(self._dyn_links, poses, self.local_origin_m))
         return True
 
-    def _cast_static(self, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> np.ndarray:
-        n_threads = self.config.threads
-        if n_threads == 1 or o32.shape[0] < 4096 * n_threads:
-            return self._static.cast(o32, d32, tmax)
-        pool = _thread_pool(n_threads)
-        bounds = np.linspace(0, o32.shape[0], n_threads + 1).astype(int)
-        parts = pool.map(
-            lambda k: self._static.cast(
-                o32[bounds[k] : bounds[k + 1]],
-                d32[bounds[k] : bounds[k + 1]],
-                tmax[bounds[k] : bounds[k + 1]],
-            ),
-            range(n_threads),
-        )
-        return np.concatenate(list(parts))
-
-    def cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
-        """Ranges [m] of the first hit along each ray; NaN where nothing is hit within range."""
+    def start_cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> PendingCast:
+        """Start a cast on the caster's pool threads (``config.threads - 1`` of them) and return
+        at once; :meth:`PendingCast.result` casts the rays they have not taken and gives the
+        ranges. Meanwhile the calling thread is free for other work (the rig's other sensors,
+        docs/performance.md). With one thread, or a few thousand rays, the whole cast runs in
+        ``result()``. The world's dynamic bodies are read here, on the calling thread (PyBullet
+        is not thread-safe), so pool threads only touch Embree.
+        """
         o, d32 = check_rays(origins, directions, max_range_m, dtype=np.float32)
         if self.config.auto_update:
             self.update_dynamic()
@@ -312,8 +379,13 @@ class EmbreeCaster:
         else:
             o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
         tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
-        t = self._cast_static(o32, d32, tmax)
-        if self._dynamic is not None:
-            t = np.minimum(t, self._dynamic.cast(o32, d32, tmax))
-        t[t > max_range_m] = np.inf
-        return np.where(np.isfinite(t), t, np.nan)
+        rays = _SharedRays(self._static, o32, d32, tmax)
+        helpers: list[Future] = []
+        if self.config.threads > 1 and o32.shape[0] >= 2 * _SHARE_MIN_RAYS:
+            pool = _thread_pool(self.config.threads - 1)
+            helpers = [pool.submit(rays.cast_from_front) for _ in range(self.config.threads - 1)]
+        return PendingCast(rays, helpers, self._dynamic, o32, d32, tmax, max_range_m)
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
+        """Ranges [m] of the first hit along each ray; NaN where nothing is hit within range."""
+        return self.start_cast(origins, directions, max_range_m).result()

@@ -251,3 +251,56 @@ def test_one_origin_for_every_ray_casts_as_the_same_origins_spelled_out(flat_wor
     assert np.isfinite(shared).mean() > 0.5
     with pytest.raises(ScanError, match="finite"):
         caster.cast(np.broadcast_to([np.nan, 0.0, 2.0], d.shape), d, 80.0)
+
+
+def _rays(n, seed):
+    d = np.random.default_rng(seed).normal(size=(n, 3)) * [1.0, 1.0, 0.3] - [0.0, 0.0, 0.4]
+    return np.tile([0.0, 0.0, 2.2], (n, 1)), d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _record_pool_chunks(caster, fail=False):
+    """Wrap the static scene's cast: an event set once a pool thread has cast a chunk (which then
+    raises, with ``fail``)."""
+    import threading
+
+    scene, pool_cast = caster._static, threading.Event()
+    own = scene.cast
+
+    def cast(o, d, tmax):
+        if threading.current_thread() is not threading.main_thread():
+            pool_cast.set()
+            if fail:
+                raise RuntimeError("pool thread failed")
+        return own(o, d, tmax)
+
+    scene.cast = cast
+    return pool_cast
+
+
+def test_a_started_cast_shares_its_rays_and_equals_one_thread_whatever_runs_beside_it(flat_world):
+    world, own = flat_world
+    o, d = _rays(40_000, 3)
+    o2, d2 = _rays(9_000, 4)
+    one = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=1))
+    two = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=2))
+    expected, expected2 = one.cast(o, d, 120.0), one.cast(o2, d2, 120.0)
+    pool_cast = _record_pool_chunks(two)
+    pending = two.start_cast(o, d, 120.0)
+    assert pool_cast.wait(timeout=30.0)  # the pool thread is casting while this thread is free
+    beside = two.cast(o2, d2, 120.0)  # another cast on the calling thread meanwhile
+    np.testing.assert_array_equal(pending.result(), expected)
+    np.testing.assert_array_equal(beside, expected2)
+    assert np.isfinite(expected).mean() > 0.5
+    # one thread: start_cast defers the whole cast to result()
+    np.testing.assert_array_equal(one.start_cast(o, d, 120.0).result(), expected)
+
+
+def test_a_pool_threads_error_reaches_the_result(flat_world):
+    world, own = flat_world
+    o, d = _rays(40_000, 5)
+    caster = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=2))
+    pool_cast = _record_pool_chunks(caster, fail=True)
+    pending = caster.start_cast(o, d, 120.0)
+    assert pool_cast.wait(timeout=30.0)
+    with pytest.raises(RuntimeError, match="pool thread failed"):
+        pending.result()
