@@ -107,8 +107,8 @@ class EmbreeConfig:
 
 
 _POOLS: dict[int, tuple[int, ThreadPoolExecutor]] = {}
-# Rays below which a cast stays on the calling thread, and the smallest chunk a thread takes of a
-# shared cast: ~0.5 ms of Embree, so a chunk costs far more than taking it.
+# The smallest chunk a thread takes of a shared cast (~0.5 ms of Embree, far more than taking it);
+# a cast of fewer than twice as many rays stays on the calling thread.
 _SHARE_MIN_RAYS = 4096
 
 
@@ -179,19 +179,23 @@ class PendingCast:
     ) -> None:
         self._rays, self._helpers, self._dynamic = rays, helpers, dynamic
         self._o32, self._d32, self._tmax, self._max_range_m = o32, d32, tmax, max_range_m
+        self._ranges: np.ndarray | None = None
 
     def result(self) -> np.ndarray:
         """Ranges [m] of the first hit along each ray (NaN: none within range). The calling thread
-        casts the rays no pool thread has taken yet, then waits for the pool threads' chunks."""
-        self._rays.cast_from_back(_SHARE_MIN_RAYS if self._helpers else None)
-        for helper in self._helpers:
-            if not helper.cancel():  # a helper still queued behind other work is not waited for
-                helper.result()  # re-raises a pool thread's error
-        t = self._rays.out
-        if self._dynamic is not None:
-            t = np.minimum(t, self._dynamic.cast(self._o32, self._d32, self._tmax))
-        t[t > self._max_range_m] = np.inf
-        return np.where(np.isfinite(t), t, np.nan)
+        casts the rays no pool thread has taken yet, then waits for the pool threads' chunks; later
+        calls return the same array."""
+        if self._ranges is None:
+            self._rays.cast_from_back(_SHARE_MIN_RAYS if self._helpers else None)
+            for helper in self._helpers:
+                if not helper.cancel():  # a helper still queued behind other work is not waited for
+                    helper.result()  # re-raises a pool thread's error
+            t = self._rays.out
+            if self._dynamic is not None:
+                t = np.minimum(t, self._dynamic.cast(self._o32, self._d32, self._tmax))
+            t[t > self._max_range_m] = np.inf
+            self._ranges = np.where(np.isfinite(t), t, np.nan)
+        return self._ranges
 
 
 class _Scene:

@@ -289,6 +289,7 @@ def test_a_started_cast_shares_its_rays_and_equals_one_thread_whatever_runs_besi
     assert pool_cast.wait(timeout=30.0)  # the pool thread is casting while this thread is free
     beside = two.cast(o2, d2, 120.0)  # another cast on the calling thread meanwhile
     np.testing.assert_array_equal(pending.result(), expected)
+    assert pending.result() is pending.result()  # cast once
     np.testing.assert_array_equal(beside, expected2)
     assert np.isfinite(expected).mean() > 0.5
     # one thread: start_cast defers the whole cast to result()
