@@ -230,7 +230,11 @@ def start_rig_scan(
 
 
 class PendingRigScan:
-    """One frame of a rig's scans, each cast when first asked for (:func:`start_rig_scan`)."""
+    """One frame of a rig's scans, each cast when first asked for (:func:`start_rig_scan`).
+
+    ``started`` names the sensor whose cast began at once on the caster's pool threads (None
+    where the caster has no ``start_cast``, e.g. the PyBullet backend).
+    """
 
     def __init__(
         self,
@@ -254,12 +258,14 @@ class PendingRigScan:
         }
         self._scans: dict[str, StructuredScan] = {}
         self._started: dict[str, tuple[Any, np.ndarray]] = {}  # name -> (pending cast, ray indices)
+        self.started: str | None = None  # the sensor whose cast was handed to the caster's threads
         start = getattr(caster, "start_cast", None)
         if start is not None and self._mounts:
             name = max(self._mounts, key=self._ray_count)
             index, o, d = _aim(self._mounts[name], pose, self._rays[name])
             if index.size:
                 self._started[name] = (start(o, d, self._mounts[name].model.max_range_m), index)
+                self.started = name
 
     def _ray_count(self, name: str) -> int:
         rays = self._rays[name]

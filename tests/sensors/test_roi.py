@@ -239,6 +239,7 @@ def test_a_started_rig_frame_gives_scan_rigs_scans_in_any_order(ditch_world):
         expected = scan_rig(RIG, one, pose, rng=np.random.default_rng(9), subsets=subs, crop=True)
         frame = start_rig_scan(RIG, two, pose, rng=np.random.default_rng(9), subsets=subs, crop=True)
         assert frame.names == tuple(mt.name for mt in RIG.mounts)
+        assert frame.started == "hdl64"  # the most rays, native or ROI
         asked = [frame.scan(name) for name in reversed(frame.names)]  # the LUX first, the HDL-64 last
         got = frame.result()
         assert list(got) == list(expected) and [got[n] for n in reversed(frame.names)] == asked
@@ -248,3 +249,5 @@ def test_a_started_rig_frame_gives_scan_rigs_scans_in_any_order(ditch_world):
         assert np.isfinite(got["hdl64"].ranges_m).sum() > 10_000
         with pytest.raises(ConfigError, match="no sensor 'velodyne'"):
             frame.scan("velodyne")
+    pybullet = make_caster(ditch_world, "pybullet", exclude_body_ids=(vehicle.body_id,))
+    assert start_rig_scan(RIG, pybullet, pose, rng=np.random.default_rng(9)).started is None
