@@ -257,14 +257,14 @@ class PendingRigScan:
             for name in self._mounts
         }
         self._scans: dict[str, StructuredScan] = {}
-        self._started: dict[str, tuple[Any, np.ndarray]] = {}  # name -> (pending cast, ray indices)
-        self.started: str | None = None  # the sensor whose cast was handed to the caster's threads
+        self.started: str | None = None
+        self._pending: tuple[Any, np.ndarray] | None = None  # the started cast and its ray indices
         start = getattr(caster, "start_cast", None)
         if start is not None and self._mounts:
             name = max(self._mounts, key=self._ray_count)
             index, o, d = _aim(self._mounts[name], pose, self._rays[name])
             if index.size:
-                self._started[name] = (start(o, d, self._mounts[name].model.max_range_m), index)
+                self._pending = (start(o, d, self._mounts[name].model.max_range_m), index)
                 self.started = name
 
     def _ray_count(self, name: str) -> int:
@@ -290,8 +290,7 @@ class PendingRigScan:
         if name not in self._mounts:
             raise ConfigError("name", f"no sensor {name!r} in the rig (sensors: {list(self._mounts)})")
         mount, rays, columns = self._mounts[name], self._rays[name], self._columns[name]
-        started = self._started.pop(name, None)
-        if started is None:
+        if name != self.started:
             done = scan(
                 mount,
                 self._caster,
@@ -303,7 +302,7 @@ class PendingRigScan:
                 columns=columns,
             )
         else:
-            pending, index = started
+            pending, index = self._pending
             hit = pending.result()
             done = _finish(
                 mount,
@@ -323,6 +322,6 @@ class PendingRigScan:
         """Every sensor's scan, keyed by mount name in the rig's order: the sensors not asked for
         yet cast on this thread first, the one started on the pool threads last."""
         for name in self._mounts:
-            if name not in self._started:
+            if name != self.started:
                 self.scan(name)
         return {name: self.scan(name) for name in self._mounts}

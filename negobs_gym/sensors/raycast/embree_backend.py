@@ -129,7 +129,7 @@ class _SharedRays:
     whatever chunk it is cast in."""
 
     def __init__(self, scene: _Scene, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> None:
-        self._scene, self._o, self._d, self._tmax = scene, o32, d32, tmax
+        self._scene, self.o32, self.d32, self.tmax = scene, o32, d32, tmax
         self.out = np.empty(o32.shape[0])
         self._lock = threading.Lock()
         self._front, self._back = 0, o32.shape[0]  # rays [front, back) are not taken yet
@@ -150,7 +150,7 @@ class _SharedRays:
         return lo, hi
 
     def _cast(self, lo: int, hi: int) -> None:
-        self.out[lo:hi] = self._scene.cast(self._o[lo:hi], self._d[lo:hi], self._tmax[lo:hi])
+        self.out[lo:hi] = self._scene.cast(self.o32[lo:hi], self.d32[lo:hi], self.tmax[lo:hi])
 
     def cast_from_front(self) -> None:
         """A pool thread's part: chunks from the front until none is left."""
@@ -168,17 +168,9 @@ class PendingCast:
     """A cast started by :meth:`EmbreeCaster.start_cast`; :meth:`result` gives its ranges."""
 
     def __init__(
-        self,
-        rays: _SharedRays,
-        helpers: list[Future],
-        dynamic: _Scene | None,
-        o32: np.ndarray,
-        d32: np.ndarray,
-        tmax: np.ndarray,
-        max_range_m: float,
+        self, rays: _SharedRays, helpers: list[Future], dynamic: _Scene | None, max_range_m: float
     ) -> None:
-        self._rays, self._helpers, self._dynamic = rays, helpers, dynamic
-        self._o32, self._d32, self._tmax, self._max_range_m = o32, d32, tmax, max_range_m
+        self._rays, self._helpers, self._dynamic, self._max_range_m = rays, helpers, dynamic, max_range_m
         self._ranges: np.ndarray | None = None
 
     def result(self) -> np.ndarray:
@@ -190,9 +182,10 @@ class PendingCast:
             for helper in self._helpers:
                 if not helper.cancel():  # a helper still queued behind other work is not waited for
                     helper.result()  # re-raises a pool thread's error
-            t = self._rays.out
+            rays = self._rays
+            t = rays.out
             if self._dynamic is not None:
-                t = np.minimum(t, self._dynamic.cast(self._o32, self._d32, self._tmax))
+                t = np.minimum(t, self._dynamic.cast(rays.o32, rays.d32, rays.tmax))
             t[t > self._max_range_m] = np.inf
             self._ranges = np.where(np.isfinite(t), t, np.nan)
         return self._ranges
@@ -388,7 +381,7 @@ class EmbreeCaster:
         if self.config.threads > 1 and o32.shape[0] >= 2 * _SHARE_MIN_RAYS:
             pool = _thread_pool(self.config.threads - 1)
             helpers = [pool.submit(rays.cast_from_front) for _ in range(self.config.threads - 1)]
-        return PendingCast(rays, helpers, self._dynamic, o32, d32, tmax, max_range_m)
+        return PendingCast(rays, helpers, self._dynamic, max_range_m)
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
         """Ranges [m] of the first hit along each ray; NaN where nothing is hit within range."""
