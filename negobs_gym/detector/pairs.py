@@ -208,11 +208,18 @@ _SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (E
 # length classes per doubling: finer classes give tighter candidate radii (3: ~30 % fewer candidates
 # than 1 on the dense pit field, and a quarter of the KD-tree time), more trees beyond that gain nothing
 _CLASSES_PER_OCTAVE = 3
+# a set of at most this many pairs is one length class: for the few hundred pairs of an env frame a
+# KD-tree per class and a query per two classes cost more than the extra candidates they spare
+# (fusion + DBSCAN 2.5 ms less per OffroadNav frame, docs/performance.md); dense frames (~2,000) keep
+# their classes. Any split gives the same result: a class's radius covers its longest pair.
+_ONE_CLASS_MAX_PAIRS = 1000
 
 
 def _length_classes(a: np.ndarray, b: np.ndarray) -> list[tuple[np.ndarray, float]]:
     """(indices, longest half-length) of the pairs in each non-empty length class."""
     length = _norm(*(b - a).T)
+    if 0 < len(length) <= _ONE_CLASS_MAX_PAIRS:
+        return [(np.arange(len(length)), 0.5 * float(length.max()))]
     octaves = libm.log2(np.maximum(length, _SHORTEST_CLASS_M) / _SHORTEST_CLASS_M)
     cls = np.ceil(_CLASSES_PER_OCTAVE * octaves).astype(np.int64)
     order = np.argsort(cls, kind="stable")
