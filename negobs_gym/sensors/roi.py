@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import maximum_filter
 
+from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import require
 from negobs_gym.sensors.lidar import directions_vehicle
@@ -182,26 +182,19 @@ class HeightEnvelope:
         corners = pose.to_world(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0]]))
         lo, hi = corners.min(axis=0) - 2 * res, corners.max(axis=0) + 2 * res
         rows, cols = self._slice(lo[0], hi[0], lo[1], hi[1])
-        rot = pose.rotation  # vehicle coordinates = rot.T @ (p - t)
-        xs = (self.origin_m[0] + res * np.arange(cols.start, cols.stop) - pose.x)[None, :]
-        ys = (self.origin_m[1] + res * np.arange(rows.start, rows.stop) - pose.y)[:, None]
+        rot = np.ascontiguousarray(pose.rotation, dtype=np.float64)  # vehicle = rot.T @ (p - t)
+        xs = self.origin_m[0] + res * np.arange(cols.start, cols.stop) - pose.x
+        ys = self.origin_m[1] + res * np.arange(rows.start, rows.stop) - pose.y
         top = self.top[rows, cols] - pose.z
         bottom = self.bottom[rows, cols] - pose.z
-        pad = 1.5 * res
-        vx_plane, vy_plane = rot[0, 0] * xs + rot[1, 0] * ys, rot[0, 1] * xs + rot[1, 1] * ys
-        vx = np.stack([vx_plane + rot[2, 0] * bottom, vx_plane + rot[2, 0] * top])
-        vy = np.stack([vy_plane + rot[2, 1] * bottom, vy_plane + rot[2, 1] * top])
-        plane = rot[0, 2] * xs + rot[1, 2] * ys
-        z_top = plane + rot[2, 2] * top
-        z_bottom = plane + rot[2, 2] * bottom
+        found, z_low, z_high = _box_extremes(xs, ys, top, bottom, rot, np.ascontiguousarray(boxes), 1.5 * res)
         tilt = res * (abs(rot[0, 2]) + abs(rot[1, 2]))
         moving = self._moving_z(pose)
         out: list[tuple[float, float] | None] = []
-        for bx0, bx1, by0, by1 in boxes:
-            inside = ((vx >= bx0 - pad) & (vx <= bx1 + pad) & (vy >= by0 - pad) & (vy <= by1 + pad)).any(0)
+        for k in range(len(boxes)):
             zs = list(moving)
-            if inside.any():
-                zs += [float(z_bottom[inside].min()) - tilt, float(z_top[inside].max()) + tilt]
+            if found[k]:
+                zs += [float(z_low[k]) - tilt, float(z_high[k]) + tilt]
             out.append((min(zs), max(zs)) if zs else None)
         return out
 
@@ -220,6 +213,46 @@ class HeightEnvelope:
                 out.extend(pose.to_vehicle(corners)[:, 2].tolist())
         return out
 
+
+
+@kernel
+def _box_extremes(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    top: np.ndarray,
+    bottom: np.ndarray,
+    rot: np.ndarray,
+    boxes: np.ndarray,
+    pad: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per box (x_min, x_max, y_min, y_max, vehicle frame): whether a sample lies in it grown by
+    ``pad`` (at its bottom or its top height), and the lowest bottom and highest top z of those
+    samples. Samples: world offsets ``xs`` (columns) x ``ys`` (rows) from the pose, heights ``top``
+    and ``bottom`` above it; vehicle coordinates ``(rot[0, i] x + rot[1, i] y) + rot[2, i] z``
+    (one compiled pass where numpy made a dozen over the grid per box)."""
+    n_b = boxes.shape[0]
+    found = np.zeros(n_b, dtype=np.bool_)
+    z_low = np.full(n_b, np.inf)
+    z_high = np.full(n_b, -np.inf)
+    lo_x, hi_x = boxes[:, 0] - pad, boxes[:, 1] + pad
+    lo_y, hi_y = boxes[:, 2] - pad, boxes[:, 3] + pad
+    for r in range(ys.size):
+        for c in range(xs.size):
+            vx_plane = rot[0, 0] * xs[c] + rot[1, 0] * ys[r]
+            vy_plane = rot[0, 1] * xs[c] + rot[1, 1] * ys[r]
+            plane = rot[0, 2] * xs[c] + rot[1, 2] * ys[r]
+            b, t = bottom[r, c], top[r, c]
+            vx_b, vx_t = vx_plane + rot[2, 0] * b, vx_plane + rot[2, 0] * t
+            vy_b, vy_t = vy_plane + rot[2, 1] * b, vy_plane + rot[2, 1] * t
+            z_b, z_t = plane + rot[2, 2] * b, plane + rot[2, 2] * t
+            for k in range(n_b):
+                if (lo_x[k] <= vx_b <= hi_x[k] and lo_y[k] <= vy_b <= hi_y[k]) or (
+                    lo_x[k] <= vx_t <= hi_x[k] and lo_y[k] <= vy_t <= hi_y[k]
+                ):
+                    found[k] = True
+                    z_low[k] = min(z_low[k], z_b)
+                    z_high[k] = max(z_high[k], z_t)
+    return found, z_low, z_high
 
 _EMPTY = (10**9, -(10**9))  # band key of a tile with nothing to hit: contained in any band
 #: Quantised (low, high) height band of every tile, in ``height_step_m`` units.
@@ -357,13 +390,10 @@ class RoiSelector:
         for rays, (lo, hi) in zip(self._tile_rays[mount.name], key, strict=True):
             if (lo, hi) == _EMPTY:
                 continue
-            sel = (rays.z_min_m <= hi * step) & (rays.z_max_m >= lo * step)
-            meets[rays.index[sel]] = True
+            _mark_meeting(meets, rays.index, rays.z_min_m, rays.z_max_m, lo * step, hi * step)
         cfg = self.config
-        size = (2 * cfg.laser_margin + 1, 2 * cfg.column_margin + 1)
-        wrap = "wrap" if m.hfov_deg >= 360.0 else "constant"
-        return maximum_filter(
-            meets.reshape(m.n_lasers, m.n_columns), size=size, mode=("constant", wrap), cval=False
+        return dilate(
+            meets.reshape(m.n_lasers, m.n_columns), cfg.laser_margin, cfg.column_margin, m.hfov_deg >= 360.0
         )
 
     def _subset(self, mount: SensorMount, key: BandKey) -> RaySubset:
@@ -376,3 +406,64 @@ class RoiSelector:
             return RaySubset(index, (0, 0))
         pad = self.config.column_margin
         return RaySubset(index, (max(0, int(cast[0]) - pad), min(mask.shape[1], int(cast[-1]) + 1 + pad)))
+
+
+@kernel
+def _mark_meeting(
+    meets: np.ndarray, index: np.ndarray, z_min: np.ndarray, z_max: np.ndarray, lo: float, hi: float
+) -> None:
+    """In place: ``meets[index[k]] = True`` where ray k's z span [z_min, z_max] meets [lo, hi]."""
+    for k in range(index.size):
+        if z_min[k] <= hi and z_max[k] >= lo:
+            meets[index[k]] = True
+
+
+def dilate(mask: np.ndarray, laser_margin: int, column_margin: int, wrap_columns: bool) -> np.ndarray:
+    """(lasers, columns) bool: True within ``laser_margin`` rows and ``column_margin`` columns of a
+    True of ``mask``; columns wrap around (a 360 deg sensor's seam) where ``wrap_columns``, rows
+    never. ``scipy.ndimage.maximum_filter`` of a (2 laser_margin + 1, 2 column_margin + 1) window
+    with modes ("constant", "wrap" or "constant"), computed by two compiled running counts
+    (tests/sensors/test_roi.py compares them)."""
+    m = np.ascontiguousarray(mask, dtype=np.bool_)
+    require(m.ndim == 2, "mask", f"must be (lasers, columns), got shape {m.shape}")
+    require(laser_margin >= 0 and column_margin >= 0, "margins", "must be >= 0")
+    return _dilated(m, int(laser_margin), int(column_margin), bool(wrap_columns))
+
+
+@kernel
+def _dilated(mask: np.ndarray, lm: int, cm: int, wrap: bool) -> np.ndarray:
+    n_l, n_c = mask.shape
+    rows = np.zeros((n_l, n_c), dtype=np.bool_)
+    count = np.zeros(n_c + 1, dtype=np.int64)  # count[c] = Trues in columns < c of the row
+    for laser in range(n_l):
+        for c in range(n_c):
+            count[c + 1] = count[c] + (1 if mask[laser, c] else 0)
+        total = count[n_c]
+        if total == 0:
+            continue
+        for c in range(n_c):
+            lo, hi = c - cm, c + cm + 1  # window [lo, hi)
+            if wrap and hi - lo >= n_c:
+                rows[laser, c] = True
+                continue
+            inside = count[min(max(hi, 0), n_c)] - count[min(max(lo, 0), n_c)]
+            if wrap:  # the parts of the window past either end, from the other end
+                if lo < 0:
+                    inside += total - count[n_c + lo]
+                if hi > n_c:
+                    inside += count[hi - n_c]
+            rows[laser, c] = inside > 0
+    out = np.zeros((n_l, n_c), dtype=np.bool_)
+    run = np.zeros(n_c, dtype=np.int64)  # per column: Trues of ``rows`` in the laser window
+    for laser in range(min(lm, n_l)):
+        for c in range(n_c):
+            run[c] += rows[laser, c]
+    for laser in range(n_l):
+        enter, leave = laser + lm, laser - lm - 1
+        for c in range(n_c):
+            if enter < n_l and rows[enter, c]:
+                run[c] += 1
+            if leave >= 0 and rows[leave, c]:
+                run[c] -= 1
+            out[laser, c] = run[c] > 0
+    return out

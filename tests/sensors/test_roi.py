@@ -15,7 +15,7 @@ from negobs_gym.sensors.lidar import scan_rig, start_rig_scan
 from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
 from negobs_gym.sensors.raycast import make_caster
 from negobs_gym.sensors.rigs import Rig, paper_n_rig, paper_t_rig
-from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector, tile_rays
+from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector, dilate, tile_rays
 from negobs_gym.sim import presets
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
@@ -251,3 +251,61 @@ def test_a_started_rig_frame_gives_scan_rigs_scans_in_any_order(ditch_world):
             frame.scan("velodyne")
     pybullet = make_caster(ditch_world, "pybullet", exclude_body_ids=(vehicle.body_id,))
     assert start_rig_scan(RIG, pybullet, pose, rng=np.random.default_rng(9)).started is None
+
+
+@pytest.mark.parametrize("wrap", [False, True])
+@pytest.mark.parametrize("margins", [(0, 0), (1, 2), (8, 16), (40, 3), (2, 900)])
+def test_dilation_equals_scipys_maximum_filter(wrap, margins):
+    from scipy.ndimage import maximum_filter
+
+    rng = np.random.default_rng(len(margins) + margins[1])
+    for shape in ((1, 1), (3, 1), (5, 7), (64, 400), (4, 1000)):
+        for density in (0.0, 0.002, 0.05):
+            mask = rng.random(shape) < density
+            lm, cm = margins
+            mode = ("constant", "wrap" if wrap else "constant")
+            want = maximum_filter(mask, size=(2 * lm + 1, 2 * cm + 1), mode=mode, cval=False)
+            np.testing.assert_array_equal(dilate(mask, lm, cm, wrap), want)
+
+
+def _bands_numpy(heights: HeightEnvelope, pose: Pose, boxes_xy_m) -> list:
+    """HeightEnvelope.bands spelled in numpy passes over the grid (the code before its kernel)."""
+    res = heights.resolution_m
+    boxes = np.asarray(boxes_xy_m, dtype=np.float64).reshape(-1, 4)
+    x0, x1, y0, y1 = boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max()
+    corners = pose.to_world(np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0]]))
+    lo, hi = corners.min(axis=0) - 2 * res, corners.max(axis=0) + 2 * res
+    rows, cols = heights._slice(lo[0], hi[0], lo[1], hi[1])
+    rot = pose.rotation
+    xs = (heights.origin_m[0] + res * np.arange(cols.start, cols.stop) - pose.x)[None, :]
+    ys = (heights.origin_m[1] + res * np.arange(rows.start, rows.stop) - pose.y)[:, None]
+    top, bottom = heights.top[rows, cols] - pose.z, heights.bottom[rows, cols] - pose.z
+    pad = 1.5 * res
+    vx_plane, vy_plane = rot[0, 0] * xs + rot[1, 0] * ys, rot[0, 1] * xs + rot[1, 1] * ys
+    vx = np.stack([vx_plane + rot[2, 0] * bottom, vx_plane + rot[2, 0] * top])
+    vy = np.stack([vy_plane + rot[2, 1] * bottom, vy_plane + rot[2, 1] * top])
+    plane = rot[0, 2] * xs + rot[1, 2] * ys
+    z_top, z_bottom = plane + rot[2, 2] * top, plane + rot[2, 2] * bottom
+    tilt = res * (abs(rot[0, 2]) + abs(rot[1, 2]))
+    out = []
+    for bx0, bx1, by0, by1 in boxes:
+        inside = ((vx >= bx0 - pad) & (vx <= bx1 + pad) & (vy >= by0 - pad) & (vy <= by1 + pad)).any(0)
+        zs = [float(z_bottom[inside].min()) - tilt, float(z_top[inside].max()) + tilt] if inside.any() else []
+        out.append((min(zs), max(zs)) if zs else None)
+    return out
+
+
+def test_height_bands_equal_their_numpy_spelling_bit_for_bit(ditch_world):
+    heights = HeightEnvelope(ditch_world)
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    rng = np.random.default_rng(3)
+    x0, x1, y0, y1 = ditch_world.terrain.heightfield.extent_m
+    tiles_sets = (sel.tiles, [(-1.0, 1.0, 0.0, 2.0)], [(-5000.0, -4999.0, 0.0, 1.0)])  # last: off the map
+    for _ in range(60):
+        pose = Pose(
+            x=rng.uniform(x0, x1), y=rng.uniform(y0, y1), z=rng.normal(0.0, 0.5),
+            roll=rng.normal(0.0, 0.1), pitch=rng.normal(0.0, 0.1), yaw=rng.uniform(-np.pi, np.pi),
+        )  # fmt: skip
+        for tiles in tiles_sets:
+            assert heights.bands(pose, tiles) == _bands_numpy(heights, pose, tiles)
+    assert heights.bands(pose, tiles_sets[2]) == [None]
