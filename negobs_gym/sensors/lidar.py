@@ -153,25 +153,20 @@ def _finish(
     m = mount.model
     hit[hit < m.min_range_m] = np.nan
     hit = apply_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name))
-    hit[(hit < m.min_range_m) | (hit > m.max_range_m)] = np.nan
     n_columns = m.n_columns
     azimuth = m.azimuth_rad
+    start, stop = (0, n_columns) if columns is None else columns
+    if not 0 <= start <= stop <= n_columns:
+        raise ConfigError("columns", f"must be [start, stop) within 0..{n_columns} holding every ray cast")
     if every_ray:
-        ranges = hit.reshape(m.n_lasers, n_columns)
-    elif columns is None:
-        ranges = np.full(m.n_lasers * n_columns, np.nan)
-        ranges[index] = hit
-        ranges = ranges.reshape(m.n_lasers, n_columns)
-    else:  # the cropped image directly: no full-size image to fill and copy from
-        start, stop = columns
-        laser, col = np.divmod(index, n_columns)
-        if not (0 <= start <= stop <= n_columns and np.all((col >= start) & (col < stop))):
+        ranges = _in_limits(hit, m.min_range_m, m.max_range_m).reshape(m.n_lasers, n_columns)
+    else:  # the (cropped) image filled directly: no full-size image to fill and copy from
+        ranges = np.full((m.n_lasers, stop - start), np.nan)
+        if not _scatter_in_limits(ranges, hit, index, n_columns, start, m.min_range_m, m.max_range_m):
             raise ConfigError(
                 "columns", f"must be [start, stop) within 0..{n_columns} holding every ray cast"
             )
-        ranges = np.full((m.n_lasers, stop - start), np.nan)
-        ranges[laser, col - start] = hit
-        azimuth = azimuth[start:stop]
+        azimuth = azimuth[start:stop] if columns is not None else azimuth
     return StructuredScan(
         sensor=mount.name,
         ranges_m=ranges,
@@ -182,6 +177,38 @@ def _finish(
         pose=pose,
         timestamp_s=timestamp_s,
     )
+
+
+@kernel
+def _in_limits(hit: np.ndarray, min_range_m: float, max_range_m: float) -> np.ndarray:
+    """``hit`` with NaN outside the sensor's range limits [min_range_m, max_range_m] (in place)."""
+    for k in range(hit.size):
+        if hit[k] < min_range_m or hit[k] > max_range_m:
+            hit[k] = np.nan
+    return hit
+
+
+@kernel
+def _scatter_in_limits(
+    image: np.ndarray,
+    hit: np.ndarray,
+    index: np.ndarray,
+    n_columns: int,
+    start: int,
+    min_range_m: float,
+    max_range_m: float,
+) -> bool:
+    """In place: ``image[laser, column - start]`` = ray ``index[k]``'s range (laser-major flat
+    index), NaN outside the range limits; False (image unfinished) where a ray's column lies
+    outside the image (one compiled pass where numpy took a divmod, a check and a scatter)."""
+    width = image.shape[1]
+    for k in range(index.size):
+        laser, col = index[k] // n_columns, index[k] % n_columns - start
+        if col < 0 or col >= width or laser >= image.shape[0]:
+            return False
+        v = hit[k]
+        image[laser, col] = np.nan if (v < min_range_m or v > max_range_m) else v
+    return True
 
 
 def scan_rig(

@@ -214,7 +214,6 @@ class HeightEnvelope:
         return out
 
 
-
 @kernel
 def _box_extremes(
     xs: np.ndarray,
@@ -253,6 +252,7 @@ def _box_extremes(
                     z_low[k] = min(z_low[k], z_b)
                     z_high[k] = max(z_high[k], z_t)
     return found, z_low, z_high
+
 
 _EMPTY = (10**9, -(10**9))  # band key of a tile with nothing to hit: contained in any band
 #: Quantised (low, high) height band of every tile, in ``height_step_m`` units.

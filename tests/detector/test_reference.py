@@ -13,7 +13,8 @@ from scipy.ndimage import maximum_filter1d
 from scipy.spatial import ConvexHull
 
 from negobs_gym.core import GridSpec, Pose
-from negobs_gym.detector import NegativeObstacleDetector, clustering, fusion, hdl32, hdl64, negative, pairs, roi
+from negobs_gym.detector import NegativeObstacleDetector, clustering, fusion, hdl32, hdl64, negative, roi
+from negobs_gym.detector import pairs as pair_search
 from negobs_gym.detector.blocks import BLOCK_ELEMENTS
 from negobs_gym.detector.grid import convex_overlap_mask
 from negobs_gym.detector.pair_test import pair_test
@@ -292,7 +293,7 @@ def test_overlap_distance_matches_the_definition_and_is_symmetric_bit_for_bit():
 def test_close_pairs_find_exactly_the_pairs_all_pairs_measuring_finds(monkeypatch, one_class_max_pairs):
     # the default puts these few hundred pairs in one length class; 0 splits them by length
     if one_class_max_pairs is not None:
-        monkeypatch.setattr(pairs, "_ONE_CLASS_MAX_PAIRS", one_class_max_pairs)
+        monkeypatch.setattr(pair_search, "_ONE_CLASS_MAX_PAIRS", one_class_max_pairs)
     rng = np.random.default_rng(5)
     a1, b1 = _random_pairs(rng, 300)
     a2, b2 = _random_pairs(rng, 250)

@@ -129,13 +129,14 @@ class _SharedRays:
     whatever chunk it is cast in."""
 
     def __init__(self, scene: _Scene, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> None:
-        self._scene, self.o32, self.d32, self.tmax = scene, o32, d32, tmax
-        self.out = np.empty(o32.shape[0])
+        self._scene, self.o32, self.d32, self.tmax = scene, o32, d32, tmax  # o32: (n, 3) or (1, 3)
+        n = d32.shape[0]
+        self.out = np.empty(n)
         self._lock = threading.Lock()
-        self._front, self._back = 0, o32.shape[0]  # rays [front, back) are not taken yet
+        self._front, self._back = 0, n  # rays [front, back) are not taken yet
         # pool threads take big chunks (each chunk is a GIL round trip), the waiting thread small
         # ones, so both run out of work at about the same time
-        self._front_chunk = max(_SHARE_MIN_RAYS, o32.shape[0] // 8)
+        self._front_chunk = max(_SHARE_MIN_RAYS, n // 8)
 
     def _take(self, size: int, from_front: bool) -> tuple[int, int] | None:
         with self._lock:
@@ -150,7 +151,8 @@ class _SharedRays:
         return lo, hi
 
     def _cast(self, lo: int, hi: int) -> None:
-        self.out[lo:hi] = self._scene.cast(self.o32[lo:hi], self.d32[lo:hi], self.tmax[lo:hi])
+        o = self.o32 if self.o32.shape[0] == 1 else self.o32[lo:hi]
+        self.out[lo:hi] = self._scene.cast(o, self.d32[lo:hi], self.tmax[lo:hi])
 
     def cast_from_front(self) -> None:
         """A pool thread's part: chunks from the front until none is left."""
@@ -214,15 +216,17 @@ class _Scene:
             )
 
     def cast(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
-        """Hit distances (inf = miss) of float32 rays in local coordinates."""
-        if self.n_triangles == 0 or o.shape[0] == 0:
-            return np.full(o.shape[0], np.inf)
+        """Hit distances (inf = miss) of float32 rays in local coordinates; ``o`` is one origin per
+        ray (n, 3) or one for all (1, 3)."""
+        if self.n_triangles == 0 or d.shape[0] == 0:
+            return np.full(d.shape[0], np.inf)
         # a distance query returns tfar alone (no hit records: ~7 % faster); a miss keeps its limit,
         # so the limit is one float32 step past tmax, where a hit would lie beyond tmax anyway
         limit = np.nextafter(tmax.astype(np.float32), np.float32(np.inf))
         if self._packets is not None:
             t = self._packets.cast(o, d, limit)
         else:
+            o = np.ascontiguousarray(np.broadcast_to(o, d.shape))
             t = np.asarray(self._embreex.run(o, d, dists=limit.copy(), query="DISTANCE"))
         return np.where(t < limit, t.astype(np.float64), np.inf)
 
@@ -370,9 +374,8 @@ class EmbreeCaster:
         o, d32 = check_rays(origins, directions, max_range_m, dtype=np.float32)
         if self.config.auto_update:
             self.update_dynamic()
-        if o.strides[0] == 0:  # one origin for every ray (a sensor's scan): shift it once
-            shifted = (o[0] - self.local_origin_m).astype(np.float32)
-            o32 = np.tile(shifted, (o.shape[0], 1))  # contiguous; ~2x faster than copying a broadcast
+        if o.strides[0] == 0:  # one origin for every ray (a sensor's scan): shifted once, one row
+            o32 = (o[:1] - self.local_origin_m).astype(np.float32)
         else:
             o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
         tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)

@@ -139,8 +139,10 @@ def packets_available() -> bool:
 
 @kernel
 def _intersect16(intersect16, scene: int, o: np.ndarray, d: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """``tfar`` of each float32 ray after ``rtcIntersect16`` (``limit`` where nothing is hit)."""
-    n = o.shape[0]
+    """``tfar`` of each float32 ray after ``rtcIntersect16`` (``limit`` where nothing is hit); ``o``
+    holds one origin per ray or one row for all."""
+    n = d.shape[0]
+    one_origin = o.shape[0] == 1
     out = np.empty(n, dtype=np.float32)
     work = np.zeros(_PACKET_BYTES + 128, dtype=np.uint8)  # the packet, then the lanes' valid flags
     start = (-work.ctypes.data) % 64
@@ -155,9 +157,10 @@ def _intersect16(intersect16, scene: int, o: np.ndarray, d: np.ndarray, limit: n
         m = min(w, n - first)
         for k in range(w):
             j = first + k if k < m else first  # idle lanes repeat a real ray and are masked off
-            f[k] = o[j, 0]
-            f[w + k] = o[j, 1]
-            f[2 * w + k] = o[j, 2]
+            jo = 0 if one_origin else j
+            f[k] = o[jo, 0]
+            f[w + k] = o[jo, 1]
+            f[2 * w + k] = o[jo, 2]
             f[3 * w + k] = 0.0  # tnear
             f[4 * w + k] = d[j, 0]
             f[5 * w + k] = d[j, 1]
@@ -232,8 +235,13 @@ class PacketScene:
             )
 
     def cast(self, o32: np.ndarray, d32: np.ndarray, limit: np.ndarray) -> np.ndarray:
-        """float32 ``tfar`` of each ray: its hit distance, or ``limit`` where nothing is hit first."""
-        if o32.shape[0] == 0 or self.n_triangles == 0:
+        """float32 ``tfar`` of each ray: its hit distance, or ``limit`` where nothing is hit first.
+        ``o32``: one origin per ray (n, 3), or one row (1, 3) for every ray."""
+        if o32.shape[0] not in (1, d32.shape[0]):
+            raise ValueError(
+                f"origins: one per ray or one for all, got {o32.shape[0]} for {d32.shape[0]} rays"
+            )
+        if d32.shape[0] == 0 or self.n_triangles == 0:
             return np.asarray(limit, dtype=np.float32).copy()
         return _intersect16(
             self._lib.intersect16,

@@ -160,3 +160,17 @@ def test_pinned_kernels_cast_the_same_scene_within_float32_rounding(rough_world)
         np.testing.assert_array_equal(pinned[0], pinned[1])
         np.testing.assert_array_equal(np.isnan(pinned[0]), np.isnan(native))
         np.testing.assert_allclose(pinned[0], native, rtol=1e-5, atol=1e-4)
+
+
+@pytest.mark.parametrize("packets", [True, False])
+def test_one_origin_row_casts_as_the_origin_repeated_per_ray(rough_world, packets):
+    """A sensor's rays share one origin: the scene takes it as one (1, 3) row."""
+    world, _ = rough_world
+    scene = _Scene(heightfield_mesh(world.physics_heightfield, np.zeros(3)), packets=packets)
+    o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]))
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    t = np.full(len(o), 120.0, dtype=np.float32)
+    np.testing.assert_array_equal(scene.cast(o32[:1], d32, t), scene.cast(o32, d32, t))
+    if packets:
+        with pytest.raises(ValueError, match="one per ray or one for all"):
+            scene._packets.cast(o32[:2], d32, t)
