@@ -163,7 +163,7 @@ class DetectorGrid:
         fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
         self.negative = NegativeObstacleDetector(
             NegativeDetectorConfig(grid=config.grid, fusion=fusion),
-            executor=detector_pool() if cast_threads(config) > 1 else None,
+            executor=detector_pool() if cast_threads(config) > 1 and not os.environ.get("NO_EXEC") else None,
         )
         by_structure = config.positive_detector == "structure"
         self.traversable = TraversableRegionDetector(

@@ -381,7 +381,7 @@ class EmbreeCaster:
         tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
         rays = _SharedRays(self._static, o32, d32, tmax)
         helpers: list[Future] = []
-        if self.config.threads > 1 and o32.shape[0] >= 2 * _SHARE_MIN_RAYS:
+        if self.config.threads > 1 and d32.shape[0] >= 2 * _SHARE_MIN_RAYS:
             pool = _thread_pool(self.config.threads - 1)
             helpers = [pool.submit(rays.cast_from_front) for _ in range(self.config.threads - 1)]
         return PendingCast(rays, helpers, self._dynamic, max_range_m)

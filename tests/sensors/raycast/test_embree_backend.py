@@ -277,9 +277,12 @@ def _record_pool_chunks(caster, fail=False):
     return pool_cast
 
 
-def test_a_started_cast_shares_its_rays_and_equals_one_thread_whatever_runs_beside_it(flat_world):
+@pytest.mark.parametrize("one_origin", [False, True], ids=["origin_per_ray", "one_origin"])
+def test_a_started_cast_shares_its_rays_and_equals_one_thread_whatever_runs_beside_it(flat_world, one_origin):
     world, own = flat_world
     o, d = _rays(40_000, 3)
+    if one_origin:  # a sensor's scan: one origin broadcast to every ray, passed on as one row
+        o = np.broadcast_to(o[0], d.shape)
     o2, d2 = _rays(9_000, 4)
     one = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=1))
     two = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=2))
