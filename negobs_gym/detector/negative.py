@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
-from concurrent.futures import Executor
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -30,7 +29,7 @@ from negobs_gym.detector.hdl32 import extract_hdl32_pairs
 from negobs_gym.detector.hdl64 import extract_hdl64_pairs
 from negobs_gym.detector.inputs import check_frame
 from negobs_gym.detector.pairs import FeaturePairs
-from negobs_gym.detector.roi import GroundBins, GroundMap, RoiConfig, point_sectors, ray_sectors
+from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map, ray_sectors
 from negobs_gym.errors import ScanError, require
 
 SensorMode = Literal["fused", "hdl64", "hdl32"]
@@ -185,20 +184,10 @@ class NegativeObstacleDetector:
     Keeps the fused pair history between calls; :meth:`reset` forgets it (new episode or log).
     """
 
-    def __init__(
-        self, config: NegativeDetectorConfig | None = None, *, executor: Executor | None = None
-    ) -> None:
-        """``executor`` (optional, e.g. a one-thread ``ThreadPoolExecutor``): the side HDL-32s'
-        ground-map sectors and feature pairs are computed on it while the calling thread bins the
-        map and extracts the HDL-64's pairs (their compiled kernels and large numpy passes release
-        the GIL, so a second core shortens a frame; docs/performance.md). The detection is the
-        same bit for bit. None (default): everything on the calling thread."""
+    def __init__(self, config: NegativeDetectorConfig | None = None) -> None:
         if config is not None and not isinstance(config, NegativeDetectorConfig):
             raise TypeError(f"config must be a NegativeDetectorConfig, got {type(config).__name__}")
-        if executor is not None and not isinstance(executor, Executor):
-            raise TypeError(f"executor must be a concurrent.futures.Executor, got {type(executor).__name__}")
         self.config = config or NegativeDetectorConfig()
-        self._executor = executor
         self._fusion = PairFusion(self.config.fusion)
 
     def reset(self) -> None:
@@ -233,31 +222,18 @@ class NegativeObstacleDetector:
         if scans and not set(scans) & set(known):
             raise ScanError(f"scans has sensors {sorted(scans)}, none of the configured {list(known)}")
         active = [name for name in cfg.active_sensors if name in scans]
-        clouds = {name: scans[name].points_vehicle for name in active}  # here: no thread computes them
-        side = [name for name in active if name in cfg.hdl32_sensors] if self._executor is not None else []
-        side_sectors = side_pairs = None
-        if side:
-            if cfg.roi.enabled:
-                side_sectors = self._executor.submit(_sectors, scans, clouds, side, cfg)
-            side_pairs = self._executor.submit(_hdl32_pairs, scans, side, cfg.hdl32)
         ground = None
         if cfg.roi.enabled:
-            bins = GroundBins(cfg.max_range_m, cfg.roi)
-            for name in active:  # binned in this order with or without the executor
-                if name in side:
-                    bins.add(clouds[name], side_sectors.result()[name])
-                else:
-                    bins.add(clouds[name], ray_sectors(scans[name], cfg.roi))
-            ground = bins.ground_map()
+            clouds = [scans[name].points_vehicle for name in active]
+            sectors = [ray_sectors(scans[name], cfg.roi) for name in active]
+            ground = build_ground_map(clouds, cfg.max_range_m, cfg.roi, sectors)
         frame_pairs = {}
         for name in active:
             if name in cfg.hdl64_sensors:
                 pairs = extract_hdl64_pairs(scans[name], cfg.hdl64, ground)
                 margin = cfg.far_wall_margin_m
             else:
-                pairs = (
-                    side_pairs.result()[name] if name in side else extract_hdl32_pairs(scans[name], cfg.hdl32)
-                )
+                pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
                 margin = cfg.hdl32_far_wall_margin_m
             pairs = within_roi(pairs, cfg.max_range_m, ground, margin)
             frame_pairs[name] = pairs if coverage is None else within_box(pairs, coverage)
@@ -268,25 +244,3 @@ class NegativeObstacleDetector:
         obstacles = [dataclasses.replace(c, pair_indices=confirmed_index[c.pair_indices]) for c in clusters]
         grid = obstacle_grid([ob.outline_xy_m for ob in obstacles], cfg.grid)
         return Detection(fused, obstacles, grid, cfg.grid, frame_pairs, ground)
-
-
-def _sectors(
-    scans: Mapping[str, StructuredScan],
-    clouds: Mapping[str, np.ndarray],
-    names: Sequence[str],
-    config: NegativeDetectorConfig,
-) -> dict[str, np.ndarray]:
-    """Each named scan's ground-map sectors per point (:func:`~.roi.point_sectors`)."""
-    return {
-        name: point_sectors(
-            clouds[name], ray_sectors(scans[name], config.roi), config.max_range_m, config.roi
-        )
-        for name in names
-    }
-
-
-def _hdl32_pairs(
-    scans: Mapping[str, StructuredScan], names: Sequence[str], config: Hdl32FeatureConfig
-) -> dict[str, FeaturePairs]:
-    """Each named side scan's feature pairs (§3.2)."""
-    return {name: extract_hdl32_pairs(scans[name], config) for name in names}

@@ -310,78 +310,38 @@ def build_ground_map(
 ) -> GroundMap:
     """Polar elevation map from vehicle-frame clouds (any shape (..., 3), NaN rows = no return).
 
-    ``sectors`` (optional, one per cloud: None, or each point's sector as :func:`ray_sectors` or
-    :func:`point_sectors` gives it, -1 = unknown) spares the per-point angle where it is known
-    beforehand; the map is the same.
+    ``sectors`` (optional, one per cloud: None, or each point's sector as :func:`ray_sectors` gives
+    it, -1 = unknown) spares the per-point angle where it is known beforehand; the map is the same.
     """
     clouds = list(clouds)
     known_sectors = [None] * len(clouds) if sectors is None else list(sectors)
     require(len(known_sectors) == len(clouds), "sectors", "needs one entry (or None) per cloud")
-    bins = GroundBins(max_range_m, config)
-    for cloud, known in zip(clouds, known_sectors, strict=True):
-        bins.add(cloud, known)
-    return bins.ground_map()
-
-
-def point_sectors(
-    cloud: np.ndarray, known: np.ndarray | None, max_range_m: float, config: RoiConfig
-) -> np.ndarray:
-    """Ground-map sector (before wrapping) of every point of a cloud (any shape (..., 3)) that the
-    map of ``max_range_m`` bins, -1 for the others: from ``known`` (:func:`ray_sectors`) where it
-    is given and sure, else from the point's angle. Passed to :func:`build_ground_map` or
-    :meth:`GroundBins.add`, it gives the same map; computing it beforehand (on another thread,
-    :class:`~negobs_gym.detector.NegativeObstacleDetector`'s ``executor``) leaves only the binning."""
-    p = np.ascontiguousarray(np.asarray(cloud, dtype=np.float64).reshape(-1, 3))
-    known_flat = _known_sectors(known, len(p))
-    return _point_sectors(p, known_flat, math.radians(config.sector_deg), _map_size(max_range_m, config)[2])
-
-
-def _known_sectors(known: np.ndarray | None, n_points: int) -> np.ndarray | None:
-    known_flat = None if known is None else np.asarray(known, dtype=np.int64).reshape(-1)
-    require(
-        known_flat is None or known_flat.size == n_points,
-        "sectors",
-        "each table needs one sector per point of its cloud",
-    )
-    return known_flat
-
-
-def _map_size(max_range_m: float, config: RoiConfig) -> tuple[int, int, float]:
-    """(sectors, bins per sector, reach [m]) of the map of ``max_range_m``."""
+    n_sectors = math.ceil(360.0 / config.sector_deg)
     n_bins = max(1, math.ceil((max_range_m + config.range_margin_m) / config.bin_m))
-    return math.ceil(360.0 / config.sector_deg), n_bins, n_bins * config.bin_m
-
-
-class GroundBins:
-    """The lowest and highest point of each polar cell, filled cloud by cloud (:meth:`add`), then
-    turned into the :class:`GroundMap` (:meth:`ground_map`): :func:`build_ground_map` in steps,
-    so a caller can bin one sensor's cloud while another's sectors are still being computed."""
-
-    def __init__(self, max_range_m: float, config: RoiConfig) -> None:
-        self.config = config
-        self.n_sectors, self.n_bins, self.reach_m = _map_size(max_range_m, config)
-        self._z_min = np.full(self.n_sectors * self.n_bins, np.inf)
-        self._z_max = np.full(self.n_sectors * self.n_bins, -np.inf)
-
-    def add(self, cloud: np.ndarray, sectors: np.ndarray | None = None) -> None:
-        """Bin a vehicle-frame cloud (any shape (..., 3), NaN rows = no return); ``sectors`` as in
-        :func:`build_ground_map`."""
+    n_cells = n_sectors * n_bins
+    reach = n_bins * config.bin_m
+    z_min = np.full(n_cells, np.inf)
+    z_max = np.full(n_cells, -np.inf)
+    sector_rad = math.radians(config.sector_deg)
+    for cloud, known in zip(clouds, known_sectors, strict=True):
         p = np.ascontiguousarray(np.asarray(cloud, dtype=np.float64).reshape(-1, 3))
-        cfg = self.config
-        sector = _point_sectors(
-            p, _known_sectors(sectors, len(p)), math.radians(cfg.sector_deg), self.reach_m
+        known_flat = None if known is None else np.asarray(known, dtype=np.int64).reshape(-1)
+        require(
+            known_flat is None or known_flat.size == len(p),
+            "sectors",
+            "each table needs one sector per point of its cloud",
         )
-        reach2 = self.reach_m * self.reach_m
-        _bin_extremes(p, sector, reach2, cfg.bin_m, self.n_bins, self.n_sectors, self._z_min, self._z_max)
+        sector = _point_sectors(p, known_flat, sector_rad, reach)
+        _bin_extremes(p, sector, reach * reach, config.bin_m, n_bins, n_sectors, z_min, z_max)
+    z_min = z_min.reshape(n_sectors, n_bins)
+    z_max = z_max.reshape(n_sectors, n_bins)
 
-    def ground_map(self) -> GroundMap:
-        """The map of the clouds added so far (module docstring)."""
-        cfg = self.config
-        z_min = self._z_min.reshape(self.n_sectors, self.n_bins)
-        z_max = self._z_max.reshape(self.n_sectors, self.n_bins)
-        slope = math.tan(math.radians(cfg.max_ground_slope_deg))
-        ground = _ground_levels(z_min, cfg.bin_m, slope, cfg.ground_step_m, slope * cfg.bin_m)
-        structure = z_max > ground + cfg.ground_tolerance_m
-        before = np.zeros((self.n_sectors, self.n_bins + 1), dtype=np.int64)
-        np.cumsum(structure, axis=1, out=before[:, 1:])
-        return GroundMap(ground, before, cfg, self.n_bins)
+    slope = math.tan(math.radians(config.max_ground_slope_deg))
+    fall = slope * config.bin_m
+    tol = config.ground_tolerance_m
+    step = config.ground_step_m
+    ground = _ground_levels(z_min, config.bin_m, slope, step, fall)
+    structure = z_max > ground + tol
+    before = np.zeros((n_sectors, n_bins + 1), dtype=np.int64)
+    np.cumsum(structure, axis=1, out=before[:, 1:])
+    return GroundMap(ground, before, config, n_bins)

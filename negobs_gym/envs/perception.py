@@ -21,7 +21,6 @@ from __future__ import annotations
 import functools
 import multiprocessing
 import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -71,19 +70,6 @@ def cast_threads(config: ObservationConfig) -> int:
         _pin_blas_threads()
         return 1
     return max(1, min(2, os.cpu_count() or 1))
-
-
-def detector_pool() -> ThreadPoolExecutor:
-    """One thread per process for paper N's side-sensor work (``NegativeObstacleDetector``'s
-    ``executor``), used where the Embree cast has a second core (``cast_threads`` > 1): the
-    detector runs after the frame's cast, when the cast's own pool thread is idle."""
-    pid = os.getpid()
-    if _DETECTOR_POOL.get("pid") != pid:  # a forked child must not reuse its parent's thread
-        _DETECTOR_POOL.update(pid=pid, pool=ThreadPoolExecutor(max_workers=1, thread_name_prefix="paper-n"))
-    return _DETECTOR_POOL["pool"]
-
-
-_DETECTOR_POOL: dict = {}
 
 
 @functools.cache
@@ -161,10 +147,7 @@ class DetectorGrid:
         if config.far_region_xy_m is not None:
             self._far = roi_selector(self.rig, RoiConfig(region_xy_m=config.far_region_xy_m))
         fusion = FusionConfig(tighten_on_match=config.tighten_pairs)
-        self.negative = NegativeObstacleDetector(
-            NegativeDetectorConfig(grid=config.grid, fusion=fusion),
-            executor=detector_pool() if cast_threads(config) > 1 and not os.environ.get("NO_EXEC") else None,
-        )
+        self.negative = NegativeObstacleDetector(NegativeDetectorConfig(grid=config.grid, fusion=fusion))
         by_structure = config.positive_detector == "structure"
         self.traversable = TraversableRegionDetector(
             TraversableConfig(

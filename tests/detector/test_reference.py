@@ -5,7 +5,6 @@ general max filter): the block-wise, sparse and bounded code paths must give the
 and the detector run on the references must give the same Detection.
 """
 
-import dataclasses
 import math
 
 import numpy as np
@@ -15,7 +14,6 @@ from scipy.spatial import ConvexHull
 
 from negobs_gym.core import GridSpec, Pose
 from negobs_gym.detector import (
-    NegativeDetectorConfig,
     NegativeObstacleDetector,
     clustering,
     fusion,
@@ -462,37 +460,3 @@ def test_overlap_mask_window_uses_the_grid_cell_centres():
         in_box = np.zeros(grid.shape, dtype=bool)
         in_box[max(r0, 0) : r1 + 1, max(c0, 0) : c1 + 1] = True
         np.testing.assert_array_equal(convex_overlap_mask(hull, grid), in_box & ~separated.any(axis=-1))
-
-
-@pytest.mark.parametrize("mode", ["fused", "hdl32"])
-@pytest.mark.parametrize("roi_on", [True, False])
-def test_side_sensors_on_an_executor_give_the_same_detection_bit_for_bit(mode, roi_on):
-    from concurrent.futures import ThreadPoolExecutor
-
-    config = NegativeDetectorConfig(mode=mode, roi=roi.RoiConfig(enabled=roi_on))
-    frames = _frames()
-    alone = NegativeObstacleDetector(config)
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        beside = NegativeObstacleDetector(config, executor=pool)
-        for scans, pose in frames:
-            a = alone.update(scans, pose)
-            # fresh scans: their point clouds are computed again, this time beside the executor
-            b = beside.update({k: dataclasses.replace(s) for k, s in scans.items()}, pose)
-            for name in a.frame_pairs:
-                for field in ("a_m", "b_m", "c_m"):
-                    assert (
-                        getattr(a.frame_pairs[name], field).tobytes()
-                        == getattr(b.frame_pairs[name], field).tobytes()
-                    )
-            for field in ("a_m", "b_m", "posterior", "confirmed"):
-                assert getattr(a.pairs, field).tobytes() == getattr(b.pairs, field).tobytes()
-            np.testing.assert_array_equal(a.grid, b.grid)
-            if roi_on:
-                assert a.ground_map.ground_z_m.tobytes() == b.ground_map.ground_z_m.tobytes()
-                np.testing.assert_array_equal(a.ground_map.structure_before, b.ground_map.structure_before)
-    assert a.obstacles  # the last frame detects the scene
-
-
-def test_detector_executor_must_be_an_executor():
-    with pytest.raises(TypeError, match="executor must be a concurrent"):
-        NegativeObstacleDetector(executor=object())
