@@ -231,9 +231,62 @@ def _point_sectors(p: np.ndarray, known: np.ndarray | None, sector_rad: float, r
 
 
 @kernel
-def _sector_of(x: float, y: float, sector_rad: float) -> int:
+def _exact_sector_of(x: float, y: float, sector_rad: float) -> int:
     """The per-point sector (before wrapping; >= 0, so truncation is the floor)."""
     return np.int64((np.arctan2(y, x) + np.pi) / sector_rad)
+
+
+# atan(t) ~ t P(t^2) for |t| <= tan(pi / 8): least-squares fit on Chebyshev nodes, largest error
+# 1.2e-10 rad on 2,000,001 samples of the interval (tests/detector/test_roi.py rechecks it)
+_ATAN_COEFFS = (
+    0.9999999961634439,
+    -0.3333326985746865,
+    0.1999698239021298,
+    -0.14223617929650542,
+    0.10477432329464499,
+    -0.058310861060163637,
+)
+_TAN_PI_8 = math.tan(math.pi / 8)
+# a polynomial angle farther than this from a sector boundary has the exact rule's sector: ~80x the
+# polynomial's error (1.2e-10 rad) plus its rounding
+_FAST_SECTOR_GUARD_RAD = 1e-8
+
+
+@kernel
+def _atan_small(t: float) -> float:
+    w = t * t
+    p = _ATAN_COEFFS[5]
+    for c in (_ATAN_COEFFS[4], _ATAN_COEFFS[3], _ATAN_COEFFS[2], _ATAN_COEFFS[1], _ATAN_COEFFS[0]):
+        p = p * w + c
+    return t * p
+
+
+@kernel
+def _sector_of(x: float, y: float, sector_rad: float) -> int:
+    """:func:`_exact_sector_of` for a finite point, ~5x faster: the angle from a polynomial, the exact
+    rule (the C library's atan2) only where that lies within :data:`_FAST_SECTOR_GUARD_RAD` of a
+    sector boundary, on an axis or at the origin (the HDL-32s' points take their sector one by
+    one: this was a third of the ground map's time)."""
+    ax, ay = abs(x), abs(y)
+    big, small = max(ax, ay), min(ax, ay)
+    if not (small > 0.0) or not np.isfinite(big):  # an axis (signed zeros), the origin, NaN, inf
+        return _exact_sector_of(x, y, sector_rad)
+    if small > _TAN_PI_8 * big:  # atan(s / b) = pi / 4 + atan((s - b) / (s + b))
+        a = 0.25 * np.pi + _atan_small((small - big) / (small + big))
+    else:
+        a = _atan_small(small / big)
+    if ay > ax:
+        a = 0.5 * np.pi - a
+    if x < 0.0:
+        a = np.pi - a
+    if y < 0.0:
+        a = -a
+    per_rad = 1.0 / sector_rad  # loop-invariant where this is inlined
+    q = (a + np.pi) * per_rad
+    frac, guard = q - np.floor(q), _FAST_SECTOR_GUARD_RAD * per_rad
+    if frac < guard or frac > 1.0 - guard:
+        return _exact_sector_of(x, y, sector_rad)
+    return np.int64(q)
 
 
 @kernel

@@ -1,10 +1,13 @@
 """ROI step of paper N's detector (Table 1 line 1) on analytic scans with vertical structure."""
 
+import math
+
 import numpy as np
 import pytest
 
 from negobs_gym.core import Pose
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
+from negobs_gym.detector import roi as roi_module
 from negobs_gym.detector.roi import RoiConfig, build_ground_map, ray_sectors
 from negobs_gym.detector.synthetic import Block, Hole, hdl32_side_scan, hdl64_scan
 from negobs_gym.errors import ConfigError
@@ -138,3 +141,29 @@ def test_ray_sectors_give_the_per_point_ground_map():
         build_ground_map(clouds, 20.0, cfg, [table])
     with pytest.raises(ConfigError, match="one sector per point"):
         build_ground_map(clouds, 20.0, cfg, [table[:, :-1], None, None])
+
+
+def test_the_polynomial_angle_stays_within_its_stated_error():
+    t = np.linspace(-math.tan(math.pi / 8), math.tan(math.pi / 8), 400_001)
+    approx = np.array([roi_module._atan_small(v) for v in t[::97]])
+    assert np.abs(approx - np.arctan(t[::97])).max() < 1.5e-10
+    assert 50 * 1.5e-10 < roi_module._FAST_SECTOR_GUARD_RAD  # the guard keeps a wide margin over it
+
+
+@pytest.mark.parametrize("sector_deg", [0.001, 0.25, 0.5, 7.3, 45.0])
+def test_fast_point_sectors_equal_the_exact_rule(sector_deg):
+    """Random points and points on, and within 1e-15 ... 1e-8 rad of, every sector boundary."""
+    rng = np.random.default_rng(11)
+    sector = math.radians(sector_deg)
+    boundaries = -math.pi + sector * np.arange(math.ceil(2 * math.pi / sector) + 1)
+    parts = [rng.normal(size=(20_000, 2)) * 10.0, rng.uniform(-1e-3, 1e-3, (2_000, 2))]
+    for r in (1e-6, 7.0, 1e4):
+        for eps in (0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-8, -1e-8):
+            th = boundaries[:: max(1, len(boundaries) // 2000)] + eps
+            parts.append(np.stack([r * np.cos(th), r * np.sin(th)], axis=1))
+    parts.append(
+        np.array([[0.0, 0.0], [-0.0, 0.0], [-1.0, 0.0], [-1.0, -0.0], [0.0, -1.0], [1.0, 1.0], [-3.0, -3.0]])
+    )
+    xy = np.ascontiguousarray(np.concatenate(parts))
+    exact = np.floor((np.array([math.atan2(y, x) for x, y in xy]) + math.pi) / sector).astype(np.int64)
+    np.testing.assert_array_equal(roi_module._xy_sectors(xy, sector), exact)
