@@ -210,7 +210,7 @@ _SHORTEST_CLASS_M = 0.25  # pairs up to this long form the first length class (E
 _CLASSES_PER_OCTAVE = 3
 # a set of at most this many pairs is one length class: for the few hundred pairs of an env frame a
 # KD-tree per class and a query per two classes cost more than the extra candidates they spare
-# (fusion + DBSCAN 2.5 ms less per OffroadNav frame, docs/performance.md); dense frames (~2,000) keep
+# (fusion + DBSCAN 2.5 ms less per OffroadNav frame, docs/detector_features.md); dense frames keep
 # their classes. Any split gives the same result: a class's radius covers its longest pair.
 _ONE_CLASS_MAX_PAIRS = 1000
 

@@ -263,7 +263,7 @@ def _atan_small(t: float) -> float:
 
 @kernel
 def _sector_of(x: float, y: float, sector_rad: float) -> int:
-    """:func:`_exact_sector_of` for a finite point, ~5x faster: the angle from a polynomial, the exact
+    """:func:`_exact_sector_of`, 1.6-1.8x faster on a frame's clouds: the angle from a polynomial, the exact
     rule (the C library's atan2) only where that lies within :data:`_FAST_SECTOR_GUARD_RAD` of a
     sector boundary, on an axis or at the origin (the HDL-32s' points take their sector one by
     one: this was a third of the ground map's time)."""

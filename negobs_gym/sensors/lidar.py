@@ -132,6 +132,10 @@ def _aim(
         d = rotate_planes(*direction_planes(mount), pose.rotation)
     else:
         index = np.asarray(rays)
+        if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+            raise ConfigError("rays", f"must be a 1-D array of ray indices, got {index.dtype} {index.shape}")
+        if index.size and (int(index.min()) < 0 or int(index.max()) >= m.n_lasers * m.n_columns):
+            raise ConfigError("rays", f"must index the {m.n_lasers} x {m.n_columns} rays of {mount.name}")
         d = rotate_planes(*direction_planes(mount), pose.rotation, index)
     o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
     return index, o, d
@@ -199,12 +203,13 @@ def _scatter_in_limits(
     max_range_m: float,
 ) -> bool:
     """In place: ``image[laser, column - start]`` = ray ``index[k]``'s range (laser-major flat
-    index), NaN outside the range limits; False (image unfinished) where a ray's column lies
-    outside the image (one compiled pass where numpy took a divmod, a check and a scatter)."""
+    index into the sensor's rays), NaN outside the range limits (one compiled pass where numpy
+    took a divmod, a check and a scatter); False, the image unfinished, where a ray's column lies
+    outside the image."""
     width = image.shape[1]
     for k in range(index.size):
         laser, col = index[k] // n_columns, index[k] % n_columns - start
-        if col < 0 or col >= width or laser >= image.shape[0]:
+        if col < 0 or col >= width:
             return False
         v = hit[k]
         image[laser, col] = np.nan if (v < min_range_m or v > max_range_m) else v

@@ -119,6 +119,10 @@ def test_roi_scan_equals_native_on_every_cast_ray_and_covers_the_region(ditch_wo
             scan_one(
                 RIG.mount("hdl64"), caster, pose, rng=np.random.default_rng(9), rays=hdl64.index, columns=bad
             )
+    n_rays = RIG.mount("hdl64").model.n_lasers * RIG.mount("hdl64").model.n_columns
+    for bad_rays in (np.array([0, n_rays]), np.array([-1, 5]), np.array([[1, 2]]), np.array([0.5])):
+        with pytest.raises(ConfigError, match="rays"):
+            scan_one(RIG.mount("hdl64"), caster, pose, rng=np.random.default_rng(9), rays=bad_rays)
     p_remove(world, vehicle)  # the module's world is shared: leave it as it was
     for name, scan in cropped.items():  # the cast columns and their margin, nothing else
         start, stop = subsets[name].columns or (0, roi[name].shape[1])
