@@ -1,7 +1,9 @@
 """Control steps per second of a negobs env with the detector grid, per stage, per rig, per process count.
 
 Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]
-[--skip-others] [--scan-every 2,3] [--far-from 12] [--scan-clock env|episode]``
+[--skip-others] [--default-only] [--scan-every 2,3] [--far-from 12] [--scan-clock env|episode]``
+(``--default-only``: the default observation's stages and ``train_steps_per_s`` alone, for
+alternate runs of two checkouts)
 
 Configurations (the env's registered config with ``ObservationConfig`` changed):
 
@@ -316,6 +318,12 @@ def main() -> None:
     parser.add_argument("--envs", type=int, default=2, help="processes of the vectorized run")
     parser.add_argument("--skip-others", action="store_true", help="only the default rig")
     parser.add_argument(
+        "--default-only",
+        action="store_true",
+        help="only the default observation in one process (stages, train_steps_per_s): a quick A/B of "
+        "two checkouts run alternately",
+    )
+    parser.add_argument(
         "--scan-every", default="2,3", help="comma-separated ObservationConfig.scan_every values ('' = none)"
     )
     parser.add_argument(
@@ -343,20 +351,23 @@ def main() -> None:
     env.reset(seed=0)
     print(f"env={args.env_id} first_make_and_reset_s={time.perf_counter() - t0:.2f}")
     env.close()
-    if not args.skip_others:
+    if not (args.skip_others or args.default_only):
         for source, rig in (("detector", "native"), ("detector", "reduced"), ("oracle", default_rig)):
             label = f"obs={source}" + (f" rig={rig}" if source == "detector" else "")
             envs = _episodes(_make(args.env_id, source, rig), 1)
             sps, _ = _drive(envs, max(20, args.steps // 4))
             _close(envs)
             print(f"{label} processes=1 steps_per_s={sps:.1f}")
-    for pool, episodes in ((None, 10), (8, 100)):
+    for pool, episodes in () if args.default_only else ((None, 10), (8, 100)):
         wall_s, cpu_s = reset_stream_s(args.env_id, episodes, pool)
         print(f"reset_s_mean terrain_pool={pool} over {episodes} episodes: {wall_s:.3f} (cpu {cpu_s:.3f})")
     each = max(1, args.steps // args.envs)  # every run below drives the same episodes
     ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, each, args.envs)
     print(f"stage_ms rig={default_rig} steps={each * args.envs} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
+    if args.default_only:
+        print(f"train_steps_per_s={sps:.1f}")
+        return
     alone = _episodes(_clocked(_make(args.env_id, "detector", default_rig, threads=1)), args.envs)
     one_thread, _ = _drive(alone, each)
     alone_cpu_ms = 1e3 * sum(e.cpu_s for e in alone) / max(1, sum(e.steps for e in alone))
