@@ -160,17 +160,18 @@ def _finish(
     n_columns = m.n_columns
     azimuth = m.azimuth_rad
     start, stop = (0, n_columns) if columns is None else columns
-    if not 0 <= start <= stop <= n_columns:
-        raise ConfigError("columns", f"must be [start, stop) within 0..{n_columns} holding every ray cast")
     if every_ray:
         ranges = _in_limits(hit, m.min_range_m, m.max_range_m).reshape(m.n_lasers, n_columns)
     else:  # the (cropped) image filled directly: no full-size image to fill and copy from
-        ranges = np.full((m.n_lasers, stop - start), np.nan)
-        if not _scatter_in_limits(ranges, hit, index, n_columns, start, m.min_range_m, m.max_range_m):
+        fits = 0 <= start <= stop <= n_columns
+        ranges = np.full((m.n_lasers, stop - start if fits else 0), np.nan)
+        if not (
+            fits and _scatter_in_limits(ranges, hit, index, n_columns, start, m.min_range_m, m.max_range_m)
+        ):
             raise ConfigError(
                 "columns", f"must be [start, stop) within 0..{n_columns} holding every ray cast"
             )
-        azimuth = azimuth[start:stop] if columns is not None else azimuth
+        azimuth = azimuth[start:stop]
     return StructuredScan(
         sensor=mount.name,
         ranges_m=ranges,
