@@ -12,7 +12,7 @@ from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan, ray_directions
 from negobs_gym.errors import ConfigError
-from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
+from negobs_gym.sensors.noise import NoiseConfig, add_keyed_noise
 from negobs_gym.sensors.raycast.base import RayCaster
 from negobs_gym.sensors.rigs import Rig, SensorMount
 
@@ -155,8 +155,8 @@ def _finish(
     """The scan of ``mount`` from the caster's ranges ``hit`` of rays ``index`` (``every_ray``:
     all of them, in order): sensor range limits, keyed noise, the (cropped) range image."""
     m = mount.model
-    hit[hit < m.min_range_m] = np.nan
-    hit = apply_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name))
+    hit = np.require(hit, dtype=np.float64, requirements=("C", "W"))  # a caster's own buffer: no copy
+    add_keyed_noise(hit, index, cfg, _sensor_key(key, mount.name), m.min_range_m)
     n_columns = m.n_columns
     azimuth = m.azimuth_rad
     start, stop = (0, n_columns) if columns is None else columns

@@ -70,41 +70,74 @@ def apply_keyed_noise(
     uniforms for a float32 Box-Muller normal and 16 bits for the dropout (probability resolution
     1/65536).
     """
-    r = np.array(ranges_m, dtype=np.float64)
-    if not config.enabled or r.size == 0:
-        return r
-    index = np.asarray(ray_index, dtype=np.int64).reshape(r.shape).reshape(-1)
-    flat = r.reshape(-1)
-    hit = np.flatnonzero(~np.isnan(flat))  # a miss stays NaN whatever its draw: draw for the hits only
-    u1, u2, u3 = _uniforms(np.uint64(key), index, hit)
-    # numpy's float32 log and cos (SIMD): a compiled libm call can differ in the last bit
-    normal = np.sqrt(np.float32(-2.0) * np.log(u1)) * np.cos(np.float32(2.0 * np.pi) * u2)
-    _add_noise(flat, hit, normal, u3, np.float32(config.range_sigma_m), np.float32(config.dropout_prob))
+    r = np.array(ranges_m, dtype=np.float64, order="C")  # a copy whose flat view writes through
+    index = np.asarray(ray_index)
+    require_index(index, r.size)
+    add_keyed_noise(r.reshape(-1), index.reshape(-1), config, key)
     return r
 
 
+def require_index(index: np.ndarray, n: int) -> None:
+    """Raise unless ``index`` holds ``n`` integer ray indices (one per range)."""
+    if index.size != n or (n and not np.issubdtype(index.dtype, np.integer)):
+        raise InterfaceError(
+            f"ray_index: needs {n} integer ray indices, one per range, got {index.dtype} {index.shape}"
+        )
+
+
+def add_keyed_noise(
+    ranges_m: np.ndarray, ray_index: np.ndarray, config: NoiseConfig, key: int, min_range_m: float = 0.0
+) -> None:
+    """:func:`apply_keyed_noise` in place on a writable 1-D float64 ``ranges_m`` (a scan's own
+    buffer: no copy), after a range below ``min_range_m`` became NaN (the sensor's near limit).
+
+    One compiled pass finds the hits and draws their uniforms; the Box-Muller normal is numpy's
+    float32 ``log`` and ``cos`` (SIMD), which a compiled libm call can differ from in the last bit.
+    """
+    if not config.enabled or ranges_m.size == 0:
+        if min_range_m > 0:
+            ranges_m[ranges_m < min_range_m] = np.nan
+        return
+    hit, u1, u2, u3 = _hit_uniforms(ranges_m, ray_index, np.uint64(key), min_range_m)
+    normal = np.log(u1, out=u1)  # sqrt(-2 log u1) cos(2 pi u2), each operation as numpy rounds it
+    np.multiply(np.float32(-2.0), normal, out=normal)
+    np.sqrt(normal, out=normal)
+    angle = np.multiply(np.float32(2.0 * np.pi), u2, out=u2)
+    np.multiply(normal, np.cos(angle, out=angle), out=normal)
+    _add_noise(ranges_m, hit, normal, u3, np.float32(config.range_sigma_m), np.float32(config.dropout_prob))
+
+
 @kernel
-def _uniforms(
-    key: np.uint64, index: np.ndarray, hit: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per position in ``hit``, three uniforms from the 64 random bits of ray ``index[hit]``, a
-    counter-based draw that depends only on (key, index): SplitMix64 of the index xor the mixed
-    key. 24 + 24 bits give (0, 1) uniforms for Box-Muller, 16 bits a [0, 1) one for the dropout.
-    Every step is exact in float32, so this equals the numpy spelling bit for bit; the bits go
-    through int32 (they fit) because int64 -> float32 does not vectorise."""
+def _hit_uniforms(
+    flat: np.ndarray, index: np.ndarray, key: np.uint64, min_range_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The positions of ``flat``'s hits (NaN below ``min_range_m``, set here; a miss stays NaN
+    whatever its draw: draws for the hits only) and, per hit, three uniforms from the 64 random bits
+    of ray ``index[hit]``, a counter-based draw that depends only on (key, index): SplitMix64 of the
+    index xor the mixed key. 24 + 24 bits give (0, 1) uniforms for Box-Muller, 16 bits a [0, 1) one
+    for the dropout. Every step is exact in float32, so this equals the numpy spelling bit for bit;
+    the bits go through int32 (they fit) because int64 -> float32 does not vectorise."""
+    n = flat.size
+    hit = np.empty(n, dtype=np.int64)
+    count = 0
+    for k in range(n):
+        if flat[k] < min_range_m:
+            flat[k] = np.nan
+        elif flat[k] == flat[k]:
+            hit[count] = k
+            count += 1
     seed = _splitmix64(key)
-    n = hit.size
-    u1 = np.empty(n, dtype=np.float32)
-    u2 = np.empty(n, dtype=np.float32)
-    u3 = np.empty(n, dtype=np.float32)
+    u1 = np.empty(count, dtype=np.float32)
+    u2 = np.empty(count, dtype=np.float32)
+    u3 = np.empty(count, dtype=np.float32)
     scale = np.float32(1.0 / 2**24)
-    for j in range(n):
+    for j in range(count):
         bits = _splitmix64(np.uint64(index[hit[j]]) ^ seed)
         u1[j] = (np.float32(np.int32(bits >> np.uint64(40))) + np.float32(0.5)) * scale
         mid = np.int32((bits >> np.uint64(16)) & np.uint64(0xFFFFFF))
         u2[j] = (np.float32(mid) + np.float32(0.5)) * scale
         u3[j] = np.float32(np.int32(bits & np.uint64(0xFFFF))) * np.float32(1.0 / 2**16)
-    return u1, u2, u3
+    return hit[:count], u1, u2, u3
 
 
 @kernel

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from negobs_gym.sensors.noise import NoiseConfig, apply_keyed_noise
+from negobs_gym.errors import InterfaceError
+from negobs_gym.sensors.noise import NoiseConfig, add_keyed_noise, apply_keyed_noise
 
 
 def _splitmix64(x: np.ndarray) -> np.ndarray:
@@ -57,3 +59,33 @@ def test_keyed_noise_equals_its_numpy_spelling_bit_for_bit():
             want = _numpy_keyed_noise(ranges, index, config, key)
             np.testing.assert_array_equal(got, want)
             assert np.isnan(got).sum() > np.isnan(ranges).sum()  # dropouts and negatives happened
+
+
+@pytest.mark.parametrize("config", [NoiseConfig(), NoiseConfig(enabled=False)])
+def test_keyed_noise_in_place_masks_the_near_limit_first(config):
+    rng = np.random.default_rng(4)
+    ranges = rng.uniform(0.0, 30.0, 20000)
+    ranges[rng.random(ranges.size) < 0.2] = np.nan
+    index = np.arange(ranges.size, dtype=np.int32) * 3  # int32 indices draw what int64 ones draw
+    near = ranges.copy()
+    near[near < 0.9] = np.nan
+    buffer = ranges.copy()
+    add_keyed_noise(buffer, index, config, 42, min_range_m=0.9)
+    np.testing.assert_array_equal(buffer, apply_keyed_noise(near, index.astype(np.int64), config, 42))
+    assert np.isnan(buffer[ranges < 0.9]).all()
+
+
+def test_keyed_noise_of_a_fortran_ordered_image_is_its_c_ordered_copys():
+    rng = np.random.default_rng(5)
+    image = rng.uniform(1.0, 50.0, (16, 300))
+    index = np.arange(image.size)
+    got = apply_keyed_noise(np.asfortranarray(image), index, NoiseConfig(), 9)
+    np.testing.assert_array_equal(got, apply_keyed_noise(image, index, NoiseConfig(), 9))
+    assert not np.array_equal(got, image)
+
+
+def test_keyed_noise_refuses_an_index_that_does_not_match_the_ranges():
+    with pytest.raises(InterfaceError, match="ray_index"):
+        apply_keyed_noise(np.ones(5), np.arange(4), NoiseConfig(), 1)
+    with pytest.raises(InterfaceError, match="ray_index"):
+        apply_keyed_noise(np.ones(3), np.array([0.0, 1.0, 2.0]), NoiseConfig(), 1)
