@@ -23,7 +23,7 @@ import numpy as np
 
 from negobs_gym.errors import ConfigError, MissingDependencyError, require
 from negobs_gym.sensors.raycast.base import check_rays
-from negobs_gym.sensors.raycast.embree_packets import ISAS, PacketScene, packets_available
+from negobs_gym.sensors.raycast.embree_packets import ISAS, PacketScene, packets_available, range_limit
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
 if TYPE_CHECKING:
@@ -128,8 +128,9 @@ class _SharedRays:
     each part's real cost (near and far rays differ ~2x), and every ray's distance is the same
     whatever chunk it is cast in."""
 
-    def __init__(self, scene: _Scene, o32: np.ndarray, d32: np.ndarray, tmax: np.ndarray) -> None:
-        self._scene, self.o32, self.d32, self.tmax = scene, o32, d32, tmax  # o32: (n, 3) or (1, 3)
+    def __init__(self, scene: _Scene, o32: np.ndarray, d32: np.ndarray, max_range_m: float) -> None:
+        # o32: one origin per ray (n, 3) or one for all (1, 3)
+        self._scene, self.o32, self.d32, self.max_range_m = scene, o32, d32, max_range_m
         n = d32.shape[0]
         self.out = np.empty(n)
         self._lock = threading.Lock()
@@ -152,7 +153,7 @@ class _SharedRays:
 
     def _cast(self, lo: int, hi: int) -> None:
         o = self.o32 if self.o32.shape[0] == 1 else self.o32[lo:hi]
-        self.out[lo:hi] = self._scene.cast(o, self.d32[lo:hi], self.tmax[lo:hi])
+        self._scene.cast(o, self.d32[lo:hi], self.max_range_m, out=self.out[lo:hi])
 
     def cast_from_front(self) -> None:
         """A pool thread's part: chunks from the front until none is left."""
@@ -185,11 +186,10 @@ class PendingCast:
                 if not helper.cancel():  # a helper still queued behind other work is not waited for
                     helper.result()  # re-raises a pool thread's error
             rays = self._rays
-            t = rays.out
-            if self._dynamic is not None:
-                t = np.minimum(t, self._dynamic.cast(rays.o32, rays.d32, rays.tmax))
-            t[t > self._max_range_m] = np.inf
-            self._ranges = np.where(np.isfinite(t), t, np.nan)
+            ranges = rays.out
+            if self._dynamic is not None:  # the nearer hit of the two scenes (fmin: NaN = none)
+                np.fmin(ranges, self._dynamic.cast(rays.o32, rays.d32, self._max_range_m), out=ranges)
+            self._ranges = ranges
         return self._ranges
 
 
@@ -215,20 +215,25 @@ class _Scene:
                 self._embreex, np.ascontiguousarray(v, dtype=np.float32), np.ascontiguousarray(f, np.int32)
             )
 
-    def cast(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
-        """Hit distances (inf = miss) of float32 rays in local coordinates; ``o`` is one origin per
-        ray (n, 3) or one for all (1, 3)."""
-        if self.n_triangles == 0 or d.shape[0] == 0:
-            return np.full(d.shape[0], np.inf)
-        # a distance query returns tfar alone (no hit records: ~7 % faster); a miss keeps its limit,
-        # so the limit is one float32 step past tmax, where a hit would lie beyond tmax anyway
-        limit = np.nextafter(tmax.astype(np.float32), np.float32(np.inf))
+    def cast(
+        self, o: np.ndarray, d: np.ndarray, max_range_m: float, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """float64 ranges (NaN: nothing hit within ``max_range_m``) of float32 rays in local
+        coordinates, in ``out`` where given; ``o`` is one origin per ray (n, 3) or one for all (1, 3)."""
         if self._packets is not None:
-            t = self._packets.cast(o, d, limit)
-        else:
-            o = np.ascontiguousarray(np.broadcast_to(o, d.shape))
-            t = np.asarray(self._embreex.run(o, d, dists=limit.copy(), query="DISTANCE"))
-        return np.where(t < limit, t.astype(np.float64), np.inf)
+            return self._packets.cast(o, d, max_range_m, out=out)
+        out = np.empty(d.shape[0]) if out is None else out
+        if self.n_triangles == 0 or d.shape[0] == 0:
+            out[:] = np.nan
+            return out
+        # a distance query returns tfar alone (no hit records: ~7 % faster); a miss keeps its limit,
+        # one float32 step past max_range_m, where a hit would lie beyond max_range_m anyway
+        limit = range_limit(max_range_m)
+        o = np.ascontiguousarray(np.broadcast_to(o, d.shape))
+        t = np.asarray(self._embreex.run(o, d, dists=np.full(d.shape[0], limit), query="DISTANCE"))
+        t64 = t.astype(np.float64)
+        out[:] = np.where((t < limit) & (t64 <= max_range_m), t64, np.nan)
+        return out
 
 
 class EmbreeCaster:
@@ -378,8 +383,7 @@ class EmbreeCaster:
             o32 = (o[:1] - self.local_origin_m).astype(np.float32)
         else:
             o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
-        tmax = np.full(o.shape[0], max_range_m, dtype=np.float32)
-        rays = _SharedRays(self._static, o32, d32, tmax)
+        rays = _SharedRays(self._static, o32, d32, float(max_range_m))
         helpers: list[Future] = []
         if self.config.threads > 1 and d32.shape[0] >= 2 * _SHARE_MIN_RAYS:
             pool = _thread_pool(self.config.threads - 1)

@@ -138,12 +138,20 @@ def packets_available() -> bool:
 
 
 @kernel
-def _intersect16(intersect16, scene: int, o: np.ndarray, d: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """``tfar`` of each float32 ray after ``rtcIntersect16`` (``limit`` where nothing is hit); ``o``
-    holds one origin per ray or one row for all."""
+def _intersect16(
+    intersect16,
+    scene: int,
+    o: np.ndarray,
+    d: np.ndarray,
+    limit: np.float32,
+    max_range_m: float,
+    out: np.ndarray,
+) -> None:
+    """``out`` = each float32 ray's range after ``rtcIntersect16``, in float64: its ``tfar`` where
+    a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
+    or one row for all."""
     n = d.shape[0]
     one_origin = o.shape[0] == 1
-    out = np.empty(n, dtype=np.float32)
     work = np.zeros(_PACKET_BYTES + 128, dtype=np.uint8)  # the packet, then the lanes' valid flags
     start = (-work.ctypes.data) % 64
     packet = work[start : start + _PACKET_BYTES]
@@ -166,7 +174,7 @@ def _intersect16(intersect16, scene: int, o: np.ndarray, d: np.ndarray, limit: n
             f[5 * w + k] = d[j, 1]
             f[6 * w + k] = d[j, 2]
             f[7 * w + k] = 0.0  # time
-            f[8 * w + k] = limit[j]  # tfar
+            f[8 * w + k] = limit  # tfar
             u[9 * w + k] = 0xFFFFFFFF  # mask
             u[10 * w + k] = 0  # id
             u[11 * w + k] = 0  # flags
@@ -174,8 +182,8 @@ def _intersect16(intersect16, scene: int, o: np.ndarray, d: np.ndarray, limit: n
             valid[k] = -1 if k < m else 0
         intersect16(valid_ptr, scene, packet_ptr, 0)
         for k in range(m):
-            out[first + k] = f[8 * w + k]
-    return out
+            t = f[8 * w + k]
+            out[first + k] = np.float64(t) if t < limit and np.float64(t) <= max_range_m else np.nan
 
 
 class PacketScene:
@@ -234,22 +242,39 @@ class PacketScene:
                 f"Embree: building a scene of {self.n_triangles} triangles failed (code {error})"
             )
 
-    def cast(self, o32: np.ndarray, d32: np.ndarray, limit: np.ndarray) -> np.ndarray:
-        """float32 ``tfar`` of each ray: its hit distance, or ``limit`` where nothing is hit first.
-        ``o32``: one origin per ray (n, 3), or one row (1, 3) for every ray."""
-        if o32.shape[0] not in (1, d32.shape[0]):
-            raise ValueError(
-                f"origins: one per ray or one for all, got {o32.shape[0]} for {d32.shape[0]} rays"
-            )
-        if d32.shape[0] == 0 or self.n_triangles == 0:
-            return np.asarray(limit, dtype=np.float32).copy()
-        return _intersect16(
+    def cast(
+        self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """float64 range of each ray (NaN: nothing hit within ``max_range_m``), in ``out`` where
+        given (a float64 array of one value per ray). ``o32``: one origin per ray (n, 3), or one
+        row (1, 3) for every ray. A hit counts where its float32 distance lies before the float32
+        step past ``max_range_m`` and, in float64, within it."""
+        n = d32.shape[0]
+        if o32.shape[0] not in (1, n):
+            raise ValueError(f"origins: one per ray or one for all, got {o32.shape[0]} for {n} rays")
+        if out is None:
+            out = np.empty(n)
+        elif out.shape != (n,) or out.dtype != np.float64:
+            raise ValueError(f"out: needs a float64 array of {n} ranges, got {out.dtype} {out.shape}")
+        if n == 0 or self.n_triangles == 0:
+            out[:] = np.nan
+            return out
+        _intersect16(
             self._lib.intersect16,
             self._scene,
             np.ascontiguousarray(o32, dtype=np.float32),
             np.ascontiguousarray(d32, dtype=np.float32),
-            np.ascontiguousarray(limit, dtype=np.float32),
+            range_limit(max_range_m),
+            float(max_range_m),
+            out,
         )
+        return out
+
+
+def range_limit(max_range_m: float) -> np.float32:
+    """The float32 ``tfar`` a cast starts with: one float32 step past ``max_range_m``, so that a
+    hit at the float32 rounding of ``max_range_m`` still counts and a miss keeps this value."""
+    return np.nextafter(np.float32(max_range_m), np.float32(np.inf))
 
 
 def _release_scene(lib: ctypes.CDLL, scene: int, pid: int) -> None:

@@ -266,12 +266,12 @@ def _record_pool_chunks(caster, fail=False):
     scene, pool_cast = caster._static, threading.Event()
     own = scene.cast
 
-    def cast(o, d, tmax):
+    def cast(o, d, max_range_m, out=None):
         if threading.current_thread() is not threading.main_thread():
             pool_cast.set()
             if fail:
                 raise RuntimeError("pool thread failed")
-        return own(o, d, tmax)
+        return own(o, d, max_range_m, out=out)
 
     scene.cast = cast
     return pool_cast

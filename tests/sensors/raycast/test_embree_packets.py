@@ -38,9 +38,8 @@ def _both(mesh, o, d, tmax):
     packets = _Scene(mesh, packets=True)
     single = _Scene(mesh, packets=False)
     assert packets._packets is not None and single._embreex is not None
-    t = np.full(len(o), tmax, dtype=np.float32)
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
-    return packets.cast(o32, d32, t), single.cast(o32, d32, t)
+    return packets.cast(o32, d32, tmax), single.cast(o32, d32, tmax)
 
 
 def test_packets_equal_single_ray_queries_bit_for_bit(rough_world):
@@ -77,11 +76,10 @@ def test_a_rays_distance_does_not_depend_on_the_rays_packed_with_it(rough_world)
     scene = _Scene(heightfield_mesh(world.physics_heightfield, np.zeros(3)), packets=True)
     o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]))
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
-    t = np.full(len(o), 120.0, dtype=np.float32)
-    full = scene.cast(o32, d32, t)
+    full = scene.cast(o32, d32, 120.0)
     rng = np.random.default_rng(8)
     for subset in (rng.random(len(o)) < 0.3, np.arange(len(o)) % 7 == 3, np.arange(len(o)) >= 5):
-        np.testing.assert_array_equal(scene.cast(o32[subset], d32[subset], t[subset]), full[subset])
+        np.testing.assert_array_equal(scene.cast(o32[subset], d32[subset], 120.0), full[subset])
 
 
 @pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 33])
@@ -98,10 +96,8 @@ def test_packet_remainders(rough_world, n):
 def test_empty_mesh_hits_nothing():
     empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32))
     scene = embree_packets.PacketScene(*empty)
-    limit = np.full(3, 9.5, dtype=np.float32)
-    np.testing.assert_array_equal(
-        scene.cast(np.zeros((3, 3), np.float32), np.ones((3, 3), np.float32), limit), limit
-    )
+    got = scene.cast(np.zeros((3, 3), np.float32), np.ones((3, 3), np.float32), 9.5)
+    assert got.shape == (3,) and np.isnan(got).all()
 
 
 def test_caster_casts_the_same_with_and_without_packets(rough_world):
@@ -169,8 +165,26 @@ def test_one_origin_row_casts_as_the_origin_repeated_per_ray(rough_world, packet
     scene = _Scene(heightfield_mesh(world.physics_heightfield, np.zeros(3)), packets=packets)
     o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]))
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
-    t = np.full(len(o), 120.0, dtype=np.float32)
-    np.testing.assert_array_equal(scene.cast(o32[:1], d32, t), scene.cast(o32, d32, t))
+    np.testing.assert_array_equal(scene.cast(o32[:1], d32, 120.0), scene.cast(o32, d32, 120.0))
     if packets:
         with pytest.raises(ValueError, match="one per ray or one for all"):
-            scene._packets.cast(o32[:2], d32, t)
+            scene._packets.cast(o32[:2], d32, 120.0)
+        with pytest.raises(ValueError, match="out"):
+            scene._packets.cast(o32, d32, 120.0, out=np.empty(len(o), dtype=np.float32))
+
+
+@pytest.mark.parametrize("packets", [True, False])
+def test_a_range_counts_up_to_the_float32_step_past_the_limit_and_within_it(rough_world, packets):
+    """Hits are kept where their float32 distance lies before the float32 step past max_range_m
+    and, in float64, within max_range_m: cut at a limit that is not a float32 value, every kept
+    range is <= the limit and every longer hit is NaN."""
+    world, _ = rough_world
+    scene = _Scene(heightfield_mesh(world.physics_heightfield, np.zeros(3)), packets=packets)
+    o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]))
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    far = scene.cast(o32, d32, 120.0)
+    limit = float(np.nanmedian(far)) + 1e-9  # between two float32 values
+    cut = scene.cast(o32, d32, limit)
+    assert np.nanmax(cut) <= limit
+    np.testing.assert_array_equal(cut[far <= limit], far[far <= limit])
+    assert np.isnan(cut[~(far <= limit)]).all()
