@@ -116,29 +116,42 @@ def scan(
     """
     cfg = noise or NoiseConfig()
     key = frame_noise_key(rng, cfg) if noise_key is None else noise_key
-    index, o, d = _aim(mount, pose, rays)
-    hit = caster.cast(o, d, mount.model.max_range_m) if index.size else np.empty(0)
+    index = _ray_index(mount, rays)
+    hit = _cast(mount, caster, pose, index, rays is None) if index.size else np.empty(0)
     return _finish(mount, pose, hit, index, rays is None, cfg, key, columns, timestamp_s)
 
 
-def _aim(
-    mount: SensorMount, pose: Pose, rays: np.ndarray | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The flat indices, world origins (one broadcast row) and world directions of the rays of
-    ``mount`` to cast at vehicle ``pose`` (``rays``: a subset's indices; None: all)."""
+def _ray_index(mount: SensorMount, rays: np.ndarray | None) -> np.ndarray:
+    """The flat indices of the rays of ``mount`` to cast (``rays``: a subset's, checked; None: all)."""
     m = mount.model
     if rays is None:
-        index = np.arange(m.n_lasers * m.n_columns)
-        d = rotate_planes(*direction_planes(mount), pose.rotation)
-    else:
-        index = np.asarray(rays)
-        if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
-            raise ConfigError("rays", f"must be a 1-D array of ray indices, got {index.dtype} {index.shape}")
-        if index.size and (int(index.min()) < 0 or int(index.max()) >= m.n_lasers * m.n_columns):
-            raise ConfigError("rays", f"must index the {m.n_lasers} x {m.n_columns} rays of {mount.name}")
-        d = rotate_planes(*direction_planes(mount), pose.rotation, index)
-    o = np.broadcast_to(pose.to_world(np.asarray(mount.translation_m)[None, :])[0], d.shape)
-    return index, o, d
+        return np.arange(m.n_lasers * m.n_columns)
+    index = np.asarray(rays)
+    if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+        raise ConfigError("rays", f"must be a 1-D array of ray indices, got {index.dtype} {index.shape}")
+    if index.size and (int(index.min()) < 0 or int(index.max()) >= m.n_lasers * m.n_columns):
+        raise ConfigError("rays", f"must index the {m.n_lasers} x {m.n_columns} rays of {mount.name}")
+    return index
+
+
+def _cast(
+    mount: SensorMount, caster: RayCaster, pose: Pose, index: np.ndarray, every_ray: bool, start: bool = False
+) -> Any:
+    """The ranges of rays ``index`` of ``mount`` at vehicle ``pose`` (``every_ray``: all of them,
+    in order), or with ``start`` the caster's started cast of them. A caster that rotates a
+    sensor's rays itself (``start_rotated_cast``, :class:`EmbreeCaster`) is handed the direction
+    table and the pose's rotation; any other gets world rays."""
+    origin = pose.to_world(np.asarray(mount.translation_m)[None, :])[0]
+    planes = direction_planes(mount)
+    subset = None if every_ray else index
+    max_range_m = mount.model.max_range_m
+    rotated = getattr(caster, "start_rotated_cast", None)
+    if rotated is not None:
+        pending = rotated(origin, planes, subset, pose.rotation, max_range_m)
+        return pending if start else pending.result()
+    d = rotate_planes(*planes, pose.rotation, subset)
+    o = np.broadcast_to(origin, d.shape)
+    return caster.start_cast(o, d, max_range_m) if start else caster.cast(o, d, max_range_m)
 
 
 def _finish(
@@ -292,12 +305,13 @@ class PendingRigScan:
         self._scans: dict[str, StructuredScan] = {}
         self.started: str | None = None
         self._pending: tuple[Any, np.ndarray] | None = None  # the started cast and its ray indices
-        start = getattr(caster, "start_cast", None)
-        if start is not None and self._mounts:
+        if hasattr(caster, "start_cast") and self._mounts:
             name = max(self._mounts, key=self._ray_count)
-            index, o, d = _aim(self._mounts[name], pose, self._rays[name])
+            rays = self._rays[name]
+            index = _ray_index(self._mounts[name], rays)
             if index.size:
-                self._pending = (start(o, d, self._mounts[name].model.max_range_m), index)
+                pending = _cast(self._mounts[name], caster, pose, index, rays is None, start=True)
+                self._pending = (pending, index)
                 self.started = name
 
     def _ray_count(self, name: str) -> int:

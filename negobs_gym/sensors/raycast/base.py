@@ -33,12 +33,16 @@ def check_rays(
     if not (np.isfinite(max_range_m) and max_range_m > 0):
         raise ScanError(f"max_range_m must be finite and > 0, got {max_range_m}")
     unit = np.empty(d.shape, dtype=dtype)
-    problem = _unit_rows(d, unit)
+    raise_ray_problem(_unit_rows(d, unit))
+    return o, unit
+
+
+def raise_ray_problem(problem: int) -> None:
+    """Raise the :class:`ScanError` of a ray kernel's problem code (0: none)."""
     if problem == _NOT_FINITE:
         raise ScanError("origins and directions must be finite")
     if problem == _ZERO:
         raise ScanError("directions must be non-zero")
-    return o, unit
 
 
 _NOT_FINITE, _ZERO = 1, 2
@@ -57,4 +61,34 @@ def _unit_rows(d: np.ndarray, out: np.ndarray) -> int:
         if n < 1e-12:
             problem = _ZERO
         out[k, 0], out[k, 1], out[k, 2] = x / n, y / n, z / n
+    return problem
+
+
+@kernel
+def rotated_unit_rows(
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    index: np.ndarray,
+    use_index: bool,
+    r: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """``out`` (n, 3) = the rows ``index`` (all: ``use_index`` False) of the directions with
+    coordinate planes ``x, y, z`` rotated by ``r`` (coordinate i ``(x R[i,0] + y R[i,1]) + z
+    R[i,2]``, as ``sensors.lidar.rotate_planes`` computes it), then made unit as :func:`check_rays`
+    makes them, in one pass. Returns :func:`_unit_rows`'s problem code."""
+    problem = 0
+    for k in range(out.shape[0]):
+        m = index[k] if use_index else k
+        xm, ym, zm = x[m], y[m], z[m]
+        a = xm * r[0, 0] + ym * r[0, 1] + zm * r[0, 2]
+        b = xm * r[1, 0] + ym * r[1, 1] + zm * r[1, 2]
+        c = xm * r[2, 0] + ym * r[2, 1] + zm * r[2, 2]
+        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
+            return _NOT_FINITE
+        n = np.sqrt(a * a + b * b + c * c)
+        if n < 1e-12:
+            problem = _ZERO
+        out[k, 0], out[k, 1], out[k, 2] = a / n, b / n, c / n
     return problem

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from negobs_gym.errors import ConfigError, MissingDependencyError, require
-from negobs_gym.sensors.raycast.base import check_rays
+from negobs_gym.errors import ConfigError, MissingDependencyError, ScanError, require
+from negobs_gym.sensors.raycast.base import check_rays, raise_ray_problem, rotated_unit_rows
 from negobs_gym.sensors.raycast.embree_packets import ISAS, PacketScene, packets_available, range_limit
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
@@ -377,13 +377,49 @@ class EmbreeCaster:
         is not thread-safe), so pool threads only touch Embree.
         """
         o, d32 = check_rays(origins, directions, max_range_m, dtype=np.float32)
-        if self.config.auto_update:
-            self.update_dynamic()
         if o.strides[0] == 0:  # one origin for every ray (a sensor's scan): shifted once, one row
             o32 = (o[:1] - self.local_origin_m).astype(np.float32)
         else:
             o32 = np.ascontiguousarray(o - self.local_origin_m, dtype=np.float32)
-        rays = _SharedRays(self._static, o32, d32, float(max_range_m))
+        return self._start(o32, d32, float(max_range_m))
+
+    def start_rotated_cast(
+        self,
+        origin_m: np.ndarray,
+        planes: tuple[np.ndarray, np.ndarray, np.ndarray],
+        index: np.ndarray | None,
+        rotation: np.ndarray,
+        max_range_m: float,
+    ) -> PendingCast:
+        """:meth:`start_cast` of a sensor's rays from one ``origin_m`` (3,): the directions
+        with coordinate planes ``planes`` (the rows ``index`` of them; None: all) rotated by
+        ``rotation`` as ``sensors.lidar.rotate_planes`` rotates them. Rotated and made unit in
+        one pass, with no (n, 3) float64 copy: the ranges are those of ``start_cast`` on the
+        rotated rows, bit for bit."""
+        o = np.asarray(origin_m, dtype=np.float64).reshape(-1)
+        r = np.ascontiguousarray(rotation, dtype=np.float64)
+        if o.shape != (3,) or r.shape != (3, 3) or not (np.isfinite(o).all() and np.isfinite(r).all()):
+            raise ScanError("origin_m must be 3 finite values and rotation a finite 3 x 3 matrix")
+        if not (np.isfinite(max_range_m) and max_range_m > 0):
+            raise ScanError(f"max_range_m must be finite and > 0, got {max_range_m}")
+        x, y, z = (np.asarray(p, dtype=np.float64) for p in planes)
+        idx = np.empty(0, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
+        n = x.size if index is None else idx.size
+        covered = index is None or n == 0 or 0 <= idx.min() <= idx.max() < x.size
+        if not (x.shape == y.shape == z.shape == (x.size,)) or not covered:
+            raise ScanError(
+                f"planes must be three equal 1-D arrays index covers, got {x.shape}, {y.shape}, {z.shape}"
+            )
+        d32 = np.empty((n, 3), dtype=np.float32)
+        raise_ray_problem(rotated_unit_rows(x, y, z, idx, index is not None, r, d32))
+        o32 = (o[None, :] - self.local_origin_m).astype(np.float32)
+        return self._start(o32, d32, float(max_range_m))
+
+    def _start(self, o32: np.ndarray, d32: np.ndarray, max_range_m: float) -> PendingCast:
+        """Hand local float32 rays (one origin per ray, or one row for all) to the pool threads."""
+        if self.config.auto_update:
+            self.update_dynamic()
+        rays = _SharedRays(self._static, o32, d32, max_range_m)
         helpers: list[Future] = []
         if self.config.threads > 1 and d32.shape[0] >= 2 * _SHARE_MIN_RAYS:
             pool = _thread_pool(self.config.threads - 1)

@@ -308,3 +308,48 @@ def test_a_pool_threads_error_reaches_the_result(flat_world):
     assert pool_cast.wait(timeout=30.0)
     with pytest.raises(RuntimeError, match="pool thread failed"):
         pending.result()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_rotated_cast_equals_the_cast_of_the_rotated_rows_bit_for_bit(flat_world, threads):
+    """A sensor's rays handed over as its direction table and the pose's rotation get the ranges of
+    the same rays rotated first (``rotate_planes``), whole or as a subset."""
+    from negobs_gym.core.pose import rotation_from_rpy
+    from negobs_gym.sensors.lidar import rotate_planes
+
+    world, own = flat_world
+    caster = EmbreeCaster.from_world(
+        world, exclude_body_ids=[own.body_id], config=EmbreeConfig(threads=threads)
+    )
+    rng = np.random.default_rng(11)
+    d = rng.normal(size=(30_000, 3)) * [1.0, 1.0, 0.3] - [0.0, 0.0, 0.4]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    planes = tuple(np.ascontiguousarray(d[:, k]) for k in range(3))
+    origin = np.array([0.4, 1.5, 2.1])
+    for rpy in ((0.0, 0.0, 0.0), (0.03, -0.02, 1.3), (-0.1, 0.05, -2.9)):
+        rot = rotation_from_rpy(*rpy)
+        for index in (None, np.sort(rng.choice(len(d), 9_000, replace=False))):
+            rows = rotate_planes(*planes, rot, index)
+            want = caster.cast(np.broadcast_to(origin, rows.shape), rows, 80.0)
+            got = caster.start_rotated_cast(origin, planes, index, rot, 80.0).result()
+            np.testing.assert_array_equal(got, want)
+            assert np.isfinite(got).mean() > 0.5
+
+
+def test_a_rotated_cast_refuses_bad_rays(flat_world):
+    world, _ = flat_world
+    caster = EmbreeCaster.from_world(world)
+    planes = (np.ones(4), np.zeros(4), np.zeros(4))
+    eye = np.eye(3)
+    with pytest.raises(ScanError, match="origin_m"):
+        caster.start_rotated_cast(np.array([np.nan, 0.0, 2.0]), planes, None, eye, 50.0)
+    with pytest.raises(ScanError, match="rotation"):
+        caster.start_rotated_cast(np.zeros(3), planes, None, np.full((3, 3), np.inf), 50.0)
+    with pytest.raises(ScanError, match="max_range_m"):
+        caster.start_rotated_cast(np.zeros(3), planes, None, eye, -1.0)
+    with pytest.raises(ScanError, match="index covers"):
+        caster.start_rotated_cast(np.zeros(3), planes, np.array([0, 4]), eye, 50.0)
+    with pytest.raises(ScanError, match="non-zero"):
+        caster.start_rotated_cast(np.zeros(3), (np.zeros(4),) * 3, None, eye, 50.0)
+    with pytest.raises(ScanError, match="finite"):
+        caster.start_rotated_cast(np.zeros(3), (np.full(4, np.nan),) * 3, None, eye, 50.0)
