@@ -402,6 +402,10 @@ def run_policy(args: argparse.Namespace) -> int:
             " ".join(f"--set {s}" for s in args.overrides) or "no --set",
         )
     config = build_config(PolicyCampaignConfig, toml, cli)
+    if recorded is None and args.env_id is None and "env_id" not in toml:
+        log.warning(
+            "%s has no record of the env it was fitted on: evaluating on %s", args.model, config.env_id
+        )
     label = describe_overrides(config.env_id, args.overrides)  # result lines name the id and settings
     if args.overrides:
         env = env_with_overrides(config.env_id, args.overrides, args.out, replace=not args.resume)

@@ -293,6 +293,7 @@ def run_train(args: argparse.Namespace) -> int:
     from negobs_gym.scenarios import describe_overrides, env_with_overrides
 
     config = config_from_args(args)
+    label_env = config.env  # the env as named, before --set writes its scenario
     label = describe_overrides(config.env, args.overrides)
     if args.overrides:  # the changed scenario, written to OUT/scenario.toml, is what trains
         config = dataclasses.replace(config, env=env_with_overrides(config.env, args.overrides, args.out))
@@ -306,7 +307,7 @@ def run_train(args: argparse.Namespace) -> int:
         config.envs,
         args.out,
     )
-    result = train(config, args.out, resume=args.resume)
+    result = train(config, args.out, resume=args.resume, fitted_on=(label_env, args.overrides))
     e = result.last_eval
     print(
         f"model={result.model_path} steps={result.steps} wall_s={result.wall_s:.1f} "

@@ -9,14 +9,27 @@ name wherever a model path is asked for.
 from __future__ import annotations
 
 import json
+import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from negobs_gym.errors import ConfigError
 
-__all__ = ["BASELINE_DIR", "baseline_names", "baseline_record", "recorded_env", "resolve_model"]
+__all__ = [
+    "BASELINE_DIR",
+    "FITTED_ON",
+    "baseline_names",
+    "baseline_record",
+    "fitted_on_record",
+    "recorded_env",
+    "resolve_model",
+]
 
 BASELINE_DIR = Path(__file__).with_name("trained")
+#: The model attribute ``negobs train`` sets before every save: stable-baselines3 writes a model's
+#: JSON-able attributes into the zip's ``data`` member, so the record travels with the file.
+FITTED_ON = "negobs_fitted_on"
 
 
 def baseline_names() -> list[str]:
@@ -55,10 +68,13 @@ def resolve_model(model: str, field: str = "model_path") -> str:
 
 def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     """The env a model was fitted on and the ``--set`` assignments it was fitted with, from its
-    record: a shipped baseline's ``NAME.json`` (``env``, ``set``), or the ``train.json`` of the
-    ``negobs train`` folder the model file lies in (``model.zip``, ``warm_start.zip``,
-    ``checkpoints/model_N.zip``; a ``--set`` run's ``OUT/scenario.toml``, found beside it). None when
-    there is no record, so evaluating on another grid than the one trained on is never silent.
+    record: a shipped baseline's ``NAME.json`` (``env``, ``set``); the record ``negobs train``
+    saved inside the zip (:data:`FITTED_ON`: the env as the command named it and its ``--set``,
+    so a model moved out of its run folder keeps it); or, for a model saved before that record
+    existed, the ``train.json`` of the ``negobs train`` folder the model file lies in
+    (``model.zip``, ``warm_start.zip``, ``checkpoints/model_N.zip``; a ``--set`` run's
+    ``OUT/scenario.toml``, found beside it). None when there is no record, so evaluating on
+    another grid than the one trained on is never silent.
     """
     path = Path(model) if Path(model).exists() else Path(f"{model}.zip")
     if not path.exists():
@@ -66,6 +82,9 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
             return None
         record = baseline_record(model)
         return str(record["env"]), tuple(record.get("set", ()))
+    inside = _zip_record(path)
+    if inside is not None:
+        return inside
     for folder in (path.parent, path.parent.parent):
         run = folder / "train.json"
         if run.is_file():
@@ -75,3 +94,22 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
                 str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"]), folder
             ), ()
     return None
+
+
+def fitted_on_record(env: str, overrides: Sequence[str] = ()) -> dict[str, Any]:
+    """The :data:`FITTED_ON` record of a model fitted on ``env`` with ``--set`` ``overrides``."""
+    return {"env": str(env), "set": [str(s) for s in overrides]}
+
+
+def _zip_record(path: Path) -> tuple[str, tuple[str, ...]] | None:
+    """The :data:`FITTED_ON` record in a stable-baselines3 zip's ``data`` member; None when the
+    file is no such zip or was saved without one (SB3 itself reports a bad file on loading)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (zipfile.BadZipFile, KeyError, OSError, ValueError):
+        return None
+    record = data.get(FITTED_ON) if isinstance(data, dict) else None
+    if not isinstance(record, dict) or not isinstance(record.get("env"), str):
+        return None
+    return record["env"], tuple(str(s) for s in record.get("set", ()))

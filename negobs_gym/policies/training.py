@@ -39,6 +39,7 @@ import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env work
 from negobs_gym.envs.base import NegObsEnv, registered_negobs_env
 from negobs_gym.envs.config import EnvConfig
 from negobs_gym.errors import ConfigError
+from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
 from negobs_gym.policies.config import TrainConfig
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
@@ -204,8 +205,18 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
 _RESUME_FIELDS = ("env", "algo", "source", "filter", "stop_for_positive", "init_model")
 
 
-def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> TrainResult:
+def train(
+    config: TrainConfig,
+    out_dir: str | Path,
+    *,
+    resume: bool = False,
+    fitted_on: tuple[str, Sequence[str]] | None = None,
+) -> TrainResult:
     """Train (or resume) as ``config`` says; files under ``out_dir`` (module docstring).
+
+    Every saved zip records the env it was fitted on (:data:`~negobs_gym.policies.baselines.FITTED_ON`):
+    ``fitted_on`` as (env, ``--set`` assignments) when ``config.env`` is a scenario written from
+    them (``negobs train --set``), else ``config.env`` alone.
 
     Raises:
         ConfigError: unknown env; ``resume`` without a checkpoint, or with a different env,
@@ -245,8 +256,9 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         else:
             model = _new_model(config, venv, grid_shape)
             warm = _warm_start(model, config, out)
-            if warm:  # the cloned policy before any PPO update, for `negobs eval policy`
-                save_model_atomic(model, out / "warm_start.zip")
+        setattr(model, FITTED_ON, fitted_on_record(*(fitted_on or (config.env,))))
+        if warm and checkpoint is None:  # the cloned policy before any PPO update, for eval
+            save_model_atomic(model, out / "warm_start.zip")
         start_step = model.num_timesteps
         if start_step >= config.steps:
             raise ConfigError(

@@ -158,6 +158,42 @@ def test_set_trains_on_the_changed_scenario_and_a_resume_keeps_it(tmp_path: Path
     assert spec_from_toml(scene.read_text()).episode.time_limit_s == 2.0
 
 
+def test_a_model_moved_out_of_its_run_keeps_the_env_and_set_it_was_fitted_on(tmp_path: Path, capsys) -> None:
+    import zipfile
+
+    from negobs_gym.policies.baselines import FITTED_ON, recorded_env
+
+    out = tmp_path / "run"
+    args = ["train", "--env", ENV, "--steps", "64", "--eval-every", "0", *SHORT, "--out", str(out)]
+    assert main(["-q", *args, "--set", "episode.time_limit_s=2.0"]) == 0
+    capsys.readouterr()
+    moved = tmp_path / "elsewhere" / "policy.zip"
+    moved.parent.mkdir()
+    (out / "model.zip").rename(moved)
+    assert recorded_env(str(moved)) == (ENV, ("episode.time_limit_s=2.0",))  # no train.json beside it
+    evaluation = ["eval", "policy", str(moved), "--seeds", "1", "--filter", "off", "--no-progress"]
+    assert main(["-q", *evaluation, "--out", str(tmp_path / "eval")]) == 0
+    line = capsys.readouterr().out
+    assert line.startswith(f"{ENV}[episode.time_limit_s=2.0]/nofilter success=")
+    assert float(line.split("mean_progress_m=", 1)[1].split()[0]) < 2.0 * 25 / 3.6 + 1.0  # its 2 s limit
+
+    # the same model without the record: evaluated on eval policy's default env, with a warning
+    bare = tmp_path / "elsewhere" / "bare.zip"
+    with zipfile.ZipFile(moved) as source, zipfile.ZipFile(bare, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "data":
+                stripped = {k: v for k, v in json.loads(data).items() if k != FITTED_ON}
+                data = json.dumps(stripped).encode()
+            target.writestr(item, data)
+    assert recorded_env(str(bare)) is None
+    evaluation = ["eval", "policy", str(bare), "--seeds", "1", "--filter", "off", "--no-progress"]
+    assert main(["-q", *evaluation, "--source", "oracle", "--out", str(tmp_path / "eval_bare")]) == 0
+    printed = capsys.readouterr()
+    assert printed.out.startswith("negobs_gym/Braking-v0/nofilter success=")
+    assert "has no record of the env it was fitted on: evaluating on negobs_gym/Braking-v0" in printed.err
+
+
 def test_action_std_sets_the_warm_start_or_the_init_model() -> None:
     from negobs_gym.cli import build_parser
     from negobs_gym.cli.train import config_from_args

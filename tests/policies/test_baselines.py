@@ -64,3 +64,29 @@ def test_a_training_folder_records_the_env_of_its_models(tmp_path: Path) -> None
     (run / "train.json").write_text(json.dumps({"config": {"env": "elsewhere/run/scenario.toml"}}))
     (run / "scenario.toml").write_text("name = 'x'\n")
     assert recorded_env(str(run / "model.zip")) == (str(run / "scenario.toml"), ())
+
+
+def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_back(tmp_path: Path) -> None:
+    import zipfile
+
+    from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "train.json").write_text(json.dumps({"config": {"env": str(run / "scenario.toml")}}))
+    (run / "scenario.toml").write_text("name = 'x'\n")
+
+    def model(name: str, data: bytes) -> str:
+        with zipfile.ZipFile(run / name, "w") as archive:  # SB3's layout: JSON attributes in "data"
+            archive.writestr("data", data)
+        return str(run / name)
+
+    record = fitted_on_record("negobs_gym/OffroadNav-v2", ["observation.tighten_pairs=false"])
+    recorded = model("recorded.zip", json.dumps({"gamma": 0.99, FITTED_ON: record}).encode())
+    assert recorded_env(recorded) == ("negobs_gym/OffroadNav-v2", ("observation.tighten_pairs=false",))
+    for name, data in {
+        "older.zip": json.dumps({"gamma": 0.99}).encode(),  # saved before the record existed
+        "garbled.zip": b"{not json",
+        "odd.zip": json.dumps({FITTED_ON: {"env": 3}}).encode(),
+    }.items():
+        assert recorded_env(model(name, data)) == (str(run / "scenario.toml"), ()), name
