@@ -103,7 +103,8 @@ def fitted_on_record(env: str, overrides: Sequence[str] = ()) -> dict[str, Any]:
 
 def _zip_record(path: Path) -> tuple[str, tuple[str, ...]] | None:
     """The :data:`FITTED_ON` record in a stable-baselines3 zip's ``data`` member; None when the
-    file is no such zip or was saved without one (SB3 itself reports a bad file on loading)."""
+    file is no such zip, was saved without one or holds a malformed one (SB3 itself reports a
+    bad file on loading)."""
     try:
         with zipfile.ZipFile(path) as archive:
             data = json.loads(archive.read("data"))
@@ -112,4 +113,7 @@ def _zip_record(path: Path) -> tuple[str, tuple[str, ...]] | None:
     record = data.get(FITTED_ON) if isinstance(data, dict) else None
     if not isinstance(record, dict) or not isinstance(record.get("env"), str):
         return None
-    return record["env"], tuple(str(s) for s in record.get("set", ()))
+    settings = record.get("set", [])
+    if not isinstance(settings, list) or not all(isinstance(s, str) for s in settings):
+        return None
+    return record["env"], tuple(settings)

@@ -88,5 +88,6 @@ def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_b
         "older.zip": json.dumps({"gamma": 0.99}).encode(),  # saved before the record existed
         "garbled.zip": b"{not json",
         "odd.zip": json.dumps({FITTED_ON: {"env": 3}}).encode(),
+        "odd_set.zip": json.dumps({FITTED_ON: {"env": "negobs_gym/OffroadNav-v2", "set": "a=1"}}).encode(),
     }.items():
         assert recorded_env(model(name, data)) == (str(run / "scenario.toml"), ()), name
