@@ -4,7 +4,8 @@
 --init`` take), the env and settings it was fitted on (which ``negobs eval policy NAME`` applies),
 the algorithm and its steps, and its recorded evaluation without the filter. ``show NAME`` prints
 the whole record as JSON: the commands that trained and evaluated it, wall times, and every
-evaluation with its seeds.
+evaluation with its seeds; given a model file instead, it prints the env and ``--set`` that model
+records (``negobs train`` saves them inside each zip), which ``negobs eval policy`` applies.
 """
 
 from __future__ import annotations
@@ -26,8 +27,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     p_list = sub.add_parser("list", help="name, env and settings, steps and recorded evaluation of each")
     p_list.set_defaults(handler=_list)
-    p_show = sub.add_parser("show", help="print a shipped policy's record as JSON")
-    p_show.add_argument("name", metavar="NAME", help="shipped policy name (see 'negobs policy list')")
+    p_show = sub.add_parser("show", help="print a shipped policy's record, or a model file's, as JSON")
+    p_show.add_argument(
+        "name", metavar="NAME", help="shipped policy name (see 'negobs policy list') or a saved model"
+    )
     p_show.set_defaults(handler=_show)
 
 
@@ -63,8 +66,17 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from negobs_gym.policies.baselines import baseline_record
+    from pathlib import Path
 
-    record = baseline_record(args.name)
+    from negobs_gym.errors import ConfigError
+    from negobs_gym.policies.baselines import baseline_record, fitted_on_record, recorded_env
+
+    if Path(args.name).is_file() or Path(f"{args.name}.zip").is_file():
+        recorded = recorded_env(args.name)
+        if recorded is None:
+            raise ConfigError("model_path", f"{args.name} holds no record of the env it was fitted on")
+        record = fitted_on_record(*recorded)
+    else:
+        record = baseline_record(args.name)
     sys.stdout.write(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
     return 0

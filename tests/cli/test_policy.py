@@ -35,3 +35,22 @@ def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(cap
     assert main(["policy", "show", "ppo_nothing"]) == 2
     err = capsys.readouterr().err
     assert "no shipped baseline 'ppo_nothing'" in err and "ppo_offroad_nav_v1" in err
+
+
+def test_show_prints_a_model_files_own_record(tmp_path, capsys) -> None:
+    import zipfile
+
+    from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
+
+    record = fitted_on_record("negobs_gym/OffroadNav-v2", ["observation.tighten_pairs=false"])
+    model = tmp_path / "policy.zip"
+    with zipfile.ZipFile(model, "w") as archive:  # SB3's layout: the model's JSON attributes in "data"
+        archive.writestr("data", json.dumps({"gamma": 0.99, FITTED_ON: record}))
+    assert main(["policy", "show", str(model)]) == 0
+    assert json.loads(capsys.readouterr().out) == record
+    assert main(["policy", "show", str(tmp_path / "policy")]) == 0  # SB3 adds .zip itself
+    assert json.loads(capsys.readouterr().out) == record
+    with zipfile.ZipFile(model, "w") as archive:
+        archive.writestr("data", json.dumps({"gamma": 0.99}))
+    assert main(["policy", "show", str(model)]) == 2
+    assert "holds no record of the env it was fitted on" in capsys.readouterr().err
