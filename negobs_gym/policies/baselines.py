@@ -68,7 +68,8 @@ def resolve_model(model: str, field: str = "model_path") -> str:
 
 def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     """The env a model was fitted on and the ``--set`` assignments it was fitted with, from its
-    record: a shipped baseline's ``NAME.json`` (``env``, ``set``); the record ``negobs train``
+    record: a shipped baseline's ``NAME.json`` (``env``, ``set``; also when the model is named by
+    its file under :data:`BASELINE_DIR`); the record ``negobs train``
     saved inside the zip (:data:`FITTED_ON`: the env as the command named it and its ``--set``,
     so a model moved out of its run folder keeps it); or, for a model saved before that record
     existed, the ``train.json`` of the ``negobs train`` folder the model file lies in
@@ -85,6 +86,8 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     inside = _zip_record(path)
     if inside is not None:
         return inside
+    if path.suffix == ".zip" and path.resolve().parent == BASELINE_DIR.resolve():
+        return recorded_env(path.stem)  # a shipped baseline named by its file: its NAME.json
     for folder in (path.parent, path.parent.parent):
         run = folder / "train.json"
         if run.is_file():

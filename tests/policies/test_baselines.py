@@ -38,6 +38,7 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
     assert all(f"--set {s}" in record["command"] for s in settings)
     model = PPO.load(resolve_model(name), device="cpu")
     assert recorded_env(name) == (record["env"], tuple(settings))  # eval policy's default --env
+    assert recorded_env(resolve_model(name)) == recorded_env(name)  # named by its shipped file
     env = make_task_env(record["env"], None, settings)  # id or scenario
     obs, _ = env.reset(seed=1_000_000)
     action, _ = model.predict(match_observation(obs, model.observation_space), deterministic=True)
