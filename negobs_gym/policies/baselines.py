@@ -100,8 +100,12 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
 
 
 def fitted_on_record(env: str, overrides: Sequence[str] = ()) -> dict[str, Any]:
-    """The :data:`FITTED_ON` record of a model fitted on ``env`` with ``--set`` ``overrides``."""
-    return {"env": str(env), "set": [str(s) for s in overrides]}
+    """The :data:`FITTED_ON` record of a model fitted on ``env`` with ``--set`` ``overrides``; a
+    scenario file is recorded by its absolute path, so the model finds it from any directory."""
+    env = str(env)
+    if env.endswith(".toml") and Path(env).is_file():
+        env = str(Path(env).resolve())
+    return {"env": env, "set": [str(s) for s in overrides]}
 
 
 def _zip_record(path: Path) -> tuple[str, tuple[str, ...]] | None:

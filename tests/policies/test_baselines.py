@@ -8,7 +8,13 @@ from pathlib import Path
 import pytest
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.baselines import baseline_names, baseline_record, recorded_env, resolve_model
+from negobs_gym.policies.baselines import (
+    baseline_names,
+    baseline_record,
+    fitted_on_record,
+    recorded_env,
+    resolve_model,
+)
 
 
 def test_a_path_resolves_to_itself_and_an_unknown_name_is_refused(tmp_path: Path) -> None:
@@ -92,3 +98,13 @@ def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_b
         "odd_set.zip": json.dumps({FITTED_ON: {"env": "negobs_gym/OffroadNav-v2", "set": "a=1"}}).encode(),
     }.items():
         assert recorded_env(model(name, data)) == (str(run / "scenario.toml"), ()), name
+
+
+def test_a_scenario_file_is_recorded_by_a_path_that_holds_from_any_directory(tmp_path: Path, monkeypatch) -> None:
+    (tmp_path / "mine.toml").write_text("base = 'negobs_gym/Braking-v1'\n")
+    monkeypatch.chdir(tmp_path)
+    record = fitted_on_record("mine.toml", ["episode.time_limit_s=2.0"])
+    monkeypatch.chdir(tmp_path.parent)
+    assert Path(record["env"]).is_file() and Path(record["env"]).samefile(tmp_path / "mine.toml")
+    assert record["set"] == ["episode.time_limit_s=2.0"]
+    assert fitted_on_record("negobs_gym/Braking-v1") == {"env": "negobs_gym/Braking-v1", "set": []}
