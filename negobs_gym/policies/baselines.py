@@ -81,13 +81,12 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     if not path.exists():
         if not (BASELINE_DIR / f"{model}.zip").exists():
             return None
-        record = baseline_record(model)
-        return str(record["env"]), tuple(record.get("set", ()))
+        return _baseline_env(model)
     inside = _zip_record(path)
     if inside is not None:
         return inside
     if path.suffix == ".zip" and path.resolve().parent == BASELINE_DIR.resolve():
-        return recorded_env(path.stem)  # a shipped baseline named by its file: its NAME.json
+        return _baseline_env(path.stem)  # a shipped baseline named by its file: its NAME.json
     for folder in (path.parent, path.parent.parent):
         run = folder / "train.json"
         if run.is_file():
@@ -97,6 +96,12 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
                 str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"]), folder
             ), ()
     return None
+
+
+def _baseline_env(name: str) -> tuple[str, tuple[str, ...]]:
+    """A shipped baseline's env and --set, from its NAME.json."""
+    record = baseline_record(name)
+    return str(record["env"]), tuple(record.get("set", ()))
 
 
 def fitted_on_record(env: str, overrides: Sequence[str] = ()) -> dict[str, Any]:
