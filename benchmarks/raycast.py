@@ -5,9 +5,13 @@ pit, a trench, a rock, a pedestrian, a parked car and a mound) plus a second veh
 body; the sensors ride on the own vehicle, which both backends exclude. One revolution of every
 sensor: HDL-64E S2 (64 x 4000), two HDL-32E (32 x 2250 each) and the IBEO LUX (4 x 341).
 
-Embree runs twice, on one thread each: the default 16-ray packets over shared buffers
-(``EmbreeConfig(ray_packets=True)``) and embreex's single-ray loop, with their scene builds, the
-dynamic scene's rebuild after the other vehicle moved, and whether their ranges are equal bit for bit.
+Embree runs three ways, on one thread each: the default 16-ray packets over shared buffers with
+the fast terrain test (``EmbreeConfig(ray_packets=True, fast_terrain=True)``: Embree's
+non-watertight triangle test, the rays it may have let through cast again robustly), the same
+packets on the robust scene alone (``fast_terrain=False``), and embreex's single-ray loop (robust),
+with their scene builds, the dynamic scene's rebuild after the other vehicle moved, whether the
+robust packets equal the single-ray loop bit for bit, and how far the fast terrain test's ranges
+are from the robust ones.
 
 The last two lines are ``speedup_vs_pybullet=<ratio>`` (best-of-N time of PyBullet / Embree)
 and ``agreement=<fraction>`` (share of rays with the same hit/miss and, for hits, |dr| <= 1 cm).
@@ -58,12 +62,16 @@ def main() -> None:
         xy, yaw = terrain.track.pose_at(9.0, 2.2)
         other = Vehicle(world, start_pose=Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw)))
         casters, t_build, t_rebuild = {}, {}, {}
-        for name, packets in (("packets", True), ("single_ray", False)):
+        for name, packets, fast_terrain in (
+            ("packets", True, True),
+            ("robust_packets", True, False),
+            ("single_ray", False, False),
+        ):
             t0 = time.perf_counter()
             casters[name] = EmbreeCaster.from_world(
                 world,
                 exclude_body_ids=[own.body_id],
-                config=EmbreeConfig(ray_packets=packets, auto_update=False),
+                config=EmbreeConfig(ray_packets=packets, auto_update=False, fast_terrain=fast_terrain),
             )
             t_build[name] = time.perf_counter() - t0
         pose0 = other.true_pose()
@@ -79,8 +87,8 @@ def main() -> None:
             world.client_id, exclude_body_ids=[own.body_id], num_threads=args.pybullet_threads
         )
         mounts = [*paper_n_rig().mounts, *paper_t_rig().mounts]
-        t_e = t_b = t_single = 0.0
-        refs, fasts = [], []
+        t_e = t_b = t_single = t_robust = 0.0
+        refs, fasts, robusts = [], [], []
         n_rays = 0
         same = True
         for station in args.stations:
@@ -92,18 +100,22 @@ def main() -> None:
             d = np.concatenate([r[1] for r in rays])
             n_rays += len(o)
             te, fast = _best_time(lambda o=o, d=d: embree.cast(o, d, MAX_RANGE_M), args.repeats)
+            robust = casters["robust_packets"]
+            tr, exact = _best_time(lambda o=o, d=d, c=robust: c.cast(o, d, MAX_RANGE_M), args.repeats)
             single = casters["single_ray"]
             ts, slow = _best_time(lambda o=o, d=d, c=single: c.cast(o, d, MAX_RANGE_M), args.repeats)
             tb, ref = _best_time(lambda o=o, d=d: bullet.cast(o, d, MAX_RANGE_M), args.pybullet_repeats)
-            same &= bool(np.array_equal(fast, slow, equal_nan=True))
+            same &= bool(np.array_equal(exact, slow, equal_nan=True))
             t_e += te
+            t_robust += tr
             t_single += ts
             t_b += tb
             refs.append(ref)
             fasts.append(fast)
+            robusts.append(exact)
             print(
                 f"station {station:5.1f} m: {len(o)} rays, embree {te * 1e3:.1f} ms "
-                f"(single-ray {ts * 1e3:.1f} ms), pybullet {tb * 1e3:.0f} ms"
+                f"(robust scene {tr * 1e3:.1f} ms, single-ray {ts * 1e3:.1f} ms), pybullet {tb * 1e3:.0f} ms"
             )
     a = compare_ranges(np.concatenate(refs), np.concatenate(fasts), tol_m=0.01)
     print(f"rig: {', '.join(f'{m.name} {m.model.n_lasers}x{m.model.n_columns}' for m in mounts)}")
@@ -115,8 +127,18 @@ def main() -> None:
         f"embree_dynamic_rebuild_ms={t_rebuild['packets'] * 1e3:.1f} "
         f"(single-ray: {t_rebuild['single_ray'] * 1e3:.1f}; the other vehicle moved)"
     )
-    print(f"embree_rays_per_s={n_rays / t_e:.3e} (single-ray: {n_rays / t_single:.3e})")
-    print(f"packet_speedup={t_single / t_e:.2f} packets_equal_single_ray={same}")
+    print(
+        f"embree_rays_per_s={n_rays / t_e:.3e} (robust scene: {n_rays / t_robust:.3e}; "
+        f"single-ray: {n_rays / t_single:.3e})"
+    )
+    fast_all, robust_all = np.concatenate(fasts), np.concatenate(robusts)
+    both = ~np.isnan(fast_all) & ~np.isnan(robust_all)
+    print(
+        f"fast_terrain_speedup={t_robust / t_e:.2f} hit_miss_equal_robust="
+        f"{np.mean(np.isnan(fast_all) == np.isnan(robust_all)):.6f} "
+        f"max_abs_dr_vs_robust_m={np.abs(fast_all[both] - robust_all[both]).max():.2e}"
+    )
+    print(f"packet_speedup={t_single / t_robust:.2f} packets_equal_single_ray={same} (robust scenes)")
     print(f"pybullet_rays_per_s={n_rays / t_b:.3e} (numThreads={args.pybullet_threads})")
     print(f"hit_miss_agreement={a.hit_miss:.6f}")
     print(

@@ -99,7 +99,7 @@ def world_products(
     envelope: taken from ``cache`` (one dict per world) or built into it."""
     cache = {} if cache is None else cache
     threads = cast_threads(config)
-    key = ("caster", config.raycast_backend, threads, config.raycast_isa)
+    key = ("caster", config.raycast_backend, threads, config.raycast_isa, config.raycast_fast_terrain)
     if key not in cache:
         cache[key] = make_caster(
             world,
@@ -107,6 +107,7 @@ def world_products(
             exclude_body_ids=(vehicle.body_id,),
             threads=threads,
             isa=config.raycast_isa,
+            fast_terrain=config.raycast_fast_terrain,
         )
     if config.rig != "roi" and config.far_region_xy_m is None:
         return cache[key], None

@@ -100,7 +100,9 @@ def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_b
         assert recorded_env(model(name, data)) == (str(run / "scenario.toml"), ()), name
 
 
-def test_a_scenario_file_is_recorded_by_a_path_that_holds_from_any_directory(tmp_path: Path, monkeypatch) -> None:
+def test_a_scenario_file_is_recorded_by_a_path_that_holds_from_any_directory(
+    tmp_path: Path, monkeypatch
+) -> None:
     (tmp_path / "mine.toml").write_text("base = 'negobs_gym/Braking-v1'\n")
     monkeypatch.chdir(tmp_path)
     record = fitted_on_record("mine.toml", ["episode.time_limit_s=2.0"])

@@ -31,11 +31,13 @@ def make_caster(
     exclude_body_ids: Iterable[int] = (),
     threads: int = 1,
     isa: str = "native",
+    fast_terrain: bool = True,
 ) -> RayCaster:
     """A ray caster over ``world`` that never sees the bodies in ``exclude_body_ids``.
 
     ``threads`` > 1 splits each Embree cast over that many threads; ``isa`` pins Embree's kernels
-    (``EmbreeConfig.isa``). The PyBullet backend ignores both.
+    (``EmbreeConfig.isa``); ``fast_terrain`` is ``EmbreeConfig.fast_terrain``. The PyBullet
+    backend ignores all three.
 
     Raises:
         ConfigError: Unknown ``backend``.
@@ -49,7 +51,9 @@ def make_caster(
 
         try:
             return EmbreeCaster.from_world(
-                world, exclude_body_ids=exclude, config=EmbreeConfig(threads=threads, isa=isa)
+                world,
+                exclude_body_ids=exclude,
+                config=EmbreeConfig(threads=threads, isa=isa, fast_terrain=fast_terrain),
             )
         except MissingDependencyError:
             if backend == "embree":

@@ -23,7 +23,13 @@ import numpy as np
 
 from negobs_gym.errors import ConfigError, MissingDependencyError, ScanError, require
 from negobs_gym.sensors.raycast.base import check_rays, raise_ray_problem, rotated_unit_rows
-from negobs_gym.sensors.raycast.embree_packets import ISAS, PacketScene, packets_available, range_limit
+from negobs_gym.sensors.raycast.embree_packets import (
+    ISAS,
+    PacketScene,
+    RepairedScene,
+    packets_available,
+    range_limit,
+)
 from negobs_gym.sensors.raycast.meshes import Mesh, heightfield_mesh
 
 if TYPE_CHECKING:
@@ -71,6 +77,13 @@ class EmbreeConfig:
             bit on ~10 % of a frame's rays; a pinned set gives the same ranges on every CPU that
             has it (docs/determinism.md; ``"avx2"`` makes the cast 1.10-1.23x as long on an
             AVX-512 CPU).
+        fast_terrain: Cast the static scene with Embree's fast, non-watertight triangle test and
+            cast again in a robust scene every ray it may have let through the terrain (misses,
+            hits from below, hits on static bodies: ``embree_packets.RepairedScene``); ranges
+            then differ from the robust scene's by float32 rounding (up to ~1e-4 m), and the
+            cast takes 0.65-0.9x as long (docs/performance.md, "The fast terrain test"). False:
+            the robust scene alone, whose ranges equal embreex's bit for bit. Packet path only
+            (``ray_packets``); a dynamic scene (other vehicles) is always robust.
     """
 
     max_chord_error_m: float = 1e-4  # docs/sensors.md: agree with PyBullet to 1 cm; 100x margin
@@ -79,6 +92,7 @@ class EmbreeConfig:
     threads: int = 1
     ray_packets: bool = True
     isa: str = "native"
+    fast_terrain: bool = True
 
     def __post_init__(self) -> None:
         require(
@@ -98,6 +112,7 @@ class EmbreeConfig:
             f"must be an int in [1, 64], got {self.threads!r}",
         )
         require(isinstance(self.ray_packets, bool), "ray_packets", "must be a bool")
+        require(isinstance(self.fast_terrain, bool), "fast_terrain", "must be a bool")
         require(self.isa in ISAS, "isa", f"must be one of {ISAS}, got {self.isa!r}")
         require(
             self.isa == "native" or self.ray_packets,
@@ -194,22 +209,29 @@ class PendingCast:
 
 
 class _Scene:
-    """One committed Embree scene of one triangle mesh (float32, local coordinates)."""
+    """One committed Embree scene of one triangle mesh (float32, local coordinates): robust, or,
+    with ``fast_heightfield`` > 0 on the packet path, a :class:`RepairedScene` whose first
+    ``fast_heightfield`` triangles form the terrain's heightfield."""
 
-    def __init__(self, mesh: Mesh, robust: bool = True, packets: bool = True, isa: str = "native") -> None:
+    def __init__(
+        self, mesh: Mesh, packets: bool = True, isa: str = "native", fast_heightfield: int = 0
+    ) -> None:
         v, f = mesh
         self.n_triangles = int(f.shape[0])
-        self._packets: PacketScene | None = None
+        self._packets: PacketScene | RepairedScene | None = None
         self._embreex: Any = None
         if packets and packets_available():
-            self._packets = PacketScene(v, f, robust=robust, isa=isa)
+            if fast_heightfield > 0:
+                self._packets = RepairedScene(v, f, fast_heightfield, isa=isa)
+            else:
+                self._packets = PacketScene(v, f, robust=True, isa=isa)
             return
         if isa != "native":
             raise MissingDependencyError(
                 "embreex", f"Embree kernels pinned to isa={isa!r} (libembree4 not found)"
             )
         rtcs, triangle_mesh = _embree()
-        self._embreex = rtcs.EmbreeScene(robust=robust)
+        self._embreex = rtcs.EmbreeScene(robust=True)
         if self.n_triangles:
             triangle_mesh(
                 self._embreex, np.ascontiguousarray(v, dtype=np.float32), np.ascontiguousarray(f, np.int32)
@@ -240,7 +262,9 @@ class EmbreeCaster:
     """Ray caster over triangle meshes with Embree; implements :class:`~.base.RayCaster`.
 
     Build it from a world with :meth:`from_world`, or directly from a static mesh in world
-    coordinates (``vertices_m`` (V, 3), ``triangles`` (F, 3)).
+    coordinates (``vertices_m`` (V, 3), ``triangles`` (F, 3)); where the mesh's first
+    ``heightfield_triangles`` triangles form a heightfield (a terrain), ``config.fast_terrain``
+    casts it with the fast test (0: the robust scene).
 
     Raises:
         MissingDependencyError: ``embreex`` is not installed.
@@ -253,6 +277,7 @@ class EmbreeCaster:
         *,
         local_origin_m: Iterable[float] | None = None,
         config: EmbreeConfig | None = None,
+        heightfield_triangles: int = 0,
     ) -> None:
         _embree()
         self.config = config if config is not None else EmbreeConfig()
@@ -264,12 +289,17 @@ class EmbreeCaster:
             raise ConfigError("vertices_m", f"must be finite (V, 3), got shape {v.shape}")
         if f.ndim != 2 or f.shape[1] != 3 or (f.size and (f.min() < 0 or f.max() >= v.shape[0])):
             raise ConfigError("triangles", "must be (F, 3) indices into vertices_m")
+        if not (isinstance(heightfield_triangles, int) and 0 <= heightfield_triangles <= f.shape[0]):
+            raise ConfigError(
+                "heightfield_triangles", f"must be an int in [0, {f.shape[0]}], got {heightfield_triangles!r}"
+            )
         if local_origin_m is None:
             local_origin_m = 0.5 * (v.min(axis=0) + v.max(axis=0)) if v.size else np.zeros(3)
         self.local_origin_m = np.asarray(tuple(local_origin_m), dtype=np.float64)
         if self.local_origin_m.shape != (3,) or not np.isfinite(self.local_origin_m).all():
             raise ConfigError("local_origin_m", "must be 3 finite values")
-        self._static = self._scene((v - self.local_origin_m, f.astype(np.int32)))
+        fast = heightfield_triangles if self.config.fast_terrain else 0
+        self._static = self._scene((v - self.local_origin_m, f.astype(np.int32)), fast)
         self._dynamic: _Scene | None = None
         self._world: World | None = None
         self._exclude: frozenset[int] = frozenset()
@@ -277,9 +307,10 @@ class EmbreeCaster:
         self._dyn_ids: tuple[int, ...] = ()
         self._dyn_poses: np.ndarray | None = None
 
-    def _scene(self, mesh: Mesh) -> _Scene:
+    def _scene(self, mesh: Mesh, fast_heightfield: int = 0) -> _Scene:
         """A scene of ``mesh`` (local coordinates) built the way the config asks."""
-        return _Scene(mesh, packets=self.config.ray_packets, isa=self.config.isa)
+        cfg = self.config
+        return _Scene(mesh, packets=cfg.ray_packets, isa=cfg.isa, fast_heightfield=fast_heightfield)
 
     @classmethod
     def from_world(
@@ -317,8 +348,8 @@ class EmbreeCaster:
             links = body_link_meshes(c, body, cfg.max_chord_error_m)
             statics.append(world_mesh(links, link_poses(c, links), origin))
         terrain = heightfield_mesh(hf, origin)
-        v, f = merge_meshes([terrain, *statics])
-        caster = cls(v + origin, f, local_origin_m=origin, config=cfg)
+        v, f = merge_meshes([terrain, *statics])  # the terrain's triangles first
+        caster = cls(v + origin, f, local_origin_m=origin, config=cfg, heightfield_triangles=len(terrain[1]))
         caster._world = world
         caster._exclude = exclude
         caster.update_dynamic()

@@ -4,9 +4,11 @@ embreex binds one query, ``rtcIntersect1`` in a loop over the rays, and copies a
 element by element. The same ``libembree4`` is called here through ctypes: a scene is built over
 the mesh's own numpy buffers (``rtcSetSharedGeometryBuffer``: no copy; 3-4x faster builds), and a
 compiled loop fills ``RTCRayHit16`` packets and calls ``rtcIntersect16`` (1.24-1.32x faster on a
-LiDAR frame). Each ray's distance equals embreex's bit for bit: the same robust triangle test on
-the same float32 inputs, whatever rays share its packet (tests/sensors/raycast/test_embree_packets.py).
-Measured figures: docs/performance.md, "Embree packets".
+LiDAR frame). Each ray's distance in a robust :class:`PacketScene` equals embreex's bit for bit:
+the same robust triangle test on the same float32 inputs, whatever rays share its packet
+(tests/sensors/raycast/test_embree_packets.py). :class:`RepairedScene` casts a terrain with
+Embree's faster, non-watertight test and casts again, robustly, every ray that test may have let
+through. Measured figures: docs/performance.md, "Embree packets" and "The fast terrain test".
 
 :func:`packets_available` says whether the library was found (embreex's wheels bundle it under
 ``embreex.libs`` or ``.dylibs``); the backend falls back to embreex's own loop where it is not.
@@ -40,6 +42,7 @@ ISAS = ("native", "sse4.2", "avx", "avx2", "avx512")  # Embree device config ``i
 # (1 level), 2,240 with 8 levels and instPrimID; the buffer holds either
 _PACKET_BYTES = 4096
 
+_NO_FLAGS = np.zeros(0, dtype=np.bool_)  # PacketScene.cast flags no ray
 _u64 = ctypes.c_uint64  # handles and pointers are passed as 64-bit integers (same ABI as a pointer)
 _INTERSECT16 = ctypes.CFUNCTYPE(None, _u64, _u64, _u64, _u64)
 
@@ -146,12 +149,18 @@ def _intersect16(
     limit: np.float32,
     max_range_m: float,
     out: np.ndarray,
+    suspect: np.ndarray,
+    n_heightfield: int,
 ) -> None:
     """``out`` = each float32 ray's range after ``rtcIntersect16``, in float64: its ``tfar`` where
     a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
-    or one row for all."""
+    or one row for all. Where ``suspect`` holds a flag per ray (it is empty otherwise), it flags
+    each ray a non-watertight triangle test may have let through a heightfield made of the first
+    ``n_heightfield`` triangles (:class:`RepairedScene`): a miss, a hit on a later triangle, or a
+    hit on a heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
     n = d.shape[0]
     one_origin = o.shape[0] == 1
+    flag = suspect.shape[0] == n
     work = np.zeros(_PACKET_BYTES + 128, dtype=np.uint8)  # the packet, then the lanes' valid flags
     start = (-work.ctypes.data) % 64
     packet = work[start : start + _PACKET_BYTES]
@@ -184,6 +193,15 @@ def _intersect16(
         for k in range(m):
             t = f[8 * w + k]
             out[first + k] = np.float64(t) if t < limit and np.float64(t) <= max_range_m else np.nan
+        if flag:
+            for k in range(m):
+                j = first + k
+                if u[18 * w + k] == 0xFFFFFFFF or u[17 * w + k] >= n_heightfield:  # a miss, a body
+                    suspect[j] = True
+                else:  # Embree's unnormalised normal Ng; a heightfield triangle's upward one is sign(Ng_z) Ng
+                    nz = f[14 * w + k]
+                    facing = f[12 * w + k] * d[j, 0] + f[13 * w + k] * d[j, 1] + nz * d[j, 2]
+                    suspect[j] = facing * nz >= 0.0
 
 
 class PacketScene:
@@ -249,6 +267,19 @@ class PacketScene:
         given (a float64 array of one value per ray). ``o32``: one origin per ray (n, 3), or one
         row (1, 3) for every ray. A hit counts where its float32 distance lies before the float32
         step past ``max_range_m`` and, in float64, within it."""
+        return self._cast(o32, d32, max_range_m, out, _NO_FLAGS, 0)
+
+    def _cast(
+        self,
+        o32: np.ndarray,
+        d32: np.ndarray,
+        max_range_m: float,
+        out: np.ndarray | None,
+        suspect: np.ndarray,
+        n_heightfield: int,
+    ) -> np.ndarray:
+        """:meth:`cast`, flagging into ``suspect`` (one bool per ray; empty: no flags) the rays
+        :class:`RepairedScene` casts again."""
         n = d32.shape[0]
         if o32.shape[0] not in (1, n):
             raise ValueError(f"origins: one per ray or one for all, got {o32.shape[0]} for {n} rays")
@@ -258,6 +289,7 @@ class PacketScene:
             raise ValueError(f"out: needs a float64 array of {n} ranges, got {out.dtype} {out.shape}")
         if n == 0 or self.n_triangles == 0:
             out[:] = np.nan
+            suspect[:] = True
             return out
         _intersect16(
             self._lib.intersect16,
@@ -267,7 +299,59 @@ class PacketScene:
             range_limit(max_range_m),
             float(max_range_m),
             out,
+            suspect,
+            int(n_heightfield),
         )
+        return out
+
+
+class RepairedScene:
+    """A mesh led by a heightfield, cast with Embree's fast triangle test; the rays that test may
+    have let through the mesh are cast again in a robust scene of the same mesh.
+
+    Embree's default triangle test is not watertight: a ray through a shared edge or vertex can
+    slip between the two triangles, and on a LiDAR frame about one ray in 10^5 does (aimed at the
+    vertices, a few per cent). Its robust mode closes the gaps and costs 1.1-1.5x the cast
+    (docs/performance.md). A heightfield is single-valued in z, so a ray that slipped through it
+    stays below its surface until it leaves the mesh (a miss) or comes back up through a
+    triangle, which it then meets from below. Every miss, every hit on a heightfield triangle's
+    underside and every hit on a later triangle (the bodies standing on the terrain, which a ray
+    could slip into, or meet under the ground after slipping through it) is cast again in the
+    robust scene; every other ray keeps the fast test's first hit. So no ray passes through the
+    surface, hits and misses are the robust scene's but for rays that graze an edge within
+    float32 rounding, and a range differs from the robust scene's only by the two tests'
+    rounding (up to ~1e-4 m at 120 m; tests/sensors/raycast/test_embree_packets.py). Each ray's
+    range is the same whatever rays are cast with it.
+
+    Args:
+        vertices: (V, 3) float32 vertices (local coordinates).
+        triangles: (F, 3) vertex indices; the first ``n_heightfield`` of them form a heightfield
+            (each triangle's projection on the xy plane has positive area, and no two overlap).
+        n_heightfield: How many leading triangles form the heightfield, >= 1.
+        isa: Embree's kernels, as :class:`PacketScene`.
+    """
+
+    def __init__(
+        self, vertices: np.ndarray, triangles: np.ndarray, n_heightfield: int, isa: str = "native"
+    ) -> None:
+        self._fast = PacketScene(vertices, triangles, robust=False, isa=isa)
+        self._exact = PacketScene(vertices, triangles, robust=True, isa=isa)
+        self.n_triangles = self._fast.n_triangles
+        if not 1 <= int(n_heightfield) <= self.n_triangles:
+            raise ValueError(f"n_heightfield: needs 1 to {self.n_triangles} triangles, got {n_heightfield}")
+        self.n_heightfield = int(n_heightfield)
+
+    def cast(
+        self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """float64 range of each ray (NaN: nothing hit within ``max_range_m``), as
+        :meth:`PacketScene.cast`."""
+        suspect = np.zeros(d32.shape[0], dtype=np.bool_)
+        out = self._fast._cast(o32, d32, max_range_m, out, suspect, self.n_heightfield)
+        again = np.flatnonzero(suspect)
+        if again.size:
+            o_again = o32 if o32.shape[0] == 1 else o32[again]
+            out[again] = self._exact.cast(o_again, d32[again], max_range_m)
         return out
 
 

@@ -42,13 +42,10 @@ def _both(mesh, o, d, tmax):
     return packets.cast(o32, d32, tmax), single.cast(o32, d32, tmax)
 
 
-def test_packets_equal_single_ray_queries_bit_for_bit(rough_world):
-    world, _ = rough_world
-    hf = world.physics_heightfield
-    local = np.array([hf.origin_m[0] + 40 * hf.resolution_m, hf.origin_m[1] + 40 * hf.resolution_m, 0.0])
-    mesh = heightfield_mesh(hf, local)
-    # a LiDAR frame (66,637 rays: not a whole number of packets), and rays aimed exactly at the
-    # mesh's vertices and edge midpoints, where only robust traversal keeps a ray from slipping through
+def _frame_and_aimed_rays(mesh):
+    """A LiDAR frame (66,637 rays: not a whole number of packets), then rays aimed exactly at the
+    mesh's vertices and edge midpoints, where only robust traversal keeps a ray from slipping
+    through; and the aimed rays' distances to their targets."""
     o, d = _lidar_rays(np.array([2.0, 0.5, 2.0]))
     v, f = mesh
     rng = np.random.default_rng(3)
@@ -61,19 +58,116 @@ def test_packets_equal_single_ray_queries_bit_for_bit(rough_world):
     o2 = targets + rng.normal(size=targets.shape) * [6.0, 6.0, 0.0] + [0.0, 0.0, 2.5]
     d2 = targets - o2
     d2 /= np.linalg.norm(d2, axis=1, keepdims=True)
-    got, ref = _both(mesh, np.concatenate([o, o2]), np.concatenate([d, d2]), 120.0)
-    np.testing.assert_array_equal(got, ref)
-    assert np.isfinite(got[: len(o)]).mean() > 0.5  # most of the frame hits the ground
-    aimed = got[len(o) :]
-    reach = np.linalg.norm(targets - o2, axis=1)
-    # float32 rounding lets a ray aimed at a peak pass just above it now and then
-    assert np.mean(np.abs(aimed - reach) < 1e-3) > 0.99
+    return np.concatenate([o, o2]), np.concatenate([d, d2]), np.linalg.norm(targets - o2, axis=1)
 
 
-def test_a_rays_distance_does_not_depend_on_the_rays_packed_with_it(rough_world):
-    """The ROI rig casts subsets of a frame: each ray must get the full frame's value."""
+def _rough_mesh(world):
+    hf = world.physics_heightfield
+    local = np.array([hf.origin_m[0] + 40 * hf.resolution_m, hf.origin_m[1] + 40 * hf.resolution_m, 0.0])
+    return heightfield_mesh(hf, local)
+
+
+def test_packets_equal_single_ray_queries_bit_for_bit(rough_world):
     world, _ = rough_world
-    scene = _Scene(heightfield_mesh(world.physics_heightfield, np.zeros(3)), packets=True)
+    mesh = _rough_mesh(world)
+    o, d, reach = _frame_and_aimed_rays(mesh)
+    got, ref = _both(mesh, o, d, 120.0)
+    np.testing.assert_array_equal(got, ref)
+    n_frame = len(o) - len(reach)
+    assert np.isfinite(got[:n_frame]).mean() > 0.5  # most of the frame hits the ground
+    # float32 rounding lets a ray aimed at a peak pass just above it now and then
+    assert np.mean(np.abs(got[n_frame:] - reach) < 1e-3) > 0.99
+
+
+def _box_on(mesh, centre_local, half=(0.6, 0.4, 0.5)):
+    """``mesh`` with a box standing on it at ``centre_local`` (x, y; its base 0.2 m into the
+    ground), as a world's static body follows the terrain in the static mesh."""
+    from negobs_gym.sensors.raycast.meshes import box_mesh, merge_meshes
+
+    v = mesh[0]
+    near = np.linalg.norm(v[:, :2] - centre_local, axis=1) < 1.0
+    bv, bf = box_mesh(np.array(half))
+    bv = bv + np.array([centre_local[0], centre_local[1], v[near, 2].mean() + half[2] - 0.2])
+    return merge_meshes([mesh, (bv, bf)])
+
+
+def test_the_fast_terrain_test_lets_no_ray_through(rough_world):
+    """Rays aimed at the vertices and edges slip through the fast test's gaps; the repaired scene
+    casts each of them again, so its hits and misses are the robust scene's and its ranges within
+    the two tests' float32 rounding of them. A box on the terrain is in the mesh too."""
+    world, _ = rough_world
+    terrain = _rough_mesh(world)
+    mesh = _box_on(terrain, terrain[0][:, :2].mean(axis=0))
+    o, d, reach = _frame_and_aimed_rays(terrain)
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    robust = embree_packets.PacketScene(*mesh).cast(o32, d32, 120.0)
+    fast = embree_packets.PacketScene(*mesh, robust=False).cast(o32, d32, 120.0)
+    slipped = np.isnan(fast) & ~np.isnan(robust) | (fast > robust + 0.01)
+    assert slipped.sum() > 50  # the test's rays find the fast test's gaps
+    scene = embree_packets.RepairedScene(*mesh, n_heightfield=len(terrain[1]))
+    got = scene.cast(o32, d32, 120.0)
+    # nothing slips through: no ray goes on past the robust hit (a slipped ray would, by metres)
+    assert not (np.isnan(got) & ~np.isnan(robust)).any()
+    assert not (got > robust + 1e-3).any()
+    # a ray aimed exactly at a vertex grazes it within float32 rounding: one test may hit the
+    # vertex where the other lets the ray pass just above it; every other range differs from the
+    # robust scene's by the two tests' rounding only
+    n_frame = len(o) - len(reach)
+    differ = np.flatnonzero(~(np.abs(got - robust) <= 2e-6 * 120.0) & ~(np.isnan(got) & np.isnan(robust)))
+    assert differ.size <= 0.002 * len(reach) and (differ >= n_frame).all()
+    target = reach[differ - n_frame]
+    assert (np.fmin(np.abs(got[differ] - target), np.abs(robust[differ] - target)) < 1e-3).all()
+    both = ~np.isnan(robust) & ~np.isnan(got)
+    assert (got[both] != robust[both]).sum() > 100  # most rays keep the fast test's own rounding
+
+
+def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough_world):
+    """Which rays the fast test flags: a miss, a hit on the terrain's underside (a ray from below
+    the ground) and a hit on a body; a terrain hit from above is kept. Flagged rays get the robust
+    scene's range bit for bit."""
+    world, _ = rough_world
+    terrain = _rough_mesh(world)
+    centre = terrain[0][:, :2].mean(axis=0)
+    mesh = _box_on(terrain, centre)
+    v = mesh[0]
+    box_top = np.append(v[-8:, :2].mean(axis=0), v[-8:, 2].max())  # the box's 8 corners come last
+    beside = np.array([centre[0] + 5.0, centre[1] + 5.0])
+    ground = v[np.linalg.norm(v[:, :2] - beside, axis=1) < 0.5, 2].mean()
+    top, under = np.append(beside, ground + 2.0), np.append(beside, ground - 1.5)
+    rays = {
+        "down": (top, [0.1, 0.05, -1.0]),
+        "sky": (top, [0.3, 0.1, 1.0]),
+        "from below": (under, [0.05, 0.1, 1.0]),
+        "on the box's top": (box_top + np.array([1.0, 0.5, 3.0]), [-1.0, -0.5, -3.0]),
+    }
+    o = np.array([r[0] for r in rays.values()], dtype=np.float32)
+    d = np.array([r[1] for r in rays.values()], dtype=np.float64)
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    scene = embree_packets.RepairedScene(*mesh, n_heightfield=len(terrain[1]))
+    suspect = np.zeros(len(d), dtype=np.bool_)
+    scene._fast._cast(o, d, 50.0, None, suspect, scene.n_heightfield)
+    assert dict(zip(rays, suspect.tolist(), strict=True)) == {
+        "down": False,
+        "sky": True,
+        "from below": True,
+        "on the box's top": True,
+    }
+    got = scene.cast(o, d, 50.0)
+    robust = embree_packets.PacketScene(*mesh).cast(o, d, 50.0)
+    np.testing.assert_array_equal(got[suspect], robust[suspect])
+    assert np.isfinite(got[[0, 2, 3]]).all() and np.isnan(got[1])
+    with pytest.raises(ValueError, match="n_heightfield"):
+        embree_packets.RepairedScene(*mesh, n_heightfield=0)
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_a_rays_distance_does_not_depend_on_the_rays_packed_with_it(rough_world, fast):
+    """The ROI rig casts subsets of a frame: each ray must get the full frame's value, robust
+    or with the fast terrain test (whose flagged rays are cast again in a smaller batch)."""
+    world, _ = rough_world
+    mesh = heightfield_mesh(world.physics_heightfield, np.zeros(3))
+    scene = _Scene(mesh, packets=True, fast_heightfield=len(mesh[1]) if fast else 0)
+    assert isinstance(scene._packets, embree_packets.RepairedScene) == fast
     o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]))
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
     full = scene.cast(o32, d32, 120.0)
@@ -107,12 +201,20 @@ def test_caster_casts_the_same_with_and_without_packets(rough_world):
     o, d = _lidar_rays(np.array([pose.x - 6.0, pose.y + 2.0, 2.2]), n_azimuth=900)
     casts = []
     for packets in (True, False):
-        caster = EmbreeCaster.from_world(world, config=EmbreeConfig(ray_packets=packets, threads=2))
+        config = EmbreeConfig(ray_packets=packets, threads=2, fast_terrain=False)
+        caster = EmbreeCaster.from_world(world, config=config)
         assert (caster._static._packets is not None) == packets
         assert caster._dynamic is not None and (caster._dynamic._packets is not None) == packets
         casts.append(caster.cast(o, d, 120.0))
     np.testing.assert_array_equal(casts[0], casts[1])
     assert np.isfinite(casts[0]).mean() > 0.5
+    # the default, the fast terrain test: the same hits, the ranges within float32 rounding
+    fast = EmbreeCaster.from_world(world, config=EmbreeConfig(threads=2))
+    assert isinstance(fast._static._packets, embree_packets.RepairedScene)
+    assert isinstance(fast._dynamic._packets, embree_packets.PacketScene)  # other vehicles: robust
+    got = fast.cast(o, d, 120.0)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(casts[0]))
+    np.testing.assert_allclose(got, casts[0], rtol=2e-6, atol=0.0)
     without_vehicle = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
     assert (casts[0] < without_vehicle - 0.5).sum() > 20  # rays that stop on the vehicle
 
@@ -120,7 +222,9 @@ def test_caster_casts_the_same_with_and_without_packets(rough_world):
 def test_without_the_library_the_caster_falls_back_to_embreex(monkeypatch, rough_world):
     world, own = rough_world
     o, d = _lidar_rays(np.array([0.0, 0.0, 2.2]), n_azimuth=300)
-    with_packets = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id]).cast(o, d, 120.0)
+    robust = EmbreeConfig(fast_terrain=False)  # the fallback's scene: embreex's, robust
+    caster = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id], config=robust)
+    with_packets = caster.cast(o, d, 120.0)
     monkeypatch.setattr(embree_packets, "_library_candidates", lambda: [])
     monkeypatch.setattr(embree_packets, "_LIBRARY", [])
     assert not embree_packets.packets_available()
@@ -129,9 +233,22 @@ def test_without_the_library_the_caster_falls_back_to_embreex(monkeypatch, rough
     np.testing.assert_array_equal(caster.cast(o, d, 120.0), with_packets)
 
 
-def test_ray_packets_must_be_a_bool():
+def test_ray_packets_and_fast_terrain_must_be_bools():
     with pytest.raises(ConfigError, match="ray_packets"):
         EmbreeConfig(ray_packets=1)
+    with pytest.raises(ConfigError, match="fast_terrain"):
+        EmbreeConfig(fast_terrain="yes")
+
+
+def test_a_direct_mesh_names_its_heightfield_triangles(rough_world):
+    world, _ = rough_world
+    v, f = heightfield_mesh(world.physics_heightfield, np.zeros(3))
+    assert isinstance(EmbreeCaster(v, f)._static._packets, embree_packets.PacketScene)  # robust
+    fast = EmbreeCaster(v, f, heightfield_triangles=len(f))
+    assert isinstance(fast._static._packets, embree_packets.RepairedScene)
+    for bad in (-1, len(f) + 1, 2.5):
+        with pytest.raises(ConfigError, match="heightfield_triangles"):
+            EmbreeCaster(v, f, heightfield_triangles=bad)
 
 
 def test_isa_config_is_checked():
