@@ -151,13 +151,15 @@ def _intersect16(
     out: np.ndarray,
     suspect: np.ndarray,
     n_heightfield: int,
+    z_top: float,
 ) -> None:
     """``out`` = each float32 ray's range after ``rtcIntersect16``, in float64: its ``tfar`` where
     a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
     or one row for all. Where ``suspect`` holds a flag per ray (it is empty otherwise), it flags
     each ray a non-watertight triangle test may have let through a heightfield made of the first
-    ``n_heightfield`` triangles (:class:`RepairedScene`): a miss, a hit on a later triangle, or a
-    hit on a heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
+    ``n_heightfield`` triangles, none higher than ``z_top`` (:class:`RepairedScene`): a miss that
+    reaches down to ``z_top`` within ``max_range_m``, a hit on a later triangle, or a hit on a
+    heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
     n = d.shape[0]
     one_origin = o.shape[0] == 1
     flag = suspect.shape[0] == n
@@ -196,7 +198,10 @@ def _intersect16(
         if flag:
             for k in range(m):
                 j = first + k
-                if u[18 * w + k] == 0xFFFFFFFF or u[17 * w + k] >= n_heightfield:  # a miss, a body
+                if u[18 * w + k] == 0xFFFFFFFF:  # a miss: did it go low enough to cross the terrain?
+                    dz = np.float64(d[j, 2])
+                    suspect[j] = np.float64(o[0 if one_origin else j, 2]) + min(dz, 0.0) * max_range_m <= z_top
+                elif u[17 * w + k] >= n_heightfield:  # a body
                     suspect[j] = True
                 else:  # Embree's unnormalised normal Ng; a heightfield triangle's upward one is sign(Ng_z) Ng
                     nz = f[14 * w + k]
@@ -267,7 +272,7 @@ class PacketScene:
         given (a float64 array of one value per ray). ``o32``: one origin per ray (n, 3), or one
         row (1, 3) for every ray. A hit counts where its float32 distance lies before the float32
         step past ``max_range_m`` and, in float64, within it."""
-        return self._cast(o32, d32, max_range_m, out, _NO_FLAGS, 0)
+        return self._cast(o32, d32, max_range_m, out, _NO_FLAGS, 0, 0.0)
 
     def _cast(
         self,
@@ -277,6 +282,7 @@ class PacketScene:
         out: np.ndarray | None,
         suspect: np.ndarray,
         n_heightfield: int,
+        z_top: float,
     ) -> np.ndarray:
         """:meth:`cast`, flagging into ``suspect`` (one bool per ray; empty: no flags) the rays
         :class:`RepairedScene` casts again."""
@@ -301,6 +307,7 @@ class PacketScene:
             out,
             suspect,
             int(n_heightfield),
+            float(z_top),
         )
         return out
 
@@ -317,7 +324,8 @@ class RepairedScene:
     triangle, which it then meets from below. Every miss, every hit on a heightfield triangle's
     underside and every hit on a later triangle (the bodies standing on the terrain, which a ray
     could slip into, or meet under the ground after slipping through it) is cast again in the
-    robust scene; every other ray keeps the fast test's first hit. So no ray passes through the
+    robust scene, but for misses that stay above the heightfield's highest vertex (a sky ray of a
+    sensor above the terrain); every other ray keeps the fast test's first hit. So no ray passes through the
     surface, hits and misses are the robust scene's but for rays that graze an edge within
     float32 rounding, and a range differs from the robust scene's only by the two tests'
     rounding (up to ~1e-4 m at 120 m; tests/sensors/raycast/test_embree_packets.py). Each ray's
@@ -340,6 +348,9 @@ class RepairedScene:
         if not 1 <= int(n_heightfield) <= self.n_triangles:
             raise ValueError(f"n_heightfield: needs 1 to {self.n_triangles} triangles, got {n_heightfield}")
         self.n_heightfield = int(n_heightfield)
+        # a ray that stays above every heightfield vertex cannot have slipped through it (1 cm for rounding)
+        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        self.z_top = float(v[np.asarray(triangles)[: self.n_heightfield].ravel(), 2].max()) + 0.01
 
     def cast(
         self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
@@ -347,7 +358,7 @@ class RepairedScene:
         """float64 range of each ray (NaN: nothing hit within ``max_range_m``), as
         :meth:`PacketScene.cast`."""
         suspect = np.zeros(d32.shape[0], dtype=np.bool_)
-        out = self._fast._cast(o32, d32, max_range_m, out, suspect, self.n_heightfield)
+        out = self._fast._cast(o32, d32, max_range_m, out, suspect, self.n_heightfield, self.z_top)
         again = np.flatnonzero(suspect)
         if again.size:
             o_again = o32 if o32.shape[0] == 1 else o32[again]

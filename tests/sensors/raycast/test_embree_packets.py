@@ -122,8 +122,9 @@ def test_the_fast_terrain_test_lets_no_ray_through(rough_world):
 
 
 def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough_world):
-    """Which rays the fast test flags: a miss, a hit on the terrain's underside (a ray from below
-    the ground) and a hit on a body; a terrain hit from above is kept. Flagged rays get the robust
+    """Which rays the fast test flags: a miss that goes lower than the terrain's highest vertex, a
+    hit on the terrain's underside (a ray from below the ground) and a hit on a body; a terrain hit
+    from above, and a miss that stays above every vertex, are kept. Flagged rays get the robust
     scene's range bit for bit."""
     world, _ = rough_world
     terrain = _rough_mesh(world)
@@ -134,28 +135,31 @@ def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough
     beside = np.array([centre[0] + 5.0, centre[1] + 5.0])
     ground = v[np.linalg.norm(v[:, :2] - beside, axis=1) < 0.5, 2].mean()
     top, under = np.append(beside, ground + 2.0), np.append(beside, ground - 1.5)
+    scene = embree_packets.RepairedScene(*mesh, n_heightfield=len(terrain[1]))
+    assert ground + 0.5 < scene.z_top  # a sky ray from there may have slipped through a crest
     rays = {
         "down": (top, [0.1, 0.05, -1.0]),
-        "sky": (top, [0.3, 0.1, 1.0]),
+        "sky, from below the highest vertex": (np.append(beside, ground + 0.5), [0.3, 0.1, 1.0]),
+        "sky, from above it": (np.append(beside, scene.z_top + 0.5), [0.3, 0.1, 1.0]),
         "from below": (under, [0.05, 0.1, 1.0]),
         "on the box's top": (box_top + np.array([1.0, 0.5, 3.0]), [-1.0, -0.5, -3.0]),
     }
     o = np.array([r[0] for r in rays.values()], dtype=np.float32)
     d = np.array([r[1] for r in rays.values()], dtype=np.float64)
     d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
-    scene = embree_packets.RepairedScene(*mesh, n_heightfield=len(terrain[1]))
     suspect = np.zeros(len(d), dtype=np.bool_)
-    scene._fast._cast(o, d, 50.0, None, suspect, scene.n_heightfield)
+    scene._fast._cast(o, d, 50.0, None, suspect, scene.n_heightfield, scene.z_top)
     assert dict(zip(rays, suspect.tolist(), strict=True)) == {
         "down": False,
-        "sky": True,
+        "sky, from below the highest vertex": True,
+        "sky, from above it": False,
         "from below": True,
         "on the box's top": True,
     }
     got = scene.cast(o, d, 50.0)
     robust = embree_packets.PacketScene(*mesh).cast(o, d, 50.0)
     np.testing.assert_array_equal(got[suspect], robust[suspect])
-    assert np.isfinite(got[[0, 2, 3]]).all() and np.isnan(got[1])
+    assert np.isfinite(got[[0, 3, 4]]).all() and np.isnan(got[[1, 2]]).all()
     with pytest.raises(ValueError, match="n_heightfield"):
         embree_packets.RepairedScene(*mesh, n_heightfield=0)
 
