@@ -199,8 +199,8 @@ def _intersect16(
             for k in range(m):
                 j = first + k
                 if u[18 * w + k] == 0xFFFFFFFF:  # a miss: did it go low enough to cross the terrain?
-                    dz = np.float64(d[j, 2])
-                    suspect[j] = np.float64(o[0 if one_origin else j, 2]) + min(dz, 0.0) * max_range_m <= z_top
+                    oz = np.float64(o[0 if one_origin else j, 2])
+                    suspect[j] = oz + min(np.float64(d[j, 2]), 0.0) * max_range_m <= z_top
                 elif u[17 * w + k] >= n_heightfield:  # a body
                     suspect[j] = True
                 else:  # Embree's unnormalised normal Ng; a heightfield triangle's upward one is sign(Ng_z) Ng
