@@ -157,9 +157,9 @@ def _intersect16(
     a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
     or one row for all. Where ``suspect`` holds a flag per ray (it is empty otherwise), it flags
     each ray a non-watertight triangle test may have let through a heightfield made of the first
-    ``n_heightfield`` triangles, none higher than ``z_top`` (:class:`RepairedScene`): a miss that
-    reaches down to ``z_top`` within ``max_range_m``, a hit on a later triangle, or a hit on a
-    heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
+    ``n_heightfield`` triangles, in a mesh with no vertex above ``z_top`` (:class:`RepairedScene`):
+    a miss that reaches down to ``z_top`` within ``max_range_m``, a hit on a later triangle, or a
+    hit on a heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
     n = d.shape[0]
     one_origin = o.shape[0] == 1
     flag = suspect.shape[0] == n
@@ -324,8 +324,9 @@ class RepairedScene:
     triangle, which it then meets from below. Every miss, every hit on a heightfield triangle's
     underside and every hit on a later triangle (the bodies standing on the terrain, which a ray
     could slip into, or meet under the ground after slipping through it) is cast again in the
-    robust scene, but for misses that stay above the heightfield's highest vertex (a sky ray of a
-    sensor above the terrain); every other ray keeps the fast test's first hit. So no ray passes through the
+    robust scene, but for misses that stay above the mesh's highest vertex (a sky ray of a sensor
+    above everything; they could not have met a triangle); every other ray keeps the fast test's
+    first hit. So no ray passes through the
     surface, hits and misses are the robust scene's but for rays that graze an edge within
     float32 rounding, and a range differs from the robust scene's only by the two tests'
     rounding (up to ~1e-4 m at 120 m; tests/sensors/raycast/test_embree_packets.py). Each ray's
@@ -348,9 +349,9 @@ class RepairedScene:
         if not 1 <= int(n_heightfield) <= self.n_triangles:
             raise ValueError(f"n_heightfield: needs 1 to {self.n_triangles} triangles, got {n_heightfield}")
         self.n_heightfield = int(n_heightfield)
-        # a ray that stays above every heightfield vertex cannot have slipped through it (1 cm for rounding)
+        # a ray that stays above every vertex cannot have slipped through a triangle (1 cm for rounding)
         v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-        self.z_top = float(v[np.asarray(triangles)[: self.n_heightfield].ravel(), 2].max()) + 0.01
+        self.z_top = float(v[:, 2].max()) + 0.01
 
     def cast(
         self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
