@@ -224,3 +224,23 @@ def test_lux_ego_motion_reaches_paper_t_and_must_be_a_bool() -> None:
     for bad in ("true", 1, None):
         with pytest.raises(ConfigError, match="lux_ego_motion"):
             ObservationConfig(lux_ego_motion=bad)
+
+
+def test_raycast_fast_terrain_reaches_the_caster_and_must_be_a_bool() -> None:
+    """The flag picks the static scene's triangle test; the observations agree either way (the
+    two tests' ranges differ by float32 rounding, far below a 20 cm cell)."""
+    from negobs_gym.sensors.raycast.embree_packets import PacketScene, RepairedScene, packets_available
+
+    if not packets_available():
+        pytest.skip("embreex's libembree4 not found: the fast terrain test needs the packet path")
+    observations = []
+    for flag, scene in ((False, PacketScene), (True, RepairedScene)):
+        env = BrakingEnv(replace(EnvConfig(), observation=ObservationConfig(raycast_fast_terrain=flag)))
+        env.reset(seed=3)
+        assert isinstance(env._detector.perception._caster._static._packets, scene)
+        observations.append(env.step(np.array([0.5, 0.0], dtype=np.float32))[0])
+        env.close()
+    np.testing.assert_array_equal(observations[0]["grid"], observations[1]["grid"])
+    for bad in ("false", 0, None):
+        with pytest.raises(ConfigError, match="raycast_fast_terrain"):
+            ObservationConfig(raycast_fast_terrain=bad)
