@@ -43,6 +43,7 @@ ISAS = ("native", "sse4.2", "avx", "avx2", "avx512")  # Embree device config ``i
 _PACKET_BYTES = 4096
 
 _NO_FLAGS = np.zeros(0, dtype=np.bool_)  # PacketScene.cast flags no ray
+_NO_CEILINGS, _NO_TILES = np.zeros((1, 1)), np.zeros(6)
 _u64 = ctypes.c_uint64  # handles and pointers are passed as 64-bit integers (same ABI as a pointer)
 _INTERSECT16 = ctypes.CFUNCTYPE(None, _u64, _u64, _u64, _u64)
 
@@ -151,18 +152,24 @@ def _intersect16(
     out: np.ndarray,
     suspect: np.ndarray,
     n_heightfield: int,
-    z_top: float,
+    ceilings: np.ndarray,
+    tiles: np.ndarray,
 ) -> None:
     """``out`` = each float32 ray's range after ``rtcIntersect16``, in float64: its ``tfar`` where
     a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
     or one row for all. Where ``suspect`` holds a flag per ray (it is empty otherwise), it flags
     each ray a non-watertight triangle test may have let through a heightfield made of the first
-    ``n_heightfield`` triangles, in a mesh with no vertex above ``z_top`` (:class:`RepairedScene`):
-    a miss that reaches down to ``z_top`` within ``max_range_m``, a hit on a later triangle, or a
-    hit on a heightfield triangle's underside (its normal, turned to point up, not facing the ray)."""
+    ``n_heightfield`` triangles (:class:`RepairedScene`): a hit on a later triangle, a hit on a
+    heightfield triangle's underside (its normal, turned to point up, not facing the ray), and a
+    miss that ends (at ``max_range_m``, or where it leaves the heightfield's xy box) no higher
+    than the heightfield there: ``ceilings`` (ny, nx) bounds it over square tiles, ``tiles`` =
+    (x0, y0, tile size, the highest ceiling, x1, y1) with (x0, y0, x1, y1) the box, and a ray
+    from outside the box counts when it gets down to the highest ceiling."""
     n = d.shape[0]
     one_origin = o.shape[0] == 1
     flag = suspect.shape[0] == n
+    ny, nx = ceilings.shape
+    x0, y0, size, highest, x1, y1 = tiles[0], tiles[1], tiles[2], tiles[3], tiles[4], tiles[5]
     work = np.zeros(_PACKET_BYTES + 128, dtype=np.uint8)  # the packet, then the lanes' valid flags
     start = (-work.ctypes.data) % 64
     packet = work[start : start + _PACKET_BYTES]
@@ -198,15 +205,83 @@ def _intersect16(
         if flag:
             for k in range(m):
                 j = first + k
-                if u[18 * w + k] == 0xFFFFFFFF:  # a miss: did it go low enough to cross the terrain?
-                    oz = np.float64(o[0 if one_origin else j, 2])
-                    suspect[j] = oz + min(np.float64(d[j, 2]), 0.0) * max_range_m <= z_top
+                if u[18 * w + k] == 0xFFFFFFFF:  # a miss: where it ends, is it under the ground?
+                    jo = 0 if one_origin else j
+                    ox, oy, oz = np.float64(o[jo, 0]), np.float64(o[jo, 1]), np.float64(o[jo, 2])
+                    dx, dy, dz = np.float64(d[j, 0]), np.float64(d[j, 1]), np.float64(d[j, 2])
+                    if not (x0 <= ox <= x1 and y0 <= oy <= y1):
+                        suspect[j] = oz + min(dz, 0.0) * max_range_m <= highest
+                        continue
+                    t = max_range_m  # to its range, or out of the heightfield's xy box
+                    if dx > 0.0:
+                        t = min(t, (x1 - ox) / dx)
+                    elif dx < 0.0:
+                        t = min(t, (x0 - ox) / dx)
+                    if dy > 0.0:
+                        t = min(t, (y1 - oy) / dy)
+                    elif dy < 0.0:
+                        t = min(t, (y0 - oy) / dy)
+                    ti = min(max(int((ox + t * dx - x0) / size), 0), nx - 1)
+                    tk = min(max(int((oy + t * dy - y0) / size), 0), ny - 1)
+                    suspect[j] = oz + t * dz <= ceilings[tk, ti]
                 elif u[17 * w + k] >= n_heightfield:  # a body
                     suspect[j] = True
                 else:  # Embree's unnormalised normal Ng; a heightfield triangle's upward one is sign(Ng_z) Ng
                     nz = f[14 * w + k]
                     facing = f[12 * w + k] * d[j, 0] + f[13 * w + k] * d[j, 1] + nz * d[j, 2]
                     suspect[j] = facing * nz >= 0.0
+
+
+@kernel
+def _triangle_bounds(v: np.ndarray, f: np.ndarray) -> tuple[float, float, float, float, float]:
+    """The largest x or y extent of any triangle of ``f`` over vertices ``v``, and the triangles'
+    xy box (x0, y0, x1, y1)."""
+    largest = 0.0
+    x0, y0, x1, y1 = np.inf, np.inf, -np.inf, -np.inf
+    for t in range(f.shape[0]):
+        for axis in range(2):
+            a, b, c = v[f[t, 0], axis], v[f[t, 1], axis], v[f[t, 2], axis]
+            largest = max(largest, max(a, b, c) - min(a, b, c))
+        for corner in range(3):
+            x, y = v[f[t, corner], 0], v[f[t, corner], 1]
+            x0, y0, x1, y1 = min(x0, x), min(y0, y), max(x1, x), max(y1, y)
+    return largest, x0, y0, x1, y1
+
+
+@kernel
+def _vertex_tile_maxima(
+    v: np.ndarray, f: np.ndarray, x0: float, y0: float, size: float, ny: int, nx: int
+) -> np.ndarray:
+    """Per square tile, the highest vertex of ``f`` in it (-inf where none)."""
+    top = np.full((ny, nx), -np.inf)
+    for t in range(f.shape[0]):
+        for corner in range(3):
+            p = f[t, corner]
+            i = min(max(int((v[p, 0] - x0) / size), 0), nx - 1)
+            k = min(max(int((v[p, 1] - y0) / size), 0), ny - 1)
+            top[k, i] = max(top[k, i], v[p, 2])
+    return top
+
+
+def _heightfield_ceilings(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Square tiles over a heightfield's xy box and, per tile, a height no point of the surface
+    over it exceeds (+1 cm for rounding): the highest vertex in the tile and its 8 neighbours.
+    A tile is at least as large as any triangle's x and y extent, so a triangle that reaches into
+    a tile has its highest vertex there or in a neighbour. Returns (ceilings, tiles) for
+    :func:`_intersect16`."""
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(triangles, dtype=np.int64)
+    largest, x0, y0, x1, y1 = _triangle_bounds(v, f)  # the box of the heightfield's own vertices
+    size = max(2.0, largest * 1.001)
+    nx = max(1, int(np.ceil((x1 - x0) / size)))
+    ny = max(1, int(np.ceil((y1 - y0) / size)))
+    top = np.pad(_vertex_tile_maxima(v, f, x0, y0, size, ny, nx), 1, constant_values=-np.inf)
+    ceilings = np.full((ny, nx), -np.inf)
+    for a in (0, 1, 2):
+        for b in (0, 1, 2):
+            np.maximum(ceilings, top[a : a + ny, b : b + nx], out=ceilings)
+    ceilings += 0.01
+    return ceilings, np.array([x0, y0, size, float(ceilings.max()), x1, y1])
 
 
 class PacketScene:
@@ -272,7 +347,7 @@ class PacketScene:
         given (a float64 array of one value per ray). ``o32``: one origin per ray (n, 3), or one
         row (1, 3) for every ray. A hit counts where its float32 distance lies before the float32
         step past ``max_range_m`` and, in float64, within it."""
-        return self._cast(o32, d32, max_range_m, out, _NO_FLAGS, 0, 0.0)
+        return self._cast(o32, d32, max_range_m, out, _NO_FLAGS, 0, _NO_CEILINGS, _NO_TILES)
 
     def _cast(
         self,
@@ -282,7 +357,8 @@ class PacketScene:
         out: np.ndarray | None,
         suspect: np.ndarray,
         n_heightfield: int,
-        z_top: float,
+        ceilings: np.ndarray,
+        tiles: np.ndarray,
     ) -> np.ndarray:
         """:meth:`cast`, flagging into ``suspect`` (one bool per ray; empty: no flags) the rays
         :class:`RepairedScene` casts again."""
@@ -307,7 +383,8 @@ class PacketScene:
             out,
             suspect,
             int(n_heightfield),
-            float(z_top),
+            ceilings,
+            tiles,
         )
         return out
 
@@ -320,17 +397,18 @@ class RepairedScene:
     slip between the two triangles, and on a LiDAR frame about one ray in 10^5 does (aimed at the
     vertices, a few per cent). Its robust mode closes the gaps and costs 1.1-1.5x the cast
     (docs/performance.md). A heightfield is single-valued in z, so a ray that slipped through it
-    stays below its surface until it leaves the mesh (a miss) or comes back up through a
-    triangle, which it then meets from below. Every miss, every hit on a heightfield triangle's
-    underside and every hit on a later triangle (the bodies standing on the terrain, which a ray
-    could slip into, or meet under the ground after slipping through it) is cast again in the
-    robust scene, but for misses that stay above the mesh's highest vertex (a sky ray of a sensor
-    above everything; they could not have met a triangle); every other ray keeps the fast test's
-    first hit. So no ray passes through the
-    surface, hits and misses are the robust scene's but for rays that graze an edge within
-    float32 rounding, and a range differs from the robust scene's only by the two tests'
-    rounding (up to ~1e-4 m at 120 m; tests/sensors/raycast/test_embree_packets.py). Each ray's
-    range is the same whatever rays are cast with it.
+    stays below its surface until it comes back up through a triangle, which it then meets from
+    below, or ends (its range runs out, or it leaves the heightfield's xy box) still below it.
+    Cast again in the robust scene: every hit on a heightfield triangle's underside, every hit on
+    a later triangle (the bodies standing on the terrain, which a ray could slip into, or meet
+    under the ground after slipping through it), and every miss that ends no higher than a
+    ceiling of the heightfield kept per 2 m tile. Every other ray keeps the fast test's first hit:
+    a ray toward the sky, or one whose range runs out above the ground, cannot have slipped
+    through. So no ray passes through the surface; hits and misses are the robust scene's but for
+    rays that graze an edge within float32 rounding, and a range differs from the robust scene's
+    only by the two tests' rounding (up to ~1e-4 m at 120 m;
+    tests/sensors/raycast/test_embree_packets.py). Each ray's range is the same whatever rays are
+    cast with it.
 
     Args:
         vertices: (V, 3) float32 vertices (local coordinates).
@@ -349,9 +427,9 @@ class RepairedScene:
         if not 1 <= int(n_heightfield) <= self.n_triangles:
             raise ValueError(f"n_heightfield: needs 1 to {self.n_triangles} triangles, got {n_heightfield}")
         self.n_heightfield = int(n_heightfield)
-        # a ray that stays above every vertex cannot have slipped through a triangle (1 cm for rounding)
         v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-        self.z_top = float(v[:, 2].max()) + 0.01
+        f = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)[: self.n_heightfield]
+        self.ceilings, self.tiles = _heightfield_ceilings(v, f)
 
     def cast(
         self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
@@ -359,7 +437,9 @@ class RepairedScene:
         """float64 range of each ray (NaN: nothing hit within ``max_range_m``), as
         :meth:`PacketScene.cast`."""
         suspect = np.zeros(d32.shape[0], dtype=np.bool_)
-        out = self._fast._cast(o32, d32, max_range_m, out, suspect, self.n_heightfield, self.z_top)
+        out = self._fast._cast(
+            o32, d32, max_range_m, out, suspect, self.n_heightfield, self.ceilings, self.tiles
+        )
         again = np.flatnonzero(suspect)
         if again.size:
             o_again = o32 if o32.shape[0] == 1 else o32[again]

@@ -122,10 +122,10 @@ def test_the_fast_terrain_test_lets_no_ray_through(rough_world):
 
 
 def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough_world):
-    """Which rays the fast test flags: a miss that goes lower than the terrain's highest vertex, a
-    hit on the terrain's underside (a ray from below the ground) and a hit on a body; a terrain hit
-    from above, and a miss that stays above every vertex, are kept. Flagged rays get the robust
-    scene's range bit for bit."""
+    """Which rays the fast test flags: a miss that ends under the ground (as a ray that slipped
+    through it would), a hit on the terrain's underside (a ray from below the ground) and a hit on
+    a body; a terrain hit from above and a ray toward the sky are kept. Flagged rays get the
+    robust scene's range bit for bit."""
     world, _ = rough_world
     terrain = _rough_mesh(world)
     centre = terrain[0][:, :2].mean(axis=0)
@@ -136,11 +136,10 @@ def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough
     ground = v[np.linalg.norm(v[:, :2] - beside, axis=1) < 0.5, 2].mean()
     top, under = np.append(beside, ground + 2.0), np.append(beside, ground - 1.5)
     scene = embree_packets.RepairedScene(*mesh, n_heightfield=len(terrain[1]))
-    assert ground + 0.5 < scene.z_top  # a sky ray from there may have slipped through a crest
     rays = {
         "down": (top, [0.1, 0.05, -1.0]),
-        "sky, from below the highest vertex": (np.append(beside, ground + 0.5), [0.3, 0.1, 1.0]),
-        "sky, from above it": (np.append(beside, scene.z_top + 0.5), [0.3, 0.1, 1.0]),
+        "sky": (top, [0.3, 0.1, 1.0]),
+        "down, from under the ground": (under, [0.2, -0.1, -1.0]),
         "from below": (under, [0.05, 0.1, 1.0]),
         "on the box's top": (box_top + np.array([1.0, 0.5, 3.0]), [-1.0, -0.5, -3.0]),
     }
@@ -148,11 +147,11 @@ def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough
     d = np.array([r[1] for r in rays.values()], dtype=np.float64)
     d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
     suspect = np.zeros(len(d), dtype=np.bool_)
-    scene._fast._cast(o, d, 50.0, None, suspect, scene.n_heightfield, scene.z_top)
+    scene._fast._cast(o, d, 50.0, None, suspect, scene.n_heightfield, scene.ceilings, scene.tiles)
     assert dict(zip(rays, suspect.tolist(), strict=True)) == {
         "down": False,
-        "sky, from below the highest vertex": True,
-        "sky, from above it": False,
+        "sky": False,
+        "down, from under the ground": True,
         "from below": True,
         "on the box's top": True,
     }
@@ -162,6 +161,26 @@ def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough
     assert np.isfinite(got[[0, 3, 4]]).all() and np.isnan(got[[1, 2]]).all()
     with pytest.raises(ValueError, match="n_heightfield"):
         embree_packets.RepairedScene(*mesh, n_heightfield=0)
+
+
+def test_the_heightfield_ceilings_bound_every_point_of_the_surface(rough_world):
+    """A miss is cast again when it ends below the ceiling of its tile: no point of any triangle
+    may lie above its tile's ceiling, or a ray that slipped through there would be kept."""
+    world, _ = rough_world
+    v, f = _rough_mesh(world)
+    ceilings, tiles = embree_packets._heightfield_ceilings(v.astype(np.float64), f.astype(np.int64))
+    rng = np.random.default_rng(5)
+    w = rng.dirichlet(np.ones(3), size=(len(f), 4))  # 4 random points on every triangle
+    points = np.einsum("fkc,fcd->fkd", w, v[f]).reshape(-1, 3)
+    points = np.concatenate([points, v])  # and every vertex
+    i = np.clip(((points[:, 0] - tiles[0]) / tiles[2]).astype(int), 0, ceilings.shape[1] - 1)
+    k = np.clip(((points[:, 1] - tiles[1]) / tiles[2]).astype(int), 0, ceilings.shape[0] - 1)
+    assert (points[:, 2] <= ceilings[k, i]).all()
+    assert tiles[3] == ceilings.max() and tiles[2] >= 2.0
+    box = [v[:, 0].min(), v[:, 1].min(), v[:, 0].max(), v[:, 1].max()]  # the heightfield's own box
+    np.testing.assert_array_equal(tiles[[0, 1, 4, 5]], box)
+    assert ceilings.max() <= points[:, 2].max() + 0.01 + 1e-9  # each is some triangle's height
+    assert np.median(ceilings) < ceilings.max() - 0.1  # and local: most tiles are lower than the top
 
 
 @pytest.mark.parametrize("fast", [False, True])
