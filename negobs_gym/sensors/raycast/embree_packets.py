@@ -413,7 +413,8 @@ class RepairedScene:
     Args:
         vertices: (V, 3) float32 vertices (local coordinates).
         triangles: (F, 3) vertex indices; the first ``n_heightfield`` of them form a heightfield
-            (each triangle's projection on the xy plane has positive area, and no two overlap).
+            that covers its xy box without holes, as a grid's triangulation does (each
+            triangle's projection on the xy plane has positive area, and no two overlap).
         n_heightfield: How many leading triangles form the heightfield, >= 1.
         isa: Embree's kernels, as :class:`PacketScene`.
     """
