@@ -264,8 +264,8 @@ class EmbreeCaster:
 
     Build it from a world with :meth:`from_world`, or directly from a static mesh in world
     coordinates (``vertices_m`` (V, 3), ``triangles`` (F, 3)); where the mesh's first
-    ``heightfield_triangles`` triangles form a heightfield (a terrain), ``config.fast_terrain``
-    casts it with the fast test (0: the robust scene).
+    ``heightfield_triangles`` triangles form a heightfield over their whole xy box (a terrain
+    grid), ``config.fast_terrain`` casts it with the fast test (0: the robust scene).
 
     Raises:
         MissingDependencyError: ``embreex`` is not installed.
