@@ -422,15 +422,15 @@ class RepairedScene:
     def __init__(
         self, vertices: np.ndarray, triangles: np.ndarray, n_heightfield: int, isa: str = "native"
     ) -> None:
+        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        if not 1 <= int(n_heightfield) <= f.shape[0]:  # checked before two scenes are built
+            raise ValueError(f"n_heightfield: needs 1 to {f.shape[0]} triangles, got {n_heightfield}")
+        self.n_heightfield = int(n_heightfield)
+        self.ceilings, self.tiles = _heightfield_ceilings(v, f[: self.n_heightfield])
         self._fast = PacketScene(vertices, triangles, robust=False, isa=isa)
         self._exact = PacketScene(vertices, triangles, robust=True, isa=isa)
         self.n_triangles = self._fast.n_triangles
-        if not 1 <= int(n_heightfield) <= self.n_triangles:
-            raise ValueError(f"n_heightfield: needs 1 to {self.n_triangles} triangles, got {n_heightfield}")
-        self.n_heightfield = int(n_heightfield)
-        v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-        f = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)[: self.n_heightfield]
-        self.ceilings, self.tiles = _heightfield_ceilings(v, f)
 
     def cast(
         self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None
