@@ -5,13 +5,15 @@ pit, a trench, a rock, a pedestrian, a parked car and a mound) plus a second veh
 body; the sensors ride on the own vehicle, which both backends exclude. One revolution of every
 sensor: HDL-64E S2 (64 x 4000), two HDL-32E (32 x 2250 each) and the IBEO LUX (4 x 341).
 
-Embree runs three ways, on one thread each: the default 16-ray packets over shared buffers with
-the fast terrain test (``EmbreeConfig(ray_packets=True, fast_terrain=True)``: Embree's
-non-watertight triangle test, the rays it may have let through cast again robustly), the same
-packets on the robust scene alone (``fast_terrain=False``), and embreex's single-ray loop (robust),
-with their scene builds, the dynamic scene's rebuild after the other vehicle moved, whether the
-robust packets equal the single-ray loop bit for bit, and how far the fast terrain test's ranges
-are from the robust ones.
+Embree runs four ways, on one thread each: the default packets (the widest the CPU's kernels
+cast natively, 16 rays with AVX-512, 8 with AVX2) over shared buffers with the fast terrain test
+(``EmbreeConfig(ray_packets=True, fast_terrain=True)``: Embree's non-watertight triangle test, the
+rays it may have let through cast again robustly), the same packets on the robust scene alone
+(``fast_terrain=False``), 16-ray packets on the robust scene (``packet_width=16``:
+``packet_width_speedup=``, 1.00 where 16 is the native width), and embreex's single-ray loop
+(robust), with their scene builds, the dynamic scene's rebuild after the other vehicle moved,
+whether the robust packets equal the single-ray loop and the 16-ray packets bit for bit, and how
+far the fast terrain test's ranges are from the robust ones.
 
 The last two lines are ``speedup_vs_pybullet=<ratio>`` (best-of-N time of PyBullet / Embree)
 and ``agreement=<fraction>`` (share of rays with the same hit/miss and, for hits, |dr| <= 1 cm).
@@ -62,16 +64,19 @@ def main() -> None:
         xy, yaw = terrain.track.pose_at(9.0, 2.2)
         other = Vehicle(world, start_pose=Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw)))
         casters, t_build, t_rebuild = {}, {}, {}
-        for name, packets, fast_terrain in (
-            ("packets", True, True),
-            ("robust_packets", True, False),
-            ("single_ray", False, False),
+        for name, packets, fast_terrain, width in (
+            ("packets", True, True, None),
+            ("robust_packets", True, False, None),
+            ("robust_packets_16", True, False, 16),
+            ("single_ray", False, False, None),
         ):
             t0 = time.perf_counter()
             casters[name] = EmbreeCaster.from_world(
                 world,
                 exclude_body_ids=[own.body_id],
-                config=EmbreeConfig(ray_packets=packets, auto_update=False, fast_terrain=fast_terrain),
+                config=EmbreeConfig(
+                    ray_packets=packets, auto_update=False, fast_terrain=fast_terrain, packet_width=width
+                ),
             )
             t_build[name] = time.perf_counter() - t0
         pose0 = other.true_pose()
@@ -87,10 +92,10 @@ def main() -> None:
             world.client_id, exclude_body_ids=[own.body_id], num_threads=args.pybullet_threads
         )
         mounts = [*paper_n_rig().mounts, *paper_t_rig().mounts]
-        t_e = t_b = t_single = t_robust = 0.0
+        t_e = t_b = t_single = t_robust = t_wide = 0.0
         refs, fasts, robusts = [], [], []
         n_rays = 0
-        same = True
+        same = same_wide = True
         for station in args.stations:
             sxy, syaw = terrain.track.pose_at(station)
             own.reset(Pose(float(sxy[0]), float(sxy[1]), 0.0, 0.0, 0.0, float(syaw)))
@@ -102,6 +107,10 @@ def main() -> None:
             te, fast = _best_time(lambda o=o, d=d: embree.cast(o, d, MAX_RANGE_M), args.repeats)
             robust = casters["robust_packets"]
             tr, exact = _best_time(lambda o=o, d=d, c=robust: c.cast(o, d, MAX_RANGE_M), args.repeats)
+            wide = casters["robust_packets_16"]
+            tw, wide16 = _best_time(lambda o=o, d=d, c=wide: c.cast(o, d, MAX_RANGE_M), args.repeats)
+            same_wide &= bool(np.array_equal(exact, wide16, equal_nan=True))
+            t_wide += tw
             single = casters["single_ray"]
             ts, slow = _best_time(lambda o=o, d=d, c=single: c.cast(o, d, MAX_RANGE_M), args.repeats)
             tb, ref = _best_time(lambda o=o, d=d: bullet.cast(o, d, MAX_RANGE_M), args.pybullet_repeats)
@@ -138,7 +147,14 @@ def main() -> None:
         f"{np.mean(np.isnan(fast_all) == np.isnan(robust_all)):.6f} "
         f"max_abs_dr_vs_robust_m={np.abs(fast_all[both] - robust_all[both]).max():.2e}"
     )
-    print(f"packet_speedup={t_single / t_robust:.2f} packets_equal_single_ray={same} (robust scenes)")
+    print(
+        f"packet_speedup={t_single / t_robust:.2f} packets_equal_single_ray={same} (robust scenes, "
+        f"{robust.packet_width} rays per packet)"
+    )
+    print(
+        f"packet_width_speedup={t_wide / t_robust:.2f} (16 rays per packet against {robust.packet_width}, "
+        f"robust scene) equal={same_wide}"
+    )
     print(f"pybullet_rays_per_s={n_rays / t_b:.3e} (numThreads={args.pybullet_threads})")
     print(f"hit_miss_agreement={a.hit_miss:.6f}")
     print(

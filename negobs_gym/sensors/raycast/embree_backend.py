@@ -25,6 +25,7 @@ from negobs_gym.errors import ConfigError, MissingDependencyError, ScanError, re
 from negobs_gym.sensors.raycast.base import check_rays, raise_ray_problem, rotated_unit_rows
 from negobs_gym.sensors.raycast.embree_packets import (
     ISAS,
+    PACKET_WIDTHS,
     PacketScene,
     RepairedScene,
     packets_available,
@@ -68,10 +69,13 @@ class EmbreeConfig:
             without the GIL; every ray's result is the same whatever the split): the calling
             thread and ``threads - 1`` pool threads (:meth:`EmbreeCaster.start_cast`). 1 in
             processes that share the cores with others (vector-env workers).
-        ray_packets: Build scenes over shared buffers and cast 16-ray packets through Embree's C
+        ray_packets: Build scenes over shared buffers and cast ray packets through Embree's C
             API (``embree_packets``: same distances bit for bit, scene builds 3-4x and casts
             1.24-1.32x faster); False, or where embreex's library is not found, uses embreex's
             single-ray loop.
+        packet_width: Rays per packet (16, 8 or 4; packet path only); None: the widest the
+            kernels of ``isa`` cast natively, 16 with AVX-512 and 8 with AVX2 (a 16-ray packet
+            on an AVX2-only CPU casts 1.3x slower). Every width gives the same ranges.
         isa: Embree's kernels (packet path only): ``"native"`` (the CPU's widest, fastest) or one
             instruction set, ``"avx2"`` etc. AVX2 and AVX-512 kernels differ in the last float32
             bit on ~10 % of a frame's rays; a pinned set gives the same ranges on every CPU that
@@ -92,6 +96,7 @@ class EmbreeConfig:
     auto_update: bool = True
     threads: int = 1
     ray_packets: bool = True
+    packet_width: int | None = None
     isa: str = "native"
     fast_terrain: bool = True
 
@@ -114,6 +119,12 @@ class EmbreeConfig:
         )
         require(isinstance(self.ray_packets, bool), "ray_packets", "must be a bool")
         require(isinstance(self.fast_terrain, bool), "fast_terrain", "must be a bool")
+        require(
+            self.packet_width is None
+            or (type(self.packet_width) is int and self.packet_width in PACKET_WIDTHS),
+            "packet_width",
+            f"must be one of {PACKET_WIDTHS} or None, got {self.packet_width!r}",
+        )
         require(self.isa in ISAS, "isa", f"must be one of {ISAS}, got {self.isa!r}")
         require(
             self.isa == "native" or self.ray_packets,
@@ -215,7 +226,12 @@ class _Scene:
     ``fast_heightfield`` triangles form the terrain's heightfield."""
 
     def __init__(
-        self, mesh: Mesh, packets: bool = True, isa: str = "native", fast_heightfield: int = 0
+        self,
+        mesh: Mesh,
+        packets: bool = True,
+        isa: str = "native",
+        fast_heightfield: int = 0,
+        width: int | None = None,
     ) -> None:
         v, f = mesh
         self.n_triangles = int(f.shape[0])
@@ -223,9 +239,9 @@ class _Scene:
         self._embreex: Any = None
         if packets and packets_available():
             if fast_heightfield > 0:
-                self._packets = RepairedScene(v, f, fast_heightfield, isa=isa)
+                self._packets = RepairedScene(v, f, fast_heightfield, isa=isa, width=width)
             else:
-                self._packets = PacketScene(v, f, robust=True, isa=isa)
+                self._packets = PacketScene(v, f, robust=True, isa=isa, width=width)
             return
         if isa != "native":
             raise MissingDependencyError(
@@ -311,7 +327,13 @@ class EmbreeCaster:
     def _scene(self, mesh: Mesh, fast_heightfield: int = 0) -> _Scene:
         """A scene of ``mesh`` (local coordinates) built the way the config asks."""
         cfg = self.config
-        return _Scene(mesh, packets=cfg.ray_packets, isa=cfg.isa, fast_heightfield=fast_heightfield)
+        return _Scene(
+            mesh,
+            packets=cfg.ray_packets,
+            isa=cfg.isa,
+            fast_heightfield=fast_heightfield,
+            width=cfg.packet_width,
+        )
 
     @classmethod
     def from_world(
@@ -369,6 +391,13 @@ class EmbreeCaster:
     def n_static_triangles(self) -> int:
         """Triangles in the static scene."""
         return self._static.n_triangles
+
+    @property
+    def packet_width(self) -> int | None:
+        """Rays per packet of the casts (``config.packet_width`` or the CPU's native width); None
+        on embreex's single-ray loop."""
+        packets = self._static._packets
+        return None if packets is None else packets.width
 
     def set_dynamic_mesh(self, vertices_m: np.ndarray, triangles: np.ndarray) -> None:
         """Replace the dynamic scene by a mesh in world coordinates (empty arrays clear it)."""

@@ -1,11 +1,13 @@
-"""Embree scenes and 16-ray packet queries through Embree's C API (the library embreex ships).
+"""Embree scenes and ray packet queries through Embree's C API (the library embreex ships).
 
 embreex binds one query, ``rtcIntersect1`` in a loop over the rays, and copies a mesh into Embree
 element by element. The same ``libembree4`` is called here through ctypes: a scene is built over
 the mesh's own numpy buffers (``rtcSetSharedGeometryBuffer``: no copy; 3-4x faster builds), and a
-compiled loop fills ``RTCRayHit16`` packets and calls ``rtcIntersect16`` (1.24-1.32x faster on a
-LiDAR frame). Each ray's distance in a robust :class:`PacketScene` equals embreex's bit for bit:
-the same robust triangle test on the same float32 inputs, whatever rays share its packet
+compiled loop fills packets of the widest size Embree's kernels run natively (16 rays with
+AVX-512, 8 with AVX2: ``rtcIntersect16``, ``rtcIntersect8``; a 16-ray packet on an AVX2-only CPU
+is split and casts 1.3x slower) and casts them, 1.24-1.32x faster than embreex on a LiDAR frame.
+Each ray's distance in a robust :class:`PacketScene` equals embreex's bit for bit: the same robust
+triangle test on the same float32 inputs, whatever rays share its packet and whatever its width
 (tests/sensors/raycast/test_embree_packets.py). :class:`RepairedScene` casts a terrain with
 Embree's faster, non-watertight test and casts again, robustly, every ray that test may have let
 through. Measured figures: docs/performance.md, "Embree packets" and "The fast terrain test".
@@ -34,7 +36,10 @@ _BUFFER_TYPE_VERTEX = 1
 _FORMAT_UINT3 = 0x5003
 _FORMAT_FLOAT3 = 0x9003
 _SCENE_FLAG_ROBUST = 1 << 2
-_PACKET = 16  # rays per rtcIntersect16 call
+_PACKET = 16  # the widest packet (rtcIntersect16); the buffers below hold one
+PACKET_WIDTHS = (16, 8, 4)  # rtcIntersect16, 8, 4
+# RTC_DEVICE_PROPERTY_NATIVE_RAY{16,8,4}_SUPPORTED (include/embree4/rtcore_device.h)
+_NATIVE_WIDTH_PROPERTY = {16: 34, 8: 33, 4: 32}
 ISAS = ("native", "sse4.2", "avx", "avx2", "avx512")  # Embree device config ``isa=...``
 # RTCRayHit16, 64-byte aligned: the ray's 12 fields of 16 lanes (org_x, org_y, org_z, tnear, dir_x,
 # dir_y, dir_z, time, tfar, mask, id, flags), then the hit's (Ng_x, Ng_y, Ng_z, u, v, primID, geomID,
@@ -45,7 +50,7 @@ _PACKET_BYTES = 4096
 _NO_FLAGS = np.zeros(0, dtype=np.bool_)  # PacketScene.cast flags no ray
 _NO_CEILINGS, _NO_TILES = np.zeros((1, 1)), np.zeros(6)
 _u64 = ctypes.c_uint64  # handles and pointers are passed as 64-bit integers (same ABI as a pointer)
-_INTERSECT16 = ctypes.CFUNCTYPE(None, _u64, _u64, _u64, _u64)
+_INTERSECT = ctypes.CFUNCTYPE(None, _u64, _u64, _u64, _u64)  # rtcIntersect4/8/16, one signature
 
 
 def _library_candidates() -> list[Path]:
@@ -70,6 +75,7 @@ class _Library:
         sig = {
             "rtcNewDevice": (_u64, [ctypes.c_char_p]),
             "rtcGetDeviceError": (ctypes.c_int, [_u64]),
+            "rtcGetDeviceProperty": (ctypes.c_ssize_t, [_u64, ctypes.c_int]),
             "rtcNewScene": (_u64, [_u64]),
             "rtcSetSceneFlags": (None, [_u64, ctypes.c_int]),
             "rtcNewGeometry": (_u64, [_u64, ctypes.c_int]),
@@ -97,7 +103,7 @@ class _Library:
             fn.restype, fn.argtypes = restype, argtypes
         self.lib = lib
         self.path = path
-        self.intersect16 = _INTERSECT16(("rtcIntersect16", lib))
+        self.intersect = {w: _INTERSECT((f"rtcIntersect{w}", lib)) for w in PACKET_WIDTHS}
         self._devices: dict[str, tuple[int, int]] = {}
 
     def device(self, isa: str = "native") -> int:
@@ -115,6 +121,14 @@ class _Library:
             entry = (pid, handle)
             self._devices[isa] = entry
         return entry[1]
+
+    def native_width(self, isa: str = "native") -> int:
+        """The widest packet the kernels of ``isa`` cast natively (16 where Embree reports none)."""
+        device = self.device(isa)
+        for width in PACKET_WIDTHS:
+            if self.lib.rtcGetDeviceProperty(device, _NATIVE_WIDTH_PROPERTY[width]) > 0:
+                return width
+        return _PACKET
 
 
 _LIBRARY: list[_Library | None] = []
@@ -142,8 +156,9 @@ def packets_available() -> bool:
 
 
 @kernel
-def _intersect16(
-    intersect16,
+def _intersect_packets(
+    intersect,
+    w: int,
     scene: int,
     o: np.ndarray,
     d: np.ndarray,
@@ -155,7 +170,8 @@ def _intersect16(
     ceilings: np.ndarray,
     tiles: np.ndarray,
 ) -> None:
-    """``out`` = each float32 ray's range after ``rtcIntersect16``, in float64: its ``tfar`` where
+    """``out`` = each float32 ray's range after ``intersect`` (``rtcIntersect<w>``, packets of
+    ``w`` <= 16 rays), in float64: its ``tfar`` where
     a hit lies before ``limit`` and within ``max_range_m``, else NaN; ``o`` holds one origin per ray
     or one row for all. Where ``suspect`` holds a flag per ray (it is empty otherwise), it flags
     each ray a non-watertight triangle test may have let through a heightfield made of the first
@@ -178,7 +194,6 @@ def _intersect16(
     valid = work[start + _PACKET_BYTES : start + _PACKET_BYTES + 4 * _PACKET].view(np.int32)
     packet_ptr = packet.ctypes.data
     valid_ptr = valid.ctypes.data
-    w = _PACKET
     for first in range(0, n, w):
         m = min(w, n - first)
         for k in range(w):
@@ -198,7 +213,7 @@ def _intersect16(
             u[11 * w + k] = 0  # flags
             u[18 * w + k] = 0xFFFFFFFF  # hit.geomID = RTC_INVALID_GEOMETRY_ID
             valid[k] = -1 if k < m else 0
-        intersect16(valid_ptr, scene, packet_ptr, 0)
+        intersect(valid_ptr, scene, packet_ptr, 0)
         for k in range(m):
             t = f[8 * w + k]
             out[first + k] = np.float64(t) if t < limit and np.float64(t) <= max_range_m else np.nan
@@ -268,7 +283,7 @@ def _heightfield_ceilings(vertices: np.ndarray, triangles: np.ndarray) -> tuple[
     over it exceeds (+1 cm for rounding): the highest vertex in the tile and its 8 neighbours.
     A tile is at least as large as any triangle's x and y extent, so a triangle that reaches into
     a tile has its highest vertex there or in a neighbour. Returns (ceilings, tiles) for
-    :func:`_intersect16`."""
+    :func:`_intersect_packets`."""
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(triangles, dtype=np.int64)
     largest, x0, y0, x1, y1 = _triangle_bounds(v, f)  # the box of the heightfield's own vertices
@@ -285,7 +300,7 @@ def _heightfield_ceilings(vertices: np.ndarray, triangles: np.ndarray) -> tuple[
 
 
 class PacketScene:
-    """A committed Embree scene of one triangle mesh over shared buffers, queried 16 rays at a time.
+    """A committed Embree scene of one triangle mesh over shared buffers, queried in ray packets.
 
     Args:
         vertices: (V, 3) float32 vertices (local coordinates: Embree works in float32).
@@ -295,19 +310,30 @@ class PacketScene:
             (``"sse4.2"``, ``"avx"``, ``"avx2"``, ``"avx512"``). Kernels of different widths
             round some hits differently in the last float32 bit, so only a pinned set gives the
             same ranges on every CPU that has it (docs/determinism.md).
+        width: Rays per packet, 16, 8 or 4; None: the widest the kernels of ``isa`` cast natively
+            (:attr:`width`). Every width gives the same ranges.
 
     Raises:
         MissingDependencyError: embreex's ``libembree4`` was not found (:func:`packets_available`).
         SimulationError: Embree reported an error while building the scene.
+        ValueError: ``width`` is not one of 16, 8, 4, None.
     """
 
     def __init__(
-        self, vertices: np.ndarray, triangles: np.ndarray, robust: bool = True, isa: str = "native"
+        self,
+        vertices: np.ndarray,
+        triangles: np.ndarray,
+        robust: bool = True,
+        isa: str = "native",
+        width: int | None = None,
     ) -> None:
         lib = _library()
         if lib is None:
             raise MissingDependencyError("embreex", "Embree packet queries (libembree4 not found)")
+        if width is not None and width not in PACKET_WIDTHS:
+            raise ValueError(f"width: rays per packet must be one of {PACKET_WIDTHS} or None, got {width!r}")
         self._lib = lib
+        self.width = lib.native_width(isa) if width is None else int(width)
         v = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
         f = np.ascontiguousarray(triangles, dtype=np.uint32).reshape(-1, 3)
         self.n_triangles = int(f.shape[0])
@@ -373,8 +399,9 @@ class PacketScene:
             out[:] = np.nan
             suspect[:] = True
             return out
-        _intersect16(
-            self._lib.intersect16,
+        _intersect_packets(
+            self._lib.intersect[self.width],
+            self.width,
             self._scene,
             np.ascontiguousarray(o32, dtype=np.float32),
             np.ascontiguousarray(d32, dtype=np.float32),
@@ -416,11 +443,16 @@ class RepairedScene:
             that covers its xy box without holes, as a grid's triangulation does (each
             triangle's projection on the xy plane has positive area, and no two overlap).
         n_heightfield: How many leading triangles form the heightfield, >= 1.
-        isa: Embree's kernels, as :class:`PacketScene`.
+        isa, width: Embree's kernels and the rays per packet, as :class:`PacketScene`.
     """
 
     def __init__(
-        self, vertices: np.ndarray, triangles: np.ndarray, n_heightfield: int, isa: str = "native"
+        self,
+        vertices: np.ndarray,
+        triangles: np.ndarray,
+        n_heightfield: int,
+        isa: str = "native",
+        width: int | None = None,
     ) -> None:
         v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         f = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
@@ -428,9 +460,10 @@ class RepairedScene:
             raise ValueError(f"n_heightfield: needs 1 to {f.shape[0]} triangles, got {n_heightfield}")
         self.n_heightfield = int(n_heightfield)
         self.ceilings, self.tiles = _heightfield_ceilings(v, f[: self.n_heightfield])
-        self._fast = PacketScene(vertices, triangles, robust=False, isa=isa)
-        self._exact = PacketScene(vertices, triangles, robust=True, isa=isa)
+        self._fast = PacketScene(vertices, triangles, robust=False, isa=isa, width=width)
+        self._exact = PacketScene(vertices, triangles, robust=True, isa=isa, width=width)
         self.n_triangles = self._fast.n_triangles
+        self.width = self._fast.width
 
     def cast(
         self, o32: np.ndarray, d32: np.ndarray, max_range_m: float, out: np.ndarray | None = None

@@ -34,8 +34,8 @@ def _lidar_rays(origin, n_azimuth=1801, elevations_deg=None):
     return np.tile(origin, (len(d), 1)), d
 
 
-def _both(mesh, o, d, tmax):
-    packets = _Scene(mesh, packets=True)
+def _both(mesh, o, d, tmax, width=None):
+    packets = _Scene(mesh, packets=True, width=width)
     single = _Scene(mesh, packets=False)
     assert packets._packets is not None and single._embreex is not None
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
@@ -67,11 +67,12 @@ def _rough_mesh(world):
     return heightfield_mesh(hf, local)
 
 
-def test_packets_equal_single_ray_queries_bit_for_bit(rough_world):
+@pytest.mark.parametrize("width", [None, *embree_packets.PACKET_WIDTHS])
+def test_packets_equal_single_ray_queries_bit_for_bit(rough_world, width):
     world, _ = rough_world
     mesh = _rough_mesh(world)
     o, d, reach = _frame_and_aimed_rays(mesh)
-    got, ref = _both(mesh, o, d, 120.0)
+    got, ref = _both(mesh, o, d, 120.0, width)
     np.testing.assert_array_equal(got, ref)
     n_frame = len(o) - len(reach)
     assert np.isfinite(got[:n_frame]).mean() > 0.5  # most of the frame hits the ground
@@ -199,13 +200,14 @@ def test_a_rays_distance_does_not_depend_on_the_rays_packed_with_it(rough_world,
         np.testing.assert_array_equal(scene.cast(o32[subset], d32[subset], 120.0), full[subset])
 
 
-@pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 33])
-def test_packet_remainders(rough_world, n):
+@pytest.mark.parametrize("width", embree_packets.PACKET_WIDTHS)
+@pytest.mark.parametrize("n", [0, 1, 3, 7, 9, 15, 16, 17, 33])
+def test_packet_remainders(rough_world, n, width):
     world, _ = rough_world
     hf = world.physics_heightfield
     mesh = heightfield_mesh(hf, np.zeros(3))
     o, d = _lidar_rays(np.array([5.0, 0.0, 2.0]), n_azimuth=64, elevations_deg=np.array([-10.0]))
-    got, ref = _both(mesh, o[:n], d[:n], 60.0)
+    got, ref = _both(mesh, o[:n], d[:n], 60.0, width)
     assert got.shape == (n,)
     np.testing.assert_array_equal(got, ref)
 
@@ -261,6 +263,9 @@ def test_ray_packets_and_fast_terrain_must_be_bools():
         EmbreeConfig(ray_packets=1)
     with pytest.raises(ConfigError, match="fast_terrain"):
         EmbreeConfig(fast_terrain="yes")
+    for bad in (12, True, 8.0, "8"):
+        with pytest.raises(ConfigError, match="packet_width"):
+            EmbreeConfig(packet_width=bad)
 
 
 def test_a_direct_mesh_names_its_heightfield_triangles(rough_world):
@@ -272,6 +277,32 @@ def test_a_direct_mesh_names_its_heightfield_triangles(rough_world):
     for bad in (-1, len(f) + 1, 2.5):
         with pytest.raises(ConfigError, match="heightfield_triangles"):
             EmbreeCaster(v, f, heightfield_triangles=bad)
+
+
+@pytest.mark.parametrize("width", embree_packets.PACKET_WIDTHS)
+def test_the_fast_terrain_test_casts_the_same_at_every_packet_width(rough_world, width):
+    world, _ = rough_world
+    mesh = heightfield_mesh(world.physics_heightfield, np.zeros(3))
+    o, d = _lidar_rays(np.array([1.0, 2.0, 2.0]), n_azimuth=600)
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    native = _Scene(mesh, packets=True, fast_heightfield=len(mesh[1]))
+    pinned = _Scene(mesh, packets=True, fast_heightfield=len(mesh[1]), width=width)
+    assert pinned._packets.width == width
+    np.testing.assert_array_equal(pinned.cast(o32, d32, 120.0), native.cast(o32, d32, 120.0))
+
+
+def test_the_default_packet_is_the_widest_the_kernels_cast_natively(rough_world):
+    world, own = rough_world
+    lib = embree_packets._library()
+    caster = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
+    assert caster.packet_width == lib.native_width() in embree_packets.PACKET_WIDTHS
+    assert EmbreeCaster.from_world(world, config=EmbreeConfig(packet_width=4)).packet_width == 4
+    assert EmbreeCaster.from_world(world, config=EmbreeConfig(ray_packets=False)).packet_width is None
+    if platform.machine() in ("x86_64", "AMD64"):  # SSE's kernels are 4 rays wide, AVX2's 8
+        assert lib.native_width("sse4.2") == 4
+        assert lib.native_width("avx2") == 8
+    with pytest.raises(ValueError, match="width"):
+        embree_packets.PacketScene(*heightfield_mesh(world.physics_heightfield, np.zeros(3)), width=12)
 
 
 def test_isa_config_is_checked():
