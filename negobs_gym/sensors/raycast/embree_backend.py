@@ -75,7 +75,7 @@ class EmbreeConfig:
             single-ray loop.
         packet_width: Rays per packet (16, 8 or 4; packet path only); None: the widest the
             kernels of ``isa`` cast natively, 16 with AVX-512 and 8 with AVX2 (a 16-ray packet
-            on an AVX2-only CPU casts 1.3x slower). Every width gives the same ranges.
+            on an AVX2-only CPU casts 1.2-1.4x slower). Every width gives the same ranges.
         isa: Embree's kernels (packet path only): ``"native"`` (the CPU's widest, fastest) or one
             instruction set, ``"avx2"`` etc. AVX2 and AVX-512 kernels differ in the last float32
             bit on ~10 % of a frame's rays; a pinned set gives the same ranges on every CPU that

@@ -5,7 +5,7 @@ element by element. The same ``libembree4`` is called here through ctypes: a sce
 the mesh's own numpy buffers (``rtcSetSharedGeometryBuffer``: no copy; 3-4x faster builds), and a
 compiled loop fills packets of the widest size Embree's kernels run natively (16 rays with
 AVX-512, 8 with AVX2: ``rtcIntersect16``, ``rtcIntersect8``; a 16-ray packet on an AVX2-only CPU
-is split and casts 1.3x slower) and casts them, 1.24-1.32x faster than embreex on a LiDAR frame.
+is split and casts 1.2-1.4x slower) and casts them, 1.24-1.32x faster than embreex on a LiDAR frame.
 Each ray's distance in a robust :class:`PacketScene` equals embreex's bit for bit: the same robust
 triangle test on the same float32 inputs, whatever rays share its packet and whatever its width
 (tests/sensors/raycast/test_embree_packets.py). :class:`RepairedScene` casts a terrain with
