@@ -61,6 +61,7 @@ from negobs_gym.envs import base as env_base
 from negobs_gym.envs import perception
 from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
 from negobs_gym.sensors.lidar import PendingRigScan
+from negobs_gym.sensors.raycast.embree_packets import native_packet_width
 from negobs_gym.sim.events import EventMonitor
 from negobs_gym.sim.world import World
 
@@ -350,6 +351,7 @@ def main() -> None:
     env = _make(args.env_id, "detector", default_rig)()
     env.reset(seed=0)
     print(f"env={args.env_id} first_make_and_reset_s={time.perf_counter() - t0:.2f}")
+    print(f"embree_packet_width={native_packet_width()} (16: AVX-512 kernels, 8: AVX2)")
     env.close()
     if not (args.skip_others or args.default_only):
         for source, rig in (("detector", "native"), ("detector", "reduced"), ("oracle", default_rig)):

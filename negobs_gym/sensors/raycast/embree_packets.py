@@ -155,6 +155,12 @@ def packets_available() -> bool:
         return False
 
 
+def native_packet_width(isa: str = "native") -> int | None:
+    """Rays per packet a :class:`PacketScene` casts by default with the kernels of ``isa`` (16 with
+    AVX-512, 8 with AVX2 alone); None where the library is not found (:func:`packets_available`)."""
+    return _library().native_width(isa) if packets_available() else None
+
+
 @kernel
 def _intersect_packets(
     intersect,

@@ -253,6 +253,7 @@ def test_without_the_library_the_caster_falls_back_to_embreex(monkeypatch, rough
     monkeypatch.setattr(embree_packets, "_library_candidates", lambda: [])
     monkeypatch.setattr(embree_packets, "_LIBRARY", [])
     assert not embree_packets.packets_available()
+    assert embree_packets.native_packet_width() is None
     caster = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
     assert caster._static._packets is None
     np.testing.assert_array_equal(caster.cast(o, d, 120.0), with_packets)
@@ -293,14 +294,14 @@ def test_the_fast_terrain_test_casts_the_same_at_every_packet_width(rough_world,
 
 def test_the_default_packet_is_the_widest_the_kernels_cast_natively(rough_world):
     world, own = rough_world
-    lib = embree_packets._library()
+    native = embree_packets.native_packet_width
     caster = EmbreeCaster.from_world(world, exclude_body_ids=[own.body_id])
-    assert caster.packet_width == lib.native_width() in embree_packets.PACKET_WIDTHS
+    assert caster.packet_width == native() in embree_packets.PACKET_WIDTHS
     assert EmbreeCaster.from_world(world, config=EmbreeConfig(packet_width=4)).packet_width == 4
     assert EmbreeCaster.from_world(world, config=EmbreeConfig(ray_packets=False)).packet_width is None
     if platform.machine() in ("x86_64", "AMD64"):  # SSE's kernels are 4 rays wide, AVX2's 8
-        assert lib.native_width("sse4.2") == 4
-        assert lib.native_width("avx2") == 8
+        assert native("sse4.2") == 4
+        assert native("avx2") == 8
     with pytest.raises(ValueError, match="width"):
         embree_packets.PacketScene(*heightfield_mesh(world.physics_heightfield, np.zeros(3)), width=12)
 
