@@ -181,3 +181,29 @@ def test_unique_rows_is_numpys_unique_by_rows():
     xy[1] = [0.0, 1.0]  # -0.0 and 0.0 are one point, as for np.unique
     for pts in (xy, rng.uniform(-1, 1, (50, 2)), np.empty((0, 2))):
         np.testing.assert_array_equal(_unique_rows(pts), np.unique(pts, axis=0))
+
+
+def test_convex_outline_is_scipys_hull_counter_clockwise_from_the_lowest_x_vertex():
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(7)
+    for n in (3, 4, 10, 60, 250):
+        for scale in ((1.0, 1.0), (5.0, 0.02), (0.01, 3.0)):
+            pts = rng.normal(size=(n, 2)) * scale + rng.uniform(-20, 20, size=2)
+            outline = convex_outline(np.concatenate([pts, pts[:2]]), 0.05)  # duplicates are dropped
+            assert {tuple(v) for v in outline} == {tuple(v) for v in pts[ConvexHull(pts).vertices]}
+            x, y = outline[:, 0], outline[:, 1]
+            assert np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
+            np.testing.assert_array_equal(outline[0], min(map(tuple, outline)))
+
+
+def test_points_on_a_hull_edge_are_not_vertices_and_a_near_segment_is_a_strip():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0], [1, 0.25], [0.5, 0.5]], dtype=float)
+    np.testing.assert_array_equal(convex_outline(square, 0.05), [[0, 0], [1, 0], [1, 1], [0, 1]])
+    x = np.linspace(0.0, 2.0, 9)
+    segment = np.stack([x, 3.0 + 1e-9 * np.sin(7 * x)], axis=1)  # width/length ~ 1e-9 < 1e-6
+    outline = convex_outline(segment, 0.05)
+    assert outline.shape == (4, 2)
+    assert polygon_area_centroid(outline)[0] == pytest.approx(2.0 * 0.1)
+    wide = np.stack([x, 3.0 + 1e-3 * np.sin(7 * x)], axis=1)  # 1e-3: a thin polygon, not a strip
+    assert polygon_area_centroid(convex_outline(wide, 0.05))[0] < 0.01
