@@ -23,7 +23,7 @@ from scipy import sparse
 
 from negobs_gym.core.compiled import kernel
 from negobs_gym.detector.pairs import close_pairs_within, range_scale
-from negobs_gym.errors import require
+from negobs_gym.errors import GeometryError, require
 
 _TINY = 1e-9  # sparse DBSCAN graphs drop explicit zeros: a zero distance is stored as this
 
@@ -310,6 +310,8 @@ def _monotone_chain(pts: np.ndarray, vertices: np.ndarray) -> int:
 def polygon_area_centroid(poly: np.ndarray) -> tuple[float, np.ndarray]:
     """Area and centroid of a simple counter-clockwise polygon (shoelace formula)."""
     p = np.ascontiguousarray(poly, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
+        raise GeometryError(f"poly: needs a (k >= 1, 2) array of vertices, got shape {p.shape}")
     area, cx, cy = _shoelace(p)
     if abs(area) < 1e-12:
         return 0.0, p.mean(axis=0)
@@ -318,7 +320,7 @@ def polygon_area_centroid(poly: np.ndarray) -> tuple[float, np.ndarray]:
 
 @kernel
 def _shoelace(p: np.ndarray) -> tuple[float, float, float]:
-    """Signed area and centroid of the (k, 2) polygon ``p`` (centroid NaN-free only for area != 0)."""
+    """Signed area and centroid of the (k, 2) polygon ``p``; (0, 0, 0) for a zero area."""
     twice = 0.0
     sx = 0.0
     sy = 0.0

@@ -15,7 +15,7 @@ from negobs_gym.detector.clustering import (
     polygon_area_centroid,
 )
 from negobs_gym.detector.pairs import close_pairs_within
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 
 
 def _radial_pairs(x0: float, x1: float, y_a: float, y_b: float, n: int, z_b: float = -0.5):
@@ -68,6 +68,15 @@ def test_polygon_area_centroid_of_a_square():
     area, c = polygon_area_centroid(np.array([[0, 0], [2, 0], [2, 2], [0, 2]], dtype=float))
     assert area == pytest.approx(4.0)
     np.testing.assert_allclose(c, [1.0, 1.0])
+    area, c = polygon_area_centroid(np.array([[1.0, 1.0], [3.0, 1.0]]))  # no area: the mean
+    assert area == 0.0
+    np.testing.assert_array_equal(c, [2.0, 1.0])
+
+
+@pytest.mark.parametrize("poly", [np.empty((0, 2)), np.zeros((4, 3)), np.zeros(4)])
+def test_polygon_area_centroid_names_a_wrong_shape(poly):
+    with pytest.raises(GeometryError, match="poly"):
+        polygon_area_centroid(poly)
 
 
 def test_no_pairs():
