@@ -20,7 +20,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
-from detector import dense_frames, record_frames
+from detector import dense_frames, dense_pose, record_frames
 
 import negobs_gym  # noqa: F401  (registers the envs)
 from negobs_gym.core.pose import Pose
@@ -81,11 +81,8 @@ def main() -> None:
     args = parser.parse_args()
     env = env_pairs(args.env_steps)
     track = confirmed_pairs(record_frames(args.frames))
-    # creeping forward, as detector.py drives the dense field
-    dense_poses = [
-        Pose(x=0.0, y=0.05 * k, z=0.0, roll=0.0, pitch=0.0, yaw=0.0) for k in range(args.dense_frames)
-    ]
-    dense = confirmed_pairs(list(zip(dense_frames(args.dense_frames), dense_poses, strict=True)))
+    dense_field = enumerate(dense_frames(args.dense_frames))
+    dense = confirmed_pairs([(scans, dense_pose(k)) for k, scans in dense_field])
     best_ms(env[:3] + track[:3] + dense[:1], 1)  # the compiled kernels load before timing
     for name, inputs in (("env_cluster_ms", env), ("cluster_ms", track), ("dense_cluster_ms", dense)):
         ms, clusters = best_ms(inputs, args.rounds)
