@@ -6,9 +6,9 @@ steps; the frames a training run clusters), the braking-track frames of ``benchm
 (native rig, 25 km/h, sensor noise) and its dense pit field (100 pits, >= 2,000 candidate pairs a
 frame). ``cluster_obstacles`` is then timed on each frame's pairs, ``--rounds`` times over all
 frames; each frame's best round counts, and the medians over frames are printed:
-``env_cluster_ms=``, ``cluster_ms=`` (braking track) and, as the last line, ``dense_cluster_ms=``. Run it
-on two checkouts in turns to compare them; the inputs do not depend on the code being timed
-beyond the pairs the detector confirms.
+``env_cluster_ms=``, ``cluster_ms=`` (braking track) and, as the last line, ``dense_cluster_ms=``.
+Run it on two checkouts in turns to compare them; the inputs do not depend on the code being
+timed beyond the pairs the detector confirms.
 
 Run: python benchmarks/clustering.py [--env-steps N] [--frames N] [--dense-frames N] [--rounds N]
 """
@@ -43,8 +43,12 @@ def confirmed_pairs(frames: list[tuple[dict, Pose]]) -> list[tuple[np.ndarray, n
 def env_pairs(steps: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
     """The confirmed fused pairs of ``steps`` OffroadNav-v0 frames, driven along the course."""
     env = gym.make(ENV_ID)
-    _, info = env.reset(seed=seed)
-    driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+
+    def episode(seed: int) -> tuple[dict, PurePursuitDriver]:
+        _, info = env.reset(seed=seed)
+        return info, PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+
+    info, driver = episode(seed)
     out = []
     for _ in range(steps):
         _, _, terminated, truncated, info = env.step(driver.act(None, info))
@@ -52,8 +56,7 @@ def env_pairs(steps: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
         out.append((fused.a_m[fused.confirmed], fused.b_m[fused.confirmed]))
         if terminated or truncated:
             seed += 1
-            _, info = env.reset(seed=seed)
-            driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
+            info, driver = episode(seed)
     env.close()
     return out
 
