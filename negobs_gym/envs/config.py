@@ -128,7 +128,11 @@ class ObservationConfig:
             ``"embree"`` or ``"pybullet"``.
         raycast_threads: Threads per Embree cast; None = 2 (at most the CPU count) in a main
             process and 1 in a worker process of a vector env, whose processes already share the
-            cores (workers also pin numpy's BLAS to 1 thread; see docs/performance.md).
+            cores (docs/performance.md).
+        worker_blas_threads: BLAS threads (numpy's and scipy's, through ``threadpoolctl``) in a
+            worker process of a vector env, set when its detector grid is built: 1 (default), as
+            the processes already share the cores; None leaves the BLAS's own count (on 2 cores
+            the rates were equal within 3 %: ``benchmarks/worker_threads.py``).
         raycast_isa: Embree's kernels: ``"native"`` (the CPU's widest, fastest) or one instruction
             set (``"avx2"``: the same scans on every AVX2 or AVX-512 CPU; docs/determinism.md).
         raycast_fast_terrain: Embree's fast triangle test on the terrain, every ray it may have
@@ -226,6 +230,7 @@ class ObservationConfig:
     rig: str = "roi"
     raycast_backend: str = "auto"
     raycast_threads: int | None = None
+    worker_blas_threads: int | None = 1
     raycast_isa: str = "native"
     raycast_fast_terrain: bool = True
     sensor_noise: bool = True
@@ -267,6 +272,12 @@ class ObservationConfig:
             or (isinstance(self.raycast_threads, int) and 1 <= self.raycast_threads <= 64),
             "raycast_threads",
             f"must be None or an int in [1, 64], got {self.raycast_threads!r}",
+        )
+        require(
+            self.worker_blas_threads is None
+            or (type(self.worker_blas_threads) is int and 1 <= self.worker_blas_threads <= 64),
+            "worker_blas_threads",
+            f"must be None or an int in [1, 64], got {self.worker_blas_threads!r}",
         )
         require(
             type(self.scan_every) is int and self.scan_every >= 1,

@@ -62,24 +62,28 @@ def env_rig(rig: str, lux_forward_m: float = LUX_FORWARD_M) -> Rig:
 
 
 def cast_threads(config: ObservationConfig) -> int:
-    """Ray-cast threads: the config's, else 1 in a worker process (after pinning its BLAS to 1
-    thread), else 2 (at most the CPU count)."""
+    """Ray-cast threads: the config's, else 1 in a worker process, else 2 (at most the CPU count)."""
     if config.raycast_threads is not None:
         return config.raycast_threads
     if multiprocessing.parent_process() is not None:
-        _pin_blas_threads()
         return 1
     return max(1, min(2, os.cpu_count() or 1))
 
 
+def pin_worker_blas(config: ObservationConfig) -> None:
+    """In a worker process, the BLAS to ``config.worker_blas_threads`` threads (vector-env
+    workers already fill the cores); nothing in a main process or when it is None."""
+    if config.worker_blas_threads is not None and multiprocessing.parent_process() is not None:
+        _limit_blas_threads(config.worker_blas_threads)
+
+
 @functools.cache
-def _pin_blas_threads() -> None:
-    """One BLAS thread in this process (vector-env workers already fill the cores)."""
+def _limit_blas_threads(count: int) -> None:
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # scikit-learn brings it; without it the BLAS keeps its default
         return
-    threadpool_limits(limits=1, user_api="blas")
+    threadpool_limits(limits=count, user_api="blas")
 
 
 @functools.lru_cache(maxsize=4)
@@ -98,6 +102,7 @@ def world_products(
     """The ray caster of ``world`` and, for the ``roi`` rig or ``scan_far_from_m``, its height
     envelope: taken from ``cache`` (one dict per world) or built into it."""
     cache = {} if cache is None else cache
+    pin_worker_blas(config)
     threads = cast_threads(config)
     key = ("caster", config.raycast_backend, threads, config.raycast_isa, config.raycast_fast_terrain)
     if key not in cache:

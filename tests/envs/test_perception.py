@@ -244,3 +244,41 @@ def test_raycast_fast_terrain_reaches_the_caster_and_must_be_a_bool() -> None:
     for bad in ("false", 0, None):
         with pytest.raises(ConfigError, match="raycast_fast_terrain"):
             ObservationConfig(raycast_fast_terrain=bad)
+
+
+def _blas_threads_of_a_worker_env(observation: ObservationConfig, out) -> None:
+    """In a child process: the BLAS thread counts before and after a detector-grid env's reset,
+    the BLAS first set to 2 threads (its default on 2 cores, set so on any machine)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def counts() -> list[int]:
+        return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+    threadpool_limits(limits=2, user_api="blas")
+    before = counts()
+    env = BrakingEnv(replace(EnvConfig(), observation=observation))
+    env.reset(seed=3)
+    out.put((before, counts()))
+    env.close()
+
+
+@pytest.mark.parametrize("threads", [1, None])
+def test_worker_processes_pin_their_blas_as_configured(threads: int | None) -> None:
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    out = ctx.Queue()
+    child = ctx.Process(
+        target=_blas_threads_of_a_worker_env, args=(ObservationConfig(worker_blas_threads=threads), out)
+    )
+    child.start()
+    before, after = out.get(timeout=120)
+    child.join(timeout=30)
+    assert child.exitcode == 0 and before == [2] * len(before) and before  # numpy's BLAS, at 2
+    assert after == ([1] * len(before) if threads == 1 else before)
+
+
+def test_worker_blas_threads_rejects_bad_values() -> None:
+    for bad in (0, 65, 1.0, "1", True):
+        with pytest.raises(ConfigError, match="worker_blas_threads"):
+            ObservationConfig(worker_blas_threads=bad)
