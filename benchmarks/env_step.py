@@ -41,13 +41,20 @@ first one-process run (whose Embree cast runs on 2 threads, the default outside 
 says where a vector run loses against that, per lockstep step (both wait for every slot at each
 step): the slots' own step time (CPU, against the one-thread process: what the shared machine
 costs), the wait for the slower slot, the resets and the rest (pipes, the main process, waits for
-a spare). The last line is ``train_steps_per_s=<v>``: the default observation in one process.
+a spare). ``cpu_bound_steps_per_s`` is the most steps/s this machine's cores could give for the
+default observation's work however it were spread over threads or processes: the cores over the
+one-thread process's CPU per step (a step's work, without a second thread's waits);
+``two_process_bound`` the most a ``--envs``-process run could scale over the default process, the
+one-thread rate times the processes the cores can run at once, over the default process's rate
+(each bar of the training-throughput issue is out of reach on a machine where its bound is under
+it). The last line is ``train_steps_per_s=<v>``: the default observation in one process.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import time
 from collections import defaultdict
 from collections.abc import Callable
@@ -377,6 +384,11 @@ def main() -> None:
     print(
         f"obs=detector rig={default_rig} processes=1 raycast_threads=1 steps_per_s={one_thread:.1f} "
         f"step_cpu_ms={alone_cpu_ms:.1f}"
+    )
+    cores = len(os.sched_getaffinity(0))
+    print(
+        f"cores={cores} cpu_bound_steps_per_s={cores * 1e3 / alone_cpu_ms:.1f} "
+        f"two_process_bound={min(args.envs, cores) * one_thread / sps:.2f}"
     )
     for kind in ("prefetch", "subproc"):
         vec, lockstep = _run_vec(args.env_id, "detector", default_rig, each, args.envs, kind)
