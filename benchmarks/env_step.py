@@ -47,7 +47,10 @@ one-thread process's CPU per step (a step's work, without a second thread's wait
 ``two_process_bound`` the most a ``--envs``-process run could scale over the default process, the
 one-thread rate times the processes the cores can run at once, over the default process's rate
 (each bar of the training-throughput issue is out of reach on a machine where its bound is under
-it). The last line is ``train_steps_per_s=<v>``: the default observation in one process.
+it). ``serial_bound_steps_per_s`` is the most one process of this code could give on any number
+of cores: one over the stepping thread's CPU per step outside the Embree casts it runs itself
+(physics, the scans' set-up and finish, both detectors, the rest: what more cast threads cannot
+take over). The last line is ``train_steps_per_s=<v>``: the default observation in one process.
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import threading
 import time
 from collections import defaultdict
 from collections.abc import Callable
@@ -68,6 +72,7 @@ from negobs_gym.envs import base as env_base
 from negobs_gym.envs import perception
 from negobs_gym.envs.vector import PrefetchVecEnv, episode_seed
 from negobs_gym.sensors.lidar import PendingRigScan
+from negobs_gym.sensors.raycast import embree_backend
 from negobs_gym.sensors.raycast.embree_packets import native_packet_width
 from negobs_gym.sim.events import EventMonitor
 from negobs_gym.sim.world import World
@@ -179,11 +184,19 @@ class StageTimer:
         self.thread_s: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
         self._undo: list[Callable[[], None]] = []
+        self._inside: dict[str, list[int]] = defaultdict(list)  # stage -> threads in it now
 
-    def wrap(self, owner: object, attr: str, stage: str) -> None:
+    def wrap(self, owner: object, attr: str, stage: str, within: str | None = None) -> None:
+        """Time ``owner.attr`` as ``stage``; with ``within``, only its calls made inside stage
+        ``within`` on the thread that runs it (e.g. a cast by the stepping thread, not by the pool
+        threads or a reset)."""
         original = getattr(owner, attr)
 
         def timed(*args, **kwargs):
+            me = threading.get_ident()
+            if within is not None and me not in self._inside[within]:
+                return original(*args, **kwargs)
+            self._inside[stage].append(me)
             t0, c0, h0 = time.perf_counter(), time.process_time(), time.thread_time()
             try:
                 return original(*args, **kwargs)
@@ -192,6 +205,7 @@ class StageTimer:
                 self.cpu_s[stage] += time.process_time() - c0
                 self.thread_s[stage] += time.thread_time() - h0
                 self.calls[stage] += 1
+                self._inside[stage].pop()
 
         setattr(owner, attr, timed)
         self._undo.append(lambda: setattr(owner, attr, original))
@@ -228,6 +242,8 @@ def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tupl
         timer.wrap(NegativeObstacleDetector, "update", "paper_n")
         timer.wrap(TraversableRegionDetector, "update", "paper_t")
         timer.wrap(env_base.NegObsEnv, "step", "step")
+        # the Embree casts the stepping thread runs itself (its sensors, its share of the shared cast)
+        timer.wrap(embree_backend._Scene, "cast", "calling_casts", within="step")
         timer.wrap(env_base.NegObsEnv, "reset", "reset")
         envs = _episodes(_make(env_id, "detector", rig), n_envs)
         timer.clear()  # the first make/reset/step are outside the timing
@@ -236,6 +252,9 @@ def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tupl
     steps = steps_each * n_envs
     cpu_ms = _per_step(timer.thread_s, steps, resets)
     cpu_ms["cast_threads"] = 1e3 * (timer.cpu_s["step"] - timer.thread_s["step"]) / steps
+    cpu_ms["calling_thread_outside_casts"] = (
+        1e3 * (timer.thread_s["step"] - timer.thread_s["calling_casts"]) / steps
+    )
     return _per_step(timer.total_s, steps, resets), cpu_ms, sps, resets
 
 
@@ -374,6 +393,10 @@ def main() -> None:
     ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, each, args.envs)
     print(f"stage_ms rig={default_rig} steps={each * args.envs} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
+    serial_ms = cpu_ms["calling_thread_outside_casts"]
+    print(
+        f"serial_bound_steps_per_s={1e3 / serial_ms:.1f} (stepping thread, casts aside: {serial_ms:.2f} ms)"
+    )
     if args.default_only:
         print(f"train_steps_per_s={sps:.1f}")
         return
