@@ -1,9 +1,12 @@
 """Control steps per second of a negobs env with the detector grid, per stage, per rig, per process count.
 
 Run: ``python benchmarks/env_step.py [--steps 200] [--envs 2] [--env-id negobs_gym/OffroadNav-v0]
-[--skip-others] [--default-only] [--scan-every 2,3] [--far-from 12] [--scan-clock env|episode]``
-(``--default-only``: the default observation's stages and ``train_steps_per_s`` alone, for
-alternate runs of two checkouts)
+[--skip-others] [--default-only] [--scan-every 2,3] [--far-from 12] [--scan-clock env|episode]
+[--cast-threads N] [--worker-threads N]`` (``--default-only``: the default observation's stages
+and ``train_steps_per_s`` alone, for alternate runs of two checkouts; ``--cast-threads`` and
+``--worker-threads``: the Embree cast threads of the one-process runs and of each vector-env
+worker, 2 and 1 by default, for machines with more cores; ``two_process_bound`` is printed for
+one-thread workers only)
 
 Configurations (the env's registered config with ``ObservationConfig`` changed):
 
@@ -228,7 +231,9 @@ class StageTimer:
 Stages = dict[str, float]
 
 
-def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tuple[Stages, Stages, float, int]:
+def stage_breakdown(
+    env_id: str, rig: str, steps_each: int, n_envs: int, threads: int | None = None
+) -> tuple[Stages, Stages, float, int]:
     """Wall and CPU milliseconds per control step by stage (reset: per reset), steps/s and resets
     over the vector run's episodes (``n_envs`` seeds, ``steps_each`` steps each). The stages' CPU
     is the calling thread's, ``cast_threads`` the Embree pool threads' (a step's process CPU less
@@ -245,7 +250,7 @@ def stage_breakdown(env_id: str, rig: str, steps_each: int, n_envs: int) -> tupl
         # the Embree casts the stepping thread runs itself (its sensors, its share of the shared cast)
         timer.wrap(embree_backend._Scene, "cast", "calling_casts", within="step")
         timer.wrap(env_base.NegObsEnv, "reset", "reset")
-        envs = _episodes(_make(env_id, "detector", rig), n_envs)
+        envs = _episodes(_make(env_id, "detector", rig, threads), n_envs)
         timer.clear()  # the first make/reset/step are outside the timing
         sps, resets = _drive(envs, steps_each)
     _close(envs)
@@ -295,7 +300,14 @@ def _fmt(ms: dict[str, float]) -> str:
 
 
 def _run_vec(
-    env_id: str, source: str, rig: str, steps: int, n_envs: int, kind: str, **observation
+    env_id: str,
+    source: str,
+    rig: str,
+    steps: int,
+    n_envs: int,
+    kind: str,
+    threads: int | None = None,
+    **observation,
 ) -> tuple[float, dict[str, float]]:
     """Steps/s of an ``n_envs``-slot vector env (all its steps), ``kind`` ``"prefetch"``
     (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`, seeded 0: the episodes of :func:`_drive`) or
@@ -307,7 +319,7 @@ def _run_vec(
     ``subproc``: waits for a spare, pipes, the main process)."""
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    thunks = [_clocked(_make(env_id, source, rig, **observation)) for _ in range(n_envs)]
+    thunks = [_clocked(_make(env_id, source, rig, threads, **observation)) for _ in range(n_envs)]
     venv = PrefetchVecEnv(thunks) if kind == "prefetch" else SubprocVecEnv(thunks)
     venv.seed(0)
     venv.reset()
@@ -366,9 +378,27 @@ def main() -> None:
         default="env",
         help="ObservationConfig.scan_clock of the --scan-every runs (env: processes cast on the same steps)",
     )
+    parser.add_argument(
+        "--cast-threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help="ObservationConfig.raycast_threads of the one-process runs (default: the env's, 2 in a main "
+        "process): for machines with more cores",
+    )
+    parser.add_argument(
+        "--worker-threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help="ObservationConfig.raycast_threads of the vector-env workers (default: the env's, 1 in a "
+        "worker)",
+    )
     args = parser.parse_args()
     if args.steps < 1 or args.envs < 1:
         parser.error("--steps and --envs must be >= 1")
+    if any(n is not None and n < 1 for n in (args.cast_threads, args.worker_threads)):
+        parser.error("--cast-threads and --worker-threads must be >= 1")
     every = [int(k) for k in args.scan_every.split(",") if k.strip()]
     if any(k < 1 for k in every):
         parser.error(f"--scan-every takes ints >= 1, got {args.scan_every!r}")
@@ -378,6 +408,10 @@ def main() -> None:
     env.reset(seed=0)
     print(f"env={args.env_id} first_make_and_reset_s={time.perf_counter() - t0:.2f}")
     print(f"embree_packet_width={native_packet_width()} (16: AVX-512 kernels, 8: AVX2)")
+    print(
+        f"cast_threads one_process={args.cast_threads or 'default (2)'} "
+        f"workers={args.worker_threads or 'default (1)'}"
+    )
     env.close()
     if not (args.skip_others or args.default_only):
         for source, rig in (("detector", "native"), ("detector", "reduced"), ("oracle", default_rig)):
@@ -390,7 +424,7 @@ def main() -> None:
         wall_s, cpu_s = reset_stream_s(args.env_id, episodes, pool)
         print(f"reset_s_mean terrain_pool={pool} over {episodes} episodes: {wall_s:.3f} (cpu {cpu_s:.3f})")
     each = max(1, args.steps // args.envs)  # every run below drives the same episodes
-    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, each, args.envs)
+    ms, cpu_ms, sps, resets = stage_breakdown(args.env_id, default_rig, each, args.envs, args.cast_threads)
     print(f"stage_ms rig={default_rig} steps={each * args.envs} resets={resets}: {_fmt(ms)}")
     print(f"stage_cpu_ms rig={default_rig}: {_fmt(cpu_ms)}")
     serial_ms = cpu_ms["calling_thread_outside_casts"]
@@ -409,12 +443,14 @@ def main() -> None:
         f"step_cpu_ms={alone_cpu_ms:.1f}"
     )
     cores = len(os.sched_getaffinity(0))
-    print(
-        f"cores={cores} cpu_bound_steps_per_s={cores * 1e3 / alone_cpu_ms:.1f} "
-        f"two_process_bound={min(args.envs, cores) * one_thread / sps:.2f}"
-    )
+    ceilings = f"cores={cores} cpu_bound_steps_per_s={cores * 1e3 / alone_cpu_ms:.1f}"
+    if (args.worker_threads or 1) == 1:  # one-thread workers: at most the one-thread rate each
+        ceilings += f" two_process_bound={min(args.envs, cores) * one_thread / sps:.2f}"
+    print(ceilings)
     for kind in ("prefetch", "subproc"):
-        vec, lockstep = _run_vec(args.env_id, "detector", default_rig, each, args.envs, kind)
+        vec, lockstep = _run_vec(
+            args.env_id, "detector", default_rig, each, args.envs, kind, args.worker_threads
+        )
         print(
             f"obs=detector rig={default_rig} processes={args.envs} vec={kind} steps_per_s={vec:.1f} "
             f"ratio={vec / sps:.2f} ratio_to_one_thread={vec / one_thread:.2f}"
@@ -424,11 +460,21 @@ def main() -> None:
     fars = (None,) if args.far_from is None else (None, args.far_from)
     for k, far in ((k, far) for k in every for far in fars):
         observation = {"scan_every": k, "scan_far_from_m": far, "scan_clock": args.scan_clock}
-        envs = _episodes(_clocked(_make(args.env_id, "detector", default_rig, **observation)), args.envs)
+        thunk = _make(args.env_id, "detector", default_rig, args.cast_threads, **observation)
+        envs = _episodes(_clocked(thunk), args.envs)
         one, _ = _drive(envs, each)
         cpu_ms = 1e3 * sum(e.cpu_s for e in envs) / max(1, sum(e.steps for e in envs))
         _close(envs)
-        vec, _ = _run_vec(args.env_id, "detector", default_rig, each, args.envs, "prefetch", **observation)
+        vec, _ = _run_vec(
+            args.env_id,
+            "detector",
+            default_rig,
+            each,
+            args.envs,
+            "prefetch",
+            args.worker_threads,
+            **observation,
+        )
         label = f"scan_every={k}" + ("" if far is None else f" scan_far_from_m={far:g}")
         label += f" scan_clock={args.scan_clock}"
         print(
