@@ -24,7 +24,7 @@ import argparse
 import numpy as np
 
 from negobs_gym.drivers import make_driver
-from negobs_gym.policies.model_driver import ModelDriver
+from negobs_gym.drivers.model import ModelDriver
 from negobs_gym.policies.training import make_task_env
 
 WINDOWS = (("last 10 steps", -10, None), ("30-10 steps before the end", -30, -10), ("earlier", None, -30))

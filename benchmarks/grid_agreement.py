@@ -50,7 +50,7 @@ from negobs_gym.cli.common import add_set_option, task_env_or_exit
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import convex_overlap_mask
 from negobs_gym.drivers import make_driver
-from negobs_gym.envs.config import POSITIVE_DETECTORS
+from negobs_gym.spec import POSITIVE_DETECTORS
 
 OBSTACLE_CHANNELS = ("negative", "positive")
 # the oracle's traversable channel: on the track, no obstacle, in view (envs/observation.py)

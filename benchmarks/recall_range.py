@@ -49,7 +49,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import SENSOR_MODES, FusionConfig, NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.detector.grid import convex_overlap_mask
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.eval import DetectionEvalConfig, RecallTable, match_frame, world_outline_to_vehicle
 from negobs_gym.sensors.lidar import scan_rig
 from negobs_gym.sensors.raycast import make_caster

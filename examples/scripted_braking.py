@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.spec import ObservationConfig
 
 CRUISE_MPS = 25.0 / 3.6  # paper N §4
 

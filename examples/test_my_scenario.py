@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from negobs_gym.policies.model_driver import ModelDriver
+from negobs_gym.drivers.model import ModelDriver
 from negobs_gym.scenarios import apply_overrides, load_scenario, run_scenario, spec_from_toml
 
 SCENE = spec_from_toml("""

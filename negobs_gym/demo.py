@@ -56,7 +56,7 @@ def run_episode(seed: int, filtered: bool) -> DemoRun:
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
     start_gap = float(info["distance_to_negative_ahead_m"])
-    dt = 1.0 / env.unwrapped.config.control_hz
+    dt = 1.0 / env.unwrapped.scenario.episode.control_hz
     first_veto, vetoes, still_s, steps = None, 0, 0.0, 0
     done = False
     while not done:

@@ -27,6 +27,18 @@ ENV_SPECS: tuple[tuple[str, str, int | None], ...] = (
     ("negobs_gym/PaperTStraight-v0", "negobs_gym.envs.scenarios:PaperTStraightEnv", None),
 )
 
+#: The shipped scene (``negobs_gym/spec/scenes/NAME.toml``) each id runs: plain data, so the spec
+#: layer finds an id's scenario without importing the envs.
+SCENES: dict[str, str] = {
+    "negobs_gym/OffroadNav-v0": "offroad_nav_v0",
+    "negobs_gym/OffroadNav-v1": "offroad_nav_v1",
+    "negobs_gym/OffroadNav-v2": "offroad_nav_v2",
+    "negobs_gym/Braking-v0": "braking_v0",
+    "negobs_gym/Braking-v1": "braking_v1",
+    "negobs_gym/TrenchCrossing-v0": "trench_crossing_v0",
+    "negobs_gym/PaperTStraight-v0": "paper_t_straight_v0",
+}
+
 
 def register_envs() -> None:
     """Register every negobs_gym env id with gymnasium; safe to call any number of times."""

@@ -55,12 +55,12 @@ def add_set_option(parser: argparse.ArgumentParser) -> None:
 def task_env_or_exit(
     parser: argparse.ArgumentParser, env: str, source: str | None, overrides: list[str]
 ) -> Any:
-    """:func:`~negobs_gym.policies.training.make_task_env` of a command's ``--env`` and ``--set``;
+    """:func:`~negobs_gym.envs.make_env` of a command's ``--env``, ``--source`` and ``--set``;
     a bad one exits 2 through ``parser.error``, naming the field."""
+    from negobs_gym.envs import make_env, source_overrides
     from negobs_gym.errors import ConfigError
-    from negobs_gym.policies.training import make_task_env
 
     try:
-        return make_task_env(env, source, overrides)
+        return make_env(env, [*source_overrides(source), *overrides])
     except ConfigError as error:
         parser.error(str(error))

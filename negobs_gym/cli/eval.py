@@ -385,7 +385,7 @@ def run_policy(args: argparse.Namespace) -> int:
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
-    from negobs_gym.policies.baselines import recorded_env
+    from negobs_gym.drivers.zoo import recorded_env
     from negobs_gym.scenarios import combine_overrides, describe_overrides, env_with_overrides
 
     toml = _toml(args)

@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "policy",
         help="list the shipped trained policies, or show one's record (commands, evaluations)",
-        description="The trained policies shipped in negobs_gym/policies/trained: each a "
+        description="The trained policies shipped in negobs_gym/drivers/trained: each a "
         "stable-baselines3 model (NAME.zip) and its record (NAME.json).",
     )
     sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
@@ -38,7 +38,7 @@ def summary_line(name: str, record: dict[str, Any]) -> str:
     """One line of ``negobs policy list``: name, env with its settings, algorithm and steps (a
     behaviour clone has none), and the recorded evaluation without the filter, the goal rate with
     its 95 % Wilson interval (``-`` where the record has none)."""
-    from negobs_gym.scenarios.overrides import describe_overrides
+    from negobs_gym.spec.overrides import describe_overrides
 
     env = describe_overrides(str(record.get("env", "-")), tuple(record.get("set", ())))
     steps = int(record.get("steps", 0))
@@ -58,7 +58,7 @@ def summary_line(name: str, record: dict[str, Any]) -> str:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from negobs_gym.policies.baselines import baseline_names, baseline_record
+    from negobs_gym.drivers.zoo import baseline_names, baseline_record
 
     for name in baseline_names():
         print(summary_line(name, baseline_record(name)), file=sys.stdout)
@@ -68,8 +68,8 @@ def _list(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from negobs_gym.drivers.zoo import baseline_record, fitted_on_record, recorded_env
     from negobs_gym.errors import ConfigError
-    from negobs_gym.policies.baselines import baseline_record, fitted_on_record, recorded_env
 
     if Path(args.name).is_file() or Path(f"{args.name}.zip").is_file():
         recorded = recorded_env(args.name)

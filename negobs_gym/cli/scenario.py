@@ -25,7 +25,7 @@ DRIVER_CHOICES = (
     "constant_speed",
     "pure_pursuit",
     "track_planner",
-)  # negobs_gym.scenarios.runner.DRIVERS
+)  # negobs_gym.eval.scenario_runner.DRIVERS
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -155,14 +155,14 @@ def _show(args: argparse.Namespace) -> int:
 def _spec(args: argparse.Namespace, name: str | None = None) -> ScenarioSpec:
     """The scenario ``name`` (default: the SPEC argument) with the ``--set`` changes."""
     from negobs_gym.scenarios import load_scenario
-    from negobs_gym.scenarios.overrides import apply_overrides
+    from negobs_gym.spec.overrides import apply_overrides
 
     return apply_overrides(load_scenario(args.spec if name is None else name), args.overrides)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from negobs_gym.eval.scenario_tables import check_csv_text, write_scenario_tables
     from negobs_gym.scenarios import run_scenario_seeds
-    from negobs_gym.scenarios.tables import check_csv_text, write_scenario_tables
 
     if args.zoom_m is not None and not args.draw:
         raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
@@ -225,9 +225,9 @@ def _check_policy(spec: ScenarioSpec) -> None:
     """Before the first episode: the spec's policy exists (else a ConfigError naming
     ``run.policy``); the log names the env it was fitted on, and warns when the model was fitted
     with ``--set`` settings that the scenario does not have (a grid it was not fitted on)."""
-    from negobs_gym.policies.baselines import recorded_env, resolve_model
+    from negobs_gym.drivers.zoo import recorded_env, resolve_model
     from negobs_gym.scenarios import describe_overrides
-    from negobs_gym.scenarios.overrides import apply_overrides
+    from negobs_gym.spec.overrides import apply_overrides
 
     policy, log = spec.run.policy, logging.getLogger("negobs_gym.cli")
     resolve_model(policy, "run.policy")

@@ -1,12 +1,15 @@
-"""Deterministic scripted drivers sharing one protocol: ``reset(seed)``, ``act(obs, info)``.
+"""Drivers sharing one protocol: ``reset(seed)``, ``act(obs, info)``.
 
-All but :class:`TrackPlannerDriver` read only the env's info; it reads the course's ground truth
-(an expert for demonstrations, not a sensor-driven baseline).
+The scripted drivers all but :class:`TrackPlannerDriver` read only the env's info; it reads the
+course's ground truth (an expert for demonstrations, not a sensor-driven baseline).
+:class:`ModelDriver` drives with a saved stable-baselines3 model or a shipped one
+(:mod:`negobs_gym.drivers.zoo`, the files in ``negobs_gym/drivers/trained``).
 """
 
 from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.by_name import DRIVER_NAMES, make_driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
+from negobs_gym.drivers.model import ModelDriver, PolicyDriver, match_observation
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
@@ -16,6 +19,8 @@ __all__ = [
     "ConstantSpeedConfig",
     "ConstantSpeedDriver",
     "Driver",
+    "ModelDriver",
+    "PolicyDriver",
     "PurePursuitConfig",
     "PurePursuitDriver",
     "RecklessConfig",
@@ -23,4 +28,5 @@ __all__ = [
     "TrackPlannerConfig",
     "TrackPlannerDriver",
     "make_driver",
+    "match_observation",
 ]

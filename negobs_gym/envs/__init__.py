@@ -1,12 +1,13 @@
 """Gymnasium environments of negobs_gym (registered ids in :mod:`negobs_gym.registration`).
 
-One env class, :class:`NegObsEnv`, driven by a scenario spec (:mod:`negobs_gym.scenarios`); the
-registered envs in :mod:`negobs_gym.envs.scenarios` name their spec. Grid observation sources:
-:mod:`negobs_gym.envs.sources`.
+One env class, :class:`NegObsEnv`, built from a scenario spec plus overrides
+(:mod:`negobs_gym.spec`); the registered envs in :mod:`negobs_gym.envs.scenarios` name their
+spec, and :func:`make_env` builds any of them from an id, a scene name, a TOML path or a spec.
+Grid observation sources: :mod:`negobs_gym.envs.sources`.
 """
 
-from negobs_gym.envs.base import NegObsEnv, registered_negobs_env
-from negobs_gym.envs.config import CHANNELS, EnvConfig, ObservationConfig, RewardConfig
+from negobs_gym.envs.base import NegObsEnv
+from negobs_gym.envs.factory import GRID_SOURCE_NAMES, make_env, registered_negobs_env, source_overrides
 from negobs_gym.envs.scenarios import (
     BrakingEnv,
     BrakingV0Env,
@@ -17,19 +18,18 @@ from negobs_gym.envs.scenarios import (
 from negobs_gym.envs.sources import GRID_SOURCES, DetectorSource, GridSource, OracleSource
 
 __all__ = [
-    "CHANNELS",
     "GRID_SOURCES",
+    "GRID_SOURCE_NAMES",
     "BrakingEnv",
     "BrakingV0Env",
     "DetectorSource",
-    "EnvConfig",
     "GridSource",
     "NegObsEnv",
-    "ObservationConfig",
     "OffroadNavEnv",
     "OracleSource",
     "PaperTStraightEnv",
-    "RewardConfig",
     "TrenchCrossingEnv",
+    "make_env",
     "registered_negobs_env",
+    "source_overrides",
 ]

@@ -1,6 +1,6 @@
 """The negobs env: one Gymnasium env driven by a scenario spec, with HighwayEnv-style hooks.
 
-:class:`NegObsEnv` builds each episode from a :class:`~negobs_gym.scenarios.spec.ScenarioSpec`
+:class:`NegObsEnv` builds each episode from a :class:`~negobs_gym.spec.scenario.ScenarioSpec`
 (terrain, obstacles, start, INS noise, physics), observes through a swappable grid source
 (:mod:`negobs_gym.envs.sources`), and decides reward, termination, truncation and info in the hooks
 :meth:`~NegObsEnv._reward`, :meth:`~NegObsEnv._is_terminated`, :meth:`~NegObsEnv._is_truncated` and
@@ -14,7 +14,7 @@ import copy
 import dataclasses
 import logging
 import math
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -22,7 +22,6 @@ from gymnasium import spaces
 
 from negobs_gym.core.geometry import PolygonsAhead, project_onto_polyline
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import EnvConfig
 from negobs_gym.envs.observation import stack_channels, state_space, state_vector
 from negobs_gym.envs.outcome import StepOutcome, termination_conditions
 from negobs_gym.envs.perception import DetectorGrid
@@ -44,24 +43,16 @@ from negobs_gym.sim.events import EventMonitor, StepEvents
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
 from negobs_gym.sim.world import World
-
-if TYPE_CHECKING:
-    from negobs_gym.scenarios.spec import SampledScenario, ScenarioSpec
+from negobs_gym.spec import SampledScenario, ScenarioSpec, apply_overrides, load_scenario
+from negobs_gym.spec.overrides import Overrides
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TRUE_OUTLINE_SPACING_M", "NegObsEnv", "registered_negobs_env"]
+__all__ = ["TRUE_OUTLINE_SPACING_M", "NegObsEnv"]
 
 #: true obstacle outlines are sampled this densely for :meth:`NegObsEnv.true_hazard_distance_m`
 #: (its error along the corridor is at most this) [m]
 TRUE_OUTLINE_SPACING_M = 0.05
-
-
-def _load_spec(scenario: ScenarioSpec | str) -> ScenarioSpec:
-    # imported here: negobs_gym.scenarios imports the env package (its runner drives envs)
-    from negobs_gym.scenarios.library import load_scenario
-
-    return load_scenario(scenario)
 
 
 class NegObsEnv(gym.Env):
@@ -89,9 +80,10 @@ class NegObsEnv(gym.Env):
     built directly.
 
     ## Arguments
-    ``config``: an :class:`EnvConfig` overriding the spec's episode, start speed, goal radius,
-    observation and reward. ``render_mode``: ``"rgb_array"`` or ``"human"``. ``scenario``: a
-    :class:`ScenarioSpec`, a shipped scenario's name or a TOML path (subclasses name their own).
+    ``scenario``: a :class:`ScenarioSpec`, a shipped scenario's name or a TOML path (subclasses
+    name their own). ``overrides``: single settings of that spec changed, as the commands' ``--set``
+    paths, either ``"KEY.PATH=VALUE"`` strings or a mapping ``{"observation.source": "oracle"}``
+    (:func:`negobs_gym.spec.apply_overrides`). ``render_mode``: ``"rgb_array"`` or ``"human"``.
 
     ## Info
     ``events`` (dict), ``distance_to_negative_ahead_m`` and ``distance_to_positive_ahead_m``
@@ -107,31 +99,37 @@ class NegObsEnv(gym.Env):
 
     def __init__(
         self,
-        config: EnvConfig | None = None,
+        config: object = None,
         render_mode: str | None = None,
         *,
         scenario: ScenarioSpec | str | None = None,
+        overrides: Overrides = (),
     ) -> None:
+        if config is not None:  # the removed episode-config object, passed by older code
+            raise ConfigError(
+                "config",
+                "envs are built from a scenario spec plus overrides: pass scenario=SPEC_OR_NAME and/or "
+                "overrides={'observation.source': 'oracle', 'episode.time_limit_s': 20} (the --set paths)",
+            )
         scenario = scenario if scenario is not None else self.default_scenario
         if scenario is None:
             raise ConfigError("scenario", "NegObsEnv needs a scenario spec, a shipped name or a TOML path")
-        spec = _load_spec(scenario)
-        self.scenario: ScenarioSpec = spec.with_env_config(config) if config is not None else spec
-        self.config = self.scenario.env_config()
+        #: The spec this env runs; the one description of its episodes (read-only).
+        self.scenario: ScenarioSpec = apply_overrides(load_scenario(scenario), overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be one of {self.metadata['render_modes']}, got {render_mode!r}"
+            raise ConfigError(
+                "render_mode", f"must be one of {self.metadata['render_modes']}, got {render_mode!r}"
             )
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
-        self._grid_source: GridSource = make_grid_source(self.config.observation)
+        self.metadata = {**self.metadata, "render_fps": self.scenario.episode.control_hz}
+        self._grid_source: GridSource = make_grid_source(self.scenario.observation)
         self.observation_space = spaces.Dict(
-            {"grid": self._grid_source.space(), "state": state_space(self.config.observation)}
+            {"grid": self._grid_source.space(), "state": state_space(self.scenario.observation)}
         )
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         physics = self.scenario.physics
-        self._substeps = max(1, round(1.0 / (self.config.control_hz * physics.time_step_s)))
-        self._worlds = WorldCache(self.config.world_cache_size)
+        self._substeps = max(1, round(1.0 / (self.scenario.episode.control_hz * physics.time_step_s)))
+        self._worlds = WorldCache(self.scenario.episode.world_cache_size)
         self._entry: CachedWorld | None = None
         self._env_steps = 0  # steps since the env was made, over episodes (ObservationConfig.scan_clock)
         self._world: World | None = None
@@ -144,15 +142,11 @@ class NegObsEnv(gym.Env):
         self._render_overlay = None
 
     @classmethod
-    def default_config(cls) -> EnvConfig:
-        """The :class:`EnvConfig` of this env's default scenario, to change with ``dataclasses.replace``.
-
-        A ``config`` passed to the env replaces the spec's episode, start speed, goal radius,
-        observation and reward as a whole, so start from this one to change a single setting.
-        """
+    def default_spec(cls) -> ScenarioSpec:
+        """The scenario spec this env runs by default (to read, or to change with overrides)."""
         if cls.default_scenario is None:
             raise ConfigError("scenario", f"{cls.__name__} has no default scenario")
-        return _load_spec(cls.default_scenario).env_config()
+        return load_scenario(cls.default_scenario)
 
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -208,7 +202,7 @@ class NegObsEnv(gym.Env):
         if entry is None:
             entry = self._build_world(draw_rng)
             self._worlds.put(key, entry)
-        elif self.config.terrain_pool_size is None:
+        elif self.scenario.episode.terrain_pool_size is None:
             self.np_random.bit_generator.state = copy.deepcopy(entry.rng_state_after_draw)
         entry.restore()
         return entry
@@ -220,7 +214,7 @@ class NegObsEnv(gym.Env):
 
     def _draw_key(self, rng: np.random.Generator) -> tuple[str, np.random.Generator]:
         """The world key of the episode that ``rng`` draws next, and the generator that draws it."""
-        pool = self.config.terrain_pool_size
+        pool = self.scenario.episode.terrain_pool_size
         if pool is None:
             return generator_key(rng), rng
         index = int(rng.integers(pool))
@@ -235,7 +229,7 @@ class NegObsEnv(gym.Env):
         )
         settle_steps = max(0, round(spec.episode.settle_time_s / spec.physics.time_step_s))
         entry = build_world(episode, spec.physics, vehicle_config, settle_steps)
-        if self.config.terrain_pool_size is None:
+        if self.scenario.episode.terrain_pool_size is None:
             entry.rng_state_after_draw = copy.deepcopy(draw_rng.bit_generator.state)
         return entry
 
@@ -289,7 +283,7 @@ class NegObsEnv(gym.Env):
     # -- hooks (HighwayEnv style; they read the spec) ------------------------------------------
     def _reward(self, outcome: StepOutcome) -> dict[str, float]:
         """Reward terms by name, weighted by the spec's ``[reward]``; the reward is their sum."""
-        rewards = reward_terms(self.config.reward, outcome, self._stop_rewarded)
+        rewards = reward_terms(self.scenario.reward, outcome, self._stop_rewarded)
         self._stop_rewarded = self._stop_rewarded or outcome.stopped_before_hazard
         return rewards
 
@@ -338,7 +332,7 @@ class NegObsEnv(gym.Env):
         self._entered = self._entered or bool(events.entered_negative_obstacle)
         speed = self._vehicle.speed_mps()
         self._still_s = (
-            self._still_s + 1.0 / self.config.control_hz if abs(speed) < task.stop_speed_mps else 0.0
+            self._still_s + 1.0 / self.scenario.episode.control_hz if abs(speed) < task.stop_speed_mps else 0.0
         )
         stopped = self._still_s >= task.stop_hold_s and not self._entered
         return StepOutcome(
@@ -360,7 +354,7 @@ class NegObsEnv(gym.Env):
         """The oldest :meth:`hazard_state` data gets between two LiDAR frames [s]: 0 with a frame
         every step, ``(scan_every - 1) / control_hz`` with ``ObservationConfig.scan_every`` (the
         safety filter's ``perception_timeout_s`` counts from there)."""
-        return (self.config.observation.scan_every - 1) / self.config.control_hz
+        return (self.scenario.observation.scan_every - 1) / self.scenario.episode.control_hz
 
     @property
     def perception(self) -> DetectorGrid | None:
@@ -392,7 +386,7 @@ class NegObsEnv(gym.Env):
             self._vehicle.true_pose(),
             np.asarray(self._path),
             self._last_grid,
-            self.config.observation,
+            self.scenario.observation,
             points_vehicle_m=perception.points_vehicle() if perception is not None else None,
             detected_outlines_m=perception.detected_outlines() if perception is not None else (),
             safety=safety,
@@ -402,7 +396,7 @@ class NegObsEnv(gym.Env):
             ),
             config=self.scenario.render,
             caption=caption_lines(
-                self._steps / self.config.control_hz, self._vehicle.speed_mps(), self._applied, safety
+                self._steps / self.scenario.episode.control_hz, self._vehicle.speed_mps(), self._applied, safety
             ),
         )
         if self.render_mode == "human":
@@ -456,7 +450,7 @@ class NegObsEnv(gym.Env):
             wheelbase_m=cfg.wheelbase_m,
             front_length_m=cfg.length_m - cfg.rear_overhang_m,
             max_steer_rad=math.radians(cfg.max_steer_deg),
-            dt_s=1.0 / self.config.control_hz,
+            dt_s=1.0 / self.scenario.episode.control_hz,
             max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
@@ -465,7 +459,7 @@ class NegObsEnv(gym.Env):
 
     def _start_detector(self) -> None:
         """Detectors beside an oracle grid, for the hazards only (they then run every step)."""
-        detector_obs = dataclasses.replace(self.config.observation, source="detector")
+        detector_obs = dataclasses.replace(self.scenario.observation, source="detector")
         self._detector = DetectorSource(detector_obs)
         self._detector.start(self._world, self._vehicle, self.terrain, self._sensor_rng, self._entry.extras)
         self._detector.layers(self._world.sim_time_s)
@@ -486,18 +480,18 @@ class NegObsEnv(gym.Env):
 
     def _align_frames(self) -> None:
         """After a first frame: put the next ones on the env's step clock where the config asks."""
-        if self._detector is not None and self.config.observation.scan_clock == "env":
+        if self._detector is not None and self.scenario.observation.scan_clock == "env":
             self._detector.perception.align_frames(self._env_steps)
 
     def _observe(self) -> dict[str, np.ndarray]:
         t = self._world.sim_time_s
         if self._detector is not None and self._detector is not self._grid_source:
             self._detector.layers(t)  # keep the hazard detectors' history going
-        grid = stack_channels(self._grid_source.layers(t), self.config.observation)
+        grid = stack_channels(self._grid_source.layers(t), self.scenario.observation)
         self._last_grid = grid
         pose = self._vehicle.true_pose()
         state = state_vector(
-            self.config.observation,
+            self.scenario.observation,
             pose,
             self._vehicle.speed_mps(),
             self._vehicle.yaw_rate(),
@@ -510,7 +504,7 @@ class NegObsEnv(gym.Env):
     def _route_points(self) -> np.ndarray | None:
         """World xy of the centre-line points ``observation.route_points_m`` ahead of the vehicle's
         station (None when the observation has none); beyond the track's end they stay at its end."""
-        ahead = self.config.observation.route_points_m
+        ahead = self.scenario.observation.route_points_m
         if not ahead:
             return None
         track = self.terrain.track
@@ -562,20 +556,3 @@ class NegObsEnv(gym.Env):
         half = 0.5 * cfg.track_width_m + 1.0
         front_m = cfg.length_m - cfg.rear_overhang_m
         return polygons.nearest_ahead(np.array([pose.x, pose.y]), pose.yaw, half) - front_m
-
-
-def registered_negobs_env(env_id: str) -> type[NegObsEnv] | None:
-    """The :class:`NegObsEnv` subclass that ``gymnasium.make(env_id)`` builds; None when ``env_id``
-    is not a registered id (a scenario name or TOML path, for the caller to try).
-
-    Raises:
-        ConfigError: ``env_id`` is registered but makes another env (field ``env``).
-    """
-    if env_id not in gym.registry:
-        return None
-    from gymnasium.envs.registration import load_env_creator
-
-    creator = load_env_creator(gym.spec(env_id).entry_point)
-    if not (isinstance(creator, type) and issubclass(creator, NegObsEnv)) or creator.default_scenario is None:
-        raise ConfigError("env", f"{env_id!r} is not a negobs_gym env (its observation has no grid)")
-    return creator

@@ -15,9 +15,9 @@ from negobs_gym.core.geometry import (
     world_to_vehicle_xy,
 )
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import CHANNELS, ROUTE_MARGIN_M, ObservationConfig
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
+from negobs_gym.spec import CHANNELS, ROUTE_MARGIN_M, ObservationConfig
 
 __all__ = [
     "STATE_FIELDS",

@@ -40,7 +40,6 @@ from negobs_gym.detector import (
 )
 from negobs_gym.detector.fusion import in_box
 from negobs_gym.detector.memory import PointHold
-from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.sensors.lidar import PendingRigScan, frame_noise_key, start_rig_scan
 from negobs_gym.sensors.noise import NoiseConfig
 from negobs_gym.sensors.raycast import RayCaster, make_caster
@@ -48,6 +47,7 @@ from negobs_gym.sensors.rigs import LUX_FORWARD_M, Rig, paper_n_rig, paper_n_rig
 from negobs_gym.sensors.roi import HeightEnvelope, RoiConfig, RoiSelector
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
+from negobs_gym.spec import ObservationConfig
 
 __all__ = ["DetectorGrid", "env_rig", "world_products"]
 

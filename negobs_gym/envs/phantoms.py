@@ -13,8 +13,8 @@ import numpy as np
 
 from negobs_gym.core.geometry import distance_to_polyline, vehicle_to_world_xy, world_to_vehicle_xy
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import PhantomConfig
 from negobs_gym.sim.types import Track
+from negobs_gym.spec import PhantomConfig
 
 __all__ = ["Phantoms"]
 

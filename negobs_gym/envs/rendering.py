@@ -34,12 +34,13 @@ import numpy as np
 from negobs_gym.core.geometry import vehicle_to_world_xy, world_to_vehicle_xy
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.errors import require
 from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.sim.render import render_top_down
 from negobs_gym.sim.types import Terrain
+from negobs_gym.spec.observation import ObservationConfig
+from negobs_gym.spec.render import RenderConfig
 
 __all__ = ["RenderConfig", "VehicleFootprint", "caption_lines", "frame_shape", "render_frame", "show_frame"]
 
@@ -64,60 +65,6 @@ BORDER_VETO: Colour = (230, 0, 0)
 BORDER_NONE: Colour = (110, 110, 110)
 # Height ramp of the LiDAR points: low (pit floors) -> ground -> high (obstacles).
 POINT_RAMP: tuple[Colour, Colour, Colour] = ((40, 110, 255), (225, 225, 225), (255, 160, 0))
-
-
-@dataclass(frozen=True, kw_only=True)
-class RenderConfig:
-    """Layout and content of :func:`render_frame` (display settings, not paper values).
-
-    Attributes:
-        height_px: Frame height; even, so that video encoders (yuv420p) accept it.
-        overview_width_px: Width of the whole-terrain panel.
-        max_points: LiDAR returns drawn per frame (an evenly strided subset when there are more).
-        point_z_range_m: Vehicle-frame heights mapped to the ends of the colour ramp [m]; the
-            vehicle frame's origin is on the ground, so pit floors are blue and obstacles orange.
-        border_px: Width of the safety-state border around the local panel.
-        mark_thickness_px: Thickness of the hazard / braking distance marks.
-        caption: Write the caption lines the caller gives (the envs: time, speed, applied action,
-            d and R(v)) at the top left of the overview.
-    """
-
-    height_px: int = 480
-    overview_width_px: int = 160
-    max_points: int = 4000
-    point_z_range_m: tuple[float, float] = (-1.0, 1.0)
-    border_px: int = 5
-    mark_thickness_px: int = 3
-    caption: bool = True
-
-    def __post_init__(self) -> None:
-        require(
-            isinstance(self.height_px, int) and self.height_px >= 32 and self.height_px % 2 == 0,
-            "height_px",
-            f"must be an even int >= 32, got {self.height_px!r}",
-        )
-        require(
-            isinstance(self.overview_width_px, int)
-            and self.overview_width_px >= 16
-            and self.overview_width_px % 2 == 0,
-            "overview_width_px",
-            f"must be an even int >= 16, got {self.overview_width_px!r}",
-        )
-        require(
-            isinstance(self.max_points, int) and self.max_points >= 0,
-            "max_points",
-            f"must be an int >= 0, got {self.max_points!r}",
-        )
-        lo, hi = self.point_z_range_m
-        require(
-            math.isfinite(lo) and math.isfinite(hi) and lo < hi,
-            "point_z_range_m",
-            f"must be finite (low, high) with low < high, got {self.point_z_range_m!r}",
-        )
-        require(isinstance(self.caption, bool), "caption", f"must be a bool, got {self.caption!r}")
-        for name in ("border_px", "mark_thickness_px"):
-            v = getattr(self, name)
-            require(isinstance(v, int) and 1 <= v <= 20, name, f"must be an int in [1, 20], got {v!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

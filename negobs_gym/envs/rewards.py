@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from negobs_gym.envs.config import RewardConfig
 from negobs_gym.envs.outcome import StepOutcome
+from negobs_gym.spec import RewardConfig
 
 __all__ = ["reward_terms"]
 

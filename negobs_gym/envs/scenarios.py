@@ -1,6 +1,6 @@
 """The registered envs: each a :class:`~negobs_gym.envs.base.NegObsEnv` naming its scenario spec.
 
-The specs are TOML files in ``negobs_gym/scenarios/scenes`` (``negobs scenario show NAME``). The
+The specs are TOML files in ``negobs_gym/spec/scenes`` (``negobs scenario show NAME``). The
 shared parts of every manual below: the action is ``Box(-1, 1, (2,), float32)`` — ``action[0]``
 longitudinal (> 0 throttle, < 0 brake, -1 full brake), ``action[1]`` steering (+1 = full left,
 35 deg) at 10 Hz with 12 physics sub-steps; the observation is ``Dict(grid, state)``:

@@ -19,7 +19,6 @@ import abc
 import numpy as np
 from gymnasium import spaces
 
-from negobs_gym.envs.config import ObservationConfig
 from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels
 from negobs_gym.envs.perception import DetectorGrid, world_products
 from negobs_gym.envs.phantoms import Phantoms
@@ -27,6 +26,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
+from negobs_gym.spec import ObservationConfig
 
 __all__ = ["GRID_SOURCES", "DetectorSource", "GridSource", "OracleSource", "make_grid_source"]
 

@@ -4,7 +4,7 @@ Building an episode's world (terrain generation, PyBullet heightfield with its i
 vehicle, settling, the Embree scene) takes ~1.2 s for OffroadNav's 120 m course; restoring a kept
 one takes milliseconds. A world is keyed by what decides its episode draw (terrain, start pose and
 speed): the env generator's state right before the scenario is drawn (so ``reset(seed=s)`` twice
-hits), or the index of the draw in a fixed pool (``EnvConfig.terrain_pool_size``). Right after
+hits), or the index of the draw in a fixed pool (the spec's ``episode.terrain_pool_size``). Right after
 settling, the PyBullet state is saved (``saveState``); every episode on that world, the first
 included, starts from ``restoreState``, so a kept world gives the same episode bit for bit as a
 fresh one.
@@ -27,7 +27,7 @@ import hashlib
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -36,9 +36,7 @@ from negobs_gym.sim.events import EventMonitor
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle, VehicleConfig
 from negobs_gym.sim.world import World, WorldConfig
-
-if TYPE_CHECKING:
-    from negobs_gym.scenarios.spec import SampledScenario
+from negobs_gym.spec import SampledScenario
 
 __all__ = ["CachedWorld", "WorldCache", "generator_key", "release_freed_memory"]
 

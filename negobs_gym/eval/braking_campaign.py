@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.envs.config import RIGS, ObservationConfig
+from negobs_gym.drivers.model import ModelDriver
+from negobs_gym.envs import NegObsEnv
 from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
@@ -36,8 +37,8 @@ from negobs_gym.eval.vetoes import (
     largest_veto_error_m,
     veto_rows,
 )
-from negobs_gym.policies.model_driver import ModelDriver
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
+from negobs_gym.spec import RIGS, ObservationConfig, ScenarioSpec, load_scenario
 
 STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
 STANDSTILL_S = 1.0
@@ -148,7 +149,7 @@ class BrakingCampaignConfig:
         )
         require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         if self.model_path is not None:
-            from negobs_gym.policies.baselines import resolve_model
+            from negobs_gym.drivers.zoo import resolve_model
 
             resolve_model(self.model_path)  # exists, or names a shipped policy; kept as given
         require(
@@ -227,8 +228,6 @@ def scenario_spec(
     """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
     (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
     scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
-    from negobs_gym.scenarios import ScenarioSpec, load_scenario
-
     preset, params = SCENARIOS[scenario]
     data = load_scenario("braking_v0").to_dict()
     data["name"] = f"braking_campaign_{scenario}"
@@ -259,8 +258,6 @@ def _scenario_env(
     scan_every: int = 1,
     scan_far_from_m: float | None = None,
 ) -> Any:
-    from negobs_gym.envs.base import NegObsEnv
-
     spec = scenario_spec(scenario, rig, oracle, tighten_pairs, scan_every, scan_far_from_m)
     return NegObsEnv(scenario=spec, render_mode=render_mode)
 
@@ -313,7 +310,7 @@ def run_driven_episode(
     guard = filter_config(filtered)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
-    with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.config.control_hz) as video:
+    with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.scenario.episode.control_hz) as video:
         return _driven_episode(recording(env, video), driver, seed, guard, max_steps)
 
 
@@ -327,7 +324,7 @@ def _driven_episode(
     """The episode of :func:`run_driven_episode` in ``env`` (filter applied)."""
     driver.reset(seed)
     obs, info = env.reset(seed=seed)
-    dt = 1.0 / env.unwrapped.config.control_hz
+    dt = 1.0 / env.unwrapped.scenario.episode.control_hz
     start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
     first_veto, cost, still_s, steps, distance = math.nan, 0.0, 0.0, 0, 0.0
     tally = VetoTally(positive=guard is not None and guard.stop_for_positive)

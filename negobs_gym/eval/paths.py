@@ -20,9 +20,11 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.envs import NegObsEnv, make_env
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.braking_campaign import PATH_COLUMNS, obstacle_free, scenario_spec
 from negobs_gym.eval.campaign import read_csv
+from negobs_gym.spec import recorded_env_in
 
 __all__ = ["chosen_episodes", "draw_paths", "episode_outcome", "task_done"]
 
@@ -63,16 +65,11 @@ def _terrain_and_caption(row: dict[str, str], folder: Path) -> tuple[Any, str]:
     terrain is the seed's whatever the grid; the oracle spares the detector's set-up), and its
     caption."""
     if _is_braking(row):
-        from negobs_gym.envs.base import NegObsEnv
-
         env = NegObsEnv(scenario=scenario_spec(row["scenario"], "roi", oracle=True, tighten_pairs=True))
         name = f"{row['scenario']} seed {row['seed']} {row['driver']}, {row['filter']}"
         result = f"gap {float(row['final_gap_m']):.2f} m"
     else:
-        from negobs_gym.policies.training import make_task_env
-        from negobs_gym.scenarios.overrides import recorded_env_in
-
-        env = make_task_env(recorded_env_in(row["env"], folder), "oracle")
+        env = make_env(recorded_env_in(row["env"], folder), ["observation.source=oracle"])
         shown = env.unwrapped.scenario.name if row["env"].endswith(".toml") else row["env"]
         name = f"{shown} seed {row['seed']} {row['filter']}"
         result = f"{float(row['progress_m']):.1f} m"

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from negobs_gym.drivers.model import ModelDriver
+from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import (
     PATH_COLUMNS,
@@ -40,7 +42,6 @@ from negobs_gym.eval.braking_campaign import (
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
 from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
-from negobs_gym.policies.model_driver import ModelDriver
 from negobs_gym.safety.filter import SafetyFilterConfig
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
@@ -126,7 +127,7 @@ class PolicyCampaignConfig:
             "stop_for_positive",
             f"must be a bool, got {self.stop_for_positive!r}",
         )
-        from negobs_gym.policies.baselines import resolve_model
+        from negobs_gym.drivers.zoo import resolve_model
 
         resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
 
@@ -170,9 +171,7 @@ def run_episode(episode: Episode) -> Rows:
     if a.get("source") is None and a["env_id"] in gym.registry:
         env = gym.make(a["env_id"], render_mode=render_mode)
     else:
-        from negobs_gym.policies.training import make_task_env
-
-        env = make_task_env(a["env_id"], a["source"], render_mode=render_mode)
+        env = make_env(a["env_id"], source_overrides(a["source"]), render_mode=render_mode)
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     guard = SafetyFilterConfig(stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
     driver = ModelDriver(a["model_path"], a["algo"])

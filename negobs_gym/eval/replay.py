@@ -73,8 +73,8 @@ def replay_videos(
             episode of a scripted driver (field ``model``).
         ReplayMismatch: a replay's rows differ from the campaign's; its video is removed.
     """
-    from negobs_gym.policies.baselines import resolve_model
-    from negobs_gym.scenarios.overrides import recorded_env_in
+    from negobs_gym.drivers.zoo import resolve_model
+    from negobs_gym.spec.overrides import recorded_env_in
 
     if model is not None:
         model = resolve_model(str(model), "model")

@@ -4,7 +4,7 @@
   flat grid (so SB3 does not take the 4 x 36 x 16 grid for an image) or drops it (state only), and
   :func:`match_observation` / :class:`PolicyDriver`, which feed a raw env observation to a model
   trained behind that wrapper (``negobs eval policy`` uses them);
-- :mod:`negobs_gym.policies.model_driver`: :class:`ModelDriver`, a saved or shipped model as a
+- :mod:`negobs_gym.drivers.model`: :class:`ModelDriver`, a saved or shipped model as a
   driver (``negobs eval policy``, the braking campaign's ``sb3`` driver, ``negobs scenario run
   --policy``);
 - :mod:`negobs_gym.policies.extractor`: :class:`GridStateExtractor`, a small CNN over the grid

@@ -11,13 +11,13 @@ and 1) and :class:`~negobs_gym.policies.extractor.GridStateExtractor` folds it b
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from negobs_gym.errors import ConfigError
+from negobs_gym.drivers.model import PolicyDriver, match_observation
+from negobs_gym.errors import InterfaceError
 
 __all__ = ["PolicyDriver", "PolicyObservation", "match_observation"]
 
@@ -37,9 +37,13 @@ class PolicyObservation(gym.ObservationWrapper):
         super().__init__(env)
         space = env.observation_space
         if not isinstance(space, spaces.Dict) or "state" not in space.spaces:
-            raise TypeError(f"PolicyObservation needs a Dict observation space with 'state', got {space}")
+            raise InterfaceError(
+                f"env.observation_space: PolicyObservation needs a Dict space with 'state', got {space}"
+            )
         if "grid" not in space.spaces or len(space["grid"].shape) != 3:
-            raise TypeError(f"PolicyObservation needs a 3-D 'grid' Box (channels, rows, cols), got {space}")
+            raise InterfaceError(
+                f"env.observation_space: PolicyObservation needs a 3-D 'grid' Box (channels, rows, cols), got {space}"
+            )
         source = space["grid"]
         self.grid_shape: tuple[int, int, int] = tuple(source.shape)  # type: ignore[assignment]
         kept: dict[str, spaces.Space] = {}
@@ -50,57 +54,3 @@ class PolicyObservation(gym.ObservationWrapper):
 
     def observation(self, observation: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         return match_observation(observation, self.observation_space)
-
-
-def match_observation(observation: Mapping[str, Any], space: spaces.Space) -> Any:
-    """``observation`` as ``space`` expects it: keys the space lacks dropped, arrays of the same
-    size reshaped (a raw env's 3-D grid for a model trained on the flat one).
-
-    Raises:
-        ValueError: a key of ``space`` is missing, or an array's size differs from its space.
-    """
-    if not isinstance(space, spaces.Dict):
-        return observation
-    out: dict[str, np.ndarray] = {}
-    for key, sub in space.spaces.items():
-        if key not in observation:
-            raise ValueError(
-                f"the observation has no {key!r} (keys: {sorted(observation)}); the policy needs it"
-            )
-        value = np.asarray(observation[key])
-        if value.shape != sub.shape:
-            if value.size != int(np.prod(sub.shape)):
-                raise ValueError(
-                    f"observation {key!r} has shape {value.shape}, the policy expects {sub.shape}"
-                )
-            value = value.reshape(sub.shape)
-        out[key] = value
-    return out
-
-
-class PolicyDriver:
-    """An SB3 model as a driver (``reset(seed)``, ``act(obs, info)``) on a raw env's observations;
-    ``name`` is how errors and results name it."""
-
-    def __init__(self, model: Any, name: str = "the model") -> None:
-        self.model = model
-        self.name = name
-
-    def reset(self, seed: int | None = None) -> None:
-        """Stateless policy."""
-
-    def act(self, obs: Any, info: Mapping[str, Any]) -> np.ndarray:
-        """The model's deterministic action for ``obs`` (adapted with :func:`match_observation`).
-
-        Raises:
-            ConfigError: ``obs`` does not fit the model's observation space (field ``policy``):
-                the env observes something else than the model was trained on.
-        """
-        try:
-            observation = match_observation(obs, self.model.observation_space)
-        except ValueError as error:
-            raise ConfigError(
-                "policy", f"the env's observation does not fit {self.name}'s: {error}"
-            ) from None
-        action, _ = self.model.predict(observation, deterministic=True)
-        return np.asarray(action, dtype=np.float32)

@@ -103,7 +103,11 @@ class Demonstrations:
             or other.grid_max != self.grid_max
             or not np.array_equal(other.state_signs, self.state_signs)
         ):
-            raise ValueError("demonstrations of different observation layouts cannot be joined")
+            raise ConfigError(
+                "demonstrations",
+                f"different observation layouts cannot be joined (grid {self.grid_shape} max "
+                f"{self.grid_max} and grid {other.grid_shape} max {other.grid_max}, or other state signs)",
+            )
         observations = {k: np.concatenate([v, other.observations[k]]) for k, v in self.observations.items()}
         return replace(
             self,
@@ -241,7 +245,7 @@ def collect_demonstrations(
                 episode, left = first_episode + len(parts), steps - collected
                 parts.append(_demonstrate_episode(env, expert, policy, episode, left, noise_std, seed))
                 collected += len(parts[-1].actions)
-    return _join(parts, steps, first_episode, env.unwrapped.config.observation)
+    return _join(parts, steps, first_episode, env.unwrapped.scenario.observation)
 
 
 class PolicyActor:

@@ -36,10 +36,9 @@ import gymnasium as gym
 import torch
 
 import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
-from negobs_gym.envs.base import NegObsEnv, registered_negobs_env
-from negobs_gym.envs.config import EnvConfig
+from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
+from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
 from negobs_gym.policies.config import TrainConfig
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
@@ -48,7 +47,7 @@ from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, fi
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TrainResult", "make_env", "make_task_env", "train"]
+__all__ = ["TrainResult", "make_training_env", "train"]
 
 
 @dataclass(frozen=True)
@@ -63,48 +62,13 @@ class TrainResult:
     last_eval: dict[str, float]
 
 
-def make_task_env(
-    env: str, source: str | None, overrides: Sequence[str] = (), render_mode: str | None = None
+def make_training_env(
+    env: str, source: str, use_filter: bool | SafetyFilterConfig, overrides: Sequence[str] = ()
 ) -> gym.Env:
-    """The raw env named by ``env`` (id, scenario name or TOML path) with grid ``source`` (None:
-    the env's own), its scenario changed by ``overrides`` (``KEY.PATH=VALUE``, the commands'
-    ``--set``; :func:`negobs_gym.scenarios.apply_overrides`), rendering in ``render_mode``.
-
-    Raises:
-        ConfigError: ``env`` names no negobs env, scenario or file (field ``env``), or a bad
-            assignment.
-    """
-    grid_source = "oracle" if source == "state" else source
-    creator = registered_negobs_env(env)
-    if creator is not None and not overrides:
-        return gym.make(
-            env, config=_with_source(creator.default_config(), grid_source), render_mode=render_mode
-        )
-    from negobs_gym.scenarios.library import scenario_names
-    from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
-
-    if creator is None and not (Path(env).is_file() or env in scenario_names()):
-        ids = [i for i in gym.registry if i.startswith("negobs_gym/")]
-        raise ConfigError(
-            "env",
-            f"unknown env {env!r}: not a registered id ({', '.join(ids)}), a shipped scenario "
-            f"({', '.join(scenario_names())}) or an existing scenario TOML file",
-        )
-    spec = apply_overrides(spec_for_env(env), overrides)
-    cls = creator or NegObsEnv  # the registered classes only name their scenario
-    return cls(config=_with_source(spec.env_config(), grid_source), scenario=spec, render_mode=render_mode)
-
-
-def _with_source(config: EnvConfig, source: str | None) -> EnvConfig:
-    if source is None:
-        return config
-    return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source=source))
-
-
-def make_env(env: str, source: str, use_filter: bool | SafetyFilterConfig) -> gym.Env:
-    """One training env: :func:`make_task_env`, the safety filter if asked (True: its defaults, or
-    a :class:`SafetyFilterConfig`), :class:`PolicyObservation`."""
-    task = make_task_env(env, source)
+    """One training env: :func:`negobs_gym.envs.make_env` with grid ``source`` and ``overrides``,
+    the safety filter if asked (True: its defaults, or a :class:`SafetyFilterConfig`), and
+    :class:`PolicyObservation`."""
+    task = make_env(env, [*source_overrides(source), *overrides])
     settings = filter_config(use_filter)
     if settings is not None:
         task = BrakingSafetyFilter(task, config=settings)
@@ -122,7 +86,7 @@ def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
 
     results = []
     for k in range(config.eval_episodes):
-        env = make_task_env(config.env, config.source)
+        env = make_env(config.env, source_overrides(config.source))
         max_steps = env.unwrapped.scenario.episode.max_episode_steps
         driver = PolicyDriver(model)
         guard = filter_setting(config)
@@ -140,7 +104,7 @@ def logger_formats() -> list[str]:
 
 def _env_factory(config: TrainConfig) -> Callable[[], gym.Env]:
     """A picklable maker of the run's training env, for worker processes."""
-    return functools.partial(make_env, config.env, config.source, filter_setting(config))
+    return functools.partial(make_training_env, config.env, config.source, filter_setting(config))
 
 
 def _vec_env(config: TrainConfig):
@@ -214,7 +178,7 @@ def train(
 ) -> TrainResult:
     """Train (or resume) as ``config`` says; files under ``out_dir`` (module docstring).
 
-    Every saved zip records the env it was fitted on (:data:`~negobs_gym.policies.baselines.FITTED_ON`):
+    Every saved zip records the env it was fitted on (:data:`~negobs_gym.drivers.zoo.FITTED_ON`):
     ``fitted_on`` as (env, ``--set`` assignments) when ``config.env`` is a scenario written from
     them (``negobs train --set``), else ``config.env`` alone.
 
@@ -236,7 +200,7 @@ def train(
     )
 
     out = Path(out_dir)
-    probe = make_env(config.env, config.source, filter_setting(config))  # fails early on a bad env
+    probe = make_training_env(config.env, config.source, filter_setting(config))  # fails early on a bad env
     grid_shape = probe.grid_shape
     probe.close()
     checkpoint = latest_checkpoint(out / "checkpoints")
@@ -309,7 +273,7 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
     """
     import stable_baselines3
 
-    from negobs_gym.policies.baselines import resolve_model
+    from negobs_gym.drivers.zoo import resolve_model
 
     path = resolve_model(config.init_model, field="init_model")
     try:
@@ -413,7 +377,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
 def _check_layout(demos: Any, env: Any, path: str) -> None:
     """Saved demonstrations must have this env's observation: the same keys, grid and state."""
     space = env.observation_space
-    layout = env.unwrapped.config.observation
+    layout = env.unwrapped.scenario.observation
     same = (
         set(demos.observations) == set(space.spaces)
         and demos.grid_shape == layout.shape

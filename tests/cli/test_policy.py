@@ -4,7 +4,7 @@ import json
 
 from negobs_gym.cli import main
 from negobs_gym.eval.stats import format_interval, rate_interval
-from negobs_gym.policies.baselines import baseline_names, baseline_record
+from negobs_gym.drivers.zoo import baseline_names, baseline_record
 
 
 def test_list_gives_each_shipped_policy_its_env_settings_and_recorded_result(capsys) -> None:
@@ -40,7 +40,7 @@ def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(cap
 def test_show_prints_a_model_files_own_record(tmp_path, capsys) -> None:
     import zipfile
 
-    from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
+    from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
 
     record = fitted_on_record("negobs_gym/OffroadNav-v2", ["observation.tighten_pairs=false"])
     model = tmp_path / "policy.zip"

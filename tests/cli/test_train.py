@@ -161,7 +161,7 @@ def test_set_trains_on_the_changed_scenario_and_a_resume_keeps_it(tmp_path: Path
 def test_a_model_moved_out_of_its_run_keeps_the_env_and_set_it_was_fitted_on(tmp_path: Path, capsys) -> None:
     import zipfile
 
-    from negobs_gym.policies.baselines import FITTED_ON, recorded_env
+    from negobs_gym.drivers.zoo import FITTED_ON, recorded_env
 
     out = tmp_path / "run"
     args = ["train", "--env", ENV, "--steps", "64", "--eval-every", "0", *SHORT, "--out", str(out)]

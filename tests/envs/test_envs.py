@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.envs.config import EnvConfig, ObservationConfig, RewardConfig
+from negobs_gym.spec import ObservationConfig, RewardConfig
 from negobs_gym.errors import ActionError, ConfigError
 from negobs_gym.registration import ENV_SPECS
 

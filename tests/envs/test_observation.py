@@ -9,7 +9,7 @@ import pytest
 
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.observation import (
     OracleGrid,
     grid_space,

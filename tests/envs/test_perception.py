@@ -6,7 +6,7 @@ import pytest
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import NegativeDetectorConfig, convex_overlap_mask
 from negobs_gym.drivers import make_driver
-from negobs_gym.envs.config import EnvConfig, ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv, OffroadNavV2Env
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios import apply_overrides, load_scenario

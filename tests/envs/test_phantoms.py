@@ -11,13 +11,13 @@ import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs import ObservationConfig
-from negobs_gym.envs.config import PhantomConfig
+from negobs_gym.spec import PhantomConfig
 from negobs_gym.envs.phantoms import Phantoms
 from negobs_gym.envs.scenarios import OffroadNavV1Env
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.training import make_task_env
 from negobs_gym.scenarios import ScenarioSpec
-from negobs_gym.scenarios.overrides import apply_overrides, spec_for_env
+from negobs_gym.spec.overrides import apply_overrides, spec_for_env
 from negobs_gym.sim.types import Track
 
 

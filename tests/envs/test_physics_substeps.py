@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from negobs_gym.envs.config import EnvPhysicsConfig
+from negobs_gym.spec import EnvPhysicsConfig
 from negobs_gym.envs.scenarios import BrakingV0Env
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios import ScenarioSpec, load_scenario

@@ -11,7 +11,7 @@ import pytest
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs import rendering
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.rendering import RenderConfig, frame_shape, render_frame
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter, Corridor, SafetyDecision

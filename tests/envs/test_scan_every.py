@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.core.grid import carry_layer, carry_points
-from negobs_gym.envs.config import EnvConfig, ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter

@@ -7,7 +7,7 @@ import pytest
 
 from negobs_gym.core.grid import carry_layer
 from negobs_gym.detector.fusion import in_box
-from negobs_gym.envs.config import CHANNELS, EnvConfig, ObservationConfig
+from negobs_gym.spec import CHANNELS, ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.errors import ConfigError
 

@@ -143,7 +143,7 @@ def test_bad_sides_are_refused_naming_the_problem(tmp_path: Path, capsys) -> Non
 
 
 def test_scenario_runs_compare_by_driver_and_filter(tmp_path: Path) -> None:
-    from negobs_gym.scenarios.tables import RESULT_COLUMNS
+    from negobs_gym.eval.scenario_tables import RESULT_COLUMNS
 
     def run(folder: str, driver: str, flt: str, stops: list[int]) -> Path:
         rows = [

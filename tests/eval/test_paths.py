@@ -15,7 +15,7 @@ from negobs_gym.cli import main
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome
 from negobs_gym.eval.replay import ReplayMismatch, replay_videos
-from negobs_gym.policies.baselines import resolve_model
+from negobs_gym.drivers.zoo import resolve_model
 
 
 @pytest.fixture(scope="module")

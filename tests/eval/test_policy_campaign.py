@@ -11,7 +11,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import run_driven_episode
 from negobs_gym.eval.campaign import format_row
 from negobs_gym.eval.policy_campaign import COLUMNS, PolicyCampaignConfig, summarize
-from negobs_gym.policies.model_driver import ModelDriver
+from negobs_gym.drivers.model import ModelDriver
 from negobs_gym.policies.training import make_task_env
 from tests.helpers import write_vetoes_csv
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.baselines import (
+from negobs_gym.drivers.zoo import (
     baseline_names,
     baseline_record,
     fitted_on_record,
@@ -53,7 +53,7 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
 
 
 def test_at_least_one_baseline_is_shipped() -> None:
-    assert baseline_names(), "no trained policy under negobs_gym/policies/trained"
+    assert baseline_names(), "no trained policy under negobs_gym/drivers/trained"
 
 
 def test_a_training_folder_records_the_env_of_its_models(tmp_path: Path) -> None:
@@ -76,7 +76,7 @@ def test_a_training_folder_records_the_env_of_its_models(tmp_path: Path) -> None
 def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_back(tmp_path: Path) -> None:
     import zipfile
 
-    from negobs_gym.policies.baselines import FITTED_ON, fitted_on_record
+    from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
 
     run = tmp_path / "run"
     run.mkdir()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from negobs_gym.envs.config import ObservationConfig
+from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.observation import grid_space, state_space
 from negobs_gym.policies import PolicyObservation, match_observation
 

@@ -12,8 +12,8 @@ from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M
 from negobs_gym.scenarios import ScenarioResult, run_scenario, run_scenario_seeds, spec_from_toml
-from negobs_gym.scenarios.runner import check_criteria
-from negobs_gym.scenarios.spec import CriteriaSpec
+from negobs_gym.eval.scenario_runner import check_criteria
+from negobs_gym.spec.scenario import CriteriaSpec
 from tests.helpers import PIT_SCENE
 
 
@@ -166,8 +166,8 @@ def test_criteria_check_each_named_bound() -> None:
 
 def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
     from negobs_gym.drivers import TrackPlannerDriver
-    from negobs_gym.scenarios.library import load_scenario
-    from negobs_gym.scenarios.runner import make_driver
+    from negobs_gym.spec.library import load_scenario
+    from negobs_gym.eval.scenario_runner import make_driver
     from negobs_gym.sim.presets import braking_track
 
     spec = load_scenario("offroad_nav_v2")

@@ -1,6 +1,6 @@
 """A small TOML writer for plain data (the stdlib reads TOML, ``tomllib``, but does not write it).
 
-Covers what :func:`negobs_gym.scenarios.fields.to_plain` produces: nested tables, strings, bools,
+Covers what :func:`negobs_gym.spec.fields.to_plain` produces: nested tables, strings, bools,
 ints, floats and lists; lists of tables are written as arrays of inline tables.
 """
 

@@ -18,7 +18,7 @@ from negobs_gym.scenarios import (
     spec_from_toml,
     spec_to_toml,
 )
-from negobs_gym.scenarios.spec import TERMINATION_RULES
+from negobs_gym.spec.scenario import TERMINATION_RULES
 
 PIT_TOML = """
 name = "my_pit"

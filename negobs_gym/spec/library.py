@@ -1,4 +1,4 @@
-"""The scenario library: TOML specs shipped in ``negobs_gym/scenarios/scenes``, loadable by name."""
+"""The scenario library: TOML specs shipped in ``negobs_gym/spec/scenes``, loadable by name."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from importlib import resources
 from pathlib import Path
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios.spec import ScenarioSpec, spec_from_toml
+from negobs_gym.spec.scenario import ScenarioSpec, spec_from_toml
 
 __all__ = ["load_scenario", "scenario_names"]
 
@@ -15,7 +15,7 @@ _SCENES = "scenes"
 
 
 def _scenes():
-    return resources.files("negobs_gym.scenarios").joinpath(_SCENES)
+    return resources.files("negobs_gym.spec").joinpath(_SCENES)
 
 
 def scenario_names() -> tuple[str, ...]:

@@ -10,17 +10,19 @@ full path, as in a TOML file.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 from negobs_gym.core.files import write_text_atomic
 from negobs_gym.core.settings import parse_assignment
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios.library import load_scenario
-from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
+from negobs_gym.registration import SCENES
+from negobs_gym.spec.library import load_scenario
+from negobs_gym.spec.scenario import ScenarioSpec, spec_to_toml
 
 __all__ = [
+    "Overrides",
     "apply_overrides",
     "combine_overrides",
     "describe_overrides",
@@ -32,17 +34,39 @@ __all__ = [
 
 OPTION = "--set"  # how errors name the assignment: the option that carried it
 
+#: Settings changed on a spec: ``"KEY.PATH=VALUE"`` texts (the commands' ``--set``), or a mapping
+#: from ``KEY.PATH`` to a plain value (``{"observation.source": "oracle"}``).
+Overrides: TypeAlias = Sequence[str] | Mapping[str, Any]
 
-def apply_overrides(spec: ScenarioSpec, assignments: Sequence[str]) -> ScenarioSpec:
-    """``spec`` with each assignment applied in order, validated as one new spec.
+
+def _assignments(overrides: Overrides) -> list[tuple[list[str], Any]]:
+    """``(keys, value)`` of each override, in order."""
+    if isinstance(overrides, Mapping):
+        pairs = []
+        for key, value in overrides.items():
+            keys = str(key).split(".")
+            if not all(keys):
+                raise ConfigError(OPTION, f"{key!r}: a key is KEY.PATH, dot-separated names")
+            pairs.append((keys, value))
+        return pairs
+    if isinstance(overrides, str):
+        raise ConfigError(OPTION, f"give a list of KEY.PATH=VALUE assignments, not one string {overrides!r}")
+    return [parse_assignment(text) for text in overrides]
+
+
+def apply_overrides(spec: ScenarioSpec, assignments: Overrides) -> ScenarioSpec:
+    """``spec`` with each assignment applied in order, validated as one new spec (``spec``
+    itself when there are none).
 
     Raises:
         ConfigError: a malformed assignment, a path through a value or past a list's end, or a
             changed spec that does not validate (the error names the field's full path).
     """
+    changes = _assignments(assignments)
+    if not changes:
+        return spec
     data = spec.to_dict()
-    for text in assignments:
-        keys, value = parse_assignment(text)
+    for keys, value in changes:
         node: Any = data
         for depth, key in enumerate(keys):
             where = ".".join(keys[: depth + 1])
@@ -78,16 +102,13 @@ def combine_overrides(first: Sequence[str], then: Sequence[str]) -> list[str]:
 
 
 def spec_for_env(env: str) -> ScenarioSpec:
-    """The scenario spec behind an env argument: a registered negobs env id (its default
-    scenario), a shipped scenario name or a scenario TOML file.
+    """The scenario spec behind an env argument: a registered negobs env id (the scene it runs,
+    :data:`negobs_gym.registration.SCENES`), a shipped scenario name or a scenario TOML file.
 
     Raises:
-        ConfigError: a registered id that is not a negobs env, or an unknown scenario or file.
+        ConfigError: an unknown id, scenario or file (field ``scenario``).
     """
-    from negobs_gym.envs.base import registered_negobs_env
-
-    creator = registered_negobs_env(env)
-    return load_scenario(creator.default_scenario if creator is not None else env)
+    return load_scenario(SCENES.get(env, env))
 
 
 def env_with_overrides(

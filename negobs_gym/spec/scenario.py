@@ -23,15 +23,17 @@ import numpy as np
 import tomllib
 
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs.config import EnvConfig, EnvPhysicsConfig, ObservationConfig, RewardConfig
-from negobs_gym.envs.rendering import RenderConfig
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.scenarios.fields import Range, from_plain, to_plain
-from negobs_gym.scenarios.toml_out import dumps_toml
 from negobs_gym.sim.carving import NegativeObstacleSpec, PositiveObstacleSpec
 from negobs_gym.sim.presets import PRESETS
 from negobs_gym.sim.terrain import TerrainConfig, generate_terrain
 from negobs_gym.sim.types import Terrain
+from negobs_gym.spec.fields import Range, from_plain, to_plain
+from negobs_gym.spec.observation import ObservationConfig
+from negobs_gym.spec.physics import EnvPhysicsConfig
+from negobs_gym.spec.render import RenderConfig
+from negobs_gym.spec.reward import RewardConfig
+from negobs_gym.spec.toml_out import dumps_toml
 
 __all__ = [
     "TERMINATION_RULES",
@@ -59,6 +61,11 @@ TerminationRule = Literal[
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
 DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner"]
 PolicyAlgo = Literal["PPO", "SAC"]  # negobs_gym.policies.config.ALGORITHMS
+
+
+def _finite(value: object) -> bool:
+    """A real number (not a bool) that is finite."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _draw(value: Number, rng: np.random.Generator) -> float:
@@ -210,21 +217,34 @@ class StartSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class EpisodeSpec:
-    """Episode timing; checked like :class:`~negobs_gym.envs.config.EnvConfig`."""
+    """Episode timing and the worlds kept between episodes."""
 
     control_hz: float = 10.0  # paper N: the LiDARs spin at 10 Hz, control runs with them
     time_limit_s: float = 30.0  # truncation [s]
     settle_time_s: float = 0.25  # suspension settling at reset [s]
-    world_cache_size: int = 1  # settled worlds kept between episodes (docs/performance.md)
-    terrain_pool_size: int | None = None  # None: a new terrain each episode; k: one of k fixed draws
+    # settled worlds kept between episodes: a reset onto a kept terrain restores it in
+    # milliseconds instead of building it (~1.2 s; negobs_gym.envs.world_cache)
+    world_cache_size: int = 1
+    # None: a new terrain each episode; k: episodes draw one of k fixed terrains (terrain i is the
+    # spec's terrain from default_rng(i)), cheap to reset once cached (Procgen-style levels)
+    terrain_pool_size: int | None = None
 
     def __post_init__(self) -> None:
-        EnvConfig(
-            control_hz=self.control_hz,
-            time_limit_s=self.time_limit_s,
-            settle_time_s=self.settle_time_s,
-            world_cache_size=self.world_cache_size,
-            terrain_pool_size=self.terrain_pool_size,
+        require(
+            _finite(self.control_hz) and 1.0 <= self.control_hz <= 60.0, "control_hz", "must be in [1, 60] Hz"
+        )
+        require(_finite(self.time_limit_s) and self.time_limit_s > 0, "time_limit_s", "must be > 0 [s]")
+        require(_finite(self.settle_time_s) and self.settle_time_s >= 0, "settle_time_s", "must be >= 0 [s]")
+        require(
+            type(self.world_cache_size) is int and self.world_cache_size >= 1,
+            "world_cache_size",
+            f"must be an int >= 1, got {self.world_cache_size!r}",
+        )
+        require(
+            self.terrain_pool_size is None
+            or (type(self.terrain_pool_size) is int and self.terrain_pool_size >= 1),
+            "terrain_pool_size",
+            f"must be None or an int >= 1, got {self.terrain_pool_size!r}",
         )
 
     @property
@@ -241,7 +261,7 @@ class TaskSpec:
         kind: ``reach_goal``, ``stop_before_hazard`` (stop short of the negative obstacle ahead),
             ``cross`` (get over the obstacles to the goal without being trapped) or ``follow``
             (drive the track to the goal without leaving it); decides a run's ``task_done``
-            (:class:`negobs_gym.scenarios.runner.ScenarioResult`).
+            (:class:`negobs_gym.eval.scenario_runner.ScenarioResult`).
         goal_radius_m: The goal counts as reached within this distance [m].
         stop_speed_mps: Below this speed the vehicle is standing [m/s].
         stop_hold_s: ``stopped`` holds after standing this long without entering a negative
@@ -314,7 +334,7 @@ class CriteriaSpec:
     """Pass criteria of a scripted run; unset (None) criteria are not checked.
 
     Booleans must equal the run's outcome; ``min_``/``max_`` values bound it. See
-    :class:`negobs_gym.scenarios.runner.ScenarioResult` for the measured quantities.
+    :class:`negobs_gym.eval.scenario_runner.ScenarioResult` for the measured quantities.
     """
 
     task_done: bool | None = None
@@ -411,39 +431,6 @@ class ScenarioSpec:
     def to_dict(self) -> dict[str, Any]:
         """Plain data that :meth:`from_dict` turns back into an equal spec (TOML-ready)."""
         return to_plain(self)
-
-    def env_config(self) -> EnvConfig:
-        """The :class:`EnvConfig` view of this spec (a ranged start speed gives its low end)."""
-        speed = self.start.speed_mps
-        return EnvConfig(
-            control_hz=self.episode.control_hz,
-            time_limit_s=self.episode.time_limit_s,
-            start_speed_mps=speed.low if isinstance(speed, Range) else speed,
-            goal_radius_m=self.task.goal_radius_m,
-            settle_time_s=self.episode.settle_time_s,
-            world_cache_size=self.episode.world_cache_size,
-            terrain_pool_size=self.episode.terrain_pool_size,
-            observation=self.observation,
-            reward=self.reward,
-        )
-
-    def with_env_config(self, config: EnvConfig) -> ScenarioSpec:
-        """This spec with the episode, start speed, goal radius, observation and reward of ``config``."""
-        require(isinstance(config, EnvConfig), "config", f"must be an EnvConfig, got {type(config).__name__}")
-        return dataclasses.replace(
-            self,
-            episode=EpisodeSpec(
-                control_hz=config.control_hz,
-                time_limit_s=config.time_limit_s,
-                settle_time_s=config.settle_time_s,
-                world_cache_size=config.world_cache_size,
-                terrain_pool_size=config.terrain_pool_size,
-            ),
-            start=dataclasses.replace(self.start, speed_mps=config.start_speed_mps),
-            task=dataclasses.replace(self.task, goal_radius_m=config.goal_radius_m),
-            observation=config.observation,
-            reward=config.reward,
-        )
 
     # -- one episode ---------------------------------------------------------------------------
     def sample(self, rng: np.random.Generator) -> SampledScenario:

@@ -25,9 +25,9 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.vetoes import VetoJudgement, VetoTally, format_veto_error
 from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.safety.filter import SafetyFilterConfig
-from negobs_gym.scenarios.library import load_scenario
-from negobs_gym.scenarios.spec import CriteriaSpec, RunSpec, ScenarioSpec
 from negobs_gym.sim.types import Terrain
+from negobs_gym.spec.library import load_scenario
+from negobs_gym.spec.scenario import CriteriaSpec, RunSpec, ScenarioSpec
 
 __all__ = [
     "DRIVERS",
@@ -200,7 +200,7 @@ def _pilot(spec: ScenarioSpec, driver: Driver | str | None, terrain: Terrain) ->
     if driver is not None and not isinstance(driver, str):
         return driver, str(getattr(driver, "name", type(driver).__name__))
     if driver is None and spec.run.policy:
-        from negobs_gym.policies.model_driver import ModelDriver
+        from negobs_gym.drivers.model import ModelDriver
 
         return ModelDriver(spec.run.policy, spec.run.policy_algo), spec.run.policy
     name = driver or spec.run.driver
@@ -232,7 +232,7 @@ def run_scenario(
     Args:
         spec: The scenario.
         driver: A driver name (:data:`DRIVERS`), a :class:`~negobs_gym.drivers.Driver` (e.g. a
-            trained model, :class:`~negobs_gym.policies.model_driver.ModelDriver`), or None for
+            trained model, :class:`~negobs_gym.drivers.model.ModelDriver`), or None for
             the spec's ``run.policy`` when it names one, else its ``run.driver``.
         filter: True (the Eq. 18 defaults, stopping for positive obstacles when the spec's
             ``run.stop_for_positive`` says so), a :class:`SafetyFilterConfig` (used as it is),
@@ -362,7 +362,7 @@ def run_scenario_seeds(
 
     Each seed's episode is the same whatever the worker count (it depends on the seed alone).
     ``driver`` is a name, None, or a driver that pickles (a
-    :class:`~negobs_gym.policies.model_driver.ModelDriver` pickles as its model's path) when
+    :class:`~negobs_gym.drivers.model.ModelDriver` pickles as its model's path) when
     ``workers`` > 1.
     ``draw_dir``: each seed's drive as ``<draw_dir>/<scenario>_seed<k>.png``; ``video_dir``: each
     seed's episode as ``<video_dir>/<scenario>_seed<k>.mp4`` (``video_to`` of :func:`run_scenario`).

@@ -7,7 +7,7 @@ import pytest
 import negobs_gym  # noqa: F401  (registers the envs)
 from negobs_gym.errors import ConfigError
 from negobs_gym.scenarios import load_scenario
-from negobs_gym.scenarios.overrides import (
+from negobs_gym.spec.overrides import (
     apply_overrides,
     combine_overrides,
     parse_assignment,

@@ -19,9 +19,9 @@ from pathlib import Path
 from negobs_gym.core.files import write_text_atomic
 from negobs_gym.errors import require
 from negobs_gym.eval.campaign import format_row
+from negobs_gym.eval.scenario_runner import ScenarioResult
 from negobs_gym.eval.vetoes import VETO_COLUMNS, veto_rows
-from negobs_gym.scenarios.runner import ScenarioResult
-from negobs_gym.scenarios.spec import ScenarioSpec, spec_to_toml
+from negobs_gym.spec.scenario import ScenarioSpec, spec_to_toml
 
 __all__ = ["PATH_COLUMNS", "RESULT_COLUMNS", "TABLE_FILES", "check_csv_text", "write_scenario_tables"]
 

@@ -1,0 +1,130 @@
+"""Trained policies shipped with the package (``negobs_gym/drivers/trained/NAME.zip``).
+
+Each ``NAME.zip`` is a stable-baselines3 model saved by ``negobs train``; ``NAME.json`` beside it
+records the exact command, seed, steps, wall time and the evaluation that was measured on it
+(docs/training.md). ``negobs eval policy NAME`` and :func:`resolve_model` accept a baseline's
+name wherever a model path is asked for.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from negobs_gym.errors import ConfigError
+from negobs_gym.spec import recorded_env_in
+
+__all__ = [
+    "BASELINE_DIR",
+    "FITTED_ON",
+    "baseline_names",
+    "baseline_record",
+    "fitted_on_record",
+    "recorded_env",
+    "resolve_model",
+]
+
+BASELINE_DIR = Path(__file__).with_name("trained")
+#: The model attribute ``negobs train`` sets before every save: stable-baselines3 writes a model's
+#: JSON-able attributes into the zip's ``data`` member, so the record travels with the file.
+FITTED_ON = "negobs_fitted_on"
+
+
+def baseline_names() -> list[str]:
+    """Names of the shipped baselines, sorted."""
+    return sorted(p.stem for p in BASELINE_DIR.glob("*.zip"))
+
+
+def baseline_record(name: str) -> dict[str, Any]:
+    """The ``NAME.json`` record of a shipped baseline (command, seed, steps, wall time, results).
+
+    Raises:
+        ConfigError: no baseline of that name (field ``model_path``).
+    """
+    path = BASELINE_DIR / f"{name}.json"
+    if not path.exists():
+        raise ConfigError("model_path", f"no shipped baseline {name!r}; shipped: {baseline_names()}")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def resolve_model(model: str, field: str = "model_path") -> str:
+    """``model`` if a file exists there (with or without ``.zip``), else the shipped baseline of
+    that name.
+
+    Raises:
+        ConfigError: neither a saved model nor a shipped baseline (named after ``field``).
+    """
+    if Path(model).exists() or Path(f"{model}.zip").exists():
+        return model
+    shipped = BASELINE_DIR / f"{model}.zip"
+    if shipped.exists():
+        return str(shipped)
+    raise ConfigError(
+        field, f"no saved model at {model} and no shipped baseline of that name ({baseline_names()})"
+    )
+
+
+def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
+    """The env a model was fitted on and the ``--set`` assignments it was fitted with, from its
+    record: a shipped baseline's ``NAME.json`` (``env``, ``set``; also when the model is named by
+    its file under :data:`BASELINE_DIR`); the record ``negobs train``
+    saved inside the zip (:data:`FITTED_ON`: the env as the command named it and its ``--set``,
+    so a model moved out of its run folder keeps it); or, for a model saved before that record
+    existed, the ``train.json`` of the ``negobs train`` folder the model file lies in
+    (``model.zip``, ``warm_start.zip``, ``checkpoints/model_N.zip``; a ``--set`` run's
+    ``OUT/scenario.toml``, found beside it). None when there is no record, so evaluating on
+    another grid than the one trained on is never silent.
+    """
+    path = Path(model) if Path(model).exists() else Path(f"{model}.zip")
+    if not path.exists():
+        if not (BASELINE_DIR / f"{model}.zip").exists():
+            return None
+        return _baseline_env(model)
+    inside = _zip_record(path)
+    if inside is not None:
+        return inside
+    if path.suffix == ".zip" and path.resolve().parent == BASELINE_DIR.resolve():
+        return _baseline_env(path.stem)  # a shipped baseline named by its file: its NAME.json
+    for folder in (path.parent, path.parent.parent):
+        run = folder / "train.json"
+        if run.is_file():
+            return recorded_env_in(
+                str(json.loads(run.read_text(encoding="utf-8"))["config"]["env"]), folder
+            ), ()
+    return None
+
+
+def _baseline_env(name: str) -> tuple[str, tuple[str, ...]]:
+    """A shipped baseline's env and --set, from its NAME.json."""
+    record = baseline_record(name)
+    return str(record["env"]), tuple(record.get("set", ()))
+
+
+def fitted_on_record(env: str, overrides: Sequence[str] = ()) -> dict[str, Any]:
+    """The :data:`FITTED_ON` record of a model fitted on ``env`` with ``--set`` ``overrides``; a
+    scenario file is recorded by its absolute path, so the model finds it from any directory."""
+    env = str(env)
+    if env.endswith(".toml") and Path(env).is_file():
+        env = str(Path(env).resolve())
+    return {"env": env, "set": [str(s) for s in overrides]}
+
+
+def _zip_record(path: Path) -> tuple[str, tuple[str, ...]] | None:
+    """The :data:`FITTED_ON` record in a stable-baselines3 zip's ``data`` member; None when the
+    file is no such zip, was saved without one or holds a malformed one (SB3 itself reports a
+    bad file on loading)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (zipfile.BadZipFile, KeyError, OSError, ValueError):
+        return None
+    record = data.get(FITTED_ON) if isinstance(data, dict) else None
+    if not isinstance(record, dict) or not isinstance(record.get("env"), str):
+        return None
+    settings = record.get("set", [])
+    if not isinstance(settings, list) or not all(isinstance(s, str) for s in settings):
+        return None
+    return record["env"], tuple(settings)
