@@ -44,8 +44,17 @@ class SimulationError(NegobsError, RuntimeError):
     """The physics simulation is in a state it cannot continue from (e.g. closed world)."""
 
 
-class ResetNeeded(NegobsError, RuntimeError):
+class UsageError(NegobsError, RuntimeError):
+    """An object was used out of order (e.g. a video written to outside its ``with`` block); the
+    message says what to call first."""
+
+
+class ResetNeeded(UsageError):
     """An environment was used before ``reset()`` (or after ``close()``): call ``reset()`` first."""
+
+
+class WorkerError(NegobsError, RuntimeError):
+    """A worker process (of a vector env) raised; the message holds the worker's traceback."""
 
 
 class MissingDependencyError(NegobsError, ImportError):

@@ -14,7 +14,7 @@ import numpy as np
 
 from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import require
+from negobs_gym.errors import GeometryError, require
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -71,7 +71,7 @@ class GridSpec:
         arithmetic of :meth:`cell_of`."""
         pts = np.asarray(xy, dtype=np.float64)
         if pts.shape[-1:] != (2,):
-            raise ValueError(f"xy must have shape (..., 2), got {pts.shape}")
+            raise GeometryError(f"xy: must have shape (..., 2), got {pts.shape}")
         mask = np.zeros(self.rows * self.cols, dtype=bool)
         _mark_cells(pts.reshape(-1, 2), self.side_m, self.back_m, self.cell_m, self.rows, self.cols, mask)
         return mask.reshape(self.shape)

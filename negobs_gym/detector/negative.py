@@ -30,7 +30,7 @@ from negobs_gym.detector.hdl64 import extract_hdl64_pairs
 from negobs_gym.detector.inputs import check_frame
 from negobs_gym.detector.pairs import FeaturePairs
 from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map, ray_sectors
-from negobs_gym.errors import ScanError, require
+from negobs_gym.errors import InterfaceError, ScanError, require
 
 SensorMode = Literal["fused", "hdl64", "hdl32"]
 SENSOR_MODES: tuple[str, ...] = ("fused", "hdl64", "hdl32")  # paper N Fig. 16: 64 only, 32 only, fused
@@ -186,7 +186,7 @@ class NegativeObstacleDetector:
 
     def __init__(self, config: NegativeDetectorConfig | None = None) -> None:
         if config is not None and not isinstance(config, NegativeDetectorConfig):
-            raise TypeError(f"config must be a NegativeDetectorConfig, got {type(config).__name__}")
+            raise InterfaceError(f"config: must be a NegativeDetectorConfig, got {type(config).__name__}")
         self.config = config or NegativeDetectorConfig()
         self._fusion = PairFusion(self.config.fusion)
 

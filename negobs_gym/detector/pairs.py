@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from negobs_gym.core import libm
 from negobs_gym.detector.overlap import measure_candidates, row_distances
-from negobs_gym.errors import ScanError
+from negobs_gym.errors import GeometryError, ScanError
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +92,7 @@ def overlap_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndar
     """Row-wise pair distance [m] between (n, 2) segments a1-b1 and a2-b2 (see the module docstring)."""
     s1, s2 = _segment_table(a1, b1), _segment_table(a2, b2)
     if len(s1) != len(s2):
-        raise ValueError(f"overlap_distance: {len(s1)} and {len(s2)} rows")
+        raise GeometryError(f"overlap_distance: segments a1-b1 have {len(s1)} rows, a2-b2 {len(s2)}")
     return row_distances(s1, s2)
 
 

@@ -30,6 +30,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from negobs_gym.envs.worker import EnvFactory, WorkerFailure, class_name, serve
+from negobs_gym.errors import ConfigError, ResetNeeded, WorkerError
 
 __all__ = ["PrefetchVecEnv", "episode_seed"]
 
@@ -75,7 +76,7 @@ class _Process:
         self._collect_reset()
         reply, self._reset_reply = self._reset_reply, None
         if reply is None:
-            raise RuntimeError("no reset was started on this process")
+            raise ResetNeeded("finish_reset: no reset was started on this process (call start_reset first)")
         return reply
 
     def wait_for_reset(self) -> None:
@@ -90,7 +91,7 @@ class _Process:
     def _receive(self) -> Any:
         reply = self.remote.recv()
         if isinstance(reply, WorkerFailure):
-            raise RuntimeError(f"a PrefetchVecEnv worker failed:\n{reply.text}")
+            raise WorkerError(f"a PrefetchVecEnv worker failed:\n{reply.text}")
         return reply
 
     def close(self) -> None:
@@ -127,13 +128,13 @@ class PrefetchVecEnv(VecEnv):
     ``2 * len(env_fns)`` envs.
 
     Raises:
-        ValueError: ``env_fns`` is empty.
-        RuntimeError: A worker raised (its traceback is in the message).
+        ConfigError: ``env_fns`` is empty (a ``ValueError``).
+        WorkerError: A worker raised (its traceback is in the message; a ``RuntimeError``).
     """
 
     def __init__(self, env_fns: Sequence[Callable[[], gym.Env]], start_method: str | None = None) -> None:
         if len(env_fns) == 0:
-            raise ValueError("env_fns must hold at least one env constructor")
+            raise ConfigError("env_fns", "must hold at least one env constructor")
         if start_method is None:
             start_method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
         ctx = mp.get_context(start_method)
@@ -157,7 +158,7 @@ class PrefetchVecEnv(VecEnv):
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Base seed of the next :meth:`reset`; returns the seeds of the slots' first episodes."""
         if seed is not None and not (isinstance(seed, (int, np.integer)) and seed >= 0):
-            raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
+            raise ConfigError("seed", f"must be None or an int >= 0, got {seed!r}")
         self._base_seed = None if seed is None else int(seed)
         if seed is None:
             return [None] * self.num_envs
@@ -184,7 +185,7 @@ class PrefetchVecEnv(VecEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         if not self._started:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeeded("PrefetchVecEnv: call reset() before step()")
         for proc, action in zip(self._active, actions, strict=True):
             proc.send_step(action)
 

@@ -20,7 +20,7 @@ import gymnasium as gym
 import numpy as np
 
 from negobs_gym.core.files import atomic_target
-from negobs_gym.errors import MissingDependencyError, require
+from negobs_gym.errors import ConfigError, MissingDependencyError, UsageError, require
 
 __all__ = ["EpisodeVideo", "FrameRecorder", "optional_video", "recording"]
 
@@ -62,13 +62,13 @@ class EpisodeVideo:
     def add(self, frame: np.ndarray) -> None:
         """Append one frame (the first one fixes the video's size)."""
         if self._target is None:
-            raise RuntimeError("EpisodeVideo.add: use the video in a with block")
+            raise UsageError("EpisodeVideo.add: open the video first (use it in a with block)")
         frame = np.asarray(frame)
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
-            raise ValueError(f"frame must be (H, W, 3) uint8, got {frame.shape} {frame.dtype}")
+            raise ConfigError("frame", f"must be (H, W, 3) uint8, got {frame.shape} {frame.dtype}")
         if self._shape is None:
             if frame.shape[0] % 2 or frame.shape[1] % 2:
-                raise ValueError(f"frame height and width must be even (yuv420p), got {frame.shape[:2]}")
+                raise ConfigError("frame", f"height and width must be even (yuv420p), got {frame.shape[:2]}")
             self._shape = frame.shape
             self._writer = self._ffmpeg.write_frames(
                 str(self._tmp),
@@ -79,7 +79,7 @@ class EpisodeVideo:
             )
             self._writer.send(None)  # start ffmpeg
         elif frame.shape != self._shape:
-            raise ValueError(f"frame shape {frame.shape} differs from the video's {self._shape}")
+            raise ConfigError("frame", f"shape {frame.shape} differs from the video's {self._shape}")
         self._writer.send(np.ascontiguousarray(frame))
         self.frames += 1
 
@@ -96,7 +96,7 @@ class EpisodeVideo:
             if self._writer is not None:
                 self._writer.close()  # ffmpeg finishes the file
             elif exc_type is None:
-                raise ValueError(f"{self.path}: no frames were added")
+                raise ConfigError("frames", f"no frames were added to {self.path}")
         except BaseException as error:
             target.__exit__(type(error), error, error.__traceback__)
             raise

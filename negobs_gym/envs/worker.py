@@ -14,7 +14,12 @@ from typing import Any
 import cloudpickle
 import gymnasium as gym
 
+from negobs_gym.errors import UnknownNameError
+
 __all__ = ["EnvFactory", "WorkerFailure", "class_name", "serve"]
+
+#: The commands :func:`serve` answers besides ``close``.
+_COMMANDS = ("step", "reset", "method", "get_attr", "has_attr", "set_attr", "is_wrapped", "spaces")
 
 
 class EnvFactory:
@@ -95,7 +100,7 @@ def serve(remote: Any, parent_remote: Any, factory: EnvFactory) -> None:
             elif cmd == "spaces":
                 out = (env.observation_space, env.action_space)
             else:
-                raise ValueError(f"unknown command {cmd!r}")
+                raise UnknownNameError(f"worker command {cmd!r}: not one of {_COMMANDS}")
         except Exception as exc:  # carried to the main process, which raises it there
             out = WorkerFailure(exc)
         remote.send(out)

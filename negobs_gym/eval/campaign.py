@@ -66,7 +66,10 @@ def format_value(value: Any) -> str:
         return "0." + "0" * FLOAT_DIGITS if text == "-0." + "0" * FLOAT_DIGITS else text
     text = str(value)
     if any(c in text for c in ',"\n'):
-        raise ValueError(f"CSV value {text!r} holds a comma, quote or newline")
+        raise ConfigError(
+            "csv_value",
+            f"{text!r} holds a comma, quote or newline (a name written to a results table cannot)",
+        )
     return text
 
 

@@ -42,7 +42,8 @@ class PolicyObservation(gym.ObservationWrapper):
             )
         if "grid" not in space.spaces or len(space["grid"].shape) != 3:
             raise InterfaceError(
-                f"env.observation_space: PolicyObservation needs a 3-D 'grid' Box (channels, rows, cols), got {space}"
+                "env.observation_space: PolicyObservation needs a 3-D 'grid' Box (channels, rows, cols), "
+                f"got {space}"
             )
         source = space["grid"]
         self.grid_shape: tuple[int, int, int] = tuple(source.shape)  # type: ignore[assignment]

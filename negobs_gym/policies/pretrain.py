@@ -105,8 +105,9 @@ class Demonstrations:
         ):
             raise ConfigError(
                 "demonstrations",
-                f"different observation layouts cannot be joined (grid {self.grid_shape} max "
-                f"{self.grid_max} and grid {other.grid_shape} max {other.grid_max}, or other state signs)",
+                f"different observation layouts cannot be joined: grid {self.grid_shape} (max "
+                f"{self.grid_max}) vs {other.grid_shape} (max {other.grid_max})"
+                + ("" if np.array_equal(other.state_signs, self.state_signs) else ", other state signs"),
             )
         observations = {k: np.concatenate([v, other.observations[k]]) for k, v in self.observations.items()}
         return replace(

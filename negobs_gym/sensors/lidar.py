@@ -11,7 +11,7 @@ import numpy as np
 from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan, ray_directions
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, InterfaceError
 from negobs_gym.sensors.noise import NoiseConfig, add_keyed_noise
 from negobs_gym.sensors.raycast.base import RayCaster
 from negobs_gym.sensors.rigs import Rig, SensorMount
@@ -87,7 +87,9 @@ def frame_noise_key(rng: np.random.Generator | None, noise: NoiseConfig) -> int:
     if not noise.enabled:
         return 0
     if not isinstance(rng, np.random.Generator):
-        raise TypeError("noise is enabled: pass an np.random.Generator (or disable noise)")
+        raise InterfaceError(
+            f"rng: noise is enabled: pass an np.random.Generator (or disable noise), got {type(rng).__name__}"
+        )
     return int(rng.integers(0, 2**63))
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from negobs_gym.core.compiled import kernel
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import require
+from negobs_gym.errors import ConfigError, require
 from negobs_gym.sensors.lidar import directions_vehicle
 from negobs_gym.sensors.rigs import Rig, SensorMount
 
@@ -358,7 +358,7 @@ class RoiSelector:
         widened asked bands.
         """
         if len(bands) != len(self.tiles):
-            raise ValueError(f"need one band per tile ({len(self.tiles)}), got {len(bands)}")
+            raise ConfigError("bands", f"need one band per tile ({len(self.tiles)}), got {len(bands)}")
         asked = [self.band_key(b) for b in bands]
         history = recent if recent is not None else []
         for i in range(len(history) - 1, -1, -1):  # most recently used first

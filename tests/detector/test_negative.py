@@ -9,7 +9,7 @@ from negobs_gym.core import GridSpec, Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
 from negobs_gym.detector.synthetic import Hole, hdl32_side_scan, hdl64_scan
-from negobs_gym.errors import ConfigError, ScanError
+from negobs_gym.errors import ConfigError, InterfaceError, ScanError
 
 POSE0 = Pose(x=0.0, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
 PIT_8M = Hole.ahead(8.0, width_m=1.0, length_m=1.0, depth_m=0.8)
@@ -138,8 +138,9 @@ def test_bad_input_raises_value_error_naming_it():
         detector.update({"velodyne": scans["hdl64"]}, POSE0)
     with pytest.raises(ValueError, match="StructuredScan"):
         detector.update({"hdl64": np.zeros((64, 10))}, POSE0)
-    with pytest.raises(TypeError, match="NegativeDetectorConfig"):
+    with pytest.raises(InterfaceError, match=r"^config: must be a NegativeDetectorConfig") as bad:
         NegativeObstacleDetector(config={"mode": "fused"})
+    assert isinstance(bad.value, TypeError)
     for coverage in ((0.0, 1.0, 2.0), (1.0, -1.0, 0.0, 20.0), (-6.0, 6.0, np.nan, 20.0), "far"):
         with pytest.raises(ScanError, match="coverage_xy_m"):
             detector.update(scans, POSE0, coverage)

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.detector.pairs import FeaturePairs, close_pairs, overlap_distance
+from negobs_gym.errors import GeometryError
 
 
 def _seg(*xy):
@@ -59,3 +60,9 @@ def test_close_pairs_of_empty_sets():
 def test_feature_pairs_reject_mismatched_rows():
     with pytest.raises(ValueError, match="same number of rows"):
         FeaturePairs("hdl64", np.zeros((2, 3)), np.zeros((3, 3)), np.zeros((2, 3)))
+
+
+def test_overlap_distance_refuses_segment_sets_of_different_lengths():
+    two = np.zeros((2, 2))
+    with pytest.raises(GeometryError, match=r"^overlap_distance: segments a1-b1 have 2 rows, a2-b2 1"):
+        overlap_distance(two, two + 1.0, two[:1], two[:1] + 1.0)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, ResetNeeded, WorkerError
 
 _ROLLOUT = """
 import json, gymnasium as gym, numpy as np, negobs_gym
@@ -115,6 +115,8 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
     from negobs_gym.envs.vector import PrefetchVecEnv
 
     venv = PrefetchVecEnv([_make_short_braking])
+    with pytest.raises(ResetNeeded, match=r"call reset\(\) before step\(\)"):  # a RuntimeError too
+        venv.step(_actions(0)[:1])
     venv.seed(0)
     venv.reset()
     venv.wait_for_spares()
@@ -124,14 +126,16 @@ def test_prefetch_vec_env_reaches_both_processes_and_reports_worker_errors() -> 
     venv.step(_actions(1)[:1])
     venv.step(_actions(2)[:1])  # the episode ends: the spare, which also got the attribute, steps on
     assert venv.get_attr("probe_value") == [7]
-    with pytest.raises(RuntimeError, match="worker failed"):
+    with pytest.raises(WorkerError, match="worker failed"):  # also a RuntimeError
         venv.env_method("no_such_method")
     assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [True]
-    with pytest.raises(ValueError, match="seed must be"):
+    with pytest.raises(ConfigError, match=r"^seed: must be") as bad_seed:
         venv.seed(-1)
+    assert bad_seed.value.field == "seed" and isinstance(bad_seed.value, ValueError)
     venv.close()
-    with pytest.raises(ValueError, match="at least one"):
+    with pytest.raises(ConfigError, match=r"^env_fns: must hold at least one") as empty:
         PrefetchVecEnv([])
+    assert empty.value.field == "env_fns"
 
 
 class _ResetProbe(gym.Wrapper):
@@ -186,8 +190,9 @@ def test_prefetch_vec_env_reports_an_env_that_cannot_be_built() -> None:
 
     from negobs_gym.envs.vector import PrefetchVecEnv
 
-    with pytest.raises(RuntimeError, match="this env cannot be built"):
+    with pytest.raises(WorkerError, match="this env cannot be built") as failed:
         PrefetchVecEnv([_make_broken])
+    assert isinstance(failed.value, RuntimeError)
 
 
 class _FrameFlag(gym.Wrapper):

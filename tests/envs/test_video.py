@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.envs.video import EpisodeVideo, optional_video, recording
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, UsageError
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
 
@@ -62,19 +62,26 @@ def test_an_episode_that_raises_leaves_no_file(tmp_path) -> None:
     ],
 )
 def test_bad_frames_are_named_and_leave_no_file(tmp_path, frame, message) -> None:
-    with pytest.raises(ValueError, match=message), EpisodeVideo(tmp_path / "v.mp4") as video:
+    with (
+        pytest.raises(ConfigError, match=r"^frame: .*" + message) as error,
+        EpisodeVideo(tmp_path / "v.mp4") as video,
+    ):
         video.add(frame)
+    assert error.value.field == "frame" and isinstance(error.value, ValueError)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_a_frame_of_another_size_and_an_empty_video_are_refused(tmp_path) -> None:
-    with pytest.raises(ValueError, match="differs"), EpisodeVideo(tmp_path / "a.mp4") as video:
+    with (
+        pytest.raises(ConfigError, match=r"^frame: shape .* differs"),
+        EpisodeVideo(tmp_path / "a.mp4") as video,
+    ):
         video.add(_frames(1)[0])
         video.add(_frames(1, (48, 66))[0])
-    with pytest.raises(ValueError, match="no frames"), EpisodeVideo(tmp_path / "b.mp4"):
+    with pytest.raises(ConfigError, match=r"^frames: no frames were added"), EpisodeVideo(tmp_path / "b.mp4"):
         pass
     assert list(tmp_path.iterdir()) == []
-    with pytest.raises(RuntimeError, match="with block"):
+    with pytest.raises(UsageError, match="with block"):  # a RuntimeError too
         EpisodeVideo(tmp_path / "c.mp4").add(_frames(1)[0])
     for fps in (0.0, -1.0, float("nan")):
         with pytest.raises(ConfigError, match="fps"):

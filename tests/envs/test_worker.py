@@ -43,7 +43,8 @@ def test_serves_an_env_without_resetting_it_on_episode_end() -> None:
     assert not ask("is_wrapped", class_name(gym.wrappers.RecordEpisodeStatistics))
     failure = ask("method", ("no_such_method", (), {}))
     assert isinstance(failure, WorkerFailure) and "no_such_method" in failure.text
-    assert isinstance(ask("fly"), WorkerFailure)
+    unknown = ask("fly")
+    assert isinstance(unknown, WorkerFailure) and "UnknownNameError: worker command 'fly'" in unknown.text
     parent.send(("close", None))
     thread.join(timeout=10)
     assert not thread.is_alive()

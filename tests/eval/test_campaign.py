@@ -38,8 +38,9 @@ def test_format_value_is_fixed_and_spells_out_specials() -> None:
     assert format_value(math.nan) == "nan"
     assert format_value(-math.inf) == "-inf"
     assert format_value(True) == "1" and format_value(np.int64(7)) == "7"
-    with pytest.raises(ValueError, match="comma"):
+    with pytest.raises(ConfigError, match=r"^csv_value: 'a,b' holds a comma") as comma:
         format_value("a,b")
+    assert comma.value.field == "csv_value" and isinstance(comma.value, ValueError)
 
 
 def test_episode_keys_must_be_file_names_and_unique(tmp_path) -> None:

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.observation import grid_space, state_space
+from negobs_gym.errors import ConfigError, InterfaceError
 from negobs_gym.policies import PolicyObservation, match_observation
+from negobs_gym.spec import ObservationConfig
 
 SB3_IMAGE_WARNINGS = ("is an image", "36x36", "unconventional shape")
 
@@ -62,15 +63,17 @@ def test_state_only_drops_the_grid() -> None:
 def test_bad_spaces_and_observations_are_named() -> None:
     env = StandIn()
     env.observation_space = spaces.Dict({"state": env.observation_space["state"]})
-    with pytest.raises(TypeError, match="3-D 'grid'"):
+    with pytest.raises(InterfaceError, match=r"^env.observation_space: .*3-D 'grid'") as no_grid:
         PolicyObservation(env)
+    assert isinstance(no_grid.value, TypeError)
     env.observation_space = spaces.Box(0, 1, (3,))
-    with pytest.raises(TypeError, match="Dict observation space"):
+    with pytest.raises(InterfaceError, match=r"^env.observation_space: .*Dict space"):
         PolicyObservation(env)
     space = PolicyObservation(StandIn()).observation_space
-    with pytest.raises(ValueError, match="no 'grid'"):
+    with pytest.raises(ConfigError, match=r"^observation.grid: missing") as missing:
         match_observation({"state": np.zeros(5, np.float32)}, space)
-    with pytest.raises(ValueError, match="expects"):
+    assert missing.value.field == "observation.grid" and isinstance(missing.value, ValueError)
+    with pytest.raises(ConfigError, match=r"^observation.grid: has shape .* the policy expects"):
         match_observation({"grid": np.zeros((4, 36, 15), np.uint8), "state": np.zeros(5, np.float32)}, space)
 
 

@@ -293,8 +293,9 @@ def test_demonstrations_survive_a_round_trip_to_disk(demos, tmp_path) -> None:
     assert [p.name for p in tmp_path.iterdir()] == ["demos.npz"]  # no temp file left behind
     counting = replace(demos, grid_max=16)  # a pooling="count" env's grid
     assert Demonstrations.load(counting.save(tmp_path / "counting.npz")).grid_max == 16
-    with pytest.raises(ValueError, match="layouts"):
+    with pytest.raises(ConfigError, match=r"^demonstrations: different observation layouts") as joined:
         demos + counting
+    assert joined.value.field == "demonstrations" and isinstance(joined.value, ValueError)
     env = make_env(ENV, "oracle", use_filter=False)
     try:
         _check_layout(demos, env, "binary.npz")

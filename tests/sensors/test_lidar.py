@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from negobs_gym.core.pose import Pose
+from negobs_gym.errors import InterfaceError
 from negobs_gym.sensors import NoiseConfig, hdl64e_s2, hdl64e_s2_nominal, paper_n_rig
-from negobs_gym.sensors.lidar import scan
+from negobs_gym.sensors.lidar import frame_noise_key, scan
 from negobs_gym.sensors.noise import apply_keyed_noise
 from negobs_gym.sensors.raycast.pybullet_backend import PyBulletCaster
 from tests.sensors.helpers import static_box
@@ -76,6 +77,13 @@ def test_noise_deterministic(client):
     a = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
     b = scan(mount, PyBulletCaster(client), Pose(), rng=np.random.default_rng(3))
     np.testing.assert_array_equal(a.ranges_m, b.ranges_m)
+
+
+def test_noise_without_a_generator_is_refused_by_name():
+    with pytest.raises(InterfaceError, match=r"^rng: noise is enabled") as error:
+        frame_noise_key(3, NoiseConfig())
+    assert isinstance(error.value, TypeError)
+    assert frame_noise_key(None, OFF) == 0  # no noise: no generator needed
 
 
 def test_exclude_own_body(client):

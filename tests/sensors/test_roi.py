@@ -64,6 +64,13 @@ def test_config_rejects_bad_region_and_margins():
         RoiConfig(height_step_m=float("nan"))
 
 
+def test_bands_of_another_tile_count_are_refused_by_name():
+    sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
+    with pytest.raises(ConfigError, match=r"^bands: need one band per tile") as error:
+        sel.subsets_for_bands([(0.0, 1.0)] * (len(sel.tiles) + 1))
+    assert error.value.field == "bands" and isinstance(error.value, ValueError)
+
+
 def test_upper_lasers_are_skipped_and_the_lux_is_cast_in_full():
     sel = RoiSelector(RIG, RoiConfig(region_xy_m=REGION))
     recent: list = []

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from negobs_gym.core.compiled import kernel
-from negobs_gym.errors import MissingDependencyError, SimulationError
+from negobs_gym.errors import ConfigError, GeometryError, MissingDependencyError, SimulationError
 
 # Embree 4's C API (include/embree4/rtcore_*.h)
 _GEOMETRY_TYPE_TRIANGLE = 0
@@ -322,7 +322,7 @@ class PacketScene:
     Raises:
         MissingDependencyError: embreex's ``libembree4`` was not found (:func:`packets_available`).
         SimulationError: Embree reported an error while building the scene.
-        ValueError: ``width`` is not one of 16, 8, 4, None.
+        ConfigError: ``width`` is not one of 16, 8, 4, None.
     """
 
     def __init__(
@@ -337,7 +337,9 @@ class PacketScene:
         if lib is None:
             raise MissingDependencyError("embreex", "Embree packet queries (libembree4 not found)")
         if width is not None and width not in PACKET_WIDTHS:
-            raise ValueError(f"width: rays per packet must be one of {PACKET_WIDTHS} or None, got {width!r}")
+            raise ConfigError(
+                "width", f"rays per packet must be one of {PACKET_WIDTHS} or None, got {width!r}"
+            )
         self._lib = lib
         self.width = lib.native_width(isa) if width is None else int(width)
         v = np.asarray(vertices, dtype=np.float32).reshape(-1, 3)
@@ -396,11 +398,11 @@ class PacketScene:
         :class:`RepairedScene` casts again."""
         n = d32.shape[0]
         if o32.shape[0] not in (1, n):
-            raise ValueError(f"origins: one per ray or one for all, got {o32.shape[0]} for {n} rays")
+            raise GeometryError(f"origins: one per ray or one for all, got {o32.shape[0]} for {n} rays")
         if out is None:
             out = np.empty(n)
         elif out.shape != (n,) or out.dtype != np.float64:
-            raise ValueError(f"out: needs a float64 array of {n} ranges, got {out.dtype} {out.shape}")
+            raise ConfigError("out", f"needs a float64 array of {n} ranges, got {out.dtype} {out.shape}")
         if n == 0 or self.n_triangles == 0:
             out[:] = np.nan
             suspect[:] = True
@@ -463,7 +465,7 @@ class RepairedScene:
         v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
         f = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         if not 1 <= int(n_heightfield) <= f.shape[0]:  # checked before two scenes are built
-            raise ValueError(f"n_heightfield: needs 1 to {f.shape[0]} triangles, got {n_heightfield}")
+            raise ConfigError("n_heightfield", f"needs 1 to {f.shape[0]} triangles, got {n_heightfield}")
         self.n_heightfield = int(n_heightfield)
         self.ceilings, self.tiles = _heightfield_ceilings(v, f[: self.n_heightfield])
         self._fast = PacketScene(vertices, triangles, robust=False, isa=isa, width=width)

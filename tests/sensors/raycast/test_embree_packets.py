@@ -3,7 +3,7 @@ import platform
 import numpy as np
 import pytest
 
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sensors.raycast import embree_packets
 from negobs_gym.sensors.raycast.embree_backend import EmbreeCaster, EmbreeConfig, _Scene
 from negobs_gym.sensors.raycast.meshes import heightfield_mesh
@@ -160,7 +160,7 @@ def test_the_rays_cast_again_are_misses_hits_from_below_and_hits_on_bodies(rough
     robust = embree_packets.PacketScene(*mesh).cast(o, d, 50.0)
     np.testing.assert_array_equal(got[suspect], robust[suspect])
     assert np.isfinite(got[[0, 3, 4]]).all() and np.isnan(got[[1, 2]]).all()
-    with pytest.raises(ValueError, match="n_heightfield"):
+    with pytest.raises(ConfigError, match=r"^n_heightfield: needs 1 to"):
         embree_packets.RepairedScene(*mesh, n_heightfield=0)
 
 
@@ -302,7 +302,7 @@ def test_the_default_packet_is_the_widest_the_kernels_cast_natively(rough_world)
     if platform.machine() in ("x86_64", "AMD64"):  # SSE's kernels are 4 rays wide, AVX2's 8
         assert native("sse4.2") == 4
         assert native("avx2") == 8
-    with pytest.raises(ValueError, match="width"):
+    with pytest.raises(ConfigError, match=r"^width: rays per packet"):
         embree_packets.PacketScene(*heightfield_mesh(world.physics_heightfield, np.zeros(3)), width=12)
 
 
@@ -339,9 +339,9 @@ def test_one_origin_row_casts_as_the_origin_repeated_per_ray(rough_world, packet
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
     np.testing.assert_array_equal(scene.cast(o32[:1], d32, 120.0), scene.cast(o32, d32, 120.0))
     if packets:
-        with pytest.raises(ValueError, match="one per ray or one for all"):
+        with pytest.raises(GeometryError, match=r"^origins: one per ray or one for all"):
             scene._packets.cast(o32[:2], d32, 120.0)
-        with pytest.raises(ValueError, match="out"):
+        with pytest.raises(ConfigError, match=r"^out: needs a float64 array"):
             scene._packets.cast(o32, d32, 120.0, out=np.empty(len(o), dtype=np.float32))
 
 
