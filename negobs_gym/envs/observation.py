@@ -15,7 +15,7 @@ from negobs_gym.core.geometry import (
     world_to_vehicle_xy,
 )
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim.types import Terrain
 from negobs_gym.spec import CHANNELS, ROUTE_MARGIN_M, ObservationConfig
 
@@ -100,8 +100,8 @@ def state_vector(
     if n_route:
         route = np.asarray(route_xy_m, dtype=np.float64) if route_xy_m is not None else None
         if route is None or route.shape != (n_route, 2):
-            raise ValueError(
-                f"route_xy_m must have shape ({n_route}, 2), got {None if route is None else route.shape}"
+            raise GeometryError(
+                f"route_xy_m: must have shape ({n_route}, 2), got {None if route is None else route.shape}"
             )
         route_v = world_to_vehicle_xy(route, origin, pose.yaw).ravel()
     else:
@@ -165,7 +165,7 @@ class OracleGrid:
         observation of ``negative`` and ``positive`` skips the track and heightfield lookups)."""
         unknown = set(channels) - set(CHANNELS)
         if unknown:
-            raise ValueError(f"no grid channel {sorted(unknown)}; one of {CHANNELS}")
+            raise ConfigError("channels", f"no grid channel {sorted(unknown)}; one of {CHANNELS}")
         shape = self.config.grid.shape
         pts = vehicle_to_world_xy(self.cell_centres_v, (pose.x, pose.y), pose.yaw)
         corners = vehicle_to_world_xy(self._corners_v, (pose.x, pose.y), pose.yaw)

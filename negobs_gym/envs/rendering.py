@@ -34,7 +34,7 @@ import numpy as np
 from negobs_gym.core.geometry import vehicle_to_world_xy, world_to_vehicle_xy
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import require
+from negobs_gym.errors import ConfigError, require
 from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.sim.render import render_top_down
@@ -216,7 +216,7 @@ def _grid_image(
         return img
     expected = obs_config.shape
     if grid.shape != expected:
-        raise ValueError(f"grid must have the observation shape {expected}, got {grid.shape}")
+        raise ConfigError("grid", f"must have the observation shape {expected}, got {grid.shape}")
     rows, cols = _grid_lookup(obs_config.grid, obs_config.downsample, height_px, width_px)
     cells = np.empty((*grid.shape[1:], 3), np.uint8)
     cells[:] = UNKNOWN

@@ -91,12 +91,11 @@ def chosen_episodes(
             ``campaign_dir``) or an unknown key (``keys``).
     """
     table = next((folder / f"{n}.csv" for n in EPISODE_TABLES if (folder / f"{n}.csv").is_file()), None)
-    require(
-        table is not None,
-        "campaign_dir",
-        f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
-    )
-    assert table is not None  # for the type checker: require raised otherwise
+    if table is None:
+        raise ConfigError(
+            "campaign_dir",
+            f"no policy.csv or braking.csv in {folder}: not a `negobs eval policy|braking --out` folder",
+        )
     paths_csv = folder / "paths.csv"
     require(paths_csv.is_file(), "campaign_dir", f"no paths.csv in {folder}: a campaign from before paths")
     episodes = {r["episode"]: r for r in read_csv(table)}

@@ -9,7 +9,6 @@ import pytest
 
 from negobs_gym.core.geometry import pad_polygons, points_in_polygons, vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
-from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.observation import (
     OracleGrid,
     grid_space,
@@ -18,8 +17,9 @@ from negobs_gym.envs.observation import (
     state_fields,
     state_vector,
 )
-from negobs_gym.errors import ConfigError
+from negobs_gym.errors import ConfigError, GeometryError
 from negobs_gym.sim.presets import winding_course
+from negobs_gym.spec import ObservationConfig
 
 
 @pytest.fixture(scope="module")
@@ -99,8 +99,9 @@ def test_a_subset_of_channels_gives_those_layers_of_the_full_set(course) -> None
             assert list(part) == list(channels)
             for name in channels:
                 np.testing.assert_array_equal(part[name], full[name])
-    with pytest.raises(ValueError, match="no grid channel"):
+    with pytest.raises(ConfigError, match=r"^channels: no grid channel \['lidar'\]") as error:
         grid.layers(pose, ("negative", "lidar"))
+    assert error.value.field == "channels" and isinstance(error.value, ValueError)
 
 
 def test_traversable_cells_are_on_the_track_by_the_full_centre_line_search(course) -> None:
@@ -178,6 +179,9 @@ def test_mirror_signs_negate_the_lateral_state_values() -> None:
     goal_m, route_m = _mirror_about_heading(goal[None], pose)[0], _mirror_about_heading(route, pose)
     mirrored = state_vector(config, pose, 5.0, -0.4, -0.2, goal_m, route_m)
     np.testing.assert_allclose(mirrored, seen * signs, atol=1e-5)
+    for wrong in (None, route[:2]):  # the config asks for 3 route points
+        with pytest.raises(GeometryError, match=r"^route_xy_m: must have shape \(3, 2\)"):
+            state_vector(config, pose, 5.0, 0.4, 0.2, goal, wrong)
 
 
 def test_a_counting_grid_keeps_how_many_fine_cells_each_block_holds() -> None:

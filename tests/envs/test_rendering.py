@@ -11,11 +11,11 @@ import pytest
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.core.pose import Pose
 from negobs_gym.envs import rendering
-from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.rendering import RenderConfig, frame_shape, render_frame
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter, Corridor, SafetyDecision
 from negobs_gym.sim import presets
+from negobs_gym.spec import ObservationConfig
 
 OBS = ObservationConfig()
 
@@ -142,7 +142,7 @@ def test_detected_outlines_are_drawn(terrain) -> None:
 
 
 def test_bad_inputs_are_refused(terrain) -> None:
-    with pytest.raises(ValueError, match="grid must have the observation shape"):
+    with pytest.raises(ConfigError, match=r"^grid: must have the observation shape"):  # a ValueError too
         render_frame(terrain, Pose(), np.zeros((1, 2)), np.zeros((4, 3, 3), np.uint8), OBS)
     with pytest.raises(ConfigError, match="height_px"):
         RenderConfig(height_px=481)
@@ -153,7 +153,7 @@ def test_bad_inputs_are_refused(terrain) -> None:
 def test_env_frames_keep_their_shape_and_show_the_filter_state() -> None:
     env = BrakingSafetyFilter(gym.make("negobs_gym/Braking-v0", render_mode="rgb_array"))
     env.reset(seed=0)
-    shape = frame_shape(env.unwrapped.config.observation)
+    shape = frame_shape(env.unwrapped.scenario.observation)
     b = RenderConfig().border_px
     first = env.render()
     assert first.shape == shape and np.all(_local(first)[:b] == rendering.BORDER_NONE)  # no decision yet
@@ -217,14 +217,8 @@ def test_a_counting_grid_draws_the_cells_a_maximum_draws() -> None:
     """The local panel shows the cells that hold anything: counting changes the values, not the frame."""
     frames = []
     for pooling in ("max", "count"):
-        env = gym.make("negobs_gym/OffroadNav-v2", render_mode="rgb_array")
-        config = env.unwrapped.config
-        observation = dataclasses.replace(config.observation, source="oracle", pooling=pooling)
-        env = gym.make(
-            "negobs_gym/OffroadNav-v2",
-            render_mode="rgb_array",
-            config=dataclasses.replace(config, observation=observation),
-        )
+        changes = {"observation.source": "oracle", "observation.pooling": pooling}
+        env = gym.make("negobs_gym/OffroadNav-v2", render_mode="rgb_array", overrides=changes)
         obs, _ = env.reset(seed=4)
         for _ in range(80):  # drive until obstacles are in sight (the same step for both)
             obs, *_ = env.step(np.array([0.6, 0.0], np.float32))
