@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from negobs_gym.cli import COMMAND_MODULES, build_parser, main
@@ -55,3 +58,30 @@ def test_a_path_that_cannot_be_written_is_one_line_and_a_traceback_with_verbose(
     assert len(err) == 1 and "[Errno" in err[0] and str(blocker) in err[0]  # no traceback
     with pytest.raises(OSError):
         main(["-v", *args])
+
+
+def test_a_package_error_is_one_line_and_exit_code_2(capsys):
+    assert main(["scenario", "show", "no_such_scene"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == ""
+    assert len(err) == 1  # no traceback
+    assert err[0].startswith("negobs scenario: scenario: unknown scenario 'no_such_scene'")
+
+
+# a bug (not a NegobsError) stands in for the spec writer, run as the console script runs it
+_BUG = """
+import negobs_gym.spec
+def broken(spec):
+    raise ZeroDivisionError("a bug, not bad input")
+negobs_gym.spec.spec_to_toml = broken
+from negobs_gym.cli import main
+raise SystemExit(main(["scenario", "show", "braking_v1"]))
+"""
+
+
+def test_an_unexpected_exception_keeps_its_traceback():
+    done = subprocess.run([sys.executable, "-c", _BUG], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1  # Python's own exit code for an uncaught exception, not the CLI's 2
+    assert "Traceback (most recent call last)" in done.stderr
+    assert "ZeroDivisionError: a bug, not bad input" in done.stderr
