@@ -15,9 +15,9 @@ def test_importing_the_package_does_not_import_gymnasium_or_pybullet():
 
 
 def test_envs_are_registered_whichever_is_imported_first_and_registration_is_idempotent():
-    from negobs_gym.registration import ENV_SPECS
+    from negobs_gym.registration import ALIASES, ENV_SPECS
 
-    ids = sorted(spec[0] for spec in ENV_SPECS)
+    ids = sorted([spec[0] for spec in ENV_SPECS] + [alias[0] for alias in ALIASES])
     assert "negobs_gym/Braking-v0" in ids
     code = (
         "import {first}, {second}, gymnasium\n"
