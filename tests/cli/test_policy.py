@@ -42,7 +42,7 @@ def test_show_prints_a_model_files_own_record(tmp_path, capsys) -> None:
 
     from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
 
-    record = fitted_on_record("negobs_gym/OffroadNav-v2", ["observation.tighten_pairs=false"])
+    record = fitted_on_record("negobs_gym/OffroadTrack-v0", ["observation.tighten_pairs=false"])
     model = tmp_path / "policy.zip"
     with zipfile.ZipFile(model, "w") as archive:  # SB3's layout: the model's JSON attributes in "data"
         archive.writestr("data", json.dumps({"gamma": 0.99, FITTED_ON: record}))

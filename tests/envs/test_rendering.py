@@ -218,7 +218,7 @@ def test_a_counting_grid_draws_the_cells_a_maximum_draws() -> None:
     frames = []
     for pooling in ("max", "count"):
         changes = {"observation.source": "oracle", "observation.pooling": pooling}
-        env = gym.make("negobs_gym/OffroadNav-v2", render_mode="rgb_array", overrides=changes)
+        env = gym.make("negobs_gym/OffroadTrack-v0", render_mode="rgb_array", overrides=changes)
         obs, _ = env.reset(seed=4)
         for _ in range(80):  # drive until obstacles are in sight (the same step for both)
             obs, *_ = env.step(np.array([0.6, 0.0], np.float32))

@@ -34,7 +34,7 @@ def write_table(path: Path, columns: tuple[str, ...], rows: list[dict[str, objec
 def policy_campaign(folder: Path, groups: dict[str, list[tuple[int, int, float]]]) -> Path:
     """A policy.csv: per filter setting, (seed, goal, progress_m) of each episode."""
     rows = [
-        {"episode": f"{flt}.{seed}", "env": "negobs_gym/OffroadNav-v2", "filter": flt, "seed": seed}
+        {"episode": f"{flt}.{seed}", "env": "negobs_gym/OffroadTrack-v0", "filter": flt, "seed": seed}
         | {"goal": goal, "success": goal, "progress_m": progress, "distance_m": progress}
         for flt, episodes in groups.items()
         for seed, goal, progress in episodes
@@ -74,7 +74,7 @@ def test_two_campaigns_and_the_files_written(tmp_path: Path, capsys) -> None:
     goal = next(r for r in data["outcomes"] if r["name"] == "goal")
     assert (goal["a_only"], goal["b_only"], goal["p_value"]) == (6, 0, pytest.approx(2 / 2**6))
     assert goal["a_interval"][1] == 1.0 and goal["b_interval"][0] < 0.25 < goal["b_interval"][1]
-    assert data["a"]["driven"] == ["negobs_gym/OffroadNav-v2"] and data["pairs"] == 8
+    assert data["a"]["driven"] == ["negobs_gym/OffroadTrack-v0"] and data["pairs"] == 8
     assert sorted(p.name for p in (tmp_path / "cmp").iterdir()) == ["compare.json", "compare.md"]
 
 

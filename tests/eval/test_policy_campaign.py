@@ -40,7 +40,7 @@ def test_off_track_steps_count_the_steps_beside_the_track(steering: float, leave
 
 @pytest.mark.parametrize(("steering", "leaves_the_track"), [(0.0, False), (1.0, True)])
 def test_leaving_the_track_ends_an_offroad_nav_v2_episode_and_is_recorded(steering, leaves_the_track) -> None:
-    env = make_task_env("negobs_gym/OffroadNav-v2", "oracle")
+    env = make_task_env("negobs_gym/OffroadTrack-v0", "oracle")
     m = run_driven_episode(env, FixedAction(1.0, steering), seed=0, filtered=False, max_steps=40)
     assert m["left_track"] is leaves_the_track
     # the rule ends the episode at the first step beside the track, before the step limit

@@ -63,9 +63,9 @@ def test_a_training_folder_records_the_env_of_its_models(tmp_path: Path) -> None
         (run / model).write_bytes(b"zip")
     loose = tmp_path / "loose.zip"
     loose.write_bytes(b"zip")
-    (run / "train.json").write_text(json.dumps({"config": {"env": "negobs_gym/OffroadNav-v2"}}))
+    (run / "train.json").write_text(json.dumps({"config": {"env": "negobs_gym/OffroadTrack-v0"}}))
     for model in ("model.zip", "warm_start.zip", "checkpoints/model_64.zip", "model"):
-        assert recorded_env(str(run / model)) == ("negobs_gym/OffroadNav-v2", ())
+        assert recorded_env(str(run / model)) == ("negobs_gym/OffroadTrack-v0", ())
     assert recorded_env(str(loose)) is None and recorded_env(str(tmp_path / "none.zip")) is None
     # a --set run records OUT/scenario.toml relative to where it ran: found beside train.json
     (run / "train.json").write_text(json.dumps({"config": {"env": "elsewhere/run/scenario.toml"}}))
@@ -88,14 +88,14 @@ def test_the_record_inside_a_model_zip_comes_first_and_a_zip_without_one_falls_b
             archive.writestr("data", data)
         return str(run / name)
 
-    record = fitted_on_record("negobs_gym/OffroadNav-v2", ["observation.tighten_pairs=false"])
+    record = fitted_on_record("negobs_gym/OffroadTrack-v0", ["observation.tighten_pairs=false"])
     recorded = model("recorded.zip", json.dumps({"gamma": 0.99, FITTED_ON: record}).encode())
-    assert recorded_env(recorded) == ("negobs_gym/OffroadNav-v2", ("observation.tighten_pairs=false",))
+    assert recorded_env(recorded) == ("negobs_gym/OffroadTrack-v0", ("observation.tighten_pairs=false",))
     for name, data in {
         "older.zip": json.dumps({"gamma": 0.99}).encode(),  # saved before the record existed
         "garbled.zip": b"{not json",
         "odd.zip": json.dumps({FITTED_ON: {"env": 3}}).encode(),
-        "odd_set.zip": json.dumps({FITTED_ON: {"env": "negobs_gym/OffroadNav-v2", "set": "a=1"}}).encode(),
+        "odd_set.zip": json.dumps({FITTED_ON: {"env": "negobs_gym/OffroadTrack-v0", "set": "a=1"}}).encode(),
     }.items():
         assert recorded_env(model(name, data)) == (str(run / "scenario.toml"), ()), name
 

@@ -90,7 +90,7 @@ def test_warm_start_is_ppo_only_and_validated() -> None:
 
 
 def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2() -> None:
-    env = make_env("negobs_gym/OffroadNav-v2", "oracle", use_filter=False)
+    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", use_filter=False)
     try:
         demos = collect_demonstrations(env, 120, noise_std=0.0, seed=0, driver="track_planner")
         obs, info = env.reset(seed=DEMO_SEED_OFFSET)
@@ -127,7 +127,7 @@ def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
 
 
 def test_a_sight_limited_planner_labels_what_it_sees() -> None:
-    env = make_env("negobs_gym/OffroadNav-v2", "oracle", use_filter=False)
+    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", use_filter=False)
     try:
         full = collect_demonstrations(env, 80, noise_std=0.0, seed=0, driver="track_planner")
         near = collect_demonstrations(env, 80, 0.0, 0, "track_planner", planner_sight_m=14.0)
@@ -160,8 +160,8 @@ def test_each_episode_depends_on_its_number_alone(demos) -> None:
 
 
 def _env_noting_its_life(marks: Path) -> Any:
-    """An OffroadNav-v2 env that appends ``made`` to ``marks`` when it is made, ``closed`` when closed."""
-    env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
+    """An OffroadTrack-v0 env that appends ``made`` to ``marks`` when it is made, ``closed`` when closed."""
+    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", False)
     with marks.open("a") as fh:
         fh.write("made\n")
     close = env.close
@@ -176,7 +176,7 @@ def _env_noting_its_life(marks: Path) -> Any:
 
 
 def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path) -> None:
-    """DAgger on OffroadNav-v2 with an untrained policy: short episodes, so several run at once.
+    """DAgger on OffroadTrack-v0 with an untrained policy: short episodes, so several run at once.
     One pool serves two rounds, each driven by its own weights, as one process collects them."""
     marks = tmp_path / "lives.txt"
     factory = functools.partial(_env_noting_its_life, marks)
@@ -185,7 +185,7 @@ def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path)
     with torch.no_grad():
         for weight in refitted.policy.action_net.parameters():
             weight.neg_()  # the opposite action mean
-    env = make_env("negobs_gym/OffroadNav-v2", "oracle", False)
+    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", False)
     try:
         one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
         later = collect_demonstrations(env, 30, 0.3, 3, policy=refitted, first_episode=2)

@@ -217,10 +217,10 @@ def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
 def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
     from negobs_gym.envs.scenarios import OffroadNavV2Env
 
-    env = make_task_env("negobs_gym/OffroadNav-v2", "detector", ["observation.tighten_pairs=false"])
+    env = make_task_env("negobs_gym/OffroadTrack-v0", "detector", ["observation.tighten_pairs=false"])
     assert type(env) is OffroadNavV2Env and env.scenario.name == "offroad_nav_v2"
     assert not env.config.observation.tighten_pairs and env.config.observation.source == "detector"
-    plain = make_task_env("negobs_gym/OffroadNav-v2", "detector")
+    plain = make_task_env("negobs_gym/OffroadTrack-v0", "detector")
     assert plain.unwrapped.config.observation.tighten_pairs
     observation = plain.unwrapped.config.observation
     assert env.config.observation == dataclasses.replace(observation, tighten_pairs=False)
@@ -230,7 +230,7 @@ def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
     assert env.scenario.obstacles[0].depth_m == 1.2
     env.close()
     with pytest.raises(ConfigError, match=r"observation\.tighten_pair"):
-        make_task_env("negobs_gym/OffroadNav-v2", None, ["observation.tighten_pair=true"])
+        make_task_env("negobs_gym/OffroadTrack-v0", None, ["observation.tighten_pair=true"])
 
 
 @pytest.mark.slow
