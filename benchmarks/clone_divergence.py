@@ -1,6 +1,6 @@
 """Where a cloned policy's drive leaves its expert's: the expert labels every state the clone visits.
 
-Drives a saved model (deterministic) through OffroadNav-v2 courses on the range-limited oracle
+Drives a saved model (deterministic) through OffroadTrack-v0 courses on the range-limited oracle
 grid (``--source detector``: the detector grid), seeds 1,000,000 on (``negobs eval policy``'s),
 and at every step asks the track planner
 (``--planner-sight-m``, ``--planner-horizon-m``: the expert the clone was fitted to; with a
@@ -67,7 +67,9 @@ def main() -> None:
     parser.add_argument("model", help="a saved SB3 model (e.g. RUN/warm_start.zip)")
     parser.add_argument("--seeds", type=int, default=30, help="courses")
     parser.add_argument("--first-seed", type=int, default=1_000_000)
-    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2", help="env id, shipped scenario or TOML")
+    parser.add_argument(
+        "--env", default="negobs_gym/OffroadTrack-v0", help="env id, shipped scenario or TOML"
+    )
     parser.add_argument(
         "--source", choices=("oracle", "detector"), default="oracle", help="the grid the clone drives on"
     )

@@ -1,6 +1,6 @@
 """The track planner behind the braking safety filter: how often the filter lets a navigating car through.
 
-Drives the expert the OffroadNav-v2 clones were fitted to (``track_planner`` with
+Drives the expert the OffroadTrack-v0 clones were fitted to (``track_planner`` with
 ``--planner-sight-m`` and ``--planner-horizon-m``; it reads the course's ground-truth obstacles;
 ``--wheel-clearance-m`` and ``--clearance-m`` widen the berth it keeps from pits and bodies)
 through ``--env`` (default ``offroad_nav_v2_structure``) on seeds ``--first-seed`` on, without

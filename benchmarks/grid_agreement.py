@@ -1,7 +1,7 @@
 """How closely the detectors' observation grid follows the ground truth, by distance ahead.
 
 Drives the track planner (ground truth, ``--planner-sight-m`` of sight, planning again at every
-step; the expert the OffroadNav-v2 clones learn from) through ``--seeds`` courses of ``--env`` in
+step; the expert the OffroadTrack-v0 clones learn from) through ``--seeds`` courses of ``--env`` in
 two envs at once: one with the detector grid (the env's default observation: the LiDAR rig cast
 every step, paper N's negative cells and paper T's obstacle cells) and one with the oracle grid
 without a range limit. Both get the planner's actions, so both drive the same path (checked each
@@ -34,7 +34,7 @@ setting of the env's scenario (``observation.lux_ego_motion=true``: paper T's bo
 with the pose, ``ObservationConfig.lux_ego_motion``).
 
 Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
-[--env negobs_gym/OffroadNav-v2] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
+[--env negobs_gym/OffroadTrack-v0] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
 [--positive-detector traversable|structure] [--positive-hold-s 0] [--set observation.lux_ego_motion=true]
 """
 
@@ -101,7 +101,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="courses")
     parser.add_argument("--first-seed", type=int, default=1_000_000)
-    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    parser.add_argument("--env", default="negobs_gym/OffroadTrack-v0")
     parser.add_argument("--band-m", type=float, default=2.0, help="width of a distance band")
     parser.add_argument("--planner-sight-m", type=float, default=14.0)
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)

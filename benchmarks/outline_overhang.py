@@ -3,7 +3,7 @@
 The safety filter stops a car for any detected negative cell in its corridor (the footprint widened
 by ``SafetyFilterConfig.margin_m``); a driver passing a pit at arm's length meets the part of the
 detected outline that lies outside the pit. This drives the track planner (ground truth, 14 m of
-sight, the OffroadNav-v2 clones' expert) without the filter through ``--seeds`` courses of
+sight, the OffroadTrack-v0 clones' expert) without the filter through ``--seeds`` courses of
 ``--env`` and, every ``--every`` steps, takes the cells the filter would read
 (``hazard_state().negative_obstacles_xy_m``, the detector grid's 0.2 m cells) within 3 m of the
 car's axis from the rear axle to 12 m ahead. A cell outside every true pit outline *overhangs* by

@@ -1,7 +1,7 @@
 """How much of a cloning recipe's result is the recipe and how much the fit's seed.
 
 Fits a fresh policy on a saved ``demonstrations.npz`` (``negobs train --demonstrations FILE``,
-mirrored) once per fit seed, evaluates each clone on the same unseen OffroadNav-v2 courses
+mirrored) once per fit seed, evaluates each clone on the same unseen OffroadTrack-v0 courses
 (``negobs eval policy``'s seeds 1,000,000 on, oracle grid, no filter) and prints one line per
 seed, then the mean and standard deviation of the goals. One 60-seed evaluation of one fit tells
 two recipes apart only when they differ by more than the spread between fit seeds, which on the
@@ -14,7 +14,7 @@ A fit of 40,000 mirrored steps takes 5-10 min on the 2 cores, its 60-seed evalua
 
 Run: python benchmarks/refit_seeds.py DEMOS.npz --out DIR [--fit-seeds 1 2 3]
 [--strong-steer-repeats 1] [--strong-steer 0.3] [--steering-modes K] [--steering-bins EDGE ...]
-[--eval-seeds 60] [--first-seed 1000000] [--workers 2] [--env negobs_gym/OffroadNav-v2]
+[--eval-seeds 60] [--first-seed 1000000] [--workers 2] [--env negobs_gym/OffroadTrack-v0]
 """
 
 from __future__ import annotations
@@ -116,7 +116,7 @@ def main() -> None:
     parser.add_argument("--eval-seeds", type=int, default=60)
     parser.add_argument("--first-seed", type=int, default=PolicyCampaignConfig.first_seed)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    parser.add_argument("--env", default="negobs_gym/OffroadTrack-v0")
     args = parser.parse_args()
     out = Path(args.out)
     goals = []

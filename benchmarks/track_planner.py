@@ -1,4 +1,4 @@
-"""The track planner against centre-line pure pursuit on OffroadNav-v2 courses (ground-truth expert).
+"""The track planner against centre-line pure pursuit on OffroadTrack-v0 courses (ground-truth expert).
 
 Drives ``TrackPlannerDriver`` (:mod:`negobs_gym.drivers.track_planner`: a path planned around the
 course's ground-truth obstacles, on the track, followed by pure pursuit at 15 km/h) and
@@ -29,7 +29,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=60, help="courses")
     parser.add_argument("--first-seed", type=int, default=1_000_000)
-    parser.add_argument("--env", default="negobs_gym/OffroadNav-v2")
+    parser.add_argument("--env", default="negobs_gym/OffroadTrack-v0")
     parser.add_argument("--speed-kmh", type=float, default=None, help="cruise speed (default: the drivers')")
     parser.add_argument(
         "--planner-sight-m", type=float, default=0.0, help="planner's sight ahead (0: the whole course)"

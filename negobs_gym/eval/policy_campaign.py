@@ -2,7 +2,7 @@
 
 One CSV row per episode (:data:`COLUMNS`): success (no negative-obstacle entry, collision,
 rollover or trap during the episode, and it did not end by leaving the track), the failure events,
-whether leaving the track ended it (OffroadNav-v2's ``off_track`` rule), goal reached, progress
+whether leaving the track ended it (OffroadTrack-v0's ``off_track`` rule), goal reached, progress
 along the track, distance driven, the filter's vetoes (steps) and the false ones among them (no
 true obstacle where the filter saw its hazard, :func:`~negobs_gym.eval.vetoes.is_false_veto`),
 the braking events they make up (runs of vetoed steps, each begun by an onset veto), the

@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 #: Columns of ``eval.csv``, one row per evaluation (sums over its episodes, progress a mean);
-#: ``off_track`` counts the episodes with a step off the track (on OffroadNav-v2 the rule ends them);
+#: ``off_track`` counts the episodes with a step off the track (on OffroadTrack-v0 the rule ends them);
 #: ``false_vetoes`` / ``missed_vetoes`` as :mod:`negobs_gym.eval.vetoes` judges the filter's steps,
 #: ``max_veto_error_m`` the largest veto error of the evaluation's episodes (NaN: no veto to judge).
 EVAL_COLUMNS = (

@@ -9,7 +9,7 @@ how to return to the route, while the labels are the driver's clean actions; Las
 then sets the policy's action standard deviation to ``action_std`` for PPO's exploration. PPO then
 learns what the driver cannot do: leave the route around obstacles.
 
-On OffroadNav-v2, where leaving the track ends the episode, the demonstrator is the
+On OffroadTrack-v0, where leaving the track ends the episode, the demonstrator is the
 :class:`~negobs_gym.drivers.track_planner.TrackPlannerDriver` instead: it reads the course's
 ground-truth obstacles and passes them on the track, which the policy then has to learn from its
 grid (``WarmStartConfig.driver``; docs/training.md).

@@ -146,5 +146,5 @@ def recorded_env_in(env: str, run_dir: str | Path) -> str:
 
 def describe_overrides(env: str, overrides: Sequence[str]) -> str:
     """A one-word label of ``env`` with its assignments, for result lines and logs:
-    ``negobs_gym/OffroadNav-v2[observation.tighten_pairs=true]``."""
+    ``negobs_gym/OffroadTrack-v0[observation.tighten_pairs=true]``."""
     return f"{env}[{','.join(overrides)}]" if overrides else env

@@ -27,7 +27,7 @@ class RewardConfig:
             which is less than an entry costs, so a learner that cannot pass an obstacle learns to
             drive into the bank (docs/training.md).
         off_track: Per step that ends with the car's centre off the track (``StepOutcome.off_track``;
-            once on OffroadNav-v2, where that ends the episode). Default 0: then leaving the track
+            once on OffroadTrack-v0, where that ends the episode). Default 0: then leaving the track
             costs only the progress not made, and PPO on v2 learns to leave it rather than risk
             an entry (docs/training_studies.md).
     """
