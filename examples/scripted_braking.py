@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--frames", type=Path, default=None, help="folder for a PNG of each final frame")
     args = parser.parse_args()
     env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array" if args.frames else None)
-    obs_config = env.unwrapped.config.observation
+    obs_config = env.unwrapped.scenario.observation
     stopped = 0
     for seed in range(args.episodes):
         obs, info = env.reset(seed=seed)

@@ -11,7 +11,8 @@ import math
 import pytest
 
 from negobs_gym.drivers.model import ModelDriver
-from negobs_gym.scenarios import apply_overrides, load_scenario, run_scenario, spec_from_toml
+from negobs_gym.eval.scenario_runner import run_scenario
+from negobs_gym.spec import apply_overrides, load_scenario, spec_from_toml
 
 SCENE = spec_from_toml("""
 name = "my_ditch"

@@ -7,7 +7,7 @@ track centre line and puts the goal ``goal_margin_m`` before the end of the trac
 (positional or keyword), then the common keyword-only parameters in one order — ``seed``
 (roughness noise and, for the winding course, the layout), ``rough`` where the preset has it,
 ``length_m`` where it is not a scene parameter, and ``resolution_m``. ``PRESETS`` maps a name to
-each preset function; scenario specs (:mod:`negobs_gym.scenarios`) call them by name.
+each preset function; scenario specs (:mod:`negobs_gym.spec`) call them by name.
 """
 
 from __future__ import annotations

@@ -26,7 +26,8 @@ def test_non_negative_float_takes_zero_but_not_below_or_specials() -> None:
 def test_a_bad_env_or_setting_exits_2_naming_it(capsys) -> None:
     parser = argparse.ArgumentParser(prog="bench")
     env = task_env_or_exit(parser, "paper_n_three_pits", "oracle", ["observation.tighten_pairs=false"])
-    assert env.config.observation.tighten_pairs is False and env.config.observation.source == "oracle"
+    observation = env.unwrapped.scenario.observation
+    assert observation.tighten_pairs is False and observation.source == "oracle"
     env.close()
     for name, overrides in (("paper_n_three_pits", ["observation.tighten=1"]), ("no_such_scene", [])):
         with pytest.raises(SystemExit) as exit_info:

@@ -5,8 +5,8 @@ import pytest
 
 from negobs_gym.drivers import Driver, PurePursuitDriver, TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.drivers.track_planner import planned_lateral_m
+from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.training import make_task_env
 from negobs_gym.sim.carving import PositiveObstacleSpec
 from negobs_gym.sim.presets import braking_track, trench_crossing
 from negobs_gym.sim.terrain import TerrainConfig, generate_terrain, track_coordinates
@@ -146,7 +146,7 @@ def _drive(env, driver_for, seed):
 
 
 def test_it_reaches_the_goal_of_an_offroad_nav_v2_course_where_pure_pursuit_enters_a_pit() -> None:
-    env = make_task_env("negobs_gym/OffroadNav-v2", "oracle")
+    env = make_env("negobs_gym/OffroadNav-v2", ["observation.source=oracle"])
     try:
         planner = _drive(env, TrackPlannerDriver, 1_000_000)
         pursuit = _drive(env, lambda t: PurePursuitDriver(t.track.centreline_xy_m), 1_000_000)

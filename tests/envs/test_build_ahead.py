@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import gymnasium as gym
@@ -10,16 +9,14 @@ import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.envs import BrakingEnv
 from negobs_gym.errors import ConfigError
 
 
 def _oracle_braking(steps: int = 4, **episode) -> gym.Env:
     """Braking-v1 on the oracle grid, truncated after ``steps`` control steps (10 Hz)."""
-    config = BrakingEnv.default_config()
-    observation = dataclasses.replace(config.observation, source="oracle")
-    config = dataclasses.replace(config, observation=observation, time_limit_s=steps / 10.0, **episode)
-    return gym.make("negobs_gym:negobs_gym/Braking-v1", config=config)
+    changes = {f"episode.{key}": value for key, value in episode.items()}
+    changes.update({"observation.source": "oracle", "episode.time_limit_s": steps / 10.0})
+    return gym.make("negobs_gym:negobs_gym/Braking-v1", overrides=changes)
 
 
 def _episodes(env: gym.Env, *, ahead: bool, episodes: int = 3, steps: int = 4) -> tuple[list, int]:

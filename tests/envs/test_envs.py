@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.spec import ObservationConfig, RewardConfig
 from negobs_gym.errors import ActionError, ConfigError
 from negobs_gym.registration import ENV_SPECS
+from negobs_gym.spec import EpisodeSpec, ObservationConfig, RewardConfig
 
 IDS = [spec[0] for spec in ENV_SPECS]
 
@@ -25,10 +23,7 @@ def test_env_checkers_pass_on_every_registered_id(env_id: str) -> None:
     from gymnasium.utils.env_checker import check_env as gym_check
     from stable_baselines3.common.env_checker import check_env as sb3_check
 
-    probe = gym.make(env_id)
-    config = dataclasses.replace(probe.unwrapped.config, terrain_pool_size=1)  # one world build, not 12
-    probe.close()
-    env = gym.make(env_id, config=config)
+    env = gym.make(env_id, overrides={"episode.terrain_pool_size": 1})  # one world build, not 12
     gym_check(env.unwrapped, skip_render_check=True)
     sb3_check(env.unwrapped, warn=True)
     env.close()
@@ -87,7 +82,7 @@ def test_configs_reject_bad_values() -> None:
     with pytest.raises(ConfigError, match="downsample"):
         ObservationConfig(downsample=7)
     with pytest.raises(ConfigError, match="control_hz"):
-        EnvConfig(control_hz=float("nan"))
+        EpisodeSpec(control_hz=float("nan"))
     with pytest.raises(ConfigError, match="time"):
         RewardConfig(time=float("inf"))
     with pytest.raises(ConfigError, match="rig"):
@@ -100,7 +95,7 @@ def test_detector_grid_sees_the_braking_ditch_and_feeds_the_hazards() -> None:
     from negobs_gym.envs.scenarios import BrakingEnv
 
     env = BrakingEnv()
-    assert env.config.observation.source == "detector"
+    assert env.scenario.observation.source == "detector"
     _, info = env.reset(seed=3)
     bumper_m = env.unwrapped._vehicle.config.length_m - env.unwrapped._vehicle.config.rear_overhang_m
     # hold 25 km/h until the bumper is 6.5 m from the ditch: the rear axle is then 10.2 m away, inside
@@ -108,7 +103,7 @@ def test_detector_grid_sees_the_braking_ditch_and_feeds_the_hazards() -> None:
     while info["distance_to_negative_ahead_m"] > 6.5:
         obs, _, terminated, _, info = env.step(np.array([0.3, 0.0], np.float32))
         assert not terminated
-    k = env.config.observation.channels.index("negative")
+    k = env.scenario.observation.channels.index("negative")
     assert obs["grid"][k].any(), "the detector grid shows no ditch 6.5 m ahead"
     state = env.hazard_state()
     assert state.front_length_m == pytest.approx(bumper_m)  # the corridor reaches the front corners
@@ -124,12 +119,12 @@ def test_detector_grid_sees_the_braking_ditch_and_feeds_the_hazards() -> None:
 def test_oracle_observation_still_takes_hazards_from_the_detector() -> None:
     from negobs_gym.envs.scenarios import BrakingEnv
 
-    env = BrakingEnv(EnvConfig(observation=ObservationConfig(source="oracle"), start_speed_mps=7.0))
+    env = BrakingEnv(overrides={"observation.source": "oracle", "start.speed_mps": 7.0, "episode.time_limit_s": 30.0})
     for seed in range(20):  # a ditch inside the oracle grid but beyond the detector's 20 m range
         obs, info = env.reset(seed=seed)
         if info["distance_to_negative_ahead_m"] < 20.0:
             break
-    k = env.config.observation.channels.index("negative")
+    k = env.scenario.observation.channels.index("negative")
     assert obs["grid"][k].any()  # ground truth sees it
     assert len(env.hazard_state().negative_obstacles_xy_m) == 0  # the detector does not yet
     env.close()
@@ -139,13 +134,11 @@ def test_oracle_observation_still_takes_hazards_from_the_detector() -> None:
 def test_rigs_and_backends_give_the_same_observation_layout(rig: str) -> None:
     from negobs_gym.envs.scenarios import BrakingEnv
 
-    cfg = EnvConfig(
-        observation=ObservationConfig(rig=rig, raycast_backend="pybullet" if rig == "reduced" else "auto")
-    )
-    env = BrakingEnv(cfg)
+    backend = "pybullet" if rig == "reduced" else "auto"
+    env = BrakingEnv(overrides={"observation.rig": rig, "observation.raycast_backend": backend, "start.speed_mps": 0.0})
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs)
     obs, *_ = env.step(np.array([0.0, 0.0], np.float32))
-    observed = obs["grid"][cfg.observation.channels.index("observed")]
+    observed = obs["grid"][env.scenario.observation.channels.index("observed")]
     assert observed.mean() > 0.3  # the rig sees a good part of the grid around the vehicle
     env.close()

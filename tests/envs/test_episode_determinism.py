@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import platform
@@ -70,15 +69,12 @@ def _assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> None:
 
 def test_default_observation_uses_the_roi_rig():
     env = gym.make(ENV_ID)
-    assert env.unwrapped.config.observation.rig == "roi"
+    assert env.unwrapped.scenario.observation.rig == "roi"
     env.close()
 
 
 def test_kept_world_replays_the_episode_bit_for_bit():
-    probe = gym.make(ENV_ID)
-    cfg = dataclasses.replace(probe.unwrapped.default_config(), world_cache_size=2)
-    probe.close()
-    env = gym.make(ENV_ID, config=cfg)
+    env = gym.make(ENV_ID, overrides={"episode.world_cache_size": 2})
     first = _rollout(env, seed=5)
     assert first["grid"][1:].any(), "the detector grid must see something for the test to mean anything"
     _rollout(env, seed=6)
@@ -115,11 +111,7 @@ def test_same_seed_same_episode_in_another_process(tmp_path):
 
 def _far_part_env() -> gym.Env:
     """A frame every 3rd step, the grid beyond 8 m cast and detected between."""
-    probe = gym.make(ENV_ID)
-    cfg = probe.unwrapped.default_config()
-    probe.close()
-    obs = dataclasses.replace(cfg.observation, scan_every=3, scan_far_from_m=8.0)
-    return gym.make(ENV_ID, config=dataclasses.replace(cfg, observation=obs))
+    return gym.make(ENV_ID, overrides={"observation.scan_every": 3, "observation.scan_far_from_m": 8.0})
 
 
 def test_far_part_steps_give_the_same_episode_in_another_process(tmp_path):
@@ -137,11 +129,7 @@ def test_far_part_steps_give_the_same_episode_in_another_process(tmp_path):
 
 def _pinned_rollout(seed: int) -> dict[str, np.ndarray]:
     """An episode with Embree's kernels pinned to AVX2, after another episode in the same env."""
-    probe = gym.make(ENV_ID)
-    cfg = probe.unwrapped.default_config()
-    probe.close()
-    cfg = dataclasses.replace(cfg, observation=dataclasses.replace(cfg.observation, raycast_isa="avx2"))
-    env = gym.make(ENV_ID, config=cfg)
+    env = gym.make(ENV_ID, overrides={"observation.raycast_isa": "avx2"})
     _rollout(env, seed=seed + 1)
     episode = _rollout(env, seed=seed)
     env.close()
@@ -179,11 +167,8 @@ def test_same_seed_same_scans_on_an_avx2_cpu(tmp_path):
 
 
 def test_terrain_pool_gives_each_index_its_own_terrain():
-    probe = gym.make(ENV_ID)
-    cfg = dataclasses.replace(probe.unwrapped.default_config(), terrain_pool_size=3, world_cache_size=3)
-    probe.close()
-    obs_cfg = dataclasses.replace(cfg.observation, source="oracle")
-    env = gym.make(ENV_ID, config=dataclasses.replace(cfg, observation=obs_cfg))
+    changes = {"episode.terrain_pool_size": 3, "episode.world_cache_size": 3, "observation.source": "oracle"}
+    env = gym.make(ENV_ID, overrides=changes)
     seen: dict[str, np.ndarray] = {}
     for seed in range(8):
         env.reset(seed=seed)

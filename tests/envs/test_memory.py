@@ -18,7 +18,7 @@ MAX_GROWTH_MB = 50.0
 @pytest.mark.skipif(not HAS_PROC_STATM, reason="needs Linux /proc")
 def test_5000_steps_of_offroadnav_default_observation_grow_rss_by_at_most_50_mb():
     env = gym.make("negobs_gym/OffroadNav-v0")
-    assert env.unwrapped.config.observation.rig == "roi"
+    assert env.unwrapped.scenario.observation.rig == "roi"
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     episodes = 1

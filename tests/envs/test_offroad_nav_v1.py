@@ -2,34 +2,29 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.core.geometry import vehicle_to_world_xy
-from negobs_gym.envs import ObservationConfig, RewardConfig
 from negobs_gym.envs.observation import state_fields, state_space
 from negobs_gym.envs.outcome import StepOutcome
 from negobs_gym.envs.rewards import reward_terms
 from negobs_gym.envs.scenarios import OffroadNavEnv, OffroadNavV1Env
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.events import StepEvents
+from negobs_gym.spec import ObservationConfig, RewardConfig
 
-
-def _oracle(env_cls):
-    config = env_cls.default_config()
-    return dataclasses.replace(config, observation=dataclasses.replace(config.observation, source="oracle"))
+ORACLE_GRID = {"observation.source": "oracle"}
 
 
 def test_v1_state_holds_the_route_points_on_the_centre_line() -> None:
-    env = gym.make("negobs_gym/OffroadNav-v1", config=_oracle(OffroadNavV1Env))
+    env = gym.make("negobs_gym/OffroadNav-v1", overrides=ORACLE_GRID)
     obs, info = env.reset(seed=4)
     assert env.observation_space["state"].shape == (11,)
     assert env.observation_space["grid"].shape == (2, 36, 16)
-    names = state_fields(env.unwrapped.config.observation)
+    names = state_fields(env.unwrapped.scenario.observation)
     assert names[5:] == (
         "route_5_x_m",
         "route_5_y_m",
@@ -52,8 +47,8 @@ def test_v1_state_holds_the_route_points_on_the_centre_line() -> None:
 
 
 def test_v1_keeps_v0_terrain_draws() -> None:
-    v0 = OffroadNavEnv(config=_oracle(OffroadNavEnv))
-    v1 = OffroadNavV1Env(config=_oracle(OffroadNavV1Env))
+    v0 = OffroadNavEnv(overrides=ORACLE_GRID)
+    v1 = OffroadNavV1Env(overrides=ORACLE_GRID)
     v0.reset(seed=11)
     v1.reset(seed=11)
     assert [o.outline_xy_m.tobytes() for o in v0.terrain.negative_obstacles] == [
@@ -68,7 +63,7 @@ def test_v1_keeps_v0_terrain_draws() -> None:
 
 
 def test_v1_ends_when_the_car_stands_still() -> None:
-    env = OffroadNavV1Env(config=_oracle(OffroadNavV1Env))
+    env = OffroadNavV1Env(overrides=ORACLE_GRID)
     env.reset(seed=2)
     steps, terminated = 0, False
     while not terminated and steps < 40:

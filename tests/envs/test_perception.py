@@ -1,23 +1,22 @@
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.detector import NegativeDetectorConfig, convex_overlap_mask
 from negobs_gym.drivers import make_driver
-from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv, OffroadNavV2Env
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios import apply_overrides, load_scenario
+from negobs_gym.spec import ObservationConfig, apply_overrides, load_scenario
 
 #: OffroadNav-v2 on its shortest course: the same obstacles, 20-45 m along it instead of 20-105 m,
 #: so the car meets them within 50 steps (the detector grid costs ~50 ms a step).
 SHORT_COURSE = apply_overrides(load_scenario("offroad_nav_v2"), ["terrain.params.length_m=60"])
+#: Braking-v1's scene with the car standing at the start, for 30 s.
+STANDING = {"start.speed_mps": 0.0, "episode.time_limit_s": 30.0}
 
 
 def test_observed_layer_is_the_cells_of_the_frames_returns() -> None:
-    env = BrakingEnv(EnvConfig())
+    env = BrakingEnv(overrides=STANDING)
     env.reset(seed=3)
     env.step(np.array([0.5, 0.0], np.float32))
     perception = env._detector.perception
@@ -34,11 +33,10 @@ def test_observed_layer_is_the_cells_of_the_frames_returns() -> None:
 def test_positive_hold_keeps_paper_t_obstacles_on_the_grid_after_the_lux_loses_them() -> None:
     """Same seed and actions: the held grid holds every cell of the per-frame grid, and more once
     an obstacle has left the LUX's view; the rest of the observation is the same."""
-    base = OffroadNavV2Env.default_config()
     envs = [
         OffroadNavV2Env(
-            replace(base, observation=replace(base.observation, source="detector", positive_hold_s=s)),
             scenario=SHORT_COURSE,
+            overrides={"observation.source": "detector", "observation.positive_hold_s": s},
         )
         for s in (0.0, 2.0)
     ]
@@ -72,16 +70,15 @@ def test_bad_holds_are_refused(field: str) -> None:
 def test_structure_positive_channel_marks_rocks_and_boxes_on_their_footprint() -> None:
     """``positive_detector="structure"``: every rock or box 6-12 m ahead has a set cell on its pooled
     footprint, and the rest of the observation equals the default (paper T) env's."""
-    base = OffroadNavV2Env.default_config()
     envs = [
         OffroadNavV2Env(
-            replace(base, observation=replace(base.observation, source="detector", positive_detector=d)),
             scenario=SHORT_COURSE,
+            overrides={"observation.source": "detector", "observation.positive_detector": d},
         )
         for d in ("traversable", "structure")
     ]
     (paper_t, info), (structure, _) = (env.reset(seed=1_000_003) for env in envs)
-    obs_cfg = envs[1].config.observation
+    obs_cfg = envs[1].scenario.observation
     grid, k = obs_cfg.grid, obs_cfg.downsample
     driver = make_driver("track_planner", envs[0].terrain, planner_sight_m=14.0, planner_horizon_m=30.0)
     checked = set()
@@ -123,8 +120,7 @@ def test_bad_positive_detector_is_refused() -> None:
 def test_hazard_hold_keeps_the_filters_cells_where_they_were_seen(hold_s: float) -> None:
     """With ``hazard_hold_s`` the filter's points are this frame's cells followed by the earlier
     frames' cells moved into the current vehicle frame; without, this frame's cells only."""
-    base = BrakingEnv.default_config()
-    env = BrakingEnv(replace(base, observation=replace(base.observation, hazard_hold_s=hold_s)))
+    env = BrakingEnv(overrides={"observation.hazard_hold_s": hold_s})
     env.reset(seed=3)
     assert env._vehicle.config.ins_position_noise_m == 0  # the INS pose is the true pose
     perception = env._detector.perception
@@ -156,11 +152,10 @@ def test_tighten_pairs_moves_the_hazard_cells_to_the_ditch_rim() -> None:
     default) it follows the close frames' last ground return. Same seed, same actions."""
     from negobs_gym.safety.corridor import hazard_distance_m
 
-    base = EnvConfig()
     leads = {}
     for tighten in (False, None):  # None: the default config
-        obs = base.observation if tighten is None else replace(base.observation, tighten_pairs=tighten)
-        env = BrakingEnv(replace(base, observation=obs))
+        changes = {} if tighten is None else {"observation.tighten_pairs": tighten}
+        env = BrakingEnv(overrides={**STANDING, **changes})
         _, info = env.reset(seed=4)
         assert env._detector.perception.negative.config.fusion.tighten_on_match is (tighten is None)
         while info["distance_to_negative_ahead_m"] > 8.0:
@@ -185,11 +180,10 @@ def test_the_lux_sits_on_the_front_bumper() -> None:
     """Default: every LUX return lies ahead of the body's front, the nearest at about where its
     lowest layer (1.2 deg below the 5.03 deg pitch) meets the ground; ``lux_forward_m=2.0``, the
     old mount, casts from 1.7 m farther back; paper N's scans are the same bit for bit."""
-    base = EnvConfig()
     scans = {}
     for forward in (None, 2.0):  # None: the default config
-        obs = base.observation if forward is None else replace(base.observation, lux_forward_m=forward)
-        env = BrakingEnv(replace(base, observation=obs))
+        changes = {} if forward is None else {"observation.lux_forward_m": forward}
+        env = BrakingEnv(overrides={**STANDING, **changes})
         env.reset(seed=3)
         scans[forward] = env._detector.perception.scans
         front_m = env._vehicle.config.length_m - env._vehicle.config.rear_overhang_m
@@ -216,7 +210,7 @@ def test_lux_forward_m_must_be_finite() -> None:
 
 def test_lux_ego_motion_reaches_paper_t_and_must_be_a_bool() -> None:
     for flag in (False, True):
-        env = BrakingEnv(replace(EnvConfig(), observation=ObservationConfig(lux_ego_motion=flag)))
+        env = BrakingEnv(overrides={**STANDING, "observation.lux_ego_motion": flag})
         env.reset(seed=3)
         env.step(np.array([0.5, 0.0], dtype=np.float32))
         assert env._detector.perception.traversable.config.kalman_ego_motion is flag
@@ -235,7 +229,7 @@ def test_raycast_fast_terrain_reaches_the_caster_and_must_be_a_bool() -> None:
         pytest.skip("embreex's libembree4 not found: the fast terrain test needs the packet path")
     observations = []
     for flag, scene in ((False, PacketScene), (True, RepairedScene)):
-        env = BrakingEnv(replace(EnvConfig(), observation=ObservationConfig(raycast_fast_terrain=flag)))
+        env = BrakingEnv(overrides={**STANDING, "observation.raycast_fast_terrain": flag})
         env.reset(seed=3)
         assert isinstance(env._detector.perception._caster._static._packets, scene)
         observations.append(env.step(np.array([0.5, 0.0], dtype=np.float32))[0])
@@ -246,7 +240,7 @@ def test_raycast_fast_terrain_reaches_the_caster_and_must_be_a_bool() -> None:
             ObservationConfig(raycast_fast_terrain=bad)
 
 
-def _blas_threads_of_a_worker_env(observation: ObservationConfig, out) -> None:
+def _blas_threads_of_a_worker_env(threads: int | None, out) -> None:
     """In a child process: the BLAS thread counts before and after a detector-grid env's reset,
     the BLAS first set to 2 threads (its default on 2 cores, set so on any machine)."""
     from threadpoolctl import threadpool_info, threadpool_limits
@@ -256,7 +250,7 @@ def _blas_threads_of_a_worker_env(observation: ObservationConfig, out) -> None:
 
     threadpool_limits(limits=2, user_api="blas")
     before = counts()
-    env = BrakingEnv(replace(EnvConfig(), observation=observation))
+    env = BrakingEnv(overrides={**STANDING, "observation.worker_blas_threads": threads})
     env.reset(seed=3)
     out.put((before, counts()))
     env.close()
@@ -269,7 +263,7 @@ def test_worker_processes_pin_their_blas_as_configured(threads: int | None) -> N
     ctx = mp.get_context("spawn")
     out = ctx.Queue()
     child = ctx.Process(
-        target=_blas_threads_of_a_worker_env, args=(ObservationConfig(worker_blas_threads=threads), out)
+        target=_blas_threads_of_a_worker_env, args=(threads, out)
     )
     child.start()
     before, after = out.get(timeout=120)

@@ -10,15 +10,13 @@ import pytest
 import negobs_gym  # noqa: F401 - registers the envs
 from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.core.pose import Pose
-from negobs_gym.envs import ObservationConfig
-from negobs_gym.spec import PhantomConfig
+from negobs_gym.envs import make_env
 from negobs_gym.envs.phantoms import Phantoms
 from negobs_gym.envs.scenarios import OffroadNavV1Env
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.training import make_task_env
-from negobs_gym.scenarios import ScenarioSpec
-from negobs_gym.spec.overrides import apply_overrides, spec_for_env
 from negobs_gym.sim.types import Track
+from negobs_gym.spec import ObservationConfig, PhantomConfig, ScenarioSpec
+from negobs_gym.spec.overrides import apply_overrides, spec_for_env
 
 
 def _straight_track(length_m: float = 200.0, width_m: float = 6.0) -> Track:
@@ -105,9 +103,8 @@ def test_show_probability_sets_how_often_a_phantom_in_range_shows() -> None:
 
 
 def _v1_oracle(phantoms: PhantomConfig) -> OffroadNavV1Env:
-    config = OffroadNavV1Env.default_config()
-    observation = dataclasses.replace(config.observation, source="oracle", phantoms=phantoms)
-    return OffroadNavV1Env(config=dataclasses.replace(config, observation=observation))
+    settings = {f"observation.phantoms.{f.name}": getattr(phantoms, f.name) for f in dataclasses.fields(phantoms)}
+    return OffroadNavV1Env(overrides={"observation.source": "oracle", **settings})
 
 
 def test_phantoms_add_negative_cells_and_leave_rewards_and_rules_alone() -> None:
@@ -150,6 +147,6 @@ def test_phantoms_are_a_scenario_setting_for_set() -> None:
     assert ScenarioSpec.from_dict(spec.to_dict()) == spec
     with pytest.raises(ConfigError, match=r"observation\.phantoms\.show_probability"):
         apply_overrides(spec, ["observation.phantoms.show_probability=2"])
-    env = make_task_env("negobs_gym/OffroadNav-v1", "oracle", ["observation.phantoms.per_100m=4"])
-    assert env.unwrapped.config.observation.phantoms.per_100m == 4.0
+    env = make_env("negobs_gym/OffroadNav-v1", ["observation.source=oracle", "observation.phantoms.per_100m=4"])
+    assert env.unwrapped.scenario.observation.phantoms.per_100m == 4.0
     env.close()

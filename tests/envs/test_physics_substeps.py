@@ -7,10 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from negobs_gym.spec import EnvPhysicsConfig
 from negobs_gym.envs.scenarios import BrakingV0Env
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios import ScenarioSpec, load_scenario
+from negobs_gym.spec import EnvPhysicsConfig, ScenarioSpec, load_scenario
 
 MU, G = 0.65, 9.81  # paper N Eq. 18
 

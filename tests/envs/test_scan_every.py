@@ -1,24 +1,22 @@
 """``ObservationConfig.scan_every``: a LiDAR frame every k-th control step, carried between."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from negobs_gym.core.grid import carry_layer, carry_points
-from negobs_gym.spec import ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.spec import ObservationConfig
 
 COAST = np.array([0.0, 0.0], np.float32)
 
 
 def _env(scan_every: int, render_mode: str | None = None, **observation) -> BrakingEnv:
     """Braking-v0 at 25 km/h from the start (paper N §4), a frame every ``scan_every`` steps."""
-    cfg = replace(EnvConfig(), start_speed_mps=25 / 3.6)
-    observation = replace(cfg.observation, scan_every=scan_every, **observation)
-    return BrakingEnv(replace(cfg, observation=observation), render_mode=render_mode)
+    settings = {"scan_every": scan_every, **observation}
+    changes = {f"observation.{key}": value for key, value in settings.items()}
+    return BrakingEnv(overrides={"episode.time_limit_s": 30.0, **changes}, render_mode=render_mode)
 
 
 def _ranges(env: BrakingEnv) -> np.ndarray:

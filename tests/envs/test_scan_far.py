@@ -1,15 +1,13 @@
 """``ObservationConfig.scan_far_from_m``: between frames, the grid's far part cast and detected."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from negobs_gym.core.grid import carry_layer
 from negobs_gym.detector.fusion import in_box
-from negobs_gym.spec import CHANNELS, ObservationConfig
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.errors import ConfigError
+from negobs_gym.spec import CHANNELS, ObservationConfig
 
 COAST = np.array([0.0, 0.0], np.float32)
 FAR_M = 12.0
@@ -17,9 +15,9 @@ FAR_M = 12.0
 
 def _env(scan_every: int, render_mode: str | None = None, **observation) -> BrakingEnv:
     """Braking-v0 at 25 km/h from the start, full-resolution grid."""
-    cfg = replace(EnvConfig(), start_speed_mps=25 / 3.6)
-    observation = replace(cfg.observation, scan_every=scan_every, downsample=1, **observation)
-    return BrakingEnv(replace(cfg, observation=observation), render_mode=render_mode)
+    settings = {"scan_every": scan_every, "downsample": 1, **observation}
+    changes = {f"observation.{key}": value for key, value in settings.items()}
+    return BrakingEnv(overrides={"episode.time_limit_s": 30.0, **changes}, render_mode=render_mode)
 
 
 def _returns_in(scan, box) -> np.ndarray:

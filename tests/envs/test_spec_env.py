@@ -9,14 +9,15 @@ import numpy as np
 import pytest
 
 import negobs_gym  # noqa: F401 - registers the envs
-from negobs_gym.envs import EnvConfig, NegObsEnv, ObservationConfig, RewardConfig
+from negobs_gym.envs import NegObsEnv
 from negobs_gym.envs.scenarios import BrakingEnv
 from negobs_gym.envs.sources import DetectorSource, GridSource, OracleSource, make_grid_source
 from negobs_gym.errors import ConfigError, NegobsError, ResetNeeded
-from negobs_gym.scenarios import spec_from_toml
+from negobs_gym.spec import ObservationConfig, spec_from_toml
 
 BRAKE = np.array([-1.0, 0.0], np.float32)
 ORACLE = ObservationConfig(source="oracle")
+ORACLE_GRID = {"observation.source": "oracle"}
 
 # flat track, a ditch 10 m ahead, 25 km/h: a full brake stops 3.8 m after the start
 STOP_SCENE = """
@@ -55,11 +56,17 @@ def _steps_until_done(env: gym.Env, limit: int = 1000) -> tuple[int, bool, bool]
 
 
 @pytest.mark.parametrize("make", ["registry", "direct"])
-def test_env_config_time_limit_is_honoured_however_the_env_is_made(make: str) -> None:
-    config = EnvConfig(time_limit_s=0.8, observation=ORACLE)  # standing still: only the limit ends it
-    env = gym.make("negobs_gym/Braking-v1", config=config) if make == "registry" else BrakingEnv(config)
+def test_overridden_time_limit_is_honoured_however_the_env_is_made(make: str) -> None:
+    # standing still: only the limit ends it
+    changes = {**ORACLE_GRID, "episode.time_limit_s": 0.8, "start.speed_mps": 0.0}
+    env = gym.make("negobs_gym/Braking-v1", overrides=changes) if make == "registry" else BrakingEnv(overrides=changes)
     assert _steps_until_done(env) == (8, False, True)
     env.close()
+
+
+def test_the_removed_config_argument_names_the_new_way() -> None:
+    with pytest.raises(ConfigError, match="overrides="):
+        BrakingEnv(ORACLE)
 
 
 def test_spec_time_limit_truncates_a_directly_built_env() -> None:
@@ -99,10 +106,10 @@ def test_stopping_before_the_ditch_is_rewarded_once_and_ends_the_episode() -> No
 
 
 def test_braking_v0_keeps_its_terrain_draws_and_has_no_stopping_reward() -> None:
-    config = dataclasses.replace(BrakingEnv.default_config(), observation=ORACLE)
-    assert config.start_speed_mps == pytest.approx(25 / 3.6) and config.reward.stopped == 50.0
-    v0 = gym.make("negobs_gym/Braking-v0", config=dataclasses.replace(config, reward=RewardConfig()))
-    v1 = gym.make("negobs_gym/Braking-v1", config=config)
+    spec = BrakingEnv.default_spec()
+    assert spec.start.speed_mps == pytest.approx(25 / 3.6) and spec.reward.stopped == 50.0
+    v0 = gym.make("negobs_gym/Braking-v0", overrides=ORACLE_GRID)
+    v1 = gym.make("negobs_gym/Braking-v1", overrides=ORACLE_GRID)
     _, i0 = v0.reset(seed=7)
     _, i1 = v1.reset(seed=7)
     assert i0["distance_to_negative_ahead_m"] == i1["distance_to_negative_ahead_m"]
@@ -113,7 +120,7 @@ def test_braking_v0_keeps_its_terrain_draws_and_has_no_stopping_reward() -> None
 
 
 def test_step_before_reset_raises_reset_needed() -> None:
-    env = BrakingEnv(EnvConfig(observation=ORACLE))
+    env = BrakingEnv(overrides=ORACLE_GRID)
     with pytest.raises(ResetNeeded, match="reset"):
         env.step(BRAKE)
     with pytest.raises(RuntimeError):  # also a RuntimeError, as gymnasium users expect
@@ -163,11 +170,10 @@ def test_a_scenario_is_required() -> None:
 def test_distance_ahead_sees_an_obstacle_wider_than_the_wheels_strip():
     # a 6 m trench across the whole track has no outline vertex in front of the wheels: the distance
     # comes from its edges clipped to the strip, the same as for a 1 m wide ditch at that station
-    config = dataclasses.replace(BrakingEnv.default_config(), observation=ORACLE)
     gaps = []
     for width_m in (1.0, 6.0):
         scene = STOP_SCENE.replace("width_m = 3.0", f"width_m = {width_m}")
-        env = NegObsEnv(scenario=spec_from_toml(scene), config=config)
+        env = NegObsEnv(scenario=spec_from_toml(scene), overrides=ORACLE_GRID)
         _, info = env.reset(seed=0)
         env.close()
         gaps.append(info["distance_to_negative_ahead_m"])

@@ -13,7 +13,7 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.envs import NegObsEnv
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import Corridor
-from negobs_gym.scenarios import spec_from_toml
+from negobs_gym.spec import spec_from_toml
 from tests.helpers import PITS_BESIDE_AND_AHEAD_SCENE
 
 

@@ -206,13 +206,10 @@ class _FrameFlag(gym.Wrapper):
 
 def _clocked_braking(episode_steps: int) -> gym.Env:
     """Braking-v0 with a frame every 3rd step on the env's clock, cut to ``episode_steps``."""
-    from dataclasses import replace
+    from negobs_gym.envs import BrakingEnv
 
-    from negobs_gym.envs import BrakingEnv, EnvConfig
-
-    cfg = EnvConfig()
-    observation = replace(cfg.observation, scan_every=3, scan_clock="env")
-    env = gym.wrappers.TimeLimit(BrakingEnv(replace(cfg, observation=observation)), episode_steps)
+    changes = {"observation.scan_every": 3, "observation.scan_clock": "env", "start.speed_mps": 0.0}
+    env = gym.wrappers.TimeLimit(BrakingEnv(overrides=changes), episode_steps)
     return _FrameFlag(env)
 
 

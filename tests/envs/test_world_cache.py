@@ -57,7 +57,7 @@ def test_a_world_held_ahead_joins_the_kept_ones_on_its_key_and_is_closed_on_any_
 def test_a_reset_onto_a_new_terrain_closes_the_last_episodes_world():
     env = gym.make("negobs_gym/OffroadNav-v0")
     base = env.unwrapped
-    assert base.config.world_cache_size == 1
+    assert base.scenario.episode.world_cache_size == 1
     env.reset(seed=0)
     first = base._world
     env.reset(seed=1)

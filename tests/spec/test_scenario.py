@@ -10,14 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from negobs_gym.errors import ConfigError
-from negobs_gym.scenarios import (
-    Range,
-    ScenarioSpec,
-    load_scenario,
-    scenario_names,
-    spec_from_toml,
-    spec_to_toml,
-)
+from negobs_gym.spec import Range, ScenarioSpec, load_scenario, scenario_names, spec_from_toml, spec_to_toml
 from negobs_gym.spec.scenario import TERMINATION_RULES
 
 PIT_TOML = """
