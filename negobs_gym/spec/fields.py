@@ -2,9 +2,10 @@
 
 Scenario specs are read from TOML or dicts and written back with :func:`to_plain`. The converter
 walks a dataclass's type hints: nested dataclasses, ``tuple[X, ...]``, fixed tuples, ``Literal``,
-``X | None`` and the :class:`Range` of a sampled parameter. Unknown keys are errors (a misspelt
-option must not be ignored), and a :class:`~negobs_gym.errors.ConfigError` raised by a config's own
-``__post_init__`` is re-raised with its full path, e.g. ``obstacles[0].depth_m``.
+``X | None`` and the :class:`Range` of a sampled parameter. Unknown keys, missing required fields
+and values of the wrong type are errors (a misspelt option must not be ignored), and a
+:class:`~negobs_gym.errors.ConfigError` raised by a config's own ``__post_init__`` is re-raised with
+its full path, e.g. ``obstacles[0].depth_m``.
 """
 
 from __future__ import annotations
@@ -115,8 +116,17 @@ def _convert(hint: Any, value: Any, path: str) -> Any:
     raise TypeError(f"{path}: no converter for type {hint!r}")  # a bug in a spec class, not user input
 
 
+def _required(field: dataclasses.Field) -> bool:
+    return field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING
+
+
 def from_plain(cls: type, data: Any, path: str = "") -> Any:
-    """Build dataclass ``cls`` from a mapping; every error names the field by its full path."""
+    """Build dataclass ``cls`` from a mapping; every error names the field by its full path.
+
+    Raises:
+        ConfigError: ``data`` is no mapping, has an unknown key, lacks a required field, or holds
+            a value of the wrong type or a value the config's own checks refuse.
+    """
     if not isinstance(data, Mapping):
         raise ConfigError(path or cls.__name__, f"must be a table of {cls.__name__} fields, got {data!r}")
     hints = typing.get_type_hints(cls)
@@ -124,6 +134,10 @@ def from_plain(cls: type, data: Any, path: str = "") -> Any:
     unknown = sorted(set(data) - set(fields))
     if unknown:
         raise ConfigError(_join(path, str(unknown[0])), f"unknown key; {cls.__name__} has {sorted(fields)}")
+    missing = [name for name, f in fields.items() if _required(f) and name not in data]
+    if missing:
+        required = [name for name, f in fields.items() if _required(f)]
+        raise ConfigError(_join(path, missing[0]), f"missing; a {cls.__name__} needs {required}")
     kwargs = {name: _convert(hints[name], value, _join(path, name)) for name, value in data.items()}
     try:
         return cls(**kwargs)

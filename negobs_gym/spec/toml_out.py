@@ -50,7 +50,9 @@ def _value(value: Any) -> str:
         return "{" + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {type(value).__name__} as TOML: {value!r}")
+    raise TypeError(  # a bug, not user input: a validated spec's plain data holds TOML types only
+        f"cannot write {type(value).__name__} as TOML: {value!r}"
+    )
 
 
 def _table(data: Mapping[str, Any], prefix: str, out: list[str]) -> None:
