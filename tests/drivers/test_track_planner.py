@@ -146,7 +146,7 @@ def _drive(env, driver_for, seed):
 
 
 def test_it_reaches_the_goal_of_an_offroad_nav_v2_course_where_pure_pursuit_enters_a_pit() -> None:
-    env = make_env("negobs_gym/OffroadNav-v2", ["observation.source=oracle"])
+    env = make_env("negobs_gym/OffroadTrack-v0", ["observation.source=oracle"])
     try:
         planner = _drive(env, TrackPlannerDriver, 1_000_000)
         pursuit = _drive(env, lambda t: PurePursuitDriver(t.track.centreline_xy_m), 1_000_000)

@@ -1,4 +1,5 @@
-"""OffroadNav-v2: v1's course where leaving the track ends the episode; every obstacle passable on it."""
+"""OffroadTrack-v0 (OffroadNavV2Env): OffroadNav-v1's course where leaving the track ends the
+episode; every obstacle passable on it."""
 
 from __future__ import annotations
 

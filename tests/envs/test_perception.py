@@ -8,7 +8,7 @@ from negobs_gym.envs.scenarios import BrakingEnv, OffroadNavV2Env
 from negobs_gym.errors import ConfigError
 from negobs_gym.spec import ObservationConfig, apply_overrides, load_scenario
 
-#: OffroadNav-v2 on its shortest course: the same obstacles, 20-45 m along it instead of 20-105 m,
+#: OffroadTrack-v0 on its shortest course: the same obstacles, 20-45 m along it instead of 20-105 m,
 #: so the car meets them within 50 steps (the detector grid costs ~50 ms a step).
 SHORT_COURSE = apply_overrides(load_scenario("offroad_nav_v2"), ["terrain.params.length_m=60"])
 #: Braking-v1's scene with the car standing at the start, for 30 s.

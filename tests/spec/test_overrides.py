@@ -66,7 +66,8 @@ def test_an_index_into_an_empty_list_says_so() -> None:
 
 
 def test_an_env_id_resolves_to_its_scenario() -> None:
-    assert spec_for_env("negobs_gym/OffroadNav-v2") == load_scenario("offroad_nav_v2")
+    assert spec_for_env("negobs_gym/OffroadTrack-v0") == load_scenario("offroad_nav_v2")
+    assert spec_for_env("negobs_gym/OffroadNav-v2") == load_scenario("offroad_nav_v2")  # its old id, an alias
     assert spec_for_env("paper_n_mud_pit") == load_scenario("paper_n_mud_pit")
     with pytest.raises(ConfigError, match="unknown scenario 'CartPole-v1'"):  # no negobs env, no scene
         spec_for_env("CartPole-v1")
