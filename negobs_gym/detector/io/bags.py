@@ -15,8 +15,8 @@ import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
+from negobs_gym.detector.io.frame import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.poses import PoseTrack
-from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import RING_FIELD_NAMES, ScanSetup, column_time_offsets, fields_to_scan
 from negobs_gym.detector.io.tf import TimedTransform, TransformChain, TransformTree, frame_name
 from negobs_gym.errors import ScanError

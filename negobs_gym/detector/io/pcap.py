@@ -17,7 +17,7 @@ import numpy as np
 
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.io._optional import optional_import
-from negobs_gym.detector.io.recording import RecordedFrame, check_not_empty, unreadable
+from negobs_gym.detector.io.frame import RecordedFrame, check_not_empty, unreadable
 from negobs_gym.detector.io.setup import ScanSetup, column_time_offsets, fields_to_scan
 from negobs_gym.errors import ScanError
 

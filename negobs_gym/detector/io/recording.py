@@ -1,60 +1,25 @@
-"""One recorded frame with where it came from, and the dispatch from a file to its reader."""
+"""The dispatch from a recording (a file or a bag folder) to its reader."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from negobs_gym.core.scan import StructuredScan
+from negobs_gym.detector.io.bags import bag_frames
+from negobs_gym.detector.io.frame import RecordedFrame
+from negobs_gym.detector.io.pcap import pcap_frames
+from negobs_gym.detector.io.pcd import read_pcd
 from negobs_gym.detector.io.setup import ScanSetup, fields_to_scan
-from negobs_gym.detector.loaders import RingSource, read_float32_cloud
+from negobs_gym.detector.loaders import read_float32_cloud
 from negobs_gym.errors import ScanError
 
+__all__ = ["BinLayout", "RecordedFrame", "is_bag", "read_bin", "read_recording"]
+
 BinLayout = Literal["xyzi", "xyzir"]
-
-
-@dataclass(frozen=True, eq=False)
-class RecordedFrame:
-    """A structured scan read from a recording.
-
-    Attributes:
-        scan: The frame as the detector reads it.
-        source: File (or bag / pcap) it came from.
-        index: Frame number within ``source``, from 0.
-        ring_source: How each point's laser was found: ``"ring_field"``, ``"point_order"`` or
-            ``"elevation_table"`` (see :mod:`negobs_gym.detector.loaders`).
-        n_points: Points in the recorded cloud (before binning).
-        frame_id: The cloud's coordinate frame where the recording names it (a bag message's
-            ``header.frame_id``), else None.
-        column_time_s: When each column of ``scan`` was fired, after the cloud's stamp [s]
-            (:func:`~negobs_gym.detector.io.setup.column_time_offsets`), where it was read; None
-            otherwise.
-    """
-
-    scan: StructuredScan
-    source: str
-    index: int
-    ring_source: RingSource
-    n_points: int
-    frame_id: str | None = None
-    column_time_s: np.ndarray | None = None
-
-
-def unreadable(name: str, what: str, error: BaseException) -> ScanError:
-    """One-line :class:`ScanError` for a file a third-party reader rejected (its message's first line)."""
-    first = (str(error).strip().splitlines() or [""])[0]
-    return ScanError(f"{name}: not a readable {what} ({type(error).__name__}: {first})")
-
-
-def check_not_empty(name: str) -> None:
-    """ScanError if ``name`` is an empty file (third-party readers give obscure messages for it)."""
-    if os.path.isfile(name) and os.path.getsize(name) == 0:
-        raise ScanError(f"{name}: file is empty")
 
 
 def read_bin(path: str | os.PathLike[str], setup: ScanSetup, layout: BinLayout = "xyzi") -> RecordedFrame:
@@ -100,16 +65,10 @@ def read_recording(
     if suffix == ".bin":
         yield read_bin(p, setup, bin_layout)
     elif suffix == ".pcd":
-        from negobs_gym.detector.io.pcd import read_pcd
-
         yield read_pcd(p, setup)
     elif suffix == ".pcap":
-        from negobs_gym.detector.io.pcap import pcap_frames
-
         yield from pcap_frames(p, setup, point_times=point_times)
     elif is_bag(p):
-        from negobs_gym.detector.io.bags import bag_frames
-
         yield from bag_frames(p, setup, topic=topic, stamps=stamps, point_times=point_times)
     else:
         raise ScanError(f"{p}: unknown recording type (expected .bin, .pcd, .pcap, .bag, a ROS 2 bag)")

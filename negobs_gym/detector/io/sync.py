@@ -23,7 +23,7 @@ import numpy as np
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
-from negobs_gym.detector.io.recording import RecordedFrame
+from negobs_gym.detector.io.frame import RecordedFrame
 from negobs_gym.errors import ScanError
 
 #: How far [s] another topic's cloud may lie from the lead's and join its update: one revolution
