@@ -26,7 +26,7 @@ Pairs go missing where a bump (paper N §3.1: a rise then a fall of range along 
 past a laser's cast window: whether a return belongs to a bump depends on the whole ring
 (docs/performance.md, "Where the two can differ").
 
-Run: python benchmarks/roi_agreement.py [--env-id negobs_gym/OffroadNav-v0 ...] [--steps 300] [--seed 0]
+Run: python studies/roi_agreement.py [--env-id negobs_gym/OffroadNav-v0 ...] [--steps 300] [--seed 0]
      [--driver constant|route]
 """
 

@@ -6,7 +6,7 @@ stored laser by laser (ring from the point order) and shuffled (elevation-table 
 the share of points the nominal uniform table mis-rings on that unit. Medians of ``--repeats``.
 Last line: ``read_median_ms=<median over the recordings>``.
 
-Run: python benchmarks/real_scans.py [--repeats N]
+Run: python studies/real_scans.py [--repeats N]
 """
 
 from __future__ import annotations

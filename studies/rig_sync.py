@@ -9,7 +9,7 @@ phase-locked sensors has them) and with the side clouds brought to the lead's ti
 its mounting and per-ray tables as recorded). The two cases alternate,
 ``--rounds`` times ``--updates`` updates each. Last line: ``moved_overhead_ms=<median difference>``.
 
-Run: python benchmarks/rig_sync.py [--updates N] [--rounds N]
+Run: python studies/rig_sync.py [--updates N] [--rounds N]
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ Prints one line per course (goal, entered, collision, left the track, vetoes, st
 channel and hazard distance of the first veto), then ``goal=<k>/<n> entries= collisions=
 left_track= vetoes=``.
 
-Run: python benchmarks/filter_navigation.py [--seeds 20] [--first-seed 3000020]
+Run: python studies/filter_navigation.py [--seeds 20] [--first-seed 3000020]
 [--filter off|on] [--stop-for-positive] [--mode brake|cap_speed] [--margin-m 0.4] [--buffer-m 5]
 [--wheel-clearance-m 0.4] [--clearance-m 0.3]
 """
@@ -26,8 +26,8 @@ import numpy as np
 
 from negobs_gym.cli.common import add_set_option, task_env_or_exit
 from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
+from negobs_gym.envs import make_env
 from negobs_gym.eval.braking_campaign import run_driven_episode
-from negobs_gym.policies.training import make_task_env
 from negobs_gym.safety import BrakingConfig, SafetyFilterConfig
 
 
@@ -91,7 +91,7 @@ def main() -> None:
     )
     totals = dict.fromkeys(("goal", "entered", "collision", "left_track", "vetoes"), 0)
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        env = make_task_env(args.env, None, args.overrides)
+        env = make_env(args.env, args.overrides)
         driver = TrackPlanner(env, planner)
         m = run_driven_episode(env, driver, seed, guard, args.max_steps)
         env.close()

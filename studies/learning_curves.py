@@ -1,6 +1,6 @@
 """Learning curves of ``negobs train`` runs: episode return and evaluation goal share per env step.
 
-Run: python benchmarks/learning_curves.py LABEL=RUN_DIR [LABEL=RUN_DIR ...] --out curves.png
+Run: python studies/learning_curves.py LABEL=RUN_DIR [LABEL=RUN_DIR ...] --out curves.png
 
 Each RUN_DIR is a ``negobs train --out`` folder (``logs/*/progress.csv``, ``eval.csv``). Prints,
 per run, the last logged return and each evaluation's goal share.

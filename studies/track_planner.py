@@ -10,7 +10,7 @@ read ``info``, not the grid, so the grid source only sets the cost). Prints one 
 and per driver ``<driver> goal=<k>/<n> ends=<termination counts> mean_progress_m=<m>
 wall_s=<s>``; the planner's line is last.
 
-Run: python benchmarks/track_planner.py [--seeds 60] [--first-seed 1000000] [--speed-kmh 25]
+Run: python studies/track_planner.py [--seeds 60] [--first-seed 1000000] [--speed-kmh 25]
 [--planner-sight-m 14] [--planner-horizon-m 30]
 """
 
@@ -21,8 +21,8 @@ import collections
 import time
 
 from negobs_gym.drivers import make_driver
+from negobs_gym.envs import make_env
 from negobs_gym.policies.config import DEMONSTRATORS
-from negobs_gym.policies.training import make_task_env
 
 
 def main() -> None:
@@ -41,7 +41,7 @@ def main() -> None:
         help="> 0: the planner plans again at every step this far ahead (0: one path, replanned)",
     )
     args = parser.parse_args()
-    env = make_task_env(args.env, "oracle")
+    env = make_env(args.env, ["observation.source=oracle"])
     for name in DEMONSTRATORS:
         begin, ends, progress = time.perf_counter(), collections.Counter(), []
         for seed in range(args.first_seed, args.first_seed + args.seeds):

@@ -15,7 +15,7 @@ p99 / max), then, last, ``overhang_p90_m=<beside> <ahead>``. ``--set
 observation.tighten_pairs=false`` measures paper N's fusion history (docs/detector_features.md,
 "Near edge").
 
-Run: python benchmarks/outline_overhang.py [--seeds 6] [--first-seed 3000020]
+Run: python studies/outline_overhang.py [--seeds 6] [--first-seed 3000020]
 [--env offroad_nav_v2_structure] [--every 2] [--set KEY.PATH=VALUE]
 """
 
@@ -33,7 +33,7 @@ from negobs_gym.core.geometry import (
     vehicle_to_world_xy,
 )
 from negobs_gym.drivers import PurePursuitConfig, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.policies.training import make_task_env
+from negobs_gym.envs import make_env
 
 NEAR_PIT_M = 3.0  # farther from every pit: a false detection, not an overhang
 REGIONS = {"beside": (-1.0, 4.0), "ahead": (4.0, 12.0)}  # y ahead of the rear axle [m]
@@ -62,7 +62,7 @@ def main() -> None:
     planner = TrackPlannerConfig(sight_m=14.0, plan_horizon_m=30.0, pursuit=PurePursuitConfig())
     found: dict[str, list[np.ndarray]] = {name: [] for name in REGIONS}
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        env = make_task_env(args.env, None, args.overrides)
+        env = make_env(args.env, args.overrides)
         obs, info = env.reset(seed=seed)
         task = env.unwrapped
         driver = TrackPlannerDriver(task.terrain, planner)

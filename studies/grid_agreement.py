@@ -33,7 +33,7 @@ them (``ObservationConfig.positive_hold_s``; 0, the default, is per frame). ``--
 setting of the env's scenario (``observation.lux_ego_motion=true``: paper T's boundary filters move
 with the pose, ``ObservationConfig.lux_ego_motion``).
 
-Run: python benchmarks/grid_agreement.py [--seeds 5] [--first-seed 1000000]
+Run: python studies/grid_agreement.py [--seeds 5] [--first-seed 1000000]
 [--env negobs_gym/OffroadTrack-v0] [--band-m 2] [--planner-sight-m 14] [--planner-horizon-m 30]
 [--positive-detector traversable|structure] [--positive-hold-s 0] [--set observation.lux_ego_motion=true]
 """

@@ -12,7 +12,7 @@ Each fit writes ``OUT/fit_<seed>/`` (``train.json``, ``warm_start.zip``) and its
 recorded settings are the ones asked for (else the script stops and names the difference).
 A fit of 40,000 mirrored steps takes 5-10 min on the 2 cores, its 60-seed evaluation 2-3 min.
 
-Run: python benchmarks/refit_seeds.py DEMOS.npz --out DIR [--fit-seeds 1 2 3]
+Run: python studies/refit_seeds.py DEMOS.npz --out DIR [--fit-seeds 1 2 3]
 [--strong-steer-repeats 1] [--strong-steer 0.3] [--steering-modes K] [--steering-bins EDGE ...]
 [--eval-seeds 60] [--first-seed 1000000] [--workers 2] [--env negobs_gym/OffroadTrack-v0]
 """

@@ -12,7 +12,7 @@ expert steers more than ``--strong`` to one side, the share where the clone stee
 side but less, to the other side, and the clone's mean steering towards the expert's side as a
 fraction of the expert's (``follows=``). Last line: ``goal=<k>/<n>``.
 
-Run: python benchmarks/clone_divergence.py MODEL [--seeds 30] [--env ENV] [--source oracle|detector]
+Run: python studies/clone_divergence.py MODEL [--seeds 30] [--env ENV] [--source oracle|detector]
 [--planner-sight-m 14]
 [--planner-horizon-m 30] [--strong 0.3]
 """
@@ -25,7 +25,7 @@ import numpy as np
 
 from negobs_gym.drivers import make_driver
 from negobs_gym.drivers.model import ModelDriver
-from negobs_gym.policies.training import make_task_env
+from negobs_gym.envs import make_env, source_overrides
 
 WINDOWS = (("last 10 steps", -10, None), ("30-10 steps before the end", -30, -10), ("earlier", None, -30))
 
@@ -77,7 +77,7 @@ def main() -> None:
     parser.add_argument("--planner-horizon-m", type=float, default=30.0)
     parser.add_argument("--strong", type=float, default=0.3, help="|expert steering| that counts as strong")
     args = parser.parse_args()
-    env = make_task_env(args.env, args.source)
+    env = make_env(args.env, source_overrides(args.source))
     model = ModelDriver(args.model)
     episodes = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):

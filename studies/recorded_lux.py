@@ -9,7 +9,7 @@ sensor-frame float32 clouds with a layer field as a driver publishes them and re
 alternating, ``--rounds`` times; the regions must be the same (boundary lines, obstacle clusters,
 grids). Prints per-way medians and, last, ``crop_speedup=<full / cropped>``.
 
-Run: python benchmarks/recorded_lux.py [--frames 20] [--rounds 5]
+Run: python studies/recorded_lux.py [--frames 20] [--rounds 5]
 """
 
 from __future__ import annotations
