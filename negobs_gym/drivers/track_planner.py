@@ -4,11 +4,11 @@ The pure-pursuit driver follows the centre line and so drives into the first obs
 ``winding_course`` (~25 m). :class:`TrackPlannerDriver` reads the terrain's ground truth instead of
 any sensor: :func:`planned_lateral_m` finds, by dynamic programming over track stations and
 lateral offsets, a path on the track that keeps the car's body off the positive obstacles and its
-wheels out of the negative ones (docs/training_studies.md, "Towards a policy for OffroadNav-v2").
+wheels out of the negative ones (docs/notebook/training_studies.md, "Towards a policy for OffroadNav-v2").
 It is the demonstrator for OffroadTrack-v0's warm start (:mod:`negobs_gym.policies.pretrain`) and a
 reference for what staying on the track while passing every obstacle takes; it is not a
 perception-driven baseline. Its clearances suit its pursuit's default 15 km/h: at 25 km/h the
-follower lags the path and reaches 2 of 20 goals instead of 19 (docs/training_studies.md).
+follower lags the path and reaches 2 of 20 goals instead of 19 (docs/notebook/training_studies.md).
 """
 
 from __future__ import annotations

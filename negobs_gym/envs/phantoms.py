@@ -1,7 +1,7 @@
 """Phantom ``negative`` clusters for an oracle grid: the detectors' false pits, beside the track.
 
 A policy trained on the ground truth has never seen a ``negative`` cluster where no pit lies, and
-stands still when the detector grid shows one (docs/training_studies.md, "Open"). Phantoms put
+stands still when the detector grid shows one (docs/notebook/training_studies.md, "Open"). Phantoms put
 such clusters into the oracle grid: rectangles fixed in the world beyond the track's edges that
 show, flickering, only at the distances where the detectors report theirs
 (:class:`~negobs_gym.envs.config.PhantomConfig`).

@@ -4,7 +4,7 @@ the slot's next episode while the current one runs.
 SB3's ``SubprocVecEnv`` steps its workers in lockstep and resets a finished env inside its step,
 so while one worker builds a new terrain and world (0.6-1.7 s on OffroadNav, by the machine's
 speed) every other worker waits: with ~100-step episodes that is about a fifth of a 2-process run
-(docs/performance.md, "Where the 2-process run loses"). :class:`PrefetchVecEnv` runs two processes
+(docs/notebook/performance.md, "Where the 2-process run loses"). :class:`PrefetchVecEnv` runs two processes
 per slot. One steps the current episode; the other has already reset the next one, so a finished
 episode is replaced at once and the process that ran it starts resetting the episode after, beside
 the others' steps. (:class:`~negobs_gym.envs.build_ahead.BuildAheadVecEnv`, ``negobs train``'s

@@ -3,7 +3,7 @@
 SB3's Gaussian head has one mean, and a behaviour-cloning fit by mean squared error puts it
 between the demonstrator's actions wherever they differ for like observations: where the track
 planner passes an obstacle to the left on one course and to the right on a similar one, the clone
-learns to steer half as hard, or straight on (docs/training_studies.md, "Where the clones' drives
+learns to steer half as hard, or straight on (docs/notebook/training_studies.md, "Where the clones' drives
 leave the expert's"). :class:`SteeringModesPolicy` outputs K steering candidates and a score for each;
 its action mean is the best-scored candidate (with the other action values as SB3 computes them),
 so PPO, ``predict`` and ``negobs eval policy`` use it as any ``MultiInputPolicy``. Behaviour

@@ -2,7 +2,7 @@
 
 PPO from a random Gaussian policy first has to learn to drive along the route at all: on
 OffroadNav-v1 its training return fell from +6 to -50 over the first 16 k steps
-(docs/training.md, "from scratch"). The route follower is a solved problem, the
+(docs/notebook/training.md, "from scratch"). The route follower is a solved problem, the
 pure-pursuit driver, so :func:`warm_start` first fits the policy's action mean to that driver's
 actions (DART-style: the executed action carries Gaussian noise so the demonstrations also show
 how to return to the route, while the labels are the driver's clean actions; Laskey et al. 2017),

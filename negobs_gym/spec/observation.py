@@ -55,7 +55,7 @@ class PhantomConfig:
     truth meets what the detectors report where no pit lies (docs/training.md, "Phantoms").
 
     Not in either paper: the defaults copy the false clusters the detector grid shows at the start
-    of OffroadNav-v1 courses 1,000,002 and 1,000,004 (docs/training_studies.md, "Open"): the
+    of OffroadNav-v1 courses 1,000,002 and 1,000,004 (docs/notebook/training_studies.md, "Open"): the
     HDL-64's pairs over a shadowed dip 0.6-3 m beyond the track's edge, 13-16 m ahead, 1.4-1.6 m
     across and 1.4-2.6 m along the line of sight (9-10 cells of the 0.8 m observation), in 6 of
     11 frames. Each phantom is a rectangle fixed in the world beside the track, drawn at
@@ -165,7 +165,7 @@ class ObservationConfig:
             near ones are seen for many. None (default): nothing cast between frames. 12.0 kept
             the every-step rig's fused recall in every 2 m bin from 6 to 20 m at k = 2 to 6; 8.0
             at k = 3 kept that and the braking campaign's stops before a 0.4 m trench, which is
-            confirmed only within ~12 m, for ~0.64x the CPU per step (docs/performance.md,
+            confirmed only within ~12 m, for ~0.64x the CPU per step (docs/notebook/performance.md,
             "Casting the far part between frames").
         channels: Subset of :data:`CHANNELS`, in that order.
         grid: Extent and cell size of the vehicle-centred grid (paper N §3.4: 20 cm cells).
@@ -219,7 +219,7 @@ class ObservationConfig:
             lines as the INS pose changes between frames (``TraversableConfig.kalman_ego_motion``,
             not in paper T), so a boundary point the LUX's lower layers lose in a bend turns with
             the road, not with the car. True (default): more of the track is traversable and more
-            rocks and boxes are found inside the lines (docs/training_studies.md, "The detector grid").
+            rocks and boxes are found inside the lines (docs/notebook/training_studies.md, "The detector grid").
             False: paper T's F = I, the estimates held still in the vehicle frame; the shipped
             policies fitted on paper T's channels were trained so, and their records set it.
         phantoms: With ``source="oracle"``, false ``negative`` clusters beside the track

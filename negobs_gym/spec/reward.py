@@ -29,7 +29,7 @@ class RewardConfig:
         off_track: Per step that ends with the car's centre off the track (``StepOutcome.off_track``;
             once on OffroadTrack-v0, where that ends the episode). Default 0: then leaving the track
             costs only the progress not made, and PPO on v2 learns to leave it rather than risk
-            an entry (docs/training_studies.md).
+            an entry (docs/notebook/training_studies.md).
     """
 
     progress: float = 1.0

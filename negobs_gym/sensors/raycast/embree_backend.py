@@ -86,7 +86,7 @@ class EmbreeConfig:
             that end under the ground, hits from below, hits on static bodies:
             ``embree_packets.RepairedScene``); ranges then differ from the robust scene's by
             float32 rounding (up to ~1e-4 m), and the cast takes ~0.75x as long on an Intel
-            AVX-512 CPU (docs/performance.md, "The fast terrain test"). False: the robust scene
+            AVX-512 CPU (docs/notebook/performance.md, "The fast terrain test"). False: the robust scene
             alone, whose ranges equal embreex's bit for bit. Packet path only (``ray_packets``);
             a dynamic scene (other vehicles) is always robust.
     """

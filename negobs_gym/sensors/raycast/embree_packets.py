@@ -10,7 +10,7 @@ Each ray's distance in a robust :class:`PacketScene` equals embreex's bit for bi
 triangle test on the same float32 inputs, whatever rays share its packet and whatever its width
 (tests/sensors/raycast/test_embree_packets.py). :class:`RepairedScene` casts a terrain with
 Embree's faster, non-watertight test and casts again, robustly, every ray that test may have let
-through. Measured figures: docs/performance.md, "Embree packets" and "The fast terrain test".
+through. Measured figures: docs/notebook/performance.md, "Embree packets" and "The fast terrain test".
 
 :func:`packets_available` says whether the library was found (embreex's wheels bundle it under
 ``embreex.libs`` or ``.dylibs``); the backend falls back to embreex's own loop where it is not.
