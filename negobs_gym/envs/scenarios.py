@@ -14,9 +14,10 @@ The grid is the 20 cm vehicle-centred grid (25.6 m ahead, 3.2 m back, 6.4 m each
 max-pooled 4 x 4. The state is in SI units, clipped to speed +-15 m/s, yaw rate +-3 rad/s,
 steering +-1 rad and a goal vector (vehicle frame) of +-300 m.
 
-Arguments of every env: ``config`` (an :class:`~negobs_gym.envs.config.EnvConfig` that overrides
-the spec's episode length, start speed, goal radius, observation and reward weights),
-``render_mode`` (``"rgb_array"`` or ``"human"``) and ``scenario`` (another spec, name or TOML path).
+Arguments of every env: ``overrides`` (single settings of the env's scenario changed, as the
+commands' ``--set`` paths: ``{"observation.source": "oracle", "episode.time_limit_s": 20}`` or
+``["start.speed_mps=[5.0, 7.0]"]``), ``render_mode`` (``"rgb_array"`` or ``"human"``) and
+``scenario`` (another spec, name or TOML path).
 
 Note on v0 builds: since the spec layer every env truncates at its spec's time limit itself
 (same limits as before, now also when built directly) and reset casts one LiDAR frame instead of
@@ -69,11 +70,11 @@ class BrakingEnv(NegObsEnv):
     or stopping (standing 1 s); truncates after 15 s (150 steps), also when built directly.
 
     ## Arguments
-    ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
+    ``overrides``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
     - v1: rewards and ends on stopping before the ditch (``stopped`` term and rule); the time
-      limit is the env's own, so ``EnvConfig.time_limit_s`` is honoured.
+      limit is the env's own, so an overridden ``episode.time_limit_s`` is honoured.
     - v0: no reward for stopping (stopping only ended by the 15 s limit); terrain draws as v1.
       See the module note on v0 builds.
     """
@@ -116,7 +117,7 @@ class OffroadNavEnv(NegObsEnv):
     truncates after 60 s (600 steps).
 
     ## Arguments
-    ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
+    ``overrides``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
     - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
@@ -188,7 +189,7 @@ class TrenchCrossingEnv(NegObsEnv):
     truncates after 30 s (300 steps).
 
     ## Arguments
-    ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
+    ``overrides``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
     - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
@@ -223,7 +224,7 @@ class PaperTStraightEnv(NegObsEnv):
     truncates after 30 s (300 steps).
 
     ## Arguments
-    ``config``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
+    ``overrides``, ``render_mode``, ``scenario`` (see :mod:`negobs_gym.envs.scenarios`).
 
     ## Version History
     - v0: initial version (same terrain, rewards and limit since the spec layer; see the module
