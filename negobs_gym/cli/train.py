@@ -2,6 +2,12 @@
 
 Runs :func:`negobs_gym.policies.training.train` and prints one line, ``model=<path> steps=<n>
 wall_s=<s> steps_per_s=<r>`` followed by the last evaluation's figures.
+
+Each option is one row of :data:`OPTIONS`: a :class:`~negobs_gym.policies.config.TrainConfig`
+setting by its dotted path (``warm_start.steps``), whose default and kind the help shows, or a
+scenario setting by its ``--set`` path (``run.filter``): ``--source``, ``--filter`` and
+``--stop-for-positive`` are short names of ``--set`` assignments, applied before the ``--set``
+ones.
 """
 
 from __future__ import annotations
@@ -9,305 +15,392 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+from collections import defaultdict
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
 from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
 from negobs_gym.policies.config import (
     ALGORITHMS,
     DEMONSTRATORS,
     SOURCES,
+    TRAINING_DEFAULTS,
     VEC_ENVS,
     TrainConfig,
-    WarmStartConfig,
-    steering_head,
+    source_settings,
 )
 
 log = logging.getLogger("negobs_gym.cli.train")
 
+#: How a row's target names a scenario setting (a ``--set`` path) instead of a TrainConfig one.
+SET = "--set "
+
+
+@dataclass(frozen=True)
+class Option:
+    """One ``negobs train`` option.
+
+    Attributes:
+        flag: The option, ``--steps``.
+        target: Where its value goes: a :class:`TrainConfig` setting by its dotted path
+            (``warm_start.steps``), or ``"--set PATH"``, a scenario setting (``--set run.filter``).
+        help: What it does; the TrainConfig default is added.
+        group: The ``--help`` section (None: the first).
+        means: For a value that stands for more than ``target=value``: the (target, value) pairs
+            it sets instead (``--source state``).
+        kwargs: argparse's own (``type``, ``choices``, ``action``, ``metavar``, ``nargs``); a
+            TrainConfig setting's type is its default's when not given.
+    """
+
+    flag: str
+    target: str
+    help: str
+    group: str | None = None
+    means: Mapping[Any, tuple[tuple[str, Any], ...]] = field(default_factory=dict)
+    kwargs: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def dest(self) -> str:
+        return self.flag.removeprefix("--").replace("-", "_")
+
+    @property
+    def sets_scenario(self) -> bool:
+        return self.target.startswith(SET)
+
+
+def default_of(path: str, config: Any = None) -> Any:
+    """The value of the TrainConfig setting at dotted ``path`` in ``config`` (default: TrainConfig())."""
+    value = TrainConfig() if config is None else config
+    for key in path.split("."):
+        value = getattr(value, key)
+    return value
+
+
+EVAL = "evaluation and checkpoints"
+ALGO = "algorithm"
+WARM = "warm start (behaviour cloning, PPO)"
+SCENE = "scenario settings (short names of --set assignments)"
+
+
+def _source_means() -> dict[str, tuple[tuple[str, Any], ...]]:
+    """What each ``--source`` sets (:func:`~negobs_gym.policies.config.source_settings`): its
+    ``--set`` assignment and the policy's ``grid_input``."""
+    means = {}
+    for source in SOURCES:
+        overrides, grid_input = source_settings(source)
+        pairs = tuple((SET + text.partition("=")[0], text.partition("=")[2]) for text in overrides)
+        means[source] = (*pairs, ("grid_input", grid_input))
+    return means
+
+
+#: Every option of ``negobs train`` but ``--out``, ``--resume`` and ``--set``.
+OPTIONS: tuple[Option, ...] = (
+    Option("--env", "env", "env id, shipped scenario name or scenario TOML path"),
+    Option(
+        "--algo", "algo", "stable-baselines3 algorithm", kwargs={"type": str.upper, "choices": ALGORITHMS}
+    ),
+    Option("--steps", "steps", "total env steps", kwargs={"type": positive_int}),
+    Option("--envs", "envs", "parallel envs (processes)", kwargs={"type": positive_int}),
+    Option(
+        "--vec-env",
+        "vec_env",
+        "vector env with --envs > 1: build_ahead (SB3's subproc whose idle workers build their "
+        "next episode's world), subproc, or prefetch (spare processes reset the next episodes "
+        "beforehand); docs/performance.md",
+        kwargs={"choices": VEC_ENVS},
+    ),
+    Option("--seed", "seed", "seed of the algorithm and of the envs' first resets"),
+    Option(
+        "--steering-modes",
+        "head.modes",
+        "PPO: the policy proposes K scored steering values and drives the best-scored one, so a "
+        "clone keeps a pass to the left and one to the right apart (1: one Gaussian mean)",
+        kwargs={"type": positive_int, "metavar": "K"},
+    ),
+    Option(
+        "--steering-bins",
+        "head.bin_edges",
+        "with the K candidates of --steering-modes (or K = edges + 1 without it): candidate k "
+        "learns the steering labels between edges k-1 and k (e.g. -0.3 0.3: pass left, straight "
+        "on, pass right) instead of those nearest to it",
+        kwargs={"type": float, "nargs": "+", "metavar": "EDGE"},
+    ),
+    Option(
+        "--source",
+        f"{SET}observation.source",
+        "the grid: the detectors', the ground truth's, or none in the policy's input (state: the "
+        "state vector only; the env computes the oracle's grid, for the filter) (default: the "
+        "scenario's own)",
+        SCENE,
+        means=_source_means(),
+        kwargs={"choices": SOURCES},
+    ),
+    Option(
+        "--filter",
+        f"{SET}run.filter",
+        "train and evaluate behind the Eq. 18 safety filter (a training run starts from "
+        f"{' '.join(TRAINING_DEFAULTS)}, whatever the scene's [run] table says)",
+        SCENE,
+        kwargs={"action": "store_true"},
+    ),
+    Option(
+        "--stop-for-positive",
+        f"{SET}run.stop_for_positive",
+        "with --filter: the filter also stops for the grid's positive-obstacle cells",
+        SCENE,
+        kwargs={"action": "store_true"},
+    ),
+    Option("--eval-every", "eval_every", "env steps between evaluations, 0 = only at the end", EVAL),
+    Option(
+        "--eval-episodes",
+        "eval_episodes",
+        "episodes per evaluation, on unseen seeds",
+        EVAL,
+        kwargs={"type": positive_int},
+    ),
+    Option(
+        "--eval-seed",
+        "eval_seed",
+        "first evaluation seed; keep it apart from the seeds of a later 'negobs eval policy' when "
+        "you pick a checkpoint by these evaluations",
+        EVAL,
+    ),
+    Option("--checkpoint-every", "checkpoint_every", "env steps between checkpoints, 0 = none", EVAL),
+    Option("--n-steps", "n_steps", "PPO rollout per env", ALGO, kwargs={"type": positive_int}),
+    Option("--batch-size", "batch_size", "minibatch size", ALGO, kwargs={"type": positive_int}),
+    Option("--learning-rate", "learning_rate", "Adam step size", ALGO),
+    Option(
+        "--critic-warmup-steps",
+        "critic_warmup_steps",
+        "PPO: only the value function learns for this many env steps, the actor stays as cloned "
+        "or initialised",
+        ALGO,
+    ),
+    Option(
+        "--target-kl",
+        "target_kl",
+        "PPO: stop an update's epochs once the KL to the rollout's policy passes 1.5x this (0 = no limit)",
+        ALGO,
+    ),
+    Option(
+        "--init",
+        "init_model",
+        "start from this trained model (a .zip or a shipped policy's name) instead of a new "
+        "network, e.g. oracle first, then --source detector --filter; the run counts steps from 0 "
+        "and evaluates once before training",
+        ALGO,
+        kwargs={"metavar": "MODEL"},
+    ),
+    Option(
+        "--action-std",
+        "warm_start.action_std",
+        f"action std after the warm start (default: {default_of('warm_start.action_std')}); with "
+        "--init, the init model's instead (init_action_std; default: the model's own)",
+        ALGO,
+        kwargs={"type": float, "default": None},  # None: each of the two keeps its default
+    ),
+    Option(
+        "--warm-start-steps",
+        "warm_start.steps",
+        "first behaviour-clone a scripted driver on this many demonstration steps (0 = from scratch)",
+        WARM,
+    ),
+    Option(
+        "--warm-start-driver",
+        "warm_start.driver",
+        "the demonstrator: pure_pursuit follows the centre line; track_planner passes the "
+        "ground-truth obstacles on the track (OffroadNav-v2)",
+        WARM,
+        kwargs={"choices": DEMONSTRATORS},
+    ),
+    Option(
+        "--dagger-rounds",
+        "warm_start.dagger_rounds",
+        "after the clone, rounds of DAgger: the policy drives --warm-start-steps more steps, the "
+        "driver labels them, the policy is refitted on all",
+        WARM,
+    ),
+    Option(
+        "--planner-sight-m",
+        "warm_start.planner_sight_m",
+        "with --warm-start-driver track_planner: how far ahead it sees obstacles, planning again "
+        "as each comes into sight (0 = the whole course; 14 = OffroadNav-v2's oracle range)",
+        WARM,
+    ),
+    Option(
+        "--planner-horizon-m",
+        "warm_start.planner_horizon_m",
+        "with --warm-start-driver track_planner: > 0 plans again at every step from the car, this "
+        "far ahead, so each label depends only on what the policy can know (e.g. 30 with "
+        "--planner-sight-m 14; 0 = one path, replanned when the car strays)",
+        WARM,
+    ),
+    Option(
+        "--mirror-demonstrations",
+        "warm_start.mirror",
+        "also fit each demonstrated step's mirror image (grid flipped left-right, steering and "
+        "lateral state negated)",
+        WARM,
+    ),
+    Option(
+        "--hold-out-every",
+        "warm_start.hold_out_every",
+        "leave every K-th demonstration episode out of the fit, score it each epoch and keep the "
+        "epoch where its loss is lowest (0 = fit on all)",
+        WARM,
+        kwargs={"metavar": "K"},
+    ),
+    Option("--clone-weight-decay", "warm_start.weight_decay", "weight decay of the fit (AdamW)", WARM),
+    Option(
+        "--demonstrations",
+        "warm_start.demonstrations",
+        "start the warm start from an earlier run's OUT/demonstrations.npz instead of collecting "
+        "--warm-start-steps new steps (DAgger rounds still collect that many each)",
+        WARM,
+        kwargs={"metavar": "FILE"},
+    ),
+    Option(
+        "--warm-start-workers",
+        "warm_start.workers",
+        "processes that drive the demonstration episodes, each with its own env; the steps are "
+        "the same for any N",
+        WARM,
+        kwargs={"type": positive_int, "metavar": "N"},
+    ),
+    Option(
+        "--strong-steer-repeats",
+        "warm_start.strong_steer_repeats",
+        "fit each demonstrated step that steers harder than --strong-steer (a pass) N times per epoch",
+        WARM,
+        kwargs={"type": positive_int, "metavar": "N"},
+    ),
+    Option(
+        "--strong-steer",
+        "warm_start.strong_steer",
+        "|steering label| above which a demonstrated step counts as a pass",
+        WARM,
+    ),
+    Option("--no-progress", "progress", "no progress bar"),
+)
+
+
+def _argparse_kwargs(option: Option) -> dict[str, Any]:
+    """argparse's arguments of ``option``: a TrainConfig setting's default, and its type from it."""
+    kwargs = dict(option.kwargs)
+    if option.sets_scenario:
+        value = "true" if kwargs.get("action") == "store_true" else option.dest.upper()
+        return {"help": f"{option.help}; = --set {option.target.removeprefix(SET)}={value}", **kwargs}
+    if "default" in kwargs:  # the row says what its default means
+        return {"help": option.help, **kwargs}
+    default = default_of(option.target)
+    if isinstance(default, bool):  # a switch that turns the default over
+        kwargs.setdefault("action", "store_false" if default else "store_true")
+        return {"help": option.help, "default": default, **kwargs}
+    if not isinstance(default, tuple):
+        kwargs.setdefault("type", non_negative_int if isinstance(default, int) else type(default))
+    shown = f"{option.help} (default: %(default)s)" if default not in ("", ()) else option.help
+    return {"help": shown, "default": default, **kwargs}
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``train``."""
-    defaults = TrainConfig()
+    """Add ``train``: one argument per row of :data:`OPTIONS`, then ``--out``, ``--resume``, ``--set``."""
     parser = subparsers.add_parser(
         "train",
         help="train a policy (PPO/SAC, grid CNN) with logs, evaluation on unseen seeds, checkpoints",
         description="Trains a MultiInputPolicy with the grid CNN extractor on an env id, a shipped "
-        "scenario or a scenario TOML file. Writes model.zip, checkpoints/, eval.csv, logs/ (SB3 CSV, "
-        "TensorBoard when installed) and train.json under --out. The model loads in 'negobs eval policy'.",
+        "scenario or a scenario TOML file, with its settings changed by --set (and the short names "
+        "below). Writes model.zip, checkpoints/, eval.csv, logs/ (SB3 CSV, TensorBoard when "
+        "installed), scenario.toml and train.json under --out. The model loads in 'negobs eval policy'.",
     )
-    parser.add_argument(
-        "--env",
-        default=defaults.env,
-        help="env id, shipped scenario name or scenario TOML path (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--algo",
-        type=str.upper,
-        choices=ALGORITHMS,
-        default=defaults.algo,
-        help="stable-baselines3 algorithm (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--source",
-        choices=SOURCES,
-        default=defaults.source,
-        help="observation: the detectors' grid, the ground-truth grid, or the state vector only "
-        "(default: %(default)s)",
-    )
-    parser.add_argument("--filter", action="store_true", help="train and evaluate behind the Eq. 18 filter")
-    parser.add_argument(
-        "--stop-for-positive",
-        action="store_true",
-        help="with --filter: the filter also stops for the grid's positive-obstacle cells",
-    )
-    parser.add_argument("--steps", type=positive_int, default=defaults.steps, help="total env steps")
-    parser.add_argument("--envs", type=positive_int, default=defaults.envs, help="parallel envs (processes)")
-    parser.add_argument(
-        "--vec-env",
-        choices=VEC_ENVS,
-        default=defaults.vec_env,
-        help="vector env with --envs > 1: build_ahead (SB3's subproc whose idle workers build their "
-        "next episode's world), subproc, or prefetch (spare processes reset the next episodes "
-        "beforehand); docs/performance.md (default: %(default)s)",
-    )
-    parser.add_argument("--seed", type=non_negative_int, default=defaults.seed, help="seed (default: 0)")
-    parser.add_argument(
-        "--steering-modes",
-        type=positive_int,
-        default=defaults.head.modes,
-        metavar="K",
-        help="PPO: the policy proposes K scored steering values and drives the best-scored one, "
-        "so a clone keeps a pass to the left and one to the right apart (1: one Gaussian mean; "
-        "default: %(default)s)",
-    )
-    parser.add_argument(
-        "--steering-bins",
-        type=float,
-        nargs="+",
-        default=(),
-        metavar="EDGE",
-        help="with the K candidates of --steering-modes (or K = edges + 1 without it): candidate k "
-        "learns the steering labels between edges k-1 and k (e.g. -0.3 0.3: pass left, straight "
-        "on, pass right) instead of those nearest to it",
-    )
+    groups: dict[str | None, Any] = {None: parser}
+    for option in OPTIONS:
+        if option.group not in groups:
+            groups[option.group] = parser.add_argument_group(option.group)
+        groups[option.group].add_argument(option.flag, dest=option.dest, **_argparse_kwargs(option))
     parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
-    group = parser.add_argument_group("evaluation and checkpoints")
-    group.add_argument(
-        "--eval-every",
-        type=non_negative_int,
-        default=defaults.eval_every,
-        help="env steps between evaluations, 0 = only at the end (default: %(default)s)",
-    )
-    group.add_argument(
-        "--eval-episodes",
-        type=positive_int,
-        default=defaults.eval_episodes,
-        help="episodes per evaluation, on unseen seeds (default: %(default)s)",
-    )
-    group.add_argument(
-        "--eval-seed",
-        type=non_negative_int,
-        default=defaults.eval_seed,
-        help="first evaluation seed; keep it apart from the seeds of a later 'negobs eval policy' "
-        "when you pick a checkpoint by these evaluations (default: %(default)s)",
-    )
-    group.add_argument(
-        "--checkpoint-every",
-        type=non_negative_int,
-        default=defaults.checkpoint_every,
-        help="env steps between checkpoints, 0 = none (default: %(default)s)",
-    )
-    group = parser.add_argument_group("algorithm")
-    group.add_argument(
-        "--n-steps", type=positive_int, default=defaults.n_steps, help="PPO rollout per env (default: 256)"
-    )
-    group.add_argument("--batch-size", type=positive_int, default=defaults.batch_size, help="minibatch size")
-    group.add_argument("--learning-rate", type=float, default=defaults.learning_rate, help="Adam step size")
-    group.add_argument(
-        "--warm-start-steps",
-        type=non_negative_int,
-        default=defaults.warm_start.steps,
-        help="PPO: first behaviour-clone a scripted driver on this many demonstration steps "
-        "(0 = from scratch; default: %(default)s)",
-    )
-    group.add_argument(
-        "--warm-start-driver",
-        choices=DEMONSTRATORS,
-        default=defaults.warm_start.driver,
-        help="the demonstrator: pure_pursuit follows the centre line; track_planner passes the "
-        "ground-truth obstacles on the track (OffroadNav-v2) (default: %(default)s)",
-    )
-    group.add_argument(
-        "--dagger-rounds",
-        type=non_negative_int,
-        default=defaults.warm_start.dagger_rounds,
-        help="after the clone, rounds of DAgger: the policy drives --warm-start-steps more steps, "
-        "the driver labels them, the policy is refitted on all (default: %(default)s)",
-    )
-    group.add_argument(
-        "--planner-sight-m",
-        type=float,
-        default=defaults.warm_start.planner_sight_m,
-        help="with --warm-start-driver track_planner: how far ahead it sees obstacles, planning "
-        "again as each comes into sight (0 = the whole course; 14 = OffroadNav-v2's oracle range; "
-        "default: %(default)s)",
-    )
-    group.add_argument(
-        "--planner-horizon-m",
-        type=float,
-        default=defaults.warm_start.planner_horizon_m,
-        help="with --warm-start-driver track_planner: > 0 plans again at every step from the car, "
-        "this far ahead, so each label depends only on what the policy can know (e.g. 30 with "
-        "--planner-sight-m 14; 0 = one path, replanned when the car strays; default: %(default)s)",
-    )
-    group.add_argument(
-        "--mirror-demonstrations",
-        action="store_true",
-        help="also fit each demonstrated step's mirror image (grid flipped left-right, steering "
-        "and lateral state negated)",
-    )
-    group.add_argument(
-        "--hold-out-every",
-        type=non_negative_int,
-        default=defaults.warm_start.hold_out_every,
-        metavar="K",
-        help="leave every K-th demonstration episode out of the fit, score it each epoch and keep "
-        "the epoch where its loss is lowest (0 = fit on all; default: %(default)s)",
-    )
-    group.add_argument(
-        "--clone-weight-decay",
-        type=float,
-        default=defaults.warm_start.weight_decay,
-        help="weight decay of the behaviour-cloning fit (AdamW; default: %(default)s)",
-    )
-    group.add_argument(
-        "--demonstrations",
-        default="",
-        metavar="FILE",
-        help="start the warm start from an earlier run's OUT/demonstrations.npz instead of "
-        "collecting --warm-start-steps new steps (DAgger rounds still collect that many each)",
-    )
-    group.add_argument(
-        "--warm-start-workers",
-        type=positive_int,
-        default=defaults.warm_start.workers,
-        metavar="N",
-        help="processes that drive the demonstration episodes, each with its own env; the "
-        "steps are the same for any N (default: %(default)s)",
-    )
-    group.add_argument(
-        "--strong-steer-repeats",
-        type=positive_int,
-        default=defaults.warm_start.strong_steer_repeats,
-        metavar="N",
-        help="fit each demonstrated step that steers harder than --strong-steer (a pass) N times "
-        "per epoch (default: %(default)s)",
-    )
-    group.add_argument(
-        "--strong-steer",
-        type=float,
-        default=defaults.warm_start.strong_steer,
-        help="|steering label| above which a demonstrated step counts as a pass (default: %(default)s)",
-    )
-    group.add_argument(
-        "--action-std",
-        type=float,
-        default=None,
-        help=f"action std after the warm start (default: {defaults.warm_start.action_std}), or of the "
-        "--init model (default: the model's)",
-    )
-    group.add_argument(
-        "--critic-warmup-steps",
-        type=non_negative_int,
-        default=defaults.critic_warmup_steps,
-        help="PPO: only the value function learns for this many env steps, the actor stays as "
-        "cloned or initialised (default: %(default)s)",
-    )
-    group.add_argument(
-        "--target-kl",
-        type=float,
-        default=defaults.target_kl,
-        help="PPO: stop an update's epochs once the KL to the rollout's policy passes 1.5x this "
-        "(0 = no limit; default: %(default)s)",
-    )
-    group.add_argument(
-        "--init",
-        default="",
-        metavar="MODEL",
-        help="start from this trained model (a .zip or a shipped policy's name) instead of a new "
-        "network, e.g. oracle first, then --source detector --filter; the run counts steps from 0 "
-        "and evaluates once before training",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_set_option(parser)
     parser.set_defaults(handler=run_train)
 
 
+def _settings(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
+    """The TrainConfig settings (dotted path -> value) and the ``--set`` assignments the parsed
+    options stand for, in :data:`OPTIONS`' order; the command's own ``--set`` come last."""
+    settings: dict[str, Any] = {}
+    assignments: list[str] = []
+    for option in OPTIONS:
+        value = getattr(args, option.dest)
+        if option.sets_scenario and value in (None, False):
+            continue  # not given: the scenario's own setting
+        meant = option.means.get(value) if option.means else None
+        for target, setting in meant or ((option.target, value),):
+            if target.startswith(SET):
+                assignments.append(f"{target.removeprefix(SET)}={_toml(setting)}")
+            else:
+                settings[target] = setting
+    return settings, [*assignments, *args.overrides]
+
+
+def _toml(value: Any) -> str:
+    """A ``--set`` VALUE: TOML's ``true``/``false`` for a switch, else the text as typed."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _derived(settings: dict[str, Any]) -> dict[str, Any]:
+    """The two settings one option gives another's meaning: ``--steering-bins`` alone give
+    their number of candidates, and ``--action-std`` with ``--init`` sets the init model's std."""
+    edges = settings.get("head.bin_edges", ())
+    if edges and settings.get("head.modes", 1) == 1:
+        settings["head.modes"] = len(edges) + 1
+    action_std = settings.pop("warm_start.action_std", None)
+    if action_std is not None:
+        settings["init_action_std" if settings.get("init_model") else "warm_start.action_std"] = action_std
+    return settings
+
+
+def with_settings(config: Any, settings: Mapping[str, Any]) -> Any:
+    """``config`` (a frozen config dataclass) with each setting at its dotted path changed; each
+    dataclass on the way is rebuilt once, so its own checks see all of its new values together."""
+    own: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = defaultdict(dict)
+    for path, value in settings.items():
+        key, _, rest = path.partition(".")
+        if rest:
+            nested[key][rest] = value
+        else:
+            own[key] = tuple(value) if isinstance(value, list) else value
+    for key, inner in nested.items():
+        own[key] = with_settings(getattr(config, key), inner)
+    return dataclasses.replace(config, **own)
+
+
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The :class:`TrainConfig` of the parsed command line."""
-    defaults = WarmStartConfig()
-    return TrainConfig(
-        env=args.env,
-        algo=args.algo,
-        source=args.source,
-        filter=args.filter,
-        stop_for_positive=args.stop_for_positive,
-        steps=args.steps,
-        envs=args.envs,
-        vec_env=args.vec_env,
-        seed=args.seed,
-        eval_every=args.eval_every,
-        eval_episodes=args.eval_episodes,
-        eval_seed=args.eval_seed,
-        checkpoint_every=args.checkpoint_every,
-        n_steps=args.n_steps,
-        batch_size=args.batch_size,
-        learning_rate=args.learning_rate,
-        head=steering_head(args.steering_modes, args.steering_bins),
-        warm_start=WarmStartConfig(
-            steps=args.warm_start_steps,
-            driver=args.warm_start_driver,
-            dagger_rounds=args.dagger_rounds,
-            planner_sight_m=args.planner_sight_m,
-            planner_horizon_m=args.planner_horizon_m,
-            mirror=args.mirror_demonstrations,
-            hold_out_every=args.hold_out_every,
-            demonstrations=args.demonstrations,
-            workers=args.warm_start_workers,
-            strong_steer=args.strong_steer,
-            strong_steer_repeats=args.strong_steer_repeats,
-            weight_decay=args.clone_weight_decay,
-            action_std=defaults.action_std if args.action_std is None else args.action_std,
-        ),
-        init_model=args.init,
-        init_action_std=args.action_std if args.init and args.action_std is not None else 0.0,
-        critic_warmup_steps=args.critic_warmup_steps,
-        target_kl=args.target_kl,
-        progress=not args.no_progress,
-    )
+    """The :class:`TrainConfig` of the parsed command line.
+
+    Raises:
+        ConfigError: a value the configs refuse (its field).
+    """
+    settings, overrides = _settings(args)
+    return with_settings(TrainConfig(), {**_derived(settings), "overrides": tuple(overrides)})
 
 
 def run_train(args: argparse.Namespace) -> int:
     """Train; print the result line."""
     from negobs_gym.policies.training import train
-    from negobs_gym.scenarios import describe_overrides, env_with_overrides
+    from negobs_gym.spec import describe_overrides
 
     config = config_from_args(args)
-    label_env = config.env  # the env as named, before --set writes its scenario
-    label = describe_overrides(config.env, args.overrides)
-    if args.overrides:  # the changed scenario, written to OUT/scenario.toml, is what trains
-        config = dataclasses.replace(config, env=env_with_overrides(config.env, args.overrides, args.out))
     log.info(
-        "training %s on %s (%s%s), %d steps, %d env(s) -> %s",
+        "training %s on %s%s, %d steps, %d env(s) -> %s",
         config.algo,
-        label,
-        config.source,
-        (", filter" + (" + positive" if config.stop_for_positive else "")) if config.filter else "",
+        describe_overrides(config.env, config.overrides),
+        "" if config.grid_input else " (state only)",
         config.steps,
         config.envs,
         args.out,
     )
-    result = train(config, args.out, resume=args.resume, fitted_on=(label_env, args.overrides))
+    result = train(config, args.out, resume=args.resume)
     e = result.last_eval
     print(
         f"model={result.model_path} steps={result.steps} wall_s={result.wall_s:.1f} "

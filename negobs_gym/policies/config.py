@@ -6,27 +6,41 @@ no value below comes from them. Each is a choice, with its reason beside it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass, field
+import warnings
+from collections.abc import Mapping
+from dataclasses import InitVar, dataclass, field
+from typing import Any
 
-from negobs_gym.errors import require
+from negobs_gym.errors import ConfigError, require
 
 __all__ = [
     "ALGORITHMS",
     "DEMONSTRATORS",
     "SOURCES",
     "STEERING",
+    "TRAINING_DEFAULTS",
     "GridCnnConfig",
     "SteeringHeadConfig",
     "TrainConfig",
     "WarmStartConfig",
+    "config_from_record",
+    "legacy_settings",
+    "source_settings",
     "steering_head",
 ]
 
 #: stable-baselines3 algorithms ``negobs train`` offers (both take a continuous Box action).
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
-#: ``state`` drops the grid; the env then runs the oracle grid, the cheapest, whose output is unused.
+#: ``negobs train --source``: the scenario's grid source (``observation.source``), or ``state``
+#: (:func:`source_settings`).
 SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
+#: Scenario settings a training run starts from, before its own ``overrides``: no safety filter,
+#: whatever the scene's ``[run]`` table says. That table sets up ``negobs scenario run``'s test,
+#: which runs behind the filter by default; a policy trains without it unless its overrides say
+#: ``run.filter=true`` (``negobs train --filter``).
+TRAINING_DEFAULTS: tuple[str, ...] = ("run.filter=false", "run.stop_for_positive=false")
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
 VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
@@ -80,7 +94,7 @@ class SteeringHeadConfig:
             it outputs K steering values and a score for each, and drives the best-scored one:
             a pass to the left and one to the right stay two candidates instead of being
             averaged into a drive straight on, which a mean-squared fit does where the
-            demonstrator's choice of side is a sharp function of the grid (docs/training_studies.md,
+            demonstrator's choice of side is a sharp function of the grid (docs/notebook/training_studies.md,
             "Where the clones' drives leave the expert's").
         bin_edges: Which candidate learns a label in the behaviour-cloning fit. Empty: the
             candidate nearest the label (multiple-choice learning). K - 1 increasing steering
@@ -172,7 +186,7 @@ class WarmStartConfig:
         workers: Processes that drive the demonstration episodes, each with its own env (and copy
             of the policy in DAgger rounds); the steps are the same for any count.
         strong_steer: A demonstrated step whose steering label exceeds this in magnitude counts
-            as a pass (0.3: where the clones fall short of the expert, docs/training_studies.md,
+            as a pass (0.3: where the clones fall short of the expert, docs/notebook/training_studies.md,
             "Where the clones' drives leave the expert's").
         strong_steer_repeats: How often each pass step enters every epoch of the fit (1: once,
             like any step). Passes are a third of the steps; a mean-squared fit averages them with
@@ -259,14 +273,18 @@ class WarmStartConfig:
 class TrainConfig:
     """One training run. The RL papers' defaults are SB3's; the fields that differ say why.
 
+    The env is ``env``'s scenario spec with :data:`TRAINING_DEFAULTS`, then ``overrides``, applied:
+    the one description of what trains, including the grid source (``observation.source``) and
+    the safety filter (``run.filter``, ``run.stop_for_positive``), which the run reads from it.
+
     Attributes:
         env: A registered negobs env id, a shipped scenario name or a scenario TOML path.
+        overrides: ``KEY.PATH=VALUE`` settings of that scenario changed, in order (the commands'
+            ``--set``; :func:`negobs_gym.spec.apply_overrides`), e.g.
+            ``("observation.source=oracle", "run.filter=true")``.
+        grid_input: The policy sees the grid; False: the state vector alone (``--source state``;
+            the env still computes its grid, for the filter and ``info``).
         algo: ``"PPO"`` or ``"SAC"``.
-        source: ``"detector"`` (the detectors' grid, as on the vehicle), ``"oracle"`` (ground
-            truth grid) or ``"state"`` (no grid).
-        filter: Train behind the braking safety filter (and evaluate with it).
-        stop_for_positive: With ``filter``: the filter also stops for the grid's positive-obstacle
-            cells (:class:`~negobs_gym.safety.SafetyFilterConfig`).
         steps: Total env steps (over all envs).
         envs: Parallel envs (processes when > 1, see ``vec_env``).
         vec_env: With ``envs`` > 1: ``"build_ahead"``
@@ -277,7 +295,7 @@ class TrainConfig:
             inside the lockstep while the other envs wait; the same episodes as ``build_ahead``)
             or ``"prefetch"`` (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process
             per env resets the next episode beforehand; twice the processes and memory; another
-            episode stream from the same seed). Rates: docs/performance.md, "Vector envs".
+            episode stream from the same seed). Rates: docs/notebook/performance.md, "Vector envs".
         seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
         eval_every: Env steps between evaluations (0: only at the end).
         eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
@@ -307,7 +325,7 @@ class TrainConfig:
             learns; the features extractor, the actor and its log_std stay frozen. A cloned or
             ``init_model`` actor otherwise takes its first updates from a random critic's
             advantages, which on OffroadNav-v2 undid the clone within 10 k steps
-            (docs/training_studies.md). 0: none.
+            (docs/notebook/training_studies.md). 0: none.
         target_kl: PPO: stop an update's epochs once the approximate KL divergence to the
             rollout's policy exceeds 1.5 x this (SB3's ``target_kl``); keeps a fine-tuned actor
             near the one that collected the data. 0: no limit (SB3's default).
@@ -318,10 +336,9 @@ class TrainConfig:
     """
 
     env: str = "negobs_gym/OffroadNav-v0"
+    overrides: tuple[str, ...] = ()
+    grid_input: bool = True
     algo: str = "PPO"
-    source: str = "detector"
-    filter: bool = False
-    stop_for_positive: bool = False
     steps: int = 100_000
     envs: int = 1
     vec_env: str = "build_ahead"
@@ -344,15 +361,36 @@ class TrainConfig:
     target_kl: float = 0.0
     torch_threads: int = 1
     progress: bool = True
+    # Deprecated (one release): the copies of scenario settings TrainConfig held, translated
+    # into `overrides` and `grid_input` (legacy_settings).
+    source: InitVar[str | None] = None
+    filter: InitVar[bool | None] = None
+    stop_for_positive: InitVar[bool | None] = None
 
-    def __post_init__(self) -> None:
-        require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
-        require(self.source in SOURCES, "source", f"unknown source {self.source!r}; one of {SOURCES}")
+    def __post_init__(self, source: str | None, filter: bool | None, stop_for_positive: bool | None) -> None:
+        old = {"source": source, "filter": filter, "stop_for_positive": stop_for_positive}
+        given = {k: v for k, v in old.items() if v is not None}
+        if given:
+            overrides, grid_input = legacy_settings(**given)
+            warnings.warn(
+                f"TrainConfig({'=..., '.join(given)}=...) is deprecated: give the scenario settings as "
+                f"overrides={overrides!r} and the policy's input as grid_input={grid_input}",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            object.__setattr__(self, "overrides", (*self.overrides, *overrides))
+            object.__setattr__(self, "grid_input", grid_input and self.grid_input)
         require(
-            isinstance(self.stop_for_positive, bool) and (self.filter or not self.stop_for_positive),
-            "stop_for_positive",
-            f"must be a bool and needs filter, got {self.stop_for_positive!r} with filter={self.filter!r}",
+            isinstance(self.env, str) and bool(self.env), "env", f"must be a non-empty text, got {self.env!r}"
         )
+        require(
+            isinstance(self.overrides, tuple)
+            and all(isinstance(o, str) and "=" in o for o in self.overrides),
+            "overrides",
+            f"must be a tuple of KEY.PATH=VALUE texts (the --set paths), got {self.overrides!r}",
+        )
+        require(isinstance(self.grid_input, bool), "grid_input", f"must be a bool, got {self.grid_input!r}")
+        require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
         require(
             self.vec_env in VEC_ENVS, "vec_env", f"unknown vector env {self.vec_env!r}; one of {VEC_ENVS}"
         )
@@ -412,3 +450,73 @@ class TrainConfig:
             "init_model",
             "starts from trained weights: no warm start with it (no warm_start steps or demonstrations)",
         )
+
+
+def source_settings(source: str) -> tuple[tuple[str, ...], bool]:
+    """``(overrides, grid_input)`` of a training run's ``--source``: the scenario's grid source
+    (``observation.source=detector`` or ``oracle``), or ``state``, no grid in the policy's input
+    and the oracle's grid, the cheapest, in the env (as :func:`negobs_gym.envs.source_overrides`).
+
+    Raises:
+        ConfigError: not one of :data:`SOURCES` (field ``source``).
+    """
+    require(source in SOURCES, "source", f"unknown source {source!r}; one of {SOURCES}")
+    grid_input = source != "state"
+    return (f"observation.source={source if grid_input else 'oracle'}",), grid_input
+
+
+def legacy_settings(
+    source: str | None = None,
+    filter: bool | None = None,  # the old field's name
+    stop_for_positive: bool | None = None,
+) -> tuple[tuple[str, ...], bool]:
+    """``(overrides, grid_input)`` for the scenario settings a :class:`TrainConfig` and its
+    ``train.json`` copied before they were read from the spec: ``source`` as
+    :func:`source_settings`, ``filter`` as ``run.filter``, ``stop_for_positive`` as
+    ``run.stop_for_positive`` (None: not given).
+
+    Raises:
+        ConfigError: a value of the wrong kind (the old field's name and its new path).
+    """
+    overrides, grid_input = source_settings(source) if source is not None else ((), True)
+    for name, value in (("filter", filter), ("stop_for_positive", stop_for_positive)):
+        if value is not None:
+            require(isinstance(value, bool), name, f"(now run.{name}) must be a bool, got {value!r}")
+            overrides += (f"run.{name}={str(value).lower()}",)
+    return overrides, grid_input
+
+
+def config_from_record(record: Mapping[str, Any]) -> TrainConfig:
+    """The :class:`TrainConfig` of a ``train.json``'s ``"config"`` table, written by this version
+    or an earlier one: the scenario settings earlier versions copied (``source``, ``filter``,
+    ``stop_for_positive``) become ``overrides`` after the recorded ones, and ``grid_input``
+    (:func:`legacy_settings`).
+
+    Raises:
+        ConfigError: a key no version had (its path), or a value the configs refuse.
+    """
+    data = dict(record)
+    old = {k: data.pop(k) for k in ("source", "filter", "stop_for_positive") if k in data}
+    overrides, grid_input = legacy_settings(**old)
+    data["overrides"] = (*data.get("overrides", ()), *overrides)
+    data["grid_input"] = data.get("grid_input", True) if grid_input else False
+    return _from_dict(TrainConfig, data, "config")
+
+
+def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
+    """``cls`` (a config dataclass) from its :func:`dataclasses.asdict` form read back from JSON:
+    nested configs from their tables, lists as tuples."""
+    defaults = cls()
+    names = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(data) - set(names))
+    if unknown:
+        raise ConfigError(f"{where}.{unknown[0]}", f"no such setting; {cls.__name__} has {', '.join(names)}")
+    values = {}
+    for name, value in data.items():
+        default = getattr(defaults, name)
+        if dataclasses.is_dataclass(default) and isinstance(value, Mapping):
+            value = _from_dict(type(default), value, f"{where}.{name}")
+        elif isinstance(default, tuple) and isinstance(value, list):
+            value = tuple(value)
+        values[name] = value
+    return cls(**values)

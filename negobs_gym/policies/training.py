@@ -1,11 +1,12 @@
 """Train a navigation policy on a negobs env: what ``negobs train`` and ``examples/train_ppo.py`` run.
 
-:func:`train` builds ``envs`` copies of the env (an env id, a shipped scenario or a TOML spec)
-with the observation source asked for, each optionally behind the Eq. 18
-:class:`~negobs_gym.safety.BrakingSafetyFilter` and always behind
-:class:`~negobs_gym.policies.PolicyObservation`; trains PPO or SAC with ``MultiInputPolicy`` and
-:class:`~negobs_gym.policies.extractor.GridStateExtractor`; logs SB3's CSV (and TensorBoard when
-``tensorboard`` is installed); evaluates on unseen seeds every ``eval_every`` steps into
+:func:`train` builds ``envs`` copies of the run's env (an env id, a shipped scenario or a TOML
+spec, with :data:`~negobs_gym.policies.config.TRAINING_DEFAULTS` and the run's ``overrides``
+applied: :func:`training_spec`), each behind the Eq. 18
+:class:`~negobs_gym.safety.BrakingSafetyFilter` where that spec's ``run.filter`` says so and always
+behind :class:`~negobs_gym.policies.PolicyObservation`; trains PPO or SAC with ``MultiInputPolicy``
+and :class:`~negobs_gym.policies.extractor.GridStateExtractor`; logs SB3's CSV (and TensorBoard
+when ``tensorboard`` is installed); evaluates on unseen seeds every ``eval_every`` steps into
 ``eval.csv``; saves checkpoints, and resumes from the latest one.
 
 Output folder::
@@ -14,6 +15,7 @@ Output folder::
     checkpoints/model_<N>.zip every ``checkpoint_every`` env steps
     eval.csv                  one row per evaluation (callbacks.EVAL_COLUMNS)
     logs/<start step>/        SB3 logger: progress.csv (+ TensorBoard events)
+    scenario.toml             the scenario the run trains on, every override applied
     train.json                the config, steps done, wall time and steps/s of the last session
 """
 
@@ -27,7 +29,7 @@ import json
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,18 +38,30 @@ import gymnasium as gym
 import torch
 
 import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env workers)
+from negobs_gym.core.files import write_text_atomic
 from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
-from negobs_gym.envs import make_env, source_overrides
+from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
-from negobs_gym.policies.config import TrainConfig
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
+from negobs_gym.policies.config import TRAINING_DEFAULTS, TrainConfig, config_from_record
 from negobs_gym.policies.extractor import GridStateExtractor
 from negobs_gym.policies.observation import PolicyDriver, PolicyObservation
 from negobs_gym.policies.threads import torch_threads
-from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, filter_config
+from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.spec import ScenarioSpec, apply_overrides, describe_overrides, spec_for_env, spec_to_toml
+from negobs_gym.spec.overrides import recorded_env_in
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TrainResult", "make_training_env", "train"]
+__all__ = [
+    "TrainResult",
+    "filter_setting",
+    "make_training_env",
+    "run_filter",
+    "train",
+    "training_overrides",
+    "training_spec",
+]
 
 
 @dataclass(frozen=True)
@@ -62,35 +76,65 @@ class TrainResult:
     last_eval: dict[str, float]
 
 
-def make_training_env(
-    env: str, source: str, use_filter: bool | SafetyFilterConfig, overrides: Sequence[str] = ()
-) -> gym.Env:
-    """One training env: :func:`negobs_gym.envs.make_env` with grid ``source`` and ``overrides``,
-    the safety filter if asked (True: its defaults, or a :class:`SafetyFilterConfig`), and
-    :class:`PolicyObservation`."""
-    task = make_env(env, [*source_overrides(source), *overrides])
-    settings = filter_config(use_filter)
+def training_overrides(config: TrainConfig) -> list[str]:
+    """The assignments a run applies to its env's scenario: :data:`TRAINING_DEFAULTS`, then its own."""
+    return [*TRAINING_DEFAULTS, *config.overrides]
+
+
+def training_spec(config: TrainConfig) -> ScenarioSpec:
+    """The scenario ``config`` trains on: its env's spec with :func:`training_overrides` applied.
+
+    Raises:
+        ConfigError: an unknown env, or a bad assignment (its full path).
+    """
+    return apply_overrides(spec_for_env(config.env), training_overrides(config))
+
+
+def run_filter(spec: ScenarioSpec) -> SafetyFilterConfig | None:
+    """The safety filter a training run's env and evaluation drive behind, as ``spec``'s ``run``
+    table says: None without ``run.filter``.
+
+    Raises:
+        ConfigError: ``run.stop_for_positive`` without ``run.filter`` (it would do nothing).
+    """
+    if not spec.run.filter:
+        if spec.run.stop_for_positive:
+            raise ConfigError(
+                "run.stop_for_positive", "needs the filter: set run.filter=true (negobs train --filter) too"
+            )
+        return None
+    return SafetyFilterConfig(stop_for_positive=spec.run.stop_for_positive)
+
+
+def make_training_env(env: str, overrides: Sequence[str] = (), grid_input: bool = True) -> gym.Env:
+    """One training env: :func:`negobs_gym.envs.make_env` of ``env`` with
+    :data:`TRAINING_DEFAULTS` and then ``overrides`` applied, behind the safety filter where the
+    resulting spec's ``run.filter`` says so (:func:`run_filter`), and behind
+    :class:`PolicyObservation` (the grid dropped when not ``grid_input``)."""
+    task = make_env(env, [*TRAINING_DEFAULTS, *overrides])
+    settings = run_filter(task.unwrapped.scenario)
     if settings is not None:
         task = BrakingSafetyFilter(task, config=settings)
-    return PolicyObservation(task, grid=source != "state")
+    return PolicyObservation(task, grid=grid_input)
 
 
 def filter_setting(config: TrainConfig) -> bool | SafetyFilterConfig:
-    """The run's filter: False, or the settings it trains and evaluates behind."""
-    return SafetyFilterConfig(stop_for_positive=config.stop_for_positive) if config.filter else False
+    """The run's filter, from its spec: False, or the settings it trains and evaluates behind."""
+    return run_filter(training_spec(config)) or False
 
 
 def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
     """``config.eval_episodes`` episodes of ``model`` on fresh raw envs (as ``negobs eval policy``)."""
-    from negobs_gym.eval.braking_campaign import run_driven_episode
-
     results = []
     for k in range(config.eval_episodes):
-        env = make_env(config.env, source_overrides(config.source))
+        env = make_env(config.env, training_overrides(config))
         max_steps = env.unwrapped.scenario.episode.max_episode_steps
         driver = PolicyDriver(model)
         guard = filter_setting(config)
-        results.append(run_driven_episode(env, driver, config.eval_seed + k, guard, max_steps))
+        stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
+        with contextlib.closing(env):
+            result = drive_episode(env, driver, seed=config.eval_seed + k, filter=guard, stop=stop)
+        results.append(result.metrics())
     return results
 
 
@@ -104,7 +148,7 @@ def logger_formats() -> list[str]:
 
 def _env_factory(config: TrainConfig) -> Callable[[], gym.Env]:
     """A picklable maker of the run's training env, for worker processes."""
-    return functools.partial(make_training_env, config.env, config.source, filter_setting(config))
+    return functools.partial(make_training_env, config.env, config.overrides, config.grid_input)
 
 
 def _vec_env(config: TrainConfig):
@@ -165,26 +209,20 @@ def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int])
         return stable_baselines3.SAC(policy, venv, buffer_size=config.buffer_size, **common)
 
 
-#: Fields that must match between a run and the run it resumes.
-_RESUME_FIELDS = ("env", "algo", "source", "filter", "stop_for_positive", "init_model")
+#: Settings besides the scenario that must match between a run and the run it resumes.
+_RESUME_FIELDS = ("algo", "grid_input", "init_model")
 
 
-def train(
-    config: TrainConfig,
-    out_dir: str | Path,
-    *,
-    resume: bool = False,
-    fitted_on: tuple[str, Sequence[str]] | None = None,
-) -> TrainResult:
+def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> TrainResult:
     """Train (or resume) as ``config`` says; files under ``out_dir`` (module docstring).
 
     Every saved zip records the env it was fitted on (:data:`~negobs_gym.drivers.zoo.FITTED_ON`):
-    ``fitted_on`` as (env, ``--set`` assignments) when ``config.env`` is a scenario written from
-    them (``negobs train --set``), else ``config.env`` alone.
+    ``config.env`` and ``config.overrides``, which ``negobs eval policy`` applies by default.
 
     Raises:
-        ConfigError: unknown env; ``resume`` without a checkpoint, or with a different env,
-            algorithm, source or filter; nothing left to train; a new run into a folder that
+        ConfigError: unknown env or bad override; ``resume`` without a checkpoint, or with
+            another scenario (any setting, the grid source and the filter included), algorithm,
+            policy input or init model; nothing left to train; a new run into a folder that
             holds checkpoints.
     """
     import stable_baselines3
@@ -200,14 +238,16 @@ def train(
     )
 
     out = Path(out_dir)
-    probe = make_training_env(config.env, config.source, filter_setting(config))  # fails early on a bad env
-    grid_shape = probe.grid_shape
+    probe = _env_factory(config)()  # fails early on a bad env or override
+    grid_shape, spec = probe.grid_shape, probe.unwrapped.scenario
     probe.close()
     checkpoint = latest_checkpoint(out / "checkpoints")
     if resume:
-        _check_resume(config, out, checkpoint)
+        _check_resume(config, spec, out, checkpoint)
     elif checkpoint is not None:  # a later --resume would mix the two runs
         raise ConfigError("out", f"{out} holds checkpoints of an earlier run: use --resume or another --out")
+    if not (resume and (out / "scenario.toml").is_file()):  # what the run trains on, for the record
+        write_text_atomic(out / "scenario.toml", spec_to_toml(spec))
     venv = _vec_env(config)
     with torch_threads(config.torch_threads), contextlib.closing(venv):
         if checkpoint is not None:
@@ -220,7 +260,7 @@ def train(
         else:
             model = _new_model(config, venv, grid_shape)
             warm = _warm_start(model, config, out)
-        setattr(model, FITTED_ON, fitted_on_record(*(fitted_on or (config.env,))))
+        setattr(model, FITTED_ON, fitted_on_record(config.env, config.overrides))
         if warm and checkpoint is None:  # the cloned policy before any PPO update, for eval
             save_model_atomic(model, out / "warm_start.zip")
         start_step = model.num_timesteps
@@ -288,7 +328,8 @@ def _init_model(config: TrainConfig, venv: Any) -> Any:
             **({"target_kl": config.target_kl or None} if config.algo == "PPO" else {}),
         )
     except (ValueError, TypeError) as error:  # SB3: space mismatch (ValueError), other algorithm (TypeError)
-        fit = f"{path} does not fit this run ({config.algo}, {config.env}, source {config.source})"
+        run = describe_overrides(config.env, config.overrides)
+        fit = f"{path} does not fit this run ({config.algo}, {run}, grid input {config.grid_input})"
         raise ConfigError("init_model", f"{fit}: {error}") from error
     model.num_timesteps = 0
     model.set_random_seed(config.seed)
@@ -420,8 +461,6 @@ def _previous_warm_start(out: Path) -> dict[str, Any]:
 
 def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
     """``train.json``: the config and progress (written at the start too, for ``--resume``)."""
-    from negobs_gym.core.files import write_text_atomic
-
     wall_s = session.get("wall_s")
     record = {
         "config": dataclasses.asdict(config),
@@ -435,15 +474,35 @@ def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, *
     write_text_atomic(out / "train.json", json.dumps(record, indent=1, sort_keys=True))
 
 
-def _check_resume(config: TrainConfig, out: Path, checkpoint: Path | None) -> None:
+def _check_resume(config: TrainConfig, spec: ScenarioSpec, out: Path, checkpoint: Path | None) -> None:
+    """A resumed run must train what the run in ``out`` trained: the same scenario once every
+    override is applied (so ``--source oracle`` and ``--set observation.source=oracle`` agree),
+    algorithm, policy input and init model. Its ``train.json`` may be of an earlier version
+    (:func:`~negobs_gym.policies.config.config_from_record`)."""
     if checkpoint is None:
         raise ConfigError("resume", f"no checkpoint under {out / 'checkpoints'} to resume from")
     record = out / "train.json"
-    if record.exists():
-        before = json.loads(record.read_text(encoding="utf-8"))["config"]
-        defaults = {"stop_for_positive": False}  # runs recorded before the field existed
-        differ = [k for k in _RESUME_FIELDS if before.get(k, defaults.get(k)) != getattr(config, k)]
-        if differ:
-            raise ConfigError(
-                "resume", f"{differ} differ from the run in {out}: {[before.get(k) for k in differ]}"
-            )
+    if not record.exists():
+        return
+    before = config_from_record(json.loads(record.read_text(encoding="utf-8"))["config"])
+    env = recorded_env_in(before.env, out)  # an earlier version's --set run trained on OUT/scenario.toml
+    before_spec = training_spec(dataclasses.replace(before, env=env))
+    differ = {
+        f"{k}": (getattr(before, k), getattr(config, k))
+        for k in _RESUME_FIELDS
+        if getattr(before, k) != getattr(config, k)
+    }
+    differ.update(_spec_differences(before_spec.to_dict(), spec.to_dict()))
+    if differ:
+        listed = "; ".join(f"{k}: {old!r} there, {new!r} now" for k, (old, new) in differ.items())
+        raise ConfigError("resume", f"this run differs from the run in {out}: {listed}")
+
+
+def _spec_differences(before: Any, now: Any, path: str = "") -> dict[str, tuple[Any, Any]]:
+    """The ``--set`` paths whose values differ between two :meth:`ScenarioSpec.to_dict` tables."""
+    if isinstance(before, Mapping) and isinstance(now, Mapping):
+        found: dict[str, tuple[Any, Any]] = {}
+        for key in sorted(set(before) | set(now), key=str):
+            found.update(_spec_differences(before.get(key), now.get(key), f"{path}{key}."))
+        return found
+    return {} if before == now else {path.rstrip("."): (before, now)}

@@ -1,4 +1,5 @@
-"""train(): SAC on the state alone from a scenario TOML, resume, and what a resumed run must match."""
+"""train(): SAC on the state alone from a scenario TOML, resume, and what a resumed run must match;
+a run's env is its scenario with the overrides applied, and old train.json records still resume."""
 
 from __future__ import annotations
 
@@ -11,20 +12,32 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.callbacks import latest_checkpoint
 from negobs_gym.policies.config import TrainConfig, WarmStartConfig
-from negobs_gym.policies.training import filter_setting, make_env, make_task_env, train
-from negobs_gym.safety import SafetyFilterConfig
+from negobs_gym.policies.training import (
+    filter_setting,
+    make_training_env,
+    run_filter,
+    train,
+    training_overrides,
+    training_spec,
+)
+from negobs_gym.safety import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.spec import Range, load_scenario, spec_from_toml
+
+ORACLE = ("observation.source=oracle",)
 
 
 def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
     spec = tmp_path / "my_braking.toml"
-    shutil.copy(resources.files("negobs_gym.scenarios").joinpath("scenes/braking_v1.toml"), spec)
+    shutil.copy(resources.files("negobs_gym.spec").joinpath("scenes/braking_v1.toml"), spec)
     config = TrainConfig(
         env=str(spec),
         algo="SAC",
-        source="state",
+        overrides=ORACLE,
+        grid_input=False,
         steps=120,
         batch_size=32,
         eval_every=100,
@@ -43,6 +56,13 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
     table = [line.split(",") for line in rows]
     drop = table[0].index("off_track")
     first.eval_csv.write_text("\n".join(",".join(r[:drop] + r[drop + 1 :]) for r in table) + "\n")
+    # a train.json of the version that copied source and filter into the config: translated
+    record = json.loads((out / "train.json").read_text())
+    assert record["config"]["overrides"] == list(ORACLE) and record["config"]["grid_input"] is False
+    for key in ("overrides", "grid_input"):
+        del record["config"][key]
+    record["config"].update(source="state", filter=False, stop_for_positive=False)
+    (out / "train.json").write_text(json.dumps(record))
     second = train(dataclasses.replace(config, steps=180), out, resume=True)
     assert second.steps == 180
     rows = second.eval_csv.read_text().splitlines()
@@ -57,8 +77,17 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
     model = SAC.load(second.model_path, device="cpu")
     assert list(model.observation_space.spaces) == ["state"] and model.num_timesteps == 180
 
-    with pytest.raises(ConfigError, match="resume"):
-        train(dataclasses.replace(config, steps=240, source="oracle"), out, resume=True)
+    with pytest.raises(ConfigError, match="grid_input: False there, True now"):
+        train(dataclasses.replace(config, steps=240, grid_input=True), out, resume=True)
+    detector = ("observation.source=detector",)
+    with pytest.raises(ConfigError, match=r"observation\.source: 'oracle' there, 'detector' now"):
+        train(dataclasses.replace(config, steps=240, overrides=detector), out, resume=True)
+    with pytest.raises(ConfigError, match=r"run\.filter: False there, True now"):
+        train(
+            dataclasses.replace(config, steps=240, overrides=(*ORACLE, "run.filter=true")), out, resume=True
+        )
+    # the same scenario spelt otherwise resumes: the spec's own grid source is the detectors'
+    assert spec_from_toml(spec.read_text()).observation.source == "detector"
     with pytest.raises(ConfigError, match="nothing to train"):
         train(dataclasses.replace(config, steps=150), out, resume=True)
 
@@ -66,7 +95,7 @@ def test_sac_state_only_from_a_toml_spec_resumes(tmp_path: Path) -> None:
 #: A short PPO run on the oracle grid: 64-step rollouts, one evaluation episode at the end.
 SHORT_PPO = TrainConfig(
     env="negobs_gym/Braking-v1",
-    source="oracle",
+    overrides=ORACLE,
     steps=128,
     n_steps=64,
     eval_every=0,
@@ -106,12 +135,13 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, short
 
     base, first = dataclasses.replace(SHORT_PPO, steps=64), short_ppo_64
     tuned = dataclasses.replace(
-        base, source="state", init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
+        base, grid_input=False, init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
     )
     with pytest.raises(ConfigError, match="init_model"):  # the state-only policy has no grid input
         train(tuned, tmp_path / "bad")
 
-    tuned = dataclasses.replace(tuned, source="detector", steps=64, n_steps=32)
+    detector = ("observation.source=detector",)
+    tuned = dataclasses.replace(tuned, grid_input=True, overrides=detector, steps=64, n_steps=32)
     second = train(tuned, tmp_path / "detector")
     rows = second.eval_csv.read_text().splitlines()[1:]
     assert [r.split(",")[0] for r in rows] == ["0", "64"]  # the init model's row first; steps from 0
@@ -125,7 +155,7 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, short
         train(dataclasses.replace(base, init_model="no_such_policy"), tmp_path / "missing")
     from stable_baselines3 import SAC
 
-    env = make_env(base.env, "oracle", use_filter=False)
+    env = make_training_env(base.env, base.overrides)
     SAC("MultiInputPolicy", env, buffer_size=10, device="cpu").save(tmp_path / "sac.zip")
     env.close()
     with pytest.raises(ConfigError, match="init_model"):  # a SAC model as the start of a PPO run
@@ -182,14 +212,15 @@ def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: P
         ({"algo": "SAC", "target_kl": 0.01}, "target_kl"),
         ({"init_action_std": 0.1}, "init_action_std"),  # without init_model
         ({"init_model": "m.zip", "init_action_std": -0.1}, "init_action_std"),
-        ({"source": "lidar"}, "source"),
+        ({"overrides": ("observation.source",)}, "overrides"),  # no =VALUE
+        ({"overrides": "observation.source=oracle"}, "overrides"),  # one text, not a tuple of them
+        ({"grid_input": 1}, "grid_input"),
+        ({"env": ""}, "env"),
         ({"steps": 0}, "steps"),
         ({"envs": 0}, "envs"),
         ({"vec_env": "async"}, "vec_env"),
         ({"learning_rate": 0.0}, "learning_rate"),
         ({"eval_every": -1}, "eval_every"),
-        ({"stop_for_positive": True}, "stop_for_positive"),  # without filter
-        ({"filter": True, "stop_for_positive": 1}, "stop_for_positive"),
     ],
 )
 def test_bad_config_names_its_field(kwargs: dict, field: str) -> None:
@@ -197,40 +228,135 @@ def test_bad_config_names_its_field(kwargs: dict, field: str) -> None:
         TrainConfig(**kwargs)
 
 
-def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
-    env = make_env("paper_n_three_pits", "oracle", use_filter=True)
-    assert env.unwrapped.config.observation.source == "oracle" and env.grid_shape == (4, 36, 16)
-    assert env.env.config == SafetyFilterConfig()  # the policy observation wraps the filter
+def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> None:
+    env = make_training_env("paper_n_three_pits", (*ORACLE, "run.filter=true"))
+    assert env.unwrapped.scenario.observation.source == "oracle" and env.grid_shape == (4, 36, 16)
+    assert isinstance(env.env, BrakingSafetyFilter)  # the policy observation wraps the filter
+    assert env.env.config == SafetyFilterConfig()
     env.close()
-    config = TrainConfig(env="paper_n_three_pits", filter=True, stop_for_positive=True)
-    env = make_env(config.env, "oracle", use_filter=filter_setting(config))
+    config = TrainConfig(env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=1"))
+    with pytest.raises(ConfigError, match=r"run\.filter"):  # a bad value named by its path
+        filter_setting(config)
+    config = TrainConfig(
+        env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=true", "run.stop_for_positive=true")
+    )
+    assert filter_setting(config) == SafetyFilterConfig(stop_for_positive=True)
+    env = make_training_env(config.env, config.overrides)
     assert env.env.config.stop_for_positive
     env.close()
+    # the scene's [run] table says filter = true (its scenario test); a run trains without it unless told
+    assert load_scenario("paper_n_three_pits").run.filter
+    plain = TrainConfig(env="paper_n_three_pits", overrides=ORACLE)
+    assert not training_spec(plain).run.filter and filter_setting(plain) is False
+    env = make_training_env(plain.env, plain.overrides)
+    assert not isinstance(env.env, BrakingSafetyFilter)
+    env.close()
+    # the rock scene's run table stops for positive obstacles: only with the filter asked for
+    rock = TrainConfig(env="rock_on_track_25kmh", overrides=("run.filter=true",))
+    assert filter_setting(rock) == SafetyFilterConfig(stop_for_positive=False)
+    with pytest.raises(ConfigError, match=r"run\.stop_for_positive: needs the filter"):
+        run_filter(training_spec(TrainConfig(overrides=("run.stop_for_positive=true",))))
+
+
+def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="unknown env 'nope'"):
-        make_task_env("nope", "oracle")
+        make_training_env("nope")
     with pytest.raises(ConfigError, match="unknown env"):
-        make_task_env(str(tmp_path / "missing.toml"), "oracle")
+        make_training_env(str(tmp_path / "missing.toml"), ORACLE)
     with pytest.raises(ConfigError, match="not a negobs_gym env"):
-        make_task_env("CartPole-v1", "oracle")
+        make_training_env("CartPole-v1")
+    with pytest.raises(ConfigError, match=r"observation\.tighten_pair"):
+        make_training_env("negobs_gym/OffroadTrack-v0", ["observation.tighten_pair=true"])
 
 
-def test_task_env_takes_overrides_for_ids_and_scenarios() -> None:
+def test_the_env_factory_takes_overrides_for_ids_and_scenarios() -> None:
     from negobs_gym.envs.scenarios import OffroadNavV2Env
 
-    env = make_task_env("negobs_gym/OffroadTrack-v0", "detector", ["observation.tighten_pairs=false"])
-    assert type(env) is OffroadNavV2Env and env.scenario.name == "offroad_nav_v2"
-    assert not env.config.observation.tighten_pairs and env.config.observation.source == "detector"
-    plain = make_task_env("negobs_gym/OffroadTrack-v0", "detector")
-    assert plain.unwrapped.config.observation.tighten_pairs
-    observation = plain.unwrapped.config.observation
-    assert env.config.observation == dataclasses.replace(observation, tighten_pairs=False)
+    env = make_env(
+        "negobs_gym/OffroadTrack-v0", ["observation.source=detector", "observation.tighten_pairs=false"]
+    )
+    assert type(env.unwrapped) is OffroadNavV2Env and env.unwrapped.scenario.name == "offroad_nav_v2"
+    changed = env.unwrapped.scenario.observation
+    assert not changed.tighten_pairs and changed.source == "detector"
+    plain = make_env("negobs_gym/OffroadTrack-v0", source_overrides("detector"))
+    observation = plain.unwrapped.scenario.observation
+    assert observation.tighten_pairs
+    assert changed == dataclasses.replace(observation, tighten_pairs=False)
     for e in (env, plain):
         e.close()
-    env = make_task_env("paper_n_mud_pit", None, ["obstacles.0.depth_m=1.2"])
-    assert env.scenario.obstacles[0].depth_m == 1.2
+    env = make_env("paper_n_mud_pit", [*source_overrides(None), "obstacles.0.depth_m=1.2"])
+    assert env.unwrapped.scenario.obstacles[0].depth_m == 1.2
     env.close()
-    with pytest.raises(ConfigError, match=r"observation\.tighten_pair"):
-        make_task_env("negobs_gym/OffroadTrack-v0", None, ["observation.tighten_pair=true"])
+
+
+def test_a_training_run_keeps_the_specs_ranges_and_its_overrides(tmp_path: Path) -> None:
+    """Ranged start speeds and time limits survive every env a run builds: its training envs (in
+    the vector env's workers too), its evaluation envs, and the scenario it records."""
+    from negobs_gym.policies.training import _env_factory
+
+    scene = tmp_path / "ranged.toml"
+    braking = resources.files("negobs_gym.spec").joinpath("scenes/braking_v1.toml").read_text()
+    scene.write_text(braking.replace("speed_mps = 6.944444444444445", "speed_mps = [4.0, 7.0]", 1))
+    config = dataclasses.replace(SHORT_PPO, env=str(scene), overrides=(*ORACLE, "episode.time_limit_s=3.5"))
+    spec = training_spec(config)
+    assert spec.start.speed_mps == Range(low=4.0, high=7.0) and spec.episode.time_limit_s == 3.5
+    for env in (_env_factory(config)(), make_env(config.env, training_overrides(config))):
+        scenario = env.unwrapped.scenario
+        assert scenario.start.speed_mps == Range(low=4.0, high=7.0), "the start speed's range was lost"
+        assert scenario.episode.time_limit_s == 3.5 and scenario.observation.source == "oracle"
+        speeds = [env.reset(seed=seed)[1]["speed_mps"] for seed in range(3)]
+        assert all(4.0 <= v <= 7.0 for v in speeds) and len(set(speeds)) == 3  # drawn in the range
+        env.close()
+    result = train(dataclasses.replace(config, steps=64), tmp_path / "run")
+    recorded = spec_from_toml((tmp_path / "run" / "scenario.toml").read_text())
+    assert recorded.start.speed_mps == Range(low=4.0, high=7.0) and recorded.episode.time_limit_s == 3.5
+    assert not recorded.run.filter
+    record = json.loads((tmp_path / "run" / "train.json").read_text())["config"]
+    assert record["env"] == str(scene) and record["overrides"] == list(config.overrides)
+    from negobs_gym.drivers.zoo import recorded_env
+
+    assert recorded_env(str(result.model_path)) == (str(scene.resolve()), config.overrides)
+
+
+def test_old_records_translate_to_overrides() -> None:
+    from negobs_gym.policies.config import config_from_record
+
+    old = {"env": "negobs_gym/Braking-v1", "algo": "PPO", "source": "detector", "filter": True}
+    old |= {"stop_for_positive": True, "warm_start": {"steps": 40, "mirror": True}, "steps": 64}
+    old |= {"extractor": {"conv_channels": [8, 8, 8]}, "head": {"modes": 2, "bin_edges": [0.0]}}
+    config = config_from_record(old)
+    assert config.overrides == (
+        "observation.source=detector",
+        "run.filter=true",
+        "run.stop_for_positive=true",
+    )
+    assert config.grid_input and config.warm_start == WarmStartConfig(steps=40, mirror=True)
+    assert config.extractor.conv_channels == (8, 8, 8) and config.head.bin_edges == (0.0,)
+    # a state-only run of a --set scenario: the oracle grid in the env, none in the policy
+    state = config_from_record({"env": "out/scenario.toml", "source": "state", "filter": False})
+    assert state.overrides == ("observation.source=oracle", "run.filter=false") and not state.grid_input
+    assert filter_setting(dataclasses.replace(config, env="negobs_gym/Braking-v1")) == SafetyFilterConfig(
+        stop_for_positive=True
+    )
+    # this version's record reads back as it was written
+    assert config_from_record(dataclasses.asdict(config)) == config
+    with pytest.raises(ConfigError, match=r"config\.sources: no such setting"):
+        config_from_record({"sources": "oracle"})
+    with pytest.raises(ConfigError, match=r"config\.warm_start\.step: no such setting"):
+        config_from_record({"warm_start": {"step": 3}})
+    with pytest.raises(ConfigError, match="filter"):
+        config_from_record({"filter": "yes"})
+
+
+def test_the_copied_fields_still_construct_for_one_release_with_a_warning() -> None:
+    with pytest.warns(DeprecationWarning, match="overrides=.*observation.source=oracle"):
+        old = TrainConfig(source="state", filter=True, stop_for_positive=True)
+    assert old == TrainConfig(
+        overrides=("observation.source=oracle", "run.filter=true", "run.stop_for_positive=true"),
+        grid_input=False,
+    )
+    with pytest.raises(ConfigError, match="source"):
+        TrainConfig(source="lidar")
 
 
 @pytest.mark.slow
@@ -279,7 +405,7 @@ def test_a_new_model_has_the_same_weights_whatever_threads_torch_had() -> None:
     from negobs_gym.policies.threads import torch_threads
     from negobs_gym.policies.training import _new_model, _vec_env
 
-    config = TrainConfig(env="negobs_gym/OffroadNav-v1", source="oracle", n_steps=64)
+    config = TrainConfig(env="negobs_gym/OffroadNav-v1", overrides=ORACLE, n_steps=64)
     venv = _vec_env(config)
     weights = []
     try:
