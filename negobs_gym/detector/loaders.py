@@ -10,10 +10,10 @@ Inputs:
 * a cloud without ring index, e.g. a KITTI-style float32 ``x, y, z, intensity`` ``.bin`` file:
   :func:`assign_rings` recovers the ring from the point order when the cloud is stored laser by
   laser (each laser's sweep in azimuth order, as KITTI's HDL-64E clouds are), and falls back to
-  the nearest entry of an elevation table only when the order is not that firing order. The
-  table is one unit's calibration; another unit's lasers sit up to a few tenths of a degree
-  elsewhere, about the HDL-64E's laser spacing, so the table mis-assigns rings that the order
-  gets right. :class:`RingAssignment` says which was used.
+  the nearest entry of an elevation table, with a warning naming the file, only when the order is
+  not that firing order. The table is one unit's calibration; another unit's lasers sit up to a
+  few tenths of a degree elsewhere, about the HDL-64E's laser spacing, so the table mis-assigns
+  rings that the order gets right. :class:`RingAssignment` says which was used.
 
 Points are given in the sensor frame of this package (X right, Y forward, Z up) unless a loader
 says otherwise; the ROS / KITTI / Velodyne-driver frame (x forward, y left, z up) is converted by
@@ -37,14 +37,63 @@ import numpy as np
 from negobs_gym.core import libm
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
-from negobs_gym.errors import ScanError
+from negobs_gym.errors import ScanError, require
 
 HDL64E_AZIMUTH_RESOLUTION_DEG = 0.09  # paper N §2.1, HDL-64 horizontal resolution
-# A laser's sweep never steps back in azimuth by more than this between consecutive points
-# (per-laser azimuth offsets and jitter are below 1 deg); a larger step against the spin starts the
-# next laser. The paper is silent (it reads structured scans); 20 deg separates the two cases by
-# an order of magnitude on both sides.
-RING_WRAP_STEP_RAD = np.radians(20.0)
+
+
+@dataclass(frozen=True)
+class PointOrderConfig:
+    """Thresholds of the ring recovery from a laser-by-laser point order (:func:`rings_from_point_order`).
+
+    The papers are silent (they read structured scans); the values fit KITTI's HDL-64E layout (0.18
+    deg between a laser's points, 0.3-0.5 deg between lasers) and per-laser azimuth offsets of a few
+    degrees.
+    """
+
+    # Within one laser the azimuth, counted from the sweep's origin, never drops by more than this
+    # (jitter and parallax of the laser's offset from the axis are below 1 deg); a larger drop starts
+    # the next laser. A drop through the origin itself is a full turn.
+    back_step_deg: float = 20.0
+    # Spacing of a grid of candidate origins (the azimuth where every laser's sweep starts: KITTI's
+    # front, a driver's +-180 deg seam), besides every return a laser spacing off its neighbour in
+    # elevation; the one whose cuts best fit the elevation steps between neighbouring returns wins
+    # (see neighbour_gap_deg, min_cut_step_spacings).
+    origin_step_deg: float = 10.0
+    # Returns at most this far apart in azimuth are neighbours: their elevation step tells two lasers
+    # from one (a few dropped returns at KITTI's 0.18 deg spacing).
+    neighbour_gap_deg: float = 2.0
+    # How far a laser's first point may lie from the chosen origin (per-laser azimuth offsets, a
+    # laser cut at the seam): each boundary moves, inside this window, to a step back against the
+    # spin (see jitter_deg) if there is one.
+    boundary_window_deg: float = 10.0
+    # The order is accepted if neighbouring points of two lasers step in elevation by at least this
+    # many of the elevation table's median laser spacings (median over the lasers' starts) ...
+    min_cut_step_spacings: float = 0.5
+    # ... and neighbouring points of one laser by at most this many (median over all points).
+    max_laser_step_spacings: float = 0.25
+    # Steps back against the spin up to this are jitter within a laser (KITTI: 0.02 deg); a larger
+    # one near a laser's start is where it begins (see boundary_window_deg).
+    jitter_deg: float = 0.05
+    # A cut across which the elevation steps no more than within a laser (max_laser_step_spacings)
+    # is no laser start: it moves, within this, to the largest elevation step if that reaches
+    # min_cut_step_spacings (a laser starting a few points off the origin, e.g. across the seam).
+    near_window_deg: float = 1.0
+
+    def __post_init__(self) -> None:
+        require(0.0 < self.back_step_deg < 180.0, "back_step_deg", "must be in (0, 180)")
+        require(0.0 < self.origin_step_deg <= 180.0, "origin_step_deg", "must be in (0, 180]")
+        require(0.0 <= self.boundary_window_deg < 180.0, "boundary_window_deg", "must be in [0, 180)")
+        require(self.jitter_deg >= 0.0, "jitter_deg", "must be >= 0")
+        require(
+            0.0 <= self.near_window_deg <= self.boundary_window_deg,
+            "near_window_deg",
+            "must be in [0, boundary_window_deg]",
+        )
+        require(self.min_cut_step_spacings > 0.0, "min_cut_step_spacings", "must be > 0")
+        require(self.max_laser_step_spacings > 0.0, "max_laser_step_spacings", "must be > 0")
+        require(self.neighbour_gap_deg > 0.0, "neighbour_gap_deg", "must be > 0")
+
 
 log = logging.getLogger(__name__)
 
@@ -222,14 +271,21 @@ def point_elevation(xyz_m: np.ndarray) -> np.ndarray:
     return libm.arctan2(xyz_m[:, 2], np.hypot(xyz_m[:, 0], xyz_m[:, 1]))
 
 
-def measured_ring_elevations(xyz_m: np.ndarray, ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def measured_ring_elevations(
+    xyz_m: np.ndarray, ring: np.ndarray, point_elevation_rad: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Compact ring ids ``0..k-1`` (in the order of the original ids) and each ring's median elevation.
 
     The median of a whole ring is its laser's elevation seen from the sensor origin; single points
     near the sensor deviate by the laser's offset from the origin, the median does not.
+    ``point_elevation_rad``: the points' :func:`point_elevation` where the caller has it.
     """
     ids, compact = np.unique(np.asarray(ring), return_inverse=True)
-    el = point_elevation(np.asarray(xyz_m, dtype=np.float64))
+    el = (
+        point_elevation(np.asarray(xyz_m, dtype=np.float64))
+        if point_elevation_rad is None
+        else np.asarray(point_elevation_rad, dtype=np.float64)
+    )
     order = np.lexsort((el, compact))
     counts = np.bincount(compact, minlength=ids.size)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -239,79 +295,228 @@ def measured_ring_elevations(xyz_m: np.ndarray, ring: np.ndarray) -> tuple[np.nd
     return compact.reshape(-1), 0.5 * (lo + hi)
 
 
-def rings_from_point_order(xyz_m: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray | None:
+def _pieces(a_rad: np.ndarray, origin_rad: float, back_step_rad: float) -> np.ndarray:
+    """Start flags of the lasers of a sweep-ordered cloud, cut at ``origin_rad``: a point starts a
+    laser where its azimuth (spin-wise, ``a_rad``), counted from the origin in [0, 2 pi), drops by
+    more than ``back_step_rad`` from the point before."""
+    u = np.mod(a_rad - origin_rad, 2 * np.pi)
+    start = np.zeros(a_rad.size, dtype=bool)
+    start[1:] = np.diff(u) < -back_step_rad
+    return start
+
+
+def _origin_scores(
+    b_rad: np.ndarray,
+    el: np.ndarray,
+    origins: np.ndarray,
+    back_step_rad: float,
+    gap_rad: float,
+    min_step: float,
+) -> np.ndarray:
+    """How well the cuts of each of the sorted ``origins`` (:func:`_pieces`) fit the elevation: +1 for
+    each cut between neighbouring returns (at most ``gap_rad`` apart in azimuth) whose elevation
+    steps by ``min_step`` or more (two lasers), -1 for each such cut that steps less (one laser cut
+    in two). Neighbouring returns of one laser lie at nearly one elevation whatever their range;
+    returns far apart in azimuth say nothing and do not count.
+
+    With ``b_rad`` the spin-wise azimuth in [0, 2 pi), origin ``o`` cuts before point i + 1 where
+    ``b`` passes it going forward (``b[i] < o <= b[i + 1]``, a step short of a full turn) and where
+    ``b`` drops by more than ``back_step_rad`` without passing it going back (not ``b[i + 1] < o <=
+    b[i]``). Each condition holds for a run of the sorted origins, so all scores come from one pass.
+    """
+    b = b_rad
+    db = np.diff(b)
+    near = np.abs(np.mod(db + np.pi, 2 * np.pi) - np.pi) <= gap_rad
+    vote = np.where(np.abs(np.diff(el)) >= min_step, 1, -1) * near
+    n = origins.size
+
+    def added(low: np.ndarray, high: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """``value`` summed onto the origins in (low, high], as differences along ``origins``."""
+        lo = np.searchsorted(origins, low, side="right")
+        hi = np.searchsorted(origins, high, side="right")  # one past the last origin <= high
+        ok = lo < hi
+        return np.bincount(lo[ok], value[ok], n + 1) - np.bincount(hi[ok], value[ok], n + 1)
+
+    big = db < -back_step_rad
+    ahead = (db > 0) & (db < 2 * np.pi - back_step_rad)
+    acc = added(b[1:][big], b[:-1][big], -vote[big]) + added(b[:-1][ahead], b[1:][ahead], vote[ahead])
+    return np.sum(vote[big]) + np.cumsum(acc)[:n]
+
+
+def _refine(
+    forward: np.ndarray,
+    el: np.ndarray,
+    start: np.ndarray,
+    window: int,
+    near: int,
+    jitter: float,
+    min_step: float,
+    laser_step: float,
+) -> np.ndarray:
+    """Move each laser start within reach of where it was cut (halfway to its neighbours at most).
+
+    Within ``window`` points: to the point after the largest step back against the spin, if one
+    exceeds ``jitter``; within a laser the azimuth never steps back, so such a step is where the
+    next laser's sweep begins before the previous one's ended (per-laser azimuth offsets). Else,
+    where the elevation steps by no more than ``laser_step`` across the cut (as between returns of
+    one laser: a laser starts a few points off the origin), within ``near`` points: to the largest
+    elevation step, if that reaches ``min_step``. ``forward`` holds each azimuth step with the spin.
+    """
+    cuts = np.flatnonzero(start)
+    if cuts.size == 0:
+        return start
+    d_el = np.abs(np.diff(el))
+    bounds = np.concatenate([[0], cuts, [el.size]])
+    refined = cuts.copy()
+    for j, cut in enumerate(cuts):
+        first = max((bounds[j] + cut + 1) // 2, 1)
+        last = (cut + bounds[j + 2]) // 2
+        lo, hi = max(cut - window, first), min(cut + window, last)
+        steps = forward[lo - 1 : hi - 1]  # the step into point i is forward[i - 1]
+        if steps.size and steps.min() < -jitter:
+            refined[j] = lo + int(np.argmin(steps))
+        elif d_el[cut - 1] <= laser_step:
+            lo, hi = max(cut - near, first), min(cut + near + 1, last)
+            jumps = d_el[lo - 1 : hi - 1]
+            if jumps.size and jumps.max() >= min_step:
+                refined[j] = lo + int(np.argmax(jumps))
+    out = np.zeros(start.size, dtype=bool)
+    out[refined] = True
+    return out
+
+
+def _point_order_rings(
+    xyz: np.ndarray, table: np.ndarray, config: PointOrderConfig
+) -> tuple[tuple[np.ndarray, np.ndarray] | None, str]:
+    """((ring of each point, each ring's median elevation), "") for a laser-by-laser cloud, else
+    (None, why not)."""
+    if xyz.shape[0] < 2 or table.size < 2:
+        return None, "fewer than 2 points or table entries"
+    table_spacing = float(np.median(np.diff(table)))
+    az = libm.arctan2(xyz[:, 0], xyz[:, 1])
+    step = np.mod(np.diff(az) + np.pi, 2 * np.pi) - np.pi  # shortest way round, across the seam too
+    if np.median(step) == 0:
+        return None, "the azimuth does not sweep"
+    spin = np.sign(np.median(step))
+    a = spin * az  # the sweep runs towards larger a
+    el = point_elevation(xyz)
+    back = np.radians(config.back_step_deg)
+    min_step = config.min_cut_step_spacings * table_spacing
+    # candidate origins: a grid, and every return that follows a neighbour a laser spacing away in
+    # elevation (where a laser may start)
+    b = np.mod(a, 2 * np.pi)
+    d_b = np.mod(np.diff(b) + np.pi, 2 * np.pi) - np.pi
+    starts = (np.abs(d_b) <= np.radians(config.neighbour_gap_deg)) & (np.abs(np.diff(el)) >= min_step)
+    grid = np.arange(0.0, 2 * np.pi, np.radians(config.origin_step_deg))
+    origins = np.unique(np.concatenate([grid, b[1:][starts]]))
+    scores = _origin_scores(b, el, origins, back, np.radians(config.neighbour_gap_deg), min_step)
+    start = _pieces(a, float(origins[int(np.argmax(scores))]), back)
+    forward = spin * step
+    typical = float(np.median(forward[forward > 0])) if (forward > 0).any() else 0.0
+    window = int(np.radians(config.boundary_window_deg) / typical) if typical > 0 else 0
+    reach = int(np.radians(config.near_window_deg) / typical) if typical > 0 else 0
+    laser_step_max = config.max_laser_step_spacings * table_spacing
+    start = _refine(
+        forward, el, start, window, reach, np.radians(config.jitter_deg), min_step, laser_step_max
+    )
+    ring = np.cumsum(start)
+    n_rings = int(ring[-1]) + 1
+    if not 2 <= n_rings <= table.size:
+        return None, f"{n_rings} lasers found, the table has {table.size}"
+    d_el = np.abs(np.diff(el))
+    across, within = d_el[start[1:]], d_el[~start[1:]]
+    cut_step = float(np.median(across)) if across.size else 0.0
+    laser_step = float(np.median(within)) if within.size else 0.0
+    if cut_step < min_step:
+        return None, (
+            f"median elevation step between lasers {np.degrees(cut_step):.3f} deg, "
+            f"at least {np.degrees(min_step):.3f} deg expected"
+        )
+    if laser_step > laser_step_max:
+        return None, (
+            f"median elevation step within lasers {np.degrees(laser_step):.3f} deg, "
+            f"at most {np.degrees(laser_step_max):.3f} deg expected"
+        )
+    compact, med = measured_ring_elevations(xyz, ring, el)
+    if (np.diff(np.sort(med)) <= 0).any():
+        return None, "two lasers share an elevation"
+    return (compact, med), ""
+
+
+def rings_from_point_order(
+    xyz_m: np.ndarray, elevation_rad: np.ndarray, config: PointOrderConfig | None = None
+) -> np.ndarray | None:
     """Ring index of each point of a cloud stored laser by laser, or None if it is not.
 
-    Within one laser the azimuth runs one way around (the spin direction, taken from the median
-    step) and each laser's sweep starts over at the same azimuth (KITTI: behind the car). The next
-    laser therefore starts where the azimuth steps back against the spin by more than
-    ``RING_WRAP_STEP_RAD`` (through the +-180 deg seam or not). Neighbouring pieces whose median
-    elevations differ by less than half the table's median laser spacing are one laser cut at the
-    seam and are joined. The order is accepted when it yields 2..len(``elevation_rad``) rings with
-    distinct elevations whose spread within a ring (median absolute deviation) is below the table's
-    laser spacing; any other order (azimuth-major firing blocks, shuffled, merged clouds) -> None.
+    Within one laser the azimuth runs one way around (the spin direction, taken from the median step)
+    over one turn, and every laser's sweep starts at about the same azimuth, the origin (KITTI's HDL-64E
+    files: straight ahead; a driver cutting at the +-180 deg seam: behind). Counted from the origin, the
+    azimuth therefore rises through a laser and drops where the next begins: by a full turn where the
+    sweep is continuous (KITTI), by less where points are missing or a field of view is cropped. A drop
+    of more than ``config.back_step_deg`` starts a laser. The origin is the candidate (a grid every
+    ``config.origin_step_deg`` and every return that follows a neighbour a laser spacing away in
+    elevation) whose cuts best fit the elevation: neighbouring returns of one laser lie at nearly one
+    elevation, those of two lasers a laser spacing apart (a laser's whole ring is no good measure: its
+    returns' elevation seen from the sensor origin moves by a degree or more with their range, the laser
+    sitting a few cm off it). Each laser's start then moves, within ``config.boundary_window_deg``, to a
+    step back against the spin, where the next laser's sweep begins before the previous one's ended
+    (per-laser azimuth offsets: a laser whose sweep starts before the origin has its points split at the
+    start and the end of its ring), or, where the cut steps too little in elevation, within
+    ``config.near_window_deg`` to the largest elevation step. The order is accepted when it yields
+    2..len(``elevation_rad``) lasers with distinct median elevations, neighbouring points of two lasers
+    at least ``config.min_cut_step_spacings`` of the table's laser spacing apart in elevation and
+    neighbouring points of one laser at most ``config.max_laser_step_spacings`` (medians); any other
+    order (azimuth-major firing blocks, shuffled, merged clouds) -> None. Dropped points (no return) do
+    not matter unless a whole turn of a laser between two lasers' returns is empty.
     """
     xyz = np.asarray(xyz_m, dtype=np.float64)
     table = np.sort(np.asarray(elevation_rad, dtype=np.float64).reshape(-1))
-    if xyz.shape[0] < 2 or table.size < 2:
-        return None
-    table_spacing = float(np.median(np.diff(table)))
-    az = libm.arctan2(xyz[:, 0], xyz[:, 1])
-    step = np.diff(az)
-    inside = step[np.abs(step) < np.pi]  # steps across the +-180 deg seam say nothing about direction
-    if inside.size == 0 or np.median(inside) == 0:
-        return None
-    spin = np.sign(np.median(inside))
-    back = spin * step < -RING_WRAP_STEP_RAD
-    # A laser whose sweep starts a little before the +-180 deg seam is cut there: the piece after the
-    # seam ends before the piece before it starts (in spin order). Such cuts are joined.
-    cut = np.flatnonzero(back) + 1  # first point of each new piece
-    if cut.size:
-        a = spin * az
-        starts = np.concatenate([[0], cut])
-        ends = np.concatenate([cut - 1, [xyz.shape[0] - 1]])
-        across_seam = np.abs(step[cut - 1]) > np.pi
-        joined = across_seam & (a[ends[1:]] < a[starts[:-1]])
-        back[cut[joined] - 1] = False
-    ring = np.concatenate([[0], np.cumsum(back)])
-    el = point_elevation(xyz)
-    n_rings = int(ring[-1]) + 1
-    if not 2 <= n_rings <= table.size:
-        return None
-    compact, med = measured_ring_elevations(xyz, ring)
-    if (np.diff(np.sort(med)) <= 0).any():
-        return None
-    dev = np.abs(el - med[compact])
-    mad = np.array([np.median(d) for d in np.split(dev, np.flatnonzero(np.diff(ring)) + 1)])
-    if np.median(mad) >= table_spacing:
-        return None
-    return ring
+    rings, _ = _point_order_rings(xyz, table, config or PointOrderConfig())
+    return None if rings is None else rings[0]
 
 
-def assign_rings(xyz_m: np.ndarray, elevation_rad: np.ndarray) -> RingAssignment:
+def assign_rings(
+    xyz_m: np.ndarray,
+    elevation_rad: np.ndarray,
+    *,
+    source: str | None = None,
+    config: PointOrderConfig | None = None,
+) -> RingAssignment:
     """Rings of a cloud without ring field: from the point order if it is laser by laser, else from
-    the elevation table (nearest entry). ``elevation_rad`` also bounds the number of rings."""
+    the elevation table (nearest entry), with a warning naming ``source`` (the file) and why the
+    order was refused. ``elevation_rad`` also bounds the number of rings."""
     xyz = np.asarray(xyz_m, dtype=np.float64)
     table = np.asarray(elevation_rad, dtype=np.float64).reshape(-1)
     if table.size == 0:
         raise ScanError("elevation table is empty")
-    ring = rings_from_point_order(xyz, table)
-    if ring is not None:
-        compact, el = measured_ring_elevations(xyz, ring)
-        return RingAssignment(compact, el, "point_order")
+    rings, why = _point_order_rings(xyz, np.sort(table), config or PointOrderConfig())
+    if rings is not None:
+        return RingAssignment(rings[0], rings[1], "point_order")
+    log.warning(
+        "%s: points are not stored laser by laser (%s); rings from the nearest elevation-table entry, "
+        "which mis-rings points where this unit's lasers sit off the table",
+        source or "cloud without ring field",
+        why,
+    )
     return RingAssignment(recover_rings(xyz, table), table, "elevation_table")
 
 
 def unstructured_to_scan(
-    cloud: np.ndarray, elevation_rad: np.ndarray, *, sensor: str, **kwargs: object
+    cloud: np.ndarray,
+    elevation_rad: np.ndarray,
+    *,
+    sensor: str,
+    source: str | None = None,
+    **kwargs: object,
 ) -> StructuredScan:
     """(N, 4) ``x, y, z, intensity`` sensor-frame cloud without ring -> structured scan.
 
-    Rings come from :func:`assign_rings` (point order first, elevation table as fallback); which
-    one was used is logged at INFO. Use :func:`assign_rings` directly to get it as a value.
+    Rings come from :func:`assign_rings` (point order first, elevation table as fallback, with a
+    warning naming ``source``); which one was used is logged at INFO. Use :func:`assign_rings`
+    directly to get it as a value.
     """
     p = _check_cloud(cloud, 4, sensor)
-    rings = assign_rings(p[:, :3], elevation_rad)
+    rings = assign_rings(p[:, :3], elevation_rad, source=source or sensor)
     log.info("%s: rings from %s (%d rings)", sensor, rings.source, rings.elevation_rad.size)
     return cloud_to_scan(
         p[:, :3],
@@ -387,7 +592,7 @@ def load_kitti_bin(
     Rings: see :func:`unstructured_to_scan`."""
     kitti = read_float32_cloud(path, 4)
     cloud = np.column_stack([ros_to_sensor_frame(kitti[:, :3]), kitti[:, 3]])
-    return unstructured_to_scan(cloud, elevation_rad, sensor=f"{sensor}", **kwargs)
+    return unstructured_to_scan(cloud, elevation_rad, sensor=f"{sensor}", source=os.fspath(path), **kwargs)
 
 
 def load_ring_bin(path: str | os.PathLike[str], *, sensor: str = "hdl64", **kwargs: object) -> StructuredScan:

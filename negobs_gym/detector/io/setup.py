@@ -118,7 +118,8 @@ def fields_to_scan(
 
     ``x, y, z`` are required, ``intensity`` optional; the ring comes from the first field of
     :data:`RING_FIELD_NAMES` present (row elevations measured from the points), else from
-    :func:`~negobs_gym.detector.loaders.assign_rings` with ``setup.elevation_rad``. Points with a
+    :func:`~negobs_gym.detector.loaders.assign_rings` with ``setup.elevation_rad`` (its fallback to the
+    table warns, naming ``source``). Points with a
     NaN coordinate are dropped (organised clouds mark missing returns so); a cloud with no finite
     point, a missing coordinate or an infinite value raises :class:`ScanError`.
     """
@@ -149,7 +150,7 @@ def fields_to_scan(
         raise ScanError(
             f"{source}: no ring field ({'/'.join(RING_FIELD_NAMES)}) and no elevation table for this sensor"
         )
-    rings = assign_rings(xyz, np.asarray(setup.elevation_rad))
+    rings = assign_rings(xyz, np.asarray(setup.elevation_rad), source=source)
     return setup.scan(xyz, rings.ring, rings.elevation_rad, intensity, timestamp_s), rings.source
 
 
