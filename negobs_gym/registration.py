@@ -28,7 +28,7 @@ from types import ModuleType
 ENV_SPECS: tuple[tuple[str, str, int | None], ...] = (
     ("negobs_gym/OffroadNav-v0", "negobs_gym.envs.scenarios:OffroadNavEnv", None),
     ("negobs_gym/OffroadNav-v1", "negobs_gym.envs.scenarios:OffroadNavV1Env", None),
-    ("negobs_gym/OffroadTrack-v0", "negobs_gym.envs.scenarios:OffroadNavV2Env", None),
+    ("negobs_gym/OffroadTrack-v0", "negobs_gym.envs.scenarios:OffroadTrackEnv", None),
     ("negobs_gym/Braking-v0", "negobs_gym.envs.scenarios:BrakingV0Env", None),
     ("negobs_gym/Braking-v1", "negobs_gym.envs.scenarios:BrakingEnv", None),
     ("negobs_gym/TrenchCrossing-v0", "negobs_gym.envs.scenarios:TrenchCrossingEnv", None),

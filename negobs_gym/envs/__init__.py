@@ -12,6 +12,8 @@ from negobs_gym.envs.scenarios import (
     BrakingEnv,
     BrakingV0Env,
     OffroadNavEnv,
+    OffroadNavV1Env,
+    OffroadTrackEnv,
     PaperTStraightEnv,
     TrenchCrossingEnv,
 )
@@ -26,6 +28,8 @@ __all__ = [
     "GridSource",
     "NegObsEnv",
     "OffroadNavEnv",
+    "OffroadNavV1Env",
+    "OffroadTrackEnv",
     "OracleSource",
     "PaperTStraightEnv",
     "TrenchCrossingEnv",

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from negobs_gym.envs.scenarios import OffroadNavV2Env
+from negobs_gym.envs.scenarios import OffroadTrackEnv
 from negobs_gym.registration import warn_alias
 
 __all__ = ["OffroadNavV2Alias"]
 
 
-class OffroadNavV2Alias(OffroadNavV2Env):
+class OffroadNavV2Alias(OffroadTrackEnv):
     """``negobs_gym/OffroadNav-v2``: the old id of ``negobs_gym/OffroadTrack-v0`` (same env)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

@@ -34,6 +34,7 @@ __all__ = [
     "OffroadNavEnv",
     "OffroadNavV1Env",
     "OffroadNavV2Env",
+    "OffroadTrackEnv",
     "PaperTStraightEnv",
     "TrenchCrossingEnv",
 ]
@@ -146,11 +147,12 @@ class OffroadNavV1Env(NegObsEnv):
     default_scenario = "offroad_nav_v1"
 
 
-class OffroadNavV2Env(NegObsEnv):
-    """``negobs_gym/OffroadNav-v2`` (spec ``offroad_nav_v2``): :class:`OffroadNavV1Env` where leaving
-    the track ends the episode.
+class OffroadTrackEnv(NegObsEnv):
+    """Stay on the track to the goal (``negobs_gym/OffroadTrack-v0``, spec ``offroad_nav_v2``):
+    :class:`OffroadNavV1Env`'s course where leaving the track ends the episode. A task of its own
+    (the old id ``negobs_gym/OffroadNav-v2`` is an alias that warns once).
 
-    Changes against v1: rule ``off_track`` terminates the episode when the car's centre is farther
+    Changes against OffroadNav-v1: rule ``off_track`` terminates the episode when the car's centre is farther
     from the centre line than half the 6 m track width. On v1 the right side is open ground and
     the obstacles lie within 2 m of the centre line, so a policy could reach the goal driving
     beside the track without meeting one (the policies trained on v1 do: docs/notebook/training_studies.md). Every
@@ -162,6 +164,10 @@ class OffroadNavV2Env(NegObsEnv):
     """
 
     default_scenario = "offroad_nav_v2"
+
+
+#: The class's name while the task was registered as OffroadNav-v2; kept for code that names it.
+OffroadNavV2Env = OffroadTrackEnv
 
 
 class TrenchCrossingEnv(NegObsEnv):
