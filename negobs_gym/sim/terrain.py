@@ -7,11 +7,14 @@ The heightfield is the sum of
   ``track_scale`` on the driven track so a 2000 kg car at 25 km/h can drive it,
 * two ruts along the track,
 * the border profile of each side: a flat grass verge, then an earth bank or a drop-off,
+* the course's longitudinal profile: crests and dips, raised cosines in station across the whole
+  corridor (:class:`ProfileFeature`),
 
 then negative obstacles are carved in and positive ones placed (:mod:`negobs_gym.sim.carving`).
 Every noise octave is peak-normalised, so an amplitude in the config is the largest height that
 octave contributes anywhere on the grid. All randomness comes from ``np.random.default_rng(seed)``
-drawn in a fixed order, so the same seed gives the same arrays bit for bit.
+drawn in a fixed order (slopes, bumps, fine, then the profile's ranges), so the same seed gives
+the same arrays bit for bit.
 """
 
 from __future__ import annotations
@@ -40,7 +43,12 @@ logger = logging.getLogger(__name__)
 
 BorderKind = Literal["verge", "bank", "dropoff"]
 BORDER_KINDS: tuple[str, ...] = get_args(BorderKind)
+ProfileKind = Literal["crest", "dip"]
+PROFILE_KINDS: tuple[str, ...] = get_args(ProfileKind)
+#: A profile number: a value, or a range ``(low, high)`` drawn from the terrain's generator.
+Spread = float | tuple[float, float]
 _LATERAL_LATTICE_M = 0.5  # lattice of the interpolated lateral-offset field [m]
+_PROFILE_TABLE_M = 0.01  # sample spacing of a profile feature's cosine table [m]
 
 
 def _finite(value: float) -> bool:
@@ -81,6 +89,82 @@ class BendSpec:
         """Radius of the bend [m] (inf for a zero angle)."""
         ang = abs(math.radians(self.angle_deg))
         return math.inf if ang == 0 else self.length_m / ang
+
+
+def _ends(value: Spread) -> tuple[float, float]:
+    """(low, high) of a profile number (both the value when it is no range)."""
+    if isinstance(value, tuple):
+        return value
+    return value, value
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProfileFeature:
+    """A crest or a dip of the course's longitudinal profile (docs/safety.md, "Blind crests").
+
+    The ground rises (crest) or sinks (dip) by a raised cosine in station,
+    ``height * (1 + cos(2 pi (s - station) / length)) / 2`` for ``|s - station| <= length / 2``,
+    across the whole corridor (track, verges and borders), so physics and every LiDAR see it and
+    obstacles on it sit on the displaced ground. Each number may be a range ``(low, high)``, drawn
+    per terrain from its seed (:meth:`drawn`).
+    """
+
+    kind: str = "crest"  # one of PROFILE_KINDS
+    station_m: Spread  # station of the top (crest) or the bottom (dip), from the start [m]
+    height_m: Spread = 2.0  # rise of a crest or depth of a dip [m], > 0
+    length_m: Spread = 24.0  # foot to foot along the track [m], > 0; steepest slope pi*h/length
+
+    _NUMBERS = ("station_m", "height_m", "length_m")
+
+    def __post_init__(self) -> None:
+        require(
+            self.kind in PROFILE_KINDS,
+            "kind",
+            f"unknown profile kind {self.kind!r}; expected one of {PROFILE_KINDS}",
+        )
+        for name in self._NUMBERS:
+            value = getattr(self, name)
+            if isinstance(value, list):
+                value = tuple(value)
+                object.__setattr__(self, name, value)
+            ok = (_finite(value) and not isinstance(value, bool)) or (
+                isinstance(value, tuple)
+                and len(value) == 2
+                and all(_finite(v) and not isinstance(v, bool) for v in value)
+                and value[0] <= value[1]
+            )
+            require(ok, name, f"must be a finite number or a range [low, high], low <= high; got {value!r}")
+        _require_nonneg_ends(self, ("station_m",))
+        for name in ("height_m", "length_m"):
+            low, _ = _ends(getattr(self, name))
+            require(low > 0, name, f"must be > 0, got {getattr(self, name)!r}")
+
+    def drawn(self, rng: np.random.Generator) -> ProfileFeature:
+        """This feature with its ranges drawn from ``rng`` (one uniform draw per range, in the
+        order station, height, length; fixed numbers draw nothing)."""
+        values = {}
+        for name in self._NUMBERS:
+            value = getattr(self, name)
+            values[name] = float(rng.uniform(*value)) if isinstance(value, tuple) else float(value)
+        return ProfileFeature(kind=self.kind, **values)
+
+    def offset_m(self, station_m: np.ndarray) -> np.ndarray:
+        """Height offset [m] at stations ``station_m`` (a drawn feature: no ranges)."""
+        s0, h, length = (float(_ends(getattr(self, n))[0]) for n in self._NUMBERS)
+        # the cosine tabulated with the C library's (math.cos, CPU-independent) every
+        # _PROFILE_TABLE_M and interpolated linearly: under a micrometre off for any sane length
+        n = max(2, math.ceil(length / _PROFILE_TABLE_M) + 1)
+        u = np.linspace(-0.5, 0.5, n)
+        table = np.array([0.5 * (1.0 + math.cos(2.0 * math.pi * v)) for v in u.tolist()])
+        rel = (np.asarray(station_m, dtype=np.float64) - s0) / length
+        bump = np.interp(rel, u, table, left=0.0, right=0.0)
+        return (h if self.kind == "crest" else -h) * bump
+
+
+def _require_nonneg_ends(obj: object, names: tuple[str, ...]) -> None:
+    for name in names:
+        low, _ = _ends(getattr(obj, name))
+        require(low >= 0, name, f"must be >= 0, got {getattr(obj, name)!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -172,6 +256,7 @@ class TerrainConfig:
     right_border: BorderConfig = field(default_factory=BorderConfig)
     negative_obstacles: tuple[NegativeObstacleSpec, ...] = ()
     positive_obstacles: tuple[PositiveObstacleSpec, ...] = ()
+    profile: tuple[ProfileFeature, ...] = ()  # crests and dips along the track
     goal_margin_m: float = 5.0  # the goal lies this far before the end of the centre line [m]
 
     def __post_init__(self) -> None:
@@ -204,6 +289,7 @@ class TerrainConfig:
             ("bends", BendSpec),
             ("negative_obstacles", NegativeObstacleSpec),
             ("positive_obstacles", PositiveObstacleSpec),
+            ("profile", ProfileFeature),
         ):
             items = getattr(self, name)
             require(isinstance(items, tuple), name, "must be a tuple")
@@ -228,6 +314,13 @@ class TerrainConfig:
                 f"({0.5 * self.corridor_width_m} m); lengthen the bend or reduce its angle",
             )
             prev_end = bend.start_m + bend.length_m
+        for k, feature in enumerate(self.profile):
+            _, high = _ends(feature.station_m)
+            require(
+                high <= self.length_m,
+                f"profile[{k}].station_m",
+                f"must lie on the course, within [0, length_m = {self.length_m}], got {feature.station_m!r}",
+            )
 
 
 def build_centreline(config: TerrainConfig) -> np.ndarray:
@@ -307,24 +400,36 @@ def _grid(config: TerrainConfig, centreline: np.ndarray) -> tuple[tuple[float, f
     return (float(lo[0]), float(lo[1])), int(nx), int(ny)
 
 
-def _lateral_field(
-    config: TerrainConfig, track: Track, origin: tuple[float, float], nx: int, ny: int
-) -> np.ndarray:
-    """Lateral offset of every sample, bilinearly interpolated from a coarser lattice.
+def _track_fields(
+    config: TerrainConfig,
+    track: Track,
+    origin: tuple[float, float],
+    nx: int,
+    ny: int,
+    *,
+    station: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Lateral offset (and, with ``station``, the station) of every sample, bilinearly
+    interpolated from a coarser lattice.
 
-    The lateral offset is linear along straights and smooth on bends (radius >= half the
-    corridor), so a lattice of ``_LATERAL_LATTICE_M`` interpolates it to millimetres near the track
-    while cutting the nearest-point queries ~25-fold.
+    Both are linear along straights and smooth on bends (radius >= half the corridor), so a
+    lattice of ``_LATERAL_LATTICE_M`` interpolates them to millimetres near the track while
+    cutting the nearest-point queries ~25-fold.
     """
     r = config.resolution_m
     f = max(1, round(_LATERAL_LATTICE_M / r))
     cx = origin[0] + r * f * np.arange((nx - 1) // f + 2)
     cy = origin[1] + r * f * np.arange((ny - 1) // f + 2)
     reach = max(config.lead_in_m, config.run_out_m) + config.corridor_width_m
-    _, coarse = track_coordinates(track, np.stack(np.meshgrid(cx, cy), axis=-1), spacing_m=r, extend_m=reach)
+    coarse_s, coarse = track_coordinates(
+        track, np.stack(np.meshgrid(cx, cy), axis=-1), spacing_m=r, extend_m=reach
+    )
     jj = (np.arange(ny) / f)[:, None]
     ii = (np.arange(nx) / f)[None, :]
-    return ndimage.map_coordinates(coarse, np.broadcast_arrays(jj, ii), order=1, mode="nearest")
+    where = np.broadcast_arrays(jj, ii)
+    lateral = ndimage.map_coordinates(coarse, where, order=1, mode="nearest")
+    stations = ndimage.map_coordinates(coarse_s, where, order=1, mode="nearest") if station else None
+    return lateral, stations
 
 
 def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
@@ -353,7 +458,7 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
         border_kinds=(config.left_border.kind, config.right_border.kind),
     )
     origin, nx, ny = _grid(config, centreline)
-    lateral = _lateral_field(config, track, origin, nx, ny)
+    lateral, stations = _track_fields(config, track, origin, nx, ny, station=bool(config.profile))
 
     rough = config.roughness
     shape = (ny, nx)
@@ -370,7 +475,12 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
     border = np.where(
         lateral < 0, config.left_border.profile_m(beyond), config.right_border.profile_m(beyond)
     )
-    heights = (slopes + weight * (bumps + fine) + ruts + border).astype(np.float32)
+    heights = slopes + weight * (bumps + fine) + ruts + border
+    # the profile's ranges are drawn after the noise octaves: a course without ranges keeps its streams
+    profile = tuple(feature.drawn(rng) for feature in config.profile)
+    for feature in profile:
+        heights = heights + feature.offset_m(stations)
+    heights = heights.astype(np.float32)
     hf = HeightField(heights_m=heights, resolution_m=r, origin_m=origin)
 
     records: dict[str, list] = {}
@@ -406,6 +516,7 @@ def generate_terrain(config: TerrainConfig, seed: int) -> Terrain:
         metadata={
             "config": config,
             "corridor_width_m": config.corridor_width_m,
+            "profile": profile,  # the crests and dips as drawn (no ranges)
             "border_faces_xy_m": _border_faces(config, track),
         },
     )
