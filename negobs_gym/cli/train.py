@@ -210,7 +210,7 @@ OPTIONS: tuple[Option, ...] = (
         "--warm-start-driver",
         "warm_start.driver",
         "the demonstrator: pure_pursuit follows the centre line; track_planner passes the "
-        "ground-truth obstacles on the track (OffroadNav-v2)",
+        "ground-truth obstacles on the track (OffroadTrack-v0)",
         WARM,
         kwargs={"choices": DEMONSTRATORS},
     ),
@@ -225,7 +225,7 @@ OPTIONS: tuple[Option, ...] = (
         "--planner-sight-m",
         "warm_start.planner_sight_m",
         "with --warm-start-driver track_planner: how far ahead it sees obstacles, planning again "
-        "as each comes into sight (0 = the whole course; 14 = OffroadNav-v2's oracle range)",
+        "as each comes into sight (0 = the whole course; 14 = OffroadTrack-v0's oracle range)",
         WARM,
     ),
     Option(

@@ -158,14 +158,14 @@ class WarmStartConfig:
         steps: Demonstration env steps (0: no warm start).
         driver: The demonstrator: ``"pure_pursuit"`` follows the centre line (and drives into the
             first obstacle); ``"track_planner"`` (:mod:`negobs_gym.drivers.track_planner`) passes
-            the ground-truth obstacles on the track, which OffroadNav-v2 needs.
+            the ground-truth obstacles on the track, which OffroadTrack-v0 needs.
         dagger_rounds: Rounds of DAgger after the first fit (Ross et al. 2011): the cloned policy
             drives ``steps`` more steps (with the same noise), the driver labels the states it
             visits, and the policy is refitted on everything so far. Cloning alone drifts into
-            states the driver never showed (on OffroadNav-v2 the car leaves the track).
+            states the driver never showed (on OffroadTrack-v0 the car leaves the track).
         planner_sight_m: With ``driver="track_planner"``: how far ahead the planner sees
             obstacles (``TrackPlannerConfig.sight_m``; 0: the whole course). 14 m, the range of
-            OffroadNav-v2's oracle grid, labels with no more than the policy can see.
+            OffroadTrack-v0's oracle grid, labels with no more than the policy can see.
         planner_horizon_m: With ``driver="track_planner"``: > 0 plans again at every step from
             where the car is, this far ahead (``TrackPlannerConfig.plan_horizon_m``), so each label
             depends only on the car's state and the obstacles in sight, as the policy's action
@@ -324,7 +324,7 @@ class TrainConfig:
         critic_warmup_steps: PPO: for the first this many env steps only the value function
             learns; the features extractor, the actor and its log_std stay frozen. A cloned or
             ``init_model`` actor otherwise takes its first updates from a random critic's
-            advantages, which on OffroadNav-v2 undid the clone within 10 k steps
+            advantages, which on OffroadTrack-v0 undid the clone within 10 k steps
             (docs/notebook/training_studies.md). 0: none.
         target_kl: PPO: stop an update's epochs once the approximate KL divergence to the
             rollout's policy exceeds 1.5 x this (SB3's ``target_kl``); keeps a fine-tuned actor

@@ -1,4 +1,5 @@
-"""``negobs train``: a short oracle-grid PPO run whose model ``negobs eval policy`` loads; bad arguments."""
+"""``negobs train``: a short oracle-grid PPO run whose model ``negobs eval policy`` loads; bad arguments;
+the options table (each flag once; the scenario ones are --set assignments)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from negobs_gym.policies.modes import SteeringModesPolicy
 
 ENV = "negobs_gym/Braking-v1"
 SHORT = ["--source", "oracle", "--n-steps", "64", "--eval-episodes", "1", "--no-progress"]
-#: OffroadNav-v2's shortest course (its obstacles 20-45 m along it): each reset builds less terrain
+#: OffroadTrack-v0's shortest course (its obstacles 20-45 m along it): each reset builds less terrain
 SHORT_COURSE = ["--set", "terrain.params.length_m=60"]
 
 
@@ -41,7 +42,7 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     header = (out / "logs" / "0" / "progress.csv").read_text().splitlines()[0].split(",")
     assert {"time/total_timesteps", "train/loss", "eval/goal", "eval/entries"} <= set(header)
     record = json.loads((out / "train.json").read_text())
-    assert record["steps"] == 256 and record["config"]["source"] == "oracle"
+    assert record["steps"] == 256 and record["config"]["overrides"] == ["observation.source=oracle"]
     assert record["config"]["extractor"]["conv_channels"] == [16, 32, 32]
 
     assert main(["-q", *args, *SHORT, "--out", str(out)]) == 2  # a new run would mix with this one
@@ -53,15 +54,16 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     (line,) = capsys.readouterr().out.splitlines()
     assert line.startswith(f"{ENV}/filter success=") and "/1 " in line
     assert 0.0 <= float(line.rsplit("off_track_share=", 1)[1]) <= 1.0
-    # without --env: the env of the run's train.json (Braking-v1), not eval policy's Braking-v0
+    # without --env: the env the model records (Braking-v1 on the oracle grid it was fitted on),
+    # not eval policy's Braking-v0
     evaluation = ["eval", "policy", str(out / "model.zip"), "--seeds", "1", "--filter", "off"]
     assert main(["-q", *evaluation, "--out", str(tmp_path / "eval2"), "--no-progress"]) == 0
-    assert capsys.readouterr().out.startswith(f"{ENV}/nofilter success=")
+    assert capsys.readouterr().out.startswith(f"{ENV}[observation.source=oracle]/nofilter success=")
 
 
 def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path: Path, capsys) -> None:
     out = tmp_path / "run"
-    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--warm-start-steps", "40"]
+    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "64", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
     args += ["--critic-warmup-steps", "64", "--target-kl", "0.02", "--planner-sight-m", "14"]
     args += ["--mirror-demonstrations", "--planner-horizon-m", "30", "--warm-start-workers", "2"]
@@ -84,7 +86,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     # every labelled step is kept, and a new run can fit them again without collecting any
     saved = out / "demonstrations.npz"
     refit = tmp_path / "refit"
-    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--steps", "64", "--demonstrations", str(saved)]
+    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "64", "--demonstrations", str(saved)]
     args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-bins", "0"]
     assert main(["-q", *args, "--hold-out-every", "2", *SHORT, *SHORT_COURSE, "--out", str(refit)]) == 0
     capsys.readouterr()
@@ -129,7 +131,7 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
     assert "critic_warmup_steps" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--stop-for-positive"]) == 2  # without --filter
-    assert "stop_for_positive" in capsys.readouterr().err
+    assert "run.stop_for_positive: needs the filter" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2
@@ -139,23 +141,28 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
 
 
 def test_set_trains_on_the_changed_scenario_and_a_resume_keeps_it(tmp_path: Path, capsys) -> None:
-    from negobs_gym.scenarios import spec_from_toml
+    from negobs_gym.spec import spec_from_toml
 
     out = tmp_path / "run"
     args = ["train", "--env", ENV, "--steps", "64", "--eval-every", "0", *SHORT, "--out", str(out)]
     assert main(["-q", *args, "--set", "episode.time_limit_s=2.0"]) == 0
     capsys.readouterr()
-    scene = out / "scenario.toml"
+    scene = out / "scenario.toml"  # what trained, every setting applied
     assert spec_from_toml(scene.read_text()).episode.time_limit_s == 2.0
     record = json.loads((out / "train.json").read_text())
-    assert record["config"]["env"] == str(scene)
+    assert record["config"]["env"] == ENV
+    assert record["config"]["overrides"] == ["observation.source=oracle", "episode.time_limit_s=2.0"]
     with (out / "eval.csv").open() as fh:
         (row,) = list(csv.DictReader(fh))
     assert float(row["mean_progress_m"]) < 2.0 * 25 / 3.6 + 1.0  # 2 s at most, from 25 km/h
     # a resume with other settings would go on with another scenario: refused, the file kept
     assert main(["-q", *args, "--resume", "--steps", "128", "--set", "episode.time_limit_s=3.0"]) == 2
-    assert "holds an earlier run's other scenario" in capsys.readouterr().err
+    assert "episode.time_limit_s: 2.0 there, 3.0 now" in capsys.readouterr().err
     assert spec_from_toml(scene.read_text()).episode.time_limit_s == 2.0
+    # the same scenario spelt with --set instead of --source resumes
+    same = [a for a in args if a not in ("--source", "oracle")] + ["--set", "observation.source=oracle"]
+    assert main(["-q", *same, "--resume", "--steps", "128", "--set", "episode.time_limit_s=2.0"]) == 0
+    assert "steps=128" in capsys.readouterr().out
 
 
 def test_a_model_moved_out_of_its_run_keeps_the_env_and_set_it_was_fitted_on(tmp_path: Path, capsys) -> None:
@@ -170,11 +177,12 @@ def test_a_model_moved_out_of_its_run_keeps_the_env_and_set_it_was_fitted_on(tmp
     moved = tmp_path / "elsewhere" / "policy.zip"
     moved.parent.mkdir()
     (out / "model.zip").rename(moved)
-    assert recorded_env(str(moved)) == (ENV, ("episode.time_limit_s=2.0",))  # no train.json beside it
+    fitted = ("observation.source=oracle", "episode.time_limit_s=2.0")
+    assert recorded_env(str(moved)) == (ENV, fitted)  # no train.json beside it
     evaluation = ["eval", "policy", str(moved), "--seeds", "1", "--filter", "off", "--no-progress"]
     assert main(["-q", *evaluation, "--out", str(tmp_path / "eval")]) == 0
     line = capsys.readouterr().out
-    assert line.startswith(f"{ENV}[episode.time_limit_s=2.0]/nofilter success=")
+    assert line.startswith(f"{ENV}[{','.join(fitted)}]/nofilter success=")
     assert float(line.split("mean_progress_m=", 1)[1].split()[0]) < 2.0 * 25 / 3.6 + 1.0  # its 2 s limit
 
     # the same model without the record: evaluated on eval policy's default env, with a warning
@@ -217,7 +225,75 @@ def test_a_hold_out_is_parsed_and_needs_episodes_to_hold_out(tmp_path: Path, cap
     assert main(["train", "--hold-out-every", "1", "--out", str(tmp_path)]) == 2
     assert "hold_out_every: must be 0 (no hold-out) or an int >= 2" in capsys.readouterr().err
     # 20 demonstration steps are one episode: nothing to hold out, said in one line before training
-    args = ["train", "--env", "negobs_gym/OffroadNav-v2", "--warm-start-steps", "20", "--hold-out-every", "2"]
+    args = [
+        "train",
+        "--env",
+        "negobs_gym/OffroadTrack-v0",
+        "--warm-start-steps",
+        "20",
+        "--hold-out-every",
+        "2",
+    ]
     assert main([*args, *SHORT, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "none held out among the 1 episodes collected: collect more episodes" in err
+
+
+def test_each_option_is_one_row_and_the_scenario_ones_are_set_assignments(capsys) -> None:
+    import dataclasses
+
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.train import OPTIONS, SET, config_from_args, default_of
+    from negobs_gym.policies.config import TrainConfig
+    from negobs_gym.spec import load_scenario
+
+    flags = [o.flag for o in OPTIONS]
+    assert len(flags) == len(set(flags))
+    table = load_scenario("braking_v1").to_dict()
+    for option in OPTIONS:  # every target is a TrainConfig setting or a scenario's --set path
+        if option.sets_scenario:
+            node = table
+            for key in option.target.removeprefix(SET).split("."):
+                node = node[key]  # a KeyError: no such --set path
+        else:
+            default_of(option.target)
+
+    def config(*args: str) -> TrainConfig:
+        return config_from_args(build_parser().parse_args(["train", *args]))
+
+    assert config() == TrainConfig()  # no option given: the config's defaults, the scenario's own settings
+    short = config("--source", "oracle", "--filter", "--stop-for-positive", "--set", "episode.time_limit_s=3")
+    spelt = [
+        "observation.source=oracle",
+        "run.filter=true",
+        "run.stop_for_positive=true",
+        "episode.time_limit_s=3",
+    ]
+    assert short.overrides == tuple(spelt)
+    assert config(*(a for s in spelt for a in ("--set", s))) == short
+    state = config("--source", "state")
+    assert state.overrides == ("observation.source=oracle",) and not state.grid_input
+    # each value option lands on its path
+    values = {
+        "--steps": ("7", 7),
+        "--seed": ("3", 3),
+        "--learning-rate": ("0.01", 0.01),
+        "--warm-start-steps": ("40", 40),
+        "--clone-weight-decay": ("0.5", 0.5),
+        "--warm-start-driver": ("track_planner", "track_planner"),
+        "--algo": ("sac", "SAC"),
+        "--init": ("m.zip", "m.zip"),
+        "--demonstrations": ("d.npz", "d.npz"),
+    }
+    by_flag = {o.flag: o for o in OPTIONS}
+    for flag, (text, value) in values.items():
+        assert default_of(by_flag[flag].target, config(flag, text)) == value, flag
+    assert not config("--no-progress").progress and config("--mirror-demonstrations").warm_start.mirror
+    assert dataclasses.asdict(config("--steering-bins", "-0.3", "0.3").head)["modes"] == 3
+
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["train", "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert all(flag in shown for flag in flags)
+    assert "= --set run.filter=true" in shown and "= --set observation.source=SOURCE" in shown
+    assert "(default: negobs_gym/OffroadNav-v0)" in shown and "(default: 100000)" in shown

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 
-from negobs_gym.errors import ConfigError
 from negobs_gym.drivers.zoo import (
     baseline_names,
     baseline_record,
@@ -15,6 +14,7 @@ from negobs_gym.drivers.zoo import (
     recorded_env,
     resolve_model,
 )
+from negobs_gym.errors import ConfigError
 
 
 def test_a_path_resolves_to_itself_and_an_unknown_name_is_refused(tmp_path: Path) -> None:
@@ -33,8 +33,8 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
     from stable_baselines3 import PPO
 
     import negobs_gym  # noqa: F401 - registers the envs
+    from negobs_gym.envs import make_env
     from negobs_gym.policies.observation import match_observation
-    from negobs_gym.policies.training import make_task_env
 
     record = baseline_record(name)
     for key in ("command", "seed", "steps", "wall_s", "env", "evaluation"):
@@ -45,11 +45,29 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
     model = PPO.load(resolve_model(name), device="cpu")
     assert recorded_env(name) == (record["env"], tuple(settings))  # eval policy's default --env
     assert recorded_env(resolve_model(name)) == recorded_env(name)  # named by its shipped file
-    env = make_task_env(record["env"], None, settings)  # id or scenario
+    env = make_env(record["env"], settings)  # id or scenario
     obs, _ = env.reset(seed=1_000_000)
     action, _ = model.predict(match_observation(obs, model.observation_space), deterministic=True)
     assert env.action_space.contains(action.astype(env.action_space.dtype))
     env.close()
+
+
+@pytest.mark.parametrize("name", baseline_names())
+def test_each_shipped_baselines_training_command_still_parses_to_its_env_and_set(name: str) -> None:
+    """The records' commands use --source and --filter: now short names of --set assignments."""
+    import shlex
+
+    from negobs_gym.cli import build_parser
+    from negobs_gym.cli.train import config_from_args
+
+    record = baseline_record(name)
+    words = shlex.split(record["command"])
+    config = config_from_args(build_parser().parse_args(words[1:]))
+    assert config.env == record["env"] and set(record.get("set", ())) <= set(config.overrides)
+    source = words[words.index("--source") + 1] if "--source" in words else None
+    if source is not None:
+        assert f"observation.source={source}" in config.overrides
+    assert ("run.filter=true" in config.overrides) == ("--filter" in words)
 
 
 def test_at_least_one_baseline_is_shipped() -> None:

@@ -21,14 +21,15 @@ from negobs_gym.policies.config import (
 )
 from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.policies.pretrain import PolicyActor, collect_demonstrations, warm_start
-from negobs_gym.policies.training import _new_model, _vec_env, make_env
+from negobs_gym.policies.training import _new_model, _vec_env, make_training_env
 
 ENV = "negobs_gym/OffroadNav-v1"
+ORACLE = ("observation.source=oracle",)
 
 
 @pytest.fixture(scope="module")
 def demos():
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     try:
         yield collect_demonstrations(env, 120, noise_std=0.3, seed=11)
     finally:
@@ -37,7 +38,7 @@ def demos():
 
 def _model(modes: int, bin_edges: tuple[float, ...] = ()):
     head = SteeringHeadConfig(modes=modes, bin_edges=bin_edges)
-    config = TrainConfig(env=ENV, source="oracle", n_steps=64, head=head)
+    config = TrainConfig(env=ENV, overrides=ORACLE, n_steps=64, head=head)
     venv = _vec_env(config)
     try:
         return _new_model(config, venv, (2, 36, 16))

@@ -24,14 +24,15 @@ from negobs_gym.policies.pretrain import (
     collect_demonstrations,
     warm_start,
 )
-from negobs_gym.policies.training import _check_layout, _new_model, _vec_env, make_env
+from negobs_gym.policies.training import _check_layout, _new_model, _vec_env, make_training_env
 
 ENV = "negobs_gym/OffroadNav-v1"
+ORACLE = ("observation.source=oracle",)
 
 
 @pytest.fixture(scope="module")
 def demos():
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     try:
         yield collect_demonstrations(env, 160, noise_std=0.3, seed=7)
     finally:
@@ -45,7 +46,7 @@ def test_demonstrations_label_the_drivers_clean_actions(demos) -> None:
     assert demos.observations["grid"].shape == (160, 2 * 36 * 16)
     assert demos.observations["state"].shape == (160, 11)
     # replay the first episode: the labels are the driver's actions on the recorded observations
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     obs, info = env.reset(seed=7 + DEMO_SEED_OFFSET)
     driver = PurePursuitDriver(env.unwrapped.terrain.track.centreline_xy_m)
     np.testing.assert_array_equal(demos.observations["state"][0], obs["state"])
@@ -56,7 +57,7 @@ def test_demonstrations_label_the_drivers_clean_actions(demos) -> None:
 
 
 def test_behaviour_cloning_fits_the_driver_and_sets_the_exploration(demos) -> None:
-    config = TrainConfig(env=ENV, source="oracle", n_steps=64)
+    config = TrainConfig(env=ENV, overrides=ORACLE, n_steps=64)
     venv = _vec_env(config)
     model = _new_model(config, venv, (2, 36, 16))
     venv.close()
@@ -90,7 +91,7 @@ def test_warm_start_is_ppo_only_and_validated() -> None:
 
 
 def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2() -> None:
-    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", use_filter=False)
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
     try:
         demos = collect_demonstrations(env, 120, noise_std=0.0, seed=0, driver="track_planner")
         obs, info = env.reset(seed=DEMO_SEED_OFFSET)
@@ -106,7 +107,7 @@ def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2(
 
 def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
     full_throttle = np.array([1.0, 0.0], dtype=np.float32)
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     try:
         demos = collect_demonstrations(env, 30, 0.0, 3, policy=lambda obs: full_throttle, first_episode=5)
         # replay: the same course (episode 5), the policy's action executed, the driver's as labels
@@ -127,7 +128,7 @@ def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
 
 
 def test_a_sight_limited_planner_labels_what_it_sees() -> None:
-    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", use_filter=False)
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
     try:
         full = collect_demonstrations(env, 80, noise_std=0.0, seed=0, driver="track_planner")
         near = collect_demonstrations(env, 80, 0.0, 0, "track_planner", planner_sight_m=14.0)
@@ -148,7 +149,7 @@ def test_each_episode_depends_on_its_number_alone(demos) -> None:
     """The noise of episode k comes from k's own generator: collecting from episode 1 on gives the
     same steps as episode 1 of a collection from episode 0 (what lets workers share episodes)."""
     assert demos.episodes >= 2
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     try:
         later = collect_demonstrations(env, 40, noise_std=0.3, seed=7, first_episode=1)
     finally:
@@ -161,7 +162,7 @@ def test_each_episode_depends_on_its_number_alone(demos) -> None:
 
 def _env_noting_its_life(marks: Path) -> Any:
     """An OffroadTrack-v0 env that appends ``made`` to ``marks`` when it is made, ``closed`` when closed."""
-    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", False)
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
     with marks.open("a") as fh:
         fh.write("made\n")
     close = env.close
@@ -185,7 +186,7 @@ def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path)
     with torch.no_grad():
         for weight in refitted.policy.action_net.parameters():
             weight.neg_()  # the opposite action mean
-    env = make_env("negobs_gym/OffroadTrack-v0", "oracle", False)
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
     try:
         one = collect_demonstrations(env, 150, 0.3, 3, policy=learner, first_episode=2)
         later = collect_demonstrations(env, 30, 0.3, 3, policy=refitted, first_episode=2)
@@ -211,7 +212,7 @@ def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path)
 
 
 def _fresh_model():
-    config = TrainConfig(env=ENV, source="oracle", n_steps=64)
+    config = TrainConfig(env=ENV, overrides=ORACLE, n_steps=64)
     venv = _vec_env(config)
     model = _new_model(config, venv, (2, 36, 16))
     venv.close()
@@ -296,7 +297,7 @@ def test_demonstrations_survive_a_round_trip_to_disk(demos, tmp_path) -> None:
     with pytest.raises(ConfigError, match=r"^demonstrations: different observation layouts") as joined:
         demos + counting
     assert joined.value.field == "demonstrations" and isinstance(joined.value, ValueError)
-    env = make_env(ENV, "oracle", use_filter=False)
+    env = make_training_env(ENV, ORACLE)
     try:
         _check_layout(demos, env, "binary.npz")
         with pytest.raises(ConfigError, match="values up to 16"):
