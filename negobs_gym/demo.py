@@ -13,74 +13,37 @@ Run: ``python -m negobs_gym [--out outputs/demo.png] [--seed 0]``
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.envs.scenarios import BrakingEnv
-from negobs_gym.safety import BrakingSafetyFilter
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeResult, EpisodeStop, drive_episode
 from negobs_gym.sim.render import write_png_atomic
 
 log = logging.getLogger("negobs_gym.demo")
 
-STANDSTILL_MPS = 0.1  # the run ends after STANDSTILL_S below this speed
-STANDSTILL_S = 1.0
+STOP = EpisodeStop(standstill_s=STANDSTILL_S)  # v1 itself ends after 1 s standing too
 
 
 @dataclass(frozen=True)
 class DemoRun:
-    """One episode of the demo; distances in metres from the front bumper to the ditch."""
+    """One episode of the demo: what it did and its final top-down frame."""
 
-    filtered: bool
-    start_gap_m: float  # ditch distance at the start
-    entered_ditch: bool
-    final_gap_m: float  # gap left at the end (inf once the bumper is past the ditch's near edge)
-    final_speed_mps: float
-    first_veto_gap_m: float | None  # gap when the filter first braked (None: never)
-    vetoes: int
-    steps: int
+    result: EpisodeResult
     frame: np.ndarray  # final rgb_array frame
 
 
 def run_episode(seed: int, filtered: bool) -> DemoRun:
     """Drive one reckless episode of Braking-v1, optionally behind the safety filter."""
-    env: gym.Env = BrakingEnv(render_mode="rgb_array")
-    if filtered:
-        env = BrakingSafetyFilter(env)
-    driver = RecklessDriver()
-    driver.reset(seed)
-    obs, info = env.reset(seed=seed)
-    start_gap = float(info["distance_to_negative_ahead_m"])
-    dt = 1.0 / env.unwrapped.scenario.episode.control_hz
-    first_veto, vetoes, still_s, steps = None, 0, 0.0, 0
-    done = False
-    while not done:
-        gap = float(info["distance_to_negative_ahead_m"])
-        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
-        steps += 1
-        if filtered and info["safety"]["vetoed"]:
-            vetoes += 1
-            first_veto = gap if first_veto is None else first_veto
-        still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
-        done = terminated or truncated or still_s >= STANDSTILL_S  # v1 itself ends after 1 s standing
-    frame = env.render()
-    env.close()
-    return DemoRun(
-        filtered=filtered,
-        start_gap_m=start_gap,
-        entered_ditch=bool(info["events"]["entered_negative_obstacle"]),
-        final_gap_m=float(info["distance_to_negative_ahead_m"]),
-        final_speed_mps=float(info["speed_mps"]),
-        first_veto_gap_m=first_veto,
-        vetoes=vetoes,
-        steps=steps,
-        frame=frame,
-    )
+    with contextlib.closing(BrakingEnv(render_mode="rgb_array")) as env:
+        result = drive_episode(env, RecklessDriver(), seed=seed, filter=filtered, stop=STOP)
+        return DemoRun(result, env.render())
 
 
 def write_figure(runs: Sequence[DemoRun], out_path: Path) -> Path:
@@ -94,8 +57,11 @@ def write_figure(runs: Sequence[DemoRun], out_path: Path) -> Path:
     for ax, run in zip(axes[0], runs, strict=True):
         ax.imshow(run.frame)
         ax.set_axis_off()
-        outcome = "entered the ditch" if run.entered_ditch else f"stopped {run.final_gap_m:.1f} m before it"
-        name = "with safety filter" if run.filtered else "no filter"
+        r = run.result
+        outcome = (
+            "entered the ditch" if r.entered_negative_obstacle else f"stopped {r.final_gap_m:.1f} m before it"
+        )
+        name = "with safety filter" if r.filtered else "no filter"
         ax.set_title(f"reckless driver, {name}: {outcome}")
     fig.suptitle("Braking-v1: ditch seen only by the LiDAR detector grid, 25 km/h")
     fig.tight_layout()
@@ -116,18 +82,20 @@ def run_demo(out_path: str | Path | None = "outputs/demo.png", seed: int = 0) ->
 
 def log_runs(runs: Sequence[DemoRun], seed: int, out_path: str | Path | None) -> None:
     """Log the outcome of both demo runs (and where the figure went)."""
-    log.info("Braking-v1, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", seed, runs[0].start_gap_m)
-    for run in runs:
-        name = "with safety filter" if run.filtered else "no filter"
-        if run.entered_ditch:
-            log.info("  %-18s entered the ditch after %d steps", name, run.steps)
+    log.info(
+        "Braking-v1, seed %d: ditch %.1f m ahead of the bumper, 25 km/h", seed, runs[0].result.start_gap_m
+    )
+    for r in (run.result for run in runs):
+        name = "with safety filter" if r.filtered else "no filter"
+        if r.entered_negative_obstacle:
+            log.info("  %-18s entered the ditch after %d steps", name, r.steps)
         else:
             log.info(
                 "  %-18s stopped %.2f m before the ditch; first brake at %.1f m, %d vetoed steps",
                 name,
-                run.final_gap_m,
-                run.first_veto_gap_m if run.first_veto_gap_m is not None else float("nan"),
-                run.vetoes,
+                r.final_gap_m,
+                r.first_veto_gap_m if r.first_veto_gap_m is not None else float("nan"),
+                r.vetoes,
             )
     if out_path is not None:
         log.info("wrote %s", out_path)

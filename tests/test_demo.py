@@ -11,16 +11,18 @@ from negobs_gym.demo import main, run_demo
 
 def test_demo_filter_stops_before_the_ditch_the_reckless_driver_enters(tmp_path):
     out = tmp_path / "demo.png"
-    plain, filtered = run_demo(out, seed=0)
+    runs = run_demo(out, seed=0)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    plain, filtered = (run.result for run in runs)
+    assert not plain.filtered and filtered.filtered
     assert plain.start_gap_m == filtered.start_gap_m  # same seed, same ditch
-    assert plain.entered_ditch and plain.vetoes == 0
-    assert not filtered.entered_ditch
+    assert plain.entered_negative_obstacle and plain.vetoes == 0 and plain.first_veto_gap_m is None
+    assert not filtered.entered_negative_obstacle and filtered.stopped  # stood 1 s before the ditch
     assert filtered.final_speed_mps < 0.1 and 0.0 < filtered.final_gap_m < 6.0
     # the filter braked before the ditch came within R(25 km/h) of the rear axle (10.52 m, minus
     # the 3.65 m from the rear axle to the bumper) and not absurdly early
     assert filtered.first_veto_gap_m is not None and 6.0 < filtered.first_veto_gap_m < 15.0
-    assert plain.frame.shape == filtered.frame.shape and plain.frame.ndim == 3
+    assert runs[0].frame.shape == runs[1].frame.shape and runs[0].frame.ndim == 3
     assert not math.isnan(filtered.final_gap_m)
 
 

@@ -4,14 +4,18 @@ Options shared by the three campaigns: ``--seeds``, ``--out DIR``, ``--workers N
 processes), ``--ray [ADDRESS]`` (Ray; without ADDRESS a local instance), ``--resume``, ``--rig`` and
 ``--config FILE``. The TOML file sets fields of the campaign's config dataclass (top-level keys for
 every command, a ``[detection]`` / ``[braking]`` / ``[policy]`` table for one); options given on
-the command line win over the file.
+the command line win over the file. The braking and policy campaigns change their scenes with
+``--set KEY.PATH=VALUE`` (the config's ``overrides``); their options that set a scene field are
+each that field's ``--set`` path (:data:`SCENE_OPTIONS`).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +25,30 @@ from negobs_gym.errors import ConfigError, MissingDependencyError
 log = logging.getLogger("negobs_gym.cli.eval")
 
 COMMANDS = ("detection", "braking", "policy")
+
+#: Per campaign, its options (and the TOML keys of the same names) that set a field of its
+#: scenes, each as the ``--set`` path it stands for; they come before the ``--set`` assignments,
+#: which win.
+SCENE_OPTIONS: dict[str, dict[str, str]] = {
+    "braking": {
+        "rig": "observation.rig",
+        "tighten_pairs": "observation.tighten_pairs",
+        "scan_every": "observation.scan_every",
+        "scan_far_from_m": "observation.scan_far_from_m",
+    },
+    "policy": {"source": "observation.source"},
+}
+
+
+def scene_overrides(command: str, fields: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """``fields`` without the :data:`SCENE_OPTIONS` of ``command``, and those set (not None) as
+    ``KEY.PATH=VALUE`` assignments, in the table's order."""
+    paths = SCENE_OPTIONS.get(command, {})
+    rest = {k: v for k, v in fields.items() if k not in paths}
+    assignments = [
+        f"{path}={json.dumps(fields[k])}" for k, path in paths.items() if fields.get(k) is not None
+    ]
+    return rest, assignments
 
 
 def load_toml(path: str | Path, command: str) -> dict[str, Any]:
@@ -125,23 +153,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="paper N's pairs tightened to the close frames' near edge, as the envs' default "
-        "(ObservationConfig.tighten_pairs); --no-tighten-pairs: paper N's fusion history",
+        "(--set observation.tighten_pairs=true); --no-tighten-pairs: paper N's fusion history",
     )
     brk.add_argument(
         "--scan-every",
         type=positive_int,
         default=None,
         metavar="K",
-        help="a LiDAR frame every K control steps, carried between (ObservationConfig.scan_every; "
+        help="a LiDAR frame every K control steps, carried between (--set observation.scan_every=K; "
         "default 1: every step)",
     )
     brk.add_argument(
         "--scan-far-from",
+        dest="scan_far_from_m",
         type=float,
         default=None,
         metavar="M",
         help="with --scan-every K > 1: the steps between frames cast and detect the grid's part "
-        "beyond M metres (ObservationConfig.scan_far_from_m; 12 keeps the every-step recall)",
+        "beyond M metres (--set observation.scan_far_from_m=M; 12 keeps the every-step recall)",
     )
     brk.add_argument(
         "--free-track-steps",
@@ -151,6 +180,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the most steps (10 Hz) of a free_track episode (default 150: the 15 s limit); "
         "fewer: a quicker false-veto check",
     )
+    add_set_option(brk)
     brk.set_defaults(handler=run_braking)
 
     pol = commands.add_parser(
@@ -184,7 +214,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="seeds first_seed.. (default 1000000: unseen in training)",
     )
     pol.add_argument(
-        "--source", choices=("detector", "oracle"), default=None, help="grid source (default: the env's own)"
+        "--source",
+        choices=("detector", "oracle"),
+        default=None,
+        help="grid source (--set observation.source=SOURCE; default: the env's own)",
     )
     add_set_option(pol)
     pol.set_defaults(handler=run_policy)
@@ -290,6 +323,22 @@ def _toml(args: argparse.Namespace) -> dict[str, Any]:
     return load_toml(args.config, args.campaign) if args.config else {}
 
 
+def _with_overrides(
+    command: str,
+    toml: dict[str, Any],
+    cli: dict[str, Any],
+    cli_scene: dict[str, Any],
+    sets: Sequence[str] = (),
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The config fields of the TOML file and of the command line, with the scene options of both
+    (:data:`SCENE_OPTIONS`) and the assignments ``sets`` joined into one ``overrides``: the
+    file's options, its ``overrides``, the command's options, then ``sets``."""
+    toml, from_toml = scene_overrides(command, toml)
+    _, from_cli = scene_overrides(command, cli_scene)
+    overrides = (*from_toml, *toml.pop("overrides", ()), *from_cli, *sets)
+    return toml, {**cli, "overrides": overrides}
+
+
 def _split(text: str | None) -> tuple[str, ...] | None:
     return None if text is None else tuple(t.strip() for t in text.split(",") if t.strip())
 
@@ -333,23 +382,30 @@ def run_detection(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_braking(args: argparse.Namespace) -> int:
-    """The braking campaign; prints ``stopped_before=<k>/<n>`` per configuration."""
-    from negobs_gym.eval.braking_campaign import BrakingCampaignConfig, run_braking_campaign, summary_line
+def braking_config(args: argparse.Namespace) -> Any:
+    """The :class:`~negobs_gym.eval.braking_campaign.BrakingCampaignConfig` of ``negobs eval
+    braking``'s options and ``--config`` file, the scene options (:data:`SCENE_OPTIONS`) as
+    ``--set`` assignments before the command's own ``--set``."""
+    from negobs_gym.eval.braking_campaign import BrakingCampaignConfig
 
     cli = {
         "seeds": args.seeds,
-        "rig": args.rig,
         "scenarios": _split(args.scenarios),
         "drivers": _split(args.drivers),
         "model_path": args.model,
         "algo": args.algo,
-        "tighten_pairs": args.tighten_pairs,
-        "scan_every": args.scan_every,
-        "scan_far_from_m": args.scan_far_from,
         "free_track_steps": args.free_track_steps,
     }
-    config = build_config(BrakingCampaignConfig, _toml(args), cli)
+    cli_scene = {k: getattr(args, k) for k in SCENE_OPTIONS["braking"]}
+    toml, cli = _with_overrides("braking", _toml(args), cli, cli_scene, args.overrides)
+    return build_config(BrakingCampaignConfig, toml, cli)
+
+
+def run_braking(args: argparse.Namespace) -> int:
+    """The braking campaign; prints ``stopped_before=<k>/<n>`` per configuration."""
+    from negobs_gym.eval.braking_campaign import run_braking_campaign, summary_line
+
+    config = braking_config(args)
     out = run_braking_campaign(config, args.out, _options(args))
     for s in out.summaries:
         print(summary_line(s))  # the campaign's result on stdout, one line per configuration
@@ -380,13 +436,12 @@ def run_policy(args: argparse.Namespace) -> int:
         "algo": args.algo,
         "filters": filters,
         "first_seed": args.first_seed,
-        "source": args.source,
         "stop_for_positive": args.stop_for_positive,
     }
     if args.rig is not None:
         log.warning("--rig is ignored by 'eval policy': the env id's own config is used")
     from negobs_gym.drivers.zoo import recorded_env
-    from negobs_gym.scenarios import combine_overrides, describe_overrides, env_with_overrides
+    from negobs_gym.spec import combine_overrides, describe_overrides, env_with_overrides
 
     toml = _toml(args)
     recorded = recorded_env(args.model)
@@ -401,6 +456,7 @@ def run_policy(args: argparse.Namespace) -> int:
             " --set ".join(recorded[1]),
             " ".join(f"--set {s}" for s in args.overrides) or "no --set",
         )
+    toml, cli = _with_overrides("policy", toml, cli, {"source": args.source})  # --source: a scene field
     config = build_config(PolicyCampaignConfig, toml, cli)
     if recorded is None and args.env_id is None and "env_id" not in toml:
         log.warning(

@@ -1,22 +1,25 @@
 """Braking campaign at 25 km/h: drivers with and without the Eq. 18 safety filter, per scenario.
 
 Configurations are data: every scenario of :data:`SCENARIOS` (paper N's pit sizes, the Braking
-ditch, a narrow trench, an off-centre pit, an obstacle-free track for false vetoes) x every driver
-(scripted drivers of :mod:`negobs_gym.drivers`, optionally a saved SB3 model) x filter off / on
-(:class:`~negobs_gym.safety.BrakingSafetyFilter`), each run on seeds 0..n-1. One CSV row per
-episode (:data:`COLUMNS`), each episode's path in ``paths.csv`` (:data:`PATH_COLUMNS`, drawn by
-``negobs eval paths``), and each veto and missed veto judged on the ground truth in ``vetoes.csv``
-(:data:`VETO_COLUMNS`); :func:`summarize` turns the CSVs into per-configuration counts.
-
-:func:`run_driven_episode` is also what ``negobs eval policy`` runs on a registered env id.
+ditch, a narrow trench, an off-centre pit, an obstacle-free track for false vetoes; each the
+shipped scene ``braking_campaign_<scenario>`` of ``negobs_gym/spec/scenes``, changed for the
+whole campaign by ``overrides``, the ``--set KEY.PATH=VALUE`` paths) x every driver (scripted
+drivers of :mod:`negobs_gym.drivers`, optionally a saved SB3 model) x filter off / on
+(:class:`~negobs_gym.safety.BrakingSafetyFilter`), each run on seeds 0..n-1 by the one episode
+loop (:func:`~negobs_gym.eval.episode.drive_episode`). One CSV row per episode (:data:`COLUMNS`),
+each episode's path in ``paths.csv`` (:data:`PATH_COLUMNS`, drawn by ``negobs eval paths``), and
+each veto and missed veto judged on the ground truth in ``vetoes.csv`` (:data:`VETO_COLUMNS`);
+:func:`summarize` turns the CSVs into per-configuration counts.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import json
 import math
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,51 +27,64 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.drivers.model import ModelDriver
-from negobs_gym.envs import NegObsEnv
-from negobs_gym.envs.video import optional_video, recording
+from negobs_gym.core.files import write_text_atomic
+from negobs_gym.drivers import ConstantSpeedDriver, Driver, ModelDriver, RecklessDriver
+from negobs_gym.drivers.zoo import resolve_model
+from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv, run_campaign
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeResult, EpisodeStop, drive_episode
+from negobs_gym.eval.plots import distribution_plot
 from negobs_gym.eval.stats import format_interval, rate_interval
+from negobs_gym.eval.tables import key_value_table
 from negobs_gym.eval.vetoes import (
     VETO_COLUMNS,
-    VetoTally,
     format_veto_error,
     largest_veto_error_m,
     veto_rows,
 )
 from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
-from negobs_gym.spec import RIGS, ObservationConfig, ScenarioSpec, load_scenario
+from negobs_gym.spec import ScenarioSpec, apply_overrides, load_scenario
 
-STANDSTILL_MPS = 0.1  # below this speed for STANDSTILL_S the vehicle has stopped (as the demo)
-STANDSTILL_S = 1.0
+#: The campaign's scenarios, each the shipped scene ``braking_campaign_<name>``: Braking-v0's
+#: episode (25 km/h start, 15 s) on Braking-v0's ditch, paper N §4.1's pit sizes (100 x 50,
+#: 100 x 80, 150 x 60 and 100 x 100 cm, the long side across the track), a narrow trench across
+#: the track, a pit under the right wheels (each near edge drawn 20-40 m ahead per seed), and a
+#: track with no obstacle at all, where every veto is a false one.
+SCENARIOS: tuple[str, ...] = (
+    "ditch",
+    "pit_100x50",
+    "pit_100x80",
+    "pit_150x60",
+    "pit_100x100",
+    "trench_narrow",
+    "pit_offcentre",
+    "free_track",
+)
+SCENE_PREFIX = "braking_campaign_"
+DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
+EPISODE_STEPS = 150  # the most steps of a campaign scene's episode: its 15 s limit at the envs' 10 Hz
+#: The loop's own end: 1 s standing still is a stop (the scenes have no stopping rule)
+STOP = EpisodeStop(standstill_s=STANDSTILL_S)
 
-#: Scenarios as data: name -> (terrain preset of :mod:`negobs_gym.sim.presets`, its arguments).
-#: Obstacle scenarios put the obstacle's near edge 20-40 m ahead (drawn per seed, as Braking-v0).
-SCENARIOS: dict[str, tuple[str, dict[str, float]]] = {
-    # Braking-v0's ditch: 1.0 m along the track, 3.0 m across, 0.8 m deep
-    "ditch": ("braking_track", {"ditch_length_m": 1.0, "ditch_width_m": 3.0, "ditch_depth_m": 0.8}),
-    # paper N §4.1's pit sizes, the long side across the track, 0.8 m deep
-    "pit_100x50": ("braking_track", {"ditch_length_m": 0.5, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
-    "pit_100x80": ("braking_track", {"ditch_length_m": 0.8, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
-    "pit_150x60": ("braking_track", {"ditch_length_m": 0.6, "ditch_width_m": 1.5, "ditch_depth_m": 0.8}),
-    "pit_100x100": ("braking_track", {"ditch_length_m": 1.0, "ditch_width_m": 1.0, "ditch_depth_m": 0.8}),
-    # a narrow trench across the whole track: 0.4 m along it (paper N's 0.30 m minimum width + 10 cm)
-    "trench_narrow": ("braking_track", {"ditch_length_m": 0.4, "ditch_width_m": 6.0, "ditch_depth_m": 1.0}),
-    # a 1 m pit under the right wheels (centre 0.8 m right of the centre line)
-    "pit_offcentre": (
-        "braking_track",
-        {"ditch_length_m": 1.0, "ditch_width_m": 1.0, "ditch_depth_m": 0.8, "lateral_offset_m": 0.8},
-    ),
-    # no obstacle at all: every veto is a false veto
-    "free_track": ("rough_track", {"length_m": 160.0}),
-}
+
+def scene_name(scenario: str) -> str:
+    """The shipped scene of a campaign scenario: ``braking_campaign_<scenario>``."""
+    return SCENE_PREFIX + scenario
+
+
+@functools.cache
+def scene(scenario: str) -> ScenarioSpec:
+    """The shipped scene of a campaign scenario (:func:`scene_name`)."""
+    require(scenario in SCENARIOS, "scenarios", f"unknown {scenario!r}; known: {sorted(SCENARIOS)}")
+    return load_scenario(scene_name(scenario))
 
 
 def obstacle_free(scenario: str) -> bool:
-    """Whether a campaign scenario has no obstacle (its preset is ``rough_track``): there every
-    veto is a false one, and ``free_track_steps`` bounds its episodes."""
-    return SCENARIOS[scenario][0] == "rough_track"
+    """Whether a campaign scenario has no obstacle (its scene's terrain is the ``rough_track``
+    preset, which has none): there every veto is a false one, and ``free_track_steps`` bounds its
+    episodes."""
+    return scene(scenario).terrain.preset == "rough_track"
 
 
 #: ``paths.csv`` of the braking and policy campaigns: the car's pose and speed at the reset and
@@ -85,10 +101,6 @@ PATH_COLUMNS = (
     "vetoed",
     "missed_veto",
 )
-DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model is given
-OBSTACLE_DISTANCE_M = (20.0, 40.0)  # Braking-v0's ditch distance range
-TIME_LIMIT_S = 15.0  # Braking-v0's episode length: 104 m at 25 km/h
-EPISODE_STEPS = round(TIME_LIMIT_S * 10)  # the most steps of an episode: 150 at the envs' 10 Hz
 
 COLUMNS = (
     "episode",
@@ -119,20 +131,23 @@ COLUMNS = (
 
 @dataclass(frozen=True, kw_only=True)
 class BrakingCampaignConfig:
-    """Which configurations the braking campaign runs."""
+    """Which configurations the braking campaign runs, and the changes to its scenes.
+
+    ``overrides``: ``KEY.PATH=VALUE`` assignments applied to every scene (the ``--set`` paths of
+    ``negobs eval braking``; ``("observation.rig=native", "observation.scan_every=3")``), after
+    the campaign's own ``observation.source=oracle`` for the scripted drivers, who ignore the
+    observation (the filter reads the detector grid whatever the source).
+    """
 
     seeds: int = 10
-    scenarios: tuple[str, ...] = tuple(SCENARIOS)
+    scenarios: tuple[str, ...] = SCENARIOS
     drivers: tuple[str, ...] = DRIVERS
     filters: tuple[bool, ...] = (False, True)
     model_path: str | None = None  # a saved SB3 model or a shipped policy's name: adds the driver "sb3"
     algo: str = "PPO"  # its stable-baselines3 class
-    rig: str = "roi"  # the envs' default observation rig (ObservationConfig.rig); "native", "reduced"
-    tighten_pairs: bool = True  # ObservationConfig.tighten_pairs of the detector the filter reads
-    scan_every: int = 1  # ObservationConfig.scan_every: a LiDAR frame every this many steps
-    scan_far_from_m: float | None = None  # ObservationConfig.scan_far_from_m: cast beyond it between
+    overrides: tuple[str, ...] = ()
     # the most steps (10 Hz) of a free_track episode: the 15 s limit's 150 by default; fewer give a
-    # quicker (shorter-distance) false-veto check, the obstacle scenarios keep their 150
+    # quicker (shorter-distance) false-veto check, the obstacle scenarios keep their scene's limit
     free_track_steps: int = EPISODE_STEPS
 
     def __post_init__(self) -> None:
@@ -147,30 +162,21 @@ class BrakingCampaignConfig:
             "model_path",
             "driver 'sb3' needs a saved model",
         )
-        require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         if self.model_path is not None:
-            from negobs_gym.drivers.zoo import resolve_model
-
             resolve_model(self.model_path)  # exists, or names a shipped policy; kept as given
         require(
-            isinstance(self.tighten_pairs, bool),
-            "tighten_pairs",
-            f"must be a bool, got {self.tighten_pairs!r}",
+            isinstance(self.overrides, tuple) and all(isinstance(o, str) for o in self.overrides),
+            "overrides",
+            f"must be a tuple of KEY.PATH=VALUE texts, got {self.overrides!r}",
         )
-        require(
-            type(self.scan_every) is int and self.scan_every >= 1,
-            "scan_every",
-            f"must be an int >= 1, got {self.scan_every!r}",
-        )
-        if self.scan_far_from_m is not None:  # the field's own checks, with its name
-            ObservationConfig(scan_every=self.scan_every, scan_far_from_m=self.scan_far_from_m)
+        for scenario in self.scenarios:  # a bad path or value: an error naming it, before any episode
+            apply_overrides(scene(scenario), self.overrides)
         require(
             isinstance(self.free_track_steps, int)
             and not isinstance(self.free_track_steps, bool)
             and 1 <= self.free_track_steps <= EPISODE_STEPS,
             "free_track_steps",
-            f"must be an int in 1..{EPISODE_STEPS} (the {TIME_LIMIT_S:g} s limit), "
-            f"got {self.free_track_steps!r}",
+            f"must be an int in 1..{EPISODE_STEPS} (the 15 s limit), got {self.free_track_steps!r}",
         )
         require(bool(self.scenarios) and bool(self.drivers) and bool(self.filters), "scenarios", "empty")
 
@@ -186,86 +192,41 @@ def configuration_name(scenario: str, driver: str, filtered: bool) -> str:
 
 
 def episodes(config: BrakingCampaignConfig) -> list[Episode]:
-    """scenario x driver x filter x seed, keyed in that order. An obstacle-free (``free_track``)
-    episode's args hold its ``max_steps`` where ``config.free_track_steps`` is not
-    :data:`EPISODE_STEPS`, which the others run, and every episode's its ``scan_every`` where
-    that is not 1 and its ``scan_far_from_m`` where set (so a default campaign's parts are those
-    written before the fields came)."""
+    """scenario x driver x filter x seed, keyed in that order. An episode's args hold the
+    campaign's ``overrides`` where there are any, and an obstacle-free (``free_track``) episode's
+    its ``max_steps`` where ``config.free_track_steps`` is not :data:`EPISODE_STEPS`."""
     out = []
     for scenario in config.scenarios:
         for driver in config.all_drivers():
             for filtered in config.filters:
                 for seed in range(config.seeds):
                     key = f"{scenario}.{driver}.{int(filtered)}.{seed:05d}"
-                    args = {
+                    args: dict[str, Any] = {
                         "scenario": scenario,
                         "driver": driver,
                         "filtered": filtered,
                         "seed": seed,
                         "model_path": config.model_path,
                         "algo": config.algo,
-                        "rig": config.rig,
-                        "tighten_pairs": config.tighten_pairs,
                     }
+                    if config.overrides:
+                        args["overrides"] = list(config.overrides)
                     if obstacle_free(scenario) and config.free_track_steps != EPISODE_STEPS:
                         args["max_steps"] = config.free_track_steps
-                    if config.scan_every != 1:
-                        args["scan_every"] = config.scan_every
-                    if config.scan_far_from_m is not None:
-                        args["scan_far_from_m"] = config.scan_far_from_m
                     out.append(Episode(key, args))
     return out
 
 
-def scenario_spec(
-    scenario: str,
-    rig: str,
-    oracle: bool,
-    tighten_pairs: bool,
-    scan_every: int = 1,
-    scan_far_from_m: float | None = None,
-) -> Any:
-    """The :class:`~negobs_gym.scenarios.ScenarioSpec` of a campaign scenario: Braking-v0's spec
-    (25 km/h start, 15 s, no stopping rule: the campaign judges standstill itself) on the
-    scenario's terrain, the obstacle's near edge drawn 20-40 m ahead per seed."""
-    preset, params = SCENARIOS[scenario]
-    data = load_scenario("braking_v0").to_dict()
-    data["name"] = f"braking_campaign_{scenario}"
-    data["terrain"] = {"preset": preset, "params": dict(params)}
-    if preset == "braking_track":
-        data["terrain"]["params"]["ditch_distance_m"] = list(OBSTACLE_DISTANCE_M)
-    data["episode"]["time_limit_s"] = TIME_LIMIT_S
-    spec = ScenarioSpec.from_dict(data)
-    # scripted drivers ignore the observation: the oracle grid skips the sensors unless the
-    # filter asks for the detector (it always sees obstacles through the detector grid)
-    observation = dataclasses.replace(
-        spec.observation,
-        rig=rig,
-        source="oracle" if oracle else "detector",
-        tighten_pairs=tighten_pairs,
-        scan_every=scan_every,
-        scan_far_from_m=scan_far_from_m,
-    )
-    return dataclasses.replace(spec, observation=observation)
+def episode_overrides(args: Mapping[str, Any]) -> list[str]:
+    """The assignments an episode's scene runs with: the oracle grid for a scripted driver (it
+    ignores the observation; the filter reads the detector grid whatever the source), then the
+    campaign's ``overrides``."""
+    source = ["observation.source=oracle"] if args["driver"] != "sb3" else []
+    return [*source, *args.get("overrides", ())]
 
 
-def _scenario_env(
-    scenario: str,
-    rig: str,
-    oracle: bool,
-    tighten_pairs: bool,
-    render_mode: str | None = None,
-    scan_every: int = 1,
-    scan_far_from_m: float | None = None,
-) -> Any:
-    spec = scenario_spec(scenario, rig, oracle, tighten_pairs, scan_every, scan_far_from_m)
-    return NegObsEnv(scenario=spec, render_mode=render_mode)
-
-
-def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Any:
+def make_driver(name: str, model_path: str | None = None, algo: str = "PPO") -> Driver:
     """A driver by name: ``reckless``, ``constant_speed`` or ``sb3`` (``model_path`` needed)."""
-    from negobs_gym.drivers import ConstantSpeedDriver, RecklessDriver
-
     if name == "reckless":
         return RecklessDriver()
     if name == "constant_speed":
@@ -285,107 +246,34 @@ def run_driven_episode(
     max_steps: int,
     video_to: str | Path | None = None,
 ) -> dict[str, Any]:
-    """One episode of ``driver`` on ``env`` (wrapped in the filter when ``filtered``: True for the
-    default settings or a :class:`~negobs_gym.safety.SafetyFilterConfig`); its metrics.
-    ``video_to``: also write the episode's frames there (:class:`~negobs_gym.envs.video.
-    EpisodeVideo`; ``env`` renders ``rgb_array``); the metrics are the same with or without.
-
-    Ends on termination, truncation, ``max_steps`` or a standstill of ``STANDSTILL_S``. Gaps are
-    ground truth from the front bumper to the nearest negative obstacle ahead (inf: none ahead);
-    ``off_track_steps`` counts the steps that ended off the track (``info["off_track"]``: farther
-    from the centre line than half the track width); ``left_track`` is whether that ended the
-    episode (the env's ``off_track`` termination rule, OffroadNav-v2). ``path`` holds one
-    ``(x, y, yaw, speed, vetoed, missed_veto)`` per step (world metres, radians, m/s, bools), the
-    reset's first; ``judgements`` each veto and missed veto
-    (:class:`~negobs_gym.eval.vetoes.VetoJudgement`).
-    ``false_vetoes``: the vetoes with no true obstacle where the filter saw its hazard (along the
-    corridor it searched: :func:`~negobs_gym.eval.vetoes.is_false_veto`); ``missed_vetoes``: the
-    steps it let through with a true hazard well inside R(v)
-    (:func:`~negobs_gym.eval.vetoes.is_missed_veto`); ``max_veto_error_m``: the largest distance a
-    veto acted on minus its ground truth (:func:`~negobs_gym.eval.vetoes.veto_error_m`; > 0: the
-    filter saw the hazard farther than it was), NaN when no veto had a true obstacle to judge by.
-    """
-    from negobs_gym.safety import BrakingSafetyFilter
-
-    guard = filter_config(filtered)
-    if guard is not None:
-        env = BrakingSafetyFilter(env, config=guard)
-    with contextlib.closing(env), optional_video(video_to, fps=env.unwrapped.scenario.episode.control_hz) as video:
-        return _driven_episode(recording(env, video), driver, seed, guard, max_steps)
+    """Deprecated, kept for one release: :func:`~negobs_gym.eval.episode.drive_episode` with
+    ``EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)``, whose result's
+    :meth:`~negobs_gym.eval.episode.EpisodeResult.metrics` this returns with ``path`` (one
+    ``(x, y, yaw, speed, vetoed, missed_veto)`` per step) and ``judgements``; closes ``env``."""
+    warnings.warn(
+        "negobs_gym.eval.braking_campaign.run_driven_episode is deprecated: use "
+        "negobs_gym.eval.episode.drive_episode, which returns an EpisodeResult",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
+    with contextlib.closing(env):
+        result = drive_episode(
+            env, driver, seed=seed, filter=filter_config(filtered) or False, stop=stop, video_to=video_to
+        )
+    vetoed, missed = set(result.vetoed_steps), set(result.missed_steps)
+    path = [(*point, step in vetoed, step in missed) for step, point in enumerate(result.path)]
+    return {**result.metrics(), "path": path, "judgements": list(result.veto_judgements)}
 
 
-def _driven_episode(
-    env: Any,
-    driver: Any,
-    seed: int,
-    guard: SafetyFilterConfig | None,
-    max_steps: int,
-) -> dict[str, Any]:
-    """The episode of :func:`run_driven_episode` in ``env`` (filter applied)."""
-    driver.reset(seed)
-    obs, info = env.reset(seed=seed)
-    dt = 1.0 / env.unwrapped.scenario.episode.control_hz
-    start_gap, start_station = float(info["distance_to_negative_ahead_m"]), float(info["station_m"])
-    first_veto, cost, still_s, steps, distance = math.nan, 0.0, 0.0, 0, 0.0
-    tally = VetoTally(positive=guard is not None and guard.stop_for_positive)
-    events = {"entered_negative_obstacle": False, "collision": False, "rollover": False, "trapped": False}
-    goal, done, off_track_steps = False, False, 0
-    last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
-    path = [_path_point(info, False, False)]
-    while not done and steps < max_steps:
-        before, gap = info, float(info["distance_to_negative_ahead_m"])
-        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
-        steps += 1
-        xy = np.asarray(info["pose"][:2], dtype=np.float64)
-        distance += float(np.hypot(*(xy - last_xy)))
-        last_xy = xy
-        for k in events:
-            events[k] |= bool(info["events"][k])
-        goal |= bool(info.get("goal_reached", False))
-        off_track_steps += bool(info.get("off_track", False))
-        vetoed, missed = tally.add(env.unwrapped, info.get("safety"), before, steps)
-        if vetoed and math.isnan(first_veto):
-            first_veto = gap
-        path.append(_path_point(info, vetoed, missed))
-        cost += float(info.get("cost", 0.0))
-        still_s = still_s + dt if info["speed_mps"] < STANDSTILL_MPS else 0.0
-        done = terminated or truncated or still_s >= STANDSTILL_S
-    return {
-        "steps": steps,
-        "distance_m": distance,
-        "progress_m": float(info["station_m"]) - start_station,
-        "entered": events["entered_negative_obstacle"],
-        "collision": events["collision"],
-        "rollover": events["rollover"],
-        "trapped": events["trapped"],
-        "goal": goal,
-        "off_track_steps": off_track_steps,
-        "left_track": "off_track" in info.get("termination", ()),
-        "stopped": still_s >= STANDSTILL_S,
-        "start_gap_m": start_gap,
-        "final_gap_m": float(info["distance_to_negative_ahead_m"]),
-        "first_veto_gap_m": first_veto,
-        "vetoes": len(tally.vetoed_steps),
-        "veto_events": tally.veto_events,
-        "false_vetoes": tally.false_vetoes,
-        "missed_vetoes": len(tally.missed_steps),
-        "max_veto_error_m": largest_veto_error_m(tally.errors_m, math.nan),
-        "cost": cost,
-        "path": path,
-        "judgements": tally.judgements,
-    }
-
-
-def _path_point(
-    info: dict[str, Any], vetoed: bool, missed: bool
-) -> tuple[float, float, float, float, bool, bool]:
-    x, y, _, _, _, yaw = (float(v) for v in info["pose"])
-    return x, y, yaw, float(info["speed_mps"]), vetoed, missed
-
-
-def path_rows(key: str, filter_label: str, seed: int, path: Sequence[tuple]) -> list[str]:
-    """An episode's ``path`` (:func:`run_driven_episode`) as rows of :data:`PATH_COLUMNS`."""
-    return [format_row([key, filter_label, seed, step, *point]) for step, point in enumerate(path)]
+def path_rows(key: str, filter_label: str, seed: int, result: EpisodeResult) -> list[str]:
+    """An episode's path (:attr:`EpisodeResult.path`, its vetoed and missed steps marked) as
+    rows of :data:`PATH_COLUMNS`."""
+    vetoed, missed = set(result.vetoed_steps), set(result.missed_steps)
+    return [
+        format_row([key, filter_label, seed, step, *point, step in vetoed, step in missed])
+        for step, point in enumerate(result.path)
+    ]
 
 
 def run_episode(episode: Episode) -> Rows:
@@ -395,23 +283,19 @@ def run_episode(episode: Episode) -> Rows:
     video_to = a.get("video_to")
     driver = make_driver(a["driver"], a["model_path"], a["algo"])
     render_mode = "rgb_array" if video_to is not None else None
-    env = _scenario_env(
-        a["scenario"],
-        a["rig"],
-        a["driver"] != "sb3",
-        a["tighten_pairs"],
-        render_mode,
-        a.get("scan_every", 1),
-        a.get("scan_far_from_m"),
-    )
-    max_steps = a.get("max_steps", EPISODE_STEPS)
-    metrics = run_driven_episode(env, driver, a["seed"], a["filtered"], max_steps, video_to=video_to)
+    env = make_env(scene_name(a["scenario"]), episode_overrides(a), render_mode=render_mode)
+    stop = dataclasses.replace(STOP, max_steps=a.get("max_steps"))
+    with contextlib.closing(env):
+        result = drive_episode(
+            env, driver, seed=a["seed"], filter=bool(a["filtered"]), stop=stop, video_to=video_to
+        )
+    metrics = result.metrics()
     label = "filter" if a["filtered"] else "nofilter"
     row = [episode.key, a["scenario"], a["driver"], label, a["seed"]]
     return {
         "braking": [format_row(row + [metrics[c] for c in COLUMNS[5:]])],
-        "paths": path_rows(episode.key, label, a["seed"], metrics["path"]),
-        "vetoes": veto_rows(episode.key, label, a["seed"], metrics["judgements"]),
+        "paths": path_rows(episode.key, label, a["seed"], result),
+        "vetoes": veto_rows(episode.key, label, a["seed"], result.veto_judgements),
     }
 
 
@@ -553,8 +437,6 @@ def summary_line(s: ConfigurationSummary) -> str:
 
 def report_markdown(summaries: Sequence[ConfigurationSummary]) -> str:
     """The per-configuration table as markdown."""
-    from negobs_gym.eval.tables import key_value_table
-
     rows = [
         [
             s.name,
@@ -611,10 +493,6 @@ def run_braking_campaign(
     options: RunOptions | None = None,
 ) -> BrakingOutputs:
     """Run (or resume) the braking campaign; CSV, summary JSON, table and plots in ``out_dir``."""
-    from negobs_gym.core.files import write_text_atomic
-    from negobs_gym.eval.campaign import run_campaign
-    from negobs_gym.eval.plots import distribution_plot
-
     out = Path(out_dir)
     tables = {"braking": COLUMNS, "paths": PATH_COLUMNS, "vetoes": VETO_COLUMNS}
     csvs = run_campaign(run_episode, episodes(config), out, tables, options, "braking episodes")

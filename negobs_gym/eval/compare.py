@@ -24,17 +24,24 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from negobs_gym.core.files import write_text_atomic
 from negobs_gym.errors import require
 from negobs_gym.eval.campaign import read_csv
+from negobs_gym.eval.detection import DetectionEvalConfig
+from negobs_gym.eval.detection_campaign import SENSOR_MODES, fig16_counts_by_course
 from negobs_gym.eval.stats import (
     CONFIDENCE,
     PairedRate,
     PairedShift,
     format_interval,
+    interval_list,
+    nan_to_none,
     paired_rate,
     paired_shift,
     rate_interval,
+    seed_bootstrap_difference,
 )
+from negobs_gym.eval.tables import bin_labels, key_value_table
 
 __all__ = [
     "CampaignSide",
@@ -265,7 +272,6 @@ class Comparison:
 
     def markdown(self) -> str:
         """Two tables, outcomes and measures, under a line naming the sides and the pairs."""
-        from negobs_gym.eval.tables import key_value_table
 
         def side(s: CampaignSide) -> str:
             return f"{s.label} ({', '.join(s.driven)})"
@@ -361,8 +367,6 @@ class DetectionComparison:
 
     def markdown(self) -> str:
         """One table per sensor mode under a line naming the campaigns and the courses."""
-        from negobs_gym.eval.tables import key_value_table
-
         head = f"A = {self.a}, B = {self.b}: Fig. 16 recall (25-34-cell pits), {self.courses} courses in both"
         if self.only_a or self.only_b:
             head += f"; left out, driven by one only: {self.only_a} of A, {self.only_b} of B"
@@ -406,11 +410,6 @@ def compare_detection_campaigns(a: str | Path, b: str | Path) -> DetectionCompar
         ConfigError: a folder that is no detection campaign (field ``campaign_dir``), no common
             course or fewer than two (``pairs``), or a course driven for different frame counts.
     """
-    from negobs_gym.eval.detection import DetectionEvalConfig
-    from negobs_gym.eval.detection_campaign import SENSOR_MODES, fig16_counts_by_course
-    from negobs_gym.eval.stats import interval_list, nan_to_none, seed_bootstrap_difference
-    from negobs_gym.eval.tables import bin_labels
-
     folders = Path(a), Path(b)
     for folder in folders:
         require(
@@ -463,8 +462,6 @@ def _frames_by_seed(folder: Path) -> dict[int, int]:
 
 def write_comparison(comparison: Comparison | DetectionComparison, out_dir: str | Path) -> tuple[Path, Path]:
     """``compare.md`` and ``compare.json`` in ``out_dir``, each written atomically."""
-    from negobs_gym.core.files import write_text_atomic
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     markdown = write_text_atomic(out / "compare.md", comparison.markdown())

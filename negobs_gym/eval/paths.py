@@ -13,6 +13,7 @@ stop before the obstacle, or a veto on the obstacle-free track), the ones to loo
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
@@ -20,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from negobs_gym.envs import NegObsEnv, make_env
+from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.braking_campaign import PATH_COLUMNS, obstacle_free, scenario_spec
-from negobs_gym.eval.campaign import read_csv
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, episode_overrides, obstacle_free, scene_name
+from negobs_gym.eval.campaign import PARTS_DIR, read_csv
+from negobs_gym.sim.render import render_drive
 from negobs_gym.spec import recorded_env_in
 
 __all__ = ["chosen_episodes", "draw_paths", "episode_outcome", "task_done"]
@@ -60,16 +62,25 @@ def task_done(row: dict[str, str]) -> bool:
     return not failed and row["stopped"] == "1"
 
 
+def _recorded_args(folder: Path, key: str) -> dict[str, Any]:
+    """The arguments an episode ran with, as its part records them (empty: no part)."""
+    part = folder / PARTS_DIR / f"{key}.json"
+    return dict(json.loads(part.read_text(encoding="utf-8")).get("args", {})) if part.is_file() else {}
+
+
 def _terrain_and_caption(row: dict[str, str], folder: Path) -> tuple[Any, str]:
-    """The episode's terrain, rebuilt from its env or scenario and seed on the oracle grid (the
-    terrain is the seed's whatever the grid; the oracle spares the detector's set-up), and its
-    caption."""
+    """The episode's terrain, rebuilt from its env or scenario, the campaign's overrides and its
+    seed on the oracle grid (the terrain is the seed's whatever the grid; the oracle spares the
+    detector's set-up), and its caption."""
+    args = _recorded_args(folder, row["episode"])
     if _is_braking(row):
-        env = NegObsEnv(scenario=scenario_spec(row["scenario"], "roi", oracle=True, tighten_pairs=True))
+        overrides = [*episode_overrides({**args, "driver": row["driver"]}), "observation.source=oracle"]
+        env = make_env(scene_name(row["scenario"]), overrides)
         name = f"{row['scenario']} seed {row['seed']} {row['driver']}, {row['filter']}"
         result = f"gap {float(row['final_gap_m']):.2f} m"
     else:
-        env = make_env(recorded_env_in(row["env"], folder), ["observation.source=oracle"])
+        overrides = [*args.get("overrides", ()), "observation.source=oracle"]
+        env = make_env(recorded_env_in(row["env"], folder), overrides)
         shown = env.unwrapped.scenario.name if row["env"].endswith(".toml") else row["env"]
         name = f"{shown} seed {row['seed']} {row['filter']}"
         result = f"{float(row['progress_m']):.1f} m"
@@ -132,8 +143,6 @@ def draw_paths(
             (field ``campaign_dir``), an unknown key (``keys``), or an episode without path rows
             (a campaign from before paths were recorded).
     """
-    from negobs_gym.sim.render import render_drive
-
     folder = Path(campaign_dir)
     episodes, chosen = chosen_episodes(folder, keys, everything=everything, limit=limit)
     paths_csv = folder / "paths.csv"

@@ -23,26 +23,25 @@ generators, so these seeds are terrains the policy has not trained on.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from negobs_gym.core.files import write_text_atomic
 from negobs_gym.drivers.model import ModelDriver
+from negobs_gym.drivers.zoo import resolve_model
 from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import require
-from negobs_gym.eval.braking_campaign import (
-    PATH_COLUMNS,
-    median_or_none,
-    path_rows,
-    run_driven_episode,
-    veto_errors_by,
-)
-from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv
+from negobs_gym.eval.braking_campaign import PATH_COLUMNS, median_or_none, path_rows, veto_errors_by
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv, run_campaign
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
 from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
 from negobs_gym.safety.filter import SafetyFilterConfig
+from negobs_gym.spec import apply_overrides, spec_for_env
 
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
 
@@ -95,9 +94,10 @@ SUMMED = (
 class PolicyCampaignConfig:
     """A saved model, the env id it runs on, the seeds and the filter settings.
 
-    ``source`` replaces the env's grid source (``"detector"`` or ``"oracle"``; None keeps the env's
-    own, the detector grid for every registered id), e.g. to evaluate an oracle-trained policy on
-    what the vehicle's detectors see. ``stop_for_positive``: the filtered episodes' filter also
+    ``overrides``: ``KEY.PATH=VALUE`` assignments to the env's scenario (the ``--set`` paths;
+    ``("observation.source=oracle",)`` gives the oracle grid instead of the detector grid every
+    registered id observes, e.g. to evaluate a policy on what it was trained on).
+    ``stop_for_positive``: the filtered episodes' filter also
     stops for the grid's positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`);
     their rows say ``filter_positive`` instead of ``filter``. ``model_path``: a saved model, or
     the name of a shipped policy, which the episodes' records keep as a name (resolved where each
@@ -110,25 +110,25 @@ class PolicyCampaignConfig:
     seeds: int = 10
     first_seed: int = 1_000_000
     filters: tuple[bool, ...] = (False, True)
-    source: str | None = None
+    overrides: tuple[str, ...] = ()
     stop_for_positive: bool = False
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
         require(self.first_seed >= 0, "first_seed", f"must be >= 0, got {self.first_seed}")
         require(
-            self.source in (None, "detector", "oracle"),
-            "source",
-            f"must be 'detector', 'oracle' or None (the env's own), got {self.source!r}",
+            isinstance(self.overrides, tuple) and all(isinstance(o, str) for o in self.overrides),
+            "overrides",
+            f"must be a tuple of KEY.PATH=VALUE texts, got {self.overrides!r}",
         )
+        if self.overrides:  # a bad path or value: named now, not in the first episode
+            apply_overrides(spec_for_env(self.env_id), self.overrides)
         require(bool(self.filters), "filters", "needs at least one of off / on")
         require(
             isinstance(self.stop_for_positive, bool),
             "stop_for_positive",
             f"must be a bool, got {self.stop_for_positive!r}",
         )
-        from negobs_gym.drivers.zoo import resolve_model
-
         resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
 
 
@@ -140,14 +140,15 @@ def filter_label(filtered: bool, stop_for_positive: bool) -> str:
 
 
 def episodes(config: PolicyCampaignConfig) -> list[Episode]:
-    """filter x seed."""
-    args = {
+    """filter x seed; the args hold the campaign's ``overrides`` where there are any."""
+    args: dict[str, Any] = {
         "model_path": config.model_path,
         "env_id": config.env_id,
         "algo": config.algo,
-        "source": config.source,
         "stop_for_positive": config.stop_for_positive,
     }
+    if config.overrides:
+        args["overrides"] = list(config.overrides)
     seeds = range(config.first_seed, config.first_seed + config.seeds)
     code = {False: 0, True: 2 if config.stop_for_positive else 1}  # keys of filter_label's rows
     return [
@@ -158,32 +159,30 @@ def episodes(config: PolicyCampaignConfig) -> list[Episode]:
 
 
 def run_episode(episode: Episode) -> Rows:
-    """One episode of the model on ``gym.make(env_id)``, or on the scenario ``env_id`` names (a
-    shipped scenario or a TOML file). An arg ``video_to`` (not set by :func:`episodes`; see
+    """One episode of the model on ``env_id`` (a registered id, a shipped scenario or a TOML
+    file) with the campaign's overrides. An arg ``video_to`` (not set by :func:`episodes`; see
     :func:`negobs_gym.eval.replay.replay_videos`) also writes its frames there."""
-    import gymnasium as gym
-
-    import negobs_gym  # noqa: F401 - registers the env ids
-
     a = episode.args
     video_to = a.get("video_to")
     render_mode = "rgb_array" if video_to is not None else None
-    if a.get("source") is None and a["env_id"] in gym.registry:
-        env = gym.make(a["env_id"], render_mode=render_mode)
-    else:
-        env = make_env(a["env_id"], source_overrides(a["source"]), render_mode=render_mode)
+    # a campaign of an earlier version recorded its grid source as the arg "source"
+    overrides = [*source_overrides(a.get("source")), *a.get("overrides", ())]
+    env = make_env(a["env_id"], overrides, render_mode=render_mode)
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     guard = SafetyFilterConfig(stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
     driver = ModelDriver(a["model_path"], a["algo"])
-    m = run_driven_episode(env, driver, a["seed"], guard, max_steps, video_to=video_to)
+    stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
+    with contextlib.closing(env):
+        result = drive_episode(env, driver, seed=a["seed"], filter=guard, stop=stop, video_to=video_to)
+    m = result.metrics()
     success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"] or m["left_track"])
     label = filter_label(a["filtered"], a["stop_for_positive"])
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
     return {
         "policy": [format_row(row)],
-        "paths": path_rows(episode.key, label, a["seed"], m["path"]),
-        "vetoes": veto_rows(episode.key, label, a["seed"], m["judgements"]),
+        "paths": path_rows(episode.key, label, a["seed"], result),
+        "vetoes": veto_rows(episode.key, label, a["seed"], result.veto_judgements),
     }
 
 
@@ -258,9 +257,6 @@ def run_policy_campaign(
     options: RunOptions | None = None,
 ) -> tuple[Path, Path, dict[str, dict[str, Any]]]:
     """Run (or resume) it; returns the CSV, the summary JSON and the summary."""
-    from negobs_gym.core.files import write_text_atomic
-    from negobs_gym.eval.campaign import run_campaign
-
     out = Path(out_dir)
     tables = {"policy": COLUMNS, "paths": PATH_COLUMNS, "vetoes": VETO_COLUMNS}
     csvs = run_campaign(run_episode, episodes(config), out, tables, options, "policy episodes")

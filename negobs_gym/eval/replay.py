@@ -16,9 +16,12 @@ import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from negobs_gym.drivers.zoo import resolve_model
 from negobs_gym.errors import NegobsError, require
+from negobs_gym.eval import braking_campaign, policy_campaign
 from negobs_gym.eval.campaign import PARTS_DIR, Episode, Rows
 from negobs_gym.eval.paths import chosen_episodes
+from negobs_gym.spec.overrides import recorded_env_in
 
 __all__ = ["ReplayMismatch", "replay_videos"]
 
@@ -29,11 +32,7 @@ class ReplayMismatch(NegobsError, RuntimeError):
 
 def _episode_runner(folder: Path) -> Callable[[Episode], Rows]:
     """The campaign's episode function: a policy campaign's or a braking campaign's."""
-    if (folder / "policy.csv").is_file():
-        from negobs_gym.eval.policy_campaign import run_episode
-    else:
-        from negobs_gym.eval.braking_campaign import run_episode
-    return run_episode
+    return (policy_campaign if (folder / "policy.csv").is_file() else braking_campaign).run_episode
 
 
 def _first_difference(replayed: list[str], recorded: list[str]) -> int:
@@ -73,9 +72,6 @@ def replay_videos(
             episode of a scripted driver (field ``model``).
         ReplayMismatch: a replay's rows differ from the campaign's; its video is removed.
     """
-    from negobs_gym.drivers.zoo import resolve_model
-    from negobs_gym.spec.overrides import recorded_env_in
-
     if model is not None:
         model = resolve_model(str(model), "model")
     folder = Path(campaign_dir)

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from negobs_gym.cli import main
-from negobs_gym.cli.eval import build_config, load_toml
+from negobs_gym.cli import build_parser, main
+from negobs_gym.cli.eval import braking_config, build_config, load_toml
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
 from negobs_gym.eval.stats import format_interval, rate_interval
-from negobs_gym.scenarios import spec_from_toml
+from negobs_gym.spec import apply_overrides, load_scenario, spec_from_toml
 
 
 @pytest.mark.parametrize("campaign", ["detection", "braking", "policy"])
@@ -51,6 +51,32 @@ def test_bad_config_and_missing_ray_exit_2(tmp_path: Path, monkeypatch, capsys) 
     monkeypatch.setitem(sys.modules, "ray", None)
     assert main(["eval", "detection", "--ray", *out]) == 2
     assert "negobs_gym[ray]" in capsys.readouterr().err
+
+
+def test_braking_scene_options_are_set_paths_in_order(tmp_path: Path) -> None:
+    """--rig, --tighten-pairs, --scan-every and --scan-far-from (and the TOML keys of the same
+    names) are their --set paths: the file's, its overrides, the command's options, then --set."""
+    config = tmp_path / "c.toml"
+    config.write_text('rig = "reduced"\n[braking]\noverrides = ["observation.scan_every=2"]\nseeds = 2\n')
+    argv = ["eval", "braking", "--config", str(config), "--rig", "native", "--no-tighten-pairs"]
+    argv += ["--scan-every", "4", "--scan-far-from", "12", "--set", "observation.rig=roi"]
+    cfg = braking_config(build_parser().parse_args(argv))
+    assert cfg.seeds == 2 and cfg.overrides == (
+        'observation.rig="reduced"',
+        "observation.scan_every=2",
+        'observation.rig="native"',
+        "observation.tighten_pairs=false",
+        "observation.scan_every=4",
+        "observation.scan_far_from_m=12.0",
+        "observation.rig=roi",
+    )
+    observation = apply_overrides(load_scenario("braking_campaign_ditch"), cfg.overrides).observation
+    assert (observation.rig, observation.tighten_pairs, observation.scan_every) == ("roi", False, 4)
+    assert observation.scan_far_from_m == 12.0
+    assert braking_config(build_parser().parse_args(["eval", "braking"])).overrides == ()
+    config.write_text("[braking]\ntighten_pair = false\n")  # a misspelt key is still refused
+    with pytest.raises(ConfigError, match="unknown keys"):
+        braking_config(build_parser().parse_args(["eval", "braking", "--config", str(config)]))
 
 
 def test_braking_refuses_a_far_part_outside_the_grid_naming_it(tmp_path: Path, capsys) -> None:
@@ -113,7 +139,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert seeds == ["5", "6"]
     # a scenario TOML file as the env: Braking-v0's scene with the structure channel, its own grid
     scene = tmp_path / "braking_structure.toml"
-    shipped = Path(negobs_gym.__file__).parent / "scenarios" / "scenes" / "braking_v0.toml"
+    shipped = Path(negobs_gym.__file__).parent / "spec" / "scenes" / "braking_v0.toml"
     scene.write_text(shipped.read_text() + '\n[observation]\npositive_detector = "structure"\n')
     toml_run = ["eval", "policy", str(path), "--env", str(scene), "--seeds", "1", "--filter", "both"]
     toml_run += ["--set", "episode.time_limit_s=1"]  # what is checked here needs no whole episode
@@ -178,4 +204,4 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     (line,) = capsys.readouterr().out.splitlines()
     assert line.startswith("ditch/sb3/filter stopped_before=")
     (part,) = (tmp_path / "b" / "parts").glob("*.json")
-    assert json.loads(part.read_text())["args"]["tighten_pairs"] is False
+    assert json.loads(part.read_text())["args"]["overrides"] == ["observation.tighten_pairs=false"]

@@ -15,11 +15,16 @@ from negobs_gym.cli import main
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import (
     COLUMNS,
+    EPISODE_STEPS,
     SCENARIOS,
     BrakingCampaignConfig,
     ConfigurationSummary,
+    episode_overrides,
     episodes,
+    obstacle_free,
     report_markdown,
+    run_episode,
+    scene,
     summarize,
     summary_line,
 )
@@ -27,6 +32,7 @@ from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.paths import episode_outcome, task_done
 from negobs_gym.eval.vetoes import VETO_COLUMNS
 from negobs_gym.safety import braking_distance_m
+from negobs_gym.spec import apply_overrides, load_scenario
 from tests.helpers import write_vetoes_csv
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -218,8 +224,6 @@ def test_configurations_are_data() -> None:
 
 
 def test_free_track_steps_bounds_only_the_free_track_episodes() -> None:
-    from negobs_gym.eval.braking_campaign import EPISODE_STEPS, run_episode
-
     assert BrakingCampaignConfig().free_track_steps == EPISODE_STEPS == 150  # the 15 s limit at 10 Hz
     for bad in (0, -1, EPISODE_STEPS + 1, 2.5, True, "20"):
         with pytest.raises(ConfigError, match="free_track_steps"):
@@ -243,51 +247,89 @@ def _read_rows(lines: list[str]) -> list[dict[str, str]]:
     return [dict(zip(COLUMNS, line.split(","), strict=True)) for line in lines]
 
 
-def test_tighten_pairs_reaches_the_episodes_detector() -> None:
-    from negobs_gym.eval.braking_campaign import scenario_spec
+def _episode_spec(episode):
+    """The scene an episode of the campaign runs on, every override applied."""
+    return apply_overrides(scene(episode.args["scenario"]), episode_overrides(episode.args))
 
-    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), tighten_pairs=False)
-    assert all(e.args["tighten_pairs"] is False for e in episodes(cfg))
-    assert BrakingCampaignConfig().tighten_pairs is True  # as the envs' default
-    for tighten in (False, True):
-        assert (
-            scenario_spec("ditch", "roi", oracle=True, tighten_pairs=tighten).observation.tighten_pairs
-            is tighten
-        )
-    with pytest.raises(ConfigError, match="tighten_pairs"):
-        BrakingCampaignConfig(tighten_pairs="yes")
+
+def test_each_scenario_is_a_shipped_scene_of_braking_v0s_episode() -> None:
+    """The scenes hold what the campaign's scenarios always were: Braking-v0's 25 km/h start and
+    15 s on their terrain, the obstacle's near edge 20-40 m ahead; only free_track has none."""
+    braking = load_scenario("braking_v0")
+    for scenario in SCENARIOS:
+        spec = load_scenario(f"braking_campaign_{scenario}")
+        assert spec == scene(scenario) and spec.name == f"braking_campaign_{scenario}"
+        assert spec.start == braking.start and spec.episode == braking.episode
+        assert spec.observation == braking.observation and spec.terminations == braking.terminations
+        assert spec.episode.max_episode_steps == EPISODE_STEPS
+        params = spec.terrain.params
+        if obstacle_free(scenario):
+            assert spec.terrain.preset == "rough_track" and scenario == "free_track"
+        else:
+            assert spec.terrain.preset == "braking_track"
+            assert (params["ditch_distance_m"].low, params["ditch_distance_m"].high) == (20.0, 40.0)
+    assert scene("pit_offcentre").terrain.params["lateral_offset_m"] == 0.8
+    assert (
+        scene("trench_narrow").terrain.params["ditch_length_m"],
+        scene("ditch").terrain.params["ditch_width_m"],
+    ) == (
+        0.4,
+        3.0,
+    )
+
+
+def test_overrides_reach_every_episodes_scene_after_the_campaigns_oracle() -> None:
+    """``overrides`` (the --set paths) change every scene; a scripted driver's episode runs on the
+    oracle grid unless they say otherwise, the model's on the scene's detector grid."""
+    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), filters=(True,))
+    (plain,) = episodes(cfg)
+    assert "overrides" not in plain.args  # a default campaign's parts as before
+    assert _episode_spec(plain).observation.source == "oracle"
+    assert _episode_spec(plain).observation.tighten_pairs is True  # the envs' default
+    changed = ("observation.tighten_pairs=false", "observation.rig=native", "observation.source=detector")
+    (episode,) = episodes(dataclasses.replace(cfg, overrides=changed))
+    assert episode.args["overrides"] == list(changed)
+    observation = _episode_spec(episode).observation
+    assert (observation.tighten_pairs, observation.rig, observation.source) == (False, "native", "detector")
+    sb3 = {**plain.args, "driver": "sb3"}
+    assert apply_overrides(scene("ditch"), episode_overrides(sb3)).observation.source == "detector"
+    for bad, field in [
+        (("observation.tighten_pairs='yes'",), "observation.tighten_pairs"),
+        (("observation.rig=moon",), "observation.rig"),
+        (("observation.scan_every=0",), "observation.scan_every"),
+        (("episode.time_limt_s=3",), "time_limt_s"),
+        (("no_equals_sign",), "--set"),
+    ]:
+        with pytest.raises(ConfigError, match=field):
+            BrakingCampaignConfig(overrides=bad)
+    with pytest.raises(ConfigError, match="overrides"):
+        BrakingCampaignConfig(overrides="observation.rig=native")  # one text, not a tuple of them
 
 
 def test_scan_every_reaches_the_episode_and_the_filter_allows_the_frames_age() -> None:
-    """``scan_every`` lies in the episodes' args only where it is not 1 (default parts resume); a
-    filtered reckless episode with a frame every 3 steps (hazards up to 0.2 s old, from which the
-    filter's timeout counts) vetoes by distance, not by staleness, and stops before the ditch."""
-    from negobs_gym.eval.braking_campaign import run_episode
-
+    """A filtered reckless episode with a frame every 3 steps (hazards up to 0.2 s old, from which
+    the filter's timeout counts) vetoes by distance, not by staleness, and stops before the ditch."""
     cfg = BrakingCampaignConfig(
-        seeds=1, scenarios=("ditch",), drivers=("reckless",), filters=(True,), scan_every=3
+        seeds=1,
+        scenarios=("ditch",),
+        drivers=("reckless",),
+        filters=(True,),
+        overrides=("observation.scan_every=3",),
     )
     (episode,) = episodes(cfg)
-    assert episode.args["scan_every"] == 3
-    assert all("scan_every" not in e.args for e in episodes(dataclasses.replace(cfg, scan_every=1)))
-    for bad in (0, 1.5, True):
-        with pytest.raises(ConfigError, match="scan_every"):
-            BrakingCampaignConfig(scan_every=bad)
+    assert _episode_spec(episode).observation.scan_every == 3
     (row,) = _read_rows(run_episode(episode)["braking"])
-    assert row["entered"] in ("0", "False") and row["stopped"] in ("1", "True")
+    assert row["entered"] == "0" and row["stopped"] == "1"
     assert 0 < float(row["final_gap_m"]) and float(row["first_veto_gap_m"]) < 16.0  # vetoed by distance
 
 
-def test_scan_far_from_m_reaches_the_episodes_observation_only_where_set() -> None:
-    from negobs_gym.eval.braking_campaign import scenario_spec
-
-    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), filters=(True,))
-    assert all("scan_far_from_m" not in e.args for e in episodes(cfg))
-    far = dataclasses.replace(cfg, scan_every=3, scan_far_from_m=12.0)
-    (episode,) = episodes(far)
-    assert episode.args["scan_far_from_m"] == 12.0 and episode.args["scan_every"] == 3
-    spec = scenario_spec("ditch", "roi", False, True, 3, 12.0)
-    assert spec.observation.scan_far_from_m == 12.0 and spec.observation.scan_every == 3
-    for bad in (40.0, float("nan"), "12"):
+def test_scan_far_from_m_reaches_the_episodes_observation_and_is_checked() -> None:
+    far = ("observation.scan_every=3", "observation.scan_far_from_m=12.0")
+    cfg = BrakingCampaignConfig(seeds=1, scenarios=("ditch",), drivers=("reckless",), overrides=far)
+    observation = _episode_spec(episodes(cfg)[0]).observation
+    assert observation.scan_far_from_m == 12.0 and observation.scan_every == 3
+    for bad in ("40.0", "nan", '"12"'):
         with pytest.raises(ConfigError, match="scan_far_from_m"):
-            BrakingCampaignConfig(scan_every=3, scan_far_from_m=bad)
+            BrakingCampaignConfig(
+                overrides=("observation.scan_every=3", f"observation.scan_far_from_m={bad}")
+            )

@@ -7,13 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from negobs_gym.errors import ConfigError
-from negobs_gym.eval.braking_campaign import run_driven_episode
-from negobs_gym.eval.campaign import format_row
-from negobs_gym.eval.policy_campaign import COLUMNS, PolicyCampaignConfig, summarize
 from negobs_gym.drivers.model import ModelDriver
-from negobs_gym.policies.training import make_task_env
+from negobs_gym.envs import make_env
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.campaign import format_row
+from negobs_gym.eval.episode import EpisodeStop, drive_episode
+from negobs_gym.eval.policy_campaign import COLUMNS, PolicyCampaignConfig, episodes, summarize
 from tests.helpers import write_vetoes_csv
+
+ORACLE = ["observation.source=oracle"]
 
 
 class FixedAction:
@@ -31,20 +33,22 @@ class FixedAction:
 
 @pytest.mark.parametrize(("steering", "leaves_the_track"), [(0.0, False), (1.0, True)])
 def test_off_track_steps_count_the_steps_beside_the_track(steering: float, leaves_the_track: bool) -> None:
-    env = make_task_env("negobs_gym/Braking-v1", "oracle")
-    m = run_driven_episode(env, FixedAction(0.3, steering), seed=0, filtered=False, max_steps=30)
-    assert 0 <= m["off_track_steps"] <= m["steps"]
+    env = make_env("negobs_gym/Braking-v1", ORACLE)
+    r = drive_episode(env, FixedAction(0.3, steering), seed=0, filter=False, stop=EpisodeStop(max_steps=30))
+    env.close()
+    assert 0 <= r.off_track_steps <= r.steps == 30
     # straight on from the centre line stays on the 6 m track; full lock leaves it within 3 s
-    assert (m["off_track_steps"] > 0) is leaves_the_track
+    assert r.left_track is leaves_the_track and not r.ended_off_track  # Braking-v1 has no such rule
 
 
 @pytest.mark.parametrize(("steering", "leaves_the_track"), [(0.0, False), (1.0, True)])
 def test_leaving_the_track_ends_an_offroad_nav_v2_episode_and_is_recorded(steering, leaves_the_track) -> None:
-    env = make_task_env("negobs_gym/OffroadTrack-v0", "oracle")
-    m = run_driven_episode(env, FixedAction(1.0, steering), seed=0, filtered=False, max_steps=40)
-    assert m["left_track"] is leaves_the_track
+    env = make_env("negobs_gym/OffroadTrack-v0", ORACLE)
+    r = drive_episode(env, FixedAction(1.0, steering), seed=0, filter=False, stop=EpisodeStop(max_steps=40))
+    env.close()
+    assert r.ended_off_track is leaves_the_track and r.metrics()["left_track"] is leaves_the_track
     # the rule ends the episode at the first step beside the track, before the step limit
-    assert (m["steps"] < 40 and m["off_track_steps"] == 1) if leaves_the_track else m["off_track_steps"] == 0
+    assert (r.steps < 40 and r.off_track_steps == 1) if leaves_the_track else r.off_track_steps == 0
 
 
 def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
@@ -91,3 +95,27 @@ def test_a_shipped_policy_is_named_in_the_config_and_loaded_by_name() -> None:
         PolicyCampaignConfig(model_path="no_such_policy")
     with pytest.raises(ConfigError, match="model_path"):
         ModelDriver("no_such_policy")
+
+
+def test_overrides_change_the_episodes_scenario_and_bad_ones_are_named() -> None:
+    config = PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", seeds=1, overrides=tuple(ORACLE))
+    assert len(episodes(config)) == 2 and all(e.args["overrides"] == ORACLE for e in episodes(config))
+    assert all(
+        "overrides" not in e.args for e in episodes(PolicyCampaignConfig(model_path="ppo_offroad_nav_v1"))
+    )
+    with pytest.raises(ConfigError, match=r"observation\.source"):
+        PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", overrides=("observation.source=radar",))
+    with pytest.raises(ConfigError, match="overrides"):
+        PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", overrides="observation.source=oracle")
+
+
+def test_the_old_episode_function_warns_and_gives_the_loops_metrics() -> None:
+    from negobs_gym.eval.braking_campaign import run_driven_episode
+
+    with pytest.warns(DeprecationWarning, match="drive_episode"):
+        m = run_driven_episode(make_env("negobs_gym/Braking-v1", ORACLE), FixedAction(1.0, 0.0), 0, False, 5)
+    env = make_env("negobs_gym/Braking-v1", ORACLE)
+    r = drive_episode(env, FixedAction(1.0, 0.0), seed=0, filter=False, stop=EpisodeStop(max_steps=5))
+    env.close()
+    assert {k: m[k] for k in r.metrics()} == r.metrics() and m["steps"] == 5
+    assert [p[:4] for p in m["path"]] == list(r.path) and m["judgements"] == []

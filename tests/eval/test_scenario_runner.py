@@ -10,9 +10,9 @@ import pytest
 
 from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M
-from negobs_gym.scenarios import ScenarioResult, run_scenario, run_scenario_seeds, spec_from_toml
-from negobs_gym.eval.scenario_runner import check_criteria
+from negobs_gym.eval.scenario_runner import ScenarioResult, check_criteria, run_scenario, run_scenario_seeds
+from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M, VetoJudgement
+from negobs_gym.spec import spec_from_toml
 from negobs_gym.spec.scenario import CriteriaSpec
 from tests.helpers import PIT_SCENE
 
@@ -123,15 +123,27 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     assert plain.entered_negative_obstacle and plain.missed_vetoes == 0  # no filter, nothing to miss
 
 
-def test_criteria_check_each_named_bound() -> None:
-    result = ScenarioResult(
-        scenario="x", seed=0, driver="d", filtered=True, steps=10, time_s=1.0,
-        entered_negative_obstacle=False, stopped_before=True, stop_margin_m=2.0, start_gap_m=20.0,
-        collision=False, trapped=False, rollover=False, goal_reached=False, left_track=False,
-        task_done=True, max_decel_mps2=6.0,
-        vetoes=3, false_vetoes=1, max_veto_error_m=0.4, positive_gap_m=3.0, termination=("stopped",),
-        truncated=False,
+def _veto(step: int, hazard_m: float, truth_m: float, false_veto: bool = False) -> VetoJudgement:
+    """A judged veto at 6 m/s (R(v) 8 m) that braked."""
+    return VetoJudgement(
+        step=step, vetoed=True, speed_mps=6.0, braking_distance_m=8.0, hazard_distance_m=hazard_m,
+        true_distance_m=truth_m, channel="negative", false_veto=false_veto, perception_stale=False,
+        proposed_action=(1.0, 0.0), applied_action=(-1.0, 0.0), onset=step == 1,
     )  # fmt: skip
+
+
+def test_criteria_check_each_named_bound() -> None:
+    # three vetoes, one false (nothing there), the largest error 5.5 - 5.0 m
+    judged = (_veto(1, 5.5, 5.0), _veto(2, 4.0, 4.0), _veto(3, 3.0, math.inf, false_veto=True))
+    result = ScenarioResult(
+        scenario="x", seed=0, driver="d", filtered=True, steps=10, time_s=1.0, distance_m=5.0,
+        progress_m=5.0, entered_negative_obstacle=False, stopped=False, stopped_before=True,
+        stop_margin_m=2.0, start_gap_m=20.0, final_gap_m=2.0, first_veto_gap_m=9.0, collision=False,
+        trapped=False, rollover=False, goal_reached=False, off_track_steps=0, task_done=True,
+        max_decel_mps2=6.0, positive_gap_m=3.0, final_speed_mps=0.0, cost=0.0,
+        termination=("stopped",), truncated=False, veto_judgements=judged,
+    )  # fmt: skip
+    assert (result.vetoes, result.false_vetoes, result.max_veto_error_m, result.veto_events) == (3, 1, 0.5, 1)
     assert check_criteria(CriteriaSpec(), result) == ()
     assert check_criteria(CriteriaSpec(task_done=False), result) == ("task_done",)
     assert check_criteria(CriteriaSpec(min_stop_margin_m=2.5, max_stop_margin_m=3.0), result) == (
@@ -139,16 +151,18 @@ def test_criteria_check_each_named_bound() -> None:
     )
     assert check_criteria(CriteriaSpec(max_veto_error_m=0.5), result) == ()
     assert check_criteria(CriteriaSpec(max_veto_error_m=0.3), result) == ("max_veto_error_m",)
-    unjudged = dataclasses.replace(result, max_veto_error_m=None)  # no veto with a true hazard
+    unjudged = dataclasses.replace(result, veto_judgements=judged[2:])  # no veto with a true hazard
+    assert unjudged.max_veto_error_m is None
     assert check_criteria(CriteriaSpec(max_veto_error_m=0.0), unjudged) == ()
     assert check_criteria(CriteriaSpec(max_false_vetoes=0, max_vetoes=3, max_time_s=0.5), result) == (
         "max_false_vetoes",
         "max_time_s",
     )
     assert check_criteria(CriteriaSpec(max_missed_vetoes=0), result) == ()
-    assert check_criteria(
-        CriteriaSpec(max_missed_vetoes=1), dataclasses.replace(result, missed_steps=(4, 5))
-    ) == ("max_missed_vetoes",)
+    missed = [dataclasses.replace(_veto(step, math.inf, 3.0), vetoed=False) for step in (4, 5)]
+    two_missed = dataclasses.replace(result, veto_judgements=(*judged, *missed))
+    assert two_missed.missed_steps == (4, 5) and two_missed.vetoed_steps == (1, 2, 3)
+    assert check_criteria(CriteriaSpec(max_missed_vetoes=1), two_missed) == ("max_missed_vetoes",)
     assert check_criteria(CriteriaSpec(max_decel_mps2=5.0, goal_reached=True), result) == (
         "goal_reached",
         "max_decel_mps2",
@@ -166,9 +180,9 @@ def test_criteria_check_each_named_bound() -> None:
 
 def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
     from negobs_gym.drivers import TrackPlannerDriver
-    from negobs_gym.spec.library import load_scenario
     from negobs_gym.eval.scenario_runner import make_driver
     from negobs_gym.sim.presets import braking_track
+    from negobs_gym.spec.library import load_scenario
 
     spec = load_scenario("offroad_nav_v2")
     run = dataclasses.replace(spec.run, driver="track_planner", target_speed_mps=3.0)
