@@ -455,6 +455,9 @@ class NegObsEnv(gym.Env):
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
             perception_time_s=self._detector.perception.stamp_s,
+            observed=self._detector.perception.observed,  # coverage, for the governed filter
+            grid=self.scenario.observation.grid,
+            pose=self._detector.perception.pose,
         )
 
     def _start_detector(self) -> None:

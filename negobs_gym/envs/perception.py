@@ -13,7 +13,8 @@ and hazard cells to the current INS pose. Channels on the observation grid:
   stand above its ground map (:class:`~negobs_gym.detector.StructureDetector`); this frame's, or
   with ``ObservationConfig.positive_hold_s`` > 0 also those seen within that many seconds;
 - ``traversable``: paper T's traversable region;
-- ``observed``: cells holding at least one LiDAR return this frame (the rest is unknown).
+- ``observed``: cells holding at least one LiDAR return this frame (the rest is unknown); the
+  safety filter's ``governed`` mode reads it through ``hazard_state()`` (:attr:`DetectorGrid.observed`).
 """
 
 from __future__ import annotations
@@ -177,6 +178,7 @@ class DetectorGrid:
         self._steps_to_frame = 0  # control steps until the next frame is cast (0: at this one)
         self._frame: tuple[Pose, dict[str, np.ndarray], dict[str, np.ndarray]] | None = None
         self._pose: Pose | None = None  # INS pose of the last observe()
+        self.observed: np.ndarray | None = None  # the last observe()'s observed layer (coverage)
 
     def observe(self, timestamp_s: float) -> dict[str, np.ndarray]:
         """Scan and detect at the vehicle's current pose; full-resolution bool layers by channel.
@@ -193,7 +195,9 @@ class DetectorGrid:
                 return self._far_part(ins_pose, timestamp_s)
             # the key a frame would take: the frames that are cast get an every-step run's noise
             frame_noise_key(self._rng, self._noise)
-            return self._carried(ins_pose)
+            layers = self._carried(ins_pose)
+            self.observed = layers["observed"]
+            return layers
         self._steps_to_frame = self.config.scan_every - 1
         self._far_scans = None
         frame = self._cast(self._roi, self._roi_recent, timestamp_s)
@@ -217,6 +221,7 @@ class DetectorGrid:
         }
         if self.config.scan_every > 1:
             self._frame = (ins_pose, layers, dict(self._hazards))
+        self.observed = layers["observed"]
         return layers
 
     def _far_part(self, ins_pose: Pose, timestamp_s: float) -> dict[str, np.ndarray]:
@@ -242,6 +247,7 @@ class DetectorGrid:
                 "positive", layers["positive"], ins_pose, timestamp_s
             )
         layers["observed"] = layers["observed"] | self._observed(scans)
+        self.observed = layers["observed"]
         return layers
 
     def _cast(self, selector: RoiSelector | None, recent: list, timestamp_s: float) -> PendingRigScan:

@@ -25,6 +25,21 @@ def hazard_distance_m(
 ) -> float:
     """Arc length from the origin to the nearest point inside the swept corridor (inf when clear).
 
+    The minimum of :func:`corridor_arcs_m` (see there for the corridor's geometry).
+    """
+    arcs = corridor_arcs_m(points_xy_m, steer_rad, wheelbase_m, half_width_m, front_length_m)
+    return float(np.min(arcs)) if arcs.size else float("inf")
+
+
+def corridor_arcs_m(
+    points_xy_m: np.ndarray,
+    steer_rad: float,
+    wheelbase_m: float,
+    half_width_m: float,
+    front_length_m: float = 0.0,
+) -> np.ndarray:
+    """Arc length (N,) at which the swept corridor reaches each point (inf: never).
+
     The rear-axle centre follows a circle of radius ``R = wheelbase / tan(steer)`` (kinematic
     bicycle; steer > 0 turns left, towards -X). The corridor is the ring swept by the rectangle of
     half-width ``half_width_m`` reaching ``front_length_m`` ahead of the rear axle (to the front
@@ -40,26 +55,29 @@ def hazard_distance_m(
     and ``y >= 0``, at distance ``y``.
     """
     pts = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
+    arcs = np.full(pts.shape[0], np.inf)
     if pts.shape[0] == 0:
-        return float("inf")
+        return arcs
     x, y = pts[:, 0], pts[:, 1]
     kappa = math.tan(float(steer_rad)) / wheelbase_m
     if abs(kappa) < STRAIGHT_CURVATURE_PER_M:
         inside = (np.abs(x) <= half_width_m) & (y >= 0.0)
-        return float(np.min(y[inside])) if np.any(inside) else float("inf")
+        arcs[inside] = y[inside]
+        return arcs
     radius = 1.0 / abs(kappa)
     xm = x if kappa > 0 else -x  # mirror right turns onto left turns
     cx = xm + radius  # vector from the turn centre (-radius, 0) to the point
     r = np.hypot(cx, y)
     inside = (r >= radius - half_width_m) & (r <= math.hypot(radius + half_width_m, front_length_m))
     if not np.any(inside):
-        return float("inf")
+        return arcs
     theta = np.mod(libm.arctan2(y[inside], cx[inside]), 2.0 * np.pi)
     outer = radius + half_width_m
     beyond = np.maximum(r[inside] * r[inside] - outer * outer, 0.0)  # 0 within the rear-axle band
     entry = libm.arctan2(np.sqrt(beyond), np.full_like(beyond, outer))  # the outer side meets r here
     theta = np.where(theta >= entry - ENTRY_TOLERANCE_RAD, theta, theta + 2.0 * np.pi)
-    return float(radius * np.min(theta))
+    arcs[inside] = radius * theta
+    return arcs
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,6 +100,12 @@ class Corridor:
     def hazard_distance_m(self, points_xy_m: np.ndarray) -> float:
         """Arc length to the nearest of ``points_xy_m`` in the corridor (:func:`hazard_distance_m`)."""
         return hazard_distance_m(
+            points_xy_m, self.steer_rad, self.wheelbase_m, self.half_width_m, self.front_length_m
+        )
+
+    def arcs_m(self, points_xy_m: np.ndarray) -> np.ndarray:
+        """Arc length at which the corridor reaches each of ``points_xy_m`` (:func:`corridor_arcs_m`)."""
+        return corridor_arcs_m(
             points_xy_m, self.steer_rad, self.wheelbase_m, self.half_width_m, self.front_length_m
         )
 

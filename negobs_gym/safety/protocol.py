@@ -15,6 +15,10 @@ Conventions every negobs env follows (and any other env must follow to be filter
   (negobs envs fill it from the detector grid, never from ground truth);
   ``positive_obstacles_xy_m`` the same for the grid's positive-obstacle channel (rocks, boxes,
   vehicles), which the filter reads only when ``SafetyFilterConfig.stop_for_positive`` is set.
+* Coverage (optional; the ``governed`` filter reads it): ``observed`` is the grid layer of the
+  cells holding a LiDAR return in the frame behind the hazard points (in the same vehicle frame),
+  ``grid`` its :class:`~negobs_gym.core.grid.GridSpec` and ``pose`` the INS pose of that vehicle
+  frame in the world, so the filter can remember cells seen a moment ago.
 * Time: ``time_s`` is the env's clock at the decision, ``perception_time_s`` the time the
   sensor data behind ``negative_obstacles_xy_m`` was taken (None when there is no perception
   yet). The filter brakes when that data is missing or older than its
@@ -28,6 +32,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.pose import Pose
 from negobs_gym.errors import require
 from negobs_gym.safety.decision import SafetyDecision
 
@@ -51,6 +57,10 @@ class HazardState:
     # rear axle to front bumper [m]: the corridor reaches out to the outer front corner's circle in
     # a turn; 0 = the band around the rear-axle arc only
     front_length_m: float = 0.0
+    # (rows, cols) bool: cells with a LiDAR return in that frame; None = no coverage reported
+    observed: np.ndarray | None = None
+    grid: GridSpec | None = None  # the grid `observed` lies on (required with it)
+    pose: Pose | None = None  # INS pose of the vehicle frame of the points, world frame
 
     def __post_init__(self) -> None:
         require(
@@ -76,6 +86,13 @@ class HazardState:
             "front_length_m",
             f"must be finite and >= 0, got {self.front_length_m!r}",
         )
+        if self.observed is not None:
+            require(isinstance(self.grid, GridSpec), "grid", "must be a GridSpec when observed is given")
+            obs = np.asarray(self.observed, dtype=bool)
+            shape = self.grid.shape
+            require(obs.shape == shape, "observed", f"must have shape {shape}, got {obs.shape}")
+            object.__setattr__(self, "observed", obs)
+        require(self.pose is None or isinstance(self.pose, Pose), "pose", "must be a Pose or None")
         require(np.isfinite(self.time_s), "time_s", f"must be finite, got {self.time_s!r}")
         if self.perception_time_s is not None:
             require(
