@@ -5,10 +5,11 @@ from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_saf
 from negobs_gym.safety.corridor import Corridor, corridor_arcs_m, hazard_distance_m
 from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_clear_distance
 from negobs_gym.safety.decision import SafetyDecision
-from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig, filter_config
+from negobs_gym.safety.filter import FILTER_MODES, BrakingSafetyFilter, SafetyFilterConfig, filter_config
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 __all__ = [
+    "FILTER_MODES",
     "BrakingConfig",
     "BrakingSafetyFilter",
     "ClearDistance",

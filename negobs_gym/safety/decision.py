@@ -9,6 +9,11 @@ import numpy as np
 
 from negobs_gym.safety.corridor import Corridor
 
+#: Why the filter changed an action: a detected hazard inside R(v) (Eq. 18), missing or old
+#: hazard data, or the governor's speed cap with the observed clear distance ending at an
+#: unobserved cell ("unobserved") or at the grid's range or a hazard beyond R(v) ("governor").
+Reason = Literal["hazard", "stale_data", "unobserved", "governor"]
+
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class SafetyDecision:
@@ -29,6 +34,16 @@ class SafetyDecision:
             ``"positive"`` (only with ``stop_for_positive``), or None when the corridor is clear.
         corridor: Where the filter looked for hazards (the proposed steering's swept corridor, in
             the vehicle frame at decision time); None in a decision made without one.
+        reason: Why the action was changed (:data:`Reason`), None when it passed unchanged.
+        governed: The governor capped the speed (``mode="governed"``); ``vetoed`` stays False
+            for a cap alone: it is no Eq. 18 veto.
+        clear_distance_m: The observed clear distance along the corridor [m] (governed mode;
+            NaN otherwise).
+        clear_end: What ended it: ``"hazard"``, ``"unobserved"`` or ``"range"`` (None outside
+            governed mode).
+        speed_limit_mps: The governor's speed limit for the coming step: the largest v' whose
+            R(v') plus its margin fits the clear distance left after the step, but at least its
+            creep speed [m/s] (inf outside governed mode).
     """
 
     vetoed: bool
@@ -42,6 +57,11 @@ class SafetyDecision:
     perception_stale: bool
     hazard_channel: Literal["negative", "positive"] | None = None
     corridor: Corridor | None = None
+    reason: Reason | None = None
+    governed: bool = False
+    clear_distance_m: float = float("nan")
+    clear_end: Literal["hazard", "unobserved", "range"] | None = None
+    speed_limit_mps: float = float("inf")
 
     @property
     def cost(self) -> float:
@@ -62,4 +82,9 @@ class SafetyDecision:
             "perception_stale": self.perception_stale,
             "hazard_channel": self.hazard_channel,
             "corridor": self.corridor,
+            "reason": self.reason,
+            "governed": self.governed,
+            "clear_distance_m": self.clear_distance_m,
+            "clear_end": self.clear_end,
+            "speed_limit_mps": self.speed_limit_mps,
         }

@@ -13,19 +13,25 @@ import numpy as np
 from negobs_gym.errors import ActionError, ConfigError, InterfaceError, require
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
 from negobs_gym.safety.corridor import Corridor
+from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_clear_distance
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 logger = logging.getLogger(__name__)
 
+#: Filter modes: paper N's Eq. 18 veto braking fully (``brake``) or to the largest safe command
+#: (``cap_speed``), or Eq. 18 plus the speed governor (``governed``, docs/safety.md).
+FILTER_MODES = ("brake", "cap_speed", "governed")
+
 
 @dataclass(frozen=True, kw_only=True)
 class SafetyFilterConfig:
-    """Settings of :class:`BrakingSafetyFilter` (Eq. 18 constants plus the corridor margin)."""
+    """Settings of :class:`BrakingSafetyFilter` (Eq. 18 constants plus the corridor margin, and
+    the speed governor's settings, read in ``mode="governed"`` only)."""
 
     braking: BrakingConfig = field(default_factory=BrakingConfig)
     margin_m: float = 0.4  # added to the vehicle width for the corridor (engineering choice) [m]
-    mode: Literal["brake", "cap_speed"] = "brake"
+    mode: Literal["brake", "cap_speed", "governed"] = "brake"  # FILTER_MODES; paper N: brake
     # Oldest hazard data the filter acts on [s], beyond the age the env's frames reach between two
     # of them (its max_perception_age_s, 0 when it scans every step); older or missing -> full
     # brake. Not in paper N: two periods of its 10 Hz LiDAR / control loop, so one late frame
@@ -40,6 +46,21 @@ class SafetyFilterConfig:
     # Eq. 18 test. Not in paper N, whose filter guards negative obstacles; off by default. Useful
     # with the structure channel, which sees rocks and boxes 2-20 m ahead (docs/detector_structure.md).
     stop_for_positive: bool = False
+    # -- the speed governor (mode "governed"; not in paper N: the assured-clear-distance rule) --
+    # Kept free beyond R(v') inside the observed clear distance [m]: room for the detector's
+    # confirmation frames (Eq. 16 needs a pit seen in several) before a hazard at the edge of
+    # the clear ground turns into a detected one.
+    governor_margin_m: float = 1.0
+    # Lowest speed the governor may command [m/s], whatever the clear distance: the car still
+    # creeps over a crest to look behind it (Eq. 18 still stops it for what it then sees;
+    # R(1.5 m/s) = 5.55 m).
+    creep_speed_mps: float = 1.5
+    # Cells without a LiDAR return end the clear distance (behind a crest or bank, past the
+    # rings); False: only hazard cells and the grid's range do.
+    unobserved_blocks: bool = True
+    # Cells observed this long ago still count as observed, carried with the INS pose [s]: the
+    # rings sweep the ground as the car moves, and the rig's blind disc was seen a moment ago.
+    coverage_memory_s: float = 1.0
 
     def __post_init__(self) -> None:
         require(
@@ -62,14 +83,17 @@ class SafetyFilterConfig:
             "margin_m",
             f"must be finite and >= 0, got {self.margin_m!r}",
         )
-        require(
-            self.mode in ("brake", "cap_speed"), "mode", f"must be 'brake' or 'cap_speed', got {self.mode!r}"
-        )
-        require(
-            isinstance(self.stop_for_positive, bool),
-            "stop_for_positive",
-            f"must be a bool, got {self.stop_for_positive!r}",
-        )
+        require(self.mode in FILTER_MODES, "mode", f"must be one of {FILTER_MODES}, got {self.mode!r}")
+        for name in ("stop_for_positive", "unobserved_blocks"):
+            value = getattr(self, name)
+            require(isinstance(value, bool), name, f"must be a bool, got {value!r}")
+        for name in ("governor_margin_m", "creep_speed_mps", "coverage_memory_s"):
+            value = getattr(self, name)
+            require(
+                isinstance(value, (int, float)) and np.isfinite(value) and value >= 0,
+                name,
+                f"must be finite and >= 0, got {value!r}",
+            )
 
 
 def filter_config(setting: bool | SafetyFilterConfig) -> SafetyFilterConfig | None:
@@ -98,16 +122,30 @@ class BrakingSafetyFilter(gym.Wrapper):
     the age the env says its frames reach between two of them (``max_perception_age_s``, read
     once here; 0 when absent), the filter commands full brake whatever the distance.
 
+    ``mode="governed"`` adds the speed governor (docs/safety.md): from the env's coverage
+    (``HazardState.observed``, remembered for ``coverage_memory_s`` with the INS pose) it measures
+    the observed clear distance c along the same corridor (:mod:`negobs_gym.safety.coverage`)
+    and caps the command so that the predicted speed v' stays at or below the speed limit
+    ``max(creep_speed_mps, largest v' with c - travelled >= R(v') + governor_margin_m)``; it
+    brakes fully where even that cannot be reached in one step. Eq. 18's veto and the stale-data
+    brake apply as in ``brake`` mode and come first. An env without coverage (``observed`` None)
+    counts every grid cell as observed; without a grid the governor has no range to cap against
+    and only Eq. 18 applies.
+
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
-    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``) over the defaults;
+    ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
+    ``creep_speed_mps``, ``unobserved_blocks``, ``coverage_memory_s``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
     braking_distance_m (R(v) at the current speed), speed_mps (that speed, forward, >= 0),
     safe_speed_mps (largest v with R(v) <= d),
     original_action, applied_action, perception_age_s, perception_stale, hazard_channel,
-    corridor: the :class:`~negobs_gym.safety.Corridor` searched, a frozen value).
+    corridor: the :class:`~negobs_gym.safety.Corridor` searched, a frozen value; reason:
+    ``"hazard"``, ``"stale_data"``, ``"unobserved"``, ``"governor"`` or None; governed,
+    clear_distance_m, clear_end, speed_limit_mps: the governor's cap, see
+    :class:`~negobs_gym.safety.SafetyDecision`).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
     at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
     step is :attr:`last_decision`; an env implementing :class:`DecisionSink` receives it before
@@ -124,10 +162,14 @@ class BrakingSafetyFilter(gym.Wrapper):
         buffer_m: float | None = None,
         g: float | None = None,
         margin_m: float | None = None,
-        mode: Literal["brake", "cap_speed"] | None = None,
+        mode: Literal["brake", "cap_speed", "governed"] | None = None,
         perception_timeout_s: float | None = None,
         release_margin_m: float | None = None,
         stop_for_positive: bool | None = None,
+        governor_margin_m: float | None = None,
+        creep_speed_mps: float | None = None,
+        unobserved_blocks: bool | None = None,
+        coverage_memory_s: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -146,6 +188,10 @@ class BrakingSafetyFilter(gym.Wrapper):
             "perception_timeout_s": perception_timeout_s,
             "release_margin_m": release_margin_m,
             "stop_for_positive": stop_for_positive,
+            "governor_margin_m": governor_margin_m,
+            "creep_speed_mps": creep_speed_mps,
+            "unobserved_blocks": unobserved_blocks,
+            "coverage_memory_s": coverage_memory_s,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -164,6 +210,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         self.frame_age_s = float(frame_age)
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
+        self._coverage = CoverageMemory(self.config.coverage_memory_s)  # governed mode only
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -171,6 +218,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         """Reset the env and the filter's hysteresis."""
         self._holding = False
         self.last_decision = None
+        self._coverage.reset()
         return self.env.reset(seed=seed, options=options)
 
     def _hazard_state(self) -> HazardState:
@@ -188,18 +236,25 @@ class BrakingSafetyFilter(gym.Wrapper):
         margin = self.config.release_margin_m if self._holding else 0.0
         return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin)
 
-    def _capped_longitudinal(self, state: HazardState, d: float, proposed: float) -> float:
-        """Largest command <= ``proposed`` whose predicted v' satisfies d - travelled >= R(v')
-        (plus the release margin while holding)."""
+    def _fitting_speed(self, state: HazardState, d: float, margin: float) -> float | None:
+        """Largest v' with d - travelled(v') >= R(v') + margin (None: not even v' = 0)."""
         b = self.config.braking
         a = 1.0 / (2.0 * b.mu * b.g_mps2)
         lin = b.reaction_time_s + 0.5 * state.dt_s
-        margin = self.config.release_margin_m if self._holding else 0.0
         const = b.buffer_m + margin + 0.5 * state.dt_s * state.speed_mps - d
         disc = lin * lin - 4.0 * a * const
         if disc < 0:
+            return None
+        v_max = float((-lin + np.sqrt(disc)) / (2.0 * a))
+        return v_max if v_max >= 0 else None
+
+    def _capped_longitudinal(self, state: HazardState, d: float, proposed: float) -> float:
+        """Largest command <= ``proposed`` whose predicted v' satisfies d - travelled >= R(v')
+        (plus the release margin while holding)."""
+        margin = self.config.release_margin_m if self._holding else 0.0
+        v_max = self._fitting_speed(state, d, margin)
+        if v_max is None:
             return -1.0
-        v_max = (-lin + np.sqrt(disc)) / (2.0 * a)
         dv = v_max - state.speed_mps
         scale = state.max_accel_mps2 if dv >= 0 else state.max_brake_decel_mps2
         cmd = float(np.clip(dv / (state.dt_s * scale), -1.0, proposed))
@@ -208,6 +263,40 @@ class BrakingSafetyFilter(gym.Wrapper):
                 break
             cmd = max(-1.0, cmd - 1e-9 - 1e-6 * abs(cmd))
         return cmd if self._is_safe(state, d, cmd) else -1.0
+
+    def _clear_distance(self, state: HazardState, corridor: Corridor) -> ClearDistance | None:
+        """The observed clear distance along ``corridor`` (None: the env reports no grid)."""
+        if state.grid is None:
+            return None
+        observed = state.observed
+        if observed is not None and state.pose is not None and state.perception_time_s is not None:
+            self._coverage.add(state.perception_time_s, state.pose, observed)
+            near = np.isfinite(corridor.arcs_m(state.grid.cell_centres().reshape(-1, 2)))
+            observed = self._coverage.observed(
+                state.grid, state.pose, state.perception_time_s, cells=near.reshape(state.grid.shape)
+            )
+        hazards = state.negative_obstacles_xy_m
+        if self.config.stop_for_positive:
+            hazards = np.concatenate([hazards, state.positive_obstacles_xy_m])
+        return observed_clear_distance(
+            corridor, state.grid, observed, hazards, unobserved_blocks=self.config.unobserved_blocks
+        )
+
+    def _speed_limit_mps(self, state: HazardState, clear_m: float) -> float:
+        """The governor's limit on v': R(v') + margin fits the clear distance, or the creep speed."""
+        fit = self._fitting_speed(state, clear_m, self.config.governor_margin_m)
+        return max(self.config.creep_speed_mps, fit if fit is not None else 0.0)
+
+    @staticmethod
+    def _command_for(state: HazardState, v_target: float, proposed: float) -> np.float32:
+        """Largest float32 command <= ``proposed`` whose predicted v' is <= ``v_target`` (-1 when
+        even full braking leaves more)."""
+        dv = v_target - state.speed_mps
+        scale = state.max_accel_mps2 if dv >= 0 else state.max_brake_decel_mps2
+        cmd = np.float32(np.clip(dv / (state.dt_s * scale), -1.0, proposed))
+        while cmd > -1.0 and state.predicted_speed_mps(float(cmd)) > v_target:  # float32 round-off
+            cmd = np.nextafter(cmd, np.float32(-1.0))
+        return cmd
 
     def filter_action(self, action: Any) -> tuple[np.ndarray, SafetyDecision]:
         """The action to apply and the decision, without stepping the env (and without moving the
@@ -237,6 +326,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s + self.frame_age_s
         vetoed = stale or not self._is_safe(state, d, proposed)
+        reason = ("stale_data" if stale else "hazard") if vetoed else None
         applied = original
         if vetoed:
             if self.config.mode == "cap_speed" and not stale:
@@ -253,6 +343,16 @@ class BrakingSafetyFilter(gym.Wrapper):
                 proposed,
                 cmd,
             )
+        clear, limit, governed = None, float("inf"), False
+        if self.config.mode == "governed" and not stale:
+            clear = self._clear_distance(state, corridor)
+            if clear is not None:
+                limit = self._speed_limit_mps(state, clear.distance_m)
+                if not vetoed and state.predicted_speed_mps(proposed) > limit:
+                    governed = True
+                    reason = "unobserved" if clear.end == "unobserved" else "governor"
+                    applied = original.copy()
+                    applied[0] = self._command_for(state, limit, proposed)
         decision = SafetyDecision(
             vetoed=vetoed,
             hazard_distance_m=d,
@@ -265,8 +365,13 @@ class BrakingSafetyFilter(gym.Wrapper):
             perception_stale=stale,
             hazard_channel=channel,
             corridor=corridor,
+            reason=reason,
+            governed=governed,
+            clear_distance_m=clear.distance_m if clear is not None else float("nan"),
+            clear_end=clear.end if clear is not None else None,
+            speed_limit_mps=limit,
         )
-        return (action if not vetoed else applied), decision
+        return (action if reason is None else applied), decision
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Filter ``action``, step the env, and add ``info["safety"]`` and ``info["cost"]``."""
