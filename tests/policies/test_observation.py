@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 import gymnasium as gym
@@ -81,11 +80,8 @@ def test_sb3_check_env_warns_on_the_raw_grid_and_not_on_the_wrapped_one() -> Non
     from stable_baselines3.common.env_checker import check_env
 
     import negobs_gym  # noqa: F401 - registers the envs
-    from negobs_gym.envs.scenarios import BrakingEnv
 
-    base = BrakingEnv.default_config()
-    config = dataclasses.replace(base, observation=dataclasses.replace(base.observation, source="oracle"))
-    env = gym.make("negobs_gym/Braking-v1", config=config)
+    env = gym.make("negobs_gym/Braking-v1", overrides={"observation.source": "oracle"})
     with warnings.catch_warnings(record=True) as raw:
         warnings.simplefilter("always")
         check_env(env.unwrapped, warn=True)
