@@ -42,8 +42,9 @@ class SafetyDecision:
         clear_end: What ended it: ``"hazard"``, ``"unobserved"`` or ``"range"`` (None outside
             governed mode).
         speed_limit_mps: The governor's speed limit for the coming step: the largest v' whose
-            R(v') plus its margin fits the clear distance left after the step, but at least its
-            creep speed [m/s] (inf outside governed mode).
+            R(v') plus its margin fits the clear distance left after the step, or a creep that
+            stops with the front bumper short of its end, whichever is larger [m/s] (inf
+            outside governed mode).
     """
 
     vetoed: bool

@@ -51,10 +51,15 @@ class SafetyFilterConfig:
     # confirmation frames (Eq. 16 needs a pit seen in several) before a hazard at the edge of
     # the clear ground turns into a detected one.
     governor_margin_m: float = 1.0
-    # Lowest speed the governor may command [m/s], whatever the clear distance: the car still
-    # creeps over a crest to look behind it (Eq. 18 still stops it for what it then sees;
-    # R(1.5 m/s) = 5.55 m).
+    # Lowest speed limit the governor sets [m/s] while the car can still stop with its front
+    # bumper creep_clearance_m short of the clear distance's end: it creeps over a crest to look
+    # behind it, and stops at the edge of what it has seen (a pit's near rim hides the pit: its
+    # cells hold no returns).
     creep_speed_mps: float = 1.5
+    # While creeping, the front bumper stops at least this short of the first unobserved or
+    # hazard cell [m]: creeping, the test is v'^2/(2 mu g) + v' T_r + (rear axle to bumper) +
+    # this <= clear - travelled, Eq. 18 with the buffer B shrunk to the car's own nose.
+    creep_clearance_m: float = 1.0
     # Cells without a LiDAR return end the clear distance (behind a crest or bank, past the
     # rings); False: only hazard cells and the grid's range do.
     unobserved_blocks: bool = True
@@ -87,7 +92,7 @@ class SafetyFilterConfig:
         for name in ("stop_for_positive", "unobserved_blocks"):
             value = getattr(self, name)
             require(isinstance(value, bool), name, f"must be a bool, got {value!r}")
-        for name in ("governor_margin_m", "creep_speed_mps", "coverage_memory_s"):
+        for name in ("governor_margin_m", "creep_speed_mps", "creep_clearance_m", "coverage_memory_s"):
             value = getattr(self, name)
             require(
                 isinstance(value, (int, float)) and np.isfinite(value) and value >= 0,
@@ -126,8 +131,10 @@ class BrakingSafetyFilter(gym.Wrapper):
     (``HazardState.observed``, remembered for ``coverage_memory_s`` with the INS pose) it measures
     the observed clear distance c along the same corridor (:mod:`negobs_gym.safety.coverage`)
     and caps the command so that the predicted speed v' stays at or below the speed limit
-    ``max(creep_speed_mps, largest v' with c - travelled >= R(v') + governor_margin_m)``; it
-    brakes fully where even that cannot be reached in one step. Eq. 18's veto and the stale-data
+    ``max(largest v' with c - travelled >= R(v') + governor_margin_m, creep)``, where the creep
+    is ``creep_speed_mps`` or less, so that stopping from it leaves the front bumper
+    ``creep_clearance_m`` short of the clear distance's end; it brakes fully where even that
+    cannot be reached in one step. Eq. 18's veto and the stale-data
     brake apply as in ``brake`` mode and come first. An env without coverage (``observed`` None)
     counts every grid cell as observed; without a grid the governor has no range to cap against
     and only Eq. 18 applies.
@@ -135,7 +142,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
-    ``creep_speed_mps``, ``unobserved_blocks``, ``coverage_memory_s``) over the defaults;
+    ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``) over
+    the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -168,6 +176,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         stop_for_positive: bool | None = None,
         governor_margin_m: float | None = None,
         creep_speed_mps: float | None = None,
+        creep_clearance_m: float | None = None,
         unobserved_blocks: bool | None = None,
         coverage_memory_s: float | None = None,
     ) -> None:
@@ -190,6 +199,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "stop_for_positive": stop_for_positive,
             "governor_margin_m": governor_margin_m,
             "creep_speed_mps": creep_speed_mps,
+            "creep_clearance_m": creep_clearance_m,
             "unobserved_blocks": unobserved_blocks,
             "coverage_memory_s": coverage_memory_s,
         }
@@ -236,12 +246,16 @@ class BrakingSafetyFilter(gym.Wrapper):
         margin = self.config.release_margin_m if self._holding else 0.0
         return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin)
 
-    def _fitting_speed(self, state: HazardState, d: float, margin: float) -> float | None:
-        """Largest v' with d - travelled(v') >= R(v') + margin (None: not even v' = 0)."""
+    def _fitting_speed(
+        self, state: HazardState, d: float, margin: float, buffer_m: float | None = None
+    ) -> float | None:
+        """Largest v' with d - travelled(v') >= R(v') + margin (None: not even v' = 0); R with
+        ``buffer_m`` in place of Eq. 18's B where given."""
         b = self.config.braking
         a = 1.0 / (2.0 * b.mu * b.g_mps2)
         lin = b.reaction_time_s + 0.5 * state.dt_s
-        const = b.buffer_m + margin + 0.5 * state.dt_s * state.speed_mps - d
+        buffer = b.buffer_m if buffer_m is None else buffer_m
+        const = buffer + margin + 0.5 * state.dt_s * state.speed_mps - d
         disc = lin * lin - 4.0 * a * const
         if disc < 0:
             return None
@@ -283,14 +297,21 @@ class BrakingSafetyFilter(gym.Wrapper):
         )
 
     def _speed_limit_mps(self, state: HazardState, clear_m: float) -> float:
-        """The governor's limit on v': R(v') + margin fits the clear distance, or the creep speed."""
-        fit = self._fitting_speed(state, clear_m, self.config.governor_margin_m)
-        return max(self.config.creep_speed_mps, fit if fit is not None else 0.0)
+        """The governor's limit on v': R(v') + margin fits the clear distance, or a creep whose
+        stop leaves the bumper ``creep_clearance_m`` short of its end (the larger of the two)."""
+        c = self.config
+        fit = self._fitting_speed(state, clear_m, c.governor_margin_m)
+        nose = self._fitting_speed(state, clear_m, 0.0, state.front_length_m + c.creep_clearance_m)
+        creep = min(c.creep_speed_mps, nose) if nose is not None else 0.0
+        return max(fit if fit is not None else 0.0, creep)
 
     @staticmethod
     def _command_for(state: HazardState, v_target: float, proposed: float) -> np.float32:
         """Largest float32 command <= ``proposed`` whose predicted v' is <= ``v_target`` (-1 when
-        even full braking leaves more)."""
+        even full braking leaves more, or the target is a stop: the car holds still on a slope,
+        which the one-step model does not see)."""
+        if v_target <= 0.0:
+            return np.float32(-1.0)
         dv = v_target - state.speed_mps
         scale = state.max_accel_mps2 if dv >= 0 else state.max_brake_decel_mps2
         cmd = np.float32(np.clip(dv / (state.dt_s * scale), -1.0, proposed))

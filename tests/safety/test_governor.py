@@ -75,6 +75,7 @@ def _scenes(draw):
         mode="governed",
         governor_margin_m=draw(st.floats(0.0, 3.0)),
         creep_speed_mps=draw(st.floats(0.0, 3.0)),
+        creep_clearance_m=draw(st.floats(0.0, 2.0)),
         unobserved_blocks=draw(st.booleans()),
     )
     return _state(speed, observed, np.array(hazards).reshape(-1, 2)), action, config
@@ -84,11 +85,13 @@ def _scenes(draw):
 @given(_scenes())
 def test_governor_never_outdrives_the_observed_clear_distance(scene):
     """After any action, the predicted speed v' (the protocol's one-step model,
-    ``HazardState.predicted_speed_mps`` of the applied command) is at most the larger of the
-    creep speed and the largest v' with ``c - travelled(v') >= R(v') + governor_margin_m``, where
-    c is the observed clear distance recomputed here from the same layer, hazards and corridor;
-    or, when even full braking cannot get there in one step, the full brake's v'. Tolerance
-    1e-9 m/s and 1e-9 m (float round-off)."""
+    ``HazardState.predicted_speed_mps`` of the applied command), with c the observed clear
+    distance recomputed here from the same layer, hazards and corridor, either
+    (a) fits: ``c - travelled(v') >= R(v') + governor_margin_m`` (Eq. 18 against c), or
+    (b) is a creep: ``v' <= creep_speed_mps`` and ``c - travelled(v') >= v'^2/(2 mu g) + v' T_r +
+    front_length_m + creep_clearance_m`` (stopping leaves the bumper that far short of c), or
+    (c) is what full braking leaves (nothing slower can be reached in one step).
+    Tolerances 1e-9 m/s and 1e-9 m (float round-off)."""
     state, action, config = scene
     applied, decision = _decide(state, action, config)
     v_next = state.predicted_speed_mps(float(applied[0]))
@@ -100,11 +103,14 @@ def test_governor_never_outdrives_the_observed_clear_distance(scene):
         unobserved_blocks=config.unobserved_blocks,
     )
     assert decision.clear_distance_m == clear.distance_m and decision.clear_end == clear.end
-    fits = clear.distance_m - state.travelled_m(v_next) >= (
-        float(braking_distance_m(v_next, config.braking)) + config.governor_margin_m - 1e-9
+    left = clear.distance_m - state.travelled_m(v_next)
+    stopping = float(braking_distance_m(v_next, config.braking)) - config.braking.buffer_m
+    fits = left >= stopping + config.braking.buffer_m + config.governor_margin_m - 1e-9
+    creeps = v_next <= config.creep_speed_mps + 1e-9 and left >= (
+        stopping + state.front_length_m + config.creep_clearance_m - 1e-9
     )
     full_brake = state.predicted_speed_mps(-1.0)
-    assert fits or v_next <= max(config.creep_speed_mps, full_brake) + 1e-9
+    assert fits or creeps or v_next <= full_brake + 1e-9
     assert v_next <= max(decision.speed_limit_mps, full_brake) + 1e-9
     assert applied[1] == np.float32(action[1])  # steering is never changed
     if decision.reason is None:  # passed unchanged
@@ -133,13 +139,17 @@ def test_reasons_name_what_fired():
     assert calm.speed_limit_mps > 3.0
 
 
-def test_creep_speed_lets_the_car_roll_up_to_look():
-    blind = np.zeros(GRID.shape, dtype=bool)  # nothing observed at all
-    applied, decision = _decide(
-        _state(0.0, blind), config=SafetyFilterConfig(mode="governed", creep_speed_mps=1.5)
-    )
+def test_creep_lets_the_car_roll_up_to_look_and_stops_it_at_the_edge_of_the_seen():
+    config = SafetyFilterConfig(mode="governed", creep_speed_mps=1.5, creep_clearance_m=1.0)
+    # seen 6.1 m ahead (a crest's top): R(v') + margin fits only 0.3 m/s, the creep 1.5 m/s
+    state = _state(0.0, _seen_up_to(6.1))
+    applied, decision = _decide(state, config=config)
     assert decision.speed_limit_mps == 1.5 and decision.clear_end == "unobserved"
-    assert applied[0] > 0 and _state(0.0, blind).predicted_speed_mps(float(applied[0])) <= 1.5
+    assert applied[0] > 0 and state.predicted_speed_mps(float(applied[0])) <= 1.5
+    # seen 4.5 m ahead (a pit's near rim): the bumper (3.65 m) would come within 1 m: stop
+    for speed in (0.0, 1.0):
+        applied, decision = _decide(_state(speed, _seen_up_to(4.5)), config=config)
+        assert decision.speed_limit_mps == 0.0 and applied[0] == -1.0
 
 
 def test_eq18_modes_are_unchanged_and_report_no_governor():
@@ -152,6 +162,8 @@ def test_eq18_modes_are_unchanged_and_report_no_governor():
 def test_governor_settings_are_checked_and_reach_the_filter_by_keyword():
     with pytest.raises(ConfigError, match="creep_speed_mps"):
         SafetyFilterConfig(mode="governed", creep_speed_mps=-1.0)
+    with pytest.raises(ConfigError, match="creep_clearance_m"):
+        SafetyFilterConfig(mode="governed", creep_clearance_m=math.nan)
     with pytest.raises(ConfigError, match="mode"):
         SafetyFilterConfig(mode="governor")
     with pytest.raises(ConfigError, match="unobserved_blocks"):
