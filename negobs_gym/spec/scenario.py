@@ -61,6 +61,7 @@ TerminationRule = Literal[
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
 DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner"]
 PolicyAlgo = Literal["PPO", "SAC"]  # negobs_gym.policies.config.ALGORITHMS
+FilterMode = Literal["brake", "cap_speed", "governed"]  # negobs_gym.safety.FILTER_MODES
 
 
 def _finite(value: object) -> bool:
@@ -315,6 +316,9 @@ class RunSpec:
     filter: bool = True
     # the filter also stops for the grid's positive-obstacle cells (SafetyFilterConfig.stop_for_positive)
     stop_for_positive: bool = False
+    # SafetyFilterConfig.mode: paper N's Eq. 18 veto ("brake", "cap_speed") or Eq. 18 plus the
+    # speed governor over the observed clear distance ("governed", docs/safety.md)
+    filter_mode: FilterMode = "brake"
     target_speed_mps: float = 25.0 / 3.6  # paper N §4: 25 km/h
     lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
 

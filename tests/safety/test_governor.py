@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import get_args
 
 import numpy as np
 import pytest
@@ -13,12 +14,15 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import (
+    FILTER_MODES,
     BrakingSafetyFilter,
     HazardState,
     SafetyFilterConfig,
     braking_distance_m,
     observed_clear_distance,
 )
+from negobs_gym.spec import apply_overrides, load_scenario
+from negobs_gym.spec.scenario import FilterMode
 from tests.safety.standins import DT_S, MAX_ACCEL, MAX_BRAKE, FixedHazardEnv
 
 GRID = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)
@@ -212,3 +216,11 @@ def test_a_hidden_pit_stops_the_governed_car_only(config, enters):
     assert entered == enters
     if not enters:
         assert car.v == 0.0 and car.PIT_Y_M - car.y > 3.65
+
+
+def test_a_scenario_names_the_filter_mode():
+    assert get_args(FilterMode) == FILTER_MODES
+    spec = apply_overrides(load_scenario("pit_past_a_crest_25kmh"), ["run.filter_mode=brake"])
+    assert spec.run.filter_mode == "brake"
+    with pytest.raises(ConfigError, match=r"run\.filter_mode"):
+        apply_overrides(spec, ["run.filter_mode=fast"])
