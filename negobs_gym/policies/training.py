@@ -124,7 +124,9 @@ def filter_setting(config: TrainConfig) -> bool | SafetyFilterConfig:
 
 
 def evaluate(model: Any, config: TrainConfig) -> list[dict[str, Any]]:
-    """``config.eval_episodes`` episodes of ``model`` on fresh raw envs (as ``negobs eval policy``)."""
+    """``config.eval_episodes`` episodes of ``model`` on fresh raw envs, driven by the one episode
+    loop as ``negobs eval policy`` drives them: each one's
+    :meth:`~negobs_gym.eval.episode.EpisodeResult.metrics`."""
     results = []
     for k in range(config.eval_episodes):
         env = make_env(config.env, training_overrides(config))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.cli import build_parser, main
-from negobs_gym.cli.eval import braking_config, build_config, load_toml
+from negobs_gym.cli.eval import braking_config, build_config, load_toml, scene_overrides
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
@@ -74,6 +74,11 @@ def test_braking_scene_options_are_set_paths_in_order(tmp_path: Path) -> None:
     assert (observation.rig, observation.tighten_pairs, observation.scan_every) == ("roi", False, 4)
     assert observation.scan_far_from_m == 12.0
     assert braking_config(build_parser().parse_args(["eval", "braking"])).overrides == ()
+    # the policy campaign's --source (and a TOML file's source) is observation.source
+    assert scene_overrides("policy", {"source": "oracle", "seeds": 2}) == (
+        {"seeds": 2},
+        ['observation.source="oracle"'],
+    )
     config.write_text("[braking]\ntighten_pair = false\n")  # a misspelt key is still refused
     with pytest.raises(ConfigError, match="unknown keys"):
         braking_config(build_parser().parse_args(["eval", "braking", "--config", str(config)]))
@@ -169,7 +174,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     shipped += ["--out", str(tmp_path / "shipped"), "--no-progress"]
     assert main(["-q", *shipped]) == 0
     label = (
-        "negobs_gym/OffroadNav-v2"
+        "negobs_gym/OffroadTrack-v0"
         "[observation.lux_forward_m=2.0,observation.lux_ego_motion=false,"
         "observation.tighten_pairs=true,episode.time_limit_s=0.3]"
     )
