@@ -6,6 +6,7 @@ from negobs_gym.safety.corridor import Corridor, corridor_arcs_m, hazard_distanc
 from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_clear_distance
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.filter import FILTER_MODES, BrakingSafetyFilter, SafetyFilterConfig, filter_config
+from negobs_gym.safety.memory import HazardMemory
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 __all__ = [
@@ -16,6 +17,7 @@ __all__ = [
     "Corridor",
     "CoverageMemory",
     "DecisionSink",
+    "HazardMemory",
     "HazardSource",
     "HazardState",
     "SafetyDecision",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
@@ -15,6 +16,7 @@ from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_saf
 from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_clear_distance
 from negobs_gym.safety.decision import SafetyDecision
+from negobs_gym.safety.memory import HazardMemory
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 logger = logging.getLogger(__name__)
@@ -66,6 +68,11 @@ class SafetyFilterConfig:
     # Cells observed this long ago still count as observed, carried with the INS pose [s]: the
     # rings sweep the ground as the car moves, and the rig's blind disc was seen a moment ago.
     coverage_memory_s: float = 1.0
+    # Keep the negative-obstacle points read in the world frame of the INS pose until their cell
+    # is observed clear again (a return this frame, no hazard), any mode. Not in paper N, whose
+    # filter reads each frame alone: its detector can drop a pit whose rim enters the HDL-64's
+    # blind disc (docs/safety.md, "Hazard memory").
+    hazard_memory: bool = False
 
     def __post_init__(self) -> None:
         require(
@@ -89,7 +96,7 @@ class SafetyFilterConfig:
             f"must be finite and >= 0, got {self.margin_m!r}",
         )
         require(self.mode in FILTER_MODES, "mode", f"must be one of {FILTER_MODES}, got {self.mode!r}")
-        for name in ("stop_for_positive", "unobserved_blocks"):
+        for name in ("stop_for_positive", "unobserved_blocks", "hazard_memory"):
             value = getattr(self, name)
             require(isinstance(value, bool), name, f"must be a bool, got {value!r}")
         for name in ("governor_margin_m", "creep_speed_mps", "creep_clearance_m", "coverage_memory_s"):
@@ -139,11 +146,14 @@ class BrakingSafetyFilter(gym.Wrapper):
     counts every grid cell as observed; without a grid the governor has no range to cap against
     and only Eq. 18 applies.
 
+    ``hazard_memory=True`` (any mode) keeps the negative-obstacle points read in the world frame
+    of the INS pose until their cell is observed clear again (:mod:`negobs_gym.safety.memory`).
+
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
-    ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``) over
-    the defaults;
+    ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``,
+    ``hazard_memory``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -179,6 +189,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         creep_clearance_m: float | None = None,
         unobserved_blocks: bool | None = None,
         coverage_memory_s: float | None = None,
+        hazard_memory: bool | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -202,6 +213,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "creep_clearance_m": creep_clearance_m,
             "unobserved_blocks": unobserved_blocks,
             "coverage_memory_s": coverage_memory_s,
+            "hazard_memory": hazard_memory,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -221,6 +233,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
         self._coverage = CoverageMemory(self.config.coverage_memory_s)  # governed mode only
+        self._hazards = HazardMemory()  # with config.hazard_memory only
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -229,6 +242,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         self._holding = False
         self.last_decision = None
         self._coverage.reset()
+        self._hazards.reset()
         return self.env.reset(seed=seed, options=options)
 
     def _hazard_state(self) -> HazardState:
@@ -236,6 +250,13 @@ class BrakingSafetyFilter(gym.Wrapper):
         state = source.hazard_state()
         if not isinstance(state, HazardState):
             raise InterfaceError(f"hazard_state() must return a HazardState, got {type(state).__name__}")
+        if self.config.hazard_memory:
+            if state.pose is None or state.grid is None:
+                raise InterfaceError("hazard_memory needs a HazardState with pose and grid")
+            remembered = self._hazards.update(
+                state.negative_obstacles_xy_m, state.pose, state.grid, state.observed
+            )
+            state = dataclasses.replace(state, negative_obstacles_xy_m=remembered)
         return state
 
     def _r(self, v: Any) -> np.ndarray:

@@ -1,0 +1,102 @@
+"""Hazard memory: hazards kept in the world frame with the INS pose until seen clear again."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.pose import Pose
+from negobs_gym.errors import InterfaceError
+from negobs_gym.safety import BrakingSafetyFilter, HazardMemory, HazardState, SafetyFilterConfig
+from tests.safety.standins import DT_S, MAX_ACCEL, MAX_BRAKE, FixedHazardEnv
+
+GRID = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)
+PIT = np.array([[x, 12.1] for x in np.linspace(-0.9, 0.9, 10)])  # a pit's rim 12 m ahead
+
+
+def _forward(pose: Pose, metres: float, rng: np.random.Generator | None = None) -> Pose:
+    """``pose`` moved along its heading; with ``rng``, an INS reading of it (5 cm, 0.3 deg noise)."""
+    x = pose.x - metres * math.sin(pose.yaw)
+    y = pose.y + metres * math.cos(pose.yaw)
+    if rng is None:
+        return Pose(x=x, y=y, yaw=pose.yaw)
+    return Pose(
+        x=x + rng.normal(0, 0.05), y=y + rng.normal(0, 0.05), yaw=pose.yaw + math.radians(rng.normal(0, 0.3))
+    )
+
+
+def test_memory_carries_hazards_with_the_ins_pose_under_noise():
+    rng = np.random.default_rng(7)
+    memory = HazardMemory()
+    true = Pose(x=2.0, y=1.0, yaw=0.4)
+    memory.update(PIT, true, GRID, np.ones(GRID.shape, dtype=bool))
+    blind = np.zeros(GRID.shape, dtype=bool)  # nothing seen: the rim is in the blind disc
+    for _ in range(7):  # 7 m closer, the detector reports nothing
+        true = _forward(true, 1.0)
+        held = memory.update(np.zeros((0, 2)), _forward(true, 0.0, rng), GRID, blind)
+    assert len(held) == len(PIT)
+    # 5.1 m ahead now, within the INS noise (5 cm, 0.3 deg at ~12 m: ~0.1 m, plus a cell)
+    assert np.abs(held[:, 1] - 5.1).max() < 0.35
+    assert np.abs(np.sort(held[:, 0]) - PIT[:, 0]).max() < 0.35
+
+
+def test_memory_releases_a_hazard_when_its_cell_is_seen_clear_only():
+    memory = HazardMemory()
+    pose = Pose(x=0.0, y=0.0, yaw=0.0)
+    memory.update(PIT[:1], pose, GRID, None)
+    seen = np.ones(GRID.shape, dtype=bool)
+    # seen again with a hazard in that cell: kept (once)
+    assert len(memory.update(PIT[:1] + 0.01, pose, GRID, seen)) == 1
+    # its cell unobserved (and the detector quiet): kept
+    unseen = seen.copy()
+    row, col, _ = GRID.cell_of(PIT[0])
+    unseen[row, col] = False
+    assert len(memory.update(np.zeros((0, 2)), pose, GRID, unseen)) == 1
+    # observed, no hazard: released
+    assert len(memory.update(np.zeros((0, 2)), pose, GRID, seen)) == 0
+    # a hazard behind the grid stays: no sensor sees it
+    memory.update(np.array([[0.0, -10.0]]), pose, GRID, seen)
+    assert len(memory.update(np.zeros((0, 2)), pose, GRID, seen)) == 1
+
+
+def _state(hazards: np.ndarray, speed: float = 0.0) -> HazardState:
+    return HazardState(
+        speed_mps=speed,
+        negative_obstacles_xy_m=hazards,
+        vehicle_width_m=2.0,
+        wheelbase_m=2.8,
+        front_length_m=3.65,
+        max_steer_rad=math.radians(35.0),
+        dt_s=DT_S,
+        max_accel_mps2=MAX_ACCEL,
+        max_brake_decel_mps2=MAX_BRAKE,
+        time_s=1.0,
+        perception_time_s=1.0,
+        observed=GRID.cell_centres()[..., 1] > 7.0,  # the blind disc: nothing seen within 7 m
+        grid=GRID,
+        pose=Pose(x=1.0, y=2.0, yaw=0.1),
+    )
+
+
+@pytest.mark.parametrize(("memory", "vetoed"), [(False, False), (True, True)])
+def test_a_pit_that_drops_out_of_the_detection_still_stops_the_car(memory, vetoed):
+    """A car standing 5 m before a pit whose cells the detector lost (its rim in the blind disc):
+    only the filter with hazard memory still vetoes the throttle."""
+    env = FixedHazardEnv(_state(PIT - [0.0, 7.05]))  # R(v') + travelled = 5.1 m > 5.05 m
+    guard = BrakingSafetyFilter(env, SafetyFilterConfig(release_margin_m=0.0, hazard_memory=memory))
+    guard.reset(seed=0)
+    guard.step(np.array([-1.0, 0.0], np.float32))  # the pit, seen
+    env.state = _state(np.zeros((0, 2)))  # lost
+    _, _, _, _, info = guard.step(np.array([1.0, 0.0], np.float32))
+    assert info["safety"]["vetoed"] is vetoed
+    assert (info["safety"]["hazard_distance_m"] == pytest.approx(5.05)) is vetoed
+
+
+def test_memory_needs_the_pose_and_grid():
+    bare = HazardState(**{**_state(PIT).__dict__, "pose": None})
+    guard = BrakingSafetyFilter(FixedHazardEnv(bare), hazard_memory=True)
+    with pytest.raises(InterfaceError, match="pose"):
+        guard.step(np.array([0.0, 0.0], np.float32))
