@@ -6,14 +6,13 @@ processes), ``--ray [ADDRESS]`` (Ray; without ADDRESS a local instance), ``--res
 every command, a ``[detection]`` / ``[braking]`` / ``[policy]`` table for one); options given on
 the command line win over the file. The braking and policy campaigns change their scenes with
 ``--set KEY.PATH=VALUE`` (the config's ``overrides``); their options that set a scene field are
-each that field's ``--set`` path (:data:`SCENE_OPTIONS`).
+each that field's ``--set`` path (their config module's ``SCENE_FIELDS``).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import logging
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,30 +24,6 @@ from negobs_gym.errors import ConfigError, MissingDependencyError
 log = logging.getLogger("negobs_gym.cli.eval")
 
 COMMANDS = ("detection", "braking", "policy")
-
-#: Per campaign, its options (and the TOML keys of the same names) that set a field of its
-#: scenes, each as the ``--set`` path it stands for; they come before the ``--set`` assignments,
-#: which win.
-SCENE_OPTIONS: dict[str, dict[str, str]] = {
-    "braking": {
-        "rig": "observation.rig",
-        "tighten_pairs": "observation.tighten_pairs",
-        "scan_every": "observation.scan_every",
-        "scan_far_from_m": "observation.scan_far_from_m",
-    },
-    "policy": {"source": "observation.source"},
-}
-
-
-def scene_overrides(command: str, fields: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
-    """``fields`` without the :data:`SCENE_OPTIONS` of ``command``, and those set (not None) as
-    ``KEY.PATH=VALUE`` assignments, in the table's order."""
-    paths = SCENE_OPTIONS.get(command, {})
-    rest = {k: v for k, v in fields.items() if k not in paths}
-    assignments = [
-        f"{path}={json.dumps(fields[k])}" for k, path in paths.items() if fields.get(k) is not None
-    ]
-    return rest, assignments
 
 
 def load_toml(path: str | Path, command: str) -> dict[str, Any]:
@@ -323,20 +298,30 @@ def _toml(args: argparse.Namespace) -> dict[str, Any]:
     return load_toml(args.config, args.campaign) if args.config else {}
 
 
-def _with_overrides(
-    command: str,
+def with_overrides(
+    paths: dict[str, str],
     toml: dict[str, Any],
     cli: dict[str, Any],
-    cli_scene: dict[str, Any],
     sets: Sequence[str] = (),
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The config fields of the TOML file and of the command line, with the scene options of both
-    (:data:`SCENE_OPTIONS`) and the assignments ``sets`` joined into one ``overrides``: the
-    file's options, its ``overrides``, the command's options, then ``sets``."""
-    toml, from_toml = scene_overrides(command, toml)
-    _, from_cli = scene_overrides(command, cli_scene)
-    overrides = (*from_toml, *toml.pop("overrides", ()), *from_cli, *sets)
-    return toml, {**cli, "overrides": overrides}
+    """The config fields of the TOML file and of the command line, the options of both that set
+    a scene field (``paths``: option -> ``--set`` path, the campaign's ``SCENE_FIELDS``) and the
+    assignments ``sets`` joined into one ``overrides``: the file's options, its ``overrides``, the
+    command's options, then ``sets``."""
+    from negobs_gym.eval.campaign import scene_assignments
+
+    scene_toml = {k: v for k, v in toml.items() if k in paths}
+    overrides = (
+        *scene_assignments(scene_toml, paths),
+        *toml.get("overrides", ()),
+        *scene_assignments(cli, paths),
+        *sets,
+    )
+    plain = {k: v for k, v in cli.items() if k not in paths}
+    return {k: v for k, v in toml.items() if k not in paths and k != "overrides"}, {
+        **plain,
+        "overrides": overrides,
+    }
 
 
 def _split(text: str | None) -> tuple[str, ...] | None:
@@ -384,9 +369,9 @@ def run_detection(args: argparse.Namespace) -> int:
 
 def braking_config(args: argparse.Namespace) -> Any:
     """The :class:`~negobs_gym.eval.braking_campaign.BrakingCampaignConfig` of ``negobs eval
-    braking``'s options and ``--config`` file, the scene options (:data:`SCENE_OPTIONS`) as
+    braking``'s options and ``--config`` file, the options that set a scene field (``SCENE_FIELDS``) as
     ``--set`` assignments before the command's own ``--set``."""
-    from negobs_gym.eval.braking_campaign import BrakingCampaignConfig
+    from negobs_gym.eval.braking_campaign import SCENE_FIELDS, BrakingCampaignConfig
 
     cli = {
         "seeds": args.seeds,
@@ -395,9 +380,9 @@ def braking_config(args: argparse.Namespace) -> Any:
         "model_path": args.model,
         "algo": args.algo,
         "free_track_steps": args.free_track_steps,
+        **{name: getattr(args, name) for name in SCENE_FIELDS},
     }
-    cli_scene = {k: getattr(args, k) for k in SCENE_OPTIONS["braking"]}
-    toml, cli = _with_overrides("braking", _toml(args), cli, cli_scene, args.overrides)
+    toml, cli = with_overrides(SCENE_FIELDS, _toml(args), cli, args.overrides)
     return build_config(BrakingCampaignConfig, toml, cli)
 
 
@@ -424,7 +409,7 @@ def run_braking(args: argparse.Namespace) -> int:
 
 def run_policy(args: argparse.Namespace) -> int:
     """The policy evaluation; prints one line per filter setting."""
-    from negobs_gym.eval.policy_campaign import PolicyCampaignConfig, run_policy_campaign
+    from negobs_gym.eval.policy_campaign import SCENE_FIELDS, PolicyCampaignConfig, run_policy_campaign
     from negobs_gym.eval.stats import format_interval
     from negobs_gym.eval.vetoes import format_veto_error
 
@@ -436,6 +421,7 @@ def run_policy(args: argparse.Namespace) -> int:
         "algo": args.algo,
         "filters": filters,
         "first_seed": args.first_seed,
+        "source": args.source,
         "stop_for_positive": args.stop_for_positive,
     }
     if args.rig is not None:
@@ -456,7 +442,7 @@ def run_policy(args: argparse.Namespace) -> int:
             " --set ".join(recorded[1]),
             " ".join(f"--set {s}" for s in args.overrides) or "no --set",
         )
-    toml, cli = _with_overrides("policy", toml, cli, {"source": args.source})  # --source: a scene field
+    toml, cli = with_overrides(SCENE_FIELDS, toml, cli)  # --source: observation.source
     config = build_config(PolicyCampaignConfig, toml, cli)
     if recorded is None and args.env_id is None and "env_id" not in toml:
         log.warning(

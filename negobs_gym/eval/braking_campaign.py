@@ -32,7 +32,15 @@ from negobs_gym.drivers import ConstantSpeedDriver, Driver, ModelDriver, Reckles
 from negobs_gym.drivers.zoo import resolve_model
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv, run_campaign
+from negobs_gym.eval.campaign import (
+    Episode,
+    Rows,
+    RunOptions,
+    format_row,
+    read_csv,
+    run_campaign,
+    scene_assignments,
+)
 from negobs_gym.eval.episode import STANDSTILL_S, EpisodeResult, EpisodeStop, drive_episode
 from negobs_gym.eval.plots import distribution_plot
 from negobs_gym.eval.stats import format_interval, rate_interval
@@ -66,6 +74,15 @@ DRIVERS = ("reckless", "constant_speed")  # scripted; "sb3" joins when a model i
 EPISODE_STEPS = 150  # the most steps of a campaign scene's episode: its 15 s limit at the envs' 10 Hz
 #: The loop's own end: 1 s standing still is a stop (the scenes have no stopping rule)
 STOP = EpisodeStop(standstill_s=STANDSTILL_S)
+#: ``negobs eval braking``'s options that set a field of the scenes, each as the ``--set`` path
+#: it stands for; the config once copied them as fields of its own, which still work for one
+#: release, with a warning, as these assignments before ``overrides``
+SCENE_FIELDS: dict[str, str] = {
+    "rig": "observation.rig",
+    "tighten_pairs": "observation.tighten_pairs",
+    "scan_every": "observation.scan_every",
+    "scan_far_from_m": "observation.scan_far_from_m",
+}
 
 
 def scene_name(scenario: str) -> str:
@@ -149,8 +166,28 @@ class BrakingCampaignConfig:
     # the most steps (10 Hz) of a free_track episode: the 15 s limit's 150 by default; fewer give a
     # quicker (shorter-distance) false-veto check, the obstacle scenarios keep their scene's limit
     free_track_steps: int = EPISODE_STEPS
+    # deprecated, one release: the SCENE_FIELDS paths in overrides
+    rig: dataclasses.InitVar[str | None] = None
+    tighten_pairs: dataclasses.InitVar[bool | None] = None
+    scan_every: dataclasses.InitVar[int | None] = None
+    scan_far_from_m: dataclasses.InitVar[float | None] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(
+        self,
+        rig: str | None,
+        tighten_pairs: bool | None,
+        scan_every: int | None,
+        scan_far_from_m: float | None,
+    ) -> None:
+        old = {"rig": rig, "tighten_pairs": tighten_pairs, "scan_every": scan_every}
+        moved = scene_assignments({**old, "scan_far_from_m": scan_far_from_m}, SCENE_FIELDS)
+        if moved:
+            warnings.warn(
+                f"BrakingCampaignConfig's scene fields are deprecated: give overrides={tuple(moved)!r}",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            object.__setattr__(self, "overrides", (*moved, *self.overrides))
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
         unknown = sorted(set(self.scenarios) - set(SCENARIOS))
         require(not unknown, "scenarios", f"unknown {unknown}; known: {sorted(SCENARIOS)}")

@@ -291,6 +291,16 @@ def run_campaign(
     }
 
 
+def scene_assignments(fields: Mapping[str, Any], paths: Mapping[str, str]) -> list[str]:
+    """``KEY.PATH=VALUE`` assignments (the ``--set`` paths) of the options named in ``paths``
+    that ``fields`` sets (None: not set), in ``paths``' order; other keys are ignored. The
+    campaigns' options that set a field of their scenes (``negobs eval braking --rig``) and the
+    config fields they once copied go through it."""
+    return [
+        f"{path}={json.dumps(fields[name])}" for name, path in paths.items() if fields.get(name) is not None
+    ]
+
+
 def read_csv(path: str | Path) -> list[dict[str, str]]:
     """Rows of a campaign CSV as dicts of text (the writer never quotes, see :func:`format_value`)."""
     lines = Path(path).read_text(encoding="utf-8").splitlines()

@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,13 +37,25 @@ from negobs_gym.drivers.zoo import resolve_model
 from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import require
 from negobs_gym.eval.braking_campaign import PATH_COLUMNS, median_or_none, path_rows, veto_errors_by
-from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, read_csv, run_campaign
+from negobs_gym.eval.campaign import (
+    Episode,
+    Rows,
+    RunOptions,
+    format_row,
+    read_csv,
+    run_campaign,
+    scene_assignments,
+)
 from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
 from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.spec import apply_overrides, spec_for_env
 
+#: ``negobs eval policy``'s option that sets a field of the env's scenario, as the ``--set`` path
+#: it stands for; the config once copied it as a field of its own, which still works for one
+#: release, with a warning, as this assignment before ``overrides``
+SCENE_FIELDS: dict[str, str] = {"source": "observation.source"}
 DEFAULT_MAX_STEPS = 1000  # for env ids registered without max_episode_steps (100 s at 10 Hz)
 
 COLUMNS = (
@@ -112,8 +125,17 @@ class PolicyCampaignConfig:
     filters: tuple[bool, ...] = (False, True)
     overrides: tuple[str, ...] = ()
     stop_for_positive: bool = False
+    source: dataclasses.InitVar[str | None] = None  # deprecated, one release: observation.source
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, source: str | None) -> None:
+        moved = scene_assignments({"source": source}, SCENE_FIELDS)
+        if moved:
+            warnings.warn(
+                f"PolicyCampaignConfig.source is deprecated: give overrides={tuple(moved)!r}",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            object.__setattr__(self, "overrides", (*moved, *self.overrides))
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
         require(self.first_seed >= 0, "first_seed", f"must be >= 0, got {self.first_seed}")
         require(

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.cli import build_parser, main
-from negobs_gym.cli.eval import braking_config, build_config, load_toml, scene_overrides
+from negobs_gym.cli.eval import braking_config, build_config, load_toml, with_overrides
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import read_csv
 from negobs_gym.eval.detection_campaign import DetectionCampaignConfig
@@ -75,10 +75,9 @@ def test_braking_scene_options_are_set_paths_in_order(tmp_path: Path) -> None:
     assert observation.scan_far_from_m == 12.0
     assert braking_config(build_parser().parse_args(["eval", "braking"])).overrides == ()
     # the policy campaign's --source (and a TOML file's source) is observation.source
-    assert scene_overrides("policy", {"source": "oracle", "seeds": 2}) == (
-        {"seeds": 2},
-        ['observation.source="oracle"'],
-    )
+    paths = {"source": "observation.source"}
+    toml, cli = with_overrides(paths, {"source": "oracle", "seeds": 2}, {"source": None})
+    assert toml == {"seeds": 2} and cli == {"overrides": ('observation.source="oracle"',)}
     config.write_text("[braking]\ntighten_pair = false\n")  # a misspelt key is still refused
     with pytest.raises(ConfigError, match="unknown keys"):
         braking_config(build_parser().parse_args(["eval", "braking", "--config", str(config)]))

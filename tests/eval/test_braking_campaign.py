@@ -306,6 +306,22 @@ def test_overrides_reach_every_episodes_scene_after_the_campaigns_oracle() -> No
         BrakingCampaignConfig(overrides="observation.rig=native")  # one text, not a tuple of them
 
 
+def test_the_old_scene_fields_warn_and_become_overrides() -> None:
+    """The fields the config once copied from the scenes work for one release, as their paths."""
+    with pytest.warns(DeprecationWarning, match="overrides="):
+        old = BrakingCampaignConfig(
+            rig="native", tighten_pairs=False, overrides=("observation.scan_every=2",)
+        )
+    assert old.overrides == (
+        'observation.rig="native"',
+        "observation.tighten_pairs=false",
+        "observation.scan_every=2",
+    )
+    assert "rig" not in {f.name for f in dataclasses.fields(old)}  # no copy kept
+    with pytest.raises(ConfigError, match="scan_far_from_m"), pytest.warns(DeprecationWarning):
+        BrakingCampaignConfig(scan_every=3, scan_far_from_m=40.0)  # beyond the grid, named by its path
+
+
 def test_scan_every_reaches_the_episode_and_the_filter_allows_the_frames_age() -> None:
     """A filtered reckless episode with a frame every 3 steps (hazards up to 0.2 s old, from which
     the filter's timeout counts) vetoes by distance, not by staleness, and stops before the ditch."""

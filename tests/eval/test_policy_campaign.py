@@ -107,6 +107,9 @@ def test_overrides_change_the_episodes_scenario_and_bad_ones_are_named() -> None
         PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", overrides=("observation.source=radar",))
     with pytest.raises(ConfigError, match="overrides"):
         PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", overrides="observation.source=oracle")
+    with pytest.warns(DeprecationWarning, match="overrides="):  # the old field, one release more
+        old = PolicyCampaignConfig(model_path="ppo_offroad_nav_v1", source="oracle")
+    assert old.overrides == ('observation.source="oracle"',)
 
 
 def test_the_old_episode_function_warns_and_gives_the_loops_metrics() -> None:
