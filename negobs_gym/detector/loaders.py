@@ -61,7 +61,8 @@ class PointOrderConfig:
     # (see neighbour_gap_deg, min_cut_step_spacings).
     origin_step_deg: float = 10.0
     # Returns at most this far apart in azimuth are neighbours: their elevation step tells two lasers
-    # from one (a few dropped returns at KITTI's 0.18 deg spacing).
+    # from one (a few dropped returns at KITTI's 0.18 deg spacing). A cloud whose consecutive points
+    # are mostly farther apart is not stored in sweep order.
     neighbour_gap_deg: float = 2.0
     # How far a laser's first point may lie from the chosen origin (per-laser azimuth offsets, a
     # laser cut at the seam): each boundary moves, inside this window, to a step back against the
@@ -397,6 +398,8 @@ def _point_order_rings(
     step = np.mod(np.diff(az) + np.pi, 2 * np.pi) - np.pi  # shortest way round, across the seam too
     if np.median(step) == 0:
         return None, "the azimuth does not sweep"
+    if np.median(np.abs(step)) > np.radians(config.neighbour_gap_deg):
+        return None, "consecutive points are mostly far apart in azimuth"
     spin = np.sign(np.median(step))
     a = spin * az  # the sweep runs towards larger a
     el = point_elevation(xyz)
@@ -411,6 +414,9 @@ def _point_order_rings(
     origins = np.unique(np.concatenate([grid, b[1:][starts]]))
     scores = _origin_scores(b, el, origins, back, np.radians(config.neighbour_gap_deg), min_step)
     start = _pieces(a, float(origins[int(np.argmax(scores))]), back)
+    n_rings = int(np.count_nonzero(start)) + 1  # moving the cuts below keeps their number
+    if not 2 <= n_rings <= table.size:
+        return None, f"{n_rings} lasers found, the table has {table.size}"
     forward = spin * step
     typical = float(np.median(forward[forward > 0])) if (forward > 0).any() else 0.0
     window = int(np.radians(config.boundary_window_deg) / typical) if typical > 0 else 0
@@ -420,9 +426,6 @@ def _point_order_rings(
         forward, el, start, window, reach, np.radians(config.jitter_deg), min_step, laser_step_max
     )
     ring = np.cumsum(start)
-    n_rings = int(ring[-1]) + 1
-    if not 2 <= n_rings <= table.size:
-        return None, f"{n_rings} lasers found, the table has {table.size}"
     d_el = np.abs(np.diff(el))
     across, within = d_el[start[1:]], d_el[~start[1:]]
     cut_step = float(np.median(across)) if across.size else 0.0
