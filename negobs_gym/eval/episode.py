@@ -316,13 +316,15 @@ def check_criteria(criteria: CriteriaSpec, result: EpisodeResult) -> tuple[str, 
 
 def filter_settings(filter: bool | SafetyFilterConfig | None, run: RunSpec) -> SafetyFilterConfig | None:
     """The filter an episode runs behind (None: none). A :class:`SafetyFilterConfig` as it is; a
-    true flag the Eq. 18 defaults, stopping for positive obstacles where the spec's
-    ``run.stop_for_positive`` says so; None the spec's ``run.filter``."""
+    true flag the Eq. 18 defaults in the spec's ``run.filter_mode``, stopping for positive
+    obstacles where its ``run.stop_for_positive`` says so; None the spec's ``run.filter``."""
     if filter is None:
         filter = run.filter
     if isinstance(filter, SafetyFilterConfig):
         return filter
-    return SafetyFilterConfig(stop_for_positive=run.stop_for_positive) if filter else None
+    return (
+        SafetyFilterConfig(stop_for_positive=run.stop_for_positive, mode=run.filter_mode) if filter else None
+    )
 
 
 def drive_episode(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -86,6 +87,9 @@ def test_the_filter_follows_the_spec_unless_given() -> None:
     assert filter_settings(False, rock) is None
     own = SafetyFilterConfig(margin_m=0.5)
     assert filter_settings(own, rock) is own
+    crest = load_scenario("pit_past_a_crest_25kmh").run  # a scene that names the filter's mode
+    assert crest.filter_mode == "governed" and filter_settings(True, crest).mode == "governed"
+    assert filter_settings(True, dataclasses.replace(crest, filter_mode="cap_speed")).mode == "cap_speed"
 
 
 def test_a_video_needs_rgb_frames() -> None:
