@@ -126,7 +126,12 @@ def reachable_mask(feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: fl
     flat_ok = np.append(feasible.ravel(), False)  # index -1 (outside the grid) -> infeasible
     ok_rear = flat_ok[paths.rear_flat] | ((paths.rear_y_m < exempt_below_y_m) & (paths.rear_flat >= 0))
     ok_front = flat_ok[paths.front_flat] | ((paths.front_y_m < exempt_below_y_m) & (paths.front_flat >= 0))
-    prefix = np.logical_and.accumulate(ok_rear & ok_front, axis=1)
+    ok = ok_rear & ok_front
+    # each path's prefix before its first infeasible sample (logical_and.accumulate along the
+    # samples, which costs several times more)
+    samples = ok.shape[1]
+    first_bad = np.where(ok.all(axis=1), samples, ok.argmin(axis=1))
+    prefix = np.arange(samples) < first_bad[:, None]
     reach = np.zeros(feasible.size, dtype=bool)
     reach[paths.rear_flat[prefix]] = True
     return reach.reshape(feasible.shape) & feasible

@@ -148,7 +148,8 @@ def segment_end_indices(points_xy_m: np.ndarray, config: TraversableConfig) -> t
     n = config.clean_run_points
     if points_xy_m.shape[0] < n + 1:
         return None
-    gaps = np.linalg.norm(np.diff(points_xy_m, axis=0), axis=1)
+    step = np.diff(points_xy_m, axis=0)
+    gaps = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1])  # np.linalg.norm's rounding
     tears = np.concatenate([[0], np.cumsum(gaps > config.tear_distance_m)])
     starts = np.flatnonzero(tears[n:] - tears[:-n] == 0)  # links i..i+n-1 tear-free
     if starts.size == 0:
