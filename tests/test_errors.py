@@ -8,7 +8,8 @@ import pytest
 
 from negobs_gym import errors
 from negobs_gym.eval.replay import ReplayMismatch
-from negobs_gym.scenarios import run_scenario_seeds, spec_from_toml
+from negobs_gym.eval.scenario_runner import run_scenario_seeds
+from negobs_gym.spec import spec_from_toml
 
 EXAMPLES = [
     errors.ConfigError("depth_m", "must be > 0, got -1"),

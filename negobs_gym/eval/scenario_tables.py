@@ -1,7 +1,7 @@
 """A scenario run's results as CSV tables: what ``negobs scenario run --out DIR`` writes.
 
 ``results.csv`` has one row per seed (:data:`RESULT_COLUMNS`: the fields of
-:class:`~negobs_gym.scenarios.ScenarioResult`), ``vetoes.csv`` each veto and missed veto
+:class:`~negobs_gym.eval.scenario_runner.ScenarioResult`), ``vetoes.csv`` each veto and missed veto
 (:data:`~negobs_gym.eval.vetoes.VETO_COLUMNS`, the campaigns' table), ``paths.csv`` the rear-axle
 centre after the reset and after every step (:data:`PATH_COLUMNS`), and ``scenario.toml`` the spec
 as it ran (every default filled in, driver and filter as chosen), which ``negobs scenario run

@@ -6,7 +6,7 @@ import pytest
 
 from negobs_gym.cli import main
 from negobs_gym.eval.campaign import read_csv
-from negobs_gym.scenarios import load_scenario, scenario_names, spec_from_toml
+from negobs_gym.spec import load_scenario, scenario_names, spec_from_toml
 
 PAPER_SCENES = [
     n for n in scenario_names() if n.startswith(("paper_n_", "paper_t_")) and not n.endswith("_v0")
@@ -214,7 +214,7 @@ def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) ->
     """The rock scene with its run.stop_for_positive off hits the rock; the flag turns it on."""
     import dataclasses
 
-    from negobs_gym.scenarios import spec_to_toml
+    from negobs_gym.spec import spec_to_toml
 
     spec = load_scenario("rock_on_track_25kmh")
     paper = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=False))

@@ -6,10 +6,11 @@ from __future__ import annotations
 import pytest
 
 from negobs_gym.cli import main
+from negobs_gym.drivers.model import ModelDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import format_value, read_csv
-from negobs_gym.drivers.model import ModelDriver
-from negobs_gym.scenarios import load_scenario, run_scenario, run_scenario_seeds
+from negobs_gym.eval.scenario_runner import run_scenario, run_scenario_seeds
+from negobs_gym.spec import load_scenario
 from negobs_gym.spec.overrides import apply_overrides
 
 SETTINGS = ["episode.time_limit_s=2", "run.policy=ppo_offroad_nav_v1"]
@@ -48,7 +49,7 @@ def test_an_observation_the_policy_was_not_trained_on_is_named() -> None:
 
 def test_a_spec_file_reads_its_policy_beside_it(tmp_path, monkeypatch) -> None:
     from negobs_gym.drivers.zoo import resolve_model
-    from negobs_gym.scenarios import spec_to_toml
+    from negobs_gym.spec import spec_to_toml
 
     suite = tmp_path / "suite"
     (suite / "models").mkdir(parents=True)

@@ -9,9 +9,10 @@ import pytest
 
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import read_csv
-from negobs_gym.eval.vetoes import VETO_COLUMNS
-from negobs_gym.scenarios import ScenarioResult, run_scenario, spec_from_toml
+from negobs_gym.eval.scenario_runner import ScenarioResult, run_scenario
 from negobs_gym.eval.scenario_tables import PATH_COLUMNS, RESULT_COLUMNS, TABLE_FILES, write_scenario_tables
+from negobs_gym.eval.vetoes import VETO_COLUMNS
+from negobs_gym.spec import spec_from_toml
 from tests.helpers import PIT_SCENE
 
 

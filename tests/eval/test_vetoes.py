@@ -23,7 +23,7 @@ from negobs_gym.eval.vetoes import (
     veto_truth_m,
 )
 from negobs_gym.safety import Corridor, SafetyDecision
-from negobs_gym.scenarios import spec_from_toml
+from negobs_gym.spec import spec_from_toml
 from tests.helpers import PITS_BESIDE_AND_AHEAD_SCENE
 
 
