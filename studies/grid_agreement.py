@@ -41,7 +41,6 @@ Run: python studies/grid_agreement.py [--seeds 5] [--first-seed 1000000]
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 
 import numpy as np
@@ -60,16 +59,15 @@ SUMMARY_BAND_M = (4.0, 14.0)
 
 
 def twin(env: object, **observation: object) -> object:
-    """An env like ``env`` (same scenario and config) with these observation fields changed."""
+    """An env like ``env`` (same scenario) with these observation fields changed."""
     raw = env.unwrapped
-    changed = dataclasses.replace(raw.config.observation, **observation)
-    return type(raw)(config=dataclasses.replace(raw.config, observation=changed), scenario=raw.scenario)
+    return type(raw)(scenario=raw.scenario, overrides={f"observation.{k}": v for k, v in observation.items()})
 
 
 def row_distances_m(env: object) -> np.ndarray:
     """Forward distance of each observation-grid row's centre from the vehicle origin [m] (row 0
     is the rearmost)."""
-    observation = env.unwrapped.config.observation
+    observation = env.unwrapped.scenario.observation
     cell_m = observation.grid.cell_m * observation.downsample
     rows = observation.grid.rows // observation.downsample
     return -observation.grid.back_m + (np.arange(rows) + 0.5) * cell_m
@@ -79,7 +77,7 @@ def obstacles_in_view(env: object, pose: Pose) -> list[tuple[str, float, np.ndar
     """(kind, distance of the nearest footprint corner ahead [m], pooled cells its footprint covers)
     of each positive obstacle whose footprint reaches into the observation grid at ``pose``."""
     raw = env.unwrapped
-    observation = raw.config.observation
+    observation = raw.scenario.observation
     grid, k = observation.grid, observation.downsample
     x_min, x_max, y_min, y_max = grid.extent_xy_m
     found = []
@@ -126,7 +124,7 @@ def main() -> None:
     detector_env = twin(named, positive_detector=args.positive_detector, positive_hold_s=args.positive_hold_s)
     named.close()
     oracle_env = twin(detector_env, source="oracle", oracle_range_m=None)
-    channels = detector_env.unwrapped.config.observation.channels
+    channels = detector_env.unwrapped.scenario.observation.channels
     compared = [(channels.index(c), c) for c in COMPARED_CHANNELS if c in channels]
     if not any(c in channels for c in OBSTACLE_CHANNELS):
         parser.error(f"{args.env}'s grid has no obstacle channel ({', '.join(OBSTACLE_CHANNELS)})")

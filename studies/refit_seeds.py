@@ -5,7 +5,7 @@ mirrored) once per fit seed, evaluates each clone on the same unseen OffroadTrac
 (``negobs eval policy``'s seeds 1,000,000 on, oracle grid, no filter) and prints one line per
 seed, then the mean and standard deviation of the goals. One 60-seed evaluation of one fit tells
 two recipes apart only when they differ by more than the spread between fit seeds, which on the
-clones so far reaches 10 goals of 100 (docs/training_studies.md, "Weighting the passes").
+clones so far reaches 10 goals of 100 (docs/notebook/training_studies.md, "Weighting the passes").
 
 Each fit writes ``OUT/fit_<seed>/`` (``train.json``, ``warm_start.zip``) and its evaluation
 ``OUT/eval_<seed>/``. A fit or an evaluation already there is read back, not run again, if its

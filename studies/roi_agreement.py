@@ -24,7 +24,7 @@ history). Prints per env:
 
 Pairs go missing where a bump (paper N §3.1: a rise then a fall of range along one laser) runs
 past a laser's cast window: whether a return belongs to a bump depends on the whole ring
-(docs/performance.md, "Where the two can differ").
+(docs/notebook/performance.md, "Where the two can differ").
 
 Run: python studies/roi_agreement.py [--env-id negobs_gym/OffroadNav-v0 ...] [--steps 300] [--seed 0]
      [--driver constant|route]
@@ -58,7 +58,7 @@ class _Episode:
     def __init__(self, env: gym.Env) -> None:
         u = env.unwrapped
         self.vehicle = u.vehicle
-        self.grid = u.config.observation.grid
+        self.grid = u.scenario.observation.grid
         self.rig = env_rig("roi")
         self.selector = RoiSelector(self.rig, RoiConfig(region_xy_m=self.grid.extent_xy_m))
         world, exclude = self.vehicle.world, (self.vehicle.body_id,)
@@ -66,7 +66,7 @@ class _Episode:
         self.heights = HeightEnvelope(world, exclude_body_ids=exclude)
         self.recent: list = []
         # the env's own detector settings: its grid and whether its fusion tightens pairs
-        tighten = FusionConfig(tighten_on_match=u.config.observation.tighten_pairs)
+        tighten = FusionConfig(tighten_on_match=u.scenario.observation.tighten_pairs)
         config = NegativeDetectorConfig(grid=self.grid, fusion=tighten)
         self.roi_detector = NegativeObstacleDetector(config)
         self.native_detector = NegativeObstacleDetector(config)

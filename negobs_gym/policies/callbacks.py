@@ -114,8 +114,8 @@ class EvalCallback(BaseCallback):
     """Every ``every`` env steps (and at the end; at the start too with ``at_start``) runs
     ``evaluate(model)`` and appends a row to ``csv``.
 
-    ``evaluate`` returns the per-episode metrics of
-    :func:`~negobs_gym.eval.braking_campaign.run_driven_episode`. Rows of ``csv`` from an earlier
+    ``evaluate`` returns the per-episode metrics of the episode loop
+    (:meth:`negobs_gym.eval.episode.EpisodeResult.metrics`). Rows of ``csv`` from an earlier
     run at fewer steps are kept (resume); the file is rewritten atomically each time.
     """
 
