@@ -1,0 +1,557 @@
+"""A perception-error model (PEM) of the detector grid's ``negative`` channel, at the oracle's cost.
+
+Paper N's detector (cast rig, pair tests, fusion) costs most of a detector-grid step. The PEM
+reproduces its output from the ground truth instead, as PEMs for AV virtual testing do (Piazzoni
+et al., IEEE T-ITS 2023): every frame each true pit on the grid is rasterised like the oracle's and
+then, by parametric tables fitted on the detector (:mod:`negobs_gym.eval.pem_fit`),
+
+- is drawn or missed: P(drawn) by its size (cells) and centre distance (2 m bins) and by its state,
+  a three-state Markov chain: never drawn yet (the first confirmation), drawn last frame
+  (persistence; 1 - it is the dropout, the close-range one in the HDL-64's ring-free disc too) and
+  drawn before but not last frame (re-acquisition);
+- when drawn, its cells are those of the true rim inside its bearing span between the true near
+  edge plus a near-edge offset and the far edge plus a far-edge offset (the extent error), both
+  drawn from the fitted quantiles of their distance bin;
+- false alarms: spurious blobs, fixed in the world, born at a rate per m² by terrain class
+  (``track``, ``border``: the verge or bank band beside it, ``other``) and distance, kept from one
+  frame to the next with a fitted probability, of a fitted size.
+
+The parameters are a :class:`PemParameters`; a :class:`PerceptionErrorModel` adds the detector,
+rig and observation settings it was fitted on (:func:`pem_settings`) and is saved as a versioned
+JSON file. :func:`load_pem` refuses a file whose settings differ from the observation's, naming
+each difference. The default model, fitted on the envs' default detector grid, ships as
+:data:`DEFAULT_PEM_PATH` (docs/pem.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from negobs_gym.core.files import write_text_atomic
+from negobs_gym.core.geometry import (
+    points_in_polygon,
+    polyline_stations,
+    vehicle_to_world_xy,
+    world_to_vehicle_xy,
+)
+from negobs_gym.core.grid import GridSpec
+from negobs_gym.core.pose import Pose
+from negobs_gym.errors import ConfigError, require
+from negobs_gym.sim.types import Terrain
+from negobs_gym.spec import ObservationConfig
+
+__all__ = [
+    "DEFAULT_PEM_PATH",
+    "PEM_FORMAT",
+    "PEM_VERSION",
+    "TERRAIN_CLASSES",
+    "PemGrid",
+    "PemParameters",
+    "PerceptionErrorModel",
+    "load_pem",
+    "pem_settings",
+    "terrain_classes",
+]
+
+PEM_FORMAT = "negobs_gym.pem"
+#: Version of the file layout; a file of another version is refused.
+PEM_VERSION = 2
+#: The PEM fitted on the envs' default detector grid (``ObservationConfig()``), shipped.
+DEFAULT_PEM_PATH = Path(__file__).with_name("data") / "pem_negative_default.json"
+#: Terrain classes the false-alarm rates are kept for (:func:`terrain_classes`).
+TERRAIN_CLASSES: tuple[str, ...] = ("track", "border", "other")
+#: States of a pit in the PEM's chain.
+NEVER, DRAWN, LOST = 0, 1, 2
+_STATE_NAMES = ("p_keep", "p_return")
+#: spacing of the centre-line samples the terrain classes are measured to [m]
+_TRACK_SPACING_M = 0.1
+#: a drawn pit's rim is at most this many cells beyond the true one (caps a wild offset draw)
+_MAX_GROW_CELLS = 10
+#: false alarms are placed on blocks of this many cells a side (their class and distance per block)
+_BLOCK_CELLS = 4
+
+
+@dataclass(frozen=True, kw_only=True)
+class PemParameters:
+    """The fitted tables. Indices: ``[size bin][distance bin]`` for the pits' chain,
+    ``[size bin][quantile]`` for the first confirmation, ``[distance bin][quantile]`` for the
+    offsets, ``[class][distance bin]`` for the false alarms.
+
+    Attributes:
+        distance_edges_m: Edges of the distance bins [m] (a pit's cell centres' mean, a false
+            alarm's centre, from the vehicle origin; paper N §4.2's distance); beyond the last
+            edge counts in the last bin.
+        size_edges_cells: Edges of the size bins (a pit's rim cells on the 20 cm grid).
+        quantile_levels: Levels of every quantile table, 0 to 1.
+        confirm_distance_m: Quantiles of the centre distance at which a pit that came onto the
+            grid from beyond the detector's reach was first drawn [m]; -1 stands for a pit
+            passed undrawn. Each pit draws one at its first sighting.
+        confirm_latency_frames: Quantiles of the frames from a pit's first sighting to its first
+            drawing, of pits first seen within reach (an episode's start: the fusion needs hits
+            from several frames). A pit is first drawn when it is within its drawn distance and
+            has been seen for its drawn latency.
+        p_keep: P(drawn) of a pit drawn in the frame before.
+        p_return: P(drawn) of a pit drawn before, but not in the frame before.
+        sightings: Frames behind each ``[size][distance]`` entry of the chain (all states).
+        near_offset_m: Quantiles of the drawn near edge minus the true one (range from the
+            vehicle origin) [m]: > 0 drawn farther than it is.
+        far_offset_m: The same of the far edge [m].
+        fa_density_per_m2: Mean false alarms per frame per m² of the class and distance bin.
+        fa_keep: P(a false alarm is still there the next frame), per class.
+        fa_blobs: The detector's false alarms a new one copies, each ``(class, distance bin,
+            edge_m, rows, cols, cells)``: ``edge_m`` is its centre's distance from the nearer
+            track edge (< 0 on the track), ``rows`` x ``cols`` its box (along x across the
+            vehicle), ``cells`` its size.
+        border_band_m: Width of the ``border`` class beyond each track edge [m].
+    """
+
+    distance_edges_m: tuple[float, ...]
+    size_edges_cells: tuple[float, ...]
+    quantile_levels: tuple[float, ...]
+    confirm_distance_m: tuple[tuple[float, ...], ...]
+    confirm_latency_frames: tuple[float, ...]
+    p_keep: tuple[tuple[float, ...], ...]
+    p_return: tuple[tuple[float, ...], ...]
+    sightings: tuple[tuple[int, ...], ...]
+    near_offset_m: tuple[tuple[float, ...], ...]
+    far_offset_m: tuple[tuple[float, ...], ...]
+    fa_density_per_m2: tuple[tuple[float, ...], ...]
+    fa_keep: tuple[float, ...]
+    fa_blobs: tuple[tuple[float, ...], ...]
+    border_band_m: float
+
+    def __post_init__(self) -> None:
+        nd, ns = len(self.distance_edges_m) - 1, len(self.size_edges_cells) - 1
+        require(nd >= 1 and ns >= 1, "distance_edges_m", "needs at least two distance and size edges")
+        for name in ("distance_edges_m", "size_edges_cells", "quantile_levels"):
+            edges = np.asarray(getattr(self, name), dtype=np.float64)
+            require(bool(np.all(np.diff(edges) > 0)), name, "must be strictly increasing")
+        for name in (*_STATE_NAMES, "sightings"):
+            table = np.asarray(getattr(self, name), dtype=np.float64)
+            require(
+                table.shape == (ns, nd), name, f"must be {ns} x {nd} (sizes x distances), got {table.shape}"
+            )
+        for name in _STATE_NAMES:
+            table = np.asarray(getattr(self, name), dtype=np.float64)
+            require(bool(np.all((table >= 0) & (table <= 1))), name, "probabilities must lie in [0, 1]")
+        nq = len(self.quantile_levels)
+        shapes = {
+            "confirm_distance_m": (ns, nq),
+            "confirm_latency_frames": (nq,),
+            "near_offset_m": (nd, nq),
+            "far_offset_m": (nd, nq),
+        }
+        for name, shape in shapes.items():
+            table = np.asarray(getattr(self, name), dtype=np.float64)
+            require(table.shape == shape, name, f"must have shape {shape}, got {table.shape}")
+            require(bool(np.all(np.diff(table, axis=-1) >= 0)), name, "quantiles must not decrease")
+        require(min(self.confirm_latency_frames) >= 0, "confirm_latency_frames", "must be >= 0")
+        density = np.asarray(self.fa_density_per_m2, dtype=np.float64)
+        nc = len(TERRAIN_CLASSES)
+        require(density.shape == (nc, nd), "fa_density_per_m2", f"must be {nc} x {nd}, got {density.shape}")
+        require(bool(np.all(density >= 0)), "fa_density_per_m2", "must be >= 0")
+        keep = np.asarray(self.fa_keep, dtype=np.float64)
+        require(
+            keep.shape == (nc,) and bool(np.all((keep >= 0) & (keep < 1))),
+            "fa_keep",
+            "must be 3 values in [0, 1)",
+        )
+        blobs = np.asarray(self.fa_blobs, dtype=np.float64).reshape(-1, 6)
+        require(
+            bool(np.all((blobs[:, 0] >= 0) & (blobs[:, 0] < nc) & (blobs[:, 1] >= 0) & (blobs[:, 1] < nd)))
+            and bool(np.all(blobs[:, 3:] >= 1)),
+            "fa_blobs",
+            "each must be (class, distance bin, edge_m, rows, cols, cells) with rows, cols, cells >= 1",
+        )
+        require(
+            len(blobs) > 0 or not density.any(),
+            "fa_blobs",
+            "must hold at least one blob when false alarms occur",
+        )
+        require(
+            math.isfinite(self.border_band_m) and self.border_band_m >= 0, "border_band_m", "must be >= 0"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PemParameters:
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown, missing = set(data) - names, names - set(data)
+        require(
+            not unknown and not missing, "parameters", f"unknown {sorted(unknown)}, missing {sorted(missing)}"
+        )
+        return cls(**{k: _tuples(v) for k, v in data.items()})
+
+
+def _tuples(value: Any) -> Any:
+    """JSON lists as (nested) tuples, for the frozen dataclass."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+@dataclass(frozen=True, kw_only=True)
+class PerceptionErrorModel:
+    """A PEM: its parameters, the settings it was fitted on (:func:`pem_settings`) and how.
+
+    ``fit`` records the fitting run (seeds, frames, course) so that a check can refuse its seeds.
+    """
+
+    channel: str = "negative"
+    parameters: PemParameters
+    fitted_on: dict[str, Any]
+    fit: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        data = {
+            "format": PEM_FORMAT,
+            "version": PEM_VERSION,
+            "channel": self.channel,
+            "fitted_on": self.fitted_on,
+            "fit": self.fit,
+            "parameters": self.parameters.to_dict(),
+        }
+        return json.dumps(data, indent=1, sort_keys=True) + "\n"
+
+    def save(self, path: str | Path) -> Path:
+        """Write the model's JSON file atomically."""
+        return write_text_atomic(path, self.to_json())
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "pem") -> PerceptionErrorModel:
+        """Parse a PEM file's text (``source`` names it in errors)."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise ConfigError(source, f"not a PEM file (JSON: {error})") from error
+        require(isinstance(data, dict) and data.get("format") == PEM_FORMAT, source, "not a PEM file")
+        require(
+            data.get("version") == PEM_VERSION,
+            source,
+            f"PEM file version {data.get('version')!r}; this package reads version {PEM_VERSION}: refit it",
+        )
+        require(
+            data.get("channel") == "negative",
+            source,
+            f"models channel {data.get('channel')!r}; only 'negative'",
+        )
+        return cls(
+            channel=data["channel"],
+            parameters=PemParameters.from_dict(data["parameters"]),
+            fitted_on=data["fitted_on"],
+            fit=data.get("fit", {}),
+        )
+
+
+def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, dict):
+        for k in sorted(value):
+            _flatten(f"{prefix}.{k}", value[k], out)
+    else:
+        out[prefix] = value
+
+
+def pem_settings(config: ObservationConfig) -> dict[str, Any]:
+    """What the detector grid's ``negative`` channel depends on, flat by dotted name (JSON values):
+    the observation settings (``observation.*``), paper N's detector config (``detector.*``) and
+    the rig's paper N sensors (``rig.*``). A PEM is valid for these settings only."""
+    from negobs_gym.detector import FusionConfig, NegativeDetectorConfig
+    from negobs_gym.envs.perception import LUX_NAME, env_rig
+
+    detector = NegativeDetectorConfig(
+        grid=config.grid, fusion=FusionConfig(tighten_on_match=config.tighten_pairs)
+    )
+    observation = {
+        "rig": config.rig,
+        "sensor_noise": config.sensor_noise,
+        "scan_every": config.scan_every,
+        "scan_far_from_m": config.scan_far_from_m,
+        "grid": dataclasses.asdict(config.grid),
+    }
+    rig = {
+        m.name: {
+            "model": dataclasses.asdict(m.model),
+            "rotation": m.rotation,
+            "translation_m": m.translation_m,
+        }
+        for m in env_rig(config.rig, config.lux_forward_m).mounts
+        if m.name != LUX_NAME
+    }
+    out: dict[str, Any] = {}
+    tree = {"observation": observation, "detector": dataclasses.asdict(detector), "rig": rig}
+    _flatten("", json.loads(json.dumps(tree, default=repr)), out)
+    return {k[1:]: v for k, v in out.items()}
+
+
+def settings_mismatch(fitted_on: dict[str, Any], config: ObservationConfig) -> list[str]:
+    """The settings of ``config`` that differ from those a PEM was fitted on, as texts."""
+    now = pem_settings(config)
+    keys = sorted(set(fitted_on) | set(now))
+    return [
+        f"{k} (fitted on {fitted_on.get(k, '<absent>')!r}, now {now.get(k, '<absent>')!r})"
+        for k in keys
+        if fitted_on.get(k, "<absent>") != now.get(k, "<absent>")
+    ]
+
+
+def load_pem(path: str | Path | None, config: ObservationConfig) -> PerceptionErrorModel:
+    """The PEM in ``path`` (None: :data:`DEFAULT_PEM_PATH`), checked against ``config``.
+
+    Raises:
+        ConfigError: a missing or bad file, or settings that differ from those it was fitted on
+            (field ``observation.pem_model``, each difference named).
+    """
+    file = Path(path) if path is not None else DEFAULT_PEM_PATH
+    if not file.is_file():
+        raise ConfigError("observation.pem_model", f"no PEM file {str(file)!r} (fit one: negobs pem fit)")
+    model = PerceptionErrorModel.from_json(file.read_text(encoding="utf-8"), f"observation.pem_model {file}")
+    diff = settings_mismatch(model.fitted_on, config)
+    if diff:
+        shown = "; ".join(diff[:6]) + (f"; and {len(diff) - 6} more" if len(diff) > 6 else "")
+        raise ConfigError(
+            "observation.pem_model",
+            f"{file} was fitted on other detector settings: {shown}. Refit it (negobs pem fit) for these",
+        )
+    return model
+
+
+def centreline_tree(terrain: Terrain) -> cKDTree:
+    """KD-tree of the track's centre line resampled every 10 cm (lateral distance to within 5 cm)."""
+    line = np.asarray(terrain.track.centreline_xy_m, dtype=np.float64)
+    stations = polyline_stations(line)
+    s = np.arange(0.0, stations[-1] + _TRACK_SPACING_M, _TRACK_SPACING_M)
+    return cKDTree(np.column_stack([np.interp(s, stations, line[:, 0]), np.interp(s, stations, line[:, 1])]))
+
+
+def terrain_classes(world_xy: np.ndarray, tree: cKDTree, width_m: float, band_m: float) -> np.ndarray:
+    """Index into :data:`TERRAIN_CLASSES` of world points (N, 2): on the track (within half its
+    width of the centre line), on its border (the verge or bank, ``band_m`` beyond an edge), else
+    ``other``."""
+    half = 0.5 * width_m
+    lateral, _ = tree.query(world_xy, distance_upper_bound=half + band_m + 1.0)
+    return np.where(lateral <= half, 0, np.where(lateral <= half + band_m, 1, 2)).astype(np.int64)
+
+
+def rasterise_pits(
+    terrain: Terrain, pose: Pose, grid: GridSpec, boxes: np.ndarray
+) -> list[tuple[int, np.ndarray, slice, slice]]:
+    """Each true pit with cells on ``grid`` around ``pose``: (its index, its cell mask in a window,
+    the window's row and column slices). A cell is the pit's when its centre lies inside the rim."""
+    x0, x1, y0, y1 = grid.extent_xy_m
+    corners = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
+    world = _vehicle_to_world(corners, pose)
+    lo, hi = world.min(axis=0), world.max(axis=0)
+    near = np.flatnonzero(
+        (boxes[:, 0] <= hi[0]) & (boxes[:, 2] >= lo[0]) & (boxes[:, 1] <= hi[1]) & (boxes[:, 3] >= lo[1])
+    )
+    out = []
+    for k in near:
+        outline = world_to_vehicle_xy(
+            np.asarray(terrain.negative_obstacles[k].outline_xy_m), (pose.x, pose.y), pose.yaw
+        )
+        rows, cols, _ = grid.cell_of(np.stack([outline.min(axis=0), outline.max(axis=0)]))
+        r0, r1 = max(int(rows.min()), 0), min(int(rows.max()) + 1, grid.rows)
+        c0, c1 = max(int(cols.min()), 0), min(int(cols.max()) + 1, grid.cols)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        window = (slice(r0, r1), slice(c0, c1))
+        xs = -grid.side_m + (np.arange(c0, c1) + 0.5) * grid.cell_m
+        ys = -grid.back_m + (np.arange(r0, r1) + 0.5) * grid.cell_m
+        xx, yy = np.meshgrid(xs, ys)
+        mask = points_in_polygon(np.stack([xx, yy], axis=-1), outline)
+        if mask.any():
+            out.append((int(k), mask, *window))
+    return out
+
+
+def pit_centre_distance_m(grid: GridSpec, mask: np.ndarray, rows: slice, cols: slice) -> float:
+    """Distance from the vehicle origin to the mean centre of a pit's cells (paper N §4.2)."""
+    r, c = np.nonzero(mask)
+    x = -grid.side_m + (c.mean() + cols.start + 0.5) * grid.cell_m
+    y = -grid.back_m + (r.mean() + rows.start + 0.5) * grid.cell_m
+    return float(math.hypot(x, y))
+
+
+def _vehicle_to_world(points: np.ndarray, pose: Pose) -> np.ndarray:
+    return vehicle_to_world_xy(points, (pose.x, pose.y), pose.yaw)
+
+
+def obstacle_boxes(terrain: Terrain) -> np.ndarray:
+    """(M, 4) world bounding boxes (xmin, ymin, xmax, ymax) of the terrain's pits."""
+    if not terrain.negative_obstacles:
+        return np.zeros((0, 4))
+    outlines = [np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles]
+    return np.array([[*o.min(axis=0), *o.max(axis=0)] for o in outlines])
+
+
+def _bin(value: float | np.ndarray, edges: np.ndarray) -> Any:
+    """Bin index of ``value``: below the first edge -> 0, beyond the last -> the last bin."""
+    return np.clip(np.digitize(value, edges) - 1, 0, len(edges) - 2)
+
+
+class PemGrid:
+    """The PEM's ``negative`` layer around the vehicle, frame by frame (one episode).
+
+    ``rng`` is the PEM's own generator (a child of the sensors'); the same generator state, terrain
+    and poses give the same layers bit for bit.
+    """
+
+    def __init__(
+        self, model: PerceptionErrorModel, grid: GridSpec, terrain: Terrain, rng: np.random.Generator
+    ) -> None:
+        p = model.parameters
+        self.model = model
+        self.grid = grid
+        self.terrain = terrain
+        self._rng = rng
+        self._d_edges = np.asarray(p.distance_edges_m, dtype=np.float64)
+        self._s_edges = np.asarray(p.size_edges_cells, dtype=np.float64)
+        self._chain = np.stack(
+            [np.asarray(getattr(p, n), dtype=np.float64) for n in _STATE_NAMES]
+        )  # (2, S, D)
+        self._levels = np.asarray(p.quantile_levels, dtype=np.float64)
+        self._confirm = np.asarray(p.confirm_distance_m, dtype=np.float64)
+        self._latency = np.asarray(p.confirm_latency_frames, dtype=np.float64)
+        self._near = np.asarray(p.near_offset_m, dtype=np.float64)
+        self._far = np.asarray(p.far_offset_m, dtype=np.float64)
+        keep = np.asarray(p.fa_keep, dtype=np.float64)
+        self._fa_keep = keep
+        density = np.asarray(p.fa_density_per_m2, dtype=np.float64)
+        self._fa_birth = density * (1.0 - keep)[:, None]  # births keep the fitted mean per frame
+        self._fa_density = density
+        self._blobs = np.asarray(p.fa_blobs, dtype=np.float64).reshape(-1, 6)
+        centres = grid.cell_centres()
+        self._range = np.hypot(centres[..., 0], centres[..., 1])
+        self._bearing = np.arctan2(centres[..., 0], centres[..., 1])
+        b = _BLOCK_CELLS
+        rows, cols = grid.rows // b * b, grid.cols // b * b
+        blocks = centres[:rows, :cols].reshape(rows // b, b, cols // b, b, 2).mean(axis=(1, 3))
+        self._block_centres = blocks.reshape(-1, 2)
+        self._block_m = b * grid.cell_m
+        self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
+        self._boxes = obstacle_boxes(terrain)
+        self._tree = centreline_tree(terrain)
+        n = len(terrain.negative_obstacles)
+        self._state = np.zeros(n, dtype=np.int8)
+        self._seen = np.zeros(n, dtype=np.int64)  # frames each pit was on the grid before its first drawing
+        self._confirm_at = np.full(n, np.nan)  # each pit's drawn first-confirmation distance ...
+        self._latency_at = np.zeros(n)  # ... and latency, drawn at its first sighting
+        self._fa_xy = np.zeros((0, 2))  # world centres of the live false alarms
+        self._fa_blob = np.zeros(0, dtype=np.int64)  # the library blob each copies
+        self._frames = 0
+
+    def negative(self, pose: Pose) -> np.ndarray:
+        """This frame's ``negative`` layer (rows, cols) bool around the true ``pose``."""
+        layer = np.zeros(self.grid.shape, dtype=bool)
+        for k, mask, rows, cols in rasterise_pits(self.terrain, pose, self.grid, self._boxes):
+            cells = int(mask.sum())
+            centre = pit_centre_distance_m(self.grid, mask, rows, cols)
+            s, d = int(_bin(cells, self._s_edges)), int(_bin(centre, self._d_edges))
+            if self._state[k] == NEVER:
+                if np.isnan(self._confirm_at[k]):
+                    self._confirm_at[k] = self._quantile(self._confirm[s])
+                    self._latency_at[k] = self._quantile(self._latency)
+                self._seen[k] += 1
+                drawn = centre <= self._confirm_at[k] and self._seen[k] > self._latency_at[k]
+            else:
+                drawn = bool(self._rng.random() < self._chain[self._state[k] - 1, s, d])
+            self._state[k] = DRAWN if drawn else (NEVER if self._state[k] == NEVER else LOST)
+            if drawn:
+                self._draw_pit(layer, mask, rows, cols, d)
+        self._false_alarms(layer, pose)
+        self._frames += 1
+        return layer
+
+    def _quantile(self, table: np.ndarray) -> float:
+        return float(np.interp(self._rng.random(), self._levels, table))
+
+    def _draw_pit(self, layer: np.ndarray, mask: np.ndarray, rows: slice, cols: slice, d: int) -> None:
+        """The drawn cells of a pit: its rim's cells (grown where the far offset says) in its bearing
+        span, between its near edge + the near offset and its far edge + the far offset."""
+        near, far = self._quantile(self._near[d]), self._quantile(self._far[d])
+        grow = min(_MAX_GROW_CELLS, math.ceil(max(0.0, -near, far) / self.grid.cell_m))
+        r0, r1 = max(rows.start - grow, 0), min(rows.stop + grow, self.grid.rows)
+        c0, c1 = max(cols.start - grow, 0), min(cols.stop + grow, self.grid.cols)
+        truth = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+        truth[rows.start - r0 : rows.stop - r0, cols.start - c0 : cols.stop - c0] = mask
+        rng_m, bearing = self._range[r0:r1, c0:c1], self._bearing[r0:r1, c0:c1]
+        centre_bearing = float(np.arctan2(np.sin(bearing[truth]).mean(), np.cos(bearing[truth]).mean()))
+        rel = np.angle(np.exp(1j * (bearing - centre_bearing)))
+        slack = 0.5 * self.grid.cell_m / np.maximum(rng_m, self.grid.cell_m)
+        lo, hi = rng_m[truth].min() + near, rng_m[truth].max() + far
+        region = ndimage.binary_dilation(truth, iterations=grow) if grow > 0 else truth
+        span = (rel >= rel[truth].min() - slack) & (rel <= rel[truth].max() + slack)
+        drawn = region & span & (rng_m >= lo) & (rng_m <= max(hi, lo))
+        if not drawn.any():  # offsets that leave nothing: the rim's cell nearest the drawn near edge
+            candidates = np.where(truth, np.abs(rng_m - lo), np.inf)
+            drawn = candidates == candidates.min()
+        layer[r0:r1, c0:c1] |= drawn
+
+    def _pick_blobs(self, classes: np.ndarray, bins: np.ndarray) -> np.ndarray:
+        """A library blob for each new false alarm: one of its class and distance bin, else of its
+        class, else any."""
+        lib_class, lib_bin = self._blobs[:, 0].astype(np.int64), self._blobs[:, 1].astype(np.int64)
+        picks = np.empty(len(classes), dtype=np.int64)
+        for i, (c, d) in enumerate(zip(classes.tolist(), bins.tolist(), strict=True)):
+            pool = np.flatnonzero((lib_class == c) & (lib_bin == d))
+            if pool.size == 0:
+                pool = np.flatnonzero(lib_class == c)
+            if pool.size == 0:
+                pool = np.arange(len(self._blobs))
+            picks[i] = pool[int(self._rng.integers(pool.size))]
+        return picks
+
+    def _place(self, world_xy: np.ndarray, edge_m: np.ndarray) -> np.ndarray:
+        """Each point moved across the track to ``edge_m`` beyond the nearer edge (its side kept)."""
+        _, index = self._tree.query(world_xy)
+        samples = self._tree.data
+        ahead = samples[np.minimum(index + 1, len(samples) - 1)] - samples[np.maximum(index - 1, 0)]
+        tangent = ahead / np.maximum(np.linalg.norm(ahead, axis=1, keepdims=True), 1e-9)
+        normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+        offset = world_xy - samples[index]
+        side = np.where(np.sum(offset * normal, axis=1) >= 0, 1.0, -1.0)
+        along = np.sum(offset * tangent, axis=1)
+        lateral = side * (0.5 * self.terrain.track.width_m + edge_m)
+        return samples[index] + along[:, None] * tangent + lateral[:, None] * normal
+
+    def _false_alarms(self, layer: np.ndarray, pose: Pose) -> None:
+        """Keep, age and add the world-fixed false alarms; draw those on the grid into ``layer``."""
+        blocks_world = _vehicle_to_world(self._block_centres, pose)
+        classes = terrain_classes(
+            blocks_world, self._tree, self.terrain.track.width_m, self.model.parameters.border_band_m
+        )
+        if len(self._fa_xy):  # the live ones: kept with the class's probability while on the grid
+            local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
+            _, _, inside = self.grid.cell_of(local)
+            klass = self._blobs[self._fa_blob, 0].astype(np.int64)
+            keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[klass])
+            self._fa_xy, self._fa_blob = self._fa_xy[keep], self._fa_blob[keep]
+        # the first frame starts with the mean population, later frames add the births
+        rate = (self._fa_density if self._frames == 0 else self._fa_birth)[classes, self._block_bins]
+        counts = self._rng.poisson(rate * self._block_m**2)
+        if counts.any() and len(self._blobs):
+            at = np.repeat(np.arange(len(counts)), counts)
+            offsets = (self._rng.random((len(at), 2)) - 0.5) * self._block_m
+            picks = self._pick_blobs(classes[at], self._block_bins[at])
+            born = self._place(
+                _vehicle_to_world(self._block_centres[at] + offsets, pose), self._blobs[picks, 2]
+            )
+            self._fa_xy = np.concatenate([self._fa_xy, born])
+            self._fa_blob = np.concatenate([self._fa_blob, picks])
+        if len(self._fa_xy):
+            local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
+            rows, cols, _ = self.grid.cell_of(local)
+            for row, col, blob in zip(rows.tolist(), cols.tolist(), self._fa_blob.tolist(), strict=True):
+                length, across, cells = (int(v) for v in self._blobs[blob, 3:])
+                width = max(1, min(across, math.ceil(cells / length)))
+                ra, ca = row - length // 2, col - width // 2
+                layer[max(ra, 0) : max(ra + length, 0), max(ca, 0) : max(ca + width, 0)] = True

@@ -1,0 +1,80 @@
+"""The PEM's parameters and file: round trip, the shipped model, refused settings and files."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from negobs_gym.envs.pem import (
+    DEFAULT_PEM_PATH,
+    TERRAIN_CLASSES,
+    PemParameters,
+    PerceptionErrorModel,
+    load_pem,
+    pem_settings,
+)
+from negobs_gym.errors import ConfigError
+from negobs_gym.spec import ObservationConfig
+
+
+def constant_model(
+    p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0
+) -> PerceptionErrorModel:
+    """A PEM that draws every pit from its first sighting on (``p`` = 1) or none (0), with fixed
+    edge offsets and ``density`` false alarms per m² (4-cell blobs on the border)."""
+    d_edges, s_edges, levels = (0.0, 10.0, 30.0), (0.0, 10_000.0), (0.0, 1.0)
+    confirm = 100.0 if p > 0 else -1.0
+    params = PemParameters(
+        distance_edges_m=d_edges,
+        size_edges_cells=s_edges,
+        quantile_levels=levels,
+        confirm_distance_m=((confirm, confirm),),
+        confirm_latency_frames=(0.0, 0.0),
+        p_keep=((p, p),),
+        p_return=((p, p),),
+        sightings=((1, 1),),
+        near_offset_m=((near, near), (near, near)),
+        far_offset_m=((far, far), (far, far)),
+        fa_density_per_m2=tuple((density, density) for _ in TERRAIN_CLASSES),
+        fa_keep=(0.5, 0.5, 0.5),
+        fa_blobs=((1.0, 0.0, 0.5, 2.0, 2.0, 4.0),),
+        border_band_m=1.0,
+    )
+    return PerceptionErrorModel(parameters=params, fitted_on=pem_settings(ObservationConfig()))
+
+
+def test_shipped_pem_loads_for_the_default_observation():
+    model = load_pem(None, ObservationConfig())
+    assert DEFAULT_PEM_PATH.is_file()
+    assert model.fitted_on == pem_settings(ObservationConfig())
+    assert model.fit["frames"] >= 100
+    assert PerceptionErrorModel.from_json(model.to_json()) == model
+
+
+def test_files_fitted_on_other_settings_or_layouts_are_refused(tmp_path):
+    path = constant_model(0.5).save(tmp_path / "pem.json")
+    with pytest.raises(ConfigError, match=r"observation\.rig"):
+        load_pem(path, dataclasses.replace(ObservationConfig(), rig="reduced"))
+    with pytest.raises(ConfigError, match=r"detector\.fusion\.tighten_on_match"):
+        load_pem(path, dataclasses.replace(ObservationConfig(), tighten_pairs=False))
+    data = json.loads(path.read_text())
+    data["version"] = 99
+    path.write_text(json.dumps(data))
+    with pytest.raises(ConfigError, match="version 99"):
+        load_pem(path, ObservationConfig())
+    with pytest.raises(ConfigError, match="no PEM file"):
+        load_pem(tmp_path / "missing.json", ObservationConfig())
+
+
+def test_bad_parameters_are_refused():
+    good = constant_model(0.5).parameters
+    with pytest.raises(ConfigError, match="p_keep"):
+        dataclasses.replace(good, p_keep=((1.5, 0.5),))
+    with pytest.raises(ConfigError, match="near_offset_m"):
+        dataclasses.replace(good, near_offset_m=((0.5, 0.1), (0.0, 0.0)))
+    with pytest.raises(ConfigError, match="fa_blobs"):
+        dataclasses.replace(good, fa_blobs=((7.0, 0.0, 0.5, 2.0, 2.0, 4.0),))
+    with pytest.raises(ConfigError, match="source"):
+        ObservationConfig(source="pems")
