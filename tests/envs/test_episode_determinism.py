@@ -16,6 +16,7 @@ import pytest
 import negobs_gym  # noqa: F401 - registers the envs
 
 ENV_ID = "negobs_gym/OffroadNav-v0"
+SHORT = {"terrain.params.length_m": 60.0}  # the shortest winding course: a world builds ~4x faster
 STEPS = 12
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -73,8 +74,13 @@ def test_default_observation_uses_the_roi_rig():
     env.close()
 
 
+def _short_env(**overrides) -> gym.Env:
+    """The default env on the shortest winding course (what is tested does not depend on its length)."""
+    return gym.make(ENV_ID, overrides={**SHORT, **overrides})
+
+
 def test_kept_world_replays_the_episode_bit_for_bit():
-    env = gym.make(ENV_ID, overrides={"episode.world_cache_size": 2})
+    env = _short_env(**{"episode.world_cache_size": 2})
     first = _rollout(env, seed=5)
     assert first["grid"][1:].any(), "the detector grid must see something for the test to mean anything"
     _rollout(env, seed=6)
@@ -99,37 +105,69 @@ def _in_another_process(names: str, *lines: str, env: dict | None = None) -> Non
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, timeout=300, env=env)
 
 
-def test_same_seed_same_episode_in_another_process(tmp_path):
-    out = tmp_path / "episode.npz"
-    _in_another_process("_rollout, ENV_ID", f"np.savez({str(out)!r}, **_rollout(gym.make(ENV_ID), seed=11))")
-    env = gym.make(ENV_ID)
+def _far_part_env() -> gym.Env:
+    """A frame every 3rd step, the grid beyond 8 m cast and detected between."""
+    return _short_env(**{"observation.scan_every": 3, "observation.scan_far_from_m": 8.0})
+
+
+def _frames(seed: int) -> np.ndarray:
+    """The ``rgb_array`` frames of a Braking-v1 episode's reset and first steps at full throttle."""
+    env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array")
+    env.reset(seed=seed)
+    frames = [env.render()]
+    for _ in range(4):
+        env.step(np.array([1.0, 0.0], np.float32))
+        frames.append(env.render())
+    env.close()
+    return np.stack(frames)
+
+
+@pytest.fixture(scope="module")
+def other_process(tmp_path_factory) -> Path:
+    """One fresh process runs the episodes the tests below run here (one start-up, not three):
+    ``episode.npz`` (default env, seed 11), ``far_part.npz`` (far-part steps, seed 11) and
+    ``frames.npy`` (Braking-v1's rendered frames, seed 3)."""
+    out = tmp_path_factory.mktemp("other_process")
+    _in_another_process(
+        "_rollout, _short_env, _far_part_env, _frames",
+        f"np.savez({str(out / 'episode.npz')!r}, **_rollout(_short_env(), seed=11))",
+        f"np.savez({str(out / 'far_part.npz')!r}, **_rollout(_far_part_env(), seed=11))",
+        f"np.save({str(out / 'frames.npy')!r}, _frames(seed=3))",
+    )
+    return out
+
+
+@pytest.mark.xdist_group("episode_determinism_other_process")
+def test_same_seed_same_episode_in_another_process(other_process):
+    env = _short_env()
     here = _rollout(env, seed=11)
     env.close()
-    with np.load(out) as there:
+    with np.load(other_process / "episode.npz") as there:
         _assert_same(here, dict(there))
 
 
-def _far_part_env() -> gym.Env:
-    """A frame every 3rd step, the grid beyond 8 m cast and detected between."""
-    return gym.make(ENV_ID, overrides={"observation.scan_every": 3, "observation.scan_far_from_m": 8.0})
-
-
-def test_far_part_steps_give_the_same_episode_in_another_process(tmp_path):
-    out = tmp_path / "episode.npz"
-    _in_another_process(
-        "_far_part_env, _rollout", f"np.savez({str(out)!r}, **_rollout(_far_part_env(), seed=11))"
-    )
+@pytest.mark.xdist_group("episode_determinism_other_process")
+def test_far_part_steps_give_the_same_episode_in_another_process(other_process):
     env = _far_part_env()
     here = _rollout(env, seed=11)
     env.close()
     assert here["grid"][1:].any()
-    with np.load(out) as there:
+    with np.load(other_process / "far_part.npz") as there:
         _assert_same(here, dict(there))
+
+
+@pytest.mark.xdist_group("episode_determinism_other_process")
+def test_same_seed_same_frames_in_another_process(other_process):
+    """Rendering draws from no generator: the frames (what `negobs eval video` encodes) are the
+    episode's, pixel for pixel, in any process."""
+    here = _frames(seed=3)
+    assert here.std() > 0 and not np.array_equal(here[0], here[-1])  # a picture that moves
+    assert np.array_equal(here, np.load(other_process / "frames.npy"))
 
 
 def _pinned_rollout(seed: int) -> dict[str, np.ndarray]:
     """An episode with Embree's kernels pinned to AVX2, after another episode in the same env."""
-    env = gym.make(ENV_ID, overrides={"observation.raycast_isa": "avx2"})
+    env = _short_env(**{"observation.raycast_isa": "avx2"})
     _rollout(env, seed=seed + 1)
     episode = _rollout(env, seed=seed)
     env.close()
@@ -168,7 +206,7 @@ def test_same_seed_same_scans_on_an_avx2_cpu(tmp_path):
 
 def test_terrain_pool_gives_each_index_its_own_terrain():
     changes = {"episode.terrain_pool_size": 3, "episode.world_cache_size": 3, "observation.source": "oracle"}
-    env = gym.make(ENV_ID, overrides=changes)
+    env = _short_env(**changes)
     seen: dict[str, np.ndarray] = {}
     for seed in range(8):
         env.reset(seed=seed)
@@ -179,25 +217,3 @@ def test_terrain_pool_gives_each_index_its_own_terrain():
         seen[key] = np.array(heights)
     assert 1 < len(seen) <= 3 and len(env.unwrapped._worlds) <= 3
     env.close()
-
-
-def _frames(seed: int) -> np.ndarray:
-    """The ``rgb_array`` frames of a Braking-v1 episode's reset and first steps at full throttle."""
-    env = gym.make("negobs_gym/Braking-v1", render_mode="rgb_array")
-    env.reset(seed=seed)
-    frames = [env.render()]
-    for _ in range(4):
-        env.step(np.array([1.0, 0.0], np.float32))
-        frames.append(env.render())
-    env.close()
-    return np.stack(frames)
-
-
-def test_same_seed_same_frames_in_another_process(tmp_path):
-    """Rendering draws from no generator: the frames (what `negobs eval video` encodes) are the
-    episode's, pixel for pixel, in any process."""
-    out = tmp_path / "frames.npy"
-    _in_another_process("_frames", f"np.save({str(out)!r}, _frames(seed=3))")
-    here = _frames(seed=3)
-    assert here.std() > 0 and not np.array_equal(here[0], here[-1])  # a picture that moves
-    assert np.array_equal(here, np.load(out))
