@@ -34,7 +34,17 @@ def test_a_command_is_required_and_bad_values_are_named(capsys):
     assert "--seed" in capsys.readouterr().err
 
 
-def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path):
+def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path, monkeypatch):
+    import negobs_gym.demo as demo
+
+    driven = {}
+    drive = demo.run_episode
+
+    def driven_once(seed: int, filtered: bool):
+        driven[seed, filtered] = drive(seed, filtered)
+        return driven[seed, filtered]
+
+    monkeypatch.setattr(demo, "run_episode", driven_once)
     out = tmp_path / "demo.png"
     evaluation = tmp_path / "eval"
     args = ["-q", "demo", "--out", str(out), "--seed", "2", "--eval-out", str(evaluation), "--frames", "4"]
@@ -43,9 +53,23 @@ def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path):
     assert "Table 6" in (evaluation / "tables.md").read_text()
     for png in ("fig16.png", "recall_heatmap.png"):
         assert (evaluation / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (
-        main(["-q", "demo", "--out", str(out), "--no-detection", "--eval-out", str(tmp_path / "none")]) == 0
-    )
+    assert set(driven) == {(2, False), (2, True)}
+    # --no-detection: the same two episodes (driven above, replayed here) and no campaign
+    monkeypatch.setattr(demo, "run_episode", lambda seed, filtered: driven[seed, filtered])
+    alone = tmp_path / "alone.png"
+    args = [
+        "-q",
+        "demo",
+        "--out",
+        str(alone),
+        "--seed",
+        "2",
+        "--no-detection",
+        "--eval-out",
+        str(tmp_path / "none"),
+    ]
+    assert main(args) == 0
+    assert alone.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not (tmp_path / "none").exists()
 
 
