@@ -190,7 +190,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     pol.add_argument(
         "--source",
-        choices=("detector", "oracle"),
+        choices=("detector", "oracle", "pem"),
         default=None,
         help="grid source (--set observation.source=SOURCE; default: the env's own)",
     )

@@ -129,7 +129,8 @@ OPTIONS: tuple[Option, ...] = (
     Option(
         "--source",
         f"{SET}observation.source",
-        "the grid: the detectors', the ground truth's, or none in the policy's input (state: the "
+        "the grid: the detectors', the ground truth's, the detectors' error model's (pem, "
+        "docs/pem.md), or none in the policy's input (state: the "
         "state vector only; the env computes the oracle's grid, for the filter) (default: the "
         "scenario's own)",
         SCENE,

@@ -435,17 +435,21 @@ class NegObsEnv(gym.Env):
 
         The negative- and positive-obstacle points are the detector's cells, never the ground truth: with an
         oracle observation the first call starts the sensors and detectors, which then run every
-        step of the episode.
+        step of the episode. With the ``pem`` source they are the PEM's own cells (its ``negative``
+        layer and the oracle's ``positive``, :class:`~negobs_gym.envs.sources.PemSource`).
         """
         if self._vehicle is None:
             raise ResetNeeded("call reset() before hazard_state()")
-        if self._detector is None:
-            self._start_detector()
+        seen = self._grid_source.hazards()  # the detectors', or the PEM source's own cells
+        if seen is None:
+            if self._detector is None:
+                self._start_detector()
+            seen = self._detector.perception
         cfg = self._vehicle.config
         return HazardState(
             speed_mps=max(0.0, self._vehicle.speed_mps()),
-            negative_obstacles_xy_m=self._detector.perception.negative_cells_xy_m(),
-            positive_obstacles_xy_m=self._detector.perception.positive_cells_xy_m(),
+            negative_obstacles_xy_m=seen.negative_cells_xy_m(),
+            positive_obstacles_xy_m=seen.positive_cells_xy_m(),
             vehicle_width_m=cfg.width_m,
             wheelbase_m=cfg.wheelbase_m,
             front_length_m=cfg.length_m - cfg.rear_overhang_m,
@@ -454,10 +458,10 @@ class NegObsEnv(gym.Env):
             max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
-            perception_time_s=self._detector.perception.stamp_s,
-            observed=self._detector.perception.observed,  # coverage, for the governed filter
+            perception_time_s=seen.stamp_s,
+            observed=seen.observed,  # coverage, for the governed filter
             grid=self.scenario.observation.grid,
-            pose=self._detector.perception.pose,
+            pose=seen.pose,
         )
 
     def _start_detector(self) -> None:

@@ -19,7 +19,7 @@ __all__ = ["GRID_SOURCE_NAMES", "make_env", "registered_negobs_env", "source_ove
 
 #: Names a command's ``--source`` takes: the spec's ``observation.source`` values, and ``state``
 #: (a policy sees no grid; the env computes the cheapest one, the oracle's, which it ignores).
-GRID_SOURCE_NAMES: tuple[str, ...] = ("detector", "oracle", "state")
+GRID_SOURCE_NAMES: tuple[str, ...] = ("detector", "oracle", "pem", "state")
 
 
 def registered_negobs_env(env_id: str) -> type[NegObsEnv] | None:

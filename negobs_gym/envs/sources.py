@@ -6,7 +6,9 @@ control step, and does not care whether the grid is the ground truth or the dete
 - :class:`OracleSource` rasterises the terrain's ground-truth records (:class:`~negobs_gym.envs.
   observation.OracleGrid`), for ablations;
 - :class:`DetectorSource` casts the LiDAR rig and runs both papers' detectors
-  (:class:`~negobs_gym.envs.perception.DetectorGrid`), as on a real vehicle.
+  (:class:`~negobs_gym.envs.perception.DetectorGrid`), as on a real vehicle;
+- :class:`PemSource` rasterises the ground truth and applies a perception-error model of the
+  detector's ``negative`` channel (:class:`~negobs_gym.envs.pem.PemGrid`), at the oracle's cost.
 
 A new source subclasses :class:`GridSource` and is added to :data:`GRID_SOURCES` under the name
 ``ObservationConfig.source`` selects it by.
@@ -15,20 +17,23 @@ A new source subclasses :class:`GridSource` and is added to :data:`GRID_SOURCES`
 from __future__ import annotations
 
 import abc
+import dataclasses
 
 import numpy as np
 from gymnasium import spaces
 
+from negobs_gym.core.pose import Pose
 from negobs_gym.envs.observation import OracleGrid, grid_space, stack_channels
+from negobs_gym.envs.pem import PemGrid, load_pem
 from negobs_gym.envs.perception import DetectorGrid, world_products
 from negobs_gym.envs.phantoms import Phantoms
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
-from negobs_gym.spec import ObservationConfig
+from negobs_gym.spec import CHANNELS, ObservationConfig
 
-__all__ = ["GRID_SOURCES", "DetectorSource", "GridSource", "OracleSource", "make_grid_source"]
+__all__ = ["GRID_SOURCES", "DetectorSource", "GridSource", "OracleSource", "PemSource", "make_grid_source"]
 
 
 class GridSource(abc.ABC):
@@ -66,6 +71,12 @@ class GridSource(abc.ABC):
     def observe(self, timestamp_s: float) -> np.ndarray:
         """The ``grid`` observation: uint8 (channels, rows, cols), max-pooled by ``downsample``."""
         return stack_channels(self.layers(timestamp_s), self.config)
+
+    def hazards(self):
+        """What the safety filter reads (``negative_cells_xy_m()``, ``positive_cells_xy_m()``,
+        ``stamp_s``, ``observed``, ``pose``), when this source provides it; None (default): the env
+        runs the detectors beside it for the hazards."""
+        return None
 
 
 class OracleSource(GridSource):
@@ -121,9 +132,106 @@ class DetectorSource(GridSource):
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         return self.perception.observe(timestamp_s)
 
+    def hazards(self) -> DetectorGrid | None:
+        return self.perception
+
+
+class PemHazards:
+    """The PEM source's last frame as the safety filter reads it: its own cells, no detector."""
+
+    def __init__(self, grid, oracle: OracleGrid | None = None) -> None:
+        self._grid = grid
+        self._oracle = oracle
+        self.stamp_s: float | None = None
+        self.pose: Pose | None = None
+        self._true_pose: Pose | None = None
+        self._observed: np.ndarray | None = None
+        self._cells = {"negative": np.empty((0, 2)), "positive": np.empty((0, 2))}
+
+    def update(
+        self, negative: np.ndarray, positive: np.ndarray, true_pose: Pose, pose: Pose, stamp_s: float
+    ) -> None:
+        self._cells = {
+            "negative": self._grid.centres_of(negative),
+            "positive": self._grid.centres_of(positive),
+        }
+        self._true_pose, self.pose, self.stamp_s = true_pose, pose, stamp_s  # cells in the true frame
+        self._observed = None
+
+    @property
+    def observed(self) -> np.ndarray | None:
+        """The oracle's ``observed`` layer of the last frame (inside the heightfield), computed when
+        first asked for (the governed filter's coverage)."""
+        if self._observed is None and self._true_pose is not None and self._oracle is not None:
+            self._observed = self._oracle.layers(self._true_pose, ("observed",))["observed"]
+        return self._observed
+
+    def negative_cells_xy_m(self) -> np.ndarray:
+        """(N, 2) vehicle-frame centres of this frame's PEM ``negative`` cells."""
+        return self._cells["negative"]
+
+    def positive_cells_xy_m(self) -> np.ndarray:
+        """(N, 2) centres of this frame's ``positive`` cells (the oracle's, see :class:`PemSource`)."""
+        return self._cells["positive"]
+
+
+class PemSource(GridSource):
+    """The ground truth rasterised around the true pose, its ``negative`` channel passed through the
+    perception-error model of ``config.pem_model`` (:class:`~negobs_gym.envs.pem.PemGrid`).
+
+    Loading the model checks it against ``config``'s detector settings (a mismatch is a
+    :class:`~negobs_gym.errors.ConfigError` naming it). Only ``negative`` is modelled so far:
+    ``positive``, ``traversable`` and ``observed`` are the oracle's (the ground truth). The model
+    draws from a child of the sensors' generator, so the sensors' stream stays as it was. Every
+    step is a frame (``scan_every`` is ignored). The safety filter's hazards are this source's own
+    cells (:meth:`hazards`): no detector runs beside it.
+    """
+
+    def __init__(self, config: ObservationConfig) -> None:
+        super().__init__(config)
+        self.model = load_pem(config.pem_model, config)
+        self._oracle_config = dataclasses.replace(
+            config,
+            source="oracle",
+            oracle_range_m=None,
+            phantoms=dataclasses.replace(config.phantoms, per_100m=0.0),
+        )
+        self._hazards = PemHazards(config.grid)
+
+    def start(
+        self,
+        world: World,
+        vehicle: Vehicle,
+        terrain: Terrain,
+        rng: np.random.Generator,
+        cache: dict | None = None,
+    ) -> None:
+        self._vehicle = vehicle
+        self.oracle = OracleGrid(self._oracle_config, terrain)
+        self.grid = PemGrid(self.model, self.config.grid, terrain, rng.spawn(1)[0])
+        self._hazards = PemHazards(self.config.grid, self.oracle)
+
+    def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
+        pose = self._vehicle.true_pose()
+        # the oracle's channels besides negative, and positive for the hazards
+        names = tuple(
+            c for c in CHANNELS if c == "positive" or (c != "negative" and c in self.config.channels)
+        )
+        truth = self.oracle.layers(pose, names)
+        negative = self.grid.negative(pose)
+        self._hazards.update(negative, truth["positive"], pose, pose, float(timestamp_s))
+        return {name: negative if name == "negative" else truth[name] for name in self.config.channels}
+
+    def hazards(self) -> PemHazards:
+        return self._hazards
+
 
 #: ``ObservationConfig.source`` -> the source class.
-GRID_SOURCES: dict[str, type[GridSource]] = {"oracle": OracleSource, "detector": DetectorSource}
+GRID_SOURCES: dict[str, type[GridSource]] = {
+    "oracle": OracleSource,
+    "detector": DetectorSource,
+    "pem": PemSource,
+}
 
 
 def make_grid_source(config: ObservationConfig) -> GridSource:

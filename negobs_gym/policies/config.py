@@ -35,7 +35,7 @@ __all__ = [
 ALGORITHMS: tuple[str, ...] = ("PPO", "SAC")
 #: ``negobs train --source``: the scenario's grid source (``observation.source``), or ``state``
 #: (:func:`source_settings`).
-SOURCES: tuple[str, ...] = ("detector", "oracle", "state")
+SOURCES: tuple[str, ...] = ("detector", "oracle", "pem", "state")
 #: Scenario settings a training run starts from, before its own ``overrides``: no safety filter,
 #: whatever the scene's ``[run]`` table says. That table sets up ``negobs scenario run``'s test,
 #: which runs behind the filter by default; a policy trains without it unless its overrides say
@@ -454,7 +454,7 @@ class TrainConfig:
 
 def source_settings(source: str) -> tuple[tuple[str, ...], bool]:
     """``(overrides, grid_input)`` of a training run's ``--source``: the scenario's grid source
-    (``observation.source=detector`` or ``oracle``), or ``state``, no grid in the policy's input
+    (``observation.source=detector``, ``oracle`` or ``pem``), or ``state``, no grid in the policy's input
     and the oracle's grid, the cheapest, in the env (as :func:`negobs_gym.envs.source_overrides`).
 
     Raises:

@@ -17,10 +17,13 @@ __all__ = [
     "RIGS",
     "ROUTE_MARGIN_M",
     "SCAN_CLOCKS",
+    "SOURCES",
     "ObservationConfig",
     "PhantomConfig",
 ]
 
+#: Sources of the ``grid`` observation (``ObservationConfig.source``).
+SOURCES: tuple[str, ...] = ("detector", "oracle", "pem")
 #: Rigs of the detector observation (see ``ObservationConfig.rig``).
 RIGS: tuple[str, ...] = ("roi", "native", "reduced")
 #: How ``ObservationConfig.downsample`` pools each block of fine cells.
@@ -118,7 +121,10 @@ class ObservationConfig:
 
     Attributes:
         source: ``"detector"`` casts the LiDAR rig and stacks the detectors' grids (see
-            :mod:`negobs_gym.envs.perception`); ``"oracle"`` rasterises the ground truth (ablations).
+            :mod:`negobs_gym.envs.perception`); ``"oracle"`` rasterises the ground truth (ablations);
+            ``"pem"`` rasterises the ground truth and applies a perception-error model of the
+            detector grid's ``negative`` channel fitted on the detector settings below
+            (:mod:`negobs_gym.envs.pem`, docs/pem.md), at the oracle's cost.
         rig: ``"roi"`` (default: paper N's native-resolution rig, casting only the rays that can
             return a point inside ``grid`` plus the detectors' neighbourhoods; inside the grid the
             scans equal the native ones, see :mod:`negobs_gym.sensors.roi`), ``"native"`` (the
@@ -224,6 +230,9 @@ class ObservationConfig:
             policies fitted on paper T's channels were trained so, and their records set it.
         phantoms: With ``source="oracle"``, false ``negative`` clusters beside the track
             (:class:`PhantomConfig`; none by default). Ignored by the detector source.
+        pem_model: With ``source="pem"``, the PEM's JSON file (``negobs pem fit`` writes one); None
+            (default): the one shipped with the package, fitted on the default detector grid. A
+            file fitted on other detector, rig or observation settings than these is refused.
     """
 
     source: str = "detector"
@@ -252,12 +261,18 @@ class ObservationConfig:
     lux_forward_m: float = LUX_FORWARD_M
     lux_ego_motion: bool = True
     phantoms: PhantomConfig = field(default_factory=PhantomConfig)
+    pem_model: str | None = None
 
     def __post_init__(self) -> None:
         require(
-            self.source in ("oracle", "detector"),
+            self.source in SOURCES,
             "source",
-            f"must be 'oracle' or 'detector', got {self.source!r}",
+            f"must be one of {SOURCES}, got {self.source!r}",
+        )
+        require(
+            self.pem_model is None or (isinstance(self.pem_model, str) and self.pem_model != ""),
+            "pem_model",
+            f"must be None or a file path, got {self.pem_model!r}",
         )
         require(self.rig in RIGS, "rig", f"must be one of {RIGS}, got {self.rig!r}")
         require(
