@@ -1,0 +1,160 @@
+"""``negobs pem fit|check``: fit a perception-error model of the detector grid and check it.
+
+``fit`` drives detection courses through the env's detector grid (its ``[observation]`` settings
+from ``--env`` and ``--set``), fits the PEM's tables and writes its JSON file atomically; ``check``
+drives fresh courses with the detector and a PEM side by side, prints every figure and check as
+``key=value`` and exits 1 when a check fails (docs/pem.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
+
+log = logging.getLogger("negobs_gym.cli")
+
+#: The first seed ``check`` drives by default: far from the fit's (0 ..).
+CHECK_FIRST_SEED = 1_000_000
+
+
+def _campaign_options(parser: argparse.ArgumentParser, seeds: int, frames: int, first_seed: int) -> None:
+    group = parser.add_argument_group("courses")
+    group.add_argument("--seeds", type=positive_int, default=seeds, help="courses (default: %(default)s)")
+    group.add_argument(
+        "--first-seed",
+        type=non_negative_int,
+        default=first_seed,
+        help="the first course's seed (default: %(default)s)",
+    )
+    group.add_argument(
+        "--frames",
+        type=positive_int,
+        default=frames,
+        help="10 Hz frames of all courses together (default: %(default)s)",
+    )
+    group.add_argument(
+        "--env",
+        default=None,
+        help="take the detector grid's settings from this env's [observation] (id, scene or TOML; "
+        "default: the envs' default observation)",
+    )
+    add_set_option(parser)
+    group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
+    group.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray (negobs_gym[ray])",
+    )
+    group.add_argument("--resume", action="store_true", help="keep finished courses of a killed run")
+    group.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``pem`` with its ``fit`` and ``check`` commands."""
+    parser = subparsers.add_parser(
+        "pem",
+        help="perception-error model of the detector grid: fit it from the detectors, check it on "
+        "fresh courses",
+        description="A perception-error model (PEM) of the detector grid's negative channel: the "
+        "grid source 'pem' (observation.source=pem) draws it from the ground truth at the "
+        "oracle's cost. docs/pem.md.",
+    )
+    commands = parser.add_subparsers(dest="pem_command", metavar="COMMAND", required=True)
+    fit = commands.add_parser(
+        "fit",
+        help="drive courses through the detector grid, fit the PEM, write its JSON file",
+        description="Drives detection courses (seeds FIRST..FIRST+N-1) through the detector grid and "
+        "writes the fitted PEM to --model (atomically); the per-frame rows stay in --work.",
+    )
+    fit.add_argument(
+        "--model", default="outputs/pem/pem_negative.json", help="PEM file to write (default: %(default)s)"
+    )
+    fit.add_argument(
+        "--work", default="outputs/pem/fit", help="folder of the drives' rows (default: %(default)s)"
+    )
+    _campaign_options(fit, seeds=8, frames=400, first_seed=0)
+    fit.set_defaults(handler=run_fit)
+    check = commands.add_parser(
+        "check",
+        help="detector vs PEM on fresh courses: key=value figures, exit 1 when a check fails",
+        description="Drives fresh courses with the detector grid and the PEM on the same poses and "
+        "compares recall per 2 m bin, false alarms per km on and off the track, the near-edge "
+        "offset and the first-confirmation distance; writes check.txt, summary.json, tables.md and "
+        "pem_check.png to --out.",
+    )
+    check.add_argument("--model", default=None, help="PEM file (default: the one shipped with the package)")
+    check.add_argument("--out", default="outputs/pem/check", help="output folder (default: %(default)s)")
+    _campaign_options(check, seeds=4, frames=400, first_seed=CHECK_FIRST_SEED)
+    check.set_defaults(handler=run_check)
+
+
+def _observation(args: argparse.Namespace):
+    """The detector grid's settings: ``--env``'s observation (or the default) changed by ``--set``."""
+    from negobs_gym.errors import ConfigError
+    from negobs_gym.spec import ObservationConfig
+    from negobs_gym.spec.overrides import apply_overrides, spec_for_env
+
+    if args.env is None:
+        if not args.overrides:
+            return ObservationConfig()
+        raise ConfigError("--set", "needs --env (the scenario whose observation it changes)")
+    return apply_overrides(spec_for_env(args.env), args.overrides).observation
+
+
+def _config(args: argparse.Namespace):
+    from negobs_gym.eval.campaign import Backend, RunOptions, import_ray
+    from negobs_gym.eval.pem_data import PemCampaignConfig
+
+    if args.ray is not None:
+        import_ray()
+    options = RunOptions(Backend(workers=args.workers, ray=args.ray), args.resume, not args.no_progress)
+    config = PemCampaignConfig(
+        seeds=args.seeds, first_seed=args.first_seed, frames=args.frames, observation=_observation(args)
+    )
+    return config, options
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    """Fit and write the PEM; logs where it is."""
+    from negobs_gym.eval.pem_fit import fit_pem
+
+    config, options = _config(args)
+    log.info(
+        "PEM fit: %d courses from seed %d, %d frames -> %s",
+        config.seeds,
+        config.first_seed,
+        config.frames,
+        args.model,
+    )
+    model = fit_pem(config, args.model, args.work, options)
+    sightings = sum(map(sum, model.parameters.sightings))
+    print(f"pem_model={args.model}")
+    print(f"fit_frames={model.fit['frames']}")
+    print(f"fit_sightings={sightings}")
+    return 0
+
+
+def run_check(args: argparse.Namespace) -> int:
+    """Check a PEM; prints its key=value lines, returns 1 when a check fails."""
+    from negobs_gym.envs.pem import load_pem
+    from negobs_gym.eval.pem_check import check_pem
+
+    config, options = _config(args)
+    model = load_pem(args.model, config.observation)
+    log.info(
+        "PEM check: %d fresh courses from seed %d, %d frames -> %s",
+        config.seeds,
+        config.first_seed,
+        config.frames,
+        args.out,
+    )
+    result = check_pem(model, config, args.out, options=options)
+    for line in result.lines():
+        print(line)
+    log.info("wrote %s/check.txt, summary.json, tables.md, pem_check.png", args.out)
+    return 0 if result.passed else 1

@@ -1,0 +1,344 @@
+"""The drives a PEM is fitted and checked on: detection courses through the env's detector grid.
+
+Each seed drives one course of the detection campaign (:func:`~negobs_gym.eval.detection_campaign.
+detection_course`: paper N's pit mix beside the wheel tracks, verge clutter, 10-25 km/h, a
+P-controller on the centre line). Every 10 Hz frame the env's :class:`~negobs_gym.envs.perception.
+DetectorGrid` (the observation settings the PEM is for) observes, and, when a PEM is given, a
+:class:`~negobs_gym.envs.pem.PemGrid` beside it on the same true poses. Each grid's ``negative``
+layer is judged against the true pits rasterised on the same grid:
+
+- ``sightings``: per frame, grid and pit on the grid, whether it is drawn (a connected blob of
+  the layer shares a cell with it), the drawn blobs' cells and their near- and far-edge offsets
+  (range from the vehicle origin, drawn minus true);
+- ``spurious``: per blob touching no pit, its terrain class, distance, cells, and whether a
+  spurious blob of the frame before lay within :data:`SAME_ALARM_M` of it in the world;
+- ``frames``: the distance travelled, false alarms on and off the track as the detection campaign
+  counts them (blobs touching neither a pit nor the track-border band), and the grid's area per
+  terrain class and distance bin (what the false-alarm rates divide by).
+
+The rows go through :func:`~negobs_gym.eval.campaign.run_campaign` (progress bar, resume after a
+kill, ``--workers``/``--ray``, byte-identical CSVs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from negobs_gym.core.geometry import distance_to_polyline, vehicle_to_world_xy
+from negobs_gym.envs.pem import (
+    TERRAIN_CLASSES,
+    PemGrid,
+    PerceptionErrorModel,
+    centreline_tree,
+    obstacle_boxes,
+    rasterise_pits,
+    terrain_classes,
+)
+from negobs_gym.errors import ConfigError, require
+from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, run_campaign
+from negobs_gym.eval.detection import track_border_mask, world_outline_to_vehicle
+from negobs_gym.eval.detection_campaign import FRAME_S, SETTLE_S, DetectionCampaignConfig, detection_course
+from negobs_gym.spec import ObservationConfig
+
+__all__ = [
+    "DISTANCE_EDGES_M",
+    "FRAME_COLUMNS",
+    "MODES",
+    "SIGHTING_COLUMNS",
+    "SPURIOUS_COLUMNS",
+    "PemCampaignConfig",
+    "run_pem_campaign",
+]
+
+#: The grids judged: the detector's and the PEM's.
+MODES = ("detector", "pem")
+#: 2 m distance bins from the vehicle origin, to the grid's farthest corner (~26.4 m).
+DISTANCE_EDGES_M: tuple[float, ...] = tuple(float(d) for d in range(0, 30, 2))
+#: A spurious blob within this of one in the frame before (world centres) is the same false alarm
+#: [m]: two cells and a half, what the INS drift and a blob's changing outline move its centre.
+SAME_ALARM_M = 0.5
+
+SIGHTING_COLUMNS = (
+    "episode",
+    "seed",
+    "frame",
+    "mode",
+    "obstacle",
+    "cells",
+    "depth_m",
+    "centre_m",
+    "detected",
+    "drawn_cells",
+    "near_offset_m",
+    "far_offset_m",
+)
+SPURIOUS_COLUMNS = (
+    "episode",
+    "seed",
+    "frame",
+    "mode",
+    "terrain_class",
+    "edge_m",
+    "distance_m",
+    "cells",
+    "rows",
+    "cols",
+    "on_border",
+    "seen_before",
+)
+AREA_COLUMNS = tuple(f"area_{c}_{k}" for c in TERRAIN_CLASSES for k in range(len(DISTANCE_EDGES_M) - 1))
+FRAME_COLUMNS = (
+    "episode",
+    "seed",
+    "frame",
+    "mode",
+    "travelled_m",
+    "false_alarms_on",
+    "false_alarms_off",
+    *AREA_COLUMNS,
+)
+
+
+def _course_default() -> DetectionCampaignConfig:
+    return DetectionCampaignConfig(seeds=1, frames=1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PemCampaignConfig:
+    """What a PEM fit or check drives.
+
+    Attributes:
+        seeds: Courses (seeds ``first_seed`` .. ``first_seed + seeds - 1``).
+        first_seed: The first course's seed (a check takes seeds the fit never drove).
+        frames: Frames of the whole run, split evenly over the courses.
+        observation: The detector grid's settings (the env's default: ``ObservationConfig()``);
+            its ``source`` is ignored, the detector is always run.
+        course: The detection campaign's course settings (pit mix, clutter, speeds); its seeds,
+            frames and rig are not used.
+        border_band_m: Width of the ``border`` terrain class beyond each track edge [m]: the verge
+            or bank, where a detector draws the real drops (not in paper N).
+    """
+
+    seeds: int = 8
+    first_seed: int = 0
+    frames: int = 400
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    course: DetectionCampaignConfig = field(default_factory=_course_default)
+    border_band_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        require(
+            type(self.seeds) is int and self.seeds >= 1, "seeds", f"must be an int >= 1, got {self.seeds!r}"
+        )
+        require(type(self.first_seed) is int and self.first_seed >= 0, "first_seed", "must be an int >= 0")
+        require(
+            type(self.frames) is int and self.frames >= self.seeds,
+            "frames",
+            f"must be an int >= seeds ({self.seeds}), got {self.frames!r}",
+        )
+        require(
+            isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"
+        )
+        require(
+            math.isfinite(self.border_band_m) and self.border_band_m >= 0, "border_band_m", "must be >= 0"
+        )
+
+    @property
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+    def frames_of(self, index: int) -> int:
+        base, extra = divmod(self.frames, self.seeds)
+        return base + (1 if index < extra else 0)
+
+
+def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> list[Episode]:
+    """One episode per seed; the PEM (its JSON text) rides along so a resume checks it too."""
+    pem = model.to_json() if model is not None else None
+    return [
+        Episode(
+            f"seed{seed:07d}", {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": pem}
+        )
+        for i, seed in enumerate(config.seed_list)
+    ]
+
+
+@dataclass
+class _Judge:
+    """Judges one grid's ``negative`` layers frame by frame (keeps its last spurious blobs)."""
+
+    mode: str
+    previous: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    def frame(self, layer, ctx) -> tuple[list[str], list[str], tuple[int, int]]:
+        labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
+        sightings, spurious = [], []
+        on_truth = np.zeros(count + 1, dtype=bool)
+        for k, truth in ctx.pits:
+            hit = np.unique(labels[truth])
+            hit = hit[hit > 0]
+            on_truth[hit] = True
+            ob = ctx.terrain.negative_obstacles[k]
+            row = [ctx.key, ctx.seed, ctx.frame, self.mode, k, int(truth.sum()), ob.depth_m, ctx.centre_m[k]]
+            if hit.size:
+                drawn = np.isin(labels, hit)
+                r_t, r_d = ctx.range_m[truth], ctx.range_m[drawn]
+                row += [True, int(drawn.sum()), float(r_d.min() - r_t.min()), float(r_d.max() - r_t.max())]
+            else:
+                row += [False, 0, math.nan, math.nan]
+            sightings.append(format_row(row))
+        centres, fa_on, fa_off = [], 0, 0
+        if count:
+            index = np.arange(1, count + 1)
+            cells = ndimage.sum_labels(np.ones_like(labels), labels, index).astype(np.int64)
+            xs = ndimage.mean(ctx.centres[..., 0], labels, index)
+            ys = ndimage.mean(ctx.centres[..., 1], labels, index)
+            border = ndimage.maximum(ctx.border.astype(np.uint8), labels, index).astype(bool)
+            boxes = ndimage.find_objects(labels)
+            for j in np.flatnonzero(~on_truth[1:]):
+                local = np.array([[xs[j], ys[j]]])
+                world = vehicle_to_world_xy(local, (ctx.pose.x, ctx.pose.y), ctx.pose.yaw)[0]
+                klass = int(terrain_classes(world[None], ctx.tree, ctx.width_m, ctx.band_m)[0])
+                seen = (
+                    bool(len(self.previous))
+                    and float(np.min(np.hypot(*(self.previous - world).T))) <= SAME_ALARM_M
+                )
+                centres.append(world)
+                dist = float(math.hypot(xs[j], ys[j]))
+                lateral = float(distance_to_polyline(local, ctx.centre_line)[0])
+                r, c = np.nonzero(labels[boxes[j]] == j + 1)
+                row = [
+                    ctx.key,
+                    ctx.seed,
+                    ctx.frame,
+                    self.mode,
+                    TERRAIN_CLASSES[klass],
+                    lateral - 0.5 * ctx.width_m,
+                ]
+                row += [
+                    dist,
+                    int(cells[j]),
+                    int(r.max() - r.min() + 1),
+                    int(c.max() - c.min() + 1),
+                    border[j],
+                    seen,
+                ]
+                spurious.append(format_row(row))
+                if not border[j]:  # the detection campaign's false alarm (paper N §4.2)
+                    on = lateral <= 0.5 * ctx.width_m
+                    fa_on, fa_off = fa_on + on, fa_off + (not on)
+        self.previous = np.array(centres).reshape(-1, 2)
+        return sightings, spurious, (fa_on, fa_off)
+
+
+@dataclass
+class _Frame:
+    """What both grids of one frame are judged against."""
+
+    key: str
+    seed: int
+    frame: int
+    terrain: object
+    pose: object
+    pits: list
+    centre_m: dict
+    range_m: np.ndarray
+    centres: np.ndarray
+    border: np.ndarray
+    centre_line: np.ndarray
+    tree: object
+    width_m: float
+    band_m: float
+
+
+def run_episode(episode: Episode) -> Rows:
+    """Drive one course; its ``sightings``, ``spurious`` and ``frames`` rows (module docstring)."""
+    from negobs_gym.envs.perception import DetectorGrid
+    from negobs_gym.sim.vehicle import Vehicle
+    from negobs_gym.sim.world import World
+
+    cfg: PemCampaignConfig = episode.args["config"]
+    seed, n_frames = int(episode.args["seed"]), int(episode.args["frames"])
+    pem_text = episode.args["pem"]
+    model = PerceptionErrorModel.from_json(pem_text) if pem_text is not None else None
+    course = cfg.course
+    speed = float(np.random.default_rng([seed, 1]).uniform(course.min_speed_mps, course.max_speed_mps))
+    terrain = detection_course(course, seed, length_m=speed * FRAME_S * n_frames + 35.0)
+    observation = dataclasses.replace(cfg.observation, source="detector")
+    grid = observation.grid
+    centres = grid.cell_centres()
+    range_m = np.hypot(centres[..., 0], centres[..., 1])
+    line = np.asarray(terrain.track.centreline_xy_m, dtype=np.float64)
+    step = max(1, round(1.0 / max(float(np.median(np.diff(terrain.track.stations_m))), 1e-3)))
+    line = np.vstack([line[::step], line[-1:]])
+    tree, boxes = centreline_tree(terrain), obstacle_boxes(terrain)
+    width = terrain.track.width_m
+    bins = len(DISTANCE_EDGES_M) - 1
+    dist_bin = np.clip(np.digitize(range_m, DISTANCE_EDGES_M) - 1, 0, bins - 1).ravel()
+    judges = {m: _Judge(m) for m in (MODES if model is not None else MODES[:1])}
+    rows: Rows = {"sightings": [], "spurious": [], "frames": []}
+    with World(terrain) as world:
+        vehicle = Vehicle(world, rng=np.random.default_rng([seed, 3]))
+        detector = DetectorGrid(observation, world, vehicle, np.random.default_rng([seed, 5]))
+        pem = PemGrid(model, grid, terrain, np.random.default_rng([seed, 6])) if model is not None else None
+        steps = round(FRAME_S / world.config.time_step_s)
+        world.step(round(SETTLE_S / world.config.time_step_s))
+        last = vehicle.true_pose()
+        for frame in range(n_frames):
+            lateral = last.x - float(np.interp(last.y, line[:, 1], line[:, 0]))
+            vehicle.apply(0.0, 0.0, float(np.clip(0.5 * lateral - 2.0 * last.yaw, -1.0, 1.0)))
+            vehicle.set_speed(speed)
+            world.step(steps)
+            pose = vehicle.true_pose()
+            layers = {"detector": detector.observe(world.sim_time_s)["negative"]}
+            if pem is not None:
+                layers["pem"] = pem.negative(pose)
+            travelled = math.hypot(pose.x - last.x, pose.y - last.y)
+            last = pose
+            pits = []
+            for k, mask, rows_, cols_ in rasterise_pits(terrain, pose, grid, boxes):
+                full = np.zeros(grid.shape, dtype=bool)
+                full[rows_, cols_] = mask
+                pits.append((k, full))
+            centre_m = {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in pits}
+            centre_line = world_outline_to_vehicle(line, pose)
+            world_cells = vehicle_to_world_xy(centres.reshape(-1, 2), (pose.x, pose.y), pose.yaw)
+            classes = terrain_classes(world_cells, tree, width, cfg.border_band_m)
+            area = np.zeros((len(TERRAIN_CLASSES), bins))
+            np.add.at(area, (classes, dist_bin), grid.cell_m**2)
+            ctx = _Frame(
+                episode.key, seed, frame, terrain, pose, pits, centre_m, range_m, centres,
+                track_border_mask(centre_line, width, grid, course.matching.border_band_m),
+                centre_line, tree, width, cfg.border_band_m,
+            )  # fmt: skip
+            for mode, judge in judges.items():
+                sightings, spurious, (fa_on, fa_off) = judge.frame(layers[mode], ctx)
+                rows["sightings"] += sightings
+                rows["spurious"] += spurious
+                rows["frames"].append(
+                    format_row(
+                        [episode.key, seed, frame, mode, travelled, fa_on, fa_off, *area.ravel().tolist()]
+                    )
+                )
+    return rows
+
+
+def run_pem_campaign(
+    config: PemCampaignConfig,
+    out_dir: str | Path,
+    model: PerceptionErrorModel | None = None,
+    options: RunOptions | None = None,
+    description: str = "PEM courses",
+) -> dict[str, Path]:
+    """Drive the courses (resumable, on workers or Ray); the ``sightings``, ``spurious`` and
+    ``frames`` CSVs in ``out_dir``. With ``model``, its grid is judged beside the detector's."""
+    if model is not None and not isinstance(model, PerceptionErrorModel):
+        raise ConfigError("model", "must be a PerceptionErrorModel")
+    tables = {"sightings": SIGHTING_COLUMNS, "spurious": SPURIOUS_COLUMNS, "frames": FRAME_COLUMNS}
+    return run_campaign(run_episode, episodes(config, model), out_dir, tables, options, description)

@@ -1,0 +1,237 @@
+"""Fit a perception-error model (:mod:`negobs_gym.envs.pem`) from the detector's drives.
+
+:func:`fit_pem` drives the courses of :mod:`negobs_gym.eval.pem_data` through the detector grid and
+fits the tables from its rows (:func:`fit_parameters`, from the CSVs alone):
+
+- first confirmation: per size bin, quantiles of the distance at which the pits that came onto
+  the grid from beyond the detector's reach were first drawn (a pit passed undrawn counts as
+  never), and of the frames the pits first seen within reach took to be drawn (the fusion's
+  latency at an episode's start);
+- after that, per state (drawn the frame before, drawn earlier), size bin and 2 m distance bin,
+  the share of sightings drawn, shrunk toward the distance bin's share over all sizes by
+  :data:`PRIOR_SIGHTINGS` pseudo-sightings (and that toward the state's share), so a bin seen a
+  few times keeps its neighbours' value;
+- the near- and far-edge offsets: quantiles per distance bin of the drawn sightings (all of a
+  bin's sightings pooled over sizes; a bin with fewer than :data:`MIN_OFFSETS` takes all bins');
+- false alarms: spurious blobs per frame per m² of each terrain class and distance bin, the share
+  of them seen the frame before (their persistence), and up to :data:`MAX_BLOBS` of them (their
+  distance from the track edge, box and cells) for new ones to copy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from negobs_gym.envs.pem import TERRAIN_CLASSES, PemParameters, PerceptionErrorModel, pem_settings
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.campaign import RunOptions, read_csv
+from negobs_gym.eval.pem_data import DISTANCE_EDGES_M, PemCampaignConfig, run_pem_campaign
+
+__all__ = [
+    "MIN_OFFSETS",
+    "PRIOR_SIGHTINGS",
+    "QUANTILE_LEVELS",
+    "SIZE_EDGES_CELLS",
+    "fit_parameters",
+    "fit_pem",
+]
+
+#: Size bins of a pit's rim cells: below paper N Table 7's smallest, its rows paired, above its largest.
+SIZE_EDGES_CELLS: tuple[float, ...] = (0.0, 15.0, 25.0, 35.0, 45.0, 56.0, 10_000.0)
+#: Levels of the offset and false-alarm-size quantiles.
+QUANTILE_LEVELS: tuple[float, ...] = tuple(float(q) for q in np.linspace(0.0, 1.0, 21))
+#: Pseudo-sightings a chain entry is shrunk toward its distance bin's share by (not a paper value).
+PRIOR_SIGHTINGS = 4.0
+#: Fewest drawn sightings a distance bin's offset quantiles are taken from, else all bins'.
+MIN_OFFSETS = 20
+#: A pit first seen at least this far (its centre) came from beyond paper N's 20 m reach: its first
+#: drawing is a first-confirmation distance [m].
+APPROACH_M = 22.0
+#: A pit last seen this near was passed (an undrawn one was missed, not cut off by the course's end) [m].
+PASSED_M = 6.0
+#: Fewest first confirmations a size bin's quantiles are taken from, else all sizes'.
+MIN_CONFIRMATIONS = 20
+#: Most false-alarm blobs the model keeps to copy.
+MAX_BLOBS = 400
+#: Largest fitted false-alarm persistence (a blob kept forever would never leave the model).
+MAX_FA_KEEP = 0.98
+
+
+def _float(text: str) -> float:
+    return float(text)
+
+
+def _pits(rows: list[dict[str, str]]) -> dict[tuple[str, str], list[dict[str, str]]]:
+    """Each pit's sightings (by course and obstacle), in frame order."""
+    out: dict[tuple[str, str], list[dict[str, str]]] = {}
+    for r in sorted(rows, key=lambda r: (r["episode"], int(r["obstacle"]), int(r["frame"]))):
+        out.setdefault((r["episode"], r["obstacle"]), []).append(r)
+    return out
+
+
+def _chain(pits: dict, s_edges: np.ndarray, d_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(2, S, D) drawn and seen counts after a pit's first drawing, by state (drawn the frame
+    before, drawn earlier), size and distance; and all sightings per (size, distance)."""
+    ns, nd = len(s_edges) - 1, len(d_edges) - 1
+    seen, drawn, every = np.zeros((2, ns, nd)), np.zeros((2, ns, nd)), np.zeros((ns, nd))
+    for rows in pits.values():
+        state = None  # before the first drawing
+        for r in rows:
+            s = int(np.clip(np.digitize(float(r["cells"]), s_edges) - 1, 0, ns - 1))
+            d = int(np.clip(np.digitize(float(r["centre_m"]), d_edges) - 1, 0, nd - 1))
+            hit = r["detected"] == "1"
+            every[s, d] += 1
+            if state is not None:
+                seen[state, s, d] += 1
+                drawn[state, s, d] += hit
+            if hit:
+                state = 0
+            elif state is not None:
+                state = 1
+    return seen, drawn, every
+
+
+def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], list[float]]:
+    """Per size bin, the first-drawing distances of the pits that came from beyond
+    :data:`APPROACH_M` (the midpoint of the frame before and the frame drawn; -1 for a pit passed
+    undrawn, a pit still ahead when its course ended left out); the frames from first sighting to
+    first drawing of the pits first seen nearer."""
+    ns = len(s_edges) - 1
+    distances: list[list[float]] = [[] for _ in range(ns)]
+    latencies: list[float] = []
+    for rows in pits.values():
+        centre = [float(r["centre_m"]) for r in rows]
+        hits = [i for i, r in enumerate(rows) if r["detected"] == "1"]
+        s = int(np.clip(np.digitize(float(rows[0]["cells"]), s_edges) - 1, 0, ns - 1))
+        if centre[0] >= APPROACH_M:
+            if hits:
+                i = hits[0]
+                distances[s].append(0.5 * (centre[i] + centre[max(i - 1, 0)]))
+            elif centre[-1] <= PASSED_M:
+                distances[s].append(-1.0)
+        elif hits:
+            latencies.append(float(int(rows[hits[0]]["frame"]) - int(rows[0]["frame"])))
+    return distances, latencies
+
+
+def _shrunk(seen: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+    """Each state's share drawn per (size, distance), shrunk toward the distance bin's, that toward
+    the state's overall share, that toward 1/2."""
+    overall = (drawn.sum(axis=(1, 2)) + 1.0) / (seen.sum(axis=(1, 2)) + 2.0)  # (states,)
+    by_distance = (drawn.sum(axis=1) + PRIOR_SIGHTINGS * overall[:, None]) / (
+        seen.sum(axis=1) + PRIOR_SIGHTINGS
+    )  # (states, D)
+    return (drawn + PRIOR_SIGHTINGS * by_distance[:, None, :]) / (seen + PRIOR_SIGHTINGS)
+
+
+def _quantiles(values: np.ndarray, levels: np.ndarray) -> list[float]:
+    return [float(v) for v in np.quantile(values, levels)] if values.size else [0.0] * len(levels)
+
+
+def fit_parameters(
+    sightings_csv: str | Path, spurious_csv: str | Path, frames_csv: str | Path, border_band_m: float
+) -> PemParameters:
+    """The PEM's tables from the detector rows of a drive (:mod:`negobs_gym.eval.pem_data`).
+
+    Raises:
+        ConfigError: the rows hold no frame of the detector.
+    """
+    sightings = [r for r in read_csv(sightings_csv) if r["mode"] == "detector"]
+    spurious = [r for r in read_csv(spurious_csv) if r["mode"] == "detector"]
+    frames = [r for r in read_csv(frames_csv) if r["mode"] == "detector"]
+    if not frames:
+        raise ConfigError("frames", f"{frames_csv} holds no detector frame to fit on")
+    d_edges, s_edges = np.asarray(DISTANCE_EDGES_M), np.asarray(SIZE_EDGES_CELLS)
+    nd, levels = len(d_edges) - 1, np.asarray(QUANTILE_LEVELS)
+    pits = _pits(sightings)
+    seen, drawn, every = _chain(pits, s_edges, d_edges)
+    p_keep, p_return = _shrunk(seen, drawn)
+    by_size, latencies = _confirmations(pits, s_edges)
+    pooled = np.concatenate([np.asarray(v) for v in by_size])
+    confirm = [_quantiles(np.asarray(v) if len(v) >= MIN_CONFIRMATIONS else pooled, levels) for v in by_size]
+    latency = _quantiles(np.asarray(latencies), levels)
+
+    hits = [r for r in sightings if r["detected"] == "1"]
+    d_hit = np.clip(np.digitize([float(r["centre_m"]) for r in hits], d_edges) - 1, 0, nd - 1)
+    near_all = np.array([_float(r["near_offset_m"]) for r in hits])
+    far_all = np.array([_float(r["far_offset_m"]) for r in hits])
+    near, far = [], []
+    for d in range(nd):
+        here = d_hit == d
+        use = here if here.sum() >= MIN_OFFSETS else np.ones_like(here)
+        near.append(_quantiles(near_all[use], levels))
+        far.append(_quantiles(far_all[use], levels))
+
+    nc = len(TERRAIN_CLASSES)
+    area = np.array([[float(r[f"area_{c}_{k}"]) for c in TERRAIN_CLASSES for k in range(nd)] for r in frames])
+    area = area.sum(axis=0).reshape(nc, nd)
+    counts = np.zeros((nc, nd))
+    klass = {c: i for i, c in enumerate(TERRAIN_CLASSES)}
+    for r in spurious:
+        d = int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1))
+        counts[klass[r["terrain_class"]], d] += 1
+    density = np.where(area > 0, counts / np.maximum(area, 1e-9), 0.0)
+    # persistence: blobs seen again / blobs of the frame before (per class, frames in a row only)
+    frames_of = {(r["episode"], int(r["frame"])) for r in frames}
+    before = np.zeros(nc)
+    again = np.zeros(nc)
+    for r in spurious:
+        c = klass[r["terrain_class"]]
+        if (r["episode"], int(r["frame"]) + 1) in frames_of:
+            before[c] += 1
+        again[c] += r["seen_before"] == "1"
+    keep = np.clip(np.where(before > 0, again / np.maximum(before, 1), 0.0), 0.0, MAX_FA_KEEP)
+    blobs = [
+        (klass[r["terrain_class"]], int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1)),
+         round(float(r["edge_m"]), 3), int(r["rows"]), int(r["cols"]), int(r["cells"]))
+        for r in spurious
+    ]  # fmt: skip
+    if len(blobs) > MAX_BLOBS:  # evenly through the drive: the library keeps the mix of classes
+        blobs = [blobs[i] for i in np.linspace(0, len(blobs) - 1, MAX_BLOBS).round().astype(int)]
+    return PemParameters(
+        distance_edges_m=tuple(float(d) for d in d_edges),
+        size_edges_cells=tuple(float(s) for s in s_edges),
+        quantile_levels=QUANTILE_LEVELS,
+        confirm_distance_m=_table(np.asarray(confirm)),
+        confirm_latency_frames=tuple(round(float(v), 6) for v in latency),
+        p_keep=_table(p_keep),
+        p_return=_table(p_return),
+        sightings=tuple(tuple(int(v) for v in row) for row in every),
+        near_offset_m=_table(np.asarray(near)),
+        far_offset_m=_table(np.asarray(far)),
+        fa_density_per_m2=_table(density),
+        fa_keep=tuple(float(k) for k in keep),
+        fa_blobs=tuple(tuple(float(v) for v in blob) for blob in blobs),
+        border_band_m=float(border_band_m),
+    )
+
+
+def _table(values: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(round(float(v), 6) for v in row) for row in np.asarray(values))
+
+
+def fit_pem(
+    config: PemCampaignConfig,
+    model_path: str | Path,
+    work_dir: str | Path,
+    options: RunOptions | None = None,
+) -> PerceptionErrorModel:
+    """Drive ``config``'s courses through the detector grid (rows kept in ``work_dir``, resumable),
+    fit the PEM and write it to ``model_path`` atomically."""
+    csvs = run_pem_campaign(config, work_dir, None, options, "PEM fit courses")
+    parameters = fit_parameters(csvs["sightings"], csvs["spurious"], csvs["frames"], config.border_band_m)
+    frames = sum(config.frames_of(i) for i in range(config.seeds))
+    model = PerceptionErrorModel(
+        parameters=parameters,
+        fitted_on=pem_settings(config.observation),
+        fit={
+            "course": "detection_course",
+            "first_seed": config.first_seed,
+            "seeds": config.seeds,
+            "frames": frames,
+        },
+    )
+    model.save(model_path)
+    return model

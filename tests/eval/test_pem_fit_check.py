@@ -1,0 +1,140 @@
+"""PEM fit and check: the tables from hand-made rows, the comparison's verdicts, a small round trip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from negobs_gym.cli import main
+from negobs_gym.envs.pem import load_pem
+from negobs_gym.errors import ConfigError
+from negobs_gym.eval.campaign import format_row
+from negobs_gym.eval.pem_check import PemCheckConfig, check_pem, compare
+from negobs_gym.eval.pem_data import (
+    AREA_COLUMNS,
+    FRAME_COLUMNS,
+    SIGHTING_COLUMNS,
+    SPURIOUS_COLUMNS,
+    PemCampaignConfig,
+)
+from negobs_gym.eval.pem_fit import fit_parameters, fit_pem
+from negobs_gym.spec import ObservationConfig
+
+
+def _write(path, header, rows):
+    path.write_text("\n".join([",".join(header), *rows]) + "\n")
+    return path
+
+
+def _sighting(mode, frame, obstacle, centre_m, detected, near=0.0, episode="seed0"):
+    drawn = 30 if detected else 0
+    offsets = (near, 0.1) if detected else (np.nan, np.nan)
+    return format_row([episode, 0, frame, mode, obstacle, 25, 0.8, centre_m, detected, drawn, *offsets])
+
+
+def _frame(mode, frame, fa_on=0, fa_off=0, area=1.0, episode="seed0"):
+    return format_row([episode, 0, frame, mode, 1.0, fa_on, fa_off, *([area] * len(AREA_COLUMNS))])
+
+
+def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_path):
+    # ten pits from 24 m in, each first drawn at 15.5 m and after that every other frame
+    sightings = []
+    for pit in range(10):
+        for f in range(20):
+            centre = 24.0 - 0.5 * f
+            hit = centre <= 15.5 and f % 2 == 1
+            sightings.append(_sighting("detector", f, pit, centre, hit, near=-0.4, episode=f"seed{pit}"))
+    # ten pits first seen at 12 m, drawn from their third frame on
+    sightings += [
+        _sighting("detector", f, 0, 12.0 - 0.5 * f, f >= 2, episode=f"near{k}")
+        for k in range(10)
+        for f in range(6)
+    ]
+    frames = [_frame("detector", f, area=2.0) for f in range(200)]
+    spurious = [
+        format_row(["seed0", 0, f, "detector", "border", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0])
+        for f in range(200)
+    ]
+    params = fit_parameters(
+        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings),
+        _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
+        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
+        border_band_m=1.0,
+    )
+    s = 2  # 25 cells: the 25-34 bin (fewer than 20 confirmations: all sizes' quantiles)
+    assert params.confirm_distance_m[s][10] == pytest.approx(15.75)  # between 16 m and the drawn 15.5 m
+    assert params.confirm_latency_frames[10] == 2.0
+    assert params.p_keep[s][7] < 0.1  # never twice in a row (14-16 m)
+    assert params.p_return[s][7] > 0.9  # always back after a miss
+    assert params.near_offset_m[7][10] == pytest.approx(-0.4)
+    # 200 blobs in 200 frames over 2 m² of the border class at 8-10 m: 0.5 per frame per m²
+    assert params.fa_density_per_m2[1][4] == pytest.approx(0.5)
+    assert params.fa_density_per_m2[0][4] == 0.0
+    assert params.fa_keep[1] == pytest.approx(0.75, abs=0.01)
+    assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
+
+
+def test_compare_passes_equal_grids_and_fails_each_kind_of_difference(tmp_path):
+    rng = np.random.default_rng(0)
+    centres = rng.uniform(6.0, 20.0, 400)
+    hits = rng.random(400) < 0.8
+    rows = {
+        m: [
+            _sighting(m, k, k, float(c), bool(h), near=-0.3)
+            for k, (c, h) in enumerate(zip(centres, hits, strict=True))
+        ]
+        for m in ("detector", "pem")
+    }
+    frames = [_frame(m, f, fa_on=f % 5 == 0, fa_off=1) for m in ("detector", "pem") for f in range(100)]
+    same = compare(
+        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, rows["detector"] + rows["pem"]),
+        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
+    )
+    assert same.passed and same.figures["ks_first_confirmation"] == 0.0
+    assert all(line.count("=") == 1 for line in same.lines()) and same.lines()[-1] == "pem_check=pass"
+    # the PEM misses every third pit
+    worse = [
+        _sighting("pem", k, k, float(c), bool(h) and k % 3 != 0, near=-0.3)
+        for k, (c, h) in enumerate(zip(centres, hits, strict=True))
+    ]
+    fewer_fa = [
+        _frame(m, f, fa_on=0 if m == "pem" else f % 5 == 0, fa_off=1)
+        for m in ("detector", "pem")
+        for f in range(100)
+    ]
+    result = compare(
+        _write(tmp_path / "s2.csv", SIGHTING_COLUMNS, rows["detector"] + worse),
+        _write(tmp_path / "f2.csv", FRAME_COLUMNS, fewer_fa),
+    )
+    assert not result.checks["check_recall"]
+    assert not result.checks["check_false_alarms_on_track"] and result.checks["check_false_alarms_off_track"]
+    assert result.lines()[-1] == "pem_check=fail"
+    late = [
+        _sighting("pem", k, k, float(c), bool(h), near=0.0)
+        for k, (c, h) in enumerate(zip(centres, hits, strict=True))
+    ]
+    edge = compare(_write(tmp_path / "s3.csv", SIGHTING_COLUMNS, rows["detector"] + late), tmp_path / "f.csv")
+    assert not edge.checks["check_near_edge"] and edge.checks["check_recall"]
+    loose = compare(tmp_path / "s3.csv", tmp_path / "f.csv", PemCheckConfig(max_near_edge_delta_m=0.5))
+    assert loose.passed
+
+
+def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
+    model_path = tmp_path / "pem.json"
+    fit = PemCampaignConfig(seeds=1, frames=6)
+    model = fit_pem(fit, model_path, tmp_path / "fit")
+    assert load_pem(model_path, ObservationConfig()) == model  # written, and valid for the default grid
+    assert sum(map(sum, model.parameters.sightings)) > 0
+    with pytest.raises(ConfigError, match="used to fit"):
+        check_pem(model, PemCampaignConfig(seeds=1, frames=6), tmp_path / "bad")
+    out = tmp_path / "check"
+    code = main(
+        ["pem", "check", "--model", str(model_path), "--out", str(out), "--seeds", "1", "--frames", "6",
+         "--first-seed", "500", "--no-progress"]
+    )  # fmt: skip
+    printed = capsys.readouterr().out.strip().splitlines()
+    assert printed == (out / "check.txt").read_text().strip().splitlines()
+    verdict = dict(line.split("=") for line in printed)
+    assert code == (0 if verdict["pem_check"] == "pass" else 1)
+    assert float(verdict["frames_pem"]) == 6.0 and float(verdict["frames_detector"]) == 6.0
+    assert {"tables.md", "summary.json", "pem_check.png", "sightings.csv"} <= {p.name for p in out.iterdir()}
