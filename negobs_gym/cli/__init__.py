@@ -19,7 +19,17 @@ from negobs_gym.errors import NegobsError
 log = logging.getLogger("negobs_gym.cli")
 
 #: Modules of :mod:`negobs_gym.cli` that each add one top-level command, in ``--help`` order.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "detect", "bag", "eval", "scenario", "policy", "train", "bench", "pem")
+COMMAND_MODULES: tuple[str, ...] = (
+    "demo",
+    "detect",
+    "bag",
+    "eval",
+    "scenario",
+    "policy",
+    "train",
+    "bench",
+    "pem",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

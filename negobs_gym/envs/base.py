@@ -332,7 +332,9 @@ class NegObsEnv(gym.Env):
         self._entered = self._entered or bool(events.entered_negative_obstacle)
         speed = self._vehicle.speed_mps()
         self._still_s = (
-            self._still_s + 1.0 / self.scenario.episode.control_hz if abs(speed) < task.stop_speed_mps else 0.0
+            self._still_s + 1.0 / self.scenario.episode.control_hz
+            if abs(speed) < task.stop_speed_mps
+            else 0.0
         )
         stopped = self._still_s >= task.stop_hold_s and not self._entered
         return StepOutcome(
@@ -396,7 +398,10 @@ class NegObsEnv(gym.Env):
             ),
             config=self.scenario.render,
             caption=caption_lines(
-                self._steps / self.scenario.episode.control_hz, self._vehicle.speed_mps(), self._applied, safety
+                self._steps / self.scenario.episode.control_hz,
+                self._vehicle.speed_mps(),
+                self._applied,
+                safety,
             ),
         )
         if self.render_mode == "human":

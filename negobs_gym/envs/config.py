@@ -15,7 +15,14 @@ from negobs_gym.spec import (
     RewardConfig,
 )
 
-__all__ = ["CHANNELS", "ROUTE_MARGIN_M", "EnvPhysicsConfig", "ObservationConfig", "PhantomConfig", "RewardConfig"]
+__all__ = [
+    "CHANNELS",
+    "ROUTE_MARGIN_M",
+    "EnvPhysicsConfig",
+    "ObservationConfig",
+    "PhantomConfig",
+    "RewardConfig",
+]
 
 warnings.warn(
     "negobs_gym.envs.config moved to negobs_gym.spec; import the configs from there",

@@ -152,15 +152,16 @@ class OffroadTrackEnv(NegObsEnv):
     :class:`OffroadNavV1Env`'s course where leaving the track ends the episode. A task of its own
     (the old id ``negobs_gym/OffroadNav-v2`` is an alias that warns once).
 
-    Changes against OffroadNav-v1: rule ``off_track`` terminates the episode when the car's centre is farther
-    from the centre line than half the 6 m track width. On v1 the right side is open ground and
-    the obstacles lie within 2 m of the centre line, so a policy could reach the goal driving
-    beside the track without meeting one (the policies trained on v1 do: docs/notebook/training_studies.md). Every
-    obstacle a car cannot drive over leaves at least 1.5 m between its side and one edge of the
-    track (200 courses measured), so the 2 m wide car passes it with its centre on the track.
-    Leaving the track costs 100 (``RewardConfig.off_track``), as an entry does: without it PPO
-    learns to leave the track rather than risk an obstacle (docs/notebook/training_studies.md). Terrain draws,
-    observation, the other rewards and rules and the 60 s limit are v1's.
+    Changes against OffroadNav-v1: rule ``off_track`` terminates the episode when the car's centre
+    is farther from the centre line than half the 6 m track width. On v1 the right side is open
+    ground and the obstacles lie within 2 m of the centre line, so a policy could reach the goal
+    driving beside the track without meeting one (the policies trained on v1 do:
+    docs/notebook/training_studies.md). Every obstacle a car cannot drive over leaves at least 1.5 m
+    between its side and one edge of the track (200 courses measured), so the 2 m wide car passes it
+    with its centre on the track. Leaving the track costs 100 (``RewardConfig.off_track``), as an
+    entry does: without it PPO learns to leave the track rather than risk an obstacle
+    (docs/notebook/training_studies.md). Terrain draws, observation, the other rewards and rules and
+    the 60 s limit are v1's.
     """
 
     default_scenario = "offroad_nav_v2"

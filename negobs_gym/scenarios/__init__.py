@@ -28,7 +28,9 @@ MOVED: dict[str, str] = {
         ),
         "negobs_gym.spec",
     ),
-    **dict.fromkeys(("ScenarioResult", "run_scenario", "run_scenario_seeds"), "negobs_gym.eval.scenario_runner"),
+    **dict.fromkeys(
+        ("ScenarioResult", "run_scenario", "run_scenario_seeds"), "negobs_gym.eval.scenario_runner"
+    ),
 }
 
 __all__ = sorted(MOVED)

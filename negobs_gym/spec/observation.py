@@ -225,7 +225,8 @@ class ObservationConfig:
             lines as the INS pose changes between frames (``TraversableConfig.kalman_ego_motion``,
             not in paper T), so a boundary point the LUX's lower layers lose in a bend turns with
             the road, not with the car. True (default): more of the track is traversable and more
-            rocks and boxes are found inside the lines (docs/notebook/training_studies.md, "The detector grid").
+            rocks and boxes are found inside the lines (docs/notebook/training_studies.md,
+            "The detector grid").
             False: paper T's F = I, the estimates held still in the vehicle frame; the shipped
             policies fitted on paper T's channels were trained so, and their records set it.
         phantoms: With ``source="oracle"``, false ``negative`` clusters beside the track
