@@ -11,7 +11,8 @@ A markdown file holds a block per table::
 :func:`fill_tables` rewrites each block's rows from ``SUITE.json`` (or, where only a quick run
 exists, ``SUITE.quick.json``): one row per key, in the marker's order (no keys: every figure of
 the suite, in the file's order), with the figure's ``what``, its value and unit, and the command
-that measures it. Running it twice changes nothing.
+that measures it. A key ``OTHER.key`` takes its figure from suite ``OTHER``, so one table can show
+figures of several suites (the README's headline table). Running it twice changes nothing.
 """
 
 from __future__ import annotations
@@ -47,20 +48,33 @@ def format_value(value: float, unit: str) -> str:
     return f"{text} {unit}".rstrip()
 
 
-def _table(suite: str, keys: list[str], results_dir: Path) -> str:
-    """The rows of one block."""
+def _suite_figures(suite: str, results_dir: Path) -> tuple[Path, Mapping[str, Any], str]:
+    """The results file of ``suite`` (full, else quick), its figures and the command that made it."""
     full, quick = results_path(results_dir, suite, False), results_path(results_dir, suite, True)
     path = full if full.is_file() else quick
     if not path.is_file():
         raise BenchError(
             f"bench-table {suite}: no results file {full} (nor {quick}); run `negobs bench {suite}`"
         )
-    figures: Mapping[str, Any] = read_results(path)["figures"]
     command = f"`negobs bench {suite}{' --quick' if path == quick else ''}`"
+    return path, read_results(path)["figures"], command
+
+
+def _table(suite: str, keys: list[str], results_dir: Path) -> str:
+    """The rows of one block: each key of ``suite``, or ``OTHER.key`` of suite ``OTHER``."""
+    loaded: dict[str, tuple[Path, Mapping[str, Any], str]] = {}
+
+    def figures_of(name: str) -> tuple[Path, Mapping[str, Any], str]:
+        if name not in loaded:
+            loaded[name] = _suite_figures(name, results_dir)
+        return loaded[name]
+
     rows = []
-    for key in keys or list(figures):
+    for qualified in keys or list(figures_of(suite)[1]):
+        owner, _, key = qualified.rpartition(".")
+        path, figures, command = figures_of(owner or suite)
         if key not in figures:
-            raise BenchError(f"bench-table {suite}: figure {key!r} is not in {path}")
+            raise BenchError(f"bench-table {owner or suite}: figure {key!r} is not in {path}")
         figure = figures[key]
         rows.append(f"| {figure['what']} | {format_value(figure['value'], figure['unit'])} | {command} |")
     return "\n".join([HEADER, *rows])
