@@ -66,6 +66,7 @@ FIGURES = {
         "native_rig_steps_per_s",
         "reduced_rig_steps_per_s",
         "oracle_steps_per_s",
+        "pem_steps_per_s",
         "scan_every_4_steps_per_s",
         "scan_every_3_far_8_steps_per_s",
         "reset_new_terrain_s",

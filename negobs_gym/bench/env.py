@@ -220,7 +220,7 @@ def default_observation(size: EnvSize) -> Figures:
 
 
 def other_observations(size: EnvSize) -> Figures:
-    """One process with another rig, the oracle grid, or a LiDAR frame every k-th step."""
+    """One process with another rig, the oracle grid, the PEM grid, or a LiDAR frame every k-th step."""
     runs = {
         "native_rig_steps_per_s": (DETECTOR_ENV, ("observation.rig=native",), "full 360° native rig"),
         "reduced_rig_steps_per_s": (DETECTOR_ENV, ("observation.rig=reduced",), "half-resolution rig"),
@@ -228,6 +228,11 @@ def other_observations(size: EnvSize) -> Figures:
             ORACLE_ENV,
             ("observation.source=oracle",),
             "oracle grid, OffroadNav-v1 (the training env)",
+        ),
+        "pem_steps_per_s": (
+            ORACLE_ENV,
+            ("observation.source=pem",),
+            "PEM grid (the shipped model), OffroadNav-v1, beside the oracle's",
         ),
         "scan_every_4_steps_per_s": (
             DETECTOR_ENV,
