@@ -240,37 +240,39 @@ def test_raycast_fast_terrain_reaches_the_caster_and_must_be_a_bool() -> None:
             ObservationConfig(raycast_fast_terrain=bad)
 
 
-def _blas_threads_of_a_worker_env(threads: int | None, out) -> None:
-    """In a child process: the BLAS thread counts before and after a detector-grid env's reset,
-    the BLAS first set to 2 threads (its default on 2 cores, set so on any machine)."""
+def _blas_threads_of_worker_envs(out) -> None:
+    """In a child process: the BLAS thread counts before any env, after a detector-grid env's reset
+    with ``worker_blas_threads=None``, then after one's with ``1``; the BLAS first set to 2 threads
+    (its default on 2 cores, set so on any machine). ``None`` first: a pin stays for the process."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
     def counts() -> list[int]:
         return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
 
     threadpool_limits(limits=2, user_api="blas")
-    before = counts()
-    env = BrakingEnv(overrides={**STANDING, "observation.worker_blas_threads": threads})
-    env.reset(seed=3)
-    out.put((before, counts()))
-    env.close()
+    seen = [counts()]
+    for threads in (None, 1):
+        env = BrakingEnv(overrides={**STANDING, "observation.worker_blas_threads": threads})
+        env.reset(seed=3)
+        seen.append(counts())
+        env.close()
+    out.put(seen)
 
 
-@pytest.mark.parametrize("threads", [1, None])
-def test_worker_processes_pin_their_blas_as_configured(threads: int | None) -> None:
+def test_worker_processes_pin_their_blas_as_configured() -> None:
+    """One spawned child (one start-up) checks both settings: None leaves the BLAS alone, 1 pins it."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
     out = ctx.Queue()
-    child = ctx.Process(
-        target=_blas_threads_of_a_worker_env, args=(threads, out)
-    )
+    child = ctx.Process(target=_blas_threads_of_worker_envs, args=(out,))
     child.start()
-    before, after = out.get(timeout=120)
+    before, unpinned, pinned = out.get(timeout=120)
     child.join(timeout=30)
     assert child.exitcode == 0
     assert before and before == [2] * len(before)  # numpy's and scipy's BLAS are there, at 2
-    assert after == ([1] * len(before) if threads == 1 else before)
+    assert unpinned == before
+    assert pinned == [1] * len(before)
 
 
 def test_worker_blas_threads_rejects_bad_values() -> None:
