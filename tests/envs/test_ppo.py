@@ -29,12 +29,13 @@ class VetoCounter(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-def _train_save_load(tmp_path, total_steps: int) -> tuple[int, VetoCounter]:
-    """Train with the filter on, save, load; check both predict the same; return steps and counter."""
+def _train_save_load(tmp_path, total_steps: int, n_steps: int = 64) -> tuple[int, VetoCounter]:
+    """Train with the filter on (a rollout of ``n_steps`` per update), save, load; check both
+    predict the same; return steps and counter."""
     from stable_baselines3 import PPO
 
     env = VetoCounter(BrakingSafetyFilter(gym.make("negobs_gym/Braking-v0")))
-    model = PPO("MultiInputPolicy", env, n_steps=64, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model = PPO("MultiInputPolicy", env, n_steps=n_steps, batch_size=n_steps // 2, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=total_steps)
     path = tmp_path / "ppo_braking_filter.zip"
     model.save(path)
@@ -49,8 +50,8 @@ def _train_save_load(tmp_path, total_steps: int) -> tuple[int, VetoCounter]:
 
 
 def test_ppo_tiny_train_save_load_with_filter(tmp_path) -> None:
-    steps, counter = _train_save_load(tmp_path, 64)
-    assert steps >= 64 and counter.steps >= 64
+    steps, counter = _train_save_load(tmp_path, 32, n_steps=32)  # one update of two minibatches
+    assert steps >= 32 and counter.steps >= 32
 
 
 @pytest.mark.slow
