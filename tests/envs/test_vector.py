@@ -15,27 +15,31 @@ from negobs_gym.errors import ConfigError, ResetNeeded, WorkerError
 
 _ROLLOUT = """
 import json, gymnasium as gym, numpy as np, negobs_gym
-env = gym.make("negobs_gym/Braking-v0")
-obs, _ = env.reset(seed=5)
-out = [obs["state"].tolist(), int(obs["grid"].sum())]
-for k in range(3):
-    obs, r, *_ = env.step(np.array([0.4, 0.3 * (-1) ** k], np.float32))
-    out += [obs["state"].tolist(), int(obs["grid"].sum()), r]
-print(json.dumps(out))
+def rollout():
+    env = gym.make("negobs_gym/Braking-v0")
+    obs, _ = env.reset(seed=5)
+    out = [obs["state"].tolist(), int(obs["grid"].sum())]
+    for k in range(3):
+        obs, r, *_ = env.step(np.array([0.4, 0.3 * (-1) ** k], np.float32))
+        out += [obs["state"].tolist(), int(obs["grid"].sum()), float(r)]
+    env.close()
+    return json.dumps(out)
 """
 
 
-def _rollout_in_subprocess() -> list:
-    done = subprocess.run(
-        [sys.executable, "-c", _ROLLOUT], capture_output=True, text=True, check=True, timeout=120
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
 def test_one_seed_gives_identical_rollouts_in_two_processes() -> None:
-    a = _rollout_in_subprocess()
-    b = _rollout_in_subprocess()
-    assert a == b  # exact: floats round-trip through JSON repr
+    """The same code in a fresh process and in this one (another hash seed, other envs before)."""
+    done = subprocess.run(
+        [sys.executable, "-c", _ROLLOUT + "print(rollout())"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
+    here: dict = {}
+    exec(_ROLLOUT, here)
+    # exact: floats round-trip through JSON repr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == json.loads(here["rollout"]())
 
 
 def test_gymnasium_async_vector_env_runs() -> None:
