@@ -103,8 +103,12 @@ def test_show_probability_sets_how_often_a_phantom_in_range_shows() -> None:
 
 
 def _v1_oracle(phantoms: PhantomConfig) -> OffroadNavV1Env:
-    settings = {f"observation.phantoms.{f.name}": getattr(phantoms, f.name) for f in dataclasses.fields(phantoms)}
-    return OffroadNavV1Env(overrides={"observation.source": "oracle", **settings})
+    """OffroadNav-v1 on the oracle grid, on its shortest course (60 m: a world builds ~4x faster)."""
+    settings = {
+        f"observation.phantoms.{f.name}": getattr(phantoms, f.name) for f in dataclasses.fields(phantoms)
+    }
+    short = {"terrain.params.length_m": 60.0}
+    return OffroadNavV1Env(overrides={"observation.source": "oracle", **short, **settings})
 
 
 def test_phantoms_add_negative_cells_and_leave_rewards_and_rules_alone() -> None:
@@ -147,6 +151,8 @@ def test_phantoms_are_a_scenario_setting_for_set() -> None:
     assert ScenarioSpec.from_dict(spec.to_dict()) == spec
     with pytest.raises(ConfigError, match=r"observation\.phantoms\.show_probability"):
         apply_overrides(spec, ["observation.phantoms.show_probability=2"])
-    env = make_env("negobs_gym/OffroadNav-v1", ["observation.source=oracle", "observation.phantoms.per_100m=4"])
+    env = make_env(
+        "negobs_gym/OffroadNav-v1", ["observation.source=oracle", "observation.phantoms.per_100m=4"]
+    )
     assert env.unwrapped.scenario.observation.phantoms.per_100m == 4.0
     env.close()
