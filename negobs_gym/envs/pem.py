@@ -54,6 +54,7 @@ __all__ = [
     "PEM_FORMAT",
     "PEM_VERSION",
     "TERRAIN_CLASSES",
+    "ClassRaster",
     "PemGrid",
     "PemParameters",
     "PerceptionErrorModel",
@@ -341,6 +342,36 @@ def terrain_classes(world_xy: np.ndarray, tree: cKDTree, width_m: float, band_m:
     return np.where(lateral <= half, 0, np.where(lateral <= half + band_m, 1, 2)).astype(np.int64)
 
 
+@dataclass(frozen=True, eq=False)
+class ClassRaster:
+    """The terrain classes of a terrain's heightfield on a world raster of ``resolution_m`` cells,
+    built once per terrain, so a frame looks its blocks' classes up instead of measuring them."""
+
+    origin_m: tuple[float, float]
+    resolution_m: float
+    classes: np.ndarray  # (ny, nx) uint8, index into TERRAIN_CLASSES
+
+    @classmethod
+    def build(cls, terrain: Terrain, tree: cKDTree, band_m: float, resolution_m: float = 0.4) -> ClassRaster:
+        x0, x1, y0, y1 = terrain.heightfield.extent_m
+        xs = np.arange(x0, x1 + resolution_m, resolution_m)
+        ys = np.arange(y0, y1 + resolution_m, resolution_m)
+        xx, yy = np.meshgrid(xs + 0.5 * resolution_m, ys + 0.5 * resolution_m)
+        points = np.column_stack([xx.ravel(), yy.ravel()])
+        classes = terrain_classes(points, tree, terrain.track.width_m, band_m).astype(np.uint8)
+        return cls((float(x0), float(y0)), float(resolution_m), classes.reshape(xx.shape))
+
+    def at(self, world_xy: np.ndarray) -> np.ndarray:
+        """Class index of world points (N, 2); ``other`` outside the raster."""
+        ny, nx = self.classes.shape
+        ix = np.floor((world_xy[:, 0] - self.origin_m[0]) / self.resolution_m).astype(np.int64)
+        iy = np.floor((world_xy[:, 1] - self.origin_m[1]) / self.resolution_m).astype(np.int64)
+        inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+        out = np.full(len(world_xy), TERRAIN_CLASSES.index("other"), dtype=np.int64)
+        out[inside] = self.classes[iy[inside], ix[inside]]
+        return out
+
+
 def rasterise_pits(
     terrain: Terrain, pose: Pose, grid: GridSpec, boxes: np.ndarray
 ) -> list[tuple[int, np.ndarray, slice, slice]]:
@@ -406,8 +437,14 @@ class PemGrid:
     """
 
     def __init__(
-        self, model: PerceptionErrorModel, grid: GridSpec, terrain: Terrain, rng: np.random.Generator
+        self,
+        model: PerceptionErrorModel,
+        grid: GridSpec,
+        terrain: Terrain,
+        rng: np.random.Generator,
+        cache: dict | None = None,
     ) -> None:
+        """``cache`` (one dict per world) keeps the terrain's class raster for the next episode."""
         p = model.parameters
         self.model = model
         self.grid = grid
@@ -440,6 +477,13 @@ class PemGrid:
         self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
         self._boxes = obstacle_boxes(terrain)
         self._tree = centreline_tree(terrain)
+        key = ("pem_classes", p.border_band_m)
+        raster = cache.get(key) if cache is not None else None
+        if raster is None:
+            raster = ClassRaster.build(terrain, self._tree, p.border_band_m)
+            if cache is not None:
+                cache[key] = raster
+        self._classes = raster
         n = len(terrain.negative_obstacles)
         self._state = np.zeros(n, dtype=np.int8)
         self._seen = np.zeros(n, dtype=np.int64)  # frames each pit was on the grid before its first drawing
@@ -526,9 +570,7 @@ class PemGrid:
     def _false_alarms(self, layer: np.ndarray, pose: Pose) -> None:
         """Keep, age and add the world-fixed false alarms; draw those on the grid into ``layer``."""
         blocks_world = _vehicle_to_world(self._block_centres, pose)
-        classes = terrain_classes(
-            blocks_world, self._tree, self.terrain.track.width_m, self.model.parameters.border_band_m
-        )
+        classes = self._classes.at(blocks_world)
         if len(self._fa_xy):  # the live ones: kept with the class's probability while on the grid
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             _, _, inside = self.grid.cell_of(local)

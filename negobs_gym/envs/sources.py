@@ -137,42 +137,45 @@ class DetectorSource(GridSource):
 
 
 class PemHazards:
-    """The PEM source's last frame as the safety filter reads it: its own cells, no detector."""
+    """The PEM source's last frame as the safety filter reads it: its own cells, no detector. The
+    cells and the coverage are computed when first asked for (only a filtered episode asks)."""
 
     def __init__(self, grid, oracle: OracleGrid | None = None) -> None:
         self._grid = grid
         self._oracle = oracle
         self.stamp_s: float | None = None
         self.pose: Pose | None = None
-        self._true_pose: Pose | None = None
+        self._layers: dict[str, np.ndarray] = {}
+        self._cells: dict[str, np.ndarray] = {}
         self._observed: np.ndarray | None = None
-        self._cells = {"negative": np.empty((0, 2)), "positive": np.empty((0, 2))}
 
-    def update(
-        self, negative: np.ndarray, positive: np.ndarray, true_pose: Pose, pose: Pose, stamp_s: float
-    ) -> None:
-        self._cells = {
-            "negative": self._grid.centres_of(negative),
-            "positive": self._grid.centres_of(positive),
-        }
-        self._true_pose, self.pose, self.stamp_s = true_pose, pose, stamp_s  # cells in the true frame
-        self._observed = None
+    def update(self, negative: np.ndarray, positive: np.ndarray, pose: Pose, stamp_s: float) -> None:
+        """This frame's layers, drawn around the true ``pose`` (the cells' frame)."""
+        self._layers = {"negative": negative, "positive": positive}
+        self._cells, self._observed = {}, None
+        self.pose, self.stamp_s = pose, stamp_s
+
+    def _cells_of(self, name: str) -> np.ndarray:
+        if name not in self._cells:
+            layer = self._layers.get(name)
+            self._cells[name] = self._grid.centres_of(layer) if layer is not None else np.empty((0, 2))
+        return self._cells[name]
 
     @property
     def observed(self) -> np.ndarray | None:
-        """The oracle's ``observed`` layer of the last frame (inside the heightfield), computed when
-        first asked for (the governed filter's coverage)."""
-        if self._observed is None and self._true_pose is not None and self._oracle is not None:
-            self._observed = self._oracle.layers(self._true_pose, ("observed",))["observed"]
+        """The oracle's ``observed`` layer of the last frame (inside the heightfield), for the
+        governed filter's coverage."""
+        if self._observed is None and self.pose is not None and self._oracle is not None:
+            self._observed = self._oracle.layers(self.pose, ("observed",))["observed"]
         return self._observed
 
     def negative_cells_xy_m(self) -> np.ndarray:
         """(N, 2) vehicle-frame centres of this frame's PEM ``negative`` cells."""
-        return self._cells["negative"]
+        return self._cells_of("negative")
 
     def positive_cells_xy_m(self) -> np.ndarray:
         """(N, 2) centres of this frame's ``positive`` cells (the oracle's, see :class:`PemSource`)."""
-        return self._cells["positive"]
+        return self._cells_of("positive")
 
 
 class PemSource(GridSource):
@@ -208,7 +211,7 @@ class PemSource(GridSource):
     ) -> None:
         self._vehicle = vehicle
         self.oracle = OracleGrid(self._oracle_config, terrain)
-        self.grid = PemGrid(self.model, self.config.grid, terrain, rng.spawn(1)[0])
+        self.grid = PemGrid(self.model, self.config.grid, terrain, rng.spawn(1)[0], cache)
         self._hazards = PemHazards(self.config.grid, self.oracle)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
@@ -219,7 +222,7 @@ class PemSource(GridSource):
         )
         truth = self.oracle.layers(pose, names)
         negative = self.grid.negative(pose)
-        self._hazards.update(negative, truth["positive"], pose, pose, float(timestamp_s))
+        self._hazards.update(negative, truth["positive"], pose, float(timestamp_s))
         return {name: negative if name == "negative" else truth[name] for name in self.config.channels}
 
     def hazards(self) -> PemHazards:

@@ -42,6 +42,8 @@ def test_same_seed_same_grids_and_the_oracles_episode():
         assert all(np.array_equal(x["grid"][1:], y["grid"][1:]) for x, y in zip(a, o, strict=True))
         assert pem_a.observation_space == make_env(ENV).observation_space
         assert all(pem_a.observation_space.contains(x) for x in a)
+        again = _drive(pem_a, 5)  # a kept world (and its cached terrain classes): the same episode
+        assert all(np.array_equal(x["grid"], y["grid"]) for x, y in zip(a, again, strict=True))
     finally:
         for env in (pem_a, pem_b, oracle):
             env.close()
