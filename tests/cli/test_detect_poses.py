@@ -18,6 +18,9 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, hdl64_scan, synthetic_scan
 
+#: the module's tests share the drive and its CSV run (module fixtures): on one xdist worker
+pytestmark = pytest.mark.xdist_group("cli_detect_poses")
+
 NEAR_M, LENGTH_M, STEP_M, FRAMES = 12.0, 1.5, 1.0, 4
 RING_GAP_M = 0.6  # a pair's A is the last ground return before the pit: up to a ring gap early
 
@@ -60,20 +63,23 @@ def _near_edges(record: dict) -> list[float]:
     return [min(y for _, y in ob["outline_xy_m"]) for ob in record["obstacles"]]
 
 
-def _assert_csv_poses_and_outlines(
-    records: list[dict], files: list[str], poses: Path, out: Path, atol: float
-) -> list:
-    """``records`` hold the CSV drive's poses (to ``atol``) and outlines (to 1 mm); the CSV's records."""
-    from_csv = _records(files, out, "--poses", str(poses))
+@pytest.fixture(scope="module")
+def csv_records(drive, tmp_path_factory) -> list[dict]:
+    """The drive's records with the poses CSV: the run every other pose source is compared with."""
+    files, poses = drive
+    return _records(files, tmp_path_factory.mktemp("csv"), "--poses", str(poses))
+
+
+def _assert_csv_poses_and_outlines(records: list[dict], from_csv: list[dict], atol: float) -> None:
+    """``records`` hold the CSV drive's poses (to ``atol``) and outlines (to 1 mm)."""
     for record, csv_record in zip(records, from_csv, strict=True):
         np.testing.assert_allclose(record["pose"], csv_record["pose"], atol=atol)
         np.testing.assert_allclose(_near_edges(record), _near_edges(csv_record), atol=1e-3)
-    return from_csv
 
 
-def test_poses_keep_the_pit_where_it_is_and_standing_still_loses_it(drive, tmp_path) -> None:
-    files, poses = drive
-    moving = _records(files, tmp_path / "moving", "--poses", str(poses))
+def test_poses_keep_the_pit_where_it_is_and_standing_still_loses_it(drive, csv_records, tmp_path) -> None:
+    files, _ = drive
+    moving = csv_records
     standing = _records(files, tmp_path / "standing")
     for k in (2, 3):  # confirmed after three frames (paper N §4.2), then kept on the pit as it nears
         near = NEAR_M - k * STEP_M
@@ -89,9 +95,9 @@ def test_poses_keep_the_pit_where_it_is_and_standing_still_loses_it(drive, tmp_p
     assert standing[3]["n_obstacles"] == 0
 
 
-def test_tightened_pairs_and_short_poses(drive, tmp_path, capsys) -> None:
+def test_tightened_pairs_and_short_poses(drive, csv_records, tmp_path, capsys) -> None:
     files, poses = drive
-    moving = _records(files, tmp_path / "moving", "--poses", str(poses))
+    moving = csv_records
     tight = _records(files, tmp_path / "tight", "--poses", str(poses), "--tighten-pairs")
     near = NEAR_M - 3 * STEP_M
     (edge,), (kept,) = _near_edges(tight[3]), _near_edges(moving[3])
@@ -147,8 +153,8 @@ def _driven_x(stamp_ns: int) -> float:
     return STEP_M * (stamp_ns - START_NS) / PERIOD_NS
 
 
-def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) -> None:
-    files, poses = drive
+def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, csv_records, tmp_path, capsys) -> None:
+    files, _ = drive
 
     def odometry(writer, store) -> None:
         from tests.helpers import odometry as odometry_msg
@@ -169,7 +175,7 @@ def test_a_bag_takes_its_poses_from_its_odometry_topic(drive, tmp_path, capsys) 
     assert [r["pose"][0] for r in recorded] == pytest.approx([0.25, STEP_M + 0.25])
     assert main([*args, "--poses-topic", "/odom", "--stamps", "header"]) == 0
     from_bag = [json.loads((out / f"{k:05d}_drive_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
-    _assert_csv_poses_and_outlines(from_bag, files, poses, tmp_path / "csv", atol=1e-9)
+    _assert_csv_poses_and_outlines(from_bag, csv_records, atol=1e-9)
     assert len(_near_edges(from_bag[3])) == 1
     assert main([*args[1:-2], "--out", str(tmp_path / "x"), "--poses-topic", "/imu"]) == 2
     assert "no topic '/imu'" in capsys.readouterr().err
@@ -214,11 +220,11 @@ def _write_tf_tree(
         write(dynamic, stamp + POSE_LATENCY_NS, [stamped(stamp, "odom", "base_link", position, to_odom)])
 
 
-def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None:
+def test_a_bag_takes_its_poses_from_its_tf_tree(drive, csv_records, tmp_path, capsys) -> None:
     """The drive's poses as a tf tree: a localiser's static map -> odom (5 m off, turned 90 deg),
     wheel odometry odom -> base_link at 50 Hz on /tf, the sensor's mounting below base_link; the
     chain map -> base_link gives the CSV's poses and outlines."""
-    files, poses = drive
+    files, _ = drive
 
     def tf_tree(writer, store, localiser: bool = False, mount_pitch_deg: float = 0.0) -> None:
         mount = (np.array([0.0, 0.0, 2.2]), Rotation.from_euler("y", mount_pitch_deg, degrees=True))
@@ -230,7 +236,8 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     assert main([*args, "--out", str(out), "--tf", "map:base_link"]) == 0
     assert "deg from the --sensor" not in capsys.readouterr().err  # mounted as --sensor says
     from_tf = [json.loads((out / f"{k:05d}_tf_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
-    from_csv = _assert_csv_poses_and_outlines(from_tf, files, poses, tmp_path / "csv", atol=1e-9)
+    _assert_csv_poses_and_outlines(from_tf, csv_records, atol=1e-9)
+    from_csv = csv_records
     # odom -> base_link alone: the drive as odometry saw it, 5 m off and turned against the map
     assert main([*args, "--out", str(tmp_path / "odom"), "--tf", "odom:base_link"]) == 0
     odom = json.loads((tmp_path / "odom" / "00001_tf_ros2_0001.json").read_text())
@@ -267,11 +274,11 @@ def test_a_bag_takes_its_poses_from_its_tf_tree(drive, tmp_path, capsys) -> None
     assert "no tf topic" in capsys.readouterr().err
 
 
-def test_mount_from_tf_puts_the_sensor_where_the_tree_mounts_it(drive, tmp_path, capsys) -> None:
+def test_mount_from_tf_puts_the_sensor_where_the_tree_mounts_it(drive, csv_records, tmp_path, capsys) -> None:
     """The roof sensor 1 m ahead of base_link and 1.5 m above it, pitched 3 deg nose down, with
     base_link 0.4 m above the ground: ``--mount-from-tf --body-height 0.4`` reads it where it is
     and finds the pit where it is; ``--sensor``'s upright mounting at the vehicle origin does not."""
-    files, poses = drive
+    files, _ = drive
     pitched = Rotation.from_euler("x", -3, degrees=True).as_matrix()  # this package's axes: nose down
     azimuth = np.linspace(-np.pi, np.pi, 4000, endpoint=False)
     elevation = np.radians(np.sort(HDL64_ELEVATION_DEG))
@@ -299,7 +306,7 @@ def test_mount_from_tf_puts_the_sensor_where_the_tree_mounts_it(drive, tmp_path,
     forward = np.asarray(from_tf[0]["mounting"]["rotation"]) @ [0.0, 1.0, 0.0]  # the sensor's +Y
     np.testing.assert_allclose(forward, [0.0, np.cos(np.radians(3)), -np.sin(np.radians(3))], atol=1e-9)
     # the vehicle's pose is base_link's 0.4 m lower: the CSV's, z = -0.4
-    csv_poses = [r["pose"] for r in _records(files, tmp_path / "csv", "--poses", str(poses))]
+    csv_poses = [r["pose"] for r in csv_records]
     np.testing.assert_allclose(
         [r["pose"] for r in from_tf], np.add(csv_poses, [0, 0, -0.4, 0, 0, 0]), atol=1e-9
     )
@@ -332,7 +339,7 @@ def test_mount_from_tf_puts_the_sensor_where_the_tree_mounts_it(drive, tmp_path,
 
 
 @pytest.mark.parametrize("kind", ["odometry", "raw"])
-def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) -> None:
+def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, csv_records, tmp_path, capsys) -> None:
     """The same drive as a KITTI odometry sequence (camera poses and a calib.txt whose Tr is
     sequence 00's) or a KITTI raw drive (OXTS fixes at Karlsruhe and 2011_09_26's IMU-to-Velodyne
     calibration): the vehicle's poses and the outlines equal those of the CSV (whose first pose is
@@ -363,12 +370,12 @@ def test_kitti_files_give_the_csvs_vehicle_poses(kind, drive, tmp_path, capsys) 
         write_oxts(given, oxts_fixes(vehicles, IMU_TO_VELO_0926, setup))
         write_imu_to_velo(calib, IMU_TO_VELO_0926)
     records = _records(files, tmp_path / "kitti", option, str(given), "--kitti-calib", str(calib))
-    _assert_csv_poses_and_outlines(records, files, poses, tmp_path / "csv", atol=1e-6)
+    _assert_csv_poses_and_outlines(records, csv_records, atol=1e-6)
     assert main(["detect", files[0], "--out", str(tmp_path / "x"), option, str(given)]) == 2
     assert "--kitti-calib goes with --kitti-poses" in capsys.readouterr().err
 
 
-def test_a_timed_poses_csv_is_read_at_each_clouds_time(drive, tmp_path, capsys) -> None:
+def test_a_timed_poses_csv_is_read_at_each_clouds_time(drive, csv_records, tmp_path, capsys) -> None:
     """An INS log (timestamp, pose) beside the bag's clouds gives what its odometry topic gives."""
     files, poses = drive
     bag = _drive_bag(tmp_path / "log_ros2", files, lambda writer, store: None)
@@ -379,7 +386,7 @@ def test_a_timed_poses_csv_is_read_at_each_clouds_time(drive, tmp_path, capsys) 
     args = ["-q", "detect", str(bag), "--height", "2.2", "--no-png", "--stamps", "header"]
     assert main([*args, "--out", str(out), "--poses-track", str(log)]) == 0
     records = [json.loads((out / f"{k:05d}_log_ros2_{k:04d}.json").read_text()) for k in range(FRAMES)]
-    _assert_csv_poses_and_outlines(records, files, poses, tmp_path / "csv", atol=1e-6)
+    _assert_csv_poses_and_outlines(records, csv_records, atol=1e-6)
     # a log on another clock (the frames' CSV: 0-0.3 s), without times, or with two poses at one
     # time is refused by name
     assert main([*args, "--out", str(tmp_path / "x"), "--poses-track", str(poses)]) == 2
