@@ -20,9 +20,9 @@ from negobs_gym.sim.world import World
 
 OFF = NoiseConfig(enabled=False)
 PIT_Y_M = 8.0
-# the full native rig, ranges cut to 40 m: everything tested lies within 20 m, and PyBullet's
+# the full native rig, ranges cut to 25 m: everything tested lies within 20 m, and PyBullet's
 # heightfield ray test costs time in proportion to the ray length
-RIG = paper_n_rig(hdl64=replace(hdl64e_s2(), max_range_m=40.0), hdl32=replace(hdl32e(), max_range_m=40.0))
+RIG = paper_n_rig(hdl64=replace(hdl64e_s2(), max_range_m=25.0), hdl32=replace(hdl32e(), max_range_m=25.0))
 
 
 @pytest.fixture(scope="module", params=[False, True], ids=["flat", "rough"])
