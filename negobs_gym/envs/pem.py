@@ -93,9 +93,10 @@ class PemParameters:
             edge counts in the last bin.
         size_edges_cells: Edges of the size bins (a pit's rim cells on the 20 cm grid).
         quantile_levels: Levels of every quantile table, 0 to 1.
-        confirm_distance_m: Quantiles of the centre distance at which a pit that came onto the
-            grid from beyond the detector's reach was first drawn [m]; -1 stands for a pit
-            passed undrawn. Each pit draws one at its first sighting.
+        confirm_distance_m: Quantiles per size bin (the whole rim's cells) of the centre distance
+            at which a pit that came onto the grid from beyond the detector's reach was first
+            drawn [m]; -1 stands for a pit passed undrawn. Each pit draws one at its first
+            sighting.
         confirm_latency_frames: Quantiles of the frames from a pit's first sighting to its first
             drawing, of pits first seen within reach (an episode's start: the fusion needs hits
             from several frames). A pit is first drawn when it is within its drawn distance and
@@ -424,6 +425,12 @@ def obstacle_boxes(terrain: Terrain) -> np.ndarray:
     return np.array([[*o.min(axis=0), *o.max(axis=0)] for o in outlines])
 
 
+def _polygon_area(xy: np.ndarray) -> float:
+    """Area of a simple polygon (N, 2) [m²] (the shoelace formula)."""
+    x, y = xy[:, 0], xy[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
 def _bin(value: float | np.ndarray, edges: np.ndarray) -> Any:
     """Bin index of ``value``: below the first edge -> 0, beyond the last -> the last bin."""
     return np.clip(np.digitize(value, edges) - 1, 0, len(edges) - 2)
@@ -476,6 +483,9 @@ class PemGrid:
         self._block_m = b * grid.cell_m
         self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
         self._boxes = obstacle_boxes(terrain)
+        self._rim_cells = np.array(
+            [_polygon_area(np.asarray(o.outline_xy_m)) / grid.cell_m**2 for o in terrain.negative_obstacles]
+        )
         self._tree = centreline_tree(terrain)
         key = ("pem_classes", p.border_band_m)
         raster = cache.get(key) if cache is not None else None
@@ -502,7 +512,8 @@ class PemGrid:
             s, d = int(_bin(cells, self._s_edges)), int(_bin(centre, self._d_edges))
             if self._state[k] == NEVER:
                 if np.isnan(self._confirm_at[k]):
-                    self._confirm_at[k] = self._quantile(self._confirm[s])
+                    whole = int(_bin(self._rim_cells[k], self._s_edges))  # its size, not the part in view
+                    self._confirm_at[k] = self._quantile(self._confirm[whole])
                     self._latency_at[k] = self._quantile(self._latency)
                 self._seen[k] += 1
                 drawn = centre <= self._confirm_at[k] and self._seen[k] > self._latency_at[k]

@@ -61,8 +61,8 @@ MODES = ("detector", "pem")
 #: 2 m distance bins from the vehicle origin, to the grid's farthest corner (~26.4 m).
 DISTANCE_EDGES_M: tuple[float, ...] = tuple(float(d) for d in range(0, 30, 2))
 #: A spurious blob within this of one in the frame before (world centres) is the same false alarm
-#: [m]: two cells and a half, what the INS drift and a blob's changing outline move its centre.
-SAME_ALARM_M = 0.5
+#: [m]: what the INS drift and a blob's outline, growing as the car nears it, move its centre.
+SAME_ALARM_M = 1.0
 
 SIGHTING_COLUMNS = (
     "episode",

@@ -94,17 +94,18 @@ def _chain(pits: dict, s_edges: np.ndarray, d_edges: np.ndarray) -> tuple[np.nda
 
 
 def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], list[float]]:
-    """Per size bin, the first-drawing distances of the pits that came from beyond
-    :data:`APPROACH_M` (the midpoint of the frame before and the frame drawn; -1 for a pit passed
-    undrawn, a pit still ahead when its course ended left out); the frames from first sighting to
-    first drawing of the pits first seen nearer."""
+    """Per size bin (a pit's most cells on the grid), the first-drawing distances of the pits that
+    came from beyond :data:`APPROACH_M` (the midpoint of the frame before and the frame drawn; -1
+    for a pit passed undrawn, a pit still ahead when its course ended left out); the frames from
+    first sighting to first drawing of the pits first seen nearer."""
     ns = len(s_edges) - 1
     distances: list[list[float]] = [[] for _ in range(ns)]
     latencies: list[float] = []
     for rows in pits.values():
         centre = [float(r["centre_m"]) for r in rows]
         hits = [i for i, r in enumerate(rows) if r["detected"] == "1"]
-        s = int(np.clip(np.digitize(float(rows[0]["cells"]), s_edges) - 1, 0, ns - 1))
+        cells = max(int(r["cells"]) for r in rows)  # the whole rim's, as the PEM sizes a pit
+        s = int(np.clip(np.digitize(cells, s_edges) - 1, 0, ns - 1))
         if centre[0] >= APPROACH_M:
             if hits:
                 i = hits[0]
