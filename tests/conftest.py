@@ -21,5 +21,9 @@ def pytest_configure(config) -> None:
     but those marked ``@pytest.mark.xdist_group(name)`` run on one worker, so the module-scoped
     fixture they share (a detector run, a campaign, a process start-up) is built once, not once
     per worker that happens to get one of them."""
+    # xdist registers the mark itself; registered here too for runs with ``-p no:xdist``
+    config.addinivalue_line(
+        "markers", "xdist_group(name): run on the same xdist worker as the group's other tests"
+    )
     if getattr(config.option, "dist", "no") == "load":
         config.option.dist = "loadgroup"
