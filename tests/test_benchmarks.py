@@ -8,6 +8,7 @@ is asserted: only that each figure exists, is finite and has its sign.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -117,7 +118,7 @@ def check_results(path: Path, suite: str) -> dict:
     results = json.loads(path.read_text())
     assert set(results) == RESULT_KEYS
     assert results["suite"] == suite
-    assert set(results["machine"]) == {"cpu", "cores", "python", "numpy", "platform"}
+    assert set(results["machine"]) == {"cpu", "cores", "python", "numpy", "platform", "load_average"}
     assert results["code_version"].startswith("0.")
     assert results["wall_s"] > 0 and results["cpu_s"] > 0 and results["peak_rss_mb"] > 0
     assert set(results["figures"]) == FIGURES[suite]
@@ -205,6 +206,17 @@ def test_tables_are_generated_from_the_results(tmp_path: Path) -> None:
     every = "<!-- bench-table: fake -->\n" + header + "| the a | 1,235 ms | `negobs bench fake` |\n"
     assert every + "| the b | 0.0831 ms | `negobs bench fake` |\n<!-- /bench-table -->\n" in filled
     assert fill_tables(filled, tmp_path) == filled  # idempotent
+
+
+def test_a_qualified_key_takes_its_figure_from_another_suite(tmp_path: Path) -> None:
+    run_suite(fake_suite(a=1.0), out_dir=tmp_path, progress=False)
+    other = dataclasses.replace(fake_suite(a=2.0), name="other")
+    run_suite(other, quick=True, out_dir=tmp_path, progress=False)
+    filled = fill_tables("<!-- bench-table: fake a,other.a -->\n<!-- /bench-table -->\n", tmp_path)
+    rows = "| the a | 1.00 ms | `negobs bench fake` |\n| the a | 2.00 ms | `negobs bench other --quick` |\n"
+    assert rows + "<!-- /bench-table -->" in filled
+    with pytest.raises(BenchError, match=r"figure 'b' is not in .*other\.quick\.json"):
+        fill_tables("<!-- bench-table: fake other.b -->\n<!-- /bench-table -->\n", tmp_path)
 
 
 def test_a_quick_result_serves_where_no_full_one_exists(tmp_path: Path) -> None:

@@ -1,4 +1,4 @@
-"""Detection quality: paper N's fused recall per 2 m distance bin and its false alarms per km.
+"""Detection quality: paper N's recall per 2 m distance bin (Fig. 16) and its false alarms.
 
 The figures come from the detection campaign of ``negobs eval detection``
 (:func:`negobs_gym.eval.detection_campaign.run_detection_campaign`, paper N §4.2): straight rough

@@ -192,7 +192,7 @@ def raycast(size: DetectorSize) -> Figures:
     agreement = compare_ranges(reference, fast, tol_m=0.01)
     return {
         "raycast_ms": Figure(
-            1e3 * embree_s, "ms", f"Embree cast of {len(origins):,} rays (native rig + LUX)"
+            1e3 * embree_s, "ms", f"Embree cast of {len(origins):,} rays (native rig + LUX), one thread"
         ),
         "speedup_vs_pybullet": Figure(
             bullet_s / embree_s, "x", "Embree's speed over PyBullet's rayTestBatch"

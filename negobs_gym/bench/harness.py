@@ -174,7 +174,8 @@ def code_version() -> str:
 
 
 def machine() -> dict[str, Any]:
-    """What the figures were measured on: CPU model, cores this process may use, Python, numpy."""
+    """What the figures were measured on: CPU model, cores this process may use, Python, numpy,
+    platform, and the system's 5-minute load average now (the machine may be shared)."""
     model = platform.processor() or "unknown"
     try:
         with open("/proc/cpuinfo") as info:
@@ -190,6 +191,8 @@ def machine() -> dict[str, Any]:
         "python": platform.python_version(),
         "numpy": np.__version__,
         "platform": platform.platform(),
+        # the runnable processes over the last 5 minutes: above `cores`, others shared the CPUs
+        "load_average": round(os.getloadavg()[1], 2) if hasattr(os, "getloadavg") else None,
     }
 
 

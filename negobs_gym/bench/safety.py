@@ -83,6 +83,6 @@ SUITE = Suite(
     name="safety",
     what="braking safety",
     full=SafetySize(episodes=100),
-    quick=SafetySize(episodes=4),
+    quick=SafetySize(episodes=3),
     measurements=(full_brake, braking_campaign),
 )
