@@ -14,16 +14,3 @@ from hypothesis import settings
 settings.register_profile("repeatable", derandomize=True, database=None)
 settings.register_profile("explore", derandomize=False, print_blob=True)
 settings.load_profile("repeatable")
-
-
-def pytest_configure(config) -> None:
-    """Under ``-n N`` schedule as xdist's ``loadgroup``: tests spread one by one as with ``load``,
-    but those marked ``@pytest.mark.xdist_group(name)`` run on one worker, so the module-scoped
-    fixture they share (a detector run, a campaign, a process start-up) is built once, not once
-    per worker that happens to get one of them."""
-    # xdist registers the mark itself; registered here too for runs with ``-p no:xdist``
-    config.addinivalue_line(
-        "markers", "xdist_group(name): run on the same xdist worker as the group's other tests"
-    )
-    if getattr(config.option, "dist", "no") == "load":
-        config.option.dist = "loadgroup"

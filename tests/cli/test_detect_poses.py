@@ -18,9 +18,6 @@ from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.loaders import sensor_to_ros_frame
 from negobs_gym.detector.synthetic import HDL64_ELEVATION_DEG, Hole, hdl64_scan, synthetic_scan
 
-#: the module's tests share the drive and its CSV run (module fixtures): on one xdist worker
-pytestmark = pytest.mark.xdist_group("cli_detect_poses")
-
 NEAR_M, LENGTH_M, STEP_M, FRAMES = 12.0, 1.5, 1.0, 4
 RING_GAP_M = 0.6  # a pair's A is the last ground return before the pit: up to a ring gap early
 

@@ -122,47 +122,31 @@ def _frames(seed: int) -> np.ndarray:
     return np.stack(frames)
 
 
-@pytest.fixture(scope="module")
-def other_process(tmp_path_factory) -> Path:
-    """One fresh process runs the episodes the tests below run here (one start-up, not three):
-    ``episode.npz`` (default env, seed 11), ``far_part.npz`` (far-part steps, seed 11) and
-    ``frames.npy`` (Braking-v1's rendered frames, seed 3)."""
-    out = tmp_path_factory.mktemp("other_process")
+def test_same_seed_same_episode_far_part_steps_and_frames_in_another_process(tmp_path):
+    """One fresh process (one start-up, not three) runs the default env's episode, the far-part
+    steps' episode (seed 11 each) and Braking-v1's rendered frames (seed 3); this process runs
+    them too. Rendering draws from no generator: the frames (what `negobs eval video` encodes)
+    are the episode's, pixel for pixel, in any process."""
     _in_another_process(
         "_rollout, _short_env, _far_part_env, _frames",
-        f"np.savez({str(out / 'episode.npz')!r}, **_rollout(_short_env(), seed=11))",
-        f"np.savez({str(out / 'far_part.npz')!r}, **_rollout(_far_part_env(), seed=11))",
-        f"np.save({str(out / 'frames.npy')!r}, _frames(seed=3))",
+        f"np.savez({str(tmp_path / 'episode.npz')!r}, **_rollout(_short_env(), seed=11))",
+        f"np.savez({str(tmp_path / 'far_part.npz')!r}, **_rollout(_far_part_env(), seed=11))",
+        f"np.save({str(tmp_path / 'frames.npy')!r}, _frames(seed=3))",
     )
-    return out
-
-
-@pytest.mark.xdist_group("episode_determinism_other_process")
-def test_same_seed_same_episode_in_another_process(other_process):
     env = _short_env()
     here = _rollout(env, seed=11)
     env.close()
-    with np.load(other_process / "episode.npz") as there:
+    with np.load(tmp_path / "episode.npz") as there:
         _assert_same(here, dict(there))
-
-
-@pytest.mark.xdist_group("episode_determinism_other_process")
-def test_far_part_steps_give_the_same_episode_in_another_process(other_process):
     env = _far_part_env()
     here = _rollout(env, seed=11)
     env.close()
     assert here["grid"][1:].any()
-    with np.load(other_process / "far_part.npz") as there:
+    with np.load(tmp_path / "far_part.npz") as there:
         _assert_same(here, dict(there))
-
-
-@pytest.mark.xdist_group("episode_determinism_other_process")
-def test_same_seed_same_frames_in_another_process(other_process):
-    """Rendering draws from no generator: the frames (what `negobs eval video` encodes) are the
-    episode's, pixel for pixel, in any process."""
-    here = _frames(seed=3)
-    assert here.std() > 0 and not np.array_equal(here[0], here[-1])  # a picture that moves
-    assert np.array_equal(here, np.load(other_process / "frames.npy"))
+    frames = _frames(seed=3)
+    assert frames.std() > 0 and not np.array_equal(frames[0], frames[-1])  # a picture that moves
+    assert np.array_equal(frames, np.load(tmp_path / "frames.npy"))
 
 
 def _pinned_rollout(seed: int) -> dict[str, np.ndarray]:

@@ -18,9 +18,6 @@ from negobs_gym.sim.presets import braking_track
 from negobs_gym.sim.vehicle import Vehicle
 from negobs_gym.sim.world import World
 
-#: both tests read the flat world's PyBullet scans, cast once per module (``_scans``): one xdist worker
-pytestmark = pytest.mark.xdist_group("sensors_scenes")
-
 OFF = NoiseConfig(enabled=False)
 PIT_Y_M = 8.0
 # the full native rig, ranges cut to 25 m: everything tested lies within 20 m, and PyBullet's
