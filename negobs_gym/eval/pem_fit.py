@@ -3,8 +3,8 @@
 :func:`fit_pem` drives the courses of :mod:`negobs_gym.eval.pem_data` through the detector grid and
 fits the tables from its rows (:func:`fit_parameters`, from the CSVs alone):
 
-- first confirmation: per size bin, quantiles of the distance at which the pits that came onto
-  the grid from beyond the detector's reach were first drawn (a pit passed undrawn counts as
+- first confirmation: quantiles (pooled over sizes for now) of the distance at which the pits that
+  came onto the grid from beyond the detector's reach were first drawn (a pit passed undrawn counts as
   never), and of the frames the pits first seen within reach took to be drawn (the fusion's
   latency at an episode's start);
 - after that, per state (drawn the frame before, drawn earlier), size bin and 2 m distance bin,
@@ -51,8 +51,6 @@ MIN_OFFSETS = 20
 APPROACH_M = 22.0
 #: A pit last seen this near was passed (an undrawn one was missed, not cut off by the course's end) [m].
 PASSED_M = 6.0
-#: Fewest first confirmations a size bin's quantiles are taken from, else all sizes'.
-MIN_CONFIRMATIONS = 20
 #: Most false-alarm blobs the model keeps to copy.
 MAX_BLOBS = 400
 #: Largest fitted false-alarm persistence (a blob kept forever would never leave the model).
@@ -150,8 +148,10 @@ def fit_parameters(
     seen, drawn, every = _chain(pits, s_edges, d_edges)
     p_keep, p_return = _shrunk(seen, drawn)
     by_size, latencies = _confirmations(pits, s_edges)
+    # pooled over sizes: the rows hold the cells in view, and a pit far out shows part of its rim,
+    # so a size bin of the rows is not the whole-rim size the model draws by (docs/pem.md)
     pooled = np.concatenate([np.asarray(v) for v in by_size])
-    confirm = [_quantiles(np.asarray(v) if len(v) >= MIN_CONFIRMATIONS else pooled, levels) for v in by_size]
+    confirm = [_quantiles(pooled, levels)] * len(by_size)
     latency = _quantiles(np.asarray(latencies), levels)
 
     hits = [r for r in sightings if r["detected"] == "1"]
