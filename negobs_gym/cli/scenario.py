@@ -18,7 +18,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import ALGORITHMS
 
 if TYPE_CHECKING:
-    from negobs_gym.scenarios import ScenarioSpec
+    from negobs_gym.spec import ScenarioSpec
 
 DRIVER_CHOICES = (
     "reckless",
@@ -138,7 +138,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from negobs_gym.scenarios import load_scenario, scenario_names
+    from negobs_gym.spec import load_scenario, scenario_names
 
     for name in scenario_names():
         print(f"{name:28s} {load_scenario(name).description}", file=sys.stdout)
@@ -146,7 +146,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from negobs_gym.scenarios import spec_to_toml
+    from negobs_gym.spec import spec_to_toml
 
     sys.stdout.write(spec_to_toml(_spec(args)))
     return 0
@@ -154,15 +154,15 @@ def _show(args: argparse.Namespace) -> int:
 
 def _spec(args: argparse.Namespace, name: str | None = None) -> ScenarioSpec:
     """The scenario ``name`` (default: the SPEC argument) with the ``--set`` changes."""
-    from negobs_gym.scenarios import load_scenario
+    from negobs_gym.spec import load_scenario
     from negobs_gym.spec.overrides import apply_overrides
 
     return apply_overrides(load_scenario(args.spec if name is None else name), args.overrides)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from negobs_gym.eval.scenario_runner import run_scenario_seeds
     from negobs_gym.eval.scenario_tables import check_csv_text, write_scenario_tables
-    from negobs_gym.scenarios import run_scenario_seeds
 
     if args.zoom_m is not None and not args.draw:
         raise ConfigError("--zoom", "needs --draw DIR (it sets the drawn window)")
@@ -226,7 +226,7 @@ def _check_policy(spec: ScenarioSpec) -> None:
     ``run.policy``); the log names the env it was fitted on, and warns when the model was fitted
     with ``--set`` settings that the scenario does not have (a grid it was not fitted on)."""
     from negobs_gym.drivers.zoo import recorded_env, resolve_model
-    from negobs_gym.scenarios import describe_overrides
+    from negobs_gym.spec import describe_overrides
     from negobs_gym.spec.overrides import apply_overrides
 
     policy, log = spec.run.policy, logging.getLogger("negobs_gym.cli")
