@@ -63,14 +63,14 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
 
 def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path: Path, capsys) -> None:
     out = tmp_path / "run"
-    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "64", "--warm-start-steps", "40"]
+    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "32", "--warm-start-steps", "40"]
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
-    args += ["--critic-warmup-steps", "64", "--target-kl", "0.02", "--planner-sight-m", "14"]
+    args += ["--critic-warmup-steps", "32", "--target-kl", "0.02", "--planner-sight-m", "14"]
     args += ["--mirror-demonstrations", "--planner-horizon-m", "30", "--warm-start-workers", "2"]
-    assert main(["-q", *args, *SHORT, *SHORT_COURSE, "--out", str(out)]) == 0
+    assert main(["-q", *args, *SHORT, "--n-steps", "32", *SHORT_COURSE, "--out", str(out)]) == 0
     capsys.readouterr()
     record = json.loads((out / "train.json").read_text())
-    assert record["config"]["critic_warmup_steps"] == 64 and record["config"]["target_kl"] == 0.02
+    assert record["config"]["critic_warmup_steps"] == 32 and record["config"]["target_kl"] == 0.02
     warm = record["warm_start"]
     assert warm["driver"] == "track_planner" and warm["dagger_rounds"] == 1
     assert warm["planner_sight_m"] == 14.0 and record["config"]["warm_start"]["planner_sight_m"] == 14.0
@@ -81,14 +81,15 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     assert warm["held_out_losses"] == [] and warm["best_epoch"] == WarmStartConfig().epochs - 1
     with (out / "eval.csv").open() as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
-    assert steps == [0, 64]  # the cloned policy, then after PPO
+    assert steps == [0, 32]  # the cloned policy, then after PPO
     assert (out / "warm_start.zip").is_file() and (out / "model.zip").is_file()
     # every labelled step is kept, and a new run can fit them again without collecting any
     saved = out / "demonstrations.npz"
     refit = tmp_path / "refit"
-    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "64", "--demonstrations", str(saved)]
+    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "32", "--demonstrations", str(saved)]
     args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-bins", "0"]
-    assert main(["-q", *args, "--hold-out-every", "2", *SHORT, *SHORT_COURSE, "--out", str(refit)]) == 0
+    args += ["--hold-out-every", "2", *SHORT, "--n-steps", "32", *SHORT_COURSE]
+    assert main(["-q", *args, "--out", str(refit)]) == 0
     capsys.readouterr()
     record = json.loads((refit / "train.json").read_text())
     assert record["config"]["head"]["modes"] == 2 and record["config"]["head"]["bin_edges"] == [0.0]
