@@ -77,24 +77,29 @@ def test_run_video_writes_an_mp4_per_seed(tmp_path, capsys):
 
 def test_run_out_writes_tables_that_the_written_spec_reproduces(tmp_path, capsys):
     """--out: the spec as run (driver and filter folded in) runs again to the same tables, in one
-    process as in two."""
+    process as in two (the two processes print a line per seed in seed order, from --seed on)."""
     path = tmp_path / "scene.toml"
     path.write_text(FAILING.format(entered="false"))
     first, again = tmp_path / "first", tmp_path / "again"
-    args = ["--seeds", "2", "--workers", "2", "--driver", "constant_speed", "--filter", "--out", str(first)]
+    seeds = ["--seed", "3", "--seeds", "2"]
+    args = [*seeds, "--workers", "2", "--driver", "constant_speed", "--filter", "--out", str(first)]
     code = main(["scenario", "run", str(path), *args])
     lines = _lines(capsys)
+    assert [line.split()[:2] for line in lines] == [
+        ["reckless_into_pit", "seed=3"],
+        ["reckless_into_pit", "seed=4"],
+    ]
     ran = spec_from_toml((first / "scenario.toml").read_text())
     assert (ran.run.driver, ran.run.filter) == ("constant_speed", True)
     results = read_csv(first / "results.csv")
     assert [(r["seed"], r["driver"], r["filter"]) for r in results] == [
-        ("0", "constant_speed", "filter"),
-        ("1", "constant_speed", "filter"),
+        ("3", "constant_speed", "filter"),
+        ("4", "constant_speed", "filter"),
     ]
     assert [r["passed"] == "1" for r in results] == [line.endswith("PASS") for line in lines]
     assert code == (0 if all(r["passed"] == "1" for r in results) else 1)
     assert read_csv(first / "vetoes.csv")  # the filter vetoed: the tables compared below hold rows
-    rerun = ["scenario", "run", str(first / "scenario.toml"), "--seeds", "2", "--out", str(again)]
+    rerun = ["scenario", "run", str(first / "scenario.toml"), *seeds, "--out", str(again)]
     assert main(rerun) == code
     assert _lines(capsys) == lines
     for name in ("results.csv", "vetoes.csv", "paths.csv", "scenario.toml"):
@@ -189,16 +194,6 @@ def test_render_writes_a_png(tmp_path):
     assert main(["scenario", "render", "paper_t_parked_motorbike", "--out", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [p for p in out.parent.iterdir() if p.name.endswith(".tmp")]
-
-
-def test_run_with_workers_prints_a_line_per_seed_in_seed_order(capsys):
-    """Two processes (equal to one, seed by seed: tests/scenarios/test_runner.py)."""
-    assert main(["scenario", "run", "paper_n_mud_pit", "--seed", "3", "--seeds", "2", "--workers", "2"]) == 0
-    lines = _lines(capsys)
-    assert [line.split()[:2] for line in lines] == [
-        ["paper_n_mud_pit", "seed=3"],
-        ["paper_n_mud_pit", "seed=4"],
-    ]
 
 
 @pytest.mark.slow
