@@ -105,13 +105,6 @@ SHORT_PPO = TrainConfig(
 )
 
 
-@pytest.fixture(scope="module")
-def short_ppo_64(tmp_path_factory: pytest.TempPathFactory):
-    """One 64-step :data:`SHORT_PPO` run (one rollout, one update): the model two tests start from,
-    which they only read."""
-    return train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path_factory.mktemp("short_ppo_64"))
-
-
 def policy_weights(model_path: Path):
     """All policy parameters of a saved PPO model, as one flat tensor."""
     import torch
@@ -129,11 +122,21 @@ def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
     assert rows[0] == rows[1]
 
 
-def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, short_ppo_64) -> None:
+def test_init_fine_tunes_a_trained_model_and_a_critic_warmup_moves_only_its_value_function(
+    tmp_path: Path,
+) -> None:
+    """One 64-step :data:`SHORT_PPO` run (one rollout, one update), trained once: the model both
+    halves start from, which they only read."""
+    first = train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path / "short_ppo_64")
+    _check_init_fine_tunes_a_trained_model_on_another_source(tmp_path, first)
+    _check_critic_warmup_moves_only_the_value_function_then_everything(tmp_path, first)
+
+
+def _check_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, first) -> None:
     import torch
     from stable_baselines3 import PPO
 
-    base, first = dataclasses.replace(SHORT_PPO, steps=64), short_ppo_64
+    base = dataclasses.replace(SHORT_PPO, steps=64)
     tuned = dataclasses.replace(
         base, grid_input=False, init_model=str(first.model_path), learning_rate=1e-3, eval_seed=7
     )
@@ -141,12 +144,12 @@ def test_init_fine_tunes_a_trained_model_on_another_source(tmp_path: Path, short
         train(tuned, tmp_path / "bad")
 
     detector = ("observation.source=detector",)
-    tuned = dataclasses.replace(tuned, grid_input=True, overrides=detector, steps=64, n_steps=32)
+    tuned = dataclasses.replace(tuned, grid_input=True, overrides=detector, steps=32, n_steps=32)
     second = train(tuned, tmp_path / "detector")
     rows = second.eval_csv.read_text().splitlines()[1:]
-    assert [r.split(",")[0] for r in rows] == ["0", "64"]  # the init model's row first; steps from 0
+    assert [r.split(",")[0] for r in rows] == ["0", "32"]  # the init model's row first; steps from 0
     model = PPO.load(second.model_path, device="cpu")
-    assert model.num_timesteps == 64 and model.n_steps == 32 and model.learning_rate == 1e-3
+    assert model.num_timesteps == 32 and model.n_steps == 32 and model.learning_rate == 1e-3
     assert not torch.equal(policy_weights(first.model_path), policy_weights(second.model_path))  # trained
     record = json.loads((tmp_path / "detector" / "train.json").read_text())
     assert record["config"]["init_model"] == str(first.model_path)
@@ -175,11 +178,10 @@ def split_weights(model_path: Path) -> tuple[dict, dict]:
     return value, {n: p for n, p in named.items() if n not in value}
 
 
-def test_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: Path, short_ppo_64) -> None:
+def _check_critic_warmup_moves_only_the_value_function_then_everything(tmp_path: Path, first) -> None:
     import torch
     from stable_baselines3 import PPO
 
-    first = short_ppo_64
     tuned = dataclasses.replace(
         SHORT_PPO, init_model=str(first.model_path), critic_warmup_steps=64, target_kl=0.05, steps=64
     )
