@@ -32,7 +32,11 @@ def _build(path: str, tmp_path: Path) -> gym.Env:
     if path == "registry":
         return gym.make("negobs_gym/Braking-v1", overrides=RANGED)
     if path == "registry_mapping":
-        mapping = {"start.speed_mps": [4.0, 6.0], "episode.time_limit_s": LIMIT_S, "observation.source": "oracle"}
+        mapping = {
+            "start.speed_mps": [4.0, 6.0],
+            "episode.time_limit_s": LIMIT_S,
+            "observation.source": "oracle",
+        }
         return gym.make("negobs_gym/Braking-v1", overrides=mapping)
     if path == "direct":
         return BrakingEnv(overrides=RANGED)
@@ -49,7 +53,9 @@ def _build(path: str, tmp_path: Path) -> gym.Env:
     raise AssertionError(path)
 
 
-@pytest.mark.parametrize("path", ["registry", "registry_mapping", "direct", "direct_spec", "factory", "toml", "set"])
+@pytest.mark.parametrize(
+    "path", ["registry", "registry_mapping", "direct", "direct_spec", "factory", "toml", "set"]
+)
 def test_ranged_start_speed_and_time_limit_survive_every_construction_path(path: str, tmp_path: Path) -> None:
     env = _build(path, tmp_path)
     spec = env.unwrapped.scenario
@@ -78,3 +84,24 @@ def test_each_shipped_scene_builds_an_env_from_its_spec(name: str) -> None:
     assert env.unwrapped.scenario == load_scenario(name)
     assert env.observation_space["grid"].shape == env.unwrapped.scenario.observation.shape
     env.close()
+
+
+def test_a_braking_campaigns_episodes_keep_the_ranged_start_speed_and_time_limit() -> None:
+    """The campaign path: its episodes run their scene with the campaign's overrides."""
+    from negobs_gym.eval.braking_campaign import (
+        BrakingCampaignConfig,
+        episode_overrides,
+        episodes,
+        scene_name,
+    )
+
+    config = BrakingCampaignConfig(
+        scenarios=("ditch",), drivers=("reckless",), seeds=2, overrides=tuple(RANGED)
+    )
+    for episode in episodes(config):
+        env = make_env(scene_name(episode.args["scenario"]), episode_overrides(episode.args))
+        spec = env.unwrapped.scenario
+        assert spec.start.speed_mps == SPEED and spec.episode.time_limit_s == LIMIT_S
+        _, info = env.reset(seed=episode.args["seed"])
+        assert 3.5 < info["speed_mps"] < 6.5
+        env.close()
