@@ -25,15 +25,15 @@ def runs() -> dict[bool, list[ScenarioResult]]:
     }
 
 
-def test_reckless_driver_enters_the_pit_without_the_filter(runs) -> None:
+def test_reckless_driver_enters_the_pit_without_the_filter_and_stops_before_it_with(runs, tmp_path) -> None:
+    """One test reads the module's runs (a module fixture is built once per xdist worker): without
+    the filter, with it, and a video of a filtered episode."""
     for r in runs[False]:
         assert r.entered_negative_obstacle and not r.stopped_before and r.stop_margin_m is None
         assert r.vetoes == 0 and not r.filtered and not r.task_done
         assert r.termination == ("entered_negative_obstacle",)
         assert set(r.failures) >= {"entered_negative_obstacle", "stopped_before"} and not r.passed
-
-
-def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
+    # the filter stops it before the pit on every seed
     starts = {round(r.start_gap_m, 6) for r in runs[True]}
     assert len(starts) == 3  # the station is drawn per seed
     for r, plain in zip(runs[True], runs[False], strict=True):
@@ -44,6 +44,7 @@ def test_the_filter_stops_it_before_the_pit_on_every_seed(runs) -> None:
         assert r.max_decel_mps2 > 4.0  # a real brake (mu g = 6.4 m/s^2 with locked wheels)
         assert r.termination == ("stopped",) and r.passed and r.task_done and not r.left_track
         assert not r.collision and not r.goal_reached and r.time_s < 9.0
+    _check_a_video_of_the_episode_leaves_the_episode_as_it_was(runs[True][0], tmp_path)
 
 
 # a 3 x 3 m pit 16 m on and 5 m left of the start line, the filter's cells held 2 s
@@ -239,11 +240,12 @@ def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(runs, tmp_
         run_scenario_seeds(spec, "reckless", [0], workers=0)
 
 
-def test_a_video_of_the_episode_leaves_the_episode_as_it_was(runs, tmp_path) -> None:
+def _check_a_video_of_the_episode_leaves_the_episode_as_it_was(seed_0: ScenarioResult, tmp_path) -> None:
+    """The filtered seed-0 episode again, filmed: the same result, a frame per step, red when vetoed."""
     imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
     path = tmp_path / "pit.mp4"
     result = run_scenario(spec_from_toml(PIT_SCENE), RecklessDriver(), filter=True, seed=0, video_to=path)
-    assert result == runs[True][0]
+    assert result == seed_0
     reader = imageio_ffmpeg.read_frames(str(path))
     w, h = next(reader)["size"]
     frames = [np.frombuffer(b, np.uint8).reshape(h, w, 3) for b in reader]
