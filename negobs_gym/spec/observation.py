@@ -138,7 +138,8 @@ class ObservationConfig:
         worker_blas_threads: BLAS threads (numpy's and scipy's, through ``threadpoolctl``) in a
             worker process of a vector env, set when its detector grid is built: 1 (default), as
             the processes already share the cores; None leaves the BLAS's own count (on 2 cores
-            the rates were equal within 3 %: ``benchmarks/worker_threads.py``).
+            the rates were equal within 3 %: docs/notebook/performance.md, "Detector-grid envs
+            on 2 processes").
         raycast_isa: Embree's kernels: ``"native"`` (the CPU's widest, fastest) or one instruction
             set (``"avx2"``: the same scans on every AVX2 or AVX-512 CPU; docs/determinism.md).
         raycast_fast_terrain: Embree's fast triangle test on the terrain, every ray it may have

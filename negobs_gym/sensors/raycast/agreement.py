@@ -1,7 +1,7 @@
 """Check a ray-cast backend against the reference: hit/miss and range agreement, and a test scene.
 
-Used by the agreement tests and ``benchmarks/raycast.py`` (docs/sensors.md: the fast backend agrees
-with PyBullet to 1 cm on the same scene).
+Used by the agreement tests and ``negobs bench detector``'s ``raycast_agreement`` figure
+(docs/sensors.md: the fast backend agrees with PyBullet to 1 cm on the same scene).
 """
 
 from __future__ import annotations
