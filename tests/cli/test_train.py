@@ -67,7 +67,8 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     args += ["--warm-start-driver", "track_planner", "--dagger-rounds", "1", "--checkpoint-every", "0"]
     args += ["--critic-warmup-steps", "32", "--target-kl", "0.02", "--planner-sight-m", "14"]
     args += ["--mirror-demonstrations", "--planner-horizon-m", "30", "--warm-start-workers", "2"]
-    assert main(["-q", *args, *SHORT, "--n-steps", "32", *SHORT_COURSE, "--out", str(out)]) == 0
+    args += [*SHORT, "--n-steps", "32", "--batch-size", "32", *SHORT_COURSE]  # one 32-step minibatch
+    assert main(["-q", *args, "--out", str(out)]) == 0
     capsys.readouterr()
     record = json.loads((out / "train.json").read_text())
     assert record["config"]["critic_warmup_steps"] == 32 and record["config"]["target_kl"] == 0.02
@@ -88,7 +89,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     refit = tmp_path / "refit"
     args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "32", "--demonstrations", str(saved)]
     args += ["--strong-steer-repeats", "3", "--strong-steer", "0.2", "--steering-bins", "0"]
-    args += ["--hold-out-every", "2", *SHORT, "--n-steps", "32", *SHORT_COURSE]
+    args += ["--hold-out-every", "2", *SHORT, "--n-steps", "32", "--batch-size", "32", *SHORT_COURSE]
     assert main(["-q", *args, "--out", str(refit)]) == 0
     capsys.readouterr()
     record = json.loads((refit / "train.json").read_text())
