@@ -135,9 +135,10 @@ def check_results(path: Path, suite: str) -> dict:
     return results
 
 
-# the env suite builds ~10 envs and a PPO run's workers even at its least size: over a minute
+# the env suite builds ~10 envs and a PPO run's workers even at its least size (over a minute), and
+# the safety suite drives whole braking episodes: slow; the default run checks the other two
 @pytest.mark.parametrize(
-    "suite", [pytest.param(s, marks=pytest.mark.slow) if s == "env" else s for s in SUITE_NAMES]
+    "suite", [pytest.param(s, marks=pytest.mark.slow) if s in ("env", "safety") else s for s in SUITE_NAMES]
 )
 def test_each_suite_writes_its_results_file(suite: str, tmp_path: Path) -> None:
     path, results = run_suite(

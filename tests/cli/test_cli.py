@@ -34,6 +34,9 @@ def test_a_command_is_required_and_bad_values_are_named(capsys):
     assert "--seed" in capsys.readouterr().err
 
 
+# slow (end to end): the demo's episodes and PNG are checked by tests/test_demo.py; this adds the
+# CLI's detection campaign
+@pytest.mark.slow
 def test_demo_command_writes_the_png_and_the_detection_tables(tmp_path, monkeypatch):
     import negobs_gym.demo as demo
 

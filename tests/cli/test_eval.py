@@ -90,6 +90,9 @@ def test_braking_refuses_a_far_part_outside_the_grid_naming_it(tmp_path: Path, c
     assert not (tmp_path / "o").exists()
 
 
+# slow (end to end): a saved model evaluated through the CLI is also checked by
+# tests/cli/test_train.py::test_train_saves_a_model_that_eval_policy_loads
+@pytest.mark.slow
 def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     import gymnasium as gym
     from stable_baselines3 import PPO

@@ -3,8 +3,8 @@
 import json
 
 from negobs_gym.cli import main
-from negobs_gym.eval.stats import format_interval, rate_interval
 from negobs_gym.drivers.zoo import baseline_names, baseline_record
+from negobs_gym.eval.stats import format_interval, rate_interval
 
 
 def test_list_gives_each_shipped_policy_its_env_settings_and_recorded_result(capsys) -> None:

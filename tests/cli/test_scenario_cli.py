@@ -205,6 +205,9 @@ def test_run_each_paper_scene_prints_a_line_per_seed(scene, capsys):
     assert code == (0 if all(line.endswith("PASS") for line in lines) else 1)
 
 
+# slow (end to end): stop_for_positive is checked by
+# tests/safety/test_filter.py::test_positive_obstacles_are_ignored_unless_stop_for_positive
+@pytest.mark.slow
 def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) -> None:
     """The rock scene with its run.stop_for_positive off hits the rock; the flag turns it on."""
     import dataclasses

@@ -61,6 +61,9 @@ def test_train_saves_a_model_that_eval_policy_loads(tmp_path: Path, capsys) -> N
     assert capsys.readouterr().out.startswith(f"{ENV}[observation.source=oracle]/nofilter success=")
 
 
+# slow (end to end): the CLI's DAgger warm start; DAgger itself is checked by
+# tests/policies/test_pretrain.py
+@pytest.mark.slow
 def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path: Path, capsys) -> None:
     out = tmp_path / "run"
     args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "32", "--warm-start-steps", "40"]

@@ -67,6 +67,9 @@ def test_bad_holds_are_refused(field: str) -> None:
             ObservationConfig(**{field: bad})
 
 
+# slow (end to end): the structure channel is checked by tests/detector/test_structure.py; this
+# drives it in the env
+@pytest.mark.slow
 def test_structure_positive_channel_marks_rocks_and_boxes_on_their_footprint() -> None:
     """``positive_detector="structure"``: every rock or box 6-12 m ahead has a set cell on its pooled
     footprint, and the rest of the observation equals the default (paper T) env's."""

@@ -35,7 +35,9 @@ def _train_save_load(tmp_path, total_steps: int, n_steps: int = 64) -> tuple[int
     from stable_baselines3 import PPO
 
     env = VetoCounter(BrakingSafetyFilter(gym.make("negobs_gym/Braking-v0")))
-    model = PPO("MultiInputPolicy", env, n_steps=n_steps, batch_size=n_steps // 2, n_epochs=1, seed=0, device="cpu")
+    model = PPO(
+        "MultiInputPolicy", env, n_steps=n_steps, batch_size=n_steps // 2, n_epochs=1, seed=0, device="cpu"
+    )
     model.learn(total_timesteps=total_steps)
     path = tmp_path / "ppo_braking_filter.zip"
     model.save(path)

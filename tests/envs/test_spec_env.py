@@ -59,7 +59,10 @@ def _steps_until_done(env: gym.Env, limit: int = 1000) -> tuple[int, bool, bool]
 def test_overridden_time_limit_is_honoured_however_the_env_is_made(make: str) -> None:
     # standing still: only the limit ends it
     changes = {**ORACLE_GRID, "episode.time_limit_s": 0.8, "start.speed_mps": 0.0}
-    env = gym.make("negobs_gym/Braking-v1", overrides=changes) if make == "registry" else BrakingEnv(overrides=changes)
+    if make == "registry":
+        env = gym.make("negobs_gym/Braking-v1", overrides=changes)
+    else:
+        env = BrakingEnv(overrides=changes)
     assert _steps_until_done(env) == (8, False, True)
     env.close()
 

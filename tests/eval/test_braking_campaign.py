@@ -38,6 +38,9 @@ from tests.helpers import write_vetoes_csv
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
+# slow (end to end): the campaign's summary lines are checked by the module's summarize tests;
+# this drives the CLI
+@pytest.mark.slow
 def test_cli_prints_stopped_before_per_configuration(tmp_path: Path, capsys) -> None:
     out = tmp_path / "braking"
     args = ["eval", "braking", "--seeds", "1", "--scenarios", "ditch,free_track", "--drivers", "reckless"]

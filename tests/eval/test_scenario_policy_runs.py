@@ -37,6 +37,9 @@ def test_the_policy_drives_the_episode_eval_policy_drives(spec, tmp_path) -> Non
     assert result.path_xy_m[-1][1] - result.path_xy_m[0][1] > 2.0  # it drove off
 
 
+# slow (end to end): a model driver in worker processes; the policy driving a scenario is checked
+# by test_the_policy_drives_the_episode_eval_policy_drives
+@pytest.mark.slow
 def test_a_model_driver_reaches_worker_processes_as_its_path(spec) -> None:
     driver = ModelDriver("ppo_offroad_nav_v1")
     serial = [run_scenario(spec, driver, seed=s) for s in (3, 4)]

@@ -210,6 +210,9 @@ def test_the_filter_stops_for_a_rock_only_when_told() -> None:
     assert papers.collision and papers.vetoes == 0 and "collision" in papers.failures
 
 
+# slow (end to end): the filter's steered corridor is checked by tests/safety/test_corridor.py and
+# test_filter.py
+@pytest.mark.slow
 def test_the_filter_stops_for_a_pit_in_a_bend_where_the_car_turns() -> None:
     """Pure pursuit follows a 30 m radius bend at 25 km/h, steering left all the way; the filter
     judges the pit under its inner wheels along that arc and stops before it. Without the filter
@@ -229,6 +232,9 @@ def test_a_bad_draw_window_is_named_before_the_episode_runs(zoom_m, tmp_path) ->
     assert not (tmp_path / "x.png").exists()
 
 
+# slow (end to end): scenario seeds in two processes; two workers against one process is checked
+# by tests/eval/test_detection_campaign.py's resume test and the vector-env tests
+@pytest.mark.slow
 def test_seeds_in_two_processes_give_the_serial_results_in_seed_order(runs, tmp_path) -> None:
     spec = spec_from_toml(PIT_SCENE)
     # run_scenario in this process, seeds 1 and 0 (its driver named by its class, not "reckless")

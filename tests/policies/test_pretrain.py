@@ -176,6 +176,9 @@ def _env_noting_its_life(marks: Path) -> Any:
     return env
 
 
+# slow (end to end): two workers' demonstrations against one process's; the collection itself is
+# checked by the default tests
+@pytest.mark.slow
 def test_two_worker_processes_collect_the_steps_one_process_does(tmp_path: Path) -> None:
     """DAgger on OffroadTrack-v0 with an untrained policy: short episodes, so several run at once.
     One pool serves two rounds, each driven by its own weights, as one process collects them."""

@@ -122,6 +122,9 @@ def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
     assert rows[0] == rows[1]
 
 
+# slow (end to end): two trainings from a trained model; a training run and its record are checked
+# by the other default tests
+@pytest.mark.slow
 def test_init_fine_tunes_a_trained_model_and_a_critic_warmup_moves_only_its_value_function(
     tmp_path: Path,
 ) -> None:
