@@ -52,6 +52,21 @@ def add_set_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_runner_options(group: argparse._ArgumentGroup, unit: str) -> None:
+    """``--workers``, ``--ray`` and ``--resume`` of a command driven by the campaign runner
+    (:mod:`negobs_gym.eval.campaign`); ``unit`` names what a resumed run keeps (``episodes``)."""
+    group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
+    group.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray (pip install 'negobs_gym[ray]'); no ADDRESS starts a local instance",
+    )
+    group.add_argument("--resume", action="store_true", help=f"keep finished {unit} of a killed run")
+
+
 def task_env_or_exit(
     parser: argparse.ArgumentParser, env: str, source: str | None, overrides: list[str]
 ) -> Any:

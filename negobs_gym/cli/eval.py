@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from negobs_gym.cli.common import add_set_option, positive_float, positive_int
+from negobs_gym.cli.common import add_runner_options, add_set_option, positive_float, positive_int
 from negobs_gym.errors import ConfigError, MissingDependencyError
 
 log = logging.getLogger("negobs_gym.cli.eval")
@@ -66,16 +66,7 @@ def _common(parser: argparse.ArgumentParser, default_out: str) -> None:
         "--seeds", type=positive_int, default=None, help="episodes (seeds 0..N-1; policy: from --first-seed)"
     )
     group.add_argument("--out", default=default_out, help="output directory (default: %(default)s)")
-    group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
-    group.add_argument(
-        "--ray",
-        nargs="?",
-        const="local",
-        default=None,
-        metavar="ADDRESS",
-        help="run on Ray (pip install 'negobs_gym[ray]'); no ADDRESS starts a local instance",
-    )
-    group.add_argument("--resume", action="store_true", help="keep finished episodes of a killed run")
+    add_runner_options(group, "episodes")
     group.add_argument(
         "--rig",
         choices=("roi", "native", "reduced"),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
+from negobs_gym.cli.common import add_runner_options, add_set_option, non_negative_int, positive_int
 
 log = logging.getLogger("negobs_gym.cli")
 
@@ -41,16 +41,7 @@ def _campaign_options(parser: argparse.ArgumentParser, seeds: int, frames: int, 
         "default: the envs' default observation)",
     )
     add_set_option(parser)
-    group.add_argument("--workers", type=positive_int, default=1, help="local worker processes (default: 1)")
-    group.add_argument(
-        "--ray",
-        nargs="?",
-        const="local",
-        default=None,
-        metavar="ADDRESS",
-        help="run on Ray (negobs_gym[ray])",
-    )
-    group.add_argument("--resume", action="store_true", help="keep finished courses of a killed run")
+    add_runner_options(group, "courses")
     group.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
