@@ -82,7 +82,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p_run.add_argument(
         "--stop-for-positive",
         action="store_true",
-        help="the filter also stops for the grid's positive-obstacle cells (run.stop_for_positive)",
+        help="the filter also stops for the grid's positive-obstacle cells (filter.stop_for_positive)",
     )
     p_run.add_argument("--seeds", type=positive_int, default=1, help="number of seeds (default: %(default)s)")
     p_run.add_argument("--seed", type=non_negative_int, default=0, help="first seed (default: %(default)s)")
@@ -206,19 +206,20 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_spec(args: argparse.Namespace, name: str) -> ScenarioSpec:
-    """The scenario ``name`` with ``--set``, and ``--driver``, ``--policy``, ``--algo``,
-    ``--filter`` and ``--stop-for-positive`` folded into its ``[run]`` table: what ran, as
-    ``scenario.toml`` records it."""
+    """The scenario ``name`` with ``--set``, ``--driver``, ``--policy``, ``--algo`` and
+    ``--filter`` folded into its ``[run]`` table and ``--stop-for-positive`` into its ``[filter]``:
+    what ran, as ``scenario.toml`` records it."""
     spec = _spec(args, name)
     changes = {"driver": args.driver, "filter": args.filter, "policy_algo": args.algo}
     if args.driver is not None:
         changes["policy"] = ""  # the scripted driver named drives, not the spec's policy
     if args.policy is not None:
         changes["policy"] = args.policy
-    if args.stop_for_positive:
-        changes["stop_for_positive"] = True
     changes = {k: v for k, v in changes.items() if v is not None}
-    return dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
+    spec = dataclasses.replace(spec, run=dataclasses.replace(spec.run, **changes))
+    if args.stop_for_positive:
+        spec = dataclasses.replace(spec, filter=dataclasses.replace(spec.filter, stop_for_positive=True))
+    return spec
 
 
 def _check_policy(spec: ScenarioSpec) -> None:

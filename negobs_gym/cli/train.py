@@ -147,7 +147,7 @@ OPTIONS: tuple[Option, ...] = (
     ),
     Option(
         "--stop-for-positive",
-        f"{SET}run.stop_for_positive",
+        f"{SET}filter.stop_for_positive",
         "with --filter: the filter also stops for the grid's positive-obstacle cells",
         SCENE,
         kwargs={"action": "store_true"},

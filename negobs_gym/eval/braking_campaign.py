@@ -51,7 +51,7 @@ from negobs_gym.eval.vetoes import (
     largest_veto_error_m,
     veto_rows,
 )
-from negobs_gym.safety.filter import SafetyFilterConfig, filter_config
+from negobs_gym.safety.config import SafetyFilterConfig, filter_config
 from negobs_gym.spec import ScenarioSpec, apply_overrides, load_scenario
 
 #: The campaign's scenarios, each the shipped scene ``braking_campaign_<name>``: Braking-v0's

@@ -30,7 +30,7 @@ from negobs_gym.envs.video import optional_video, recording
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.vetoes import VetoJudgement, VetoTally, format_veto_error, largest_veto_error_m
 from negobs_gym.safety.filter import BrakingSafetyFilter, SafetyFilterConfig
-from negobs_gym.spec.scenario import CriteriaSpec, RunSpec, ScenarioSpec
+from negobs_gym.spec.scenario import CriteriaSpec, ScenarioSpec
 
 __all__ = [
     "STANDSTILL_S",
@@ -314,17 +314,16 @@ def check_criteria(criteria: CriteriaSpec, result: EpisodeResult) -> tuple[str, 
     return tuple(name for name, value in criteria.named.items() if not checks[name](value))
 
 
-def filter_settings(filter: bool | SafetyFilterConfig | None, run: RunSpec) -> SafetyFilterConfig | None:
+def filter_settings(
+    filter: bool | SafetyFilterConfig | None, spec: ScenarioSpec
+) -> SafetyFilterConfig | None:
     """The filter an episode runs behind (None: none). A :class:`SafetyFilterConfig` as it is; a
-    true flag the Eq. 18 defaults in the spec's ``run.filter_mode``, stopping for positive
-    obstacles where its ``run.stop_for_positive`` says so; None the spec's ``run.filter``."""
+    true flag the spec's ``[filter]`` settings; None the spec's ``run.filter``."""
     if filter is None:
-        filter = run.filter
+        filter = spec.run.filter
     if isinstance(filter, SafetyFilterConfig):
         return filter
-    return (
-        SafetyFilterConfig(stop_for_positive=run.stop_for_positive, mode=run.filter_mode) if filter else None
-    )
+    return spec.filter if filter else None
 
 
 def drive_episode(
@@ -360,7 +359,7 @@ def drive_episode(
     spec: ScenarioSpec = base.scenario
     if video_to is not None and env.render_mode != "rgb_array":
         raise ConfigError("video_to", f"needs an env rendering 'rgb_array' frames, got {env.render_mode!r}")
-    guard = filter_settings(filter, spec.run)
+    guard = filter_settings(filter, spec)
     if guard is not None:
         env = BrakingSafetyFilter(env, config=guard)
     with optional_video(video_to, fps=spec.episode.control_hz) as video:

@@ -49,7 +49,6 @@ from negobs_gym.eval.campaign import (
 from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
 from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
-from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.spec import apply_overrides, spec_for_env
 
 #: ``negobs eval policy``'s option that sets a field of the env's scenario, as the ``--set`` path
@@ -191,7 +190,8 @@ def run_episode(episode: Episode) -> Rows:
     overrides = [*source_overrides(a.get("source")), *a.get("overrides", ())]
     env = make_env(a["env_id"], overrides, render_mode=render_mode)
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
-    guard = SafetyFilterConfig(stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
+    own = env.unwrapped.scenario.filter  # the scene's [filter] settings, the campaign's switch on top
+    guard = dataclasses.replace(own, stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
     driver = ModelDriver(a["model_path"], a["algo"])
     stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
     with contextlib.closing(env):

@@ -81,8 +81,8 @@ def run_scenario(
         driver: A driver name (:data:`DRIVERS`), a :class:`~negobs_gym.drivers.Driver` (e.g. a
             trained model, :class:`~negobs_gym.drivers.model.ModelDriver`), or None for
             the spec's ``run.policy`` when it names one, else its ``run.driver``.
-        filter: True (the Eq. 18 defaults, stopping for positive obstacles when the spec's
-            ``run.stop_for_positive`` says so), a :class:`SafetyFilterConfig` (used as it is),
+        filter: True (the spec's ``[filter]`` settings: Eq. 18's defaults unless it sets them),
+            a :class:`SafetyFilterConfig` (used as it is),
             False, or None for the spec's ``run.filter``.
         seed: Episode seed (terrain draws, sensor noise, the driver's ``reset``).
         render_mode: Passed to the env (e.g. to keep frames for a failing test).

@@ -40,7 +40,7 @@ SOURCES: tuple[str, ...] = ("detector", "oracle", "pem", "state")
 #: whatever the scene's ``[run]`` table says. That table sets up ``negobs scenario run``'s test,
 #: which runs behind the filter by default; a policy trains without it unless its overrides say
 #: ``run.filter=true`` (``negobs train --filter``).
-TRAINING_DEFAULTS: tuple[str, ...] = ("run.filter=false", "run.stop_for_positive=false")
+TRAINING_DEFAULTS: tuple[str, ...] = ("run.filter=false", "filter.stop_for_positive=false")
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
 VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
@@ -275,7 +275,7 @@ class TrainConfig:
 
     The env is ``env``'s scenario spec with :data:`TRAINING_DEFAULTS`, then ``overrides``, applied:
     the one description of what trains, including the grid source (``observation.source``) and
-    the safety filter (``run.filter``, ``run.stop_for_positive``), which the run reads from it.
+    the safety filter (``run.filter``, ``filter.stop_for_positive``), which the run reads from it.
 
     Attributes:
         env: A registered negobs env id, a shipped scenario name or a scenario TOML path.
@@ -473,16 +473,19 @@ def legacy_settings(
     """``(overrides, grid_input)`` for the scenario settings a :class:`TrainConfig` and its
     ``train.json`` copied before they were read from the spec: ``source`` as
     :func:`source_settings`, ``filter`` as ``run.filter``, ``stop_for_positive`` as
-    ``run.stop_for_positive`` (None: not given).
+    ``filter.stop_for_positive`` (None: not given).
 
     Raises:
         ConfigError: a value of the wrong kind (the old field's name and its new path).
     """
     overrides, grid_input = source_settings(source) if source is not None else ((), True)
-    for name, value in (("filter", filter), ("stop_for_positive", stop_for_positive)):
+    for name, path, value in (
+        ("filter", "run.filter", filter),
+        ("stop_for_positive", "filter.stop_for_positive", stop_for_positive),
+    ):
         if value is not None:
-            require(isinstance(value, bool), name, f"(now run.{name}) must be a bool, got {value!r}")
-            overrides += (f"run.{name}={str(value).lower()}",)
+            require(isinstance(value, bool), name, f"(now {path}) must be a bool, got {value!r}")
+            overrides += (f"{path}={str(value).lower()}",)
     return overrides, grid_input
 
 

@@ -91,19 +91,20 @@ def training_spec(config: TrainConfig) -> ScenarioSpec:
 
 
 def run_filter(spec: ScenarioSpec) -> SafetyFilterConfig | None:
-    """The safety filter a training run's env and evaluation drive behind, as ``spec``'s ``run``
-    table says: None without ``run.filter``.
+    """The safety filter a training run's env and evaluation drive behind: ``spec``'s ``[filter]``
+    settings, None without ``run.filter``.
 
     Raises:
-        ConfigError: ``run.stop_for_positive`` without ``run.filter`` (it would do nothing).
+        ConfigError: ``filter.stop_for_positive`` without ``run.filter`` (it would do nothing).
     """
     if not spec.run.filter:
-        if spec.run.stop_for_positive:
+        if spec.filter.stop_for_positive:
             raise ConfigError(
-                "run.stop_for_positive", "needs the filter: set run.filter=true (negobs train --filter) too"
+                "filter.stop_for_positive",
+                "needs the filter: set run.filter=true (negobs train --filter) too",
             )
         return None
-    return SafetyFilterConfig(stop_for_positive=spec.run.stop_for_positive)
+    return spec.filter
 
 
 def make_training_env(env: str, overrides: Sequence[str] = (), grid_input: bool = True) -> gym.Env:

@@ -5,14 +5,14 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from dataclasses import dataclass, field
 from typing import Any, Literal, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
-from negobs_gym.errors import ActionError, ConfigError, InterfaceError, require
+from negobs_gym.errors import ActionError, ConfigError, InterfaceError
 from negobs_gym.safety.braking import BrakingConfig, braking_distance_m, max_safe_speed_mps
+from negobs_gym.safety.config import SafetyFilterConfig
 from negobs_gym.safety.corridor import Corridor
 from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_clear_distance
 from negobs_gym.safety.decision import SafetyDecision
@@ -20,100 +20,6 @@ from negobs_gym.safety.memory import HazardMemory
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
 
 logger = logging.getLogger(__name__)
-
-#: Filter modes: paper N's Eq. 18 veto braking fully (``brake``) or to the largest safe command
-#: (``cap_speed``), or Eq. 18 plus the speed governor (``governed``, docs/safety.md).
-FILTER_MODES = ("brake", "cap_speed", "governed")
-
-
-@dataclass(frozen=True, kw_only=True)
-class SafetyFilterConfig:
-    """Settings of :class:`BrakingSafetyFilter` (Eq. 18 constants plus the corridor margin, and
-    the speed governor's settings, read in ``mode="governed"`` only)."""
-
-    braking: BrakingConfig = field(default_factory=BrakingConfig)
-    margin_m: float = 0.4  # added to the vehicle width for the corridor (engineering choice) [m]
-    mode: Literal["brake", "cap_speed", "governed"] = "brake"  # FILTER_MODES; paper N: brake
-    # Oldest hazard data the filter acts on [s], beyond the age the env's frames reach between two
-    # of them (its max_perception_age_s, 0 when it scans every step); older or missing -> full
-    # brake. Not in paper N: two periods of its 10 Hz LiDAR / control loop, so one late frame
-    # (jitter) is tolerated and a second is not (at 25 km/h the car covers 1.4 m in 0.2 s that no
-    # scan has looked at).
-    perception_timeout_s: float = 0.2
-    # Hysteresis after a veto [m]: until an action passes again, it must keep this much more than
-    # R(v'). Not in paper N: without it a driver pushing against the filter creeps on at d ~ R(0) = B,
-    # stop and go every other step (seen in scenario runs), and never stands still before the hazard.
-    release_margin_m: float = 1.0
-    # Also stop for the grid's positive-obstacle cells (rocks, boxes, vehicles) with the same
-    # Eq. 18 test. Not in paper N, whose filter guards negative obstacles; off by default. Useful
-    # with the structure channel, which sees rocks and boxes 2-20 m ahead (docs/detector_structure.md).
-    stop_for_positive: bool = False
-    # -- the speed governor (mode "governed"; not in paper N: the assured-clear-distance rule) --
-    # Kept free beyond R(v') inside the observed clear distance [m]: room for the detector's
-    # confirmation frames (Eq. 16 needs a pit seen in several) before a hazard at the edge of
-    # the clear ground turns into a detected one.
-    governor_margin_m: float = 1.0
-    # Lowest speed limit the governor sets [m/s] while the car can still stop with its front
-    # bumper creep_clearance_m short of the clear distance's end: it creeps over a crest to look
-    # behind it, and stops at the edge of what it has seen (a pit's near rim hides the pit: its
-    # cells hold no returns).
-    creep_speed_mps: float = 1.5
-    # While creeping, the front bumper stops at least this short of the first unobserved or
-    # hazard cell [m]: creeping, the test is v'^2/(2 mu g) + v' T_r + (rear axle to bumper) +
-    # this <= clear - travelled, Eq. 18 with the buffer B shrunk to the car's own nose.
-    creep_clearance_m: float = 1.0
-    # Cells without a LiDAR return end the clear distance (behind a crest or bank, past the
-    # rings); False: only hazard cells and the grid's range do.
-    unobserved_blocks: bool = True
-    # Cells observed this long ago still count as observed, carried with the INS pose [s]: the
-    # rings sweep the ground as the car moves, and the rig's blind disc was seen a moment ago.
-    coverage_memory_s: float = 1.0
-    # Keep the negative-obstacle points read in the world frame of the INS pose until their cell
-    # is observed clear again (a return this frame, no hazard), any mode. Not in paper N, whose
-    # filter reads each frame alone: its detector can drop a pit whose rim enters the HDL-64's
-    # blind disc (docs/safety.md, "Hazard memory").
-    hazard_memory: bool = False
-
-    def __post_init__(self) -> None:
-        require(
-            isinstance(self.braking, BrakingConfig),
-            "braking",
-            f"must be a BrakingConfig, got {type(self.braking).__name__}",
-        )
-        require(
-            np.isfinite(self.perception_timeout_s) and self.perception_timeout_s > 0,
-            "perception_timeout_s",
-            f"must be finite and > 0, got {self.perception_timeout_s!r}",
-        )
-        require(
-            np.isfinite(self.release_margin_m) and self.release_margin_m >= 0,
-            "release_margin_m",
-            f"must be finite and >= 0, got {self.release_margin_m!r}",
-        )
-        require(
-            np.isfinite(self.margin_m) and self.margin_m >= 0,
-            "margin_m",
-            f"must be finite and >= 0, got {self.margin_m!r}",
-        )
-        require(self.mode in FILTER_MODES, "mode", f"must be one of {FILTER_MODES}, got {self.mode!r}")
-        for name in ("stop_for_positive", "unobserved_blocks", "hazard_memory"):
-            value = getattr(self, name)
-            require(isinstance(value, bool), name, f"must be a bool, got {value!r}")
-        for name in ("governor_margin_m", "creep_speed_mps", "creep_clearance_m", "coverage_memory_s"):
-            value = getattr(self, name)
-            require(
-                isinstance(value, (int, float)) and np.isfinite(value) and value >= 0,
-                name,
-                f"must be finite and >= 0, got {value!r}",
-            )
-
-
-def filter_config(setting: bool | SafetyFilterConfig) -> SafetyFilterConfig | None:
-    """The filter a run asks for: a :class:`SafetyFilterConfig` as it is, any true flag (``True``,
-    ``np.True_``, 1) the defaults, a false one None (no filter)."""
-    if isinstance(setting, SafetyFilterConfig):
-        return setting
-    return SafetyFilterConfig() if setting else None
 
 
 class BrakingSafetyFilter(gym.Wrapper):

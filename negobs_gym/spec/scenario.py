@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal, get_args
@@ -24,6 +25,7 @@ import tomllib
 
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError, require
+from negobs_gym.safety.config import SafetyFilterConfig
 from negobs_gym.sim.carving import NegativeObstacleSpec, PositiveObstacleSpec
 from negobs_gym.sim.presets import PRESETS
 from negobs_gym.sim.terrain import TerrainConfig, generate_terrain
@@ -59,9 +61,8 @@ TerminationRule = Literal[
 ]
 #: Names a spec's ``terminations`` may list (see :mod:`negobs_gym.envs.hooks`).
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
-DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner"]
+DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner", "creeping"]
 PolicyAlgo = Literal["PPO", "SAC"]  # negobs_gym.policies.config.ALGORITHMS
-FilterMode = Literal["brake", "cap_speed", "governed"]  # negobs_gym.safety.FILTER_MODES
 
 
 def _finite(value: object) -> bool:
@@ -313,12 +314,7 @@ class RunSpec:
     # shipped policy's name (`negobs policy list`); empty: the scripted driver
     policy: str = ""
     policy_algo: PolicyAlgo = "PPO"  # the algorithm that saved `policy`
-    filter: bool = True
-    # the filter also stops for the grid's positive-obstacle cells (SafetyFilterConfig.stop_for_positive)
-    stop_for_positive: bool = False
-    # SafetyFilterConfig.mode: paper N's Eq. 18 veto ("brake", "cap_speed") or Eq. 18 plus the
-    # speed governor over the observed clear distance ("governed", docs/safety.md)
-    filter_mode: FilterMode = "brake"
+    filter: bool = True  # the safety filter guards the run, as the spec's [filter] table sets it
     target_speed_mps: float = 25.0 / 3.6  # paper N §4: 25 km/h
     lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
 
@@ -411,6 +407,9 @@ class ScenarioSpec:
     physics: EnvPhysicsConfig = field(default_factory=EnvPhysicsConfig)
     render: RenderConfig = field(default_factory=RenderConfig)
     run: RunSpec = field(default_factory=RunSpec)
+    # how the safety filter decides when run.filter (or a command) puts it in: Eq. 18's mode, the
+    # governor and hazard memory (docs/safety.md)
+    filter: SafetyFilterConfig = field(default_factory=SafetyFilterConfig)
     criteria: CriteriaSpec = field(default_factory=CriteriaSpec)
 
     def __post_init__(self) -> None:
@@ -429,8 +428,11 @@ class ScenarioSpec:
     # -- plain data ----------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> ScenarioSpec:
-        """Build and validate from plain data; a bad or unknown field raises ConfigError naming it."""
-        return from_plain(cls, data)
+        """Build and validate from plain data; a bad or unknown field raises ConfigError naming it.
+
+        ``run.filter_mode`` and ``run.stop_for_positive`` are read as ``filter.mode`` and
+        ``filter.stop_for_positive`` for one release, with a DeprecationWarning."""
+        return from_plain(cls, _moved_filter_keys(data))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data that :meth:`from_dict` turns back into an equal spec (TOML-ready)."""
@@ -466,6 +468,32 @@ class ScenarioSpec:
             name = exc.field.replace("negative_obstacles", "obstacles", 1)
             name = name if name.startswith(("obstacles", "positive_obstacles")) else f"terrain.course.{name}"
             raise ConfigError(name, str(exc)[len(exc.field) + 2 :]) from None
+
+
+#: Keys of ``[run]`` that moved into ``[filter]`` (old name -> new name), read for one release.
+MOVED_RUN_KEYS: Mapping[str, str] = {"filter_mode": "mode", "stop_for_positive": "stop_for_positive"}
+
+
+def _moved_filter_keys(data: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``data`` with the old ``run`` keys of the filter moved to ``filter`` (warns once per key)."""
+    run = data.get("run")
+    if not isinstance(run, Mapping) or not set(run) & set(MOVED_RUN_KEYS):
+        return data
+    data, run = dict(data), dict(run)
+    filter_table = data.get("filter", {})
+    filter_table = dict(filter_table) if isinstance(filter_table, Mapping) else filter_table
+    for old, new in MOVED_RUN_KEYS.items():
+        if old in run:
+            warnings.warn(
+                f"run.{old} is now filter.{new} (the [filter] table); the old key goes in the next release",
+                DeprecationWarning,
+                stacklevel=4,
+            )
+            if isinstance(filter_table, dict):
+                filter_table[new] = run[old]
+            del run[old]
+    data["run"], data["filter"] = run, filter_table
+    return data
 
 
 def spec_from_toml(text: str) -> ScenarioSpec:

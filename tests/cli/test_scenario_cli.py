@@ -209,13 +209,13 @@ def test_run_each_paper_scene_prints_a_line_per_seed(scene, capsys):
 # tests/safety/test_filter.py::test_positive_obstacles_are_ignored_unless_stop_for_positive
 @pytest.mark.slow
 def test_run_stop_for_positive_turns_the_filter_to_the_rock(tmp_path, capsys) -> None:
-    """The rock scene with its run.stop_for_positive off hits the rock; the flag turns it on."""
+    """The rock scene with its filter.stop_for_positive off hits the rock; the flag turns it on."""
     import dataclasses
 
     from negobs_gym.spec import spec_to_toml
 
     spec = load_scenario("rock_on_track_25kmh")
-    paper = dataclasses.replace(spec, run=dataclasses.replace(spec.run, stop_for_positive=False))
+    paper = dataclasses.replace(spec, filter=dataclasses.replace(spec.filter, stop_for_positive=False))
     path = tmp_path / "rock.toml"
     path.write_text(spec_to_toml(paper))
     assert main(["scenario", "run", str(path), "--stop-for-positive", "--draw", str(tmp_path / "drawn")]) == 0

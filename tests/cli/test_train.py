@@ -136,7 +136,7 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert main(["train", "--env", ENV, "--algo", "sac", "--critic-warmup-steps", "10"]) == 2
     assert "critic_warmup_steps" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--stop-for-positive"]) == 2  # without --filter
-    assert "run.stop_for_positive: needs the filter" in capsys.readouterr().err
+    assert "filter.stop_for_positive: needs the filter" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2
@@ -271,7 +271,7 @@ def test_each_option_is_one_row_and_the_scenario_ones_are_set_assignments(capsys
     spelt = [
         "observation.source=oracle",
         "run.filter=true",
-        "run.stop_for_positive=true",
+        "filter.stop_for_positive=true",
         "episode.time_limit_s=3",
     ]
     assert short.overrides == tuple(spelt)

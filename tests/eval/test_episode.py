@@ -80,16 +80,19 @@ def test_a_driver_source_is_built_on_the_course_the_reset_drew() -> None:
 
 
 def test_the_filter_follows_the_spec_unless_given() -> None:
-    rock = load_scenario("rock_on_track_25kmh").run
-    assert rock.filter and rock.stop_for_positive
+    rock = load_scenario("rock_on_track_25kmh")
+    assert rock.run.filter and rock.filter.stop_for_positive
     assert filter_settings(None, rock) == SafetyFilterConfig(stop_for_positive=True)
-    assert filter_settings(True, load_scenario("braking_v0").run) == SafetyFilterConfig()
+    assert filter_settings(True, load_scenario("braking_v0")) == SafetyFilterConfig()
     assert filter_settings(False, rock) is None
     own = SafetyFilterConfig(margin_m=0.5)
     assert filter_settings(own, rock) is own
-    crest = load_scenario("pit_past_a_crest_25kmh").run  # a scene that names the filter's mode
-    assert crest.filter_mode == "governed" and filter_settings(True, crest).mode == "governed"
-    assert filter_settings(True, dataclasses.replace(crest, filter_mode="cap_speed")).mode == "cap_speed"
+    crest = load_scenario("pit_past_a_crest_25kmh")  # a scene that names the filter's mode
+    assert crest.filter.mode == "governed" and filter_settings(True, crest).mode == "governed"
+    capped = dataclasses.replace(crest, filter=dataclasses.replace(crest.filter, mode="cap_speed"))
+    assert filter_settings(True, capped).mode == "cap_speed"
+    no_run = dataclasses.replace(crest, run=dataclasses.replace(crest.run, filter=False))
+    assert filter_settings(None, no_run) is None
 
 
 def test_a_video_needs_rgb_frames() -> None:

@@ -243,7 +243,7 @@ def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> No
     with pytest.raises(ConfigError, match=r"run\.filter"):  # a bad value named by its path
         filter_setting(config)
     config = TrainConfig(
-        env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=true", "run.stop_for_positive=true")
+        env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=true", "filter.stop_for_positive=true")
     )
     assert filter_setting(config) == SafetyFilterConfig(stop_for_positive=True)
     env = make_training_env(config.env, config.overrides)
@@ -259,8 +259,8 @@ def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> No
     # the rock scene's run table stops for positive obstacles: only with the filter asked for
     rock = TrainConfig(env="rock_on_track_25kmh", overrides=("run.filter=true",))
     assert filter_setting(rock) == SafetyFilterConfig(stop_for_positive=False)
-    with pytest.raises(ConfigError, match=r"run\.stop_for_positive: needs the filter"):
-        run_filter(training_spec(TrainConfig(overrides=("run.stop_for_positive=true",))))
+    with pytest.raises(ConfigError, match=r"filter\.stop_for_positive: needs the filter"):
+        run_filter(training_spec(TrainConfig(overrides=("filter.stop_for_positive=true",))))
 
 
 def test_env_names_resolve_or_are_rejected(tmp_path: Path) -> None:
@@ -333,7 +333,7 @@ def test_old_records_translate_to_overrides() -> None:
     assert config.overrides == (
         "observation.source=detector",
         "run.filter=true",
-        "run.stop_for_positive=true",
+        "filter.stop_for_positive=true",
     )
     assert config.grid_input and config.warm_start == WarmStartConfig(steps=40, mirror=True)
     assert config.extractor.conv_channels == (8, 8, 8) and config.head.bin_edges == (0.0,)
@@ -357,7 +357,7 @@ def test_the_copied_fields_still_construct_for_one_release_with_a_warning() -> N
     with pytest.warns(DeprecationWarning, match="overrides=.*observation.source=oracle"):
         old = TrainConfig(source="state", filter=True, stop_for_positive=True)
     assert old == TrainConfig(
-        overrides=("observation.source=oracle", "run.filter=true", "run.stop_for_positive=true"),
+        overrides=("observation.source=oracle", "run.filter=true", "filter.stop_for_positive=true"),
         grid_input=False,
     )
     with pytest.raises(ConfigError, match="source"):

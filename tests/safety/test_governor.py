@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import get_args
 
 import numpy as np
 import pytest
@@ -14,15 +13,14 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError
 from negobs_gym.safety import (
-    FILTER_MODES,
+    BrakingConfig,
     BrakingSafetyFilter,
     HazardState,
     SafetyFilterConfig,
     braking_distance_m,
     observed_clear_distance,
 )
-from negobs_gym.spec import apply_overrides, load_scenario
-from negobs_gym.spec.scenario import FilterMode
+from negobs_gym.spec import apply_overrides, load_scenario, spec_from_toml, spec_to_toml
 from tests.safety.standins import DT_S, MAX_ACCEL, MAX_BRAKE, FixedHazardEnv
 
 GRID = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)
@@ -218,9 +216,21 @@ def test_a_hidden_pit_stops_the_governed_car_only(config, enters):
         assert car.v == 0.0 and car.PIT_Y_M - car.y > 3.65
 
 
-def test_a_scenario_names_the_filter_mode():
-    assert get_args(FilterMode) == FILTER_MODES
-    spec = apply_overrides(load_scenario("pit_past_a_crest_25kmh"), ["run.filter_mode=brake"])
-    assert spec.run.filter_mode == "brake"
-    with pytest.raises(ConfigError, match=r"run\.filter_mode"):
-        apply_overrides(spec, ["run.filter_mode=fast"])
+def test_a_scenario_holds_the_filter_settings():
+    spec = apply_overrides(load_scenario("pit_past_a_crest_25kmh"), ["filter.mode=brake"])
+    assert spec.filter.mode == "brake"
+    with pytest.raises(ConfigError, match=r"filter\.mode"):
+        apply_overrides(spec, ["filter.mode=fast"])
+    with pytest.raises(ConfigError, match=r"filter\.creep_speed_mps"):
+        apply_overrides(spec, ["filter.creep_speed_mps=-1"])
+    toml = 'name = "m"\n[terrain]\npreset = "braking_track"\n[filter]\nhazard_memory = true\n'
+    toml += "governor_margin_m = 2.0\n[filter.braking]\nbuffer_m = 6.0\n"
+    spec = spec_from_toml(toml)
+    assert spec.filter == SafetyFilterConfig(
+        hazard_memory=True, governor_margin_m=2.0, braking=BrakingConfig(buffer_m=6.0)
+    )
+    assert spec_from_toml(spec_to_toml(spec)) == spec
+    # the keys [run] held before, for one release
+    with pytest.warns(DeprecationWarning, match=r"run\.filter_mode is now filter\.mode"):
+        old = apply_overrides(load_scenario("braking_v0"), ["run.filter_mode=governed"])
+    assert old.filter.mode == "governed"
