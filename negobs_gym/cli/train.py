@@ -18,6 +18,7 @@ import logging
 from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from negobs_gym.cli.common import add_set_option, non_negative_int, positive_int
@@ -30,6 +31,7 @@ from negobs_gym.policies.config import (
     TrainConfig,
     source_settings,
 )
+from negobs_gym.policies.recipes import Recipe, load_recipe
 
 log = logging.getLogger("negobs_gym.cli.train")
 
@@ -304,8 +306,38 @@ def _argparse_kwargs(option: Option) -> dict[str, Any]:
     return {"help": shown, "default": default, **kwargs}
 
 
+#: The namespace attribute holding the ``dest`` of each option the command line gave (with a
+#: recipe only those replace the recipe's settings).
+GIVEN = "given_options"
+
+
+def _marking(action: type[argparse.Action]) -> type[argparse.Action]:
+    """``action`` that also notes its ``dest`` in the namespace's :data:`GIVEN` set when used."""
+
+    class Marking(action):  # type: ignore[misc, valid-type]
+        def __call__(self, parser, namespace, values, option_string=None) -> None:  # type: ignore[no-untyped-def]
+            super().__call__(parser, namespace, values, option_string)
+            given = set(getattr(namespace, GIVEN, None) or ())
+            setattr(namespace, GIVEN, given | {self.dest})
+
+    return Marking
+
+
+_ACTIONS: dict[str | None, type[argparse.Action]] = {
+    None: _marking(argparse._StoreAction),
+    "store_true": _marking(argparse._StoreTrueAction),
+    "store_false": _marking(argparse._StoreFalseAction),
+}
+
+
+def _marked(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """argparse keyword arguments whose action notes that the option was given (:data:`GIVEN`)."""
+    return {**kwargs, "action": _ACTIONS[kwargs.get("action")]}
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``train``: one argument per row of :data:`OPTIONS`, then ``--out``, ``--resume``, ``--set``."""
+    """Add ``train``: ``--recipe``, one argument per row of :data:`OPTIONS`, then ``--ray``,
+    ``--out``, ``--resume``, ``--set``."""
     parser = subparsers.add_parser(
         "train",
         help="train a policy (PPO/SAC, grid CNN) with logs, evaluation on unseen seeds, checkpoints",
@@ -314,12 +346,35 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "below). Writes model.zip, checkpoints/, eval.csv, logs/ (SB3 CSV, TensorBoard when "
         "installed), scenario.toml and train.json under --out. The model loads in 'negobs eval policy'.",
     )
+    parser.add_argument(
+        "--recipe",
+        metavar="NAME",
+        help="train as a recipe file says (a shipped recipe's name, e.g. a shipped policy's, or a "
+        "TOML path; docs/training.md, 'Recipes'); the options given beside it replace its settings, "
+        "and --set adds to its overrides",
+    )
     groups: dict[str | None, Any] = {None: parser}
     for option in OPTIONS:
         if option.group not in groups:
             groups[option.group] = parser.add_argument_group(option.group)
-        groups[option.group].add_argument(option.flag, dest=option.dest, **_argparse_kwargs(option))
-    parser.add_argument("--out", default="outputs/train", help="output directory (default: %(default)s)")
+        kwargs = _marked(_argparse_kwargs(option))
+        groups[option.group].add_argument(option.flag, dest=option.dest, **kwargs)
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        action=_ACTIONS[None],
+        help="the envs as Ray actors (pip install 'negobs_gym[ray]'), the same rollouts as local "
+        "processes; no ADDRESS starts a local instance (= --vec-env ray)",
+    )
+    parser.add_argument(
+        "--out",
+        default="outputs/train",
+        action=_ACTIONS[None],
+        help="output directory (default: %(default)s; with --recipe NAME: outputs/NAME)",
+    )
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint in --out")
     add_set_option(parser)
     parser.set_defaults(handler=run_train)
@@ -348,15 +403,17 @@ def _toml(value: Any) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
-def _derived(settings: dict[str, Any]) -> dict[str, Any]:
+def _derived(settings: dict[str, Any], base: TrainConfig) -> dict[str, Any]:
     """The two settings one option gives another's meaning: ``--steering-bins`` alone give
-    their number of candidates, and ``--action-std`` with ``--init`` sets the init model's std."""
+    their number of candidates, and ``--action-std`` with ``--init`` (or a recipe's init model)
+    sets the init model's std."""
     edges = settings.get("head.bin_edges", ())
-    if edges and settings.get("head.modes", 1) == 1:
+    if edges and settings.get("head.modes", base.head.modes) == 1:
         settings["head.modes"] = len(edges) + 1
     action_std = settings.pop("warm_start.action_std", None)
     if action_std is not None:
-        settings["init_action_std" if settings.get("init_model") else "warm_start.action_std"] = action_std
+        init = settings.get("init_model", base.init_model)
+        settings["init_action_std" if init else "warm_start.action_std"] = action_std
     return settings
 
 
@@ -377,13 +434,48 @@ def with_settings(config: Any, settings: Mapping[str, Any]) -> Any:
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The :class:`TrainConfig` of the parsed command line.
+    """The :class:`TrainConfig` of the parsed command line: with ``--recipe``, the recipe's
+    config with the options given beside it changed and the command's ``--set`` assignments
+    (its short names' first) after the recipe's overrides; else TrainConfig's defaults with
+    every option's value.
 
     Raises:
-        ConfigError: a value the configs refuse (its field).
+        ConfigError: a value the configs refuse (its field), or a bad recipe (its path in the file).
     """
     settings, overrides = _settings(args)
-    return with_settings(TrainConfig(), {**_derived(settings), "overrides": tuple(overrides)})
+    base = TrainConfig()
+    recipe = _recipe(args)
+    if recipe is not None:
+        base = recipe.train
+        given = getattr(args, GIVEN, None) or set()
+        targets = {o.target for o in OPTIONS if o.dest in given}
+        settings = {k: v for k, v in settings.items() if k in targets or _given_by_means(k, given)}
+        overrides = [*base.overrides, *overrides]
+    if getattr(args, "ray", None) is not None:
+        settings.update({"vec_env": "ray", "ray_address": "" if args.ray == "local" else args.ray})
+    return with_settings(base, {**_derived(settings, base), "overrides": tuple(overrides)})
+
+
+def _given_by_means(target: str, given: set[str]) -> bool:
+    """Whether ``target`` is set by a given option's meaning (``--source state``: grid_input)."""
+    return any(
+        option.dest in given and any(t == target for m in option.means.values() for t, _ in m)
+        for option in OPTIONS
+    )
+
+
+def _recipe(args: argparse.Namespace) -> Recipe | None:
+    """The parsed command's ``--recipe``, loaded (None without one)."""
+    name = getattr(args, "recipe", None)
+    return load_recipe(name) if name else None
+
+
+def out_dir(args: argparse.Namespace) -> str:
+    """The run's folder: ``--out``, or with a recipe and no ``--out``, ``outputs/<recipe name>``."""
+    recipe = _recipe(args)
+    if recipe is not None and "out" not in (getattr(args, GIVEN, None) or set()):
+        return f"outputs/{recipe.name}"
+    return str(args.out)
 
 
 def run_train(args: argparse.Namespace) -> int:
@@ -392,16 +484,18 @@ def run_train(args: argparse.Namespace) -> int:
     from negobs_gym.spec import describe_overrides
 
     config = config_from_args(args)
+    out = out_dir(args)
     log.info(
-        "training %s on %s%s, %d steps, %d env(s) -> %s",
+        "training %s on %s%s, %d steps, %d env(s)%s -> %s",
         config.algo,
         describe_overrides(config.env, config.overrides),
         "" if config.grid_input else " (state only)",
         config.steps,
         config.envs,
-        args.out,
+        " on Ray" if config.vec_env == "ray" else "",
+        out,
     )
-    result = train(config, args.out, resume=args.resume)
+    result = train(config, out, resume=args.resume)
     e = result.last_eval
     print(
         f"model={result.model_path} steps={result.steps} wall_s={result.wall_s:.1f} "
@@ -410,4 +504,7 @@ def run_train(args: argparse.Namespace) -> int:
         f"eval_off_track={int(e['off_track'])} "
         f"eval_mean_progress_m={e['mean_progress_m']:.2f} eval_vetoes={int(e['vetoes'])}"
     )
+    recipe = _recipe(args)
+    if recipe is not None:
+        print(f"policy={Path(out) / recipe.policy_file} judge: {recipe.eval_command(out)}")
     return 0

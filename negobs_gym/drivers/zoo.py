@@ -1,14 +1,17 @@
 """Trained policies shipped with the package (``negobs_gym/drivers/trained/NAME.zip``).
 
 Each ``NAME.zip`` is a stable-baselines3 model saved by ``negobs train``; ``NAME.json`` beside it
-records the exact command, seed, steps, wall time and the evaluation that was measured on it
+records the exact command, seed, steps, wall time, the code and grid it was fitted on, the config
+its recipe recreates it with (``negobs train --recipe NAME``) and the evaluations measured on it
 (docs/training.md). ``negobs eval policy NAME`` and :func:`resolve_model` accept a baseline's
-name wherever a model path is asked for.
+name wherever a model path is asked for. A name starts with what trained it: ``bc_`` a
+behaviour clone with no RL step, ``ppo_`` PPO.
 """
 
 from __future__ import annotations
 
 import json
+import warnings
 import zipfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -20,17 +23,62 @@ from negobs_gym.spec import recorded_env_in
 __all__ = [
     "BASELINE_DIR",
     "FITTED_ON",
+    "RENAMED",
+    "RETIRED",
     "baseline_names",
     "baseline_record",
     "fitted_on_record",
     "recorded_env",
     "resolve_model",
+    "shipped_name",
 ]
 
 BASELINE_DIR = Path(__file__).with_name("trained")
 #: The model attribute ``negobs train`` sets before every save: stable-baselines3 writes a model's
 #: JSON-able attributes into the zip's ``data`` member, so the record travels with the file.
 FITTED_ON = "negobs_fitted_on"
+
+
+#: Shipped policies renamed, old name -> new: the old one still works, with a FutureWarning, for
+#: one release.
+RENAMED: dict[str, str] = {"ppo_offroad_nav_v2_detector_clone_lux_bumper": "bc_offroad_nav_v2_detector"}
+#: Policies no longer shipped -> what to use instead. Their records and figures are in
+#: docs/notebook/training.md; each is a behaviour clone whose recipe was superseded.
+RETIRED: dict[str, str] = {
+    name: f"its recipe on today's default grid is bc_offroad_nav_v2_detector; {what}"
+    for name, what in {
+        "ppo_offroad_nav_v2_clone": "it was cloned on the oracle grid",
+        "ppo_offroad_nav_v2_clone_160k": "it was cloned on the oracle grid",
+        "ppo_offroad_nav_v2_detector_clone": "it was cloned on an older detector grid (paper N's "
+        "fusion history, LUX 2.0 m ahead of the axle)",
+        "ppo_offroad_nav_v2_detector_clone_tight": "it was cloned with the LUX 2.0 m ahead of the axle",
+        "ppo_offroad_nav_v2_structure_clone": "it was cloned on offroad_nav_v2_structure's grid",
+        "ppo_offroad_nav_v2_structure_clone_tight": "it was cloned on offroad_nav_v2_structure's grid",
+    }.items()
+}
+
+
+def shipped_name(name: str, field: str = "model_path") -> str:
+    """The current name of a shipped policy named ``name``: itself, or the new name of a
+    renamed one (with a FutureWarning).
+
+    Raises:
+        ConfigError: ``name`` was retired (named after ``field``; the message says what instead).
+    """
+    if name in RETIRED:
+        raise ConfigError(
+            field,
+            f"the shipped policy {name!r} was retired ({RETIRED[name]}; its record: "
+            f"docs/notebook/training.md); shipped: {baseline_names()}",
+        )
+    if name in RENAMED:
+        warnings.warn(
+            f"the shipped policy {name!r} is now {RENAMED[name]!r}; the old name goes in the next release",
+            FutureWarning,
+            stacklevel=3,
+        )
+        return RENAMED[name]
+    return name
 
 
 def baseline_names() -> list[str]:
@@ -44,7 +92,7 @@ def baseline_record(name: str) -> dict[str, Any]:
     Raises:
         ConfigError: no baseline of that name (field ``model_path``).
     """
-    path = BASELINE_DIR / f"{name}.json"
+    path = BASELINE_DIR / f"{shipped_name(name)}.json"
     if not path.exists():
         raise ConfigError("model_path", f"no shipped baseline {name!r}; shipped: {baseline_names()}")
     return json.loads(path.read_text(encoding="utf-8"))
@@ -59,7 +107,7 @@ def resolve_model(model: str, field: str = "model_path") -> str:
     """
     if Path(model).exists() or Path(f"{model}.zip").exists():
         return model
-    shipped = BASELINE_DIR / f"{model}.zip"
+    shipped = BASELINE_DIR / f"{shipped_name(model, field)}.zip"
     if shipped.exists():
         return str(shipped)
     raise ConfigError(
@@ -77,10 +125,15 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     (``model.zip``, ``warm_start.zip``, ``checkpoints/model_N.zip``; a ``--set`` run's
     ``OUT/scenario.toml``, found beside it). None when there is no record, so evaluating on
     another grid than the one trained on is never silent.
+
+    Raises:
+        ConfigError: ``model`` names a retired shipped policy (:data:`RETIRED`).
     """
     path = Path(model) if Path(model).exists() else Path(f"{model}.zip")
     if not path.exists():
-        if not (BASELINE_DIR / f"{model}.zip").exists():
+        if model in RETIRED:
+            shipped_name(model)  # raises, naming what to use instead
+        if not (BASELINE_DIR / f"{RENAMED.get(model, model)}.zip").exists():
             return None
         return _baseline_env(model)
     inside = _zip_record(path)

@@ -42,7 +42,7 @@ SOURCES: tuple[str, ...] = ("detector", "oracle", "pem", "state")
 #: ``run.filter=true`` (``negobs train --filter``).
 TRAINING_DEFAULTS: tuple[str, ...] = ("run.filter=false", "filter.stop_for_positive=false")
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
-VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch")
+VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch", "ray")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
 DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner")
 #: Column of the steering command in an env action (throttle/brake, steering).
@@ -295,7 +295,13 @@ class TrainConfig:
             inside the lockstep while the other envs wait; the same episodes as ``build_ahead``)
             or ``"prefetch"`` (:class:`~negobs_gym.envs.vector.PrefetchVecEnv`: a spare process
             per env resets the next episode beforehand; twice the processes and memory; another
-            episode stream from the same seed). Rates: docs/notebook/performance.md, "Vector envs".
+            episode stream from the same seed) or ``"ray"``
+            (:class:`~negobs_gym.policies.ray_envs.RayVecEnv`: each env a Ray actor, on a cluster
+            or a local instance, also for ``envs`` = 1; the same episodes as ``subproc``). Rates:
+            docs/notebook/performance.md, "Vector envs".
+        ray_address: With ``vec_env="ray"``: the Ray cluster to join (``"auto"``,
+            ``"ray://host:10001"``); ``""`` starts a local instance (or joins the one this
+            process already runs).
         seed: Seed of the algorithm and of the envs' first resets (env ``i`` gets ``seed + i``).
         eval_every: Env steps between evaluations (0: only at the end).
         eval_episodes: Episodes per evaluation, on seeds ``eval_seed + k``.
@@ -342,6 +348,7 @@ class TrainConfig:
     steps: int = 100_000
     envs: int = 1
     vec_env: str = "build_ahead"
+    ray_address: str = ""
     seed: int = 0
     eval_every: int = 10_000
     eval_episodes: int = 5
@@ -390,6 +397,12 @@ class TrainConfig:
             f"must be a tuple of KEY.PATH=VALUE texts (the --set paths), got {self.overrides!r}",
         )
         require(isinstance(self.grid_input, bool), "grid_input", f"must be a bool, got {self.grid_input!r}")
+        require(isinstance(self.ray_address, str), "ray_address", f"must be a text, got {self.ray_address!r}")
+        require(
+            not self.ray_address or self.vec_env == "ray",
+            "ray_address",
+            f"is where the Ray actors run: needs vec_env='ray', got {self.vec_env!r}",
+        )
         require(self.algo in ALGORITHMS, "algo", f"unknown algorithm {self.algo!r}; one of {ALGORITHMS}")
         require(
             self.vec_env in VEC_ENVS, "vec_env", f"unknown vector env {self.vec_env!r}; one of {VEC_ENVS}"
@@ -506,9 +519,10 @@ def config_from_record(record: Mapping[str, Any]) -> TrainConfig:
     return _from_dict(TrainConfig, data, "config")
 
 
-def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
-    """``cls`` (a config dataclass) from its :func:`dataclasses.asdict` form read back from JSON:
-    nested configs from their tables, lists as tuples."""
+def _from_dict(cls: type, data: Mapping[str, Any], where: str, name_errors: bool = False) -> Any:
+    """``cls`` (a config dataclass) from its :func:`dataclasses.asdict` form read back from JSON
+    or TOML: nested configs from their tables, lists as tuples. With ``name_errors`` a value the
+    config refuses is named by its full path (``train.warm_start.steps``, not ``steps``)."""
     defaults = cls()
     names = [f.name for f in dataclasses.fields(cls)]
     unknown = sorted(set(data) - set(names))
@@ -518,8 +532,15 @@ def _from_dict(cls: type, data: Mapping[str, Any], where: str) -> Any:
     for name, value in data.items():
         default = getattr(defaults, name)
         if dataclasses.is_dataclass(default) and isinstance(value, Mapping):
-            value = _from_dict(type(default), value, f"{where}.{name}")
+            value = _from_dict(type(default), value, f"{where}.{name}", name_errors)
         elif isinstance(default, tuple) and isinstance(value, list):
             value = tuple(value)
         values[name] = value
-    return cls(**values)
+    if not name_errors:
+        return cls(**values)
+    try:
+        return cls(**values)
+    except ConfigError as error:
+        if error.field.startswith(f"{where}."):  # a nested table's, already named in full
+            raise
+        raise ConfigError(f"{where}.{error.field}", error.message) from None

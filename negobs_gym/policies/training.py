@@ -158,8 +158,12 @@ def _vec_env(config: TrainConfig):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     thunk = _env_factory(config)
-    if config.envs == 1:
-        vec_cls: Any = DummyVecEnv
+    if config.vec_env == "ray":
+        from negobs_gym.policies.ray_envs import RayVecEnv
+
+        vec_cls: Any = functools.partial(RayVecEnv, address=config.ray_address)
+    elif config.envs == 1:
+        vec_cls = DummyVecEnv
     elif config.vec_env == "prefetch":
         from negobs_gym.envs.vector import PrefetchVecEnv
 

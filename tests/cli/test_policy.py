@@ -7,26 +7,41 @@ from negobs_gym.drivers.zoo import baseline_names, baseline_record
 from negobs_gym.eval.stats import format_interval, rate_interval
 
 
-def test_list_gives_each_shipped_policy_its_env_settings_and_recorded_result(capsys) -> None:
+def test_list_gives_each_shipped_policy_its_settings_recipe_and_default_grid_figures(capsys) -> None:
     assert main(["policy", "list"]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    out = capsys.readouterr().out
+    heads = [line for line in out.splitlines() if not line.startswith(" ")]
     names = baseline_names()
-    assert len(names) >= 8 and [line.split()[0] for line in lines] == names
-    for name, line in zip(names, lines, strict=True):
+    assert [line.split()[0] for line in heads] == names
+    for name, head in zip(names, heads, strict=True):
         record = baseline_record(name)
-        env = line.split()[1]
+        env = head.split()[1]
         assert env.startswith(record["env"])
         assert all(setting in env for setting in record.get("set", ()))  # what eval policy applies
-        result = record["evaluation"]["nofilter"]
-        interval = format_interval(rate_interval(result["goal"], result["episodes"]))
-        assert f"goal {result['goal']}/{result['episodes']} ({interval})," in line
-    detector = next(line for line in lines if line.startswith("ppo_offroad_nav_v2_detector_clone "))
-    assert "observation.lux_forward_m=2.0" in detector and "cloned, no RL step" in detector
-    assert "PPO 100,000 steps" in next(line for line in lines if line.startswith("ppo_offroad_nav_v1 "))
-    # 45 and 53 goals of 100 for the two oracle-grid clones: intervals that overlap
-    assert "goal 53/100 (0.43-0.62)" in next(
-        line for line in lines if line.startswith("ppo_offroad_nav_v2_clone_160k ")
-    )
+        assert head.endswith(f"recipe: negobs train --recipe {name}")
+        figures = record["evaluation"]["default_grid"]
+        block = out.split(head + "\n", 1)[1].split("\n")[:3]
+        assert block[0].startswith(f"  default grid, seeds {figures['seeds']}: ")
+        for key, label in (("nofilter", "no filter"), ("filter", "behind the filter")):
+            result = figures[key]
+            interval = format_interval(rate_interval(result["goal"], result["episodes"]))
+            assert f"{label}: goal {result['goal']}/{result['episodes']} ({interval})," in block[0]
+        assert block[1] == f"    grid: {figures['grid']}" and block[2] == f"    command: {figures['command']}"
+    clone = next(line for line in heads if line.startswith("bc_offroad_nav_v2_detector "))
+    assert "observation.lux_forward_m=3.7" in clone and "cloned, no RL step" in clone
+    assert "PPO 100,000 steps" in next(line for line in heads if line.startswith("ppo_offroad_nav_v1 "))
+    # 11 and 12 goals of 20 for the fine-tuned v1 policy: intervals that overlap
+    assert "no filter: goal 11/20 (0.34-0.74), entries 0, collisions 0; behind the filter: goal 12/20" in out
+
+
+def test_a_figure_the_record_lacks_is_a_dash() -> None:
+    from negobs_gym.cli.policy import figures_lines
+
+    assert figures_lines({}) == ["  default grid: not measured"]
+    record = {"evaluation": {"default_grid": {"seeds": "1-2", "nofilter": {"episodes": 2, "goal": 1}}}}
+    line, grid, command = figures_lines(record)
+    assert line.startswith("  default grid, seeds 1-2: no filter: goal 1/2 (")
+    assert line.endswith("entries -, collisions -") and grid == "    grid: -" and command == "    command: -"
 
 
 def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(capsys) -> None:
@@ -35,6 +50,8 @@ def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(cap
     assert main(["policy", "show", "ppo_nothing"]) == 2
     err = capsys.readouterr().err
     assert "no shipped baseline 'ppo_nothing'" in err and "ppo_offroad_nav_v1" in err
+    assert main(["policy", "show", "ppo_offroad_nav_v2_clone"]) == 2  # retired: what instead
+    assert "'ppo_offroad_nav_v2_clone' was retired" in capsys.readouterr().err
 
 
 def test_show_prints_a_model_files_own_record(tmp_path, capsys) -> None:
