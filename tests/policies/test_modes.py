@@ -146,6 +146,6 @@ def test_bad_heads_are_refused() -> None:
     with pytest.raises(ConfigError, match="PPO only"):
         TrainConfig(algo="SAC", head=SteeringHeadConfig(modes=2))
     with pytest.raises(ConfigError, match="init_model"):
-        TrainConfig(init_model="ppo_offroad_nav_v2_clone", head=SteeringHeadConfig(modes=2))
+        TrainConfig(init_model="bc_offroad_nav_v2_detector", head=SteeringHeadConfig(modes=2))
     with pytest.raises(ConfigError, match="modes >= 2"):
         SteeringModesPolicy(None, None, None, head=SteeringHeadConfig(modes=1))
