@@ -9,6 +9,7 @@ course's ground truth (an expert for demonstrations, not a sensor-driven baselin
 from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.by_name import DRIVER_NAMES, make_driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
+from negobs_gym.drivers.creeping import CreepingConfig, CreepingDriver
 from negobs_gym.drivers.model import ModelDriver, PolicyDriver, match_observation
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
@@ -18,6 +19,8 @@ __all__ = [
     "DRIVER_NAMES",
     "ConstantSpeedConfig",
     "ConstantSpeedDriver",
+    "CreepingConfig",
+    "CreepingDriver",
     "Driver",
     "ModelDriver",
     "PolicyDriver",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
+from negobs_gym.drivers.creeping import CreepingConfig, CreepingDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
@@ -14,7 +15,7 @@ from negobs_gym.sim.types import Terrain
 __all__ = ["DRIVER_NAMES", "make_driver"]
 
 #: Names :func:`make_driver` knows.
-DRIVER_NAMES: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "track_planner")
+DRIVER_NAMES: tuple[str, ...] = ("reckless", "constant_speed", "pure_pursuit", "track_planner", "creeping")
 
 
 def make_driver(
@@ -43,6 +44,8 @@ def make_driver(
         return RecklessDriver(RecklessConfig(**speed))
     if name == "constant_speed":
         return ConstantSpeedDriver(ConstantSpeedConfig(**speed))
+    if name == "creeping":
+        return CreepingDriver(CreepingConfig(**speed))
     if name == "pure_pursuit":
         track = terrain.track
         route = track.pose_at(track.stations_m, lane_offset_m)[0] if lane_offset_m else track.centreline_xy_m

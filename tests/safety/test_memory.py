@@ -10,7 +10,9 @@ import pytest
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import InterfaceError
+from negobs_gym.eval.scenario_runner import run_scenario_seeds
 from negobs_gym.safety import BrakingSafetyFilter, HazardMemory, HazardState, SafetyFilterConfig
+from negobs_gym.spec import load_scenario
 from tests.safety.standins import DT_S, MAX_ACCEL, MAX_BRAKE, FixedHazardEnv
 
 GRID = GridSpec(ahead_m=25.6, back_m=3.2, side_m=6.4)
@@ -100,3 +102,19 @@ def test_memory_needs_the_pose_and_grid():
     guard = BrakingSafetyFilter(FixedHazardEnv(bare), hazard_memory=True)
     with pytest.raises(InterfaceError, match="pose"):
         guard.step(np.array([0.0, 0.0], np.float32))
+
+
+def test_the_creeping_scene_runs_the_stop_and_go_driver_behind_the_memory():
+    spec = load_scenario("pit_creep_stop_and_go")
+    assert spec.run.driver == "creeping" and spec.run.target_speed_mps == 1.5
+    assert spec.filter.hazard_memory and spec.filter.release_margin_m == 0.0
+
+
+# slow (end to end, ~1 min a seed): the memory's property is checked step by step by
+# test_a_pit_that_drops_out_of_the_detection_still_stops_the_car
+@pytest.mark.slow
+def test_a_creeping_driver_stops_short_of_the_pit_behind_the_memory():
+    """Stop and go towards paper N's 150 x 60 cm pit with release_margin 0: the memory keeps the
+    pit, so the front bumper stays about B - (rear axle to bumper) short of the rim."""
+    (result,) = run_scenario_seeds("pit_creep_stop_and_go", seeds=[1])
+    assert not result.entered_negative_obstacle and result.final_gap_m > 1.0
