@@ -16,7 +16,8 @@ Output folder::
     eval.csv                  one row per evaluation (callbacks.EVAL_COLUMNS)
     logs/<start step>/        SB3 logger: progress.csv (+ TensorBoard events)
     scenario.toml             the scenario the run trains on, every override applied
-    train.json                the config, steps done, wall time and steps/s of the last session
+    train.json                the config, the code (version, git commit), steps done, wall time
+                              and steps/s of the last session
 """
 
 from __future__ import annotations
@@ -467,10 +468,14 @@ def _previous_warm_start(out: Path) -> dict[str, Any]:
 
 
 def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
-    """``train.json``: the config and progress (written at the start too, for ``--resume``)."""
+    """``train.json``: the config, the code it ran on and progress (written at the start too,
+    for ``--resume``)."""
     wall_s = session.get("wall_s")
+    from negobs_gym.bench.harness import code_version
+
     record = {
         "config": dataclasses.asdict(config),
+        "code": code_version(),  # what a shipped policy's record names as its fitted_on code
         "steps": steps,
         "session_start_step": start_step,
         "session_wall_s": wall_s,

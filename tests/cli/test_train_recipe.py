@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import negobs_gym
 from negobs_gym.cli import build_parser, main
 from negobs_gym.cli.train import config_from_args, out_dir
 from negobs_gym.policies.config import TrainConfig
@@ -112,6 +113,7 @@ def test_a_recipe_runs_end_to_end_and_says_how_to_judge_its_policy(tmp_path: Pat
     )
     assert policy.is_file()
     record = json.loads((out / "train.json").read_text())
+    assert record["code"].startswith(negobs_gym.__version__)  # what a shipped record names
     assert record["config"]["seed"] == 3 and record["config"]["warm_start"]["steps"] == 40
     assert record["warm_start"]["demonstration_steps"] >= 40
 
