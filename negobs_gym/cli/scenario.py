@@ -25,7 +25,8 @@ DRIVER_CHOICES = (
     "constant_speed",
     "pure_pursuit",
     "track_planner",
-)  # negobs_gym.eval.scenario_runner.DRIVERS
+    "creeping",
+)  # negobs_gym.eval.scenario_runner.DRIVERS, spelt here so that --help imports no simulator
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

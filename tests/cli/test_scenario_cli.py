@@ -40,6 +40,13 @@ def _lines(capsys) -> list[str]:
     return [line for line in capsys.readouterr().out.splitlines() if line.strip()]
 
 
+def test_driver_choices_are_the_runners_drivers():
+    from negobs_gym.cli.scenario import DRIVER_CHOICES
+    from negobs_gym.eval.scenario_runner import DRIVERS
+
+    assert DRIVER_CHOICES == DRIVERS
+
+
 def test_list_names_every_shipped_scenario(capsys):
     assert main(["scenario", "list"]) == 0
     listed = [line.split()[0] for line in _lines(capsys)]
