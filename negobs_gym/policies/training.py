@@ -471,7 +471,7 @@ def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, *
     """``train.json``: the config, the code it ran on and progress (written at the start too,
     for ``--resume``)."""
     wall_s = session.get("wall_s")
-    from negobs_gym.bench.harness import code_version
+    from negobs_gym.core.provenance import code_version
 
     record = {
         "config": dataclasses.asdict(config),
