@@ -13,7 +13,7 @@ import contextlib
 import os
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -37,7 +37,7 @@ class EnvActor:
     def spaces(self) -> tuple[gym.Space, gym.Space]:
         return self.env.observation_space, self.env.action_space
 
-    def step(self, action: np.ndarray) -> tuple[Any, float, bool, dict[str, Any], dict[str, Any]]:
+    def step(self, action: np.ndarray) -> tuple[Any, SupportsFloat, bool, dict[str, Any], dict[str, Any]]:
         observation, reward, terminated, truncated, info = self.env.step(action)
         done = terminated or truncated
         info["TimeLimit.truncated"] = truncated and not terminated
@@ -139,7 +139,8 @@ class RayVecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         results = self._get(self._pending)
         self.waiting = False
-        obs, rewards, dones, infos, self.reset_infos = zip(*results, strict=True)
+        obs, rewards, dones, infos, reset_infos = zip(*results, strict=True)
+        self.reset_infos = list(reset_infos)
         for info in infos:  # Ray hands arrays back read-only; torch warns on those
             if "terminal_observation" in info:
                 info["terminal_observation"] = _writable(info["terminal_observation"])
@@ -147,7 +148,8 @@ class RayVecEnv(VecEnv):
 
     def reset(self) -> VecEnvObs:
         refs = [a.reset.remote(self._seeds[i], self._options[i]) for i, a in enumerate(self.actors)]
-        obs, self.reset_infos = zip(*self._get(refs), strict=True)
+        obs, reset_infos = zip(*self._get(refs), strict=True)
+        self.reset_infos = list(reset_infos)
         self._reset_seeds()  # seeds and options are used once, as SB3's vector envs do
         self._reset_options()
         return _stack_obs(obs, self.observation_space)
