@@ -99,6 +99,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(det, "outputs/eval/detection")
     det.add_argument("--frames", type=positive_int, default=None, help="total frames (default 1000)")
     det.add_argument("--no-noise", action="store_true", help="sensor noise off")
+    det.add_argument(
+        "--detector",
+        choices=("default", "paper"),
+        default=None,
+        help="detector judged: default (NegativeDetectorConfig()) or paper (paper N as published)",
+    )
+    det.add_argument(
+        "--detector-set",
+        action="append",
+        metavar="PATH=VALUE",
+        default=None,
+        help="set one detector field on top of --detector, VALUE is TOML "
+        "(e.g. hdl64_ground_checks.min_depth_ratio=0.2); repeatable",
+    )
+    det.add_argument(
+        "--worst-frames",
+        type=int,
+        default=None,
+        help="PNGs of the frames with the most fused false alarms (default 3; 0: none)",
+    )
     det.set_defaults(handler=run_detection)
 
     brk = commands.add_parser(
@@ -323,7 +343,14 @@ def run_detection(args: argparse.Namespace) -> int:
     """The detection campaign; logs where the tables and figures are."""
     from negobs_gym.eval.detection_campaign import DetectionCampaignConfig, run_detection_campaign
 
-    cli = {"seeds": args.seeds, "frames": args.frames, "rig": args.rig}
+    cli = {
+        "seeds": args.seeds,
+        "frames": args.frames,
+        "rig": args.rig,
+        "detector": args.detector,
+        "detector_set": None if args.detector_set is None else tuple(args.detector_set),
+        "worst_frames": args.worst_frames,
+    }
     if args.no_noise:
         cli["sensor_noise"] = False
     config = build_config(DetectionCampaignConfig, _toml(args), cli)

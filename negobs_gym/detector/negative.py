@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -22,11 +22,12 @@ from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.clustering import ClusteringConfig, DetectedObstacle, cluster_obstacles
-from negobs_gym.detector.config import Hdl32FeatureConfig, Hdl64FeatureConfig
+from negobs_gym.detector.config import GroundCheckConfig, Hdl32FeatureConfig, Hdl64FeatureConfig
 from negobs_gym.detector.fusion import FusedPairs, FusionConfig, PairFusion, in_box
 from negobs_gym.detector.grid import obstacle_grid
+from negobs_gym.detector.ground_checks import ground_check
 from negobs_gym.detector.hdl32 import extract_hdl32_pairs
-from negobs_gym.detector.hdl64 import extract_hdl64_pairs
+from negobs_gym.detector.hdl64 import extract_hdl64_pairs, sensor_height
 from negobs_gym.detector.inputs import check_frame
 from negobs_gym.detector.pairs import FeaturePairs
 from negobs_gym.detector.roi import GroundMap, RoiConfig, build_ground_map, ray_sectors
@@ -64,6 +65,10 @@ class NegativeDetectorConfig:
     # inside max_range_m (measured: 18-20 m fused recall 0.18 -> 0.29, false obstacles unchanged).
     hdl32_far_wall_margin_m: float = 1.5
     roi: RoiConfig = field(default_factory=RoiConfig)  # Table 1 line 1, ExtractROIPoints (rule: roi.py)
+    # the HDL-64's pairs checked against the frame's ground: shadow (crest), far-side and depth
+    # tests (not in paper N: they cut the fused false alarms on rough ground ~25-fold at paper N's
+    # recall, docs/detector_false_alarms.md; GroundCheckConfig.off() = Eq. 14 alone, as paper())
+    hdl64_ground_checks: GroundCheckConfig = field(default_factory=GroundCheckConfig)
     hdl64: Hdl64FeatureConfig = field(default_factory=Hdl64FeatureConfig)  # §3.1
     hdl32: Hdl32FeatureConfig = field(default_factory=Hdl32FeatureConfig)  # §3.2
     fusion: FusionConfig = field(default_factory=FusionConfig)  # §3.3 steps 1-2, Eq. 15/16
@@ -99,6 +104,7 @@ class NegativeDetectorConfig:
         )
         for name, cls in (
             ("roi", RoiConfig),
+            ("hdl64_ground_checks", GroundCheckConfig),
             ("hdl64", Hdl64FeatureConfig),
             ("hdl32", Hdl32FeatureConfig),
             ("fusion", FusionConfig),
@@ -106,6 +112,13 @@ class NegativeDetectorConfig:
             ("grid", GridSpec),
         ):
             require(isinstance(getattr(self, name), cls), name, f"must be a {cls.__name__}")
+
+    @classmethod
+    def paper(cls, **changes: object) -> NegativeDetectorConfig:
+        """Paper N's detector as published (plus the documented deviations that give its reach,
+        docs/detector_features.md), without the false-alarm checks added since; ``changes`` as
+        keyword arguments of the constructor."""
+        return cls(**{"hdl64_ground_checks": GroundCheckConfig.off(), **changes})
 
     @property
     def active_sensors(self) -> tuple[str, ...]:
@@ -230,7 +243,10 @@ class NegativeObstacleDetector:
         frame_pairs = {}
         for name in active:
             if name in cfg.hdl64_sensors:
-                pairs = extract_hdl64_pairs(scans[name], cfg.hdl64, ground)
+                scan = scans[name]
+                pairs = extract_hdl64_pairs(scan, cfg.hdl64, ground)
+                height = sensor_height(scan, cfg.hdl64.sensor_height_m) if len(pairs) else 1.0
+                pairs = ground_check(pairs, ground, scan.translation_m, height, cfg.hdl64_ground_checks)
                 margin = cfg.far_wall_margin_m
             else:
                 pairs = extract_hdl32_pairs(scans[name], cfg.hdl32)
@@ -244,3 +260,24 @@ class NegativeObstacleDetector:
         obstacles = [dataclasses.replace(c, pair_indices=confirmed_index[c.pair_indices]) for c in clusters]
         grid = obstacle_grid([ob.outline_xy_m for ob in obstacles], cfg.grid)
         return Detection(fused, obstacles, grid, cfg.grid, frame_pairs, ground)
+
+
+DETECTOR_PRESETS: tuple[str, ...] = ("default", "paper")
+
+
+def detector_preset(name: str) -> NegativeDetectorConfig:
+    """``"default"``: ``NegativeDetectorConfig()``; ``"paper"``: :meth:`NegativeDetectorConfig.paper`."""
+    require(name in DETECTOR_PRESETS, "detector", f"must be one of {DETECTOR_PRESETS}, got {name!r}")
+    return NegativeDetectorConfig() if name == "default" else NegativeDetectorConfig.paper()
+
+
+def with_settings(config: NegativeDetectorConfig, assignments: Sequence[str]) -> NegativeDetectorConfig:
+    """``config`` with each ``"PATH=VALUE"`` applied (VALUE is TOML), PATH a dotted field path
+    (``hdl64.pair_test.gamma1``, ``hdl64_ground_checks.crest_rise_m``); a field that does not exist
+    or a bad value is a ConfigError naming it (:func:`negobs_gym.core.settings.replace_setting`)."""
+    from negobs_gym.core.settings import parse_assignment, replace_setting
+
+    for text in assignments:
+        keys, value = parse_assignment(str(text), example="hdl64_ground_checks.crest_rise_m=0.05")
+        config = replace_setting(config, keys, value)
+    return config

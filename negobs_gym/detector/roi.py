@@ -105,12 +105,14 @@ class GroundMap:
         structure_before: (sectors, bins + 1) number of structure cells in bins ``< k`` of a sector.
         config: the rule's constants.
         n_bins: radial bins per sector.
+        lowest_z_m: (sectors, bins) lowest return of each cell (inf: none), all sensors of the frame.
     """
 
     ground_z_m: np.ndarray
     structure_before: np.ndarray
     config: RoiConfig
     n_bins: int
+    lowest_z_m: np.ndarray | None = None
 
     def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(sector, bin, inside) of (n, 2) vehicle-frame points."""
@@ -397,4 +399,4 @@ def build_ground_map(
     structure = z_max > ground + tol
     before = np.zeros((n_sectors, n_bins + 1), dtype=np.int64)
     np.cumsum(structure, axis=1, out=before[:, 1:])
-    return GroundMap(ground, before, config, n_bins)
+    return GroundMap(ground, before, config, n_bins, z_min)

@@ -37,6 +37,11 @@ class DetectionEvalConfig:
     # origin (paper N §4.2: the marked region's centre to the INS centre); "nearest" = its nearest
     # cell centre (what a brake needs)
     bin_distance: str = "centre"
+    # a detected outline that overlaps a ground truth only beyond the grid's edge (a pit just
+    # behind the grid's rear edge, its detection reaching one row into the grid) is not a false
+    # alarm: the overlap is also looked for on the grid widened by this much on every side.
+    # 0 = only cells inside the grid count (the rule before; it counted such detections false)
+    edge_margin_m: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("size_bin_edges_cells", "distance_bin_edges_m"):
@@ -51,6 +56,11 @@ class DetectionEvalConfig:
             math.isfinite(self.border_band_m) and self.border_band_m >= 0,
             "border_band_m",
             f"must be finite and >= 0, got {self.border_band_m}",
+        )
+        require(
+            math.isfinite(self.edge_margin_m) and self.edge_margin_m >= 0,
+            "edge_margin_m",
+            f"must be finite and >= 0, got {self.edge_margin_m}",
         )
         require(
             self.bin_distance in ("centre", "nearest"),
@@ -151,6 +161,8 @@ class FrameMatch:
         truth_recalled: whether each ground truth overlaps a detected obstacle.
         false_alarms: detected obstacles overlapping neither ground truth nor a track border.
         detections: number of detected obstacles with at least one cell in the grid.
+        false_alarm_index: indices into the ``detected`` argument of the false alarms (so a caller
+            can label each one, e.g. with the terrain under it).
     """
 
     truth_cells: np.ndarray
@@ -159,6 +171,7 @@ class FrameMatch:
     truth_recalled: np.ndarray
     false_alarms: int
     detections: int
+    false_alarm_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def match_frame(
@@ -185,17 +198,20 @@ def match_frame(
         border_mask = np.asarray(border_mask, dtype=bool)
         if border_mask.shape != grid.shape:
             raise GeometryError(f"border_mask: shape {border_mask.shape} != grid shape {grid.shape}")
-    det_masks = []
+    det_masks, det_outlines = [], []
     for i, item in enumerate(detected):
         arr = np.asarray(item)
         if arr.dtype == bool:
             if arr.shape != grid.shape:
                 raise GeometryError(f"detected[{i}]: mask shape {arr.shape} != grid shape {grid.shape}")
             det_masks.append(arr)
+            det_outlines.append(None)
         else:
             det_masks.append(rasterize_outline(arr, grid))
+            det_outlines.append(arr)
     truth_masks = [rasterize_outline(o, grid) for o in truth_outlines_vehicle]
-    det_masks = [m for m in det_masks if m.any()]  # wholly outside the grid: not judged
+    in_grid = np.array([k for k, m in enumerate(det_masks) if m.any()], dtype=np.int64)
+    det_masks = [det_masks[k] for k in in_grid]  # wholly outside the grid: not judged
     n_t, n_d = len(truth_masks), len(det_masks)
     n_cells = grid.rows * grid.cols
     flat_t = np.array([m.ravel() for m in truth_masks], dtype=np.int32).reshape(n_t, n_cells)
@@ -215,6 +231,10 @@ def match_frame(
     explained = hits.any(axis=0) if n_t else np.zeros(n_d, dtype=bool)
     if border_mask is not None and n_d:
         explained |= (flat_d @ border_mask.ravel().astype(np.int32)) >= cfg.min_overlap_cells
+    if cfg.edge_margin_m > 0 and n_t and not explained.all():
+        explained |= _overlap_past_edge(
+            [det_outlines[k] for k in in_grid], truth_outlines_vehicle, ~explained, grid, cfg
+        )
     return FrameMatch(
         truth_cells=truth_cells,
         truth_distance_m=truth_dist,
@@ -222,7 +242,31 @@ def match_frame(
         truth_recalled=hits.any(axis=1) if n_d else np.zeros(n_t, dtype=bool),
         false_alarms=int(np.count_nonzero(~explained)),
         detections=n_d,
+        false_alarm_index=in_grid[~explained],
     )
+
+
+def _overlap_past_edge(
+    outlines: Sequence[np.ndarray | None],
+    truths: Sequence[np.ndarray],
+    which: np.ndarray,
+    grid: GridSpec,
+    config: DetectionEvalConfig,
+) -> np.ndarray:
+    """(n,) True where a detected outline (``which`` of them) overlaps a ground truth on the grid
+    widened by ``config.edge_margin_m`` (masks, None here, cannot be widened)."""
+    m = config.edge_margin_m
+    wide = GridSpec(
+        cell_m=grid.cell_m, ahead_m=grid.ahead_m + m, back_m=grid.back_m + m, side_m=grid.side_m + m
+    )
+    truth_masks = [rasterize_outline(t, wide) for t in truths]
+    out = np.zeros(len(outlines), dtype=bool)
+    for k in np.flatnonzero(which):
+        if outlines[k] is None:
+            continue
+        mask = rasterize_outline(outlines[k], wide)
+        out[k] = any(int(np.count_nonzero(mask & t)) >= config.min_overlap_cells for t in truth_masks)
+    return out
 
 
 def distance_bins(match: FrameMatch, config: DetectionEvalConfig) -> np.ndarray:

@@ -16,8 +16,10 @@ distributed campaign summarises exactly like a serial one.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +35,7 @@ from negobs_gym.eval.detection import (
     track_border_mask,
     world_outline_to_vehicle,
 )
+from negobs_gym.eval.detection_causes import CauseConfig
 from negobs_gym.eval.stats import interval_list, nan_to_none, seed_bootstrap_interval
 from negobs_gym.eval.tables import bin_labels
 
@@ -60,6 +63,9 @@ FRAME_COLUMNS = (
     "lateral_m",
     *(f"{k}_{m}" for m in SENSOR_MODES for k in ("detections", "false_alarms_on", "false_alarms_off")),
 )
+# one row per false alarm: its sensor mode, the true terrain class under it
+# (:mod:`negobs_gym.eval.detection_causes`) and where it lies in the vehicle frame
+FALSE_ALARM_COLUMNS = ("episode", "seed", "frame", "mode", "cause", "on_track", "x_m", "y_m", "distance_m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,6 +94,13 @@ class DetectionCampaignConfig:
     clutter_per_100m: float = 10.0  # rocks and mounds on the verges (not in paper N)
     raycast_backend: str = "auto"
     matching: DetectionEvalConfig = field(default_factory=DetectionEvalConfig)  # grid matching, bins
+    causes: CauseConfig = field(default_factory=CauseConfig)  # terrain classes of the false alarms
+    # the detector judged: "default" (NegativeDetectorConfig()) or "paper" (paper N as published,
+    # NegativeDetectorConfig.paper()), then each "PATH=VALUE" of detector_set (e.g. "hdl64.gamma1=2")
+    detector: str = "default"
+    detector_set: tuple[str, ...] = ()
+    # PNGs of the frames with the most fused false alarms, redriven after the campaign (0: none)
+    worst_frames: int = 3
 
     def __post_init__(self) -> None:
         require(self.seeds >= 1, "seeds", f"must be >= 1, got {self.seeds}")
@@ -104,6 +117,20 @@ class DetectionCampaignConfig:
         require(self.clutter_per_100m >= 0, "clutter_per_100m", "must be >= 0")
         if not isinstance(self.matching, DetectionEvalConfig):
             raise ConfigError("matching", "must be a DetectionEvalConfig")
+        if not isinstance(self.causes, CauseConfig):
+            raise ConfigError("causes", "must be a CauseConfig")
+        require(
+            isinstance(self.worst_frames, int) and self.worst_frames >= 0,
+            "worst_frames",
+            f"must be an integer >= 0, got {self.worst_frames!r}",
+        )
+        self.campaign_detector()  # a bad preset name or assignment fails here, not in a worker
+
+    def campaign_detector(self) -> Any:
+        """The :class:`~negobs_gym.detector.NegativeDetectorConfig` this campaign judges."""
+        from negobs_gym.detector.negative import detector_preset, with_settings
+
+        return with_settings(detector_preset(self.detector), self.detector_set)
 
     def frames_of(self, index: int) -> int:
         """Frames of the ``index``-th seed (the remainder goes to the first seeds)."""
@@ -163,6 +190,22 @@ def _lateral_offset(pose: Any, centreline: np.ndarray) -> float:
     return pose.x - float(np.interp(pose.y, centreline[:, 1], centreline[:, 0]))
 
 
+@dataclass(frozen=True)
+class JudgedFrame:
+    """One frame judged in every sensor mode (paper N §4.2 matching).
+
+    ``recalled[mode]``: which truths each mode recalled; ``counts``: per mode, detections and false
+    alarms on and off the track (:data:`FRAME_COLUMNS` order); ``false_alarms[mode]``: each false
+    alarm's vehicle-frame outline and whether its centre lies on the track.
+    """
+
+    recalled: dict[str, np.ndarray]
+    counts: list[int]
+    truth_cells: np.ndarray
+    truth_centre_m: np.ndarray
+    false_alarms: dict[str, list[tuple[np.ndarray, bool]]]
+
+
 def _judge_frame(
     detections: dict[str, Any],
     truths: list[np.ndarray],
@@ -170,28 +213,61 @@ def _judge_frame(
     track_width_m: float,
     grid: Any,
     matching: DetectionEvalConfig,
-) -> tuple[dict[str, np.ndarray], list[int], tuple[np.ndarray, np.ndarray]]:
-    """Per mode: which truths were recalled; detections, false alarms on and off the track; truth cells
-    and centre distances (paper N §4.2)."""
+    modes: tuple[str, ...] = SENSOR_MODES,
+) -> JudgedFrame:
+    """Judge one frame's detections of each of ``modes`` against the truths."""
     border = track_border_mask(centre_line, track_width_m, grid, matching.border_band_m)
-    recalled, counts = {}, []
-    for m in SENSOR_MODES:
+    recalled, counts, false_alarms = {}, [], {}
+    for m in modes:
         outlines = [np.asarray(o.outline_xy_m) for o in detections[m].obstacles]
         match = match_frame(outlines, truths, grid, matching, border)
         centres = np.array([o.mean(axis=0) for o in outlines]).reshape(-1, 2)
         on_track = distance_to_polyline(centres, centre_line) <= 0.5 * track_width_m
-        on = match_frame(
-            [o for o, k in zip(outlines, on_track, strict=True) if k], truths, grid, matching, border
-        )
+        on = int(np.count_nonzero(on_track[match.false_alarm_index]))
         recalled[m] = match.truth_recalled
-        counts += [match.detections, on.false_alarms, match.false_alarms - on.false_alarms]
-    return recalled, counts, (match.truth_cells, match.truth_centre_distance_m)
+        counts += [match.detections, on, match.false_alarms - on]
+        false_alarms[m] = [(outlines[k], bool(on_track[k])) for k in match.false_alarm_index]
+    return JudgedFrame(recalled, counts, match.truth_cells, match.truth_centre_distance_m, false_alarms)
 
 
-def run_episode(episode: Episode) -> Rows:
-    """Drive one seeded course; the obstacle and frame rows of :data:`OBSTACLE_COLUMNS`/``FRAME_COLUMNS``."""
+@dataclass(frozen=True, eq=False)
+class DrivenFrame:
+    """One frame of a detection course: what the rig saw, what each mode detected, and the truth."""
+
+    frame: int
+    speed_mps: float
+    travelled_m: float
+    lateral_m: float
+    pose: Any  # true pose (the truth is mapped with it)
+    ins_poses: dict[str, Any]  # per sensor mode, the INS pose its detector was given
+    scans: dict[str, Any]
+    detections: dict[str, Any]  # per sensor mode
+    truths: list[np.ndarray]  # vehicle-frame rim outlines, one per negative obstacle
+    centre_line: np.ndarray  # vehicle frame
+    judged: JudgedFrame
+
+
+def drive_course(
+    config: DetectionCampaignConfig,
+    seed: int,
+    n_frames: int,
+    detector_config: Any = None,
+    modes: tuple[str, ...] = SENSOR_MODES,
+) -> Iterator[tuple[Any, DrivenFrame]]:
+    """Drive course ``seed`` for ``n_frames`` frames: yields ``(terrain, frame)`` per frame.
+
+    ``detector_config`` (a :class:`~negobs_gym.detector.NegativeDetectorConfig`, its ``mode`` and
+    ``grid`` replaced per mode) is the detector judged; None = :meth:`campaign_detector`. ``modes``
+    (a subset of :data:`SENSOR_MODES`, in that order) are run and judged; the scans are the same.
+    The course's length follows ``n_frames``: to see a campaign's frame, drive its episode's frames.
+    """
+    require(
+        len(modes) > 0 and all(m in SENSOR_MODES for m in modes),
+        "modes",
+        f"must be a non-empty subset of {SENSOR_MODES}, got {modes!r}",
+    )
     from negobs_gym.core.grid import GridSpec
-    from negobs_gym.detector import NegativeDetectorConfig, NegativeObstacleDetector
+    from negobs_gym.detector import NegativeObstacleDetector
     from negobs_gym.sensors.lidar import scan_rig
     from negobs_gym.sensors.noise import NoiseConfig
     from negobs_gym.sensors.raycast import make_caster
@@ -199,12 +275,12 @@ def run_episode(episode: Episode) -> Rows:
     from negobs_gym.sim.vehicle import Vehicle
     from negobs_gym.sim.world import World
 
-    cfg: DetectionCampaignConfig = episode.args["config"]
-    seed, n_frames = int(episode.args["seed"]), int(episode.args["frames"])
+    cfg = config
     speed = float(np.random.default_rng([seed, 1]).uniform(cfg.min_speed_mps, cfg.max_speed_mps))
     terrain = detection_course(cfg, seed, length_m=speed * FRAME_S * n_frames + 35.0)
     grid = GridSpec()  # paper N §3.4: the 20 cm vehicle grid (detector and matching alike)
-    detectors = {m: NegativeObstacleDetector(NegativeDetectorConfig(mode=m, grid=grid)) for m in SENSOR_MODES}
+    base = detector_config if detector_config is not None else cfg.campaign_detector()
+    detectors = {m: NegativeObstacleDetector(dataclasses.replace(base, mode=m, grid=grid)) for m in modes}
     rng = np.random.default_rng([seed, 3])
     rig = paper_n_rig() if cfg.rig == "native" else paper_n_rig_reduced()
     noise = NoiseConfig(enabled=cfg.sensor_noise)
@@ -212,7 +288,6 @@ def run_episode(episode: Episode) -> Rows:
     # 1 m segments are exact on a straight course and within 7 mm on an 18 m bend
     step = max(1, round(1.0 / max(float(np.median(np.diff(terrain.track.stations_m))), 1e-3)))
     centreline = np.vstack([centreline[::step], centreline[-1:]])
-    obstacles, frames = [], []
     with World(terrain) as world:
         vehicle = Vehicle(world, rng=rng)
         caster = make_caster(world, cfg.raycast_backend, exclude_body_ids=(vehicle.body_id,))
@@ -227,7 +302,8 @@ def run_episode(episode: Episode) -> Rows:
             world.step(steps)
             pose = vehicle.true_pose()
             scans = scan_rig(rig, caster, pose, noise=noise, rng=rng, timestamp_s=world.sim_time_s)
-            detections = {m: d.update(scans, vehicle.pose()) for m, d in detectors.items()}
+            ins_poses = {m: vehicle.pose() for m in detectors}  # one INS draw per mode, in mode order
+            detections = {m: d.update(scans, ins_poses[m]) for m, d in detectors.items()}
             travelled = math.hypot(pose.x - last.x, pose.y - last.y)
             last = pose
             truths = [
@@ -235,18 +311,57 @@ def run_episode(episode: Episode) -> Rows:
                 for ob in terrain.negative_obstacles
             ]
             centre_line = world_outline_to_vehicle(centreline, pose)
-            recalled, counts, (truth_cells, centre_m) = _judge_frame(
-                detections, truths, centre_line, terrain.track.width_m, grid, cfg.matching
+            judged = _judge_frame(
+                detections, truths, centre_line, terrain.track.width_m, grid, cfg.matching, modes
             )
-            row = [episode.key, seed, frame, speed, travelled, _lateral_offset(pose, centreline)]
-            frames.append(format_row([*row, *counts]))
-            for k, ob in enumerate(terrain.negative_obstacles):
-                if int(truth_cells[k]) == 0:
-                    continue
-                hits = [bool(recalled[m][k]) for m in SENSOR_MODES]
-                row = [episode.key, seed, frame, ob.obstacle_id, int(truth_cells[k]), float(centre_m[k])]
-                obstacles.append(format_row([*row, *hits]))
-    return {"obstacles": obstacles, "frames": frames}
+            lateral = _lateral_offset(pose, centreline)
+            yield (
+                terrain,
+                DrivenFrame(
+                    frame,
+                    speed,
+                    travelled,
+                    lateral,
+                    pose,
+                    ins_poses,
+                    scans,
+                    detections,
+                    truths,
+                    centre_line,
+                    judged,
+                ),
+            )
+
+
+def run_episode(episode: Episode) -> Rows:
+    """Drive one seeded course; its rows of :data:`OBSTACLE_COLUMNS`, ``FRAME_COLUMNS`` and
+    ``FALSE_ALARM_COLUMNS``."""
+    from negobs_gym.eval.detection_causes import TerrainClassifier
+
+    cfg: DetectionCampaignConfig = episode.args["config"]
+    seed, n_frames = int(episode.args["seed"]), int(episode.args["frames"])
+    obstacles, frames, false_alarms = [], [], []
+    classifier = None
+    for terrain, f in drive_course(cfg, seed, n_frames):
+        if classifier is None:
+            classifier = TerrainClassifier(terrain, cfg.causes)
+        judged = f.judged
+        row = [episode.key, seed, f.frame, f.speed_mps, f.travelled_m, f.lateral_m]
+        frames.append(format_row([*row, *judged.counts]))
+        for k, ob in enumerate(terrain.negative_obstacles):
+            if int(judged.truth_cells[k]) == 0:
+                continue
+            hits = [bool(judged.recalled[m][k]) for m in SENSOR_MODES]
+            row = [episode.key, seed, f.frame, ob.obstacle_id, int(judged.truth_cells[k])]
+            obstacles.append(format_row([*row, float(judged.truth_centre_m[k]), *hits]))
+        for m in SENSOR_MODES:
+            for outline, on_track in judged.false_alarms[m]:
+                world_xy = f.pose.to_world(np.column_stack([outline, np.zeros(len(outline))]))[:, :2]
+                centre = outline.mean(axis=0)
+                cause = classifier.classify(world_xy)
+                row = [episode.key, seed, f.frame, m, cause, on_track, float(centre[0]), float(centre[1])]
+                false_alarms.append(format_row([*row, float(np.hypot(*centre))]))
+    return {"obstacles": obstacles, "frames": frames, "false_alarms": false_alarms}
 
 
 # -- summary -----------------------------------------------------------------------------------
@@ -275,6 +390,9 @@ class DetectionSummary:
     false_alarms: dict[str, dict[str, int]]
     fig16: dict[str, list[float | None]]
     fig16_interval: dict[str, list[list[float] | None]] = field(default_factory=dict)
+    # false alarms per mode and terrain class (:data:`~negobs_gym.eval.detection_causes.CAUSES`);
+    # empty in summaries written before the classes were recorded
+    false_alarm_causes: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def recall(self, mode: str = "fused") -> np.ndarray:
         """Table 7 recall of ``mode`` (NaN where nothing was seen)."""
@@ -299,9 +417,20 @@ class DetectionSummary:
 
 
 def summarize(
-    obstacles_csv: str | Path, frames_csv: str | Path, config: DetectionEvalConfig
+    obstacles_csv: str | Path,
+    frames_csv: str | Path,
+    config: DetectionEvalConfig,
+    false_alarms_csv: str | Path | None = None,
 ) -> DetectionSummary:
-    """Table 6/7 counts, false alarms and Fig. 16 curves from the campaign's two CSVs."""
+    """Table 6/7 counts, false alarms, their causes (given ``false_alarms_csv``) and Fig. 16 curves
+    from the campaign's CSVs."""
+    from negobs_gym.eval.detection_causes import CAUSES
+
+    causes: dict[str, dict[str, int]] = {}
+    if false_alarms_csv is not None:
+        causes = {m: dict.fromkeys(CAUSES, 0) for m in SENSOR_MODES}
+        for r in read_csv(false_alarms_csv):
+            causes[r["mode"]][r["cause"]] += 1
     obs_rows = read_csv(obstacles_csv)
     frame_rows = read_csv(frames_csv)
     size_edges, dist_edges = config.size_bin_edges_cells, config.distance_bin_edges_m
@@ -334,7 +463,23 @@ def summarize(
         false_alarms=false_alarms,
         fig16=fig16,
         fig16_interval=fig16_interval,
+        false_alarm_causes=causes,
     )
+
+
+def cause_rows(summary: DetectionSummary) -> list[list[Any]]:
+    """The cause table: per terrain class, each mode's false alarms per km (and count)."""
+    rows = []
+    for cause in next(iter(summary.false_alarm_causes.values()), {}):
+        row: list[Any] = [cause]
+        for m in SENSOR_MODES:
+            n = summary.false_alarm_causes[m][cause]
+            row += [n, n / summary.km if summary.km > 0 else math.nan]
+        rows.append(row)
+    return rows
+
+
+CAUSE_HEADER = ("cause", *(f"{m} {k}" for m in SENSOR_MODES for k in ("count", "per km")))
 
 
 @dataclass(frozen=True)
@@ -459,6 +604,14 @@ def report_markdown(summary: DetectionSummary) -> str:
         key_value_table(
             ["mode", "count", "per frame", "per km", "on track per km", "off track per km"], fa_rows
         ),
+        *(
+            [
+                "## False alarms by the terrain under them",
+                key_value_table(list(CAUSE_HEADER), cause_rows(summary)),
+            ]
+            if summary.false_alarm_causes
+            else []
+        ),
         "## Fig. 16: recall of 25-34-cell obstacles (95 % interval over the courses)",
         key_value_table(
             ["distance", "paper N fused", *SENSOR_MODES],
@@ -482,6 +635,41 @@ class DetectionOutputs:
     fig16_png: Path
     heatmap_png: Path
     summary: DetectionSummary
+    false_alarms_csv: Path | None = None
+    causes_csv: Path | None = None
+    causes_png: Path | None = None
+    worst_frame_pngs: tuple[Path, ...] = ()
+
+
+def worst_frames(false_alarms_csv: str | Path, count: int, mode: str = "fused") -> list[tuple[int, int, int]]:
+    """The ``count`` frames with the most false alarms of ``mode``, as ``(seed, frame, false alarms)``,
+    most first (ties: lower seed, then earlier frame)."""
+    tally: dict[tuple[int, int], int] = {}
+    for r in read_csv(false_alarms_csv):
+        if r["mode"] == mode:
+            key = (int(r["seed"]), int(r["frame"]))
+            tally[key] = tally.get(key, 0) + 1
+    ranked = sorted(tally.items(), key=lambda kv: (-kv[1], kv[0]))
+    return [(seed, frame, n) for (seed, frame), n in ranked[:count]]
+
+
+def write_worst_frames(
+    config: DetectionCampaignConfig, false_alarms_csv: Path, out: Path
+) -> tuple[Path, ...]:
+    """Redrive the courses of the frames with the most fused false alarms (the drive is
+    deterministic) and draw each (:func:`~negobs_gym.eval.detection_causes.frame_plot`)."""
+    from negobs_gym.eval.detection_causes import frame_plot
+
+    paths = []
+    for seed, frame, n in worst_frames(false_alarms_csv, config.worst_frames):
+        # the course's length follows its frame count: drive the episode's frames, stop at this one
+        for terrain, f in drive_course(config, seed, config.frames_of(seed)):
+            if f.frame == frame:
+                title = f"course {seed}, frame {frame}: {n} fused false alarms"
+                path = out / f"fa_seed{seed:05d}_frame{frame:04d}.png"
+                paths.append(frame_plot(terrain, f, SENSOR_MODES, path, title))
+                break
+    return tuple(paths)
 
 
 def run_detection_campaign(
@@ -492,14 +680,18 @@ def run_detection_campaign(
     """Run (or resume) the campaign and write its CSVs, summary JSON, tables and figures to ``out_dir``."""
     from negobs_gym.core.files import write_text_atomic
     from negobs_gym.eval.campaign import run_campaign
+    from negobs_gym.eval.detection_causes import cause_bar_plot
     from negobs_gym.eval.plots import fig16_plot, recall_heatmap
     from negobs_gym.eval.tables import PAPER_N_TABLE7, paper_n_fig16_fused
 
     out = Path(out_dir)
-    tables = {"obstacles": OBSTACLE_COLUMNS, "frames": FRAME_COLUMNS}
+    tables = {"obstacles": OBSTACLE_COLUMNS, "frames": FRAME_COLUMNS, "false_alarms": FALSE_ALARM_COLUMNS}
     csvs = run_campaign(run_episode, episodes(config), out, tables, options, "detection courses")
-    obstacles_csv, frames_csv = csvs["obstacles"], csvs["frames"]
-    summary = summarize(obstacles_csv, frames_csv, config.matching)
+    obstacles_csv, frames_csv, fa_csv = csvs["obstacles"], csvs["frames"], csvs["false_alarms"]
+    summary = summarize(obstacles_csv, frames_csv, config.matching, fa_csv)
+    causes_text = "\n".join(
+        [",".join(CAUSE_HEADER).replace(" ", "_"), *(format_row(r) for r in cause_rows(summary))]
+    )
     return DetectionOutputs(
         obstacles_csv=obstacles_csv,
         frames_csv=frames_csv,
@@ -515,4 +707,8 @@ def run_detection_campaign(
             out / "recall_heatmap.png",
         ),
         summary=summary,
+        false_alarms_csv=fa_csv,
+        causes_csv=write_text_atomic(out / "causes.csv", causes_text + "\n"),
+        causes_png=cause_bar_plot(summary.false_alarm_causes, summary.km, out / "causes.png"),
+        worst_frame_pngs=write_worst_frames(config, fa_csv, out),
     )
