@@ -468,9 +468,13 @@ def summarize(
 
 
 def cause_rows(summary: DetectionSummary) -> list[list[Any]]:
-    """The cause table: per terrain class, each mode's false alarms per km (and count)."""
+    """The cause table: per terrain class (in :data:`CAUSES` order), each mode's false alarms per km
+    (and count)."""
+    from negobs_gym.eval.detection_causes import CAUSES
+
     rows = []
-    for cause in next(iter(summary.false_alarm_causes.values()), {}):
+    known = next(iter(summary.false_alarm_causes.values()), {})
+    for cause in [c for c in CAUSES if c in known] + sorted(set(known) - set(CAUSES)):
         row: list[Any] = [cause]
         for m in SENSOR_MODES:
             n = summary.false_alarm_causes[m][cause]
