@@ -81,6 +81,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     check.add_argument("--model", default=None, help="PEM file (default: the one shipped with the package)")
     check.add_argument("--out", default="outputs/pem/check", help="output folder (default: %(default)s)")
     _campaign_options(check, seeds=4, frames=400, first_seed=CHECK_FIRST_SEED)
+    loop = check.add_argument_group("closed loop (the braking campaign, detector vs PEM)")
+    loop.add_argument(
+        "--braking-seeds",
+        type=non_negative_int,
+        default=0,
+        help="also run the braking campaign (reckless driver + safety filter) on this many seeds, on "
+        "the detector grid and on the PEM's (issue 75 asks for >= 100; default: %(default)s, not run)",
+    )
+    loop.add_argument(
+        "--braking-scenarios",
+        nargs="+",
+        default=["ditch"],
+        metavar="SCENARIO",
+        help="the braking campaign's scenarios (default: %(default)s)",
+    )
+    loop.add_argument(
+        "--no-courses",
+        action="store_true",
+        help="skip the detection courses (run the closed loop alone; needs --braking-seeds)",
+    )
     check.set_defaults(handler=run_check)
 
 
@@ -133,19 +153,38 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_check(args: argparse.Namespace) -> int:
     """Check a PEM; prints its key=value lines, returns 1 when a check fails."""
     from negobs_gym.envs.pem import load_pem
-    from negobs_gym.eval.pem_check import check_pem
+    from negobs_gym.errors import UsageError
+    from negobs_gym.eval.pem_check import BrakingCheckConfig, check_braking, check_pem
 
+    if args.no_courses and not args.braking_seeds:
+        raise UsageError("--no-courses needs --braking-seeds N (nothing would be checked)")
     config, options = _config(args)
     model = load_pem(args.model, config.observation)
-    log.info(
-        "PEM check: %d fresh courses from seed %d, %d frames -> %s",
-        config.seeds,
-        config.first_seed,
-        config.frames,
-        args.out,
-    )
-    result = check_pem(model, config, args.out, options=options)
-    for line in result.lines():
-        print(line)
-    log.info("wrote %s/check.txt, summary.json, tables.md, pem_check.png", args.out)
-    return 0 if result.passed else 1
+    results = []
+    if not args.no_courses:
+        log.info(
+            "PEM check: %d fresh courses from seed %d, %d frames -> %s",
+            config.seeds,
+            config.first_seed,
+            config.frames,
+            args.out,
+        )
+        results.append(check_pem(model, config, args.out, options=options))
+        log.info("wrote %s/check.txt, summary.json, tables.md, pem_check.png", args.out)
+    if args.braking_seeds:
+        braking = BrakingCheckConfig(
+            seeds=args.braking_seeds,
+            scenarios=tuple(args.braking_scenarios),
+            overrides=tuple(args.overrides or ()),
+        )
+        log.info("PEM closed-loop check: braking campaign on %d seeds, detector and PEM", braking.seeds)
+        results.append(check_braking(args.model, braking, args.out, options))
+        log.info("wrote %s/braking_check.txt, braking_detector/, braking_pem/", args.out)
+    passed = True
+    for result in results:
+        lines = result.lines()
+        for line in lines[:-1]:
+            print(line)
+        passed &= result.passed
+    print(f"pem_check={'pass' if passed else 'fail'}")
+    return 0 if passed else 1

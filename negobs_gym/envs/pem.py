@@ -13,7 +13,8 @@ then, by parametric tables fitted on the detector (:mod:`negobs_gym.eval.pem_fit
   edge plus a near-edge offset and the far edge plus a far-edge offset (the extent error), both
   drawn from the fitted quantiles of their distance bin;
 - false alarms: spurious blobs, fixed in the world, born at a rate per m² by terrain class
-  (``track``, ``border``: the verge or bank band beside it, ``other``) and distance, kept from one
+  (:data:`TERRAIN_CLASSES`: the track, the verge band beside it, the bank, drop-off or rough
+  ground beyond, and clutter: the ground near a positive obstacle) and distance, kept from one
   frame to the next with a fitted probability, of a fitted size.
 
 The parameters are a :class:`PemParameters`; a :class:`PerceptionErrorModel` adds the detector,
@@ -28,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,7 +48,7 @@ from negobs_gym.core.geometry import (
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.types import PositiveObstacle, Terrain
 from negobs_gym.spec import ObservationConfig
 
 __all__ = [
@@ -58,6 +60,10 @@ __all__ = [
     "PemGrid",
     "PemParameters",
     "PerceptionErrorModel",
+    "class_raster",
+    "clutter_distance_m",
+    "fallback_chain",
+    "ground_relief_m",
     "load_pem",
     "pem_settings",
     "terrain_classes",
@@ -65,11 +71,52 @@ __all__ = [
 
 PEM_FORMAT = "negobs_gym.pem"
 #: Version of the file layout; a file of another version is refused.
-PEM_VERSION = 2
+PEM_VERSION = 3
 #: The PEM fitted on the envs' default detector grid (``ObservationConfig()``), shipped.
 DEFAULT_PEM_PATH = Path(__file__).with_name("data") / "pem_negative_default.json"
-#: Terrain classes the false-alarm rates are kept for (:func:`terrain_classes`).
-TERRAIN_CLASSES: tuple[str, ...] = ("track", "border", "other")
+#: Terrain classes the false-alarm rates are kept for (:class:`ClassRaster`): ``track`` (within half
+#: its width of the centre line); off the track, ``clutter`` (within ``clutter_band_m`` of a
+#: standing positive obstacle's footprint: rocks, boxes, vehicles) and ``mound`` (of one raised
+#: into the ground: mounds), whichever is nearer; else ``verge`` (the band ``border_band_m`` beyond
+#: an edge) and beyond it the side's border kind (the terrain record's ``Track.border_kinds``):
+#: ``bank``, ``dropoff``, or where the side is a plain verge ``rough`` ground (its heights span
+#: ``rough_relief_m`` or more within :data:`RELIEF_WINDOW_M`: bumps and the dips behind them) or
+#: ``smooth`` ground.
+TERRAIN_CLASSES: tuple[str, ...] = (
+    "track",
+    "verge",
+    "bank",
+    "dropoff",
+    "smooth",
+    "rough",
+    "clutter",
+    "mound",
+)
+#: Where a class's false alarms are placed: moved across the track to a copied blob's distance
+#: from the edge (the track-bound classes), or where born (near their obstacle, on their ground).
+_PLACED_BY_EDGE = np.array([c in ("track", "verge", "bank", "dropoff", "smooth") for c in TERRAIN_CLASSES])
+#: A class with no area in a fit borrows this class's rates and blobs (that one too none: ``smooth``'s).
+FALLBACK_CLASS: dict[str, str] = {
+    "verge": "smooth",
+    "bank": "smooth",
+    "dropoff": "smooth",
+    "smooth": "rough",
+    "rough": "smooth",
+    "clutter": "mound",
+    "mound": "clutter",
+}
+#: Side of the square window a point's ground relief (highest minus lowest height) is taken over [m].
+RELIEF_WINDOW_M = 1.0
+
+
+def fallback_chain(name: str) -> tuple[str, ...]:
+    """The classes a class without data borrows from, in order (:data:`FALLBACK_CLASS`, then ``smooth``)."""
+    first = FALLBACK_CLASS.get(name)
+    return tuple(c for c in (first, "smooth") if c is not None and c != name)
+
+
+#: cell of the terrain-class raster [m]
+CLASS_RASTER_M = 0.4
 #: States of a pit in the PEM's chain.
 NEVER, DRAWN, LOST = 0, 1, 2
 _STATE_NAMES = ("p_keep", "p_return")
@@ -108,12 +155,17 @@ class PemParameters:
             vehicle origin) [m]: > 0 drawn farther than it is.
         far_offset_m: The same of the far edge [m].
         fa_density_per_m2: Mean false alarms per frame per m² of the class and distance bin.
+        fa_area_m2: The grid area per class the fit saw, summed over its frames [m²]; a class
+            with none takes its :data:`FALLBACK_CLASS`'s rates (not fitted, shown by the 0).
         fa_keep: P(a false alarm is still there the next frame), per class.
         fa_blobs: The detector's false alarms a new one copies, each ``(class, distance bin,
             edge_m, rows, cols, cells)``: ``edge_m`` is its centre's distance from the nearer
             track edge (< 0 on the track), ``rows`` x ``cols`` its box (along x across the
             vehicle), ``cells`` its size.
-        border_band_m: Width of the ``border`` class beyond each track edge [m].
+        border_band_m: Width of the ``verge`` class beyond each track edge [m].
+        clutter_band_m: Reach of the ``clutter`` and ``mound`` classes around a positive
+            obstacle's footprint [m].
+        rough_relief_m: Ground relief from which off-track ground is ``rough`` [m].
     """
 
     distance_edges_m: tuple[float, ...]
@@ -127,9 +179,12 @@ class PemParameters:
     near_offset_m: tuple[tuple[float, ...], ...]
     far_offset_m: tuple[tuple[float, ...], ...]
     fa_density_per_m2: tuple[tuple[float, ...], ...]
+    fa_area_m2: tuple[float, ...]
     fa_keep: tuple[float, ...]
     fa_blobs: tuple[tuple[float, ...], ...]
     border_band_m: float
+    clutter_band_m: float
+    rough_relief_m: float
 
     def __post_init__(self) -> None:
         nd, ns = len(self.distance_edges_m) - 1, len(self.size_edges_cells) - 1
@@ -165,8 +220,10 @@ class PemParameters:
         require(
             keep.shape == (nc,) and bool(np.all((keep >= 0) & (keep < 1))),
             "fa_keep",
-            "must be 3 values in [0, 1)",
+            f"must be {nc} values in [0, 1)",
         )
+        area = np.asarray(self.fa_area_m2, dtype=np.float64)
+        require(area.shape == (nc,) and bool(np.all(area >= 0)), "fa_area_m2", f"must be {nc} values >= 0")
         blobs = np.asarray(self.fa_blobs, dtype=np.float64).reshape(-1, 6)
         require(
             bool(np.all((blobs[:, 0] >= 0) & (blobs[:, 0] < nc) & (blobs[:, 1] >= 0) & (blobs[:, 1] < nd)))
@@ -179,9 +236,9 @@ class PemParameters:
             "fa_blobs",
             "must hold at least one blob when false alarms occur",
         )
-        require(
-            math.isfinite(self.border_band_m) and self.border_band_m >= 0, "border_band_m", "must be >= 0"
-        )
+        for name in ("border_band_m", "clutter_band_m", "rough_relief_m"):
+            value = getattr(self, name)
+            require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return json.loads(json.dumps(dataclasses.asdict(self)))
@@ -334,43 +391,132 @@ def centreline_tree(terrain: Terrain) -> cKDTree:
     return cKDTree(np.column_stack([np.interp(s, stations, line[:, 0]), np.interp(s, stations, line[:, 1])]))
 
 
-def terrain_classes(world_xy: np.ndarray, tree: cKDTree, width_m: float, band_m: float) -> np.ndarray:
-    """Index into :data:`TERRAIN_CLASSES` of world points (N, 2): on the track (within half its
-    width of the centre line), on its border (the verge or bank, ``band_m`` beyond an edge), else
-    ``other``."""
-    half = 0.5 * width_m
-    lateral, _ = tree.query(world_xy, distance_upper_bound=half + band_m + 1.0)
-    return np.where(lateral <= half, 0, np.where(lateral <= half + band_m, 1, 2)).astype(np.int64)
+def clutter_distance_m(
+    world_xy: np.ndarray, obstacles: Sequence[PositiveObstacle], reach_m: float
+) -> np.ndarray:
+    """Distance of world points (N, 2) from the nearest footprint of ``obstacles`` [m] (0 inside
+    one); ``inf`` farther than ``reach_m`` from all."""
+    out = np.full(len(world_xy), np.inf)
+    for obstacle in obstacles:
+        poly = np.asarray(obstacle.footprint_xy_m, dtype=np.float64)
+        lo, hi = poly.min(axis=0) - reach_m, poly.max(axis=0) + reach_m
+        near = np.flatnonzero(np.all((world_xy >= lo) & (world_xy <= hi), axis=1))
+        if near.size == 0:
+            continue
+        pts = world_xy[near]
+        start, edge = poly, np.roll(poly, -1, axis=0) - poly  # (V, 2) each
+        t = np.clip(
+            np.einsum("nvk,vk->nv", pts[:, None, :] - start[None], edge) / np.sum(edge**2, axis=1), 0.0, 1.0
+        )
+        gap = pts[:, None, :] - (start[None] + t[..., None] * edge[None])
+        dist = np.sqrt(np.min(np.sum(gap**2, axis=-1), axis=1))
+        dist[points_in_polygon(pts, poly)] = 0.0
+        dist[dist > reach_m] = np.inf
+        out[near] = np.minimum(out[near], dist)
+    return out
+
+
+def ground_relief_m(world_xy: np.ndarray, terrain: Terrain, window_m: float = RELIEF_WINDOW_M) -> np.ndarray:
+    """Highest minus lowest heightfield sample within the ``window_m`` square around each world
+    point (N, 2) [m] (the nearest sample's window; the heightfield's edge sample outside it)."""
+    field = terrain.heightfield
+    size = max(1, 2 * round(0.5 * window_m / field.resolution_m) + 1)
+    heights = np.asarray(field.heights_m, dtype=np.float64)
+    relief = ndimage.maximum_filter(heights, size=size) - ndimage.minimum_filter(heights, size=size)
+    ny, nx = heights.shape
+    ix = np.clip(
+        np.rint((world_xy[:, 0] - field.origin_m[0]) / field.resolution_m).astype(np.int64), 0, nx - 1
+    )
+    iy = np.clip(
+        np.rint((world_xy[:, 1] - field.origin_m[1]) / field.resolution_m).astype(np.int64), 0, ny - 1
+    )
+    return relief[iy, ix]
+
+
+def terrain_classes(
+    world_xy: np.ndarray,
+    terrain: Terrain,
+    tree: cKDTree,
+    band_m: float,
+    clutter_band_m: float,
+    rough_relief_m: float,
+) -> np.ndarray:
+    """Index into :data:`TERRAIN_CLASSES` of world points (N, 2) (see there); ``tree`` is the
+    terrain's :func:`centreline_tree`."""
+    half = 0.5 * terrain.track.width_m
+    lateral, index = tree.query(world_xy)
+    samples = tree.data
+    ahead = samples[np.minimum(index + 1, len(samples) - 1)] - samples[np.maximum(index - 1, 0)]
+    right = np.sum((world_xy - samples[index]) * np.column_stack([ahead[:, 1], -ahead[:, 0]]), axis=1) > 0
+    rough = ground_relief_m(world_xy, terrain) >= rough_relief_m
+    plain = np.where(rough, TERRAIN_CLASSES.index("rough"), TERRAIN_CLASSES.index("smooth"))
+    left_kind, right_kind = (
+        plain if k == "verge" else np.full(len(world_xy), TERRAIN_CLASSES.index(k))
+        for k in terrain.track.border_kinds
+    )
+    border = np.where(
+        lateral <= half + band_m, TERRAIN_CLASSES.index("verge"), np.where(right, right_kind, left_kind)
+    )
+    bodies = [o for o in terrain.positive_obstacles if not o.in_heightfield]
+    relief = [o for o in terrain.positive_obstacles if o.in_heightfield]
+    to_body = clutter_distance_m(world_xy, bodies, clutter_band_m)
+    to_relief = clutter_distance_m(world_xy, relief, clutter_band_m)
+    nearest = np.where(to_body <= to_relief, TERRAIN_CLASSES.index("clutter"), TERRAIN_CLASSES.index("mound"))
+    classes = np.where(np.isfinite(np.minimum(to_body, to_relief)), nearest, border)
+    return np.where(lateral <= half, TERRAIN_CLASSES.index("track"), classes).astype(np.int64)
 
 
 @dataclass(frozen=True, eq=False)
 class ClassRaster:
     """The terrain classes of a terrain's heightfield on a world raster of ``resolution_m`` cells,
-    built once per terrain, so a frame looks its blocks' classes up instead of measuring them."""
+    built once per terrain, so a frame looks its cells' classes up instead of measuring them (the
+    fit's rows and the model use the same raster)."""
 
     origin_m: tuple[float, float]
     resolution_m: float
     classes: np.ndarray  # (ny, nx) uint8, index into TERRAIN_CLASSES
 
     @classmethod
-    def build(cls, terrain: Terrain, tree: cKDTree, band_m: float, resolution_m: float = 0.4) -> ClassRaster:
+    def build(
+        cls,
+        terrain: Terrain,
+        tree: cKDTree,
+        band_m: float,
+        clutter_band_m: float,
+        rough_relief_m: float,
+        resolution_m: float = CLASS_RASTER_M,
+    ) -> ClassRaster:
         x0, x1, y0, y1 = terrain.heightfield.extent_m
         xs = np.arange(x0, x1 + resolution_m, resolution_m)
         ys = np.arange(y0, y1 + resolution_m, resolution_m)
         xx, yy = np.meshgrid(xs + 0.5 * resolution_m, ys + 0.5 * resolution_m)
         points = np.column_stack([xx.ravel(), yy.ravel()])
-        classes = terrain_classes(points, tree, terrain.track.width_m, band_m).astype(np.uint8)
+        classes = terrain_classes(points, terrain, tree, band_m, clutter_band_m, rough_relief_m)
+        classes = classes.astype(np.uint8)
         return cls((float(x0), float(y0)), float(resolution_m), classes.reshape(xx.shape))
 
     def at(self, world_xy: np.ndarray) -> np.ndarray:
-        """Class index of world points (N, 2); ``other`` outside the raster."""
+        """Class index of world points (N, 2); ``smooth`` outside the raster."""
         ny, nx = self.classes.shape
         ix = np.floor((world_xy[:, 0] - self.origin_m[0]) / self.resolution_m).astype(np.int64)
         iy = np.floor((world_xy[:, 1] - self.origin_m[1]) / self.resolution_m).astype(np.int64)
         inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        out = np.full(len(world_xy), TERRAIN_CLASSES.index("other"), dtype=np.int64)
+        out = np.full(len(world_xy), TERRAIN_CLASSES.index("smooth"), dtype=np.int64)
         out[inside] = self.classes[iy[inside], ix[inside]]
         return out
+
+
+def class_raster(
+    terrain: Terrain, band_m: float, clutter_band_m: float, rough_relief_m: float, cache: dict | None = None
+) -> ClassRaster:
+    """The terrain's :class:`ClassRaster`, kept in ``cache`` (one dict per world) when given."""
+    key = ("pem_classes", band_m, clutter_band_m, rough_relief_m)
+    raster = cache.get(key) if cache is not None else None
+    if raster is None:
+        raster = ClassRaster.build(terrain, centreline_tree(terrain), band_m, clutter_band_m, rough_relief_m)
+        if cache is not None:
+            cache[key] = raster
+    return raster
 
 
 def rasterise_pits(
@@ -487,13 +633,7 @@ class PemGrid:
             [_polygon_area(np.asarray(o.outline_xy_m)) / grid.cell_m**2 for o in terrain.negative_obstacles]
         )
         self._tree = centreline_tree(terrain)
-        key = ("pem_classes", p.border_band_m)
-        raster = cache.get(key) if cache is not None else None
-        if raster is None:
-            raster = ClassRaster.build(terrain, self._tree, p.border_band_m)
-            if cache is not None:
-                cache[key] = raster
-        self._classes = raster
+        self._classes = class_raster(terrain, p.border_band_m, p.clutter_band_m, p.rough_relief_m, cache)
         n = len(terrain.negative_obstacles)
         self._state = np.zeros(n, dtype=np.int8)
         self._seen = np.zeros(n, dtype=np.int64)  # frames each pit was on the grid before its first drawing
@@ -501,6 +641,7 @@ class PemGrid:
         self._latency_at = np.zeros(n)  # ... and latency, drawn at its first sighting
         self._fa_xy = np.zeros((0, 2))  # world centres of the live false alarms
         self._fa_blob = np.zeros(0, dtype=np.int64)  # the library blob each copies
+        self._fa_class = np.zeros(0, dtype=np.int64)  # the terrain class each was born on
         self._frames = 0
 
     def negative(self, pose: Pose) -> np.ndarray:
@@ -553,13 +694,16 @@ class PemGrid:
 
     def _pick_blobs(self, classes: np.ndarray, bins: np.ndarray) -> np.ndarray:
         """A library blob for each new false alarm: one of its class and distance bin, else of its
-        class, else any."""
+        class, else of its fallback class (:data:`FALLBACK_CLASS`), else any."""
         lib_class, lib_bin = self._blobs[:, 0].astype(np.int64), self._blobs[:, 1].astype(np.int64)
         picks = np.empty(len(classes), dtype=np.int64)
         for i, (c, d) in enumerate(zip(classes.tolist(), bins.tolist(), strict=True)):
             pool = np.flatnonzero((lib_class == c) & (lib_bin == d))
             if pool.size == 0:
                 pool = np.flatnonzero(lib_class == c)
+            for other in fallback_chain(TERRAIN_CLASSES[c]):
+                if pool.size == 0:
+                    pool = np.flatnonzero(lib_class == TERRAIN_CLASSES.index(other))
             if pool.size == 0:
                 pool = np.arange(len(self._blobs))
             picks[i] = pool[int(self._rng.integers(pool.size))]
@@ -585,9 +729,12 @@ class PemGrid:
         if len(self._fa_xy):  # the live ones: kept with the class's probability while on the grid
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             _, _, inside = self.grid.cell_of(local)
-            klass = self._blobs[self._fa_blob, 0].astype(np.int64)
-            keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[klass])
-            self._fa_xy, self._fa_blob = self._fa_xy[keep], self._fa_blob[keep]
+            keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[self._fa_class])
+            self._fa_xy, self._fa_blob, self._fa_class = (
+                self._fa_xy[keep],
+                self._fa_blob[keep],
+                self._fa_class[keep],
+            )
         # the first frame starts with the mean population, later frames add the births
         rate = (self._fa_density if self._frames == 0 else self._fa_birth)[classes, self._block_bins]
         counts = self._rng.poisson(rate * self._block_m**2)
@@ -595,11 +742,13 @@ class PemGrid:
             at = np.repeat(np.arange(len(counts)), counts)
             offsets = (self._rng.random((len(at), 2)) - 0.5) * self._block_m
             picks = self._pick_blobs(classes[at], self._block_bins[at])
-            born = self._place(
-                _vehicle_to_world(self._block_centres[at] + offsets, pose), self._blobs[picks, 2]
-            )
+            born = _vehicle_to_world(self._block_centres[at] + offsets, pose)
+            moved = _PLACED_BY_EDGE[classes[at]]
+            if moved.any():
+                born[moved] = self._place(born[moved], self._blobs[picks[moved], 2])
             self._fa_xy = np.concatenate([self._fa_xy, born])
             self._fa_blob = np.concatenate([self._fa_blob, picks])
+            self._fa_class = np.concatenate([self._fa_class, classes[at]])
         if len(self._fa_xy):
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             rows, cols, _ = self.grid.cell_of(local)

@@ -9,7 +9,12 @@ the PEM on the same poses and compares (:func:`compare`, from the CSVs alone):
 - the median near-edge offset of the drawn pits within 6-20 m;
 - the first-confirmation distance (a pit's centre distance when first drawn), by the
   two-sample Kolmogorov-Smirnov statistic;
-- cells drawn per pit (median of drawn / rim cells; reported, not checked).
+- cells drawn per pit (median of drawn / rim cells; reported, not checked);
+- false alarms per km per course: their spread and a course-resampled interval (reported).
+
+:func:`check_braking` is the closed loop: the braking campaign (the reckless driver behind the
+Eq. 18 safety filter) once on the detector grid and once on the PEM's, ``stopped_before`` counts
+and median stop margins side by side (the first-veto gaps reported).
 
 Each figure is a ``key=value`` line; a check that fails (or cannot be made) makes the command
 exit non-zero. The thresholds are :class:`PemCheckConfig`'s.
@@ -20,8 +25,9 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +37,15 @@ from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import RunOptions, read_csv
 from negobs_gym.eval.pem_data import MODES, PemCampaignConfig, run_pem_campaign
 
-__all__ = ["PemCheckConfig", "PemCheckResult", "check_pem", "compare"]
+__all__ = [
+    "BrakingCheckConfig",
+    "PemCheckConfig",
+    "PemCheckResult",
+    "check_braking",
+    "check_pem",
+    "compare",
+    "compare_braking",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,12 +59,16 @@ class PemCheckConfig:
     max_near_edge_delta_m: float = 0.1
     max_ks: float = 0.1
     size_edges_cells: tuple[int, ...] = (15, 20, 25, 30, 35, 40, 45, 56)  # paper N Table 7's rows
+    spread_confidence: float = 0.9  # of the courses' false-alarm intervals (reported, not checked)
+    bootstrap_resamples: int = 2000
 
     def __post_init__(self) -> None:
         for name in ("max_recall_delta", "max_false_alarm_ratio_delta", "max_near_edge_delta_m", "max_ks"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value}")
         require(self.min_sightings >= 1, "min_sightings", "must be >= 1")
+        require(0 < self.spread_confidence < 1, "spread_confidence", "must lie in (0, 1)")
+        require(self.bootstrap_resamples >= 1, "bootstrap_resamples", "must be >= 1")
 
 
 @dataclass(frozen=True)
@@ -139,6 +157,7 @@ def compare(
             ratio, ok = (0.0, True) if pem == 0 else (math.inf, False)
         figures[f"false_alarms_per_km_{side}_track_ratio_delta"] = ratio
         checks[f"check_false_alarms_{side}_track"] = bool(ok)
+        figures.update(_course_spread(frames_by, side, cfg))
     medians = {}
     for m in MODES:
         offsets = [
@@ -167,6 +186,46 @@ def compare(
     figures["ks_first_confirmation"] = ks
     checks["check_first_confirmation_ks"] = bool(ks <= cfg.max_ks)
     return PemCheckResult(figures, checks, _recall_tables(by_mode, cfg))
+
+
+def _course_spread(
+    frames_by: dict[str, list[dict[str, str]]], side: str, cfg: PemCheckConfig
+) -> dict[str, float]:
+    """How far the courses' false alarms per km spread: per grid the courses' lowest, median and
+    highest rate and the 90 % interval of the pooled rate resampling whole courses (a cluster
+    bootstrap: one course's frames share its clutter), and the interval of PEM / detector - 1."""
+    key = f"false_alarms_per_km_{side}_track"
+    courses = sorted({r["episode"] for r in frames_by["detector"]})
+    counts = np.zeros((len(MODES), len(courses)))
+    km = np.zeros_like(counts)
+    index = {c: i for i, c in enumerate(courses)}
+    for j, m in enumerate(MODES):
+        for r in frames_by[m]:
+            i = index.get(r["episode"])
+            if i is not None:
+                counts[j, i] += int(r[f"false_alarms_{side}"])
+                km[j, i] += float(r["travelled_m"]) / 1000.0
+    out = {f"{key}_courses": float(len(courses))}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for j, m in enumerate(MODES):
+            rates = counts[j] / km[j]
+            out[f"{key}_course_min_{m}"] = float(np.nanmin(rates)) if len(courses) else math.nan
+            out[f"{key}_course_median_{m}"] = float(np.nanmedian(rates)) if len(courses) else math.nan
+            out[f"{key}_course_max_{m}"] = float(np.nanmax(rates)) if len(courses) else math.nan
+        if len(courses) < 2:
+            return out
+        rng = np.random.default_rng(0)
+        picks = rng.integers(len(courses), size=(cfg.bootstrap_resamples, len(courses)))
+        pooled = counts[:, picks].sum(axis=2) / km[:, picks].sum(axis=2)  # (modes, resamples)
+        ratio = pooled[1] / pooled[0] - 1.0
+    lo, hi = 50.0 - 50.0 * cfg.spread_confidence, 50.0 + 50.0 * cfg.spread_confidence
+    for j, m in enumerate(MODES):
+        out[f"{key}_{m}_lo"], out[f"{key}_{m}_hi"] = (float(v) for v in np.nanpercentile(pooled[j], [lo, hi]))
+    finite = ratio[np.isfinite(ratio)]
+    out[f"{key}_ratio_delta_lo"], out[f"{key}_ratio_delta_hi"] = (
+        (float(v) for v in np.percentile(finite, [lo, hi])) if finite.size else (math.nan, math.nan)
+    )
+    return out
 
 
 def _recall_tables(
@@ -299,4 +358,102 @@ def check_pem(
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=1, sort_keys=True, default=str) + "\n")
     write_text_atomic(out / "tables.md", _markdown(result, cfg))
     _plots(csvs["sightings"], result, cfg, out)
+    return result
+
+
+@dataclass(frozen=True, kw_only=True)
+class BrakingCheckConfig:
+    """The closed-loop check: the braking campaign's ``scenarios`` on seeds 0..``seeds``-1, the
+    reckless driver behind the safety filter, on the detector grid and on the PEM's (issue 75's
+    thresholds; not paper values).
+
+    ``overrides`` are ``--set`` paths applied to both (the observation the PEM is for)."""
+
+    seeds: int = 100  # issue 75: >= 100 seeds
+    scenarios: tuple[str, ...] = ("ditch",)
+    driver: str = "reckless"
+    max_stopped_before_delta: int = 2
+    max_stop_margin_delta_m: float = 0.2
+    overrides: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        require(
+            type(self.seeds) is int and self.seeds >= 1,
+            "braking_seeds",
+            f"must be an int >= 1, got {self.seeds!r}",
+        )
+        require(self.max_stopped_before_delta >= 0, "max_stopped_before_delta", "must be >= 0")
+        require(
+            math.isfinite(self.max_stop_margin_delta_m) and self.max_stop_margin_delta_m >= 0,
+            "max_stop_margin_delta_m",
+            "must be >= 0",
+        )
+
+    def campaign(self, model_path: str | Path | None) -> dict[str, Any]:
+        """The two :class:`~negobs_gym.eval.braking_campaign.BrakingCampaignConfig` s, by grid."""
+        from negobs_gym.envs.pem import DEFAULT_PEM_PATH
+        from negobs_gym.eval.braking_campaign import BrakingCampaignConfig
+
+        base = BrakingCampaignConfig(
+            seeds=self.seeds,
+            scenarios=self.scenarios,
+            drivers=(self.driver,),
+            filters=(True,),
+            overrides=self.overrides,
+        )
+        model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
+        pem = ("observation.source=pem", f"observation.pem_model={model}")
+        return {"detector": base, "pem": replace(base, overrides=(*self.overrides, *pem))}
+
+
+def compare_braking(summaries: dict[str, list[Any]], config: BrakingCheckConfig) -> PemCheckResult:
+    """Each scenario's stopped-before count and median stop margin of the detector's and the PEM's
+    campaign (:func:`~negobs_gym.eval.braking_campaign.summarize` of each), and the checks."""
+    figures: dict[str, float] = {}
+    counts_ok, margins_ok = True, True
+    for scenario in config.scenarios:
+        name = f"{scenario}/{config.driver}/filter"
+        got = {m: next(s for s in summaries[m] if s.name == name) for m in MODES}
+        for m, s in got.items():
+            figures[f"braking_{scenario}_episodes_{m}"] = float(s.episodes)
+            figures[f"braking_{scenario}_stopped_before_{m}"] = float(s.stopped_before)
+            figures[f"braking_{scenario}_entries_{m}"] = float(s.entries)
+            figures[f"braking_{scenario}_stop_margin_median_m_{m}"] = _median(s.stop_margins_m)
+            figures[f"braking_{scenario}_first_veto_gap_median_m_{m}"] = _median(s.first_veto_gaps_m)
+        stopped = got["pem"].stopped_before - got["detector"].stopped_before
+        margin = _median(got["pem"].stop_margins_m) - _median(got["detector"].stop_margins_m)
+        figures[f"braking_{scenario}_stopped_before_delta"] = float(stopped)
+        figures[f"braking_{scenario}_stop_margin_median_delta_m"] = margin
+        figures[f"braking_{scenario}_first_veto_gap_median_delta_m"] = (
+            figures[f"braking_{scenario}_first_veto_gap_median_m_pem"]
+            - figures[f"braking_{scenario}_first_veto_gap_median_m_detector"]
+        )
+        counts_ok &= abs(stopped) <= config.max_stopped_before_delta
+        margins_ok &= bool(abs(margin) <= config.max_stop_margin_delta_m)  # NaN (no stop) fails
+    checks = {"check_braking_stopped_before": bool(counts_ok), "check_braking_stop_margin": margins_ok}
+    return PemCheckResult(figures, checks)
+
+
+def _median(values: list[float]) -> float:
+    return float(np.median(values)) if values else math.nan
+
+
+def check_braking(
+    model_path: str | Path | None,
+    config: BrakingCheckConfig,
+    out_dir: str | Path,
+    options: RunOptions | None = None,
+) -> PemCheckResult:
+    """Run the braking campaign on the detector grid and on the PEM ``model_path`` (None: the
+    shipped one) into ``out_dir``/``braking_detector`` and ``braking_pem`` (each resumable), compare
+    (:func:`compare_braking`) and write ``braking_check.txt``."""
+    from negobs_gym.eval.braking_campaign import run_braking_campaign
+
+    out = Path(out_dir)
+    summaries = {
+        m: run_braking_campaign(campaign, out / f"braking_{m}", options).summaries
+        for m, campaign in config.campaign(model_path).items()
+    }
+    result = compare_braking(summaries, config)
+    write_text_atomic(out / "braking_check.txt", "\n".join(result.lines()) + "\n")
     return result

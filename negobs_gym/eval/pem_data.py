@@ -10,8 +10,10 @@ layer is judged against the true pits rasterised on the same grid:
 - ``sightings``: per frame, grid and pit on the grid, whether it is drawn (a connected blob of
   the layer shares a cell with it), the drawn blobs' cells and their near- and far-edge offsets
   (range from the vehicle origin, drawn minus true);
-- ``spurious``: per blob touching no pit, its terrain class, distance, cells, and whether a
-  spurious blob of the frame before lay within :data:`SAME_ALARM_M` of it in the world;
+- ``spurious``: per blob touching no pit, its terrain class (:class:`~negobs_gym.envs.pem.
+  ClassRaster`, as the PEM looks it up), distance, cells, its distance from the nearest positive
+  obstacle's footprint (``clutter_m``, empty beyond :data:`CLUTTER_REACH_M`), whether a spurious
+  blob of the frame before lay within :data:`SAME_ALARM_M` of it in the world, and its world centre;
 - ``frames``: the distance travelled, false alarms on and off the track as the detection campaign
   counts them (blobs touching neither a pit nor the track-border band), and the grid's area per
   terrain class and distance bin (what the false-alarm rates divide by).
@@ -35,10 +37,10 @@ from negobs_gym.envs.pem import (
     TERRAIN_CLASSES,
     PemGrid,
     PerceptionErrorModel,
-    centreline_tree,
+    class_raster,
+    clutter_distance_m,
     obstacle_boxes,
     rasterise_pits,
-    terrain_classes,
 )
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, run_campaign
@@ -63,6 +65,8 @@ DISTANCE_EDGES_M: tuple[float, ...] = tuple(float(d) for d in range(0, 30, 2))
 #: A spurious blob within this of one in the frame before (world centres) is the same false alarm
 #: [m]: what the INS drift and a blob's outline, growing as the car nears it, move its centre.
 SAME_ALARM_M = 1.0
+#: How far from a positive obstacle a spurious blob's ``clutter_m`` is recorded [m].
+CLUTTER_REACH_M = 8.0
 
 SIGHTING_COLUMNS = (
     "episode",
@@ -91,6 +95,9 @@ SPURIOUS_COLUMNS = (
     "cols",
     "on_border",
     "seen_before",
+    "clutter_m",
+    "x_m",
+    "y_m",
 )
 AREA_COLUMNS = tuple(f"area_{c}_{k}" for c in TERRAIN_CLASSES for k in range(len(DISTANCE_EDGES_M) - 1))
 FRAME_COLUMNS = (
@@ -121,8 +128,14 @@ class PemCampaignConfig:
             its ``source`` is ignored, the detector is always run.
         course: The detection campaign's course settings (pit mix, clutter, speeds); its seeds,
             frames and rig are not used.
-        border_band_m: Width of the ``border`` terrain class beyond each track edge [m]: the verge
-            or bank, where a detector draws the real drops (not in paper N).
+        border_band_m: Width of the ``verge`` terrain class beyond each track edge [m], where a
+            detector draws the real drops at the track's edge (not in paper N).
+        clutter_band_m: Reach of the ``clutter`` and ``mound`` terrain classes around a positive
+            obstacle's footprint [m]: the detector's false alarms beside the verge clutter lie on or
+            within 0.5 m of it (docs/pem.md; not in paper N).
+        rough_relief_m: Ground relief within 1 m from which off-track ground is ``rough`` [m]: the
+            detector's false alarms away from the clutter lie on such ground five times as often
+            as on the rest (docs/pem.md; not in paper N).
     """
 
     seeds: int = 8
@@ -131,6 +144,8 @@ class PemCampaignConfig:
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     course: DetectionCampaignConfig = field(default_factory=_course_default)
     border_band_m: float = 1.0
+    clutter_band_m: float = 0.6
+    rough_relief_m: float = 0.2
 
     def __post_init__(self) -> None:
         require(
@@ -145,9 +160,9 @@ class PemCampaignConfig:
         require(
             isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"
         )
-        require(
-            math.isfinite(self.border_band_m) and self.border_band_m >= 0, "border_band_m", "must be >= 0"
-        )
+        for name in ("border_band_m", "clutter_band_m", "rough_relief_m"):
+            value = getattr(self, name)
+            require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value!r}")
 
     @property
     def seed_list(self) -> list[int]:
@@ -204,7 +219,10 @@ class _Judge:
             for j in np.flatnonzero(~on_truth[1:]):
                 local = np.array([[xs[j], ys[j]]])
                 world = vehicle_to_world_xy(local, (ctx.pose.x, ctx.pose.y), ctx.pose.yaw)[0]
-                klass = int(terrain_classes(world[None], ctx.tree, ctx.width_m, ctx.band_m)[0])
+                klass = int(ctx.classes.at(world[None])[0])
+                clutter = float(
+                    clutter_distance_m(world[None], ctx.terrain.positive_obstacles, CLUTTER_REACH_M)[0]
+                )
                 seen = (
                     bool(len(self.previous))
                     and float(np.min(np.hypot(*(self.previous - world).T))) <= SAME_ALARM_M
@@ -228,6 +246,9 @@ class _Judge:
                     int(c.max() - c.min() + 1),
                     border[j],
                     seen,
+                    clutter if math.isfinite(clutter) else "",
+                    float(world[0]),
+                    float(world[1]),
                 ]
                 spurious.append(format_row(row))
                 if not border[j]:  # the detection campaign's false alarm (paper N §4.2)
@@ -252,9 +273,8 @@ class _Frame:
     centres: np.ndarray
     border: np.ndarray
     centre_line: np.ndarray
-    tree: object
+    classes: object
     width_m: float
-    band_m: float
 
 
 def run_episode(episode: Episode) -> Rows:
@@ -277,7 +297,8 @@ def run_episode(episode: Episode) -> Rows:
     line = np.asarray(terrain.track.centreline_xy_m, dtype=np.float64)
     step = max(1, round(1.0 / max(float(np.median(np.diff(terrain.track.stations_m))), 1e-3)))
     line = np.vstack([line[::step], line[-1:]])
-    tree, boxes = centreline_tree(terrain), obstacle_boxes(terrain)
+    boxes = obstacle_boxes(terrain)
+    raster = class_raster(terrain, cfg.border_band_m, cfg.clutter_band_m, cfg.rough_relief_m)
     width = terrain.track.width_m
     bins = len(DISTANCE_EDGES_M) - 1
     dist_bin = np.clip(np.digitize(range_m, DISTANCE_EDGES_M) - 1, 0, bins - 1).ravel()
@@ -309,13 +330,13 @@ def run_episode(episode: Episode) -> Rows:
             centre_m = {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in pits}
             centre_line = world_outline_to_vehicle(line, pose)
             world_cells = vehicle_to_world_xy(centres.reshape(-1, 2), (pose.x, pose.y), pose.yaw)
-            classes = terrain_classes(world_cells, tree, width, cfg.border_band_m)
+            classes = raster.at(world_cells)
             area = np.zeros((len(TERRAIN_CLASSES), bins))
             np.add.at(area, (classes, dist_bin), grid.cell_m**2)
             ctx = _Frame(
                 episode.key, seed, frame, terrain, pose, pits, centre_m, range_m, centres,
                 track_border_mask(centre_line, width, grid, course.matching.border_band_m),
-                centre_line, tree, width, cfg.border_band_m,
+                centre_line, raster, width,
             )  # fmt: skip
             for mode, judge in judges.items():
                 sightings, spurious, (fa_on, fa_off) = judge.frame(layers[mode], ctx)

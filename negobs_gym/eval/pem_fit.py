@@ -13,9 +13,12 @@ fits the tables from its rows (:func:`fit_parameters`, from the CSVs alone):
   few times keeps its neighbours' value;
 - the near- and far-edge offsets: quantiles per distance bin of the drawn sightings (all of a
   bin's sightings pooled over sizes; a bin with fewer than :data:`MIN_OFFSETS` takes all bins');
-- false alarms: spurious blobs per frame per m² of each terrain class and distance bin, the share
-  of them seen the frame before (their persistence), and up to :data:`MAX_BLOBS` of them (their
-  distance from the track edge, box and cells) for new ones to copy.
+- false alarms: spurious blobs per frame per m² of each terrain class (track, verge, bank,
+  drop-off, smooth and rough ground, clutter, mound) and distance bin, a bin's rate shrunk
+  toward its class's by :data:`PRIOR_AREA_M2` of pseudo-area; the share of them seen the frame before (their
+  persistence), and up to :data:`MAX_BLOBS` of them (their distance from the track edge, box and
+  cells) for new ones to copy. A class the drives never showed takes the rates of the first class of
+  its :func:`~negobs_gym.envs.pem.fallback_chain` they did (its ``fa_area_m2`` stays 0).
 """
 
 from __future__ import annotations
@@ -24,7 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from negobs_gym.envs.pem import TERRAIN_CLASSES, PemParameters, PerceptionErrorModel, pem_settings
+from negobs_gym.envs.pem import (
+    TERRAIN_CLASSES,
+    PemParameters,
+    PerceptionErrorModel,
+    fallback_chain,
+    pem_settings,
+)
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import RunOptions, read_csv
 from negobs_gym.eval.pem_data import DISTANCE_EDGES_M, PemCampaignConfig, run_pem_campaign
@@ -55,6 +64,9 @@ PASSED_M = 6.0
 MAX_BLOBS = 400
 #: Largest fitted false-alarm persistence (a blob kept forever would never leave the model).
 MAX_FA_KEEP = 0.98
+#: Pseudo-area (m² x frames) a class's rate in one distance bin is shrunk toward the class's rate
+#: over all distances by (not a paper value: ~10 frames of a 2 m bin's verge band).
+PRIOR_AREA_M2 = 50.0
 
 
 def _float(text: str) -> float:
@@ -130,7 +142,12 @@ def _quantiles(values: np.ndarray, levels: np.ndarray) -> list[float]:
 
 
 def fit_parameters(
-    sightings_csv: str | Path, spurious_csv: str | Path, frames_csv: str | Path, border_band_m: float
+    sightings_csv: str | Path,
+    spurious_csv: str | Path,
+    frames_csv: str | Path,
+    border_band_m: float,
+    clutter_band_m: float,
+    rough_relief_m: float,
 ) -> PemParameters:
     """The PEM's tables from the detector rows of a drive (:mod:`negobs_gym.eval.pem_data`).
 
@@ -173,7 +190,8 @@ def fit_parameters(
     for r in spurious:
         d = int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1))
         counts[klass[r["terrain_class"]], d] += 1
-    density = np.where(area > 0, counts / np.maximum(area, 1e-9), 0.0)
+    class_rate = counts.sum(axis=1) / np.maximum(area.sum(axis=1), 1e-9)
+    density = (counts + PRIOR_AREA_M2 * class_rate[:, None]) / (area + PRIOR_AREA_M2)
     # persistence: blobs seen again / blobs of the frame before (per class, frames in a row only)
     frames_of = {(r["episode"], int(r["frame"])) for r in frames}
     before = np.zeros(nc)
@@ -184,6 +202,11 @@ def fit_parameters(
             before[c] += 1
         again[c] += r["seen_before"] == "1"
     keep = np.clip(np.where(before > 0, again / np.maximum(before, 1), 0.0), 0.0, MAX_FA_KEEP)
+    for name in TERRAIN_CLASSES:  # a class never driven: the rates of the first in its chain that was
+        c = klass[name]
+        donors = [klass[f] for f in fallback_chain(name) if area[klass[f]].sum() > 0]
+        if area[c].sum() <= 0 and donors:
+            density[c], keep[c] = density[donors[0]], keep[donors[0]]
     blobs = [
         (klass[r["terrain_class"]], int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1)),
          round(float(r["edge_m"]), 3), int(r["rows"]), int(r["cols"]), int(r["cells"]))
@@ -203,9 +226,12 @@ def fit_parameters(
         near_offset_m=_table(np.asarray(near)),
         far_offset_m=_table(np.asarray(far)),
         fa_density_per_m2=_table(density),
+        fa_area_m2=tuple(round(float(a), 3) for a in area.sum(axis=1)),
         fa_keep=tuple(float(k) for k in keep),
         fa_blobs=tuple(tuple(float(v) for v in blob) for blob in blobs),
         border_band_m=float(border_band_m),
+        clutter_band_m=float(clutter_band_m),
+        rough_relief_m=float(rough_relief_m),
     )
 
 
@@ -222,7 +248,14 @@ def fit_pem(
     """Drive ``config``'s courses through the detector grid (rows kept in ``work_dir``, resumable),
     fit the PEM and write it to ``model_path`` atomically."""
     csvs = run_pem_campaign(config, work_dir, None, options, "PEM fit courses")
-    parameters = fit_parameters(csvs["sightings"], csvs["spurious"], csvs["frames"], config.border_band_m)
+    parameters = fit_parameters(
+        csvs["sightings"],
+        csvs["spurious"],
+        csvs["frames"],
+        config.border_band_m,
+        config.clutter_band_m,
+        config.rough_relief_m,
+    )
     frames = sum(config.frames_of(i) for i in range(config.seeds))
     model = PerceptionErrorModel(
         parameters=parameters,

@@ -23,7 +23,7 @@ def constant_model(
     p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0
 ) -> PerceptionErrorModel:
     """A PEM that draws every pit from its first sighting on (``p`` = 1) or none (0), with fixed
-    edge offsets and ``density`` false alarms per m² (4-cell blobs on the border)."""
+    edge offsets and ``density`` false alarms per m² on every terrain class (4-cell blobs)."""
     d_edges, s_edges, levels = (0.0, 10.0, 30.0), (0.0, 10_000.0), (0.0, 1.0)
     confirm = 100.0 if p > 0 else -1.0
     params = PemParameters(
@@ -38,9 +38,12 @@ def constant_model(
         near_offset_m=((near, near), (near, near)),
         far_offset_m=((far, far), (far, far)),
         fa_density_per_m2=tuple((density, density) for _ in TERRAIN_CLASSES),
-        fa_keep=(0.5, 0.5, 0.5),
+        fa_area_m2=tuple(1.0 for _ in TERRAIN_CLASSES),
+        fa_keep=tuple(0.5 for _ in TERRAIN_CLASSES),
         fa_blobs=((1.0, 0.0, 0.5, 2.0, 2.0, 4.0),),
         border_band_m=1.0,
+        clutter_band_m=2.0,
+        rough_relief_m=0.2,
     )
     return PerceptionErrorModel(parameters=params, fitted_on=pem_settings(ObservationConfig()))
 
@@ -68,6 +71,22 @@ def test_files_fitted_on_other_settings_or_layouts_are_refused(tmp_path):
         load_pem(tmp_path / "missing.json", ObservationConfig())
 
 
+def test_a_model_fitted_on_another_detector_default_is_refused_by_name(tmp_path):
+    """A detector default that changed after the fit (here paper N's detector without the HDL-64
+    ground checks) makes the file unusable until refitted; the error names each field."""
+    model = constant_model(0.5)
+    fitted_on = dict(model.fitted_on)
+    fitted_on["detector.hdl64_ground_checks.crest_rise_m"] = float("inf")
+    fitted_on["detector.some_removed_field"] = 1.0
+    path = dataclasses.replace(model, fitted_on=fitted_on).save(tmp_path / "old.json")
+    with pytest.raises(ConfigError) as error:
+        load_pem(path, ObservationConfig())
+    assert error.value.field == "observation.pem_model"
+    assert "detector.hdl64_ground_checks.crest_rise_m (fitted on inf, now" in str(error.value)
+    assert "detector.some_removed_field (fitted on 1.0, now '<absent>')" in str(error.value)
+    assert "Refit it" in str(error.value)
+
+
 def test_bad_parameters_are_refused():
     good = constant_model(0.5).parameters
     with pytest.raises(ConfigError, match="p_keep"):
@@ -75,6 +94,6 @@ def test_bad_parameters_are_refused():
     with pytest.raises(ConfigError, match="near_offset_m"):
         dataclasses.replace(good, near_offset_m=((0.5, 0.1), (0.0, 0.0)))
     with pytest.raises(ConfigError, match="fa_blobs"):
-        dataclasses.replace(good, fa_blobs=((7.0, 0.0, 0.5, 2.0, 2.0, 4.0),))
+        dataclasses.replace(good, fa_blobs=((99.0, 0.0, 0.5, 2.0, 2.0, 4.0),))
     with pytest.raises(ConfigError, match="source"):
         ObservationConfig(source="pems")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.cli import main
-from negobs_gym.envs.pem import load_pem
+from negobs_gym.envs.pem import TERRAIN_CLASSES, load_pem
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import format_row
 from negobs_gym.eval.pem_check import PemCheckConfig, check_pem, compare
@@ -50,9 +50,9 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
         for k in range(10)
         for f in range(6)
     ]
-    frames = [_frame("detector", f, area=2.0) for f in range(200)]
+    frames = [_frame("detector", f, area=100.0) for f in range(200)]
     spurious = [
-        format_row(["seed0", 0, f, "detector", "border", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0])
+        format_row(["seed0", 0, f, "detector", "verge", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0, "", 0.0, 9.0])
         for f in range(200)
     ]
     params = fit_parameters(
@@ -60,6 +60,8 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
         _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
         _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
         border_band_m=1.0,
+        clutter_band_m=2.0,
+        rough_relief_m=0.2,
     )
     s = 2  # 25 cells: the 25-34 bin (fewer than 20 confirmations: all sizes' quantiles)
     assert params.confirm_distance_m[s][10] == pytest.approx(15.75)  # between 16 m and the drawn 15.5 m
@@ -67,11 +69,64 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     assert params.p_keep[s][7] < 0.1  # never twice in a row (14-16 m)
     assert params.p_return[s][7] > 0.9  # always back after a miss
     assert params.near_offset_m[7][10] == pytest.approx(-0.4)
-    # 200 blobs in 200 frames over 2 m² of the border class at 8-10 m: 0.5 per frame per m²
-    assert params.fa_density_per_m2[1][4] == pytest.approx(0.5)
+    # 200 blobs in 200 frames over 100 m² of the verge class at 8-10 m: 0.01 per frame per m²
+    assert params.fa_density_per_m2[1][4] == pytest.approx(0.01, rel=0.01)
     assert params.fa_density_per_m2[0][4] == 0.0
     assert params.fa_keep[1] == pytest.approx(0.75, abs=0.01)
     assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
+
+
+def _frame_by_class(frame, areas, episode="seed0"):
+    """A detector frame row with ``areas[class]`` m² in every distance bin of each class."""
+    per_column = [areas.get(column.split("_")[1], 0.0) for column in AREA_COLUMNS]
+    return format_row([episode, 0, frame, "detector", 1.0, 0, 0, *per_column])
+
+
+def test_false_alarm_rates_are_fitted_per_terrain_class_and_unseen_classes_borrow(tmp_path):
+    """Clutter ground with five times the smooth ground's false alarms per m² gets five times its
+    rate; bank, drop-off and rough ground, never driven, take the smooth ground's, a mound's the
+    clutter's (and show 0 m² fitted)."""
+    areas = {"track": 40.0, "verge": 10.0, "smooth": 20.0, "clutter": 4.0}
+    frames = [_frame_by_class(f, areas) for f in range(300)]
+    spurious = []
+    for f in range(300):  # 8-10 m: smooth 20 m² x 0.01 = 0.2 per frame, clutter 4 m² x 0.05 = 0.2
+        if f % 5 == 0:
+            spurious.append(
+                format_row(
+                    ["seed0", 0, f, "detector", "smooth", 3.0, 9.0, 4, 2, 2, False, False, "", 6.0, 9.0]
+                )
+            )
+        if f % 5 == 1:
+            spurious.append(
+                format_row(
+                    ["seed0", 0, f, "detector", "clutter", 1.2, 9.0, 6, 3, 2, False, f > 100, 0.7, 4.2, 9.0]
+                )
+            )
+    sightings = [_sighting("detector", 0, 0, 10.0, True)]
+    params = fit_parameters(
+        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings),
+        _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
+        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
+        border_band_m=1.0,
+        clutter_band_m=2.0,
+        rough_relief_m=0.2,
+    )
+    k = {c: i for i, c in enumerate(TERRAIN_CLASSES)}
+    density = np.asarray(params.fa_density_per_m2)
+    # 60 blobs over 300 frames x 20 m² (smooth) and 4 m² (clutter) in the 8-10 m bin, shrunk a little
+    assert density[k["smooth"], 4] == pytest.approx(0.01, rel=0.02)
+    assert density[k["clutter"], 4] == pytest.approx(0.05, rel=0.05)
+    assert density[k["clutter"], 4] / density[k["smooth"], 4] == pytest.approx(5.0, rel=0.05)
+    assert density[k["clutter"], 9] < 0.01 * density[k["clutter"], 4]  # none seen at 18-20 m
+    for name in ("bank", "dropoff", "rough"):
+        assert np.array_equal(density[k[name]], density[k["smooth"]]) and params.fa_area_m2[k[name]] == 0.0
+    assert np.array_equal(density[k["mound"]], density[k["clutter"]]) and params.fa_area_m2[k["mound"]] == 0.0
+    assert params.fa_area_m2[k["bank"]] == 0.0 and params.fa_area_m2[k["clutter"]] == pytest.approx(
+        4.0 * 14 * 300
+    )
+    assert params.fa_keep[k["clutter"]] > 0.0 and params.fa_keep[k["bank"]] == params.fa_keep[k["smooth"]]
+    assert params.clutter_band_m == 2.0 and params.rough_relief_m == 0.2
+    assert {blob[0] for blob in params.fa_blobs} == {k["smooth"], k["clutter"]}
 
 
 def test_compare_passes_equal_grids_and_fails_each_kind_of_difference(tmp_path):
