@@ -252,8 +252,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="change one detector setting, repeatable: negative.* (paper N, NegativeDetectorConfig: "
         "negative.fusion.prior=0.4, negative.hdl64.density_factor=0.5, negative.grid.ahead_m=40), "
         "traversable.* (paper T, TraversableConfig: traversable.vehicle_width_m=1.8), structure.* "
-        "(StructureConfig); VALUE is TOML. The grid (negative.grid) is every detector's. OUT/config.json "
-        "records the settings that ran",
+        "(StructureConfig), rings.* (the ring recovery from the point order of clouds without a ring "
+        "field, loaders.PointOrderConfig: rings.back_step_deg=20); VALUE is TOML. The grid "
+        "(negative.grid) is every detector's. OUT/config.json records the settings that ran",
     )
     pngs = parser.add_mutually_exclusive_group()
     pngs.add_argument("--no-png", action="store_true", help="JSON only (faster on long bags)")
@@ -278,7 +279,11 @@ def run(args: argparse.Namespace) -> int:
     from negobs_gym.errors import ScanError
 
     check_tf_options(args)
-    setups = scan_setups(args)
+    configs = detector_configs(args.settings, tighten_pairs=args.tighten_pairs)
+    setups = {
+        name: dataclasses.replace(setup, point_order=configs["rings"])
+        for name, setup in scan_setups(args).items()
+    }
     setup = next(iter(setups.values()))  # the lead's
     out = Path(args.out)
     poses = _frame_poses(args, setup)
@@ -290,7 +295,6 @@ def run(args: argparse.Namespace) -> int:
             "them to it)",
             poses_file,
         )
-    configs = detector_configs(args.settings, tighten_pairs=args.tighten_pairs)
     detector = NegativeObstacleDetector(configs["negative"])
     structure = StructureDetector(configs["structure"], grid=detector.config.grid)
     traversable = TraversableRegionDetector(configs["traversable"], grid=detector.config.grid)
@@ -411,8 +415,9 @@ def _frame_poses(args: argparse.Namespace, setup: ScanSetup) -> list[Pose] | Non
 
 
 def detector_configs(settings: list[str], *, tighten_pairs: bool = False) -> dict[str, Any]:
-    """The configs of the three detectors, by ``--set`` section (``negative``, ``traversable``,
-    ``structure``), with ``--tighten-pairs`` and then each ``--set`` applied.
+    """The configs of the three detectors and of the ring recovery, by ``--set`` section
+    (``negative``, ``traversable``, ``structure``, ``rings``: the point order's thresholds for clouds
+    without a ring field), with ``--tighten-pairs`` and then each ``--set`` applied.
 
     Raises:
         ConfigError: an assignment outside the three sections, or one the section refuses
@@ -420,12 +425,14 @@ def detector_configs(settings: list[str], *, tighten_pairs: bool = False) -> dic
     """
     from negobs_gym.core.settings import OPTION, parse_assignment, replace_setting
     from negobs_gym.detector import FusionConfig, NegativeDetectorConfig, StructureConfig, TraversableConfig
+    from negobs_gym.detector.loaders import PointOrderConfig
     from negobs_gym.errors import ConfigError
 
     configs: dict[str, Any] = {
         "negative": NegativeDetectorConfig(fusion=FusionConfig(tighten_on_match=tighten_pairs)),
         "traversable": TraversableConfig(),
         "structure": StructureConfig(),
+        "rings": PointOrderConfig(),
     }
     for text in settings:
         keys, value = parse_assignment(text, example="negative.fusion.prior=0.4")

@@ -80,6 +80,10 @@ class PointOrderConfig:
     # is no laser start: it moves, within this, to the largest elevation step if that reaches
     # min_cut_step_spacings (a laser starting a few points off the origin, e.g. across the seam).
     near_window_deg: float = 1.0
+    # A step back larger than this is no laser starting before the previous one ended (their offsets
+    # from the origin, each within boundary_window_deg, differ by at most twice it) but a gap in a
+    # cropped sweep: velodyne_reduced's +-45 deg view jumps 270 deg forward, read as 90 deg back.
+    max_offset_step_deg: float = 20.0
 
     def __post_init__(self) -> None:
         require(0.0 < self.back_step_deg < 180.0, "back_step_deg", "must be in (0, 180)")
@@ -94,6 +98,11 @@ class PointOrderConfig:
         require(self.min_cut_step_spacings > 0.0, "min_cut_step_spacings", "must be > 0")
         require(self.max_laser_step_spacings > 0.0, "max_laser_step_spacings", "must be > 0")
         require(self.neighbour_gap_deg > 0.0, "neighbour_gap_deg", "must be > 0")
+        require(
+            self.jitter_deg < self.max_offset_step_deg < 180.0,
+            "max_offset_step_deg",
+            "must be in (jitter_deg, 180)",
+        )
 
 
 log = logging.getLogger(__name__)
@@ -353,12 +362,14 @@ def _refine(
     jitter: float,
     min_step: float,
     laser_step: float,
+    max_back: float,
 ) -> np.ndarray:
     """Move each laser start within reach of where it was cut (halfway to its neighbours at most).
 
     Within ``window`` points: to the point after the largest step back against the spin, if one
     exceeds ``jitter``; within a laser the azimuth never steps back, so such a step is where the
-    next laser's sweep begins before the previous one's ended (per-laser azimuth offsets). Else,
+    next laser's sweep begins before the previous one's ended (per-laser azimuth offsets). A step
+    back beyond ``max_back`` is a cropped sweep's gap, a jump forward, and is passed over. Else,
     where the elevation steps by no more than ``laser_step`` across the cut (as between returns of
     one laser: a laser starts a few points off the origin), within ``near`` points: to the largest
     elevation step, if that reaches ``min_step``. ``forward`` holds each azimuth step with the spin.
@@ -374,6 +385,7 @@ def _refine(
         last = (cut + bounds[j + 2]) // 2
         lo, hi = max(cut - window, first), min(cut + window, last)
         steps = forward[lo - 1 : hi - 1]  # the step into point i is forward[i - 1]
+        steps = np.where(steps < -max_back, 0.0, steps)
         if steps.size and steps.min() < -jitter:
             refined[j] = lo + int(np.argmin(steps))
         elif d_el[cut - 1] <= laser_step:
@@ -423,7 +435,15 @@ def _point_order_rings(
     reach = int(np.radians(config.near_window_deg) / typical) if typical > 0 else 0
     laser_step_max = config.max_laser_step_spacings * table_spacing
     start = _refine(
-        forward, el, start, window, reach, np.radians(config.jitter_deg), min_step, laser_step_max
+        forward,
+        el,
+        start,
+        window,
+        reach,
+        np.radians(config.jitter_deg),
+        min_step,
+        laser_step_max,
+        np.radians(config.max_offset_step_deg),
     )
     ring = np.cumsum(start)
     d_el = np.abs(np.diff(el))
@@ -464,7 +484,8 @@ def rings_from_point_order(
     sitting a few cm off it). Each laser's start then moves, within ``config.boundary_window_deg``, to a
     step back against the spin, where the next laser's sweep begins before the previous one's ended
     (per-laser azimuth offsets: a laser whose sweep starts before the origin has its points split at the
-    start and the end of its ring), or, where the cut steps too little in elevation, within
+    start and the end of its ring; a step back beyond ``config.max_offset_step_deg`` is a cropped
+    sweep's gap and does not count), or, where the cut steps too little in elevation, within
     ``config.near_window_deg`` to the largest elevation step. The order is accepted when it yields
     2..len(``elevation_rad``) lasers with distinct median elevations, neighbouring points of two lasers
     at least ``config.min_cut_step_spacings`` of the table's laser spacing apart in elevation and
@@ -497,11 +518,27 @@ def assign_rings(
         return RingAssignment(rings[0], rings[1], "point_order")
     log.warning(
         "%s: points are not stored laser by laser (%s); rings from the nearest elevation-table entry, "
-        "which mis-rings points where this unit's lasers sit off the table",
+        "which mis-rings points where this unit's lasers sit off the table; %s",
         source or "cloud without ring field",
         why,
+        _table_fit(xyz, table),
     )
     return RingAssignment(recover_rings(xyz, table), table, "elevation_table")
+
+
+def _table_fit(xyz: np.ndarray, table: np.ndarray) -> str:
+    """How many points lie outside the table's elevation span, said so that a file that is no scan of
+    this sensor (another sensor's, a tilted mount's, an image written as x, y, z points) shows."""
+    if xyz.shape[0] == 0:
+        return "no points"
+    lo, hi = float(table.min()), float(table.max())
+    el = point_elevation(xyz)
+    outside = float(np.mean((el < lo) | (el > hi)))
+    return (
+        f"{100 * outside:.0f} % of the points lie outside the table's elevations "
+        f"({np.degrees(lo):.1f} to {np.degrees(hi):.1f} deg; points from "
+        f"{np.degrees(el.min()):.1f} to {np.degrees(el.max()):.1f} deg)"
+    )
 
 
 def unstructured_to_scan(
@@ -510,16 +547,17 @@ def unstructured_to_scan(
     *,
     sensor: str,
     source: str | None = None,
+    point_order: PointOrderConfig | None = None,
     **kwargs: object,
 ) -> StructuredScan:
     """(N, 4) ``x, y, z, intensity`` sensor-frame cloud without ring -> structured scan.
 
-    Rings come from :func:`assign_rings` (point order first, elevation table as fallback, with a
-    warning naming ``source``); which one was used is logged at INFO. Use :func:`assign_rings`
-    directly to get it as a value.
+    Rings come from :func:`assign_rings` (point order first, with ``point_order``'s thresholds,
+    elevation table as fallback, with a warning naming ``source``); which one was used is logged at
+    INFO. Use :func:`assign_rings` directly to get it as a value.
     """
     p = _check_cloud(cloud, 4, sensor)
-    rings = assign_rings(p[:, :3], elevation_rad, source=source or sensor)
+    rings = assign_rings(p[:, :3], elevation_rad, source=source or sensor, config=point_order)
     log.info("%s: rings from %s (%d rings)", sensor, rings.source, rings.elevation_rad.size)
     return cloud_to_scan(
         p[:, :3],
@@ -592,10 +630,16 @@ def load_kitti_bin(
     """Read a KITTI-style float32 ``x, y, z, intensity`` ``.bin`` (velodyne frame: x forward,
     y left, z up) and build a structured scan in this package's sensor frame (X right, Y forward).
 
-    Rings: see :func:`unstructured_to_scan`."""
+    Rings: see :func:`unstructured_to_scan` (``point_order=`` its :class:`PointOrderConfig`)."""
     kitti = read_float32_cloud(path, 4)
     cloud = np.column_stack([ros_to_sensor_frame(kitti[:, :3]), kitti[:, 3]])
-    return unstructured_to_scan(cloud, elevation_rad, sensor=f"{sensor}", source=os.fspath(path), **kwargs)
+    return unstructured_to_scan(
+        cloud,
+        elevation_rad,
+        sensor=f"{sensor}",
+        source=os.fspath(path),
+        **kwargs,  # type: ignore[arg-type]
+    )
 
 
 def load_ring_bin(path: str | os.PathLike[str], *, sensor: str = "hdl64", **kwargs: object) -> StructuredScan:

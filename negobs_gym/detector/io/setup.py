@@ -11,6 +11,7 @@ import numpy as np
 from negobs_gym.core.scan import StructuredScan
 from negobs_gym.detector.loaders import (
     HDL64E_AZIMUTH_RESOLUTION_DEG,
+    PointOrderConfig,
     RingSource,
     assign_rings,
     azimuth_columns,
@@ -62,6 +63,8 @@ class ScanSetup:
         crop_columns: The range image spans only the columns from the first to the last with a
             return, for a scanner whose field of view is narrower than a revolution
             (:func:`~negobs_gym.detector.loaders.column_span`); column times crop alike.
+        point_order: Thresholds of the ring recovery from the point order, for clouds without a
+            ring field (:func:`~negobs_gym.detector.loaders.assign_rings`).
     """
 
     sensor: str = "hdl64"
@@ -71,6 +74,7 @@ class ScanSetup:
     translation_m: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0))
     columns_centred: bool = False
     crop_columns: bool = False
+    point_order: PointOrderConfig = field(default_factory=PointOrderConfig)
 
     def __post_init__(self) -> None:
         require(isinstance(self.sensor, str) and bool(self.sensor), "sensor", "must be a non-empty name")
@@ -81,6 +85,7 @@ class ScanSetup:
         )
         require(bool(np.isfinite(self.elevation_rad).all()), "elevation_rad", "must be finite")
         require(np.shape(self.rotation) == (3, 3), "rotation", "must be 3x3")
+        require(isinstance(self.point_order, PointOrderConfig), "point_order", "must be a PointOrderConfig")
         require(
             len(self.translation_m) == 3 and bool(np.isfinite(self.translation_m).all()),
             "translation_m",
@@ -118,8 +123,8 @@ def fields_to_scan(
 
     ``x, y, z`` are required, ``intensity`` optional; the ring comes from the first field of
     :data:`RING_FIELD_NAMES` present (row elevations measured from the points), else from
-    :func:`~negobs_gym.detector.loaders.assign_rings` with ``setup.elevation_rad`` (its fallback to the
-    table warns, naming ``source``). Points with a
+    :func:`~negobs_gym.detector.loaders.assign_rings` with ``setup.elevation_rad`` and
+    ``setup.point_order`` (its fallback to the table warns, naming ``source``). Points with a
     NaN coordinate are dropped (organised clouds mark missing returns so); a cloud with no finite
     point, a missing coordinate or an infinite value raises :class:`ScanError`.
     """
@@ -150,7 +155,7 @@ def fields_to_scan(
         raise ScanError(
             f"{source}: no ring field ({'/'.join(RING_FIELD_NAMES)}) and no elevation table for this sensor"
         )
-    rings = assign_rings(xyz, np.asarray(setup.elevation_rad), source=source)
+    rings = assign_rings(xyz, np.asarray(setup.elevation_rad), source=source, config=setup.point_order)
     return setup.scan(xyz, rings.ring, rings.elevation_rad, intensity, timestamp_s), rings.source
 
 

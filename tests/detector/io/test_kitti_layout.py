@@ -3,11 +3,14 @@
 The clouds are synthesised laser by laser with the HDL-64E S2 table the package ships, as KITTI's
 tools write them: each laser's sweep one turn from straight ahead (object set ``velodyne/*.bin``,
 raw set ``velodyne_points/data/*.bin``), so that the +-180 deg seam behind cuts every laser, the
-object detectors' camera-view crop of the object set (``velodyne_reduced``), and a revolution cut
+object detectors' camera-view crop of the object set (``velodyne_reduced``; also with a dark car
+ahead that returns nothing to every 4th laser just after the origin), and a revolution cut
 just before the seam, so that every laser has its points at the start and the end of its ring,
 with a few lasers firing 1.5 deg early or late. Each laser sits a few cm above the sensor origin, as a real
 HDL-64E's do, so its returns' elevation seen from the origin moves with their range. No KITTI data
-is used (its licence is non-commercial).
+is used (its licence is non-commercial). Refused: a shuffled cloud, and a grey image written as
+``x, y, z, intensity`` points (pixel column, row, grey, grey), as one public "velodyne" repository's
+example files are.
 """
 
 from __future__ import annotations
@@ -75,8 +78,10 @@ def _kitti_cloud(layout: str, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
         az = az + rng.normal(0.0, 0.002, az.size)
         p = _cast(TABLE[laser], az, lift[laser])
         keep = np.isfinite(p).all(axis=1) & (rng.random(az.size) > 0.03)  # no return, dropped returns
-        if layout == "reduced":  # the camera's view: +-45 deg ahead
+        if layout in ("reduced", "reduced_dark"):  # the camera's view: +-45 deg ahead
             keep &= (p[:, 0] > 0) & (np.abs(np.arctan2(p[:, 1], p[:, 0])) < np.radians(45.0))
+        if layout == "reduced_dark" and k % 4 == 1:  # a dark car ahead-left returns nothing to
+            keep &= (az < 1.5) | (az > 40.0)  # every 4th laser: its start lies just before the crop
         clouds.append(p[keep])
         lasers.append(np.full(int(keep.sum()), k))
     xyz = np.concatenate(clouds)
@@ -90,6 +95,7 @@ def _kitti_cloud(layout: str, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
         ("object", "velodyne/000000.bin"),
         ("raw", "velodyne_points/data/0000000000.bin"),
         ("reduced", "velodyne_reduced/000000.bin"),
+        ("reduced_dark", "velodyne_reduced/000008.bin"),
         ("seam", "velodyne_points/data/0000000001.bin"),
     ],
 )
@@ -125,6 +131,18 @@ def test_the_seam_cut_lasers_are_missed_by_a_seam_only_cut():
     np.testing.assert_array_equal(rings.ring, np.unique(laser, return_inverse=True)[1])
 
 
+def test_a_cropped_sweeps_gap_is_no_laser_start():
+    """In the camera-view crop a laser with few returns after the origin (mmdet3d's demo frame
+    000008.bin) reaches the crop's gap within the boundary window: its 270 deg jump forward reads
+    as 90 deg back and, taken for a laser starting early, split the laser at the gap."""
+    cloud, laser = _kitti_cloud("reduced_dark", seed=9)
+    xyz = ros_to_sensor_frame(cloud[:, :3].astype(np.float64))
+    truth = np.unique(laser, return_inverse=True)[1]
+    np.testing.assert_array_equal(assign_rings(xyz, TABLE).ring, truth)
+    every_step_back = PointOrderConfig(max_offset_step_deg=179.0)
+    assert not np.array_equal(assign_rings(xyz, TABLE, config=every_step_back).ring, truth)
+
+
 def test_fallback_to_the_table_warns_naming_the_file(tmp_path, caplog):
     cloud, _ = _kitti_cloud("object", seed=2)
     path = tmp_path / "shuffled.bin"
@@ -135,6 +153,50 @@ def test_fallback_to_the_table_warns_naming_the_file(tmp_path, caplog):
     (record,) = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert str(path) in record.getMessage()
     assert "elevation-table" in record.getMessage()
+
+
+def _image_as_points(width: int, height: int, seed: int) -> np.ndarray:
+    """(N, 4) float32 points of a grey image written as a Processing sketch for Velodyne-style
+    ``.bin`` files writes it (n1ckfg/pointcloud_velodyne's ``data/example002.bin``): pixel column,
+    row, grey, grey, row by row, pixels of grey 0 left out."""
+    rng = np.random.default_rng(seed)
+    grey = np.clip(rng.normal(120.0, 60.0, (height, width)), 0, 255).round()
+    row, col = np.nonzero(grey > 0)
+    return np.column_stack([col, row, grey[row, col], grey[row, col]]).astype(np.float32)
+
+
+def test_an_image_written_as_points_is_refused_and_the_warning_says_it_fits_no_laser(tmp_path, caplog):
+    """An image's rows sweep like lasers, 640 points a row with a jump back at its end: the order
+    must still be refused (hundreds of rows, elevations far above the HDL-64E's), and the warning
+    says how far the points lie off the table."""
+    cloud = _image_as_points(640, 120, seed=7)
+    path = tmp_path / "velodyne_points" / "data" / "example002.bin"
+    path.parent.mkdir(parents=True)
+    cloud.tofile(path)
+    xyz = ros_to_sensor_frame(cloud[:, :3].astype(np.float64))
+    elevation = np.degrees(np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1])))
+    outside = np.mean((elevation < np.degrees(TABLE.min())) | (elevation > np.degrees(TABLE.max())))
+    assert outside > 0.9  # the generated image is what it should be: almost no point fits a laser
+    with caplog.at_level(logging.WARNING, logger="negobs_gym.detector.loaders"):
+        frame = read_bin(path, SETUP)
+    assert frame.ring_source == "elevation_table"
+    (record,) = [r for r in caplog.records if r.levelno == logging.WARNING]
+    message = record.getMessage()
+    assert str(path) in message and "lasers found, the table has 64" in message
+    assert f"{100 * outside:.0f} % of the points lie outside the table's elevations" in message
+
+
+def test_scan_setup_point_order_thresholds_reach_the_ring_recovery(tmp_path, caplog):
+    """A KITTI-layout file is ringed by its order with the default thresholds and refused when the
+    setup asks for cuts stepping 50 laser spacings in elevation."""
+    cloud, _ = _kitti_cloud("raw", seed=8)
+    path = tmp_path / "0000000008.bin"
+    cloud.tofile(path)
+    assert read_bin(path, SETUP).ring_source == "point_order"
+    strict = ScanSetup(elevation_rad=tuple(TABLE), point_order=PointOrderConfig(min_cut_step_spacings=50.0))
+    with caplog.at_level(logging.WARNING, logger="negobs_gym.detector.loaders"):
+        assert read_bin(path, strict).ring_source == "elevation_table"
+    assert "median elevation step between lasers" in caplog.text
 
 
 def test_the_point_order_warns_nothing(tmp_path, caplog):
@@ -154,6 +216,7 @@ def test_the_point_order_warns_nothing(tmp_path, caplog):
         "neighbour_gap_deg",
         "min_cut_step_spacings",
         "max_laser_step_spacings",
+        "max_offset_step_deg",
     ],
 )
 def test_point_order_config_refuses_a_bad_threshold(field):
