@@ -171,12 +171,12 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     # paper T's LUX 2.0 m ahead of the axle with its filters held still for this clone), then the
     # command's --set, which replaces the
     # record's assignment to that key
-    shipped = ["eval", "policy", "ppo_offroad_nav_v2_detector_clone", "--seeds", "1", "--filter", "off"]
+    shipped = ["eval", "policy", "ppo_offroad_nav_v1_detector_filter", "--seeds", "1", "--filter", "off"]
     shipped += ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=0.3"]
     shipped += ["--out", str(tmp_path / "shipped"), "--no-progress"]
     assert main(["-q", *shipped]) == 0
     label = (
-        "negobs_gym/OffroadTrack-v0"
+        "negobs_gym/OffroadNav-v1"
         "[observation.lux_forward_m=2.0,observation.lux_ego_motion=false,"
         "observation.tighten_pairs=true,episode.time_limit_s=0.3]"
     )
@@ -188,7 +188,7 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     # the episode's record keeps the shipped policy's name, not this install's path to it, so the
     # folder replays wherever the package is installed
     (part,) = (tmp_path / "shipped" / "parts").glob("*.json")
-    assert json.loads(part.read_text())["args"]["model_path"] == "ppo_offroad_nav_v2_detector_clone"
+    assert json.loads(part.read_text())["args"]["model_path"] == "ppo_offroad_nav_v1_detector_filter"
     (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
     assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)
