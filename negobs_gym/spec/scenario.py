@@ -373,6 +373,14 @@ class CriteriaSpec:
         }
 
 
+#: The filter a scene runs behind unless its ``[filter]`` says otherwise: paper N's Eq. 18 plus
+#: hazard memory, which keeps a pit whose rim drops out of the detection in the HDL-64's
+#: ring-free disc while the car stands before it (docs/safety.md, "Hazard memory"); the negobs
+#: envs hand the filter the pose and grid it needs. ``[filter] hazard_memory = false`` gives paper
+#: N's stateless filter, the default of :class:`SafetyFilterConfig` for any other env.
+SCENE_FILTER = SafetyFilterConfig(hazard_memory=True)
+
+
 @dataclass(frozen=True)
 class SampledScenario:
     """One episode's draw of a spec: the terrain, the start pose and speed."""
@@ -408,8 +416,8 @@ class ScenarioSpec:
     render: RenderConfig = field(default_factory=RenderConfig)
     run: RunSpec = field(default_factory=RunSpec)
     # how the safety filter decides when run.filter (or a command) puts it in: Eq. 18's mode, the
-    # governor and hazard memory (docs/safety.md)
-    filter: SafetyFilterConfig = field(default_factory=SafetyFilterConfig)
+    # governor and hazard memory (docs/safety.md); SCENE_FILTER unless the spec says otherwise
+    filter: SafetyFilterConfig = field(default_factory=lambda: SCENE_FILTER)
     criteria: CriteriaSpec = field(default_factory=CriteriaSpec)
 
     def __post_init__(self) -> None:
@@ -432,7 +440,7 @@ class ScenarioSpec:
 
         ``run.filter_mode`` and ``run.stop_for_positive`` are read as ``filter.mode`` and
         ``filter.stop_for_positive`` for one release, with a DeprecationWarning."""
-        return from_plain(cls, _moved_filter_keys(data))
+        return from_plain(cls, _filter_over_scene_defaults(_moved_filter_keys(data)))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data that :meth:`from_dict` turns back into an equal spec (TOML-ready)."""
@@ -494,6 +502,21 @@ def _moved_filter_keys(data: Mapping[str, Any]) -> Mapping[str, Any]:
             del run[old]
     data["run"], data["filter"] = run, filter_table
     return data
+
+
+def _filter_over_scene_defaults(data: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``data`` with its ``[filter]`` settings laid over :data:`SCENE_FILTER`'s, so that a table
+    naming only ``mode`` keeps the scene default's hazard memory."""
+    given = data.get("filter")
+    if not isinstance(given, Mapping) or isinstance(given, SafetyFilterConfig):
+        return data
+    merged = to_plain(SCENE_FILTER)
+    for key, value in given.items():
+        if key == "braking" and isinstance(value, Mapping):
+            merged["braking"] = {**merged["braking"], **value}
+        else:
+            merged[key] = value
+    return {**data, "filter": merged}
 
 
 def spec_from_toml(text: str) -> ScenarioSpec:

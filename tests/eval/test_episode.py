@@ -14,6 +14,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.episode import EpisodeStop, drive_episode, filter_settings
 from negobs_gym.safety.filter import SafetyFilterConfig
 from negobs_gym.spec import load_scenario
+from negobs_gym.spec.scenario import SCENE_FILTER
 
 ORACLE = ["observation.source=oracle"]
 
@@ -82,8 +83,9 @@ def test_a_driver_source_is_built_on_the_course_the_reset_drew() -> None:
 def test_the_filter_follows_the_spec_unless_given() -> None:
     rock = load_scenario("rock_on_track_25kmh")
     assert rock.run.filter and rock.filter.stop_for_positive
-    assert filter_settings(None, rock) == SafetyFilterConfig(stop_for_positive=True)
-    assert filter_settings(True, load_scenario("braking_v0")) == SafetyFilterConfig()
+    assert filter_settings(None, rock) == dataclasses.replace(SCENE_FILTER, stop_for_positive=True)
+    assert filter_settings(True, load_scenario("braking_v0")) == SCENE_FILTER
+    assert SCENE_FILTER == SafetyFilterConfig(hazard_memory=True)  # Eq. 18 plus hazard memory
     assert filter_settings(False, rock) is None
     own = SafetyFilterConfig(margin_m=0.5)
     assert filter_settings(own, rock) is own

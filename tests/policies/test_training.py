@@ -24,8 +24,9 @@ from negobs_gym.policies.training import (
     training_overrides,
     training_spec,
 )
-from negobs_gym.safety import BrakingSafetyFilter, SafetyFilterConfig
+from negobs_gym.safety import BrakingSafetyFilter
 from negobs_gym.spec import Range, load_scenario, spec_from_toml
+from negobs_gym.spec.scenario import SCENE_FILTER
 
 ORACLE = ("observation.source=oracle",)
 
@@ -237,7 +238,7 @@ def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> No
     env = make_training_env("paper_n_three_pits", (*ORACLE, "run.filter=true"))
     assert env.unwrapped.scenario.observation.source == "oracle" and env.grid_shape == (4, 36, 16)
     assert isinstance(env.env, BrakingSafetyFilter)  # the policy observation wraps the filter
-    assert env.env.config == SafetyFilterConfig()
+    assert env.env.config == SCENE_FILTER  # the scene default: Eq. 18 plus hazard memory
     env.close()
     config = TrainConfig(env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=1"))
     with pytest.raises(ConfigError, match=r"run\.filter"):  # a bad value named by its path
@@ -245,7 +246,7 @@ def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> No
     config = TrainConfig(
         env="paper_n_three_pits", overrides=(*ORACLE, "run.filter=true", "filter.stop_for_positive=true")
     )
-    assert filter_setting(config) == SafetyFilterConfig(stop_for_positive=True)
+    assert filter_setting(config) == dataclasses.replace(SCENE_FILTER, stop_for_positive=True)
     env = make_training_env(config.env, config.overrides)
     assert env.env.config.stop_for_positive
     env.close()
@@ -258,7 +259,7 @@ def test_the_filter_is_read_from_the_run_table_of_the_spec(tmp_path: Path) -> No
     env.close()
     # the rock scene's run table stops for positive obstacles: only with the filter asked for
     rock = TrainConfig(env="rock_on_track_25kmh", overrides=("run.filter=true",))
-    assert filter_setting(rock) == SafetyFilterConfig(stop_for_positive=False)
+    assert filter_setting(rock) == SCENE_FILTER
     with pytest.raises(ConfigError, match=r"filter\.stop_for_positive: needs the filter"):
         run_filter(training_spec(TrainConfig(overrides=("filter.stop_for_positive=true",))))
 
@@ -340,9 +341,8 @@ def test_old_records_translate_to_overrides() -> None:
     # a state-only run of a --set scenario: the oracle grid in the env, none in the policy
     state = config_from_record({"env": "out/scenario.toml", "source": "state", "filter": False})
     assert state.overrides == ("observation.source=oracle", "run.filter=false") and not state.grid_input
-    assert filter_setting(dataclasses.replace(config, env="negobs_gym/Braking-v1")) == SafetyFilterConfig(
-        stop_for_positive=True
-    )
+    braking = dataclasses.replace(config, env="negobs_gym/Braking-v1")
+    assert filter_setting(braking) == dataclasses.replace(SCENE_FILTER, stop_for_positive=True)
     # this version's record reads back as it was written
     assert config_from_record(dataclasses.asdict(config)) == config
     with pytest.raises(ConfigError, match=r"config\.sources: no such setting"):
