@@ -12,6 +12,7 @@ from negobs_gym.drivers import RecklessDriver
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.scenario_runner import ScenarioResult, check_criteria, run_scenario, run_scenario_seeds
 from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M, VetoJudgement
+from negobs_gym.safety import SafetyFilterConfig
 from negobs_gym.spec import spec_from_toml
 from negobs_gym.spec.scenario import CriteriaSpec
 from tests.helpers import PIT_SCENE
@@ -99,13 +100,13 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     the car drives in; every step let through with the pit 2 m inside R(v) is a missed veto."""
     spec = spec_from_toml(TURN_SCENE.replace("hazard_hold_s = 2.0", "hazard_hold_s = 0.0"))
     spec = dataclasses.replace(spec, criteria=CriteriaSpec(max_missed_vetoes=0))
-    r = run_scenario(spec, _SteadyLeftTurn(), filter=True, seed=0)
+    r = run_scenario(spec, _SteadyLeftTurn(), filter=SafetyFilterConfig(), seed=0)  # no memory
     assert r.entered_negative_obstacle and r.vetoes > 0 and r.false_vetoes == 0
     assert r.missed_vetoes >= 3 and r.failures == ("max_missed_vetoes",)
     # read frame by frame, the near rim leaves the sensors' view first: the filter put the pit
-    # farther than it was, by over a metre at its later vetoes
-    assert r.max_veto_error_m > 1.0 and " veto_error_m=+" in r.line()
-    late = dataclasses.replace(spec, criteria=CriteriaSpec(max_veto_error_m=1.0))
+    # farther than it was, by most of a metre at its later vetoes
+    assert r.max_veto_error_m > 0.5 and " veto_error_m=+" in r.line()
+    late = dataclasses.replace(spec, criteria=CriteriaSpec(max_veto_error_m=0.5))
     assert check_criteria(late.criteria, r) == ("max_veto_error_m",)
     assert len(r.missed_steps) == r.missed_vetoes and not set(r.missed_steps) & set(r.vetoed_steps)
     assert max(r.missed_steps) > max(r.vetoed_steps)  # after its stop, on the way in
@@ -122,6 +123,9 @@ def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     assert f" missed_vetoes={r.missed_vetoes} " in r.line()
     plain = run_scenario(spec, _SteadyLeftTurn(), filter=False, seed=0)
     assert plain.entered_negative_obstacle and plain.missed_vetoes == 0  # no filter, nothing to miss
+    # the scenes' default filter keeps the pit in its hazard memory: the car stays out
+    kept = run_scenario(spec, _SteadyLeftTurn(), filter=True, seed=0)
+    assert not kept.entered_negative_obstacle and kept.missed_vetoes == 0
 
 
 def _veto(step: int, hazard_m: float, truth_m: float, false_veto: bool = False) -> VetoJudgement:
@@ -194,7 +198,6 @@ def test_a_spec_can_name_the_track_planner_at_its_target_speed() -> None:
 
 
 def test_the_filter_stops_for_a_rock_only_when_told() -> None:
-    from negobs_gym.safety import SafetyFilterConfig
 
     told = run_scenario("rock_on_track_25kmh", seed=0)  # the spec's run: reckless, stop_for_positive
     assert told.passed, told.line()
