@@ -6,6 +6,7 @@ import pytest
 from negobs_gym.drivers import (
     DRIVER_NAMES,
     ConstantSpeedDriver,
+    CreepingDriver,
     PurePursuitDriver,
     RecklessDriver,
     TrackPlannerDriver,
@@ -19,6 +20,7 @@ CLASSES = {
     "constant_speed": ConstantSpeedDriver,
     "pure_pursuit": PurePursuitDriver,
     "track_planner": TrackPlannerDriver,
+    "creeping": CreepingDriver,
 }
 
 
