@@ -40,6 +40,7 @@ from negobs_gym.detector.traversable.kalman import BoundaryKalman
 from negobs_gym.detector.traversable.obstacles import ObstacleCluster, detect_obstacles
 from negobs_gym.detector.traversable.reachability import (
     PathFamily,
+    PathIndex,
     build_path_family,
     feasible_mask,
     reachable_mask,
@@ -122,6 +123,7 @@ class TraversableRegionDetector:
         )
         self._centres = self.grid.cell_centres()
         self._paths: PathFamily = build_path_family(self.grid, self.config)
+        self._path_index = PathIndex()  # the paths' gather indices, kept while the mount stays put
         self._polar_origin: tuple[float, float] | None = None
         self._cell_bearing = np.zeros(self.grid.shape)
         self._cell_range = np.zeros(self.grid.shape)
@@ -243,7 +245,7 @@ class TraversableRegionDetector:
                 traversable &= ~shadow_mask(bearing, rng, c, origin, self._shadow_slack_m, pad)
         traversable &= ~positive
         feasible = feasible_mask(self._centres, traversable, left, right, obstacles, cfg)
-        reachable = reachable_mask(feasible, self._paths, exempt_below_y_m=near_y)
+        reachable = reachable_mask(feasible, self._paths, exempt_below_y_m=near_y, index=self._path_index)
         return TraversableRegion(
             raw_left_m=raw_left,
             raw_right_m=raw_right,

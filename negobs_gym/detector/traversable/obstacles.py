@@ -9,6 +9,7 @@ d_T2 of the cluster's centroid, otherwise the cluster is closed and a new one st
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,21 @@ class ObstacleCluster:
     width_m: float  # twice the largest XY distance of a point from the centre
 
 
+@functools.lru_cache(maxsize=8)
+def _window_index(
+    obstacle_layers: tuple[int, ...], lasers: int, cols: int, w: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where an obstacle layer's neighbour candidates lie in a (lasers, cols + 2w) plane padded
+    with w NaN columns on each side, flattened: (layers, 2 (2w+1), cols), for column k the
+    adjacent laser below's columns k + o - w, o = 0..2w, then the one above's; with the laser
+    (layers, 2 (2w+1)) and the offset o - w (2 (2w+1),) of each candidate."""
+    span = 2 * w + 1
+    adjacent = np.array([[layer - 1] * span + [layer + 1] * span for layer in obstacle_layers])
+    column = np.tile(np.arange(span), 2)
+    flat = (adjacent * (cols + 2 * w) + column)[:, :, None] + np.arange(cols)
+    return flat, adjacent, column - w
+
+
 def obstacle_candidates(points_vehicle_m: np.ndarray, config: TraversableConfig) -> np.ndarray:
     """Mask (lasers, columns) of queued obstacle points (middle-layer hits and their neighbours)."""
     lasers, cols = points_vehicle_m.shape[:2]
@@ -33,36 +49,29 @@ def obstacle_candidates(points_vehicle_m: np.ndarray, config: TraversableConfig)
     if cols == 0:
         return queued
     w = config.neighbour_columns
+    layers = tuple(config.obstacle_layers)
     # one NaN-padded (lasers, columns + 2w) plane per axis: the distances below are sums of
     # per-axis products on contiguous planes, rounded as np.linalg.norm rounds them (x^2 + y^2 +
     # z^2 in that order, then the root) at a fraction of its cost on a last axis of length 3
     padded = np.full((3, lasers, cols + 2 * w), np.nan)
     padded[:, :, w : w + cols] = np.moveaxis(points_vehicle_m, -1, 0)
-    offsets = np.arange(-w, w + 1)
-    col_idx = np.arange(cols)
-    # (3, lasers, 2w+1, C) views: window o of a laser is its columns k + o - w, k = 0..C-1
-    window = np.lib.stride_tricks.sliding_window_view(padded, cols, axis=-1)
-    for layer in config.obstacle_layers:  # two layers; the work per layer is vectorized
-        px, py, pz = padded[:, layer, w : w + cols]  # (C,) each
-        best_d = np.full(cols, np.inf)
-        best_l = np.zeros(cols, dtype=np.int64)
-        best_c = np.zeros(cols, dtype=np.int64)
-        for adj in (layer - 1, layer + 1):
-            # (2w+1, C) distances to the candidates: column k + o of the adjacent layer
-            dx = window[0, adj] - px
-            dy = window[1, adj] - py
-            dz = window[2, adj] - pz
-            d = np.sqrt(dx * dx + dy * dy + dz * dz)
-            d = np.where(np.isnan(d), np.inf, d)
-            k = d.argmin(axis=0)
-            dmin = d[k, col_idx]
-            better = dmin < best_d
-            best_d = np.where(better, dmin, best_d)
-            best_l = np.where(better, adj, best_l)
-            best_c = np.where(better, col_idx + offsets[k], best_c)
-        hit = best_d < config.d_t1_m
-        queued[layer, hit] = True
-        queued[best_l[hit], best_c[hit]] = True
+    flat, adjacent, offsets = _window_index(layers, lasers, cols, w)
+    # (3, layers, 2 (2w+1), C): the candidates of each column, the laser below's before the one
+    # above's, in column order, so argmin's first minimum is the nearest with the laser below
+    # winning ties (as when the two lasers were searched one after the other)
+    cx, cy, cz = np.take(padded.reshape(3, -1), flat, axis=1)
+    px, py, pz = padded[:, layers, None, w : w + cols]  # (layers, 1, C) each
+    dx = cx - px
+    dy = cy - py
+    dz = cz - pz
+    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    d[np.isnan(d)] = np.inf
+    k = d.argmin(axis=1)  # (layers, C)
+    best_d = np.take_along_axis(d, k[:, None], axis=1)[:, 0]
+    layer_of, col_of = np.nonzero(best_d < config.d_t1_m)
+    best = k[layer_of, col_of]
+    queued[np.asarray(layers)[layer_of], col_of] = True
+    queued[adjacent[layer_of, best], col_of + offsets[best]] = True
     return queued
 
 

@@ -114,7 +114,36 @@ def build_path_family(grid: GridSpec, config: TraversableConfig) -> PathFamily:
     return PathFamily(rear_flat=flat(x, y), front_flat=flat(fx, fy), rear_y_m=y, front_y_m=fy)
 
 
-def reachable_mask(feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: float) -> np.ndarray:
+def _gather_index(flat: np.ndarray, y_m: np.ndarray, cells: int, exempt_below_y_m: float) -> np.ndarray:
+    """Per sample (paths, samples + 1), where :func:`reachable_mask` reads its feasibility in
+    ``feasible.ravel()`` extended by two cells: ``cells`` (always infeasible: outside the grid, and
+    a last column that ends every path) and ``cells + 1`` (always feasible: exempt samples)."""
+    index = np.where(flat >= 0, flat, cells)
+    index = np.where((y_m < exempt_below_y_m) & (flat >= 0), cells + 1, index)
+    return np.concatenate([index, np.full((flat.shape[0], 1), cells, dtype=index.dtype)], axis=1)
+
+
+class PathIndex:
+    """The rear- and front-axle gather indices of :func:`_gather_index`, kept for one exempt
+    distance (the sensor's mount, fixed between frames): they depend on nothing in the scan."""
+
+    def __init__(self) -> None:
+        self.paths: PathFamily | None = None
+        self.key: tuple[float, int] | None = None
+        self.rear = self.front = np.zeros((0, 1), dtype=np.intp)
+
+    def get(self, paths: PathFamily, cells: int, exempt_below_y_m: float) -> tuple[np.ndarray, np.ndarray]:
+        key = (float(exempt_below_y_m), cells)
+        if self.paths is not paths or self.key != key:
+            self.rear = _gather_index(paths.rear_flat, paths.rear_y_m, cells, exempt_below_y_m)
+            self.front = _gather_index(paths.front_flat, paths.front_y_m, cells, exempt_below_y_m)
+            self.paths, self.key = paths, key
+        return self.rear, self.front
+
+
+def reachable_mask(
+    feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: float, index: PathIndex | None = None
+) -> np.ndarray:
     """Cells reached by the rear axle along path prefixes that stay feasible.
 
     Args:
@@ -122,16 +151,23 @@ def reachable_mask(feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: fl
         paths: The sampled path family of the same grid.
         exempt_below_y_m: Samples nearer than this (the area the vehicle occupies, in front of the
             LiDAR's blind zone) count as feasible.
+        index: Where a caller keeps the gather indices between frames (``PathIndex()``); built
+            for this call when None.
     """
-    flat_ok = np.append(feasible.ravel(), False)  # index -1 (outside the grid) -> infeasible
-    ok_rear = flat_ok[paths.rear_flat] | ((paths.rear_y_m < exempt_below_y_m) & (paths.rear_flat >= 0))
-    ok_front = flat_ok[paths.front_flat] | ((paths.front_y_m < exempt_below_y_m) & (paths.front_flat >= 0))
-    ok = ok_rear & ok_front
-    # each path's prefix before its first infeasible sample (logical_and.accumulate along the
-    # samples, which costs several times more)
-    samples = ok.shape[1]
-    first_bad = np.where(ok.all(axis=1), samples, ok.argmin(axis=1))
+    cells = feasible.size
+    rear, front = (index if index is not None else PathIndex()).get(paths, cells, exempt_below_y_m)
+    flat_ok = np.empty(cells + 2, dtype=bool)
+    flat_ok[:cells] = feasible.ravel()
+    flat_ok[cells] = False
+    flat_ok[cells + 1] = True
+    ok = flat_ok[rear]
+    ok &= flat_ok[front]
+    # each path's prefix before its first infeasible sample (the appended last column is one, so
+    # argmin finds it for a path feasible throughout; logical_and.accumulate costs several times more)
+    first_bad = ok.argmin(axis=1)
+    samples = paths.rear_flat.shape[1]
     prefix = np.arange(samples) < first_bad[:, None]
-    reach = np.zeros(feasible.size, dtype=bool)
+    reach = np.zeros(cells, dtype=bool)
     reach[paths.rear_flat[prefix]] = True
     return reach.reshape(feasible.shape) & feasible
+
