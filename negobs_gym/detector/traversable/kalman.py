@@ -83,7 +83,8 @@ class BoundaryKalman:
         upd = seen & ~fresh
         gain = np.zeros(self.shape)
         gain[upd] = self.variance[upd] / (self.variance[upd] + self.r)
-        innovation = np.where(upd, z - np.nan_to_num(self.state), 0.0)
+        # where upd the state is finite (seen before): elsewhere the NaN difference is discarded
+        innovation = np.where(upd, z - self.state, 0.0)
         self.state = self.state + gain * innovation
         self.variance = self.variance * (1.0 - gain)
         return self.state.copy()

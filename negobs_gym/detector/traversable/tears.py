@@ -11,6 +11,8 @@ return beyond it is much nearer (an occluder).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from negobs_gym.detector.traversable.config import TraversableConfig
@@ -30,23 +32,22 @@ def hough_lines(
         ``(phi_rad, rho_m)``, each (layers,); NaN for a layer with fewer than 2 valid points.
     """
     layers = xy_m.shape[0]
-    tilt = np.radians(config.hough_max_tilt_deg)
-    step = np.radians(config.hough_angle_step_deg)
-    n_angles = int(np.floor(tilt / step)) * 2 + 1
-    phi = np.pi / 2 + (np.arange(n_angles) - n_angles // 2) * step
+    phi, trig = _hough_angles(config.hough_max_tilt_deg, config.hough_angle_step_deg)
+    n_angles = phi.size
     phi_out = np.full(layers, np.nan)
     rho_out = np.full(layers, np.nan)
     counts = valid.sum(axis=1)
     if not (counts >= 2).any():
         return phi_out, rho_out
     layer_of, column_of = np.nonzero(valid)
-    trig = np.stack([np.cos(phi), np.sin(phi)])  # (2, A)
     rho = xy_m[layer_of, column_of] @ trig  # (N valid points, A)
     rho_lo = rho.min()
-    bins = ((rho - rho_lo) / config.hough_rho_step_m).astype(np.int64)  # >= 0: floor
+    shifted = rho - rho_lo
+    shifted /= config.hough_rho_step_m
+    bins = shifted.astype(np.int64)  # >= 0: floor
     n_bins = int(bins.max()) + 1
-    flat = (layer_of[:, None] * n_angles + np.arange(n_angles)) * n_bins + bins
-    votes = np.bincount(flat.ravel(), minlength=layers * n_angles * n_bins)
+    bins += (layer_of * n_angles)[:, None] * n_bins + np.arange(0, n_angles * n_bins, n_bins)
+    votes = np.bincount(bins.ravel(), minlength=layers * n_angles * n_bins)
     votes = votes.reshape(layers, n_angles * n_bins)
     best = votes.argmax(axis=1)
     a_idx, b_idx = np.divmod(best, n_bins)
@@ -54,6 +55,19 @@ def hough_lines(
     phi_out[ok] = phi[a_idx[ok]]
     rho_out[ok] = rho_lo + (b_idx[ok] + 0.5) * config.hough_rho_step_m
     return phi_out, rho_out
+
+
+@functools.lru_cache(maxsize=8)
+def _hough_angles(max_tilt_deg: float, step_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Hough normal angles phi (A,) about +Y's normal (pi/2) and their (cos, sin) (2, A)."""
+    tilt = np.radians(max_tilt_deg)
+    step = np.radians(step_deg)
+    n_angles = int(np.floor(tilt / step)) * 2 + 1
+    phi = np.pi / 2 + (np.arange(n_angles) - n_angles // 2) * step
+    phi.flags.writeable = False
+    trig = np.stack([np.cos(phi), np.sin(phi)])
+    trig.flags.writeable = False
+    return phi, trig
 
 
 def line_inliers(
@@ -112,12 +126,20 @@ def refine_curves(
     w = use.astype(np.float64)
     # Normal equations of all layers at once from the moments sum(u^k), k = 0..4, and
     # sum(v u^k), k = 0..2, as batched matrix products (unused points have zero weight).
-    u2 = u_s * u_s  # products, not **: integer powers of arrays are far slower
-    powers = np.stack([np.ones_like(u_s), u_s, u2, u2 * u_s, u2 * u2], axis=-1)  # (L, C, 5)
+    # products, not **: integer powers of arrays are far slower
+    powers = np.empty((*u_s.shape, 5))  # (L, C, 5)
+    powers[..., 0] = 1.0
+    powers[..., 1] = u_s
+    u2 = np.multiply(u_s, u_s, out=powers[..., 2])
+    np.multiply(u2, u_s, out=powers[..., 3])
+    np.multiply(u2, u2, out=powers[..., 4])
     moments = (w[:, None, :] @ powers)[:, 0]  # (L, 5)
-    ata = moments[:, np.add.outer(np.arange(3), np.arange(3))]  # (L, 3, 3), Hankel
+    ata = moments[:, _HANKEL]  # (L, 3, 3)
     atb = ((w * np.where(use, v_m, 0.0))[:, None, :] @ powers[..., :3])[:, 0]  # (L, 3)
-    ok[ok] = np.linalg.cond(ata[ok]) < _MAX_CONDITION
+    # the 2-norm condition number, as np.linalg.cond gives it (NaN and inf both fail the test)
+    singular = np.linalg.svd(ata[ok], compute_uv=False)
+    with np.errstate(all="ignore"):
+        ok[ok] = singular[:, 0] / singular[:, -1] < _MAX_CONDITION
     if ok.any():
         scaled = np.linalg.solve(ata[ok], atb[ok][..., None])[..., 0]
         coef[ok] = scaled / np.array([1.0, _U_SCALE_M, _U_SCALE_M**2])
@@ -126,6 +148,8 @@ def refine_curves(
 
 # Along-line coordinates are divided by this before the fit (a layer spans about +-10 m).
 _U_SCALE_M = 10.0
+# Index of the moments sum(u^k) in the normal equations' Hankel matrix, k = i + j.
+_HANKEL = np.add.outer(np.arange(3), np.arange(3))
 # Normal equations worse conditioned than this have no unique parabola (points at one u).
 _MAX_CONDITION = 1e10
 
@@ -145,16 +169,8 @@ def segment_end_indices(points_xy_m: np.ndarray, config: TraversableConfig) -> t
     Walking in from each end, the end is the first point followed by ``clean_run_points`` (n)
     links no longer than ``tear_distance_m``. ``None`` when no such run exists.
     """
-    n = config.clean_run_points
-    if points_xy_m.shape[0] < n + 1:
-        return None
-    step = np.diff(points_xy_m, axis=0)
-    gaps = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1])  # np.linalg.norm's rounding
-    tears = np.concatenate([[0], np.cumsum(gaps > config.tear_distance_m)])
-    starts = np.flatnonzero(tears[n:] - tears[:-n] == 0)  # links i..i+n-1 tear-free
-    if starts.size == 0:
-        return None
-    return int(starts[0]), int(starts[-1] + n)
+    pts = np.asarray(points_xy_m, dtype=np.float64)
+    return _layer_segment_ends(pts[None], np.ones((1, pts.shape[0]), dtype=bool), config)[0]
 
 
 def segment_ends(points_xy_m: np.ndarray, config: TraversableConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -209,8 +225,10 @@ def boundary_points(
     valid = np.isfinite(xy).all(axis=-1)
     stride = config.hough_column_stride
     phi, rho = hough_lines(xy[:, ::stride], valid[:, ::stride], config)
-    inl = line_inliers(xy, valid, phi, rho, config)
     u, v = line_frame(xy, phi)
+    # line_inliers on the v already at hand (v - rho is the distance to the Hough line)
+    with np.errstate(invalid="ignore"):
+        inl = valid & np.isfinite(rho)[:, None] & (np.abs(v - rho[:, None]) <= config.line_tolerance_m)
     for _ in range(config.curve_refits):
         coef = refine_curves(u, v, inl, config)
         # A layer too sparse for a parabola keeps its Hough line's inliers.
@@ -218,14 +236,38 @@ def boundary_points(
         inl = np.where(fitted, curve_inliers(u, v, valid, coef, config), inl)
     left = np.full((len(layers), 2), np.nan)
     right = np.full((len(layers), 2), np.nan)
-    for i, layer in enumerate(layers):  # 3 layers; each layer's work is vectorized
-        cols = np.flatnonzero(inl[i])
-        ends = segment_end_indices(xy[i, cols], config)
+    for i, ends in enumerate(_layer_segment_ends(xy, inl, config)):
         if ends is None:
             continue
-        lc, rc = cols[ends[0]], cols[ends[1]]
+        layer = layers[i]
+        lc, rc = ends
         if not (_cut_by_fov(valid[i], lc, -1) or _occluded(ranges_m[layer], lc, -1, config.occlusion_jump_m)):
             left[i] = xy[i, lc]
         if not (_cut_by_fov(valid[i], rc, +1) or _occluded(ranges_m[layer], rc, +1, config.occlusion_jump_m)):
             right[i] = xy[i, rc]
     return left, right
+
+
+def _layer_segment_ends(
+    xy_m: np.ndarray, inliers: np.ndarray, config: TraversableConfig
+) -> list[tuple[int, int] | None]:
+    """:func:`segment_end_indices` of every layer's inliers at once, as columns of ``xy_m``.
+
+    The layers' inliers are chained in one array, each link between two layers counted as a
+    tear, so that no tear-free run crosses from one layer into the next.
+    """
+    n = config.clean_run_points
+    layer_of, cols = np.nonzero(inliers)
+    pts = xy_m[layer_of, cols]
+    step = pts[1:] - pts[:-1]
+    gaps = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1])  # np.linalg.norm's rounding
+    torn = (gaps > config.tear_distance_m) | (layer_of[1:] != layer_of[:-1])
+    tears = np.zeros(pts.shape[0], dtype=np.int64)
+    np.cumsum(torn, out=tears[1:])
+    starts = np.flatnonzero(tears[n:] - tears[:-n] == 0)  # links i..i+n-1 tear-free
+    start_layer = layer_of[starts]
+    ends: list[tuple[int, int] | None] = []
+    for i in range(xy_m.shape[0]):
+        lo, hi = np.searchsorted(start_layer, (i, i + 1))
+        ends.append(None if lo == hi else (int(cols[starts[lo]]), int(cols[starts[hi - 1] + n])))
+    return ends
