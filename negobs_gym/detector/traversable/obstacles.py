@@ -54,7 +54,7 @@ def obstacle_candidates(points_vehicle_m: np.ndarray, config: TraversableConfig)
     # per-axis products on contiguous planes, rounded as np.linalg.norm rounds them (x^2 + y^2 +
     # z^2 in that order, then the root) at a fraction of its cost on a last axis of length 3
     padded = np.full((3, lasers, cols + 2 * w), np.nan)
-    padded[:, :, w : w + cols] = np.moveaxis(points_vehicle_m, -1, 0)
+    padded[:, :, w : w + cols] = points_vehicle_m.transpose(2, 0, 1)
     flat, adjacent, offsets = _window_index(layers, lasers, cols, w)
     # (3, layers, 2 (2w+1), C): the candidates of each column, the laser below's before the one
     # above's, in column order, so argmin's first minimum is the nearest with the laser below
@@ -67,8 +67,7 @@ def obstacle_candidates(points_vehicle_m: np.ndarray, config: TraversableConfig)
     d = np.sqrt(dx * dx + dy * dy + dz * dz)
     d[np.isnan(d)] = np.inf
     k = d.argmin(axis=1)  # (layers, C)
-    best_d = np.take_along_axis(d, k[:, None], axis=1)[:, 0]
-    layer_of, col_of = np.nonzero(best_d < config.d_t1_m)
+    layer_of, col_of = np.nonzero(d.min(axis=1) < config.d_t1_m)  # min = d at argmin
     best = k[layer_of, col_of]
     queued[np.asarray(layers)[layer_of], col_of] = True
     queued[adjacent[layer_of, best], col_of + offsets[best]] = True

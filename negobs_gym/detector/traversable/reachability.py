@@ -15,6 +15,7 @@ cumulative AND.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -141,6 +142,14 @@ class PathIndex:
         return self.rear, self.front
 
 
+@functools.lru_cache(maxsize=4)
+def _index_of_sample(samples: int) -> np.ndarray:
+    """0 .. samples - 1, as int16 where they fit (a cheaper comparison than int64's)."""
+    index = np.arange(samples, dtype=np.int16 if samples < 2**15 else np.int64)
+    index.flags.writeable = False
+    return index
+
+
 def reachable_mask(
     feasible: np.ndarray, paths: PathFamily, exempt_below_y_m: float, index: PathIndex | None = None
 ) -> np.ndarray:
@@ -160,14 +169,12 @@ def reachable_mask(
     flat_ok[:cells] = feasible.ravel()
     flat_ok[cells] = False
     flat_ok[cells + 1] = True
-    ok = flat_ok[rear]
-    ok &= flat_ok[front]
+    ok = np.take(flat_ok, rear)  # take: about half the time of fancy indexing here
+    ok &= np.take(flat_ok, front)
     # each path's prefix before its first infeasible sample (the appended last column is one, so
     # argmin finds it for a path feasible throughout; logical_and.accumulate costs several times more)
-    first_bad = ok.argmin(axis=1)
-    samples = paths.rear_flat.shape[1]
-    prefix = np.arange(samples) < first_bad[:, None]
+    sample = _index_of_sample(paths.rear_flat.shape[1])
+    prefix = sample < ok.argmin(axis=1).astype(sample.dtype)[:, None]
     reach = np.zeros(cells, dtype=bool)
     reach[paths.rear_flat[prefix]] = True
     return reach.reshape(feasible.shape) & feasible
-

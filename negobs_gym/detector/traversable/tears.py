@@ -233,7 +233,11 @@ def boundary_points(
         coef = refine_curves(u, v, inl, config)
         # A layer too sparse for a parabola keeps its Hough line's inliers.
         fitted = np.isfinite(coef).all(axis=1)[:, None]
-        inl = np.where(fitted, curve_inliers(u, v, valid, coef, config), inl)
+        refit = np.where(fitted, curve_inliers(u, v, valid, coef, config), inl)
+        converged = np.array_equal(refit, inl)  # a further refit would fit the same points again
+        inl = refit
+        if converged:
+            break
     left = np.full((len(layers), 2), np.nan)
     right = np.full((len(layers), 2), np.nan)
     for i, ends in enumerate(_layer_segment_ends(xy, inl, config)):

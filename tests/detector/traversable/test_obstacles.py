@@ -65,3 +65,41 @@ def test_inside_boundaries_and_detect_excludes_banks() -> None:
     assert detect_obstacles(pts, BoundaryLine(0.0, -3.0), BoundaryLine(0.0, -0.5), CFG) == []
     xy = np.array([[-2.8, 5.0], [0.0, 5.0], [2.9, 5.0]])
     assert inside_boundaries(xy, left, right, 0.3).tolist() == [False, True, False]
+
+
+def candidates_reference(points: np.ndarray, config: TraversableConfig) -> np.ndarray:
+    """obstacle_candidates point by point: for each obstacle-layer point its nearest neighbour
+    among the adjacent lasers' columns within +-w (laser below first, then column order: the first
+    of equal distances wins), queued with it when nearer than d_T1; NaN points are never near."""
+    lasers, cols = points.shape[:2]
+    queued = np.zeros((lasers, cols), dtype=bool)
+    w = config.neighbour_columns
+    for layer in config.obstacle_layers:
+        for k in range(cols):
+            best, where = np.inf, None
+            for adj in (layer - 1, layer + 1):
+                for c in range(k - w, k + w + 1):
+                    if 0 <= c < cols:
+                        d = float(np.linalg.norm(points[adj, c] - points[layer, k]))
+                        if d < best:  # NaN compares False
+                            best, where = d, (adj, c)
+            if best < config.d_t1_m:
+                queued[layer, k] = True
+                queued[where] = True
+    return queued
+
+
+def test_candidates_match_the_point_by_point_search() -> None:
+    # Random clouds with NaN holes, a pole and repeated points (ties between the two adjacent
+    # lasers and between columns), several widths of window.
+    rng = np.random.default_rng(11)
+    for w, cols in [(2, 41), (1, 7), (3, 3), (2, 1)]:
+        config = TraversableConfig(neighbour_columns=w)
+        for _ in range(5):
+            pts = rng.normal(0.0, 0.15, (4, cols, 3)) + np.array([0.0, 10.0, 0.0])
+            pts[rng.random((4, cols)) < 0.15] = np.nan
+            pts[0, : cols // 2] = pts[2, : cols // 2]  # equal distances from layer 1 below and above
+            pts[3, cols // 3 :] = pts[1, cols // 3 :]  # and from layer 2
+            assert np.array_equal(obstacle_candidates(pts, config), candidates_reference(pts, config))
+    pole = ground_and_pole()
+    assert np.array_equal(obstacle_candidates(pole, CFG), candidates_reference(pole, CFG))

@@ -9,7 +9,12 @@ import pytest
 
 from negobs_gym.core import GridSpec
 from negobs_gym.detector.traversable import BoundaryLine, ObstacleCluster, TraversableConfig
-from negobs_gym.detector.traversable.reachability import build_path_family, feasible_mask, reachable_mask
+from negobs_gym.detector.traversable.reachability import (
+    PathIndex,
+    build_path_family,
+    feasible_mask,
+    reachable_mask,
+)
 
 GRID = GridSpec()
 CENTRES = GRID.cell_centres()
@@ -95,3 +100,35 @@ def test_tighter_steering_limit_reaches_less() -> None:
         reach[phi] = reachable_mask(feas, build_path_family(GRID, cfg), exempt_below_y_m=0.0)
     near_side = (np.abs(CENTRES[..., 0]) > 6.0) & (CENTRES[..., 1] < 6.0)
     assert reach[35.0][near_side].sum() > reach[20.0][near_side].sum()
+
+
+def reachable_reference(feasible: np.ndarray, paths, exempt_below_y_m: float) -> np.ndarray:
+    """The docstring of reachable_mask, path by path: each path's rear-axle cells up to its first
+    sample whose rear or front axle is neither in a feasible cell nor in an exempt one."""
+    flat = feasible.ravel()
+    reach = np.zeros(flat.size, dtype=bool)
+    for rear, front, ry, fy in zip(
+        paths.rear_flat, paths.front_flat, paths.rear_y_m, paths.front_y_m, strict=True
+    ):
+        for r, f, y_r, y_f in zip(rear, front, ry, fy, strict=True):
+            rear_ok = r >= 0 and (flat[r] or y_r < exempt_below_y_m)
+            front_ok = f >= 0 and (flat[f] or y_f < exempt_below_y_m)
+            if not (rear_ok and front_ok):
+                break
+            reach[r] = True
+    return reach.reshape(feasible.shape) & feasible
+
+
+def test_reachable_mask_is_the_path_by_path_prefix_union() -> None:
+    # Random feasible sets (blobs of varying density) and exempt distances, one kept gather index
+    # reused across them (it must follow the exempt distance).
+    config = TraversableConfig()
+    paths = build_path_family(GRID, config)
+    rng = np.random.default_rng(7)
+    index = PathIndex()
+    for density, exempt in [(0.98, 0.0), (0.995, 1.2), (0.9, 3.0), (1.0, 0.0), (0.0, 2.0), (0.99, -1.0)]:
+        feas = rng.random(GRID.shape) < density
+        expected = reachable_reference(feas, paths, exempt)
+        assert np.array_equal(reachable_mask(feas, paths, exempt_below_y_m=exempt), expected)
+        assert np.array_equal(reachable_mask(feas, paths, exempt_below_y_m=exempt, index=index), expected)
+    assert reachable_reference(np.ones(GRID.shape, bool), paths, 0.0).sum() > 100  # the test reaches far

@@ -13,6 +13,7 @@ from negobs_gym.detector.traversable.tears import (
     line_frame,
     line_inliers,
     refine_curves,
+    segment_end_indices,
     segment_ends,
 )
 
@@ -158,3 +159,31 @@ def test_parabola_refit_needs_enough_points() -> None:
     assert refine_curves(u_nan, v[:1], np.ones((1, 8), dtype=bool), CFG)[0] == pytest.approx(
         [10.0, 0.1, -0.02]
     )
+
+
+def segment_ends_reference(points_xy: np.ndarray, config: TraversableConfig) -> tuple[int, int] | None:
+    """Walk in from each end: the first index followed by n links no longer than the tear distance."""
+    n = config.clean_run_points
+    gaps = [float(np.linalg.norm(points_xy[i + 1] - points_xy[i])) for i in range(len(points_xy) - 1)]
+    clean = [i for i in range(len(gaps) - n + 1) if all(g <= config.tear_distance_m for g in gaps[i : i + n])]
+    return (clean[0], clean[-1] + n) if clean else None
+
+
+def test_all_layers_segment_ends_match_each_layer_walked_alone() -> None:
+    # boundary_points finds every layer's ends in one chained pass; the links between layers must
+    # not join two layers' runs (the last points of one layer lie next to the first of the next).
+    from negobs_gym.detector.traversable.tears import _layer_segment_ends
+
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        layers, cols = 3, int(rng.integers(0, 30))
+        steps = rng.choice([0.1, 0.3, 0.7], size=layers * cols, p=[0.6, 0.25, 0.15])
+        x = np.cumsum(steps).reshape(layers, cols)  # each layer goes on where the last one ended
+        xy = np.stack([x, np.zeros_like(x)], axis=-1)
+        inliers = rng.random((layers, cols)) < 0.8
+        got = _layer_segment_ends(xy, inliers, CFG)
+        for i in range(layers):
+            cols_i = np.flatnonzero(inliers[i])
+            ref = segment_ends_reference(xy[i, cols_i], CFG)
+            assert got[i] == (None if ref is None else (int(cols_i[ref[0]]), int(cols_i[ref[1]])))
+            assert segment_end_indices(xy[i, cols_i], CFG) == ref
