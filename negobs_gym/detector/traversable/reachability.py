@@ -115,31 +115,45 @@ def build_path_family(grid: GridSpec, config: TraversableConfig) -> PathFamily:
     return PathFamily(rear_flat=flat(x, y), front_flat=flat(fx, fy), rear_y_m=y, front_y_m=fy)
 
 
-def _gather_index(flat: np.ndarray, y_m: np.ndarray, cells: int, exempt_below_y_m: float) -> np.ndarray:
-    """Per sample (paths, samples + 1), where :func:`reachable_mask` reads its feasibility in
-    ``feasible.ravel()`` extended by two cells: ``cells`` (always infeasible: outside the grid, and
-    a last column that ends every path) and ``cells + 1`` (always feasible: exempt samples)."""
-    index = np.where(flat >= 0, flat, cells)
-    index = np.where((y_m < exempt_below_y_m) & (flat >= 0), cells + 1, index)
-    return np.concatenate([index, np.full((flat.shape[0], 1), cells, dtype=index.dtype)], axis=1)
-
-
 class PathIndex:
-    """The rear- and front-axle gather indices of :func:`_gather_index`, kept for one exempt
-    distance (the sensor's mount, fixed between frames): they depend on nothing in the scan."""
+    """What :func:`reachable_mask` gathers, kept for one path family and exempt distance (the
+    sensor's mount, fixed between frames): it depends on nothing in the scan.
+
+    Per sample, where its rear and front axle read their feasibility in ``feasible.ravel()``
+    extended by two cells: ``cells`` (always infeasible: outside the grid) and ``cells + 1``
+    (always feasible: exempt). A path's samples after its first one outside the grid can never be
+    reached, so the paths are cut after the latest such sample (a last column of ``cells`` ends
+    every path), and paths equal up to there are kept once.
+    """
 
     def __init__(self) -> None:
         self.paths: PathFamily | None = None
         self.key: tuple[float, int] | None = None
-        self.rear = self.front = np.zeros((0, 1), dtype=np.intp)
+        self.rear = self.front = self.rear_cells = np.zeros((0, 1), dtype=np.intp)
 
-    def get(self, paths: PathFamily, cells: int, exempt_below_y_m: float) -> tuple[np.ndarray, np.ndarray]:
+    def get(
+        self, paths: PathFamily, cells: int, exempt_below_y_m: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rear, front) gather indices (paths, samples + 1) and the rear axle's cells (paths, samples)."""
         key = (float(exempt_below_y_m), cells)
         if self.paths is not paths or self.key != key:
-            self.rear = _gather_index(paths.rear_flat, paths.rear_y_m, cells, exempt_below_y_m)
-            self.front = _gather_index(paths.front_flat, paths.front_y_m, cells, exempt_below_y_m)
+            outside = (paths.rear_flat < 0) | (paths.front_flat < 0)
+            first_out = np.where(outside.any(axis=1), outside.argmax(axis=1), outside.shape[1])
+            width = min(int(first_out.max()) + 1, outside.shape[1])
+            rear, front = (
+                np.where((y < exempt_below_y_m) & (flat >= 0), cells + 1, np.where(flat >= 0, flat, cells))
+                for flat, y in ((paths.rear_flat, paths.rear_y_m), (paths.front_flat, paths.front_y_m))
+            )
+            rows = np.unique(
+                np.concatenate([rear[:, :width], front[:, :width]], axis=1), axis=0, return_index=True
+            )[1]
+            rows.sort()
+            end = np.full((rows.size, 1), cells)
+            self.rear = np.ascontiguousarray(np.concatenate([rear[rows, :width], end], axis=1))
+            self.front = np.ascontiguousarray(np.concatenate([front[rows, :width], end], axis=1))
+            self.rear_cells = np.ascontiguousarray(paths.rear_flat[rows, :width])
             self.paths, self.key = paths, key
-        return self.rear, self.front
+        return self.rear, self.front, self.rear_cells
 
 
 @functools.lru_cache(maxsize=4)
@@ -164,7 +178,9 @@ def reachable_mask(
             for this call when None.
     """
     cells = feasible.size
-    rear, front = (index if index is not None else PathIndex()).get(paths, cells, exempt_below_y_m)
+    rear, front, rear_cells = (index if index is not None else PathIndex()).get(
+        paths, cells, exempt_below_y_m
+    )
     flat_ok = np.empty(cells + 2, dtype=bool)
     flat_ok[:cells] = feasible.ravel()
     flat_ok[cells] = False
@@ -173,8 +189,8 @@ def reachable_mask(
     ok &= np.take(flat_ok, front)
     # each path's prefix before its first infeasible sample (the appended last column is one, so
     # argmin finds it for a path feasible throughout; logical_and.accumulate costs several times more)
-    sample = _index_of_sample(paths.rear_flat.shape[1])
+    sample = _index_of_sample(rear_cells.shape[1])
     prefix = sample < ok.argmin(axis=1).astype(sample.dtype)[:, None]
     reach = np.zeros(cells, dtype=bool)
-    reach[paths.rear_flat[prefix]] = True
+    reach[rear_cells[prefix]] = True
     return reach.reshape(feasible.shape) & feasible
