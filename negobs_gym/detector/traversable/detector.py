@@ -122,6 +122,8 @@ class TraversableRegionDetector:
             (2, n_bound, 2), self.config.kalman_measurement_var_m2, self.config.kalman_process_var_m2
         )
         self._centres = self.grid.cell_centres()
+        # the centres' x (1, cols) and y (rows, 1): every row shares the x, every column the y
+        self._axes = (self._centres[:1, :, 0].copy(), self._centres[:, :1, 1].copy())
         self._paths: PathFamily = build_path_family(self.grid, self.config)
         self._path_index = PathIndex()  # the paths' gather indices, kept while the mount stays put
         self._polar_origin: tuple[float, float] | None = None
@@ -227,7 +229,7 @@ class TraversableRegionDetector:
         ys = filtered[..., 1]
         far_y = float(np.nanmax(ys)) if np.isfinite(ys).any() else -math.inf
         polygon = region_polygon(left, right, near_y, far_y)
-        traversable = region_mask(self._centres, left, right, near_y, far_y)
+        traversable = region_mask(self._centres, left, right, near_y, far_y, axes=self._axes)
         obstacle_xy = (
             np.concatenate([c.points_m[:, :2] for c in obstacles]) if obstacles else np.zeros((0, 2))
         )
@@ -244,7 +246,7 @@ class TraversableRegionDetector:
                 shadows.append(shadow_polygon(c, origin, far_range))
                 traversable &= ~shadow_mask(bearing, rng, c, origin, self._shadow_slack_m, pad)
         traversable &= ~positive
-        feasible = feasible_mask(self._centres, traversable, left, right, obstacles, cfg)
+        feasible = feasible_mask(self._centres, traversable, left, right, obstacles, cfg, axes=self._axes)
         reachable = reachable_mask(feasible, self._paths, exempt_below_y_m=near_y, index=self._path_index)
         return TraversableRegion(
             raw_left_m=raw_left,

@@ -33,15 +33,21 @@ def feasible_mask(
     right: BoundaryLine | None,
     clusters: list[ObstacleCluster],
     config: TraversableConfig,
+    axes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Eq. 12 on every cell: traversable and far enough from boundaries and obstacle centres."""
+    """Eq. 12 on every cell: traversable and far enough from boundaries and obstacle centres.
+
+    ``axes``: the centres' x (1, cols) and y (rows, 1) when the caller keeps them (a grid's
+    centres share x down a column and y along a row): the same arithmetic, broadcast.
+    """
     half = config.vehicle_width_m / 2.0 + config.safety_margin_m
+    x, y = (centres_xy_m[..., 0], centres_xy_m[..., 1]) if axes is None else axes
     ok = traversable.copy()
     for line in (left, right):
-        if line is not None:
-            ok &= line.distance(centres_xy_m) >= half
+        if line is not None:  # BoundaryLine.distance's arithmetic
+            ok &= np.abs(x - line.slope * y - line.offset_m) / np.hypot(1.0, line.slope) >= half
     for c in clusters:  # a handful of obstacles, each a vectorized test over all cells
-        d = np.hypot(centres_xy_m[..., 0] - c.centre_xy_m[0], centres_xy_m[..., 1] - c.centre_xy_m[1])
+        d = np.hypot(x - c.centre_xy_m[0], y - c.centre_xy_m[1])
         ok &= d >= (config.vehicle_width_m + c.width_m) / 2.0 + config.safety_margin_m
     return ok
 

@@ -36,12 +36,16 @@ def region_mask(
     right: BoundaryLine | None,
     near_y_m: float,
     far_y_m: float,
+    axes: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Cells (rows, cols) whose centre lies in the region polygon."""
+    """Cells (rows, cols) whose centre lies in the region polygon.
+
+    ``axes``: the centres' x (1, cols) and y (rows, 1) when the caller keeps them (a grid's
+    centres share x down a column and y along a row): the same test on a row and a column.
+    """
     if left is None or right is None or not far_y_m > near_y_m:
         return np.zeros(centres_xy_m.shape[:2], dtype=bool)
-    x = centres_xy_m[..., 0]
-    y = centres_xy_m[..., 1]
+    x, y = (centres_xy_m[..., 0], centres_xy_m[..., 1]) if axes is None else axes
     return (y >= near_y_m) & (y <= far_y_m) & (x >= left.x_at(y)) & (x <= right.x_at(y))
 
 

@@ -132,3 +132,15 @@ def test_reachable_mask_is_the_path_by_path_prefix_union() -> None:
         assert np.array_equal(reachable_mask(feas, paths, exempt_below_y_m=exempt), expected)
         assert np.array_equal(reachable_mask(feas, paths, exempt_below_y_m=exempt, index=index), expected)
     assert reachable_reference(np.ones(GRID.shape, bool), paths, 0.0).sum() > 100  # the test reaches far
+
+
+def test_feasible_mask_on_the_grid_axes_equals_it_on_every_centre() -> None:
+    # The detector passes the centres' x row and y column (a grid is separable); same cells.
+    config = TraversableConfig()
+    trav = np.ones(GRID.shape, dtype=bool)
+    axes = (CENTRES[:1, :, 0], CENTRES[:, :1, 1])
+    obstacles = [disc(-2.5, 7.0, 2.5), disc(4.5, 9.0, 2.0)]
+    for left, right in [(LEFT, RIGHT), (BoundaryLine(0.13, -3.1), BoundaryLine(-0.07, 2.9)), (None, RIGHT)]:
+        full = feasible_mask(CENTRES, trav, left, right, obstacles, config)
+        assert np.array_equal(feasible_mask(CENTRES, trav, left, right, obstacles, config, axes=axes), full)
+        assert 0 < full.sum() < full.size

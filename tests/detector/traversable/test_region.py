@@ -55,3 +55,15 @@ def test_shadow_is_the_sector_behind_the_near_face() -> None:
 
     assert at(2.0, 12.0) and at(4.0, 16.0)  # behind, and widening with distance (A5 side)
     assert not at(2.0, 8.0) and not at(-1.0, 12.0)  # in front of and beside the obstacle
+
+
+def test_region_mask_on_the_grid_axes_equals_it_on_every_centre() -> None:
+    # The detector passes the centres' x row and y column (a grid is separable); same cells.
+    axes = (CENTRES[:1, :, 0], CENTRES[:, :1, 1])
+    for left, right, near, far in [
+        (BoundaryLine(0.0, -4.0), BoundaryLine(0.0, 4.0), 1.9, 20.0),
+        (BoundaryLine(0.17, -3.3), BoundaryLine(-0.11, 3.7), 0.3, 24.1),
+    ]:
+        full = region_mask(CENTRES, left, right, near, far)
+        assert full.any()
+        assert np.array_equal(region_mask(CENTRES, left, right, near, far, axes=axes), full)
