@@ -46,7 +46,8 @@ def hough_lines(
     shifted /= config.hough_rho_step_m
     bins = shifted.astype(np.int64)  # >= 0: floor
     n_bins = int(bins.max()) + 1
-    bins += (layer_of * n_angles)[:, None] * n_bins + np.arange(0, n_angles * n_bins, n_bins)
+    bins += np.arange(0, n_angles * n_bins, n_bins)  # vote index: (layer, angle, bin), in place
+    bins += (layer_of * (n_angles * n_bins))[:, None]
     votes = np.bincount(bins.ravel(), minlength=layers * n_angles * n_bins)
     votes = votes.reshape(layers, n_angles * n_bins)
     best = votes.argmax(axis=1)
