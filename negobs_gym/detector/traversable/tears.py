@@ -137,10 +137,7 @@ def refine_curves(
     moments = (w[:, None, :] @ powers)[:, 0]  # (L, 5)
     ata = moments[:, _HANKEL]  # (L, 3, 3)
     atb = ((w * np.where(use, v_m, 0.0))[:, None, :] @ powers[..., :3])[:, 0]  # (L, 3)
-    # the 2-norm condition number, as np.linalg.cond gives it (NaN and inf both fail the test)
-    singular = np.linalg.svd(ata[ok], compute_uv=False)
-    with np.errstate(all="ignore"):
-        ok[ok] = singular[:, 0] / singular[:, -1] < _MAX_CONDITION
+    ok[ok] = _well_conditioned(ata[ok])
     if ok.any():
         scaled = np.linalg.solve(ata[ok], atb[ok][..., None])[..., 0]
         coef[ok] = scaled / np.array([1.0, _U_SCALE_M, _U_SCALE_M**2])
@@ -153,6 +150,33 @@ _U_SCALE_M = 10.0
 _HANKEL = np.add.outer(np.arange(3), np.arange(3))
 # Normal equations worse conditioned than this have no unique parabola (points at one u).
 _MAX_CONDITION = 1e10
+# A condition-number bound this far under _MAX_CONDITION needs no SVD (_well_conditioned).
+_SURE_CONDITION = 1e8
+
+
+def _well_conditioned(ata: np.ndarray) -> np.ndarray:
+    """Whether each normal-equation matrix (m, 3, 3) has a 2-norm condition number (as
+    np.linalg.cond gives it) below ``_MAX_CONDITION``.
+
+    These are Gram matrices (symmetric, positive semi-definite): with eigenvalues l1 >= l2 >= l3,
+    l1 <= trace and l3 >= det / (l1 l2) >= det / trace^2, so cond <= trace^3 / det. Where that
+    bound is below ``_SURE_CONDITION`` (100x under the limit, far beyond the rounding of det and
+    of the SVD) the answer is yes without an SVD; the rest take np.linalg.cond's SVD.
+    """
+    a = ata
+    det = (
+        a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
+        - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
+        + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0])
+    )
+    trace = a[:, 0, 0] + a[:, 1, 1] + a[:, 2, 2]
+    with np.errstate(all="ignore"):
+        good = (det > 0.0) & (trace * trace * trace < _SURE_CONDITION * det)
+    if not good.all():
+        singular = np.linalg.svd(a[~good], compute_uv=False)
+        with np.errstate(all="ignore"):  # NaN and inf both fail the test
+            good[~good] = singular[:, 0] / singular[:, -1] < _MAX_CONDITION
+    return good
 
 
 def curve_inliers(

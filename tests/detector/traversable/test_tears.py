@@ -187,3 +187,21 @@ def test_all_layers_segment_ends_match_each_layer_walked_alone() -> None:
             ref = segment_ends_reference(xy[i, cols_i], CFG)
             assert got[i] == (None if ref is None else (int(cols_i[ref[0]]), int(cols_i[ref[1]])))
             assert segment_end_indices(xy[i, cols_i], CFG) == ref
+
+
+def test_condition_test_agrees_with_numpy_cond() -> None:
+    # The parabola fit's shortcut (a trace^3 / det bound, SVD only where it is inconclusive) must
+    # accept exactly the normal-equation matrices np.linalg.cond accepts, ill-conditioned ones too.
+    from negobs_gym.detector.traversable.tears import _MAX_CONDITION, _well_conditioned
+
+    rng = np.random.default_rng(3)
+    mats = []
+    for spread in (1.0, 1e-2, 1e-3, 3e-4, 1e-4, 3e-5, 1e-6, 0.0):
+        for _ in range(25):
+            u = rng.uniform(-1.0, 1.0, int(rng.integers(3, 60))) * spread + rng.uniform(-1.0, 1.0)
+            p = np.stack([np.ones_like(u), u, u * u], axis=-1)
+            mats.append(p.T @ p)
+    ata = np.array(mats)
+    expected = np.linalg.cond(ata) < _MAX_CONDITION
+    assert 0 < expected.sum() < expected.size  # both outcomes occur
+    assert np.array_equal(_well_conditioned(ata), expected)
