@@ -163,17 +163,13 @@ def _well_conditioned(ata: np.ndarray) -> np.ndarray:
     bound is below ``_SURE_CONDITION`` (100x under the limit, far beyond the rounding of det and
     of the SVD) the answer is yes without an SVD; the rest take np.linalg.cond's SVD.
     """
-    a = ata
-    det = (
-        a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
-        - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
-        + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0])
-    )
-    trace = a[:, 0, 0] + a[:, 1, 1] + a[:, 2, 2]
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = ata.reshape(-1, 9).T
+    det = a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20)
+    trace = a00 + a11 + a22
     with np.errstate(all="ignore"):
         good = (det > 0.0) & (trace * trace * trace < _SURE_CONDITION * det)
     if not good.all():
-        singular = np.linalg.svd(a[~good], compute_uv=False)
+        singular = np.linalg.svd(ata[~good], compute_uv=False)
         with np.errstate(all="ignore"):  # NaN and inf both fail the test
             good[~good] = singular[:, 0] / singular[:, -1] < _MAX_CONDITION
     return good
