@@ -20,7 +20,6 @@ Pure numpy/scipy on the terrain record; no simulator is built.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from negobs_gym.core.geometry import distance_to_polyline, points_in_polygon
 from negobs_gym.errors import GeometryError, require
+from negobs_gym.eval.plots import pyplot, save_png
 
 CAUSES: tuple[str, ...] = (
     "track",
@@ -146,27 +146,9 @@ class TerrainClassifier:
 # -- figures -------------------------------------------------------------------------------------
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: str | Path) -> Path:
-    from negobs_gym.core.files import write_bytes_atomic
-
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
-    _pyplot().close(fig)
-    return write_bytes_atomic(path, buffer.getvalue())
-
-
 def cause_bar_plot(causes: Mapping[str, Mapping[str, int]], km: float, path: str | Path) -> Path:
     """Grouped bars: false alarms per km of each terrain class, one bar per sensor mode."""
-    plt = _pyplot()
+    plt = pyplot()
     modes = list(causes)
     labels = list(CAUSES)
     x = np.arange(len(labels))
@@ -181,7 +163,7 @@ def cause_bar_plot(causes: Mapping[str, Mapping[str, int]], km: float, path: str
     ax.grid(alpha=0.3, axis="y")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 _MODE_LABELS = {"fused": "fused (HDL-64 + 2 HDL-32)", "hdl64": "HDL-64 only", "hdl32": "HDL-32 only"}
@@ -192,7 +174,7 @@ def frame_plot(terrain, frame, modes: Sequence[str], path: str | Path, title: st
     height (shaded), the track edges, the true pits (green), positive obstacles (brown), the
     mode's returns (dots), its frame pairs (A->B, orange), its confirmed fused pairs (red) and its
     obstacles' outlines (blue where they match a truth or a track border, red where false alarms)."""
-    plt = _pyplot()
+    plt = pyplot()
     grid = frame.detections[modes[0]].grid_spec
     centres = grid.cell_centres()
     world = frame.pose.to_world(
@@ -244,4 +226,4 @@ def frame_plot(terrain, frame, modes: Sequence[str], path: str | Path, title: st
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)

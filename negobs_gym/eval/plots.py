@@ -19,7 +19,8 @@ MODE_STYLES = {
 }
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (imported when a figure is drawn)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,10 +29,11 @@ def _pyplot():
     return plt
 
 
-def _save(fig, path: str | Path) -> Path:
+def save_png(fig, path: str | Path) -> Path:
+    """``fig`` as a PNG at ``path``, written atomically; the figure is closed."""
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return write_bytes_atomic(path, buffer.getvalue())
 
 
@@ -47,7 +49,7 @@ def fig16_plot(
     path: str | Path,
 ) -> Path:
     """Paper N Fig. 16: recall of 25-34-cell obstacles vs distance per sensor mode, paper's fused dashed."""
-    plt = _pyplot()
+    plt = pyplot()
     x = _bin_centres(distance_bins)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.plot(x, paper_fused, "k--", marker="s", label="paper N fused (Table 6/7, 25-34 cells)")
@@ -63,7 +65,7 @@ def fig16_plot(
     ax.grid(alpha=0.3)
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def recall_heatmap(
@@ -75,7 +77,7 @@ def recall_heatmap(
     path: str | Path,
 ) -> Path:
     """Recall per size x distance bin, ours (with counts) beside paper N's Table 7."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True, layout="constrained")
     for ax, values, title, counts in (
         (axes[0], np.asarray(ours, dtype=float), "ours (fused), n = occurrences", occurrences),
@@ -94,14 +96,14 @@ def recall_heatmap(
         ax.set_title(title)
     axes[0].set_ylabel("obstacle size [20 cm cells]")
     fig.colorbar(image, ax=axes, shrink=0.9, label="recall")
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def distribution_plot(
     samples: Mapping[str, Sequence[float]], xlabel: str, title: str, path: str | Path
 ) -> Path:
     """One box per configuration (label -> samples), empty configurations shown as such."""
-    plt = _pyplot()
+    plt = pyplot()
     labels = list(samples)
     fig, ax = plt.subplots(figsize=(9, 0.45 * len(labels) + 1.8), layout="constrained")
     data = [np.asarray(samples[k], dtype=float) for k in labels]
@@ -126,7 +128,7 @@ def distribution_plot(
     ax.set_xlabel(xlabel)
     ax.set_title(title)
     ax.grid(axis="x", alpha=0.3)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def learning_curves_plot(runs: Mapping[str, Path | str], path: str | Path) -> Path:
@@ -135,7 +137,7 @@ def learning_curves_plot(runs: Mapping[str, Path | str], path: str | Path) -> Pa
     evaluation's goal share (``eval.csv``) as markers. Runs without logs are skipped."""
     import csv
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
     for label, folder in runs.items():
         folder = Path(folder)
@@ -165,4 +167,4 @@ def learning_curves_plot(runs: Mapping[str, Path | str], path: str | Path) -> Pa
     bottom.set_xlabel("env steps")
     bottom.set_ylim(-0.05, 1.05)
     bottom.grid(alpha=0.3)
-    return _save(fig, path)
+    return save_png(fig, path)
