@@ -55,14 +55,7 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
         format_row(["seed0", 0, f, "detector", "verge", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0, "", 0.0, 9.0])
         for f in range(200)
     ]
-    params = fit_parameters(
-        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings),
-        _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
-        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
-        border_band_m=1.0,
-        clutter_band_m=2.0,
-        rough_relief_m=0.2,
-    )
+    params = _fit(tmp_path, sightings, spurious, frames)
     s = 2  # 25 cells: the 25-34 bin (fewer than 20 confirmations: all sizes' quantiles)
     assert params.confirm_distance_m[s][10] == pytest.approx(15.75)  # between 16 m and the drawn 15.5 m
     assert params.confirm_latency_frames[10] == 2.0
@@ -74,6 +67,18 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     assert params.fa_density_per_m2[0][4] == 0.0
     assert params.fa_keep[1] == pytest.approx(0.75, abs=0.01)
     assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
+
+
+def _fit(tmp_path, sightings, spurious, frames):
+    """:func:`fit_parameters` of the rows, written as the fit's three CSVs."""
+    return fit_parameters(
+        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings),
+        _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
+        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
+        border_band_m=1.0,
+        clutter_band_m=2.0,
+        rough_relief_m=0.2,
+    )
 
 
 def _frame_by_class(frame, areas, episode="seed0"):
@@ -103,14 +108,7 @@ def test_false_alarm_rates_are_fitted_per_terrain_class_and_unseen_classes_borro
                 )
             )
     sightings = [_sighting("detector", 0, 0, 10.0, True)]
-    params = fit_parameters(
-        _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings),
-        _write(tmp_path / "sp.csv", SPURIOUS_COLUMNS, spurious),
-        _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
-        border_band_m=1.0,
-        clutter_band_m=2.0,
-        rough_relief_m=0.2,
-    )
+    params = _fit(tmp_path, sightings, spurious, frames)
     k = {c: i for i, c in enumerate(TERRAIN_CLASSES)}
     density = np.asarray(params.fa_density_per_m2)
     # 60 blobs over 300 frames x 20 m² (smooth) and 4 m² (clutter) in the 8-10 m bin, shrunk a little

@@ -3,6 +3,7 @@ the local vector env, and the same trained weights; without ray, a clear error."
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 from pathlib import Path
@@ -97,7 +98,7 @@ def test_training_on_ray_trains_the_local_weights(local_ray, tmp_path: Path) -> 
         progress=False,
     )
     local = train(config, tmp_path / "local")
-    remote = train(TrainConfig(**{**config.__dict__, "vec_env": "ray"}), tmp_path / "ray")
+    remote = train(dataclasses.replace(config, vec_env="ray"), tmp_path / "ray")
     weights = [PPO.load(r.model_path, device="cpu").policy.state_dict() for r in (local, remote)]
     assert all(np.array_equal(weights[0][k].numpy(), weights[1][k].numpy()) for k in weights[0])
     figures = [{k: v for k, v in r.last_eval.items() if k != "wall_s"} for r in (local, remote)]
