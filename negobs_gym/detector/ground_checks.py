@@ -25,7 +25,7 @@ def crest_rise_m(a_m: np.ndarray, ground: GroundMap, window_m: float) -> np.ndar
     a = np.asarray(a_m, dtype=np.float64).reshape(-1, 3)
     if len(a) == 0 or ground.lowest_z_m is None:
         return np.full(len(a), np.nan)
-    sector, b, _ = ground._cells(a[:, :2])
+    sector, b, _ = ground.cells(a[:, :2])
     k = max(1, math.ceil(window_m / ground.config.bin_m))
     bins = b[:, None] - np.arange(1, k + 1)[None, :]
     z = ground.lowest_z_m[sector[:, None], np.clip(bins, 0, None)]

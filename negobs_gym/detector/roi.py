@@ -114,7 +114,7 @@ class GroundMap:
     n_bins: int
     lowest_z_m: np.ndarray | None = None
 
-    def _cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(sector, bin, inside) of (n, 2) vehicle-frame points."""
         n_sectors = self.ground_z_m.shape[0]
         sector = _xy_sectors(np.ascontiguousarray(xy), math.radians(self.config.sector_deg)) % n_sectors
@@ -128,7 +128,7 @@ class GroundMap:
         Points beyond the map are judged against the last cell of their sector.
         """
         p = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
-        sector, b, _ = self._cells(p[:, :2])
+        sector, b, _ = self.cells(p[:, :2])
         return p[:, 2] > self.ground_z_m[sector, b] + self.config.ground_tolerance_m
 
     def structure_between(
@@ -142,13 +142,13 @@ class GroundMap:
         """
         a = np.asarray(a_m, dtype=np.float64).reshape(-1, 3)
         b = np.asarray(b_m, dtype=np.float64).reshape(-1, 3)
-        sector, bin_b, _ = self._cells(b[:, :2])
-        _, bin_a, _ = self._cells(a[:, :2])
+        sector, bin_b, _ = self.cells(b[:, :2])
+        _, bin_a, _ = self.cells(a[:, :2])
         far = np.maximum(bin_a, bin_b)
         if c_m is not None:
             c = np.asarray(c_m, dtype=np.float64).reshape(-1, 3)
             known = np.isfinite(c).all(axis=1)
-            _, bin_c, _ = self._cells(np.where(known[:, None], c, b)[:, :2])
+            _, bin_c, _ = self.cells(np.where(known[:, None], c, b)[:, :2])
             far = np.maximum(far, bin_c)
         lo = np.minimum(bin_a, bin_b)
         hi = np.minimum(far + 2, self.n_bins)
@@ -157,7 +157,7 @@ class GroundMap:
     def on_structure_cell(self, points_m: np.ndarray) -> np.ndarray:
         """(n,) True where a (n, 3) point lies in a cell that holds structure."""
         p = np.asarray(points_m, dtype=np.float64).reshape(-1, 3)
-        sector, b, _ = self._cells(p[:, :2])
+        sector, b, _ = self.cells(p[:, :2])
         return self.structure_before[sector, b + 1] - self.structure_before[sector, b] > 0
 
     def keep_pairs(self, a_m: np.ndarray, b_m: np.ndarray, c_m: np.ndarray | None = None) -> np.ndarray:
