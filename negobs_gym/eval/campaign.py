@@ -17,6 +17,7 @@ returns CSV rows already formatted as strings (see :func:`format_row`). The runn
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -151,31 +152,45 @@ def import_ray() -> Any:
     return ray
 
 
-def _ray(fn: EpisodeFn, todo: Sequence[Episode], address: str) -> Iterator[tuple[Episode, Rows]]:
+@contextlib.contextmanager
+def ray_session(address: str = "", cpus: int | None = None) -> Iterator[Any]:
+    """Ray, started for the ``with`` block unless this process already runs it: a local instance
+    for ``address`` "" or "local" (with at least ``cpus`` CPUs, so that many one-CPU tasks or
+    actors all start), else the cluster at ``address``; shut down at the end if started here.
+
+    Raises:
+        MissingDependencyError: ``ray`` is not installed (``negobs_gym[ray]``).
+    """
     ray = import_ray()
     started_here = not ray.is_initialized()
     if started_here:
-        if address == "local":
+        if address and address != "local":
+            ray.init(address=address, log_to_driver=False)
+        else:
             # a source checkout (not installed) must be importable by the local workers too
             package_root = str(Path(__file__).resolve().parents[2])
             path = os.pathsep.join(p for p in (package_root, os.environ.get("PYTHONPATH", "")) if p)
             ray.init(
+                num_cpus=max(os.cpu_count() or 1, cpus or 1),
                 include_dashboard=False,
                 log_to_driver=False,
                 runtime_env={"env_vars": {"PYTHONPATH": path}},
             )
-        else:
-            ray.init(address=address, log_to_driver=False)
     try:
+        yield ray
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def _ray(fn: EpisodeFn, todo: Sequence[Episode], address: str) -> Iterator[tuple[Episode, Rows]]:
+    with ray_session(address) as ray:
         remote = ray.remote(fn)
         pending = {remote.remote(ep): ep for ep in todo}
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             for ref in done:
                 yield pending.pop(ref), ray.get(ref)
-    finally:
-        if started_here:
-            ray.shutdown()
 
 
 def run_episodes(

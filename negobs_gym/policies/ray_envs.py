@@ -9,10 +9,7 @@ seeds give the same rollouts as the local vector envs.
 
 from __future__ import annotations
 
-import contextlib
-import os
-from collections.abc import Callable, Iterator, Sequence
-from pathlib import Path
+from collections.abc import Callable, Sequence
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -20,7 +17,7 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 from stable_baselines3.common.vec_env.subproc_vec_env import _stack_obs
 
-from negobs_gym.eval.campaign import import_ray
+from negobs_gym.eval.campaign import ray_session
 
 __all__ = ["EnvActor", "RayVecEnv", "ray_session"]
 
@@ -76,37 +73,6 @@ class EnvActor:
 
     def close(self) -> None:
         self.env.close()
-
-
-@contextlib.contextmanager
-def ray_session(address: str = "", cpus: int | None = None) -> Iterator[Any]:
-    """Ray, started for the ``with`` block unless this process already runs it: a local instance
-    for ``address=""`` (with at least ``cpus`` CPUs, so that many one-CPU actors all start),
-    else the cluster at ``address``; shut down at the end if started here.
-
-    Raises:
-        MissingDependencyError: ``ray`` is not installed (``negobs_gym[ray]``).
-    """
-    ray = import_ray()
-    started_here = not ray.is_initialized()
-    if started_here:
-        if address:
-            ray.init(address=address, log_to_driver=False)
-        else:
-            # a source checkout (not installed) must be importable by the local actors too
-            package_root = str(Path(__file__).resolve().parents[2])
-            path = os.pathsep.join(p for p in (package_root, os.environ.get("PYTHONPATH", "")) if p)
-            ray.init(
-                num_cpus=max(os.cpu_count() or 1, cpus or 1),
-                include_dashboard=False,
-                log_to_driver=False,
-                runtime_env={"env_vars": {"PYTHONPATH": path}},
-            )
-    try:
-        yield ray
-    finally:
-        if started_here:
-            ray.shutdown()
 
 
 class RayVecEnv(VecEnv):
