@@ -1,9 +1,12 @@
-"""A perception-error model (PEM) of the detector grid's ``negative`` channel, at the oracle's cost.
+"""A perception-error model (PEM) of the detector grid's obstacle channels, at the oracle's cost.
 
-Paper N's detector (cast rig, pair tests, fusion) costs most of a detector-grid step. The PEM
-reproduces its output from the ground truth instead, as PEMs for AV virtual testing do (Piazzoni
-et al., IEEE T-ITS 2023): every frame each true pit on the grid is rasterised like the oracle's and
-then, by parametric tables fitted on the detector (:mod:`negobs_gym.eval.pem_fit`),
+Paper N's detector (cast rig, pair tests, fusion) and paper T's (the bumper LUX) cost most of a
+detector-grid step. The PEM reproduces their output from the ground truth instead, as PEMs for AV
+virtual testing do (Piazzoni et al., IEEE T-ITS 2023). Each channel it models (:data:`PEM_CHANNELS`:
+``negative``, paper N's pits; ``positive``, paper T's obstacles) has its own tables: every frame
+each true obstacle of the channel on the grid (a pit's rim, a positive obstacle's footprint) is
+rasterised like the oracle's and then, by parametric tables fitted on the detector
+(:mod:`negobs_gym.eval.pem_fit`),
 
 - is drawn or missed: P(drawn) by its size (cells) and centre distance (2 m bins) and by its state,
   a three-state Markov chain: never drawn yet (the first confirmation), drawn last frame
@@ -53,6 +56,7 @@ from negobs_gym.spec import ObservationConfig
 
 __all__ = [
     "DEFAULT_PEM_PATH",
+    "PEM_CHANNELS",
     "PEM_FORMAT",
     "PEM_VERSION",
     "TERRAIN_CLASSES",
@@ -71,9 +75,12 @@ __all__ = [
 
 PEM_FORMAT = "negobs_gym.pem"
 #: Version of the file layout; a file of another version is refused.
-PEM_VERSION = 3
+PEM_VERSION = 4
+#: The detector grid's channels a PEM models: ``negative`` (paper N's detector) and ``positive``
+#: (paper T's LUX obstacles, ``ObservationConfig.positive_detector = "traversable"``).
+PEM_CHANNELS: tuple[str, ...] = ("negative", "positive")
 #: The PEM fitted on the envs' default detector grid (``ObservationConfig()``), shipped.
-DEFAULT_PEM_PATH = Path(__file__).with_name("data") / "pem_negative_default.json"
+DEFAULT_PEM_PATH = Path(__file__).with_name("data") / "pem_default.json"
 #: Terrain classes the false-alarm rates are kept for (:class:`ClassRaster`): ``track`` (within half
 #: its width of the centre line); off the track, ``clutter`` (within ``clutter_band_m`` of a
 #: standing positive obstacle's footprint: rocks, boxes, vehicles) and ``mound`` (of one raised
@@ -260,25 +267,43 @@ def _tuples(value: Any) -> Any:
 
 @dataclass(frozen=True, kw_only=True)
 class PerceptionErrorModel:
-    """A PEM: its parameters, the settings it was fitted on (:func:`pem_settings`) and how.
+    """A PEM: its parameters per channel, the settings it was fitted on (:func:`pem_settings`) and how.
 
-    ``fit`` records the fitting run (seeds, frames, course) so that a check can refuse its seeds.
+    ``parameters`` model the ``negative`` channel; ``positive``, when given, the ``positive``
+    channel (else an env draws the oracle's there). ``fit`` records the fitting run (seeds, frames,
+    course) so that a check can refuse its seeds.
     """
 
-    channel: str = "negative"
     parameters: PemParameters
+    positive: PemParameters | None = None
     fitted_on: dict[str, Any]
     fit: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The channels this model draws (the others are the oracle's)."""
+        return PEM_CHANNELS if self.positive is not None else PEM_CHANNELS[:1]
+
+    def channel_parameters(self, channel: str) -> PemParameters:
+        """The tables of ``channel``.
+
+        Raises:
+            ConfigError: a channel the model does not draw.
+        """
+        require(channel in self.channels, "channel", f"this PEM models {self.channels}, not {channel!r}")
+        return self.parameters if channel == "negative" else self.positive  # type: ignore[return-value]
 
     def to_json(self) -> str:
         data = {
             "format": PEM_FORMAT,
             "version": PEM_VERSION,
-            "channel": self.channel,
+            "channels": list(self.channels),
             "fitted_on": self.fitted_on,
             "fit": self.fit,
             "parameters": self.parameters.to_dict(),
         }
+        if self.positive is not None:
+            data["positive_parameters"] = self.positive.to_dict()
         return json.dumps(data, indent=1, sort_keys=True) + "\n"
 
     def save(self, path: str | Path) -> Path:
@@ -298,14 +323,21 @@ class PerceptionErrorModel:
             source,
             f"PEM file version {data.get('version')!r}; this package reads version {PEM_VERSION}: refit it",
         )
+        channels = data.get("channels")
         require(
-            data.get("channel") == "negative",
+            channels in (list(PEM_CHANNELS[:1]), list(PEM_CHANNELS)),
             source,
-            f"models channel {data.get('channel')!r}; only 'negative'",
+            f"models channels {channels!r}; this package reads {list(PEM_CHANNELS[:1])} or {list(PEM_CHANNELS)}",
         )
+        require(
+            ("positive_parameters" in data) == ("positive" in channels),
+            source,
+            "its 'positive_parameters' must be given exactly when it models 'positive'",
+        )
+        positive = data.get("positive_parameters")
         return cls(
-            channel=data["channel"],
             parameters=PemParameters.from_dict(data["parameters"]),
+            positive=PemParameters.from_dict(positive) if positive is not None else None,
             fitted_on=data["fitted_on"],
             fit=data.get("fit", {}),
         )
@@ -319,11 +351,12 @@ def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
         out[prefix] = value
 
 
-def pem_settings(config: ObservationConfig) -> dict[str, Any]:
-    """What the detector grid's ``negative`` channel depends on, flat by dotted name (JSON values):
-    the observation settings (``observation.*``), paper N's detector config (``detector.*``) and
-    the rig's paper N sensors (``rig.*``). A PEM is valid for these settings only."""
-    from negobs_gym.detector import FusionConfig, NegativeDetectorConfig
+def pem_settings(config: ObservationConfig, channels: Sequence[str] = PEM_CHANNELS) -> dict[str, Any]:
+    """What the detector grid's ``channels`` depend on, flat by dotted name (JSON values): the
+    observation settings (``observation.*``), paper N's detector config (``detector.*``), the rig's
+    paper N sensors (``rig.*``) and, for ``positive``, paper T's (``paper_t.*``, the LUX's mount in
+    ``rig.lux``). A PEM is valid for these settings only."""
+    from negobs_gym.detector import FusionConfig, NegativeDetectorConfig, TraversableConfig
     from negobs_gym.envs.perception import LUX_NAME, env_rig
 
     detector = NegativeDetectorConfig(
@@ -343,17 +376,26 @@ def pem_settings(config: ObservationConfig) -> dict[str, Any]:
             "translation_m": m.translation_m,
         }
         for m in env_rig(config.rig, config.lux_forward_m).mounts
-        if m.name != LUX_NAME
+        if m.name != LUX_NAME or "positive" in channels
     }
-    out: dict[str, Any] = {}
     tree = {"observation": observation, "detector": dataclasses.asdict(detector), "rig": rig}
+    if "positive" in channels:  # what DetectorGrid builds paper T's detector with
+        observation["positive_detector"] = config.positive_detector
+        observation["positive_hold_s"] = config.positive_hold_s
+        observation["lux_forward_m"] = config.lux_forward_m
+        tree["paper_t"] = dataclasses.asdict(
+            TraversableConfig(obstacle_hold_s=config.positive_hold_s, kalman_ego_motion=config.lux_ego_motion)
+        )
+    out: dict[str, Any] = {}
     _flatten("", json.loads(json.dumps(tree, default=repr)), out)
     return {k[1:]: v for k, v in out.items()}
 
 
-def settings_mismatch(fitted_on: dict[str, Any], config: ObservationConfig) -> list[str]:
-    """The settings of ``config`` that differ from those a PEM was fitted on, as texts."""
-    now = pem_settings(config)
+def settings_mismatch(
+    fitted_on: dict[str, Any], config: ObservationConfig, channels: Sequence[str] = PEM_CHANNELS
+) -> list[str]:
+    """The settings of ``config`` that differ from those a PEM of ``channels`` was fitted on, as texts."""
+    now = pem_settings(config, channels)
     keys = sorted(set(fitted_on) | set(now))
     return [
         f"{k} (fitted on {fitted_on.get(k, '<absent>')!r}, now {now.get(k, '<absent>')!r})"
@@ -373,7 +415,7 @@ def load_pem(path: str | Path | None, config: ObservationConfig) -> PerceptionEr
     if not file.is_file():
         raise ConfigError("observation.pem_model", f"no PEM file {str(file)!r} (fit one: negobs pem fit)")
     model = PerceptionErrorModel.from_json(file.read_text(encoding="utf-8"), f"observation.pem_model {file}")
-    diff = settings_mismatch(model.fitted_on, config)
+    diff = settings_mismatch(model.fitted_on, config, model.channels)
     if diff:
         shown = "; ".join(diff[:6]) + (f"; and {len(diff) - 6} more" if len(diff) > 6 else "")
         raise ConfigError(
@@ -519,11 +561,28 @@ def class_raster(
     return raster
 
 
+def channel_outlines(terrain: Terrain, channel: str) -> list[np.ndarray]:
+    """The world outlines of ``channel``'s true obstacles: the pits' rims (``negative``), the
+    positive obstacles' footprints (``positive``, mounds included, as the oracle draws them)."""
+    require(channel in PEM_CHANNELS, "channel", f"must be one of {PEM_CHANNELS}, got {channel!r}")
+    if channel == "negative":
+        return [np.asarray(o.outline_xy_m, dtype=np.float64) for o in terrain.negative_obstacles]
+    return [np.asarray(o.footprint_xy_m, dtype=np.float64) for o in terrain.positive_obstacles]
+
+
 def rasterise_pits(
     terrain: Terrain, pose: Pose, grid: GridSpec, boxes: np.ndarray
 ) -> list[tuple[int, np.ndarray, slice, slice]]:
-    """Each true pit with cells on ``grid`` around ``pose``: (its index, its cell mask in a window,
-    the window's row and column slices). A cell is the pit's when its centre lies inside the rim."""
+    """Each true pit with cells on ``grid`` around ``pose`` (:func:`rasterise_outlines`)."""
+    return rasterise_outlines(channel_outlines(terrain, "negative"), pose, grid, boxes)
+
+
+def rasterise_outlines(
+    outlines: Sequence[np.ndarray], pose: Pose, grid: GridSpec, boxes: np.ndarray
+) -> list[tuple[int, np.ndarray, slice, slice]]:
+    """Each world outline with cells on ``grid`` around ``pose``: (its index, its cell mask in a
+    window, the window's row and column slices); ``boxes`` are the outlines' :func:`outline_boxes`.
+    A cell is the outline's when its centre lies inside it."""
     x0, x1, y0, y1 = grid.extent_xy_m
     corners = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
     world = _vehicle_to_world(corners, pose)
@@ -533,9 +592,7 @@ def rasterise_pits(
     )
     out = []
     for k in near:
-        outline = world_to_vehicle_xy(
-            np.asarray(terrain.negative_obstacles[k].outline_xy_m), (pose.x, pose.y), pose.yaw
-        )
+        outline = world_to_vehicle_xy(outlines[k], (pose.x, pose.y), pose.yaw)
         rows, cols, _ = grid.cell_of(np.stack([outline.min(axis=0), outline.max(axis=0)]))
         r0, r1 = max(int(rows.min()), 0), min(int(rows.max()) + 1, grid.rows)
         c0, c1 = max(int(cols.min()), 0), min(int(cols.max()) + 1, grid.cols)
@@ -565,9 +622,13 @@ def _vehicle_to_world(points: np.ndarray, pose: Pose) -> np.ndarray:
 
 def obstacle_boxes(terrain: Terrain) -> np.ndarray:
     """(M, 4) world bounding boxes (xmin, ymin, xmax, ymax) of the terrain's pits."""
-    if not terrain.negative_obstacles:
+    return outline_boxes(channel_outlines(terrain, "negative"))
+
+
+def outline_boxes(outlines: Sequence[np.ndarray]) -> np.ndarray:
+    """(M, 4) world bounding boxes (xmin, ymin, xmax, ymax) of ``outlines``."""
+    if not outlines:
         return np.zeros((0, 4))
-    outlines = [np.asarray(o.outline_xy_m) for o in terrain.negative_obstacles]
     return np.array([[*o.min(axis=0), *o.max(axis=0)] for o in outlines])
 
 
@@ -583,7 +644,8 @@ def _bin(value: float | np.ndarray, edges: np.ndarray) -> Any:
 
 
 class PemGrid:
-    """The PEM's ``negative`` layer around the vehicle, frame by frame (one episode).
+    """The PEM's layer of one channel (``negative`` or ``positive``) around the vehicle, frame by
+    frame (one episode).
 
     ``rng`` is the PEM's own generator (a child of the sensors'); the same generator state, terrain
     and poses give the same layers bit for bit.
@@ -596,10 +658,16 @@ class PemGrid:
         terrain: Terrain,
         rng: np.random.Generator,
         cache: dict | None = None,
+        channel: str = "negative",
     ) -> None:
-        """``cache`` (one dict per world) keeps the terrain's class raster for the next episode."""
-        p = model.parameters
+        """``cache`` (one dict per world) keeps the terrain's class raster for the next episode.
+
+        Raises:
+            ConfigError: a channel the model does not draw.
+        """
+        p = model.channel_parameters(channel)
         self.model = model
+        self.channel = channel
         self.grid = grid
         self.terrain = terrain
         self._rng = rng
@@ -628,13 +696,12 @@ class PemGrid:
         self._block_centres = blocks.reshape(-1, 2)
         self._block_m = b * grid.cell_m
         self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
-        self._boxes = obstacle_boxes(terrain)
-        self._rim_cells = np.array(
-            [_polygon_area(np.asarray(o.outline_xy_m)) / grid.cell_m**2 for o in terrain.negative_obstacles]
-        )
+        self._outlines = channel_outlines(terrain, channel)
+        self._boxes = outline_boxes(self._outlines)
+        self._rim_cells = np.array([_polygon_area(o) / grid.cell_m**2 for o in self._outlines])
         self._tree = centreline_tree(terrain)
         self._classes = class_raster(terrain, p.border_band_m, p.clutter_band_m, p.rough_relief_m, cache)
-        n = len(terrain.negative_obstacles)
+        n = len(self._outlines)
         self._state = np.zeros(n, dtype=np.int8)
         self._seen = np.zeros(n, dtype=np.int64)  # frames each pit was on the grid before its first drawing
         self._confirm_at = np.full(n, np.nan)  # each pit's drawn first-confirmation distance ...
@@ -644,10 +711,10 @@ class PemGrid:
         self._fa_class = np.zeros(0, dtype=np.int64)  # the terrain class each was born on
         self._frames = 0
 
-    def negative(self, pose: Pose) -> np.ndarray:
-        """This frame's ``negative`` layer (rows, cols) bool around the true ``pose``."""
+    def layer(self, pose: Pose) -> np.ndarray:
+        """This frame's layer of the channel (rows, cols) bool around the true ``pose``."""
         layer = np.zeros(self.grid.shape, dtype=bool)
-        for k, mask, rows, cols in rasterise_pits(self.terrain, pose, self.grid, self._boxes):
+        for k, mask, rows, cols in rasterise_outlines(self._outlines, pose, self.grid, self._boxes):
             cells = int(mask.sum())
             centre = pit_centre_distance_m(self.grid, mask, rows, cols)
             s, d = int(_bin(cells, self._s_edges)), int(_bin(centre, self._d_edges))

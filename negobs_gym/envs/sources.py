@@ -174,20 +174,22 @@ class PemHazards:
         return self._cells_of("negative")
 
     def positive_cells_xy_m(self) -> np.ndarray:
-        """(N, 2) centres of this frame's ``positive`` cells (the oracle's, see :class:`PemSource`)."""
+        """(N, 2) centres of this frame's ``positive`` cells (the PEM's, or the oracle's where the
+        model draws no ``positive`` channel; see :class:`PemSource`)."""
         return self._cells_of("positive")
 
 
 class PemSource(GridSource):
-    """The ground truth rasterised around the true pose, its ``negative`` channel passed through the
-    perception-error model of ``config.pem_model`` (:class:`~negobs_gym.envs.pem.PemGrid`).
+    """The ground truth rasterised around the true pose, its obstacle channels passed through the
+    perception-error model of ``config.pem_model`` (:class:`~negobs_gym.envs.pem.PemGrid`, one per
+    channel the model draws: ``negative``, and ``positive`` when the file has it).
 
     Loading the model checks it against ``config``'s detector settings (a mismatch is a
-    :class:`~negobs_gym.errors.ConfigError` naming it). Only ``negative`` is modelled so far:
-    ``positive``, ``traversable`` and ``observed`` are the oracle's (the ground truth). The model
-    draws from a child of the sensors' generator, so the sensors' stream stays as it was. Every
-    step is a frame (``scan_every`` is ignored). The safety filter's hazards are this source's own
-    cells (:meth:`hazards`): no detector runs beside it.
+    :class:`~negobs_gym.errors.ConfigError` naming it). ``traversable`` and ``observed`` are the
+    oracle's (the ground truth), and so is ``positive`` under a model without that channel. The
+    model draws from a child of the sensors' generator (each channel from a child of that), so the
+    sensors' stream stays as it was. Every step is a frame (``scan_every`` is ignored). The safety
+    filter's hazards are this source's own cells (:meth:`hazards`): no detector runs beside it.
     """
 
     def __init__(self, config: ObservationConfig) -> None:
@@ -211,19 +213,27 @@ class PemSource(GridSource):
     ) -> None:
         self._vehicle = vehicle
         self.oracle = OracleGrid(self._oracle_config, terrain)
-        self.grid = PemGrid(self.model, self.config.grid, terrain, rng.spawn(1)[0], cache)
+        pem_rng = rng.spawn(1)[0]
+        self.grid = PemGrid(self.model, self.config.grid, terrain, pem_rng, cache)
+        self.positive_grid = (
+            PemGrid(self.model, self.config.grid, terrain, pem_rng.spawn(1)[0], cache, channel="positive")
+            if "positive" in self.model.channels
+            else None
+        )
         self._hazards = PemHazards(self.config.grid, self.oracle)
 
     def layers(self, timestamp_s: float) -> dict[str, np.ndarray]:
         pose = self._vehicle.true_pose()
-        # the oracle's channels besides negative, and positive for the hazards
+        drawn = {"negative": self.grid.layer(pose)}
+        if self.positive_grid is not None:
+            drawn["positive"] = self.positive_grid.layer(pose)
+        # the oracle's other channels, and positive for the hazards where the model has none
         names = tuple(
-            c for c in CHANNELS if c == "positive" or (c != "negative" and c in self.config.channels)
+            c for c in CHANNELS if c not in drawn and (c == "positive" or c in self.config.channels)
         )
-        truth = self.oracle.layers(pose, names)
-        negative = self.grid.negative(pose)
-        self._hazards.update(negative, truth["positive"], pose, float(timestamp_s))
-        return {name: negative if name == "negative" else truth[name] for name in self.config.channels}
+        layers = {**self.oracle.layers(pose, names), **drawn} if names else drawn
+        self._hazards.update(layers["negative"], layers["positive"], pose, float(timestamp_s))
+        return {name: layers[name] for name in self.config.channels}
 
     def hazards(self) -> PemHazards:
         return self._hazards

@@ -146,10 +146,28 @@ def episodes(config: DetectionCampaignConfig) -> list[Episode]:
     ]
 
 
-def detection_course(config: DetectionCampaignConfig, seed: int, length_m: float) -> Any:
-    """Straight rough track with paper N's pit mix beside the wheel tracks and verge clutter."""
-    from negobs_gym.sim.carving import PAPER_N_PIT_SIZES_M, NegativeObstacleSpec, PositiveObstacleSpec
+def detection_course(
+    config: DetectionCampaignConfig, seed: int, length_m: float, extra_positives: Any = None
+) -> Any:
+    """Straight rough track with paper N's pit mix beside the wheel tracks and verge clutter.
+
+    ``extra_positives``, when given, is called with the course's pits (``NegativeObstacleSpec``)
+    and returns more positive obstacles to place (the PEM's courses add some on the track).
+    """
     from negobs_gym.sim.terrain import TerrainConfig, generate_terrain
+
+    negatives, positives = detection_course_obstacles(config, seed, length_m)
+    if extra_positives is not None:
+        positives += tuple(extra_positives(tuple(negatives)))
+    terrain_config = TerrainConfig(
+        length_m=length_m, negative_obstacles=tuple(negatives), positive_obstacles=positives
+    )
+    return generate_terrain(terrain_config, seed)
+
+
+def detection_course_obstacles(config: DetectionCampaignConfig, seed: int, length_m: float) -> tuple[list, tuple]:
+    """The pits and the verge clutter of :func:`detection_course` (obstacle specs)."""
+    from negobs_gym.sim.carving import PAPER_N_PIT_SIZES_M, NegativeObstacleSpec, PositiveObstacleSpec
 
     layout = np.random.default_rng([seed, 2])
     negatives: list[NegativeObstacleSpec] = []
@@ -179,10 +197,7 @@ def detection_course(config: DetectionCampaignConfig, seed: int, length_m: float
         )
         for _ in range(n_clutter)
     )
-    terrain_config = TerrainConfig(
-        length_m=length_m, negative_obstacles=tuple(negatives), positive_obstacles=positives
-    )
-    return generate_terrain(terrain_config, seed)
+    return negatives, positives
 
 
 def _lateral_offset(pose: Any, centreline: np.ndarray) -> float:

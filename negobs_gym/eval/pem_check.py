@@ -1,7 +1,9 @@
 """Check a PEM against the detector on courses it was not fitted on, side by side.
 
 :func:`check_pem` drives fresh courses (:mod:`negobs_gym.eval.pem_data`) with the detector grid and
-the PEM on the same poses and compares (:func:`compare`, from the CSVs alone):
+the PEM on the same poses and compares each channel the PEM draws (:func:`compare`, from the CSVs
+alone; the ``positive`` channel's figures and checks are prefixed ``positive_``, its obstacles'
+centre distance and footprint cells take the pits' places):
 
 - recall per 2 m bin from 6 to 20 m (a pit's centre distance, paper N §4.2; all sizes), checked
   in bins with at least ``min_sightings``; Table 7's layout (size x distance) in ``tables.md``;
@@ -35,7 +37,7 @@ from negobs_gym.core.files import write_text_atomic
 from negobs_gym.envs.pem import PerceptionErrorModel
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import RunOptions, read_csv
-from negobs_gym.eval.pem_data import MODES, PemCampaignConfig, run_pem_campaign
+from negobs_gym.eval.pem_data import CHANNEL_TABLES, MODES, PemCampaignConfig, run_pem_campaign
 
 __all__ = [
     "BrakingCheckConfig",
@@ -251,34 +253,57 @@ def _recall_tables(
     return out
 
 
-def _markdown(result: PemCheckResult, cfg: PemCheckConfig) -> str:
+def _with_prefix(result: PemCheckResult, prefix: str) -> PemCheckResult:
+    """``result`` with ``prefix`` before each figure's and table's name and after each check's ``check_``."""
+    return PemCheckResult(
+        {f"{prefix}{k}": v for k, v in result.figures.items()},
+        {k.replace("check_", f"check_{prefix}", 1): ok for k, ok in result.checks.items()},
+        {f"{prefix}{k}": v for k, v in result.recall_table.items()},
+    )
+
+
+def _merged(*results: PemCheckResult) -> PemCheckResult:
+    """One result of several (their names must differ)."""
+    figures, checks, tables = {}, {}, {}
+    for r in results:
+        figures.update(r.figures)
+        checks.update(r.checks)
+        tables.update(r.recall_table)
+    return PemCheckResult(figures, checks, tables)
+
+
+def _markdown(result: PemCheckResult, cfg: PemCheckConfig, prefixes: tuple[str, ...] = ("",)) -> str:
     from negobs_gym.eval.tables import bin_labels
 
     dist = bin_labels(np.asarray(cfg.recall_edges_m), " m")
     sizes = bin_labels(np.asarray(cfg.size_edges_cells))
-    parts = ["# PEM check: detector vs PEM on fresh courses", "## Recall by distance (all sizes)"]
-    parts.append("| distance | sightings | detector | PEM | Δ |\n|---|---|---|---|---|")
-    for j, label in enumerate(dist):
-        lo, hi = cfg.recall_edges_m[j], cfg.recall_edges_m[j + 1]
+    parts = ["# PEM check: detector vs PEM on fresh courses"]
+    for prefix in prefixes:
+        what = "pits" if not prefix else "positive obstacles"
+        parts.append(f"## Recall by distance (all sizes), {what}")
+        parts.append("| distance | sightings | detector | PEM | Δ |\n|---|---|---|---|---|")
         f = result.figures
-        k = _label(lo, hi)
-        parts[-1] += (
-            f"\n| {label} | {f[f'sightings_{k}']:.0f} | {_fmt(f[f'recall_{k}_detector'])} | "
-            f"{_fmt(f[f'recall_{k}_pem'])} | {_fmt(f[f'recall_{k}_delta'])} |"
-        )
-    for m in MODES:
-        parts.append(f"## Recall by size x distance, {m} (paper N Table 7 layout)")
-        head = "| cells | " + " | ".join(dist) + " |\n|---|" + "---|" * len(dist)
-        body = [
-            f"| {sizes[i]} | " + " | ".join("-" if v is None else f"{v:.2f}" for v in row) + " |"
-            for i, row in enumerate(result.recall_table[m])
-        ]
-        parts.append("\n".join([head, *body]))
+        for j, label in enumerate(dist):
+            k = _label(cfg.recall_edges_m[j], cfg.recall_edges_m[j + 1])
+            parts[-1] += (
+                f"\n| {label} | {f[f'{prefix}sightings_{k}']:.0f} | {_fmt(f[f'{prefix}recall_{k}_detector'])} | "
+                f"{_fmt(f[f'{prefix}recall_{k}_pem'])} | {_fmt(f[f'{prefix}recall_{k}_delta'])} |"
+            )
+        for m in MODES:
+            parts.append(f"## Recall by size x distance, {what}, {m} (paper N Table 7 layout)")
+            head = "| cells | " + " | ".join(dist) + " |\n|---|" + "---|" * len(dist)
+            body = [
+                f"| {sizes[i]} | " + " | ".join("-" if v is None else f"{v:.2f}" for v in row) + " |"
+                for i, row in enumerate(result.recall_table[f"{prefix}{m}"])
+            ]
+            parts.append("\n".join([head, *body]))
     parts.append("## Every figure and check\n\n```\n" + "\n".join(result.lines()) + "\n```")
     return "\n\n".join(parts) + "\n"
 
 
-def _plots(sightings_csv: Path, result: PemCheckResult, cfg: PemCheckConfig, out: Path) -> list[Path]:
+def _plots(
+    sightings_csv: Path, result: PemCheckResult, cfg: PemCheckConfig, out: Path, prefix: str = ""
+) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -294,7 +319,7 @@ def _plots(sightings_csv: Path, result: PemCheckResult, cfg: PemCheckConfig, out
     for m, style in zip(MODES, ("o-", "s--"), strict=True):
         axes[0].plot(
             mids,
-            [result.figures[f"recall_{_label(a, b)}_{m}"] for a, b in itertools.pairwise(edges)],
+            [result.figures[f"{prefix}recall_{_label(a, b)}_{m}"] for a, b in itertools.pairwise(edges)],
             style,
             label=m,
         )
@@ -304,19 +329,24 @@ def _plots(sightings_csv: Path, result: PemCheckResult, cfg: PemCheckConfig, out
         near = [float(r["near_offset_m"]) for r in rows if r["mode"] == m and r["detected"] == "1"]
         if near:
             axes[2].hist(near, bins=np.arange(-3.0, 3.01, 0.2), histtype="step", density=True, label=m)
-    axes[0].set(xlabel="pit centre distance [m]", ylabel="recall", ylim=(0, 1.05), title="recall, all sizes")
+    what = "pit" if not prefix else "obstacle"
+    axes[0].set(
+        xlabel=f"{what} centre distance [m]", ylabel="recall", ylim=(0, 1.05), title=f"{what}s: recall, all sizes"
+    )
     axes[1].set(
         xlabel="first-confirmation distance [m]", ylabel="share of pits", title="first confirmation (ECDF)"
     )
     axes[2].set(xlabel="drawn minus true near edge [m]", ylabel="density", title="near-edge offset")
     for ax in axes:
-        ax.legend()
+        if ax.get_legend_handles_labels()[0]:  # a panel with nothing drawn (no detection) has none
+            ax.legend()
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    with atomic_target(out / "pem_check.png") as tmp:
+    name = f"pem_check{'_' + prefix.rstrip('_') if prefix else ''}.png"
+    with atomic_target(out / name) as tmp:
         fig.savefig(tmp, format="png", dpi=90)
     plt.close(fig)
-    written.append(out / "pem_check.png")
+    written.append(out / name)
     return written
 
 
@@ -328,7 +358,7 @@ def check_pem(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Drive ``config``'s courses with the detector and ``model`` side by side, compare and write
-    ``check.txt`` (the ``key=value`` lines), ``summary.json``, ``tables.md`` and ``pem_check.png``
+    ``check.txt`` (the ``key=value`` lines), ``summary.json``, ``tables.md`` and ``pem_check.png`` (``pem_check_positive.png`` for the positive channel)
     to ``out_dir``.
 
     Raises:
@@ -347,7 +377,12 @@ def check_pem(
     cfg = check or PemCheckConfig()
     out = Path(out_dir)
     csvs = run_pem_campaign(config, out, model, options, "PEM check courses")
-    result = compare(csvs["sightings"], csvs["frames"], cfg)
+    prefixes = {c: ("" if c == "negative" else f"{c}_") for c in model.channels}
+    results = {
+        c: _with_prefix(compare(csvs[CHANNEL_TABLES[c]["sightings"]], csvs[CHANNEL_TABLES[c]["frames"]], cfg), p)
+        for c, p in prefixes.items()
+    }
+    result = _merged(*results.values())
     write_text_atomic(out / "check.txt", "\n".join(result.lines()) + "\n")
     summary = {
         "figures": result.figures,
@@ -356,8 +391,9 @@ def check_pem(
         "thresholds": asdict(cfg),
     }
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=1, sort_keys=True, default=str) + "\n")
-    write_text_atomic(out / "tables.md", _markdown(result, cfg))
-    _plots(csvs["sightings"], result, cfg, out)
+    write_text_atomic(out / "tables.md", _markdown(result, cfg, tuple(prefixes.values())))
+    for c, prefix in prefixes.items():
+        _plots(csvs[CHANNEL_TABLES[c]["sightings"]], result, cfg, out, prefix)
     return result
 
 

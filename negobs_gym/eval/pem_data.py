@@ -2,15 +2,20 @@
 
 Each seed drives one course of the detection campaign (:func:`~negobs_gym.eval.detection_campaign.
 detection_course`: paper N's pit mix beside the wheel tracks, verge clutter, 10-25 km/h, a
-P-controller on the centre line). Every 10 Hz frame the env's :class:`~negobs_gym.envs.perception.
-DetectorGrid` (the observation settings the PEM is for) observes, and, when a PEM is given, a
-:class:`~negobs_gym.envs.pem.PemGrid` beside it on the same true poses. Each grid's ``negative``
-layer is judged against the true pits rasterised on the same grid:
+P-controller on the centre line) with rocks and boxes added on the track beside the car's path
+(:attr:`PemCampaignConfig.track_obstacles_per_100m`). Every 10 Hz frame the env's
+:class:`~negobs_gym.envs.perception.DetectorGrid` (the observation settings the PEM is for)
+observes, and, when a PEM is given, a :class:`~negobs_gym.envs.pem.PemGrid` per channel beside it
+on the same true poses. Each grid's ``negative`` layer is judged against the true pits rasterised
+on the same grid, its ``positive`` layer (paper T's LUX obstacles) against the positive obstacles'
+footprints, into one set of tables per channel (the ``positive`` ones prefixed ``positive_``):
 
-- ``sightings``: per frame, grid and pit on the grid, whether it is drawn (a connected blob of
-  the layer shares a cell with it), the drawn blobs' cells and their near- and far-edge offsets
-  (range from the vehicle origin, drawn minus true);
-- ``spurious``: per blob touching no pit, its terrain class (:class:`~negobs_gym.envs.pem.
+- ``sightings``: per frame, grid and obstacle on the grid, whether it is drawn (a connected blob
+  of the layer shares a cell with it, or for ``positive`` with it grown by
+  :attr:`PemCampaignConfig.positive_match_cells`: the LUX draws a face on the footprint's edge),
+  the drawn blobs' cells and their near- and far-edge offsets (range from the vehicle origin,
+  drawn minus true);
+- ``spurious``: per blob touching no obstacle, its terrain class (:class:`~negobs_gym.envs.pem.
   ClassRaster`, as the PEM looks it up), distance, cells, its distance from the nearest positive
   obstacle's footprint (``clutter_m``, empty beyond :data:`CLUTTER_REACH_M`), whether a spurious
   blob of the frame before lay within :data:`SAME_ALARM_M` of it in the world, and its world centre;
@@ -34,13 +39,15 @@ from scipy import ndimage
 
 from negobs_gym.core.geometry import distance_to_polyline, vehicle_to_world_xy
 from negobs_gym.envs.pem import (
+    PEM_CHANNELS,
     TERRAIN_CLASSES,
     PemGrid,
     PerceptionErrorModel,
+    channel_outlines,
     class_raster,
     clutter_distance_m,
-    obstacle_boxes,
-    rasterise_pits,
+    outline_boxes,
+    rasterise_outlines,
 )
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import Episode, Rows, RunOptions, format_row, run_campaign
@@ -49,6 +56,7 @@ from negobs_gym.eval.detection_campaign import FRAME_S, SETTLE_S, DetectionCampa
 from negobs_gym.spec import ObservationConfig
 
 __all__ = [
+    "CHANNEL_TABLES",
     "DISTANCE_EDGES_M",
     "FRAME_COLUMNS",
     "MODES",
@@ -110,6 +118,12 @@ FRAME_COLUMNS = (
     "false_alarms_off",
     *AREA_COLUMNS,
 )
+#: The tables of each channel: ``sightings``, ``spurious``, ``frames`` (``negative``) and the same
+#: prefixed ``positive_``.
+CHANNEL_TABLES: dict[str, dict[str, str]] = {
+    c: {t: (t if c == "negative" else f"{c}_{t}") for t in ("sightings", "spurious", "frames")}
+    for c in PEM_CHANNELS
+}
 
 
 def _course_default() -> DetectionCampaignConfig:
@@ -136,6 +150,15 @@ class PemCampaignConfig:
         rough_relief_m: Ground relief within 1 m from which off-track ground is ``rough`` [m]: the
             detector's false alarms away from the clutter lie on such ground five times as often
             as on the rest (docs/pem.md; not in paper N).
+        track_obstacles_per_100m: Rocks and boxes added on the track per 100 m, beside the car's
+            path (what paper T's LUX channel is fitted on; not in either paper). 0: none.
+        track_obstacle_kinds: Their kinds, drawn evenly.
+        track_obstacle_lateral_m: Range of their centres' distance from the centre line [m]: a
+            box's inner side ~0.4 m beyond the car's (2 m wide) on the centre line.
+        track_obstacle_gap_m: Least distance along the track from a pit on the same side [m].
+        positive_match_cells: Cells the positive obstacles' footprints are grown by when matching
+            the ``positive`` layer's blobs (the LUX's returns lie on a face, on the footprint's
+            edge, a cell centre often just outside it).
     """
 
     seeds: int = 8
@@ -146,6 +169,11 @@ class PemCampaignConfig:
     border_band_m: float = 1.0
     clutter_band_m: float = 0.6
     rough_relief_m: float = 0.2
+    track_obstacles_per_100m: float = 6.0
+    track_obstacle_kinds: tuple[str, ...] = ("rock", "box")
+    track_obstacle_lateral_m: tuple[float, float] = (1.9, 2.6)
+    track_obstacle_gap_m: float = 3.0
+    positive_match_cells: int = 2
 
     def __post_init__(self) -> None:
         require(
@@ -160,9 +188,18 @@ class PemCampaignConfig:
         require(
             isinstance(self.observation, ObservationConfig), "observation", "must be an ObservationConfig"
         )
-        for name in ("border_band_m", "clutter_band_m", "rough_relief_m"):
+        for name in ("border_band_m", "clutter_band_m", "rough_relief_m", "track_obstacles_per_100m",
+                     "track_obstacle_gap_m"):  # fmt: skip
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value!r}")
+        lo, hi = self.track_obstacle_lateral_m
+        require(0 <= lo <= hi, "track_obstacle_lateral_m", f"must be (low, high), 0 <= low <= high, got {(lo, hi)}")
+        require(len(self.track_obstacle_kinds) > 0, "track_obstacle_kinds", "must name at least one kind")
+        require(
+            type(self.positive_match_cells) is int and self.positive_match_cells >= 0,
+            "positive_match_cells",
+            f"must be an int >= 0, got {self.positive_match_cells!r}",
+        )
 
     @property
     def seed_list(self) -> list[int]:
@@ -171,6 +208,24 @@ class PemCampaignConfig:
     def frames_of(self, index: int) -> int:
         base, extra = divmod(self.frames, self.seeds)
         return base + (1 if index < extra else 0)
+
+    def track_obstacles(self, seed: int, length_m: float, pits: tuple) -> list:
+        """The rocks and boxes a course adds on its track (``PositiveObstacleSpec``), away from its pits."""
+        from negobs_gym.sim.carving import PositiveObstacleSpec
+
+        layout = np.random.default_rng([seed, 7])
+        out = []
+        for _ in range(round(self.track_obstacles_per_100m * length_m / 100.0)):
+            station = float(layout.uniform(10.0, length_m - 5.0))
+            lateral = float(layout.choice([-1.0, 1.0]) * layout.uniform(*self.track_obstacle_lateral_m))
+            kind = str(layout.choice(list(self.track_obstacle_kinds)))
+            clear = all(
+                abs(station - pit.station_m) >= self.track_obstacle_gap_m or pit.lateral_m * lateral < 0
+                for pit in pits
+            )
+            if clear:
+                out.append(PositiveObstacleSpec(kind=kind, station_m=station, lateral_m=lateral))
+        return out
 
 
 def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> list[Episode]:
@@ -186,21 +241,26 @@ def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> l
 
 @dataclass
 class _Judge:
-    """Judges one grid's ``negative`` layers frame by frame (keeps its last spurious blobs)."""
+    """Judges one grid's layers of one channel frame by frame (keeps its last spurious blobs).
+
+    ``match_cells``: the truth's cells grown by this many when matching blobs to it."""
 
     mode: str
+    channel: str = "negative"
+    match_cells: int = 0
     previous: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def frame(self, layer, ctx) -> tuple[list[str], list[str], tuple[int, int]]:
         labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
         sightings, spurious = [], []
         on_truth = np.zeros(count + 1, dtype=bool)
-        for k, truth in ctx.pits:
-            hit = np.unique(labels[truth])
+        for k, truth in ctx.truths[self.channel]:
+            grown = ndimage.binary_dilation(truth, iterations=self.match_cells) if self.match_cells else truth
+            hit = np.unique(labels[grown])
             hit = hit[hit > 0]
             on_truth[hit] = True
-            ob = ctx.terrain.negative_obstacles[k]
-            row = [ctx.key, ctx.seed, ctx.frame, self.mode, k, int(truth.sum()), ob.depth_m, ctx.centre_m[k]]
+            size = ctx.depths[self.channel][k]
+            row = [ctx.key, ctx.seed, ctx.frame, self.mode, k, int(truth.sum()), size, ctx.centre_m[self.channel][k]]
             if hit.size:
                 drawn = np.isin(labels, hit)
                 r_t, r_d = ctx.range_m[truth], ctx.range_m[drawn]
@@ -260,15 +320,17 @@ class _Judge:
 
 @dataclass
 class _Frame:
-    """What both grids of one frame are judged against."""
+    """What both grids of one frame are judged against (``truths``, ``centre_m`` and ``depths``
+    per channel: each true obstacle's full-grid mask, centre distance, and depth or height)."""
 
     key: str
     seed: int
     frame: int
     terrain: object
     pose: object
-    pits: list
+    truths: dict
     centre_m: dict
+    depths: dict
     range_m: np.ndarray
     centres: np.ndarray
     border: np.ndarray
@@ -289,7 +351,10 @@ def run_episode(episode: Episode) -> Rows:
     model = PerceptionErrorModel.from_json(pem_text) if pem_text is not None else None
     course = cfg.course
     speed = float(np.random.default_rng([seed, 1]).uniform(course.min_speed_mps, course.max_speed_mps))
-    terrain = detection_course(course, seed, length_m=speed * FRAME_S * n_frames + 35.0)
+    length_m = speed * FRAME_S * n_frames + 35.0
+    terrain = detection_course(
+        course, seed, length_m, extra_positives=lambda pits: cfg.track_obstacles(seed, length_m, pits)
+    )
     observation = dataclasses.replace(cfg.observation, source="detector")
     grid = observation.grid
     centres = grid.cell_centres()
@@ -297,17 +362,30 @@ def run_episode(episode: Episode) -> Rows:
     line = np.asarray(terrain.track.centreline_xy_m, dtype=np.float64)
     step = max(1, round(1.0 / max(float(np.median(np.diff(terrain.track.stations_m))), 1e-3)))
     line = np.vstack([line[::step], line[-1:]])
-    boxes = obstacle_boxes(terrain)
+    outlines = {c: channel_outlines(terrain, c) for c in PEM_CHANNELS}
+    boxes = {c: outline_boxes(outlines[c]) for c in PEM_CHANNELS}
+    depths = {
+        "negative": [o.depth_m for o in terrain.negative_obstacles],
+        "positive": [2.0 * float(o.half_extents_m[2]) for o in terrain.positive_obstacles],
+    }
     raster = class_raster(terrain, cfg.border_band_m, cfg.clutter_band_m, cfg.rough_relief_m)
     width = terrain.track.width_m
     bins = len(DISTANCE_EDGES_M) - 1
     dist_bin = np.clip(np.digitize(range_m, DISTANCE_EDGES_M) - 1, 0, bins - 1).ravel()
-    judges = {m: _Judge(m) for m in (MODES if model is not None else MODES[:1])}
-    rows: Rows = {"sightings": [], "spurious": [], "frames": []}
+    modes = MODES if model is not None else MODES[:1]
+    match = {"negative": 0, "positive": cfg.positive_match_cells}
+    judges = {(c, m): _Judge(m, c, match[c]) for c in PEM_CHANNELS for m in modes}
+    rows: Rows = {name: [] for tables in CHANNEL_TABLES.values() for name in tables.values()}
     with World(terrain) as world:
         vehicle = Vehicle(world, rng=np.random.default_rng([seed, 3]))
         detector = DetectorGrid(observation, world, vehicle, np.random.default_rng([seed, 5]))
-        pem = PemGrid(model, grid, terrain, np.random.default_rng([seed, 6])) if model is not None else None
+        pems = {}
+        if model is not None:
+            pem_rng = np.random.default_rng([seed, 6])
+            pems = {
+                c: PemGrid(model, grid, terrain, pem_rng if c == "negative" else pem_rng.spawn(1)[0], channel=c)
+                for c in model.channels
+            }
         steps = round(FRAME_S / world.config.time_step_s)
         world.step(round(SETTLE_S / world.config.time_step_s))
         last = vehicle.true_pose()
@@ -317,32 +395,38 @@ def run_episode(episode: Episode) -> Rows:
             vehicle.set_speed(speed)
             world.step(steps)
             pose = vehicle.true_pose()
-            layers = {"detector": detector.observe(world.sim_time_s)["negative"]}
-            if pem is not None:
-                layers["pem"] = pem.negative(pose)
+            observed = detector.observe(world.sim_time_s)
+            layers = {(c, "detector"): observed[c] for c in PEM_CHANNELS}
+            for c, pem in pems.items():
+                layers[(c, "pem")] = pem.layer(pose)
             travelled = math.hypot(pose.x - last.x, pose.y - last.y)
             last = pose
-            pits = []
-            for k, mask, rows_, cols_ in rasterise_pits(terrain, pose, grid, boxes):
-                full = np.zeros(grid.shape, dtype=bool)
-                full[rows_, cols_] = mask
-                pits.append((k, full))
-            centre_m = {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in pits}
+            truths = {}
+            for c in PEM_CHANNELS:
+                truths[c] = []
+                for k, mask, rows_, cols_ in rasterise_outlines(outlines[c], pose, grid, boxes[c]):
+                    full = np.zeros(grid.shape, dtype=bool)
+                    full[rows_, cols_] = mask
+                    truths[c].append((k, full))
+            centre_m = {c: {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in truths[c]} for c in PEM_CHANNELS}
             centre_line = world_outline_to_vehicle(line, pose)
             world_cells = vehicle_to_world_xy(centres.reshape(-1, 2), (pose.x, pose.y), pose.yaw)
             classes = raster.at(world_cells)
             area = np.zeros((len(TERRAIN_CLASSES), bins))
             np.add.at(area, (classes, dist_bin), grid.cell_m**2)
             ctx = _Frame(
-                episode.key, seed, frame, terrain, pose, pits, centre_m, range_m, centres,
+                episode.key, seed, frame, terrain, pose, truths, centre_m, depths, range_m, centres,
                 track_border_mask(centre_line, width, grid, course.matching.border_band_m),
                 centre_line, raster, width,
             )  # fmt: skip
-            for mode, judge in judges.items():
-                sightings, spurious, (fa_on, fa_off) = judge.frame(layers[mode], ctx)
-                rows["sightings"] += sightings
-                rows["spurious"] += spurious
-                rows["frames"].append(
+            for (channel, mode), judge in judges.items():
+                if (channel, mode) not in layers:  # a PEM without this channel
+                    continue
+                tables = CHANNEL_TABLES[channel]
+                sightings, spurious, (fa_on, fa_off) = judge.frame(layers[(channel, mode)], ctx)
+                rows[tables["sightings"]] += sightings
+                rows[tables["spurious"]] += spurious
+                rows[tables["frames"]].append(
                     format_row(
                         [episode.key, seed, frame, mode, travelled, fa_on, fa_off, *area.ravel().tolist()]
                     )
@@ -357,9 +441,10 @@ def run_pem_campaign(
     options: RunOptions | None = None,
     description: str = "PEM courses",
 ) -> dict[str, Path]:
-    """Drive the courses (resumable, on workers or Ray); the ``sightings``, ``spurious`` and
-    ``frames`` CSVs in ``out_dir``. With ``model``, its grid is judged beside the detector's."""
+    """Drive the courses (resumable, on workers or Ray); the CSVs of :data:`CHANNEL_TABLES` in
+    ``out_dir``. With ``model``, its grids are judged beside the detector's."""
     if model is not None and not isinstance(model, PerceptionErrorModel):
         raise ConfigError("model", "must be a PerceptionErrorModel")
-    tables = {"sightings": SIGHTING_COLUMNS, "spurious": SPURIOUS_COLUMNS, "frames": FRAME_COLUMNS}
+    columns = {"sightings": SIGHTING_COLUMNS, "spurious": SPURIOUS_COLUMNS, "frames": FRAME_COLUMNS}
+    tables = {name: columns[t] for names in CHANNEL_TABLES.values() for t, name in names.items()}
     return run_campaign(run_episode, episodes(config, model), out_dir, tables, options, description)

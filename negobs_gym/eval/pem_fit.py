@@ -1,7 +1,8 @@
 """Fit a perception-error model (:mod:`negobs_gym.envs.pem`) from the detector's drives.
 
 :func:`fit_pem` drives the courses of :mod:`negobs_gym.eval.pem_data` through the detector grid and
-fits the tables from its rows (:func:`fit_parameters`, from the CSVs alone):
+fits each channel's tables (``negative``: the pits; ``positive``: the rocks, boxes and mounds) from
+its rows (:func:`fit_parameters`, from the CSVs alone, the same for both channels):
 
 - first confirmation: quantiles (pooled over sizes for now) of the distance at which the pits that
   came onto the grid from beyond the detector's reach were first drawn (a pit passed undrawn counts as
@@ -36,7 +37,7 @@ from negobs_gym.envs.pem import (
 )
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import RunOptions, read_csv
-from negobs_gym.eval.pem_data import DISTANCE_EDGES_M, PemCampaignConfig, run_pem_campaign
+from negobs_gym.eval.pem_data import CHANNEL_TABLES, DISTANCE_EDGES_M, PemCampaignConfig, run_pem_campaign
 
 __all__ = [
     "MIN_OFFSETS",
@@ -60,6 +61,9 @@ MIN_OFFSETS = 20
 APPROACH_M = 22.0
 #: A pit last seen this near was passed (an undrawn one was missed, not cut off by the course's end) [m].
 PASSED_M = 6.0
+#: Fewest first confirmations a size bin's own quantiles are taken from (with ``confirm_by_size``),
+#: else the pooled ones.
+MIN_CONFIRMATIONS = 10
 #: Most false-alarm blobs the model keeps to copy.
 MAX_BLOBS = 400
 #: Largest fitted false-alarm persistence (a blob kept forever would never leave the model).
@@ -148,8 +152,14 @@ def fit_parameters(
     border_band_m: float,
     clutter_band_m: float,
     rough_relief_m: float,
+    confirm_by_size: bool = False,
 ) -> PemParameters:
     """The PEM's tables from the detector rows of a drive (:mod:`negobs_gym.eval.pem_data`).
+
+    ``confirm_by_size``: first-confirmation quantiles per size bin (those with at least
+    :data:`MIN_CONFIRMATIONS`, else pooled): the positive obstacles, whole on the grid from far
+    out, are found at distances that depend on their kind (a box's face ~12 m out, a rock's ~10 m).
+    Pooled (default) for the pits, a far one shows part of its rim.
 
     Raises:
         ConfigError: the rows hold no frame of the detector.
@@ -168,7 +178,10 @@ def fit_parameters(
     # pooled over sizes: the rows hold the cells in view, and a pit far out shows part of its rim,
     # so a size bin of the rows is not the whole-rim size the model draws by (docs/pem.md)
     pooled = np.concatenate([np.asarray(v) for v in by_size])
-    confirm = [_quantiles(pooled, levels)] * len(by_size)
+    confirm = [
+        _quantiles(np.asarray(v), levels) if confirm_by_size and len(v) >= MIN_CONFIRMATIONS else _quantiles(pooled, levels)
+        for v in by_size
+    ]
     latency = _quantiles(np.asarray(latencies), levels)
 
     hits = [r for r in sightings if r["detected"] == "1"]
@@ -246,25 +259,32 @@ def fit_pem(
     options: RunOptions | None = None,
 ) -> PerceptionErrorModel:
     """Drive ``config``'s courses through the detector grid (rows kept in ``work_dir``, resumable),
-    fit the PEM and write it to ``model_path`` atomically."""
+    fit the PEM of both channels and write it to ``model_path`` atomically."""
     csvs = run_pem_campaign(config, work_dir, None, options, "PEM fit courses")
-    parameters = fit_parameters(
-        csvs["sightings"],
-        csvs["spurious"],
-        csvs["frames"],
-        config.border_band_m,
-        config.clutter_band_m,
-        config.rough_relief_m,
-    )
+    parameters = {
+        channel: fit_parameters(
+            csvs[tables["sightings"]],
+            csvs[tables["spurious"]],
+            csvs[tables["frames"]],
+            config.border_band_m,
+            config.clutter_band_m,
+            config.rough_relief_m,
+            confirm_by_size=channel == "positive",
+        )
+        for channel, tables in CHANNEL_TABLES.items()
+    }
     frames = sum(config.frames_of(i) for i in range(config.seeds))
     model = PerceptionErrorModel(
-        parameters=parameters,
+        parameters=parameters["negative"],
+        positive=parameters["positive"],
         fitted_on=pem_settings(config.observation),
         fit={
             "course": "detection_course",
             "first_seed": config.first_seed,
             "seeds": config.seeds,
             "frames": frames,
+            "track_obstacles_per_100m": config.track_obstacles_per_100m,
+            "positive_match_cells": config.positive_match_cells,
         },
     )
     model.save(model_path)

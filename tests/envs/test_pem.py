@@ -23,9 +23,9 @@ def _drive(env, seed: int, steps: int = len(ACTIONS)) -> list[dict]:
     return out
 
 
-def _pem_env(tmp_path, model: PerceptionErrorModel, *extra: str):
+def _pem_env(tmp_path, model: PerceptionErrorModel, *extra: str, env: str = ENV):
     path = model.save(tmp_path / "pem.json")
-    return make_env(ENV, ["observation.source=pem", f"observation.pem_model={path}", *extra])
+    return make_env(env, ["observation.source=pem", f"observation.pem_model={path}", *extra])
 
 
 def test_same_seed_same_grids_and_the_oracles_episode():
@@ -39,7 +39,9 @@ def test_same_seed_same_grids_and_the_oracles_episode():
         assert all(np.array_equal(x["state"], y["state"]) for x, y in zip(a, o, strict=True))
         assert pem_a.unwrapped.terrain.seed == oracle.unwrapped.terrain.seed
         # channels the PEM does not model are the oracle's
-        assert all(np.array_equal(x["grid"][1:], y["grid"][1:]) for x, y in zip(a, o, strict=True))
+        channels = pem_a.unwrapped.scenario.observation.channels
+        drawn = [i for i, c in enumerate(channels) if c not in ("negative", "positive")]
+        assert drawn and all(np.array_equal(x["grid"][drawn], y["grid"][drawn]) for x, y in zip(a, o, strict=True))
         assert pem_a.observation_space == make_env(ENV).observation_space
         assert all(pem_a.observation_space.contains(x) for x in a)
         again = _drive(pem_a, 5)  # a kept world (and its cached terrain classes): the same episode
@@ -61,6 +63,31 @@ def test_a_perfect_model_draws_the_oracle_and_a_blind_one_nothing(tmp_path):
             assert not n["grid"][0].any()
     finally:
         for env in (perfect, blind, oracle):
+            env.close()
+
+
+def test_the_positive_channel_is_the_models_and_the_oracles_without_one(tmp_path):
+    """A perfect positive channel draws the oracle's footprints, a blind one nothing, a model
+    without the channel the oracle's; the safety filter's positive cells are the drawn ones."""
+    scene = "rock_on_track_25kmh"  # a rock on the driving line, seen by paper T's channel as fitted
+    lux = "observation.positive_detector=traversable"
+    near = "positive_obstacles.0.station_m=15"  # on the grid from the start
+    perfect = _pem_env(tmp_path, _model(1.0, positive=1.0), lux, near, env=scene)
+    blind = _pem_env(tmp_path / "b", _model(1.0, positive=0.0), lux, near, env=scene)
+    legacy = _pem_env(tmp_path / "n", _model(1.0), lux, near, env=scene)
+    oracle = make_env(scene, ["observation.source=oracle", lux, near])
+    try:
+        index = perfect.unwrapped.scenario.observation.channels.index("positive")
+        got, none, old, truth = (_drive(e, 2) for e in (perfect, blind, legacy, oracle))
+        assert any(t["grid"][index].any() for t in truth)
+        for g, n, o, t in zip(got, none, old, truth, strict=True):
+            np.testing.assert_array_equal(g["grid"][index], t["grid"][index])
+            np.testing.assert_array_equal(o["grid"][index], t["grid"][index])
+            assert not n["grid"][index].any()
+        assert len(perfect.unwrapped.hazard_state().positive_obstacles_xy_m) > 0
+        assert len(blind.unwrapped.hazard_state().positive_obstacles_xy_m) == 0
+    finally:
+        for env in (perfect, blind, legacy, oracle):
             env.close()
 
 

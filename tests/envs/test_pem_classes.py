@@ -90,7 +90,7 @@ def test_false_alarms_of_the_clutter_class_are_born_near_the_clutter(terrain):
     grid = ObservationConfig().grid
     xy, yaw = terrain.track.pose_at(np.array(8.0), np.array(0.0))
     pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
-    layers = [PemGrid(model, grid, terrain, np.random.default_rng(seed)).negative(pose) for seed in (1, 1, 2)]
+    layers = [PemGrid(model, grid, terrain, np.random.default_rng(seed)).layer(pose) for seed in (1, 1, 2)]
     assert np.array_equal(layers[0], layers[1]) and not np.array_equal(layers[0], layers[2])
     rows, cols = np.nonzero(layers[0])
     assert rows.size > 0

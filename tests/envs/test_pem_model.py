@@ -19,14 +19,12 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.spec import ObservationConfig
 
 
-def constant_model(
-    p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0
-) -> PerceptionErrorModel:
-    """A PEM that draws every pit from its first sighting on (``p`` = 1) or none (0), with fixed
-    edge offsets and ``density`` false alarms per m² on every terrain class (4-cell blobs)."""
+def constant_parameters(p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0) -> PemParameters:
+    """Tables that draw every obstacle from its first sighting on (``p`` = 1) or none (0), with
+    fixed edge offsets and ``density`` false alarms per m² on every terrain class (4-cell blobs)."""
     d_edges, s_edges, levels = (0.0, 10.0, 30.0), (0.0, 10_000.0), (0.0, 1.0)
     confirm = 100.0 if p > 0 else -1.0
-    params = PemParameters(
+    return PemParameters(
         distance_edges_m=d_edges,
         size_edges_cells=s_edges,
         quantile_levels=levels,
@@ -45,7 +43,20 @@ def constant_model(
         clutter_band_m=2.0,
         rough_relief_m=0.2,
     )
-    return PerceptionErrorModel(parameters=params, fitted_on=pem_settings(ObservationConfig()))
+
+
+def constant_model(
+    p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0, positive: float | None = None
+) -> PerceptionErrorModel:
+    """A PEM of :func:`constant_parameters` on the ``negative`` channel, and with ``positive`` given
+    on the ``positive`` channel too (there drawn with probability ``positive``, no offsets)."""
+    pos = constant_parameters(positive) if positive is not None else None
+    channels = ("negative", "positive") if pos is not None else ("negative",)
+    return PerceptionErrorModel(
+        parameters=constant_parameters(p, near, far, density),
+        positive=pos,
+        fitted_on=pem_settings(ObservationConfig(), channels),
+    )
 
 
 def test_shipped_pem_loads_for_the_default_observation():
@@ -53,7 +64,26 @@ def test_shipped_pem_loads_for_the_default_observation():
     assert DEFAULT_PEM_PATH.is_file()
     assert model.fitted_on == pem_settings(ObservationConfig())
     assert model.fit["frames"] >= 100
+    assert model.channels == ("negative", "positive")
     assert PerceptionErrorModel.from_json(model.to_json()) == model
+
+
+def test_a_positive_model_is_refused_for_other_lux_settings_a_negative_one_is_not(tmp_path):
+    both = constant_model(0.5, positive=0.5).save(tmp_path / "both.json")
+    negative = constant_model(0.5).save(tmp_path / "negative.json")
+    moved = dataclasses.replace(ObservationConfig(), lux_forward_m=2.0)
+    with pytest.raises(ConfigError, match=r"observation\.lux_forward_m"):
+        load_pem(both, moved)
+    with pytest.raises(ConfigError, match=r"observation\.positive_detector"):
+        load_pem(both, dataclasses.replace(ObservationConfig(), positive_detector="structure"))
+    assert load_pem(negative, moved).channels == ("negative",)
+    assert PerceptionErrorModel.from_json(both.read_text()).positive == constant_parameters(0.5)
+    data = json.loads(both.read_text())
+    del data["positive_parameters"]
+    with pytest.raises(ConfigError, match="positive_parameters"):
+        PerceptionErrorModel.from_json(json.dumps(data))
+    with pytest.raises(ConfigError, match="channel"):
+        PerceptionErrorModel.from_json(negative.read_text()).channel_parameters("positive")
 
 
 def test_files_fitted_on_other_settings_or_layouts_are_refused(tmp_path):

@@ -178,6 +178,7 @@ def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
     model = fit_pem(fit, model_path, tmp_path / "fit")
     assert load_pem(model_path, ObservationConfig()) == model  # written, and valid for the default grid
     assert sum(map(sum, model.parameters.sightings)) > 0
+    assert model.channels == ("negative", "positive") and sum(map(sum, model.positive.sightings)) > 0
     with pytest.raises(ConfigError, match="used to fit"):
         check_pem(model, PemCampaignConfig(seeds=1, frames=6), tmp_path / "bad")
     out = tmp_path / "check"
@@ -190,4 +191,23 @@ def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
     verdict = dict(line.split("=") for line in printed)
     assert code == (0 if verdict["pem_check"] == "pass" else 1)
     assert float(verdict["frames_pem"]) == 6.0 and float(verdict["frames_detector"]) == 6.0
-    assert {"tables.md", "summary.json", "pem_check.png", "sightings.csv"} <= {p.name for p in out.iterdir()}
+    assert float(verdict["positive_frames_pem"]) == 6.0 and "check_positive_recall" in verdict
+    written = {p.name for p in out.iterdir()}
+    assert {"tables.md", "summary.json", "pem_check.png", "sightings.csv"} <= written
+    assert {"pem_check_positive.png", "positive_sightings.csv", "positive_frames.csv"} <= written
+
+
+def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
+    from negobs_gym.eval.detection_campaign import detection_course_obstacles
+
+    config = PemCampaignConfig()
+    pits, _ = detection_course_obstacles(config.course, 3, 200.0)
+    added = config.track_obstacles(3, 200.0, tuple(pits))
+    assert len(added) >= 6 and {a.kind for a in added} == {"rock", "box"}
+    for a in added:
+        assert 1.9 <= abs(a.lateral_m) <= 2.6
+        assert all(abs(a.station_m - p.station_m) >= 3.0 or p.lateral_m * a.lateral_m < 0 for p in pits)
+    assert config.track_obstacles(3, 200.0, tuple(pits)) == added  # the seed's layout
+    assert PemCampaignConfig(track_obstacles_per_100m=0.0).track_obstacles(3, 200.0, ()) == []
+    with pytest.raises(ConfigError, match="track_obstacle_lateral_m"):
+        PemCampaignConfig(track_obstacle_lateral_m=(2.0, 1.0))
