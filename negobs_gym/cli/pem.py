@@ -97,9 +97,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the braking campaign's scenarios (default: %(default)s)",
     )
     loop.add_argument(
+        "--policy",
+        default=None,
+        metavar="MODEL",
+        help="also run this policy (a shipped name or a saved model) on the same unseen seeds on both "
+        "grids behind the filter, and check the gap in goal rate (<= 10 points)",
+    )
+    loop.add_argument(
+        "--policy-seeds", type=positive_int, default=20, help="the policy's episodes (default: %(default)s)"
+    )
+    loop.add_argument(
+        "--policy-first-seed",
+        type=non_negative_int,
+        default=CHECK_FIRST_SEED,
+        help="the policy's first seed (default: %(default)s)",
+    )
+    loop.add_argument(
+        "--policy-env",
+        default=None,
+        help="the env the policy runs on (default: its record's, with the record's --set)",
+    )
+    loop.add_argument(
         "--no-courses",
         action="store_true",
-        help="skip the detection courses (run the closed loop alone; needs --braking-seeds)",
+        help="skip the detection courses (run the closed loops alone; needs --braking-seeds or --policy)",
     )
     check.set_defaults(handler=run_check)
 
@@ -154,10 +175,16 @@ def run_check(args: argparse.Namespace) -> int:
     """Check a PEM; prints its key=value lines, returns 1 when a check fails."""
     from negobs_gym.envs.pem import load_pem
     from negobs_gym.errors import UsageError
-    from negobs_gym.eval.pem_check import BrakingCheckConfig, check_braking, check_pem
+    from negobs_gym.eval.pem_check import (
+        BrakingCheckConfig,
+        PolicyCheckConfig,
+        check_braking,
+        check_pem,
+        check_policy,
+    )
 
-    if args.no_courses and not args.braking_seeds:
-        raise UsageError("--no-courses needs --braking-seeds N (nothing would be checked)")
+    if args.no_courses and not (args.braking_seeds or args.policy):
+        raise UsageError("--no-courses needs --braking-seeds N or --policy MODEL (nothing would be checked)")
     config, options = _config(args)
     model = load_pem(args.model, config.observation)
     results = []
@@ -180,6 +207,17 @@ def run_check(args: argparse.Namespace) -> int:
         log.info("PEM closed-loop check: braking campaign on %d seeds, detector and PEM", braking.seeds)
         results.append(check_braking(args.model, braking, args.out, options))
         log.info("wrote %s/braking_check.txt, braking_detector/, braking_pem/", args.out)
+    if args.policy:
+        policy = PolicyCheckConfig(
+            policy=args.policy,
+            seeds=args.policy_seeds,
+            first_seed=args.policy_first_seed,
+            env_id=args.policy_env,
+            overrides=tuple(args.overrides or ()),
+        )
+        log.info("PEM closed-loop check: %s on %d seeds, detector and PEM", args.policy, policy.seeds)
+        results.append(check_policy(args.model, policy, args.out, options))
+        log.info("wrote %s/policy_check.txt, policy_detector/, policy_pem/", args.out)
     passed = True
     for result in results:
         lines = result.lines()

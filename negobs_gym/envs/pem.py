@@ -327,7 +327,8 @@ class PerceptionErrorModel:
         require(
             channels in (list(PEM_CHANNELS[:1]), list(PEM_CHANNELS)),
             source,
-            f"models channels {channels!r}; this package reads {list(PEM_CHANNELS[:1])} or {list(PEM_CHANNELS)}",
+            f"models channels {channels!r}; this package reads {list(PEM_CHANNELS[:1])} or "
+            f"{list(PEM_CHANNELS)}",
         )
         require(
             ("positive_parameters" in data) == ("positive" in channels),

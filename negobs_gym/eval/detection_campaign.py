@@ -165,7 +165,9 @@ def detection_course(
     return generate_terrain(terrain_config, seed)
 
 
-def detection_course_obstacles(config: DetectionCampaignConfig, seed: int, length_m: float) -> tuple[list, tuple]:
+def detection_course_obstacles(
+    config: DetectionCampaignConfig, seed: int, length_m: float
+) -> tuple[list, tuple]:
     """The pits and the verge clutter of :func:`detection_course` (obstacle specs)."""
     from negobs_gym.sim.carving import PAPER_N_PIT_SIZES_M, NegativeObstacleSpec, PositiveObstacleSpec
 

@@ -16,7 +16,9 @@ centre distance and footprint cells take the pits' places):
 
 :func:`check_braking` is the closed loop: the braking campaign (the reckless driver behind the
 Eq. 18 safety filter) once on the detector grid and once on the PEM's, ``stopped_before`` counts
-and median stop margins side by side (the first-veto gaps reported).
+and median stop margins side by side (the first-veto gaps reported). :func:`check_policy` closes
+it on a trained policy: the same unseen seeds on both grids, goals, entries, collisions and vetoes
+side by side, and the transfer gap in goal rate checked.
 
 Each figure is a ``key=value`` line; a check that fails (or cannot be made) makes the command
 exit non-zero. The thresholds are :class:`PemCheckConfig`'s.
@@ -43,10 +45,13 @@ __all__ = [
     "BrakingCheckConfig",
     "PemCheckConfig",
     "PemCheckResult",
+    "PolicyCheckConfig",
     "check_braking",
     "check_pem",
+    "check_policy",
     "compare",
     "compare_braking",
+    "compare_policy",
 ]
 
 
@@ -285,10 +290,11 @@ def _markdown(result: PemCheckResult, cfg: PemCheckConfig, prefixes: tuple[str, 
         f = result.figures
         for j, label in enumerate(dist):
             k = _label(cfg.recall_edges_m[j], cfg.recall_edges_m[j + 1])
-            parts[-1] += (
-                f"\n| {label} | {f[f'{prefix}sightings_{k}']:.0f} | {_fmt(f[f'{prefix}recall_{k}_detector'])} | "
-                f"{_fmt(f[f'{prefix}recall_{k}_pem'])} | {_fmt(f[f'{prefix}recall_{k}_delta'])} |"
+            cells = (
+                f"{f[f'{prefix}sightings_{k}']:.0f}",
+                *(_fmt(f[f"{prefix}recall_{k}_{c}"]) for c in (*MODES, "delta")),
             )
+            parts[-1] += f"\n| {label} | " + " | ".join(cells) + " |"
         for m in MODES:
             parts.append(f"## Recall by size x distance, {what}, {m} (paper N Table 7 layout)")
             head = "| cells | " + " | ".join(dist) + " |\n|---|" + "---|" * len(dist)
@@ -331,7 +337,10 @@ def _plots(
             axes[2].hist(near, bins=np.arange(-3.0, 3.01, 0.2), histtype="step", density=True, label=m)
     what = "pit" if not prefix else "obstacle"
     axes[0].set(
-        xlabel=f"{what} centre distance [m]", ylabel="recall", ylim=(0, 1.05), title=f"{what}s: recall, all sizes"
+        xlabel=f"{what} centre distance [m]",
+        ylabel="recall",
+        ylim=(0, 1.05),
+        title=f"{what}s: recall, all sizes",
     )
     axes[1].set(
         xlabel="first-confirmation distance [m]", ylabel="share of pits", title="first confirmation (ECDF)"
@@ -358,8 +367,8 @@ def check_pem(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Drive ``config``'s courses with the detector and ``model`` side by side, compare and write
-    ``check.txt`` (the ``key=value`` lines), ``summary.json``, ``tables.md`` and ``pem_check.png`` (``pem_check_positive.png`` for the positive channel)
-    to ``out_dir``.
+    ``check.txt`` (the ``key=value`` lines), ``summary.json``, ``tables.md``, ``pem_check.png`` and
+    (the positive channel's) ``pem_check_positive.png`` to ``out_dir``.
 
     Raises:
         ConfigError: a course the model was fitted on (field ``first_seed``).
@@ -379,7 +388,9 @@ def check_pem(
     csvs = run_pem_campaign(config, out, model, options, "PEM check courses")
     prefixes = {c: ("" if c == "negative" else f"{c}_") for c in model.channels}
     results = {
-        c: _with_prefix(compare(csvs[CHANNEL_TABLES[c]["sightings"]], csvs[CHANNEL_TABLES[c]["frames"]], cfg), p)
+        c: _with_prefix(
+            compare(csvs[CHANNEL_TABLES[c]["sightings"]], csvs[CHANNEL_TABLES[c]["frames"]], cfg), p
+        )
         for c, p in prefixes.items()
     }
     result = _merged(*results.values())
@@ -492,4 +503,102 @@ def check_braking(
     }
     result = compare_braking(summaries, config)
     write_text_atomic(out / "braking_check.txt", "\n".join(result.lines()) + "\n")
+    return result
+
+
+@dataclass(frozen=True, kw_only=True)
+class PolicyCheckConfig:
+    """The closed loop on a policy: ``policy`` (a shipped name or a saved model) on seeds
+    ``first_seed``.. of ``env_id`` (None: the env and ``--set`` of the policy's record), once on
+    the detector grid and once on the PEM's, behind the safety filter or not (issue 76's transfer
+    gap; not a paper value).
+
+    ``overrides`` are ``--set`` paths applied to both, after the record's."""
+
+    policy: str
+    seeds: int = 20
+    first_seed: int = 1_000_000
+    env_id: str | None = None
+    filtered: bool = True
+    overrides: tuple[str, ...] = ()
+    max_goal_gap: float = 0.10  # issue 76: |PEM goal rate - detector goal rate| <= 10 points
+
+    def __post_init__(self) -> None:
+        require(
+            type(self.seeds) is int and self.seeds >= 1,
+            "policy_seeds",
+            f"must be an int >= 1, got {self.seeds!r}",
+        )
+        require(
+            math.isfinite(self.max_goal_gap) and 0 <= self.max_goal_gap <= 1,
+            "max_goal_gap",
+            "must lie in [0, 1]",
+        )
+
+    def campaigns(self, model_path: str | Path | None) -> dict[str, Any]:
+        """The two :class:`~negobs_gym.eval.policy_campaign.PolicyCampaignConfig` s, by grid."""
+        from negobs_gym.drivers.zoo import recorded_env
+        from negobs_gym.envs.pem import DEFAULT_PEM_PATH
+        from negobs_gym.eval.policy_campaign import PolicyCampaignConfig
+
+        env_id, recorded = self.env_id, ()
+        if env_id is None:
+            found = recorded_env(self.policy)
+            require(
+                found is not None,
+                "policy",
+                f"{self.policy!r} has no record of its env: give the env to run it on (--policy-env)",
+            )
+            env_id, recorded = found[0], tuple(found[1])
+        model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
+        grids = {
+            "detector": ("observation.source=detector",),
+            "pem": ("observation.source=pem", f"observation.pem_model={model}"),
+        }
+        return {
+            m: PolicyCampaignConfig(
+                model_path=self.policy,
+                env_id=env_id,
+                seeds=self.seeds,
+                first_seed=self.first_seed,
+                filters=(self.filtered,),
+                overrides=(*recorded, *self.overrides, *grid),
+            )
+            for m, grid in grids.items()
+        }
+
+
+def compare_policy(summaries: dict[str, dict[str, Any]], config: PolicyCheckConfig) -> PemCheckResult:
+    """The policy's outcomes on both grids (each :func:`~negobs_gym.eval.policy_campaign.summarize`)
+    and the transfer-gap check."""
+    label = "filter" if config.filtered else "nofilter"
+    figures: dict[str, float] = {}
+    for m in MODES:
+        s = summaries[m][label]
+        figures[f"policy_episodes_{m}"] = float(s["episodes"])
+        for name in ("goals", "entries", "collisions", "left_track", "vetoes_per_km", "mean_progress_m"):
+            figures[f"policy_{name}_{m}"] = float(s[name])
+    gap = (figures["policy_goals_pem"] - figures["policy_goals_detector"]) / config.seeds
+    figures["policy_goal_rate_gap"] = gap
+    return PemCheckResult(figures, {"check_policy_goal_gap": bool(abs(gap) <= config.max_goal_gap)})
+
+
+def check_policy(
+    model_path: str | Path | None,
+    config: PolicyCheckConfig,
+    out_dir: str | Path,
+    options: RunOptions | None = None,
+) -> PemCheckResult:
+    """Run the policy campaign on the detector grid and on the PEM ``model_path`` (None: the
+    shipped one) into ``out_dir``/``policy_detector`` and ``policy_pem`` (each resumable), compare
+    (:func:`compare_policy`) and write ``policy_check.txt``."""
+    from negobs_gym.eval.policy_campaign import run_policy_campaign
+
+    out = Path(out_dir)
+    summaries = {
+        m: run_policy_campaign(campaign, out / f"policy_{m}", options)[2]
+        for m, campaign in config.campaigns(model_path).items()
+    }
+    result = compare_policy(summaries, config)
+    write_text_atomic(out / "policy_check.txt", "\n".join(result.lines()) + "\n")
     return result

@@ -193,7 +193,11 @@ class PemCampaignConfig:
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value!r}")
         lo, hi = self.track_obstacle_lateral_m
-        require(0 <= lo <= hi, "track_obstacle_lateral_m", f"must be (low, high), 0 <= low <= high, got {(lo, hi)}")
+        require(
+            0 <= lo <= hi,
+            "track_obstacle_lateral_m",
+            f"must be (low, high), 0 <= low <= high, got {(lo, hi)}",
+        )
         require(len(self.track_obstacle_kinds) > 0, "track_obstacle_kinds", "must name at least one kind")
         require(
             type(self.positive_match_cells) is int and self.positive_match_cells >= 0,
@@ -260,7 +264,16 @@ class _Judge:
             hit = hit[hit > 0]
             on_truth[hit] = True
             size = ctx.depths[self.channel][k]
-            row = [ctx.key, ctx.seed, ctx.frame, self.mode, k, int(truth.sum()), size, ctx.centre_m[self.channel][k]]
+            row = [
+                ctx.key,
+                ctx.seed,
+                ctx.frame,
+                self.mode,
+                k,
+                int(truth.sum()),
+                size,
+                ctx.centre_m[self.channel][k],
+            ]
             if hit.size:
                 drawn = np.isin(labels, hit)
                 r_t, r_d = ctx.range_m[truth], ctx.range_m[drawn]
@@ -383,7 +396,9 @@ def run_episode(episode: Episode) -> Rows:
         if model is not None:
             pem_rng = np.random.default_rng([seed, 6])
             pems = {
-                c: PemGrid(model, grid, terrain, pem_rng if c == "negative" else pem_rng.spawn(1)[0], channel=c)
+                c: PemGrid(
+                    model, grid, terrain, pem_rng if c == "negative" else pem_rng.spawn(1)[0], channel=c
+                )
                 for c in model.channels
             }
         steps = round(FRAME_S / world.config.time_step_s)
@@ -408,7 +423,9 @@ def run_episode(episode: Episode) -> Rows:
                     full = np.zeros(grid.shape, dtype=bool)
                     full[rows_, cols_] = mask
                     truths[c].append((k, full))
-            centre_m = {c: {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in truths[c]} for c in PEM_CHANNELS}
+            centre_m = {
+                c: {k: float(np.hypot(*centres[m].mean(axis=0))) for k, m in truths[c]} for c in PEM_CHANNELS
+            }
             centre_line = world_outline_to_vehicle(line, pose)
             world_cells = vehicle_to_world_xy(centres.reshape(-1, 2), (pose.x, pose.y), pose.yaw)
             classes = raster.at(world_cells)

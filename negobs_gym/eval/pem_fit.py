@@ -179,7 +179,9 @@ def fit_parameters(
     # so a size bin of the rows is not the whole-rim size the model draws by (docs/pem.md)
     pooled = np.concatenate([np.asarray(v) for v in by_size])
     confirm = [
-        _quantiles(np.asarray(v), levels) if confirm_by_size and len(v) >= MIN_CONFIRMATIONS else _quantiles(pooled, levels)
+        _quantiles(np.asarray(v), levels)
+        if confirm_by_size and len(v) >= MIN_CONFIRMATIONS
+        else _quantiles(pooled, levels)
         for v in by_size
     ]
     latency = _quantiles(np.asarray(latencies), levels)

@@ -41,7 +41,9 @@ def test_same_seed_same_grids_and_the_oracles_episode():
         # channels the PEM does not model are the oracle's
         channels = pem_a.unwrapped.scenario.observation.channels
         drawn = [i for i, c in enumerate(channels) if c not in ("negative", "positive")]
-        assert drawn and all(np.array_equal(x["grid"][drawn], y["grid"][drawn]) for x, y in zip(a, o, strict=True))
+        assert drawn and all(
+            np.array_equal(x["grid"][drawn], y["grid"][drawn]) for x, y in zip(a, o, strict=True)
+        )
         assert pem_a.observation_space == make_env(ENV).observation_space
         assert all(pem_a.observation_space.contains(x) for x in a)
         again = _drive(pem_a, 5)  # a kept world (and its cached terrain classes): the same episode
