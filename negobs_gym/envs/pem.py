@@ -133,6 +133,8 @@ _TRACK_SPACING_M = 0.1
 _MAX_GROW_CELLS = 10
 #: false alarms are placed on blocks of this many cells a side (their class and distance per block)
 _BLOCK_CELLS = 4
+#: 8-connectivity, as the detectors' clusters and the check's blobs
+_EIGHT = np.ones((3, 3), dtype=bool)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -755,9 +757,15 @@ class PemGrid:
         region = ndimage.binary_dilation(truth, iterations=grow) if grow > 0 else truth
         span = (rel >= rel[truth].min() - slack) & (rel <= rel[truth].max() + slack)
         drawn = region & span & (rng_m >= lo) & (rng_m <= max(hi, lo))
-        if not drawn.any():  # offsets that leave nothing: the rim's cell nearest the drawn near edge
+        # a drawn pit is one blob on its rim, as the detector's hits: the range band beside the car
+        # can leave slivers of the grown rim, or nothing on it
+        labels, count = ndimage.label(drawn, structure=_EIGHT)
+        on_rim = np.unique(labels[truth & drawn])
+        if on_rim.size == 0:  # the rim's cell nearest the drawn near edge
             candidates = np.where(truth, np.abs(rng_m - lo), np.inf)
             drawn = candidates == candidates.min()
+        elif count > 1:
+            drawn = np.isin(labels, on_rim)
         layer[r0:r1, c0:c1] |= drawn
 
     def _pick_blobs(self, classes: np.ndarray, bins: np.ndarray) -> np.ndarray:

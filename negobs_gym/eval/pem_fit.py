@@ -10,8 +10,8 @@ its rows (:func:`fit_parameters`, from the CSVs alone, the same for both channel
   latency at an episode's start);
 - after that, per state (drawn the frame before, drawn earlier), size bin and 2 m distance bin,
   the share of sightings drawn, shrunk toward the distance bin's share over all sizes by
-  :data:`PRIOR_SIGHTINGS` pseudo-sightings (and that toward the state's share), so a bin seen a
-  few times keeps its neighbours' value;
+  :data:`PRIOR_SIGHTINGS` pseudo-sightings (that toward the bin's recall over all states, that
+  toward the state's share), so a bin seen a few times keeps its neighbours' value;
 - the near- and far-edge offsets: quantiles per distance bin of the drawn sightings (all of a
   bin's sightings pooled over sizes; a bin with fewer than :data:`MIN_OFFSETS` takes all bins');
 - false alarms: spurious blobs per frame per m² of each terrain class (track, verge, bank,
@@ -85,11 +85,15 @@ def _pits(rows: list[dict[str, str]]) -> dict[tuple[str, str], list[dict[str, st
     return out
 
 
-def _chain(pits: dict, s_edges: np.ndarray, d_edges: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _chain(
+    pits: dict, s_edges: np.ndarray, d_edges: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(2, S, D) drawn and seen counts after a pit's first drawing, by state (drawn the frame
-    before, drawn earlier), size and distance; and all sightings per (size, distance)."""
+    before, drawn earlier), size and distance; and all sightings and the drawn ones per (size,
+    distance)."""
     ns, nd = len(s_edges) - 1, len(d_edges) - 1
     seen, drawn, every = np.zeros((2, ns, nd)), np.zeros((2, ns, nd)), np.zeros((ns, nd))
+    every_drawn = np.zeros((ns, nd))
     for rows in pits.values():
         state = None  # before the first drawing
         for r in rows:
@@ -97,6 +101,7 @@ def _chain(pits: dict, s_edges: np.ndarray, d_edges: np.ndarray) -> tuple[np.nda
             d = int(np.clip(np.digitize(float(r["centre_m"]), d_edges) - 1, 0, nd - 1))
             hit = r["detected"] == "1"
             every[s, d] += 1
+            every_drawn[s, d] += hit
             if state is not None:
                 seen[state, s, d] += 1
                 drawn[state, s, d] += hit
@@ -104,7 +109,7 @@ def _chain(pits: dict, s_edges: np.ndarray, d_edges: np.ndarray) -> tuple[np.nda
                 state = 0
             elif state is not None:
                 state = 1
-    return seen, drawn, every
+    return seen, drawn, every, every_drawn
 
 
 def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], list[float]]:
@@ -131,11 +136,16 @@ def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], 
     return distances, latencies
 
 
-def _shrunk(seen: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+def _shrunk(seen: np.ndarray, drawn: np.ndarray, every: np.ndarray, every_drawn: np.ndarray) -> np.ndarray:
     """Each state's share drawn per (size, distance), shrunk toward the distance bin's, that toward
-    the state's overall share, that toward 1/2."""
+    the bin's share over all sightings (every state), that toward the state's overall share, that
+    toward 1/2. The middle step keeps a bin the chain rarely reaches at what the detector does
+    there: near the car, where the LUX sees nothing, a rock drawn at 4.1 m is not kept at 3.9 m."""
     overall = (drawn.sum(axis=(1, 2)) + 1.0) / (seen.sum(axis=(1, 2)) + 2.0)  # (states,)
-    by_distance = (drawn.sum(axis=1) + PRIOR_SIGHTINGS * overall[:, None]) / (
+    recall = (every_drawn.sum(axis=0)[None, :] + PRIOR_SIGHTINGS * overall[:, None]) / (
+        every.sum(axis=0)[None, :] + PRIOR_SIGHTINGS
+    )  # (states, D)
+    by_distance = (drawn.sum(axis=1) + PRIOR_SIGHTINGS * recall) / (
         seen.sum(axis=1) + PRIOR_SIGHTINGS
     )  # (states, D)
     return (drawn + PRIOR_SIGHTINGS * by_distance[:, None, :]) / (seen + PRIOR_SIGHTINGS)
@@ -172,8 +182,8 @@ def fit_parameters(
     d_edges, s_edges = np.asarray(DISTANCE_EDGES_M), np.asarray(SIZE_EDGES_CELLS)
     nd, levels = len(d_edges) - 1, np.asarray(QUANTILE_LEVELS)
     pits = _pits(sightings)
-    seen, drawn, every = _chain(pits, s_edges, d_edges)
-    p_keep, p_return = _shrunk(seen, drawn)
+    seen, drawn, every, every_drawn = _chain(pits, s_edges, d_edges)
+    p_keep, p_return = _shrunk(seen, drawn, every, every_drawn)
     by_size, latencies = _confirmations(pits, s_edges)
     # pooled over sizes: the rows hold the cells in view, and a pit far out shows part of its rim,
     # so a size bin of the rows is not the whole-rim size the model draws by (docs/pem.md)

@@ -101,3 +101,27 @@ def test_false_alarms_of_the_clutter_class_are_born_near_the_clutter(terrain):
     # every cell within the 2 m band around the 0.6 x 0.8 m rock (half-diagonal 0.5 m), give or take
     # the 0.4 m class raster and the 0.8 m block a false alarm is born in
     assert np.max(np.hypot(*(cells - rock).T)) < 0.5 + 2.0 + 1.0
+
+
+def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
+    """Beside the car a pit spans little range: offsets can move its range band off the rim. The
+    PEM still draws it as the detector's hits are, one blob sharing cells with the rim."""
+    from scipy import ndimage
+
+    from negobs_gym.envs.pem import rasterise_pits
+    from negobs_gym.sim.carving import NegativeObstacleSpec
+
+    pit = NegativeObstacleSpec(kind="pit", length_m=1.0, width_m=0.5, depth_m=0.5, station_m=10.0, lateral_m=2.8)
+    terrain = generate_terrain(TerrainConfig(length_m=30.0, negative_obstacles=(pit,)), 0)
+    grid = ObservationConfig().grid
+    for station, near in ((10.0, 0.6), (10.0, -0.6), (4.0, 0.6), (8.0, 0.0)):
+        xy, yaw = terrain.track.pose_at(np.array(station), np.array(0.0))
+        pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
+        model = constant_model(1.0, near=near, far=near)
+        layer = PemGrid(model, grid, terrain, np.random.default_rng(0)).layer(pose)
+        (_, mask, rows, cols), *_ = rasterise_pits(terrain, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]]))
+        truth = np.zeros(grid.shape, dtype=bool)
+        truth[rows, cols] = mask
+        labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
+        assert count == 1, (station, near)
+        assert (layer & truth).any(), (station, near)
