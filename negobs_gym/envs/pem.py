@@ -724,7 +724,7 @@ class PemGrid:
             if self._state[k] == NEVER:
                 if np.isnan(self._confirm_at[k]):
                     whole = int(_bin(self._rim_cells[k], self._s_edges))  # its size, not the part in view
-                    self._confirm_at[k] = self._quantile(self._confirm[whole])
+                    self._confirm_at[k] = self._confirm_distance(self._confirm[whole])
                     self._latency_at[k] = self._quantile(self._latency)
                 self._seen[k] += 1
                 drawn = centre <= self._confirm_at[k] and self._seen[k] > self._latency_at[k]
@@ -739,6 +739,16 @@ class PemGrid:
 
     def _quantile(self, table: np.ndarray) -> float:
         return float(np.interp(self._rng.random(), self._levels, table))
+
+    def _confirm_distance(self, table: np.ndarray) -> float:
+        """A first-confirmation distance from its quantiles, where -1 (never) is a point mass: a
+        draw between it and the nearest distance is rounded to the nearer of the two, not read as
+        a distance in between (a pit first drawn at 4 m that the detector never draws so near)."""
+        value = self._quantile(table)
+        reached = table[table >= 0]
+        if reached.size and -1.0 < value < reached[0]:
+            value = -1.0 if value < 0.5 * (reached[0] - 1.0) else float(reached[0])
+        return value
 
     def _draw_pit(self, layer: np.ndarray, mask: np.ndarray, rows: slice, cols: slice, d: int) -> None:
         """The drawn cells of a pit: its rim's cells (grown where the far offset says) in its bearing

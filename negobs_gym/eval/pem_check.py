@@ -7,7 +7,8 @@ centre distance and footprint cells take the pits' places):
 
 - recall per 2 m bin from 6 to 20 m (a pit's centre distance, paper N §4.2; all sizes), checked
   in bins with at least ``min_sightings``; Table 7's layout (size x distance) in ``tables.md``;
-- false alarms per km on and off the track (the detection campaign's count);
+- false alarms per km on and off the track (the detection campaign's count), with the alarm-frames
+  counted (a rate of a handful cannot be read to 25 %);
 - the median near-edge offset of the drawn pits within 6-20 m;
 - the first-confirmation distance (a pit's centre distance when first drawn), by the
   two-sample Kolmogorov-Smirnov statistic;
@@ -156,6 +157,7 @@ def compare(
             count = sum(int(r[f"false_alarms_{side}"]) for r in frames_by[m])
             per_km[m] = count / km if km > 0 else math.nan
             figures[f"false_alarms_per_km_{side}_track_{m}"] = per_km[m]
+            figures[f"false_alarms_{side}_track_count_{m}"] = float(count)  # alarm-frames: a rate's weight
         det, pem = per_km["detector"], per_km["pem"]
         if det > 0:
             ratio = pem / det - 1.0

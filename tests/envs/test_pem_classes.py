@@ -111,7 +111,9 @@ def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
     from negobs_gym.envs.pem import rasterise_pits
     from negobs_gym.sim.carving import NegativeObstacleSpec
 
-    pit = NegativeObstacleSpec(kind="pit", length_m=1.0, width_m=0.5, depth_m=0.5, station_m=10.0, lateral_m=2.8)
+    pit = NegativeObstacleSpec(
+        kind="pit", length_m=1.0, width_m=0.5, depth_m=0.5, station_m=10.0, lateral_m=2.8
+    )
     terrain = generate_terrain(TerrainConfig(length_m=30.0, negative_obstacles=(pit,)), 0)
     grid = ObservationConfig().grid
     for station, near in ((10.0, 0.6), (10.0, -0.6), (4.0, 0.6), (8.0, 0.0)):
@@ -122,6 +124,39 @@ def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
         (_, mask, rows, cols), *_ = rasterise_pits(terrain, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]]))
         truth = np.zeros(grid.shape, dtype=bool)
         truth[rows, cols] = mask
-        labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
+        _, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
         assert count == 1, (station, near)
         assert (layer & truth).any(), (station, near)
+
+
+def test_a_never_drawn_share_is_not_smeared_into_near_first_drawings():
+    """First-confirmation quantiles (-1 = never, then 9 m): a pit is first drawn at 9 m or never,
+    not at the distances a linear read between the two would give."""
+    from negobs_gym.envs.pem import pit_centre_distance_m, rasterise_pits
+    from negobs_gym.sim.carving import NegativeObstacleSpec
+
+    pit = NegativeObstacleSpec(
+        kind="pit", length_m=1.0, width_m=1.0, depth_m=0.5, station_m=25.0, lateral_m=0.0
+    )
+    terrain = generate_terrain(TerrainConfig(length_m=40.0, negative_obstacles=(pit,)), 0)
+    grid = ObservationConfig().grid
+    base = constant_model(1.0)
+    model = dataclasses.replace(
+        base, parameters=dataclasses.replace(base.parameters, confirm_distance_m=((-1.0, 9.0),))
+    )
+    firsts = []
+    for seed in range(30):
+        pem = PemGrid(model, grid, terrain, np.random.default_rng(seed))
+        first = None
+        for station in np.arange(4.0, 24.0, 0.5):
+            xy, yaw = terrain.track.pose_at(np.array(station), np.array(0.0))
+            pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
+            if pem.layer(pose).any() and first is None:
+                (_, mask, rows, cols), *_ = rasterise_pits(
+                    terrain, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
+                )
+                first = pit_centre_distance_m(grid, mask, rows, cols)
+        firsts.append(first)
+    drawn = [f for f in firsts if f is not None]
+    assert 0 < len(drawn) < len(firsts)  # both outcomes occur
+    assert all(8.4 <= f <= 9.0 for f in drawn), drawn

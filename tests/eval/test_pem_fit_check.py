@@ -144,6 +144,7 @@ def test_compare_passes_equal_grids_and_fails_each_kind_of_difference(tmp_path):
         _write(tmp_path / "f.csv", FRAME_COLUMNS, frames),
     )
     assert same.passed and same.figures["ks_first_confirmation"] == 0.0
+    assert same.figures["false_alarms_on_track_count_pem"] == 20.0  # every fifth of 100 frames
     assert all(line.count("=") == 1 for line in same.lines()) and same.lines()[-1] == "pem_check=pass"
     # the PEM misses every third pit
     worse = [
