@@ -432,6 +432,8 @@ def run_policy(args: argparse.Namespace) -> int:
     from negobs_gym.eval.vetoes import format_veto_error
 
     filters = {"off": (False,), "on": (True,), "both": (False, True), None: None}[args.filter]
+    if args.source is not None:  # a --set, after the record's: it replaces a source the record set
+        args.overrides = [*(args.overrides or ()), f"observation.source={args.source}"]
     cli = {
         "model_path": args.model,
         "seeds": args.seeds,
@@ -439,7 +441,6 @@ def run_policy(args: argparse.Namespace) -> int:
         "algo": args.algo,
         "filters": filters,
         "first_seed": args.first_seed,
-        "source": args.source,
         "stop_for_positive": args.stop_for_positive,
     }
     if args.rig is not None:

@@ -93,6 +93,30 @@ def test_braking_refuses_a_far_part_outside_the_grid_naming_it(tmp_path: Path, c
 # slow (end to end): a saved model evaluated through the CLI is also checked by
 # tests/cli/test_train.py::test_train_saves_a_model_that_eval_policy_loads
 @pytest.mark.slow
+def test_policy_source_replaces_the_source_its_record_set(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A model trained with --source pem, evaluated with --source detector, runs on the detector
+    grid: the command's source goes after the record's settings, as a --set does."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    import negobs_gym  # noqa: F401  (registers the envs)
+    from negobs_gym.drivers import zoo
+
+    env = gym.make("negobs_gym/Braking-v0")
+    path = tmp_path / "tiny.zip"
+    PPO("MultiInputPolicy", env, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu").save(path)
+    env.close()
+    monkeypatch.setattr(
+        zoo, "recorded_env", lambda model: ("negobs_gym/Braking-v0", ("observation.source=pem",))
+    )
+    out = tmp_path / "run"
+    args = ["eval", "policy", str(path), "--seeds", "1", "--filter", "off", "--source", "oracle"]
+    args += ["--set", "episode.time_limit_s=0.3", "--out", str(out), "--no-progress"]
+    assert main(["-q", *args]) == 0
+    assert "observation.source=oracle]" in capsys.readouterr().out.split()[0]
+    assert spec_from_toml((out / "scenario.toml").read_text()).observation.source == "oracle"
+
+
 def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     import gymnasium as gym
     from stable_baselines3 import PPO
@@ -141,7 +165,8 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     # another first seed, on the oracle grid
     oracle = ["eval", "policy", str(path), "--seeds", "2", "--first-seed", "5", "--filter", "off", "--source"]
     assert main(["-q", *oracle, "oracle", "--out", str(tmp_path / "oracle"), "--no-progress"]) == 0
-    assert capsys.readouterr().out.startswith("negobs_gym/Braking-v0/nofilter success=")
+    label = "negobs_gym/Braking-v0[observation.source=oracle]"  # the id and the source it ran on
+    assert capsys.readouterr().out.startswith(f"{label}/nofilter success=")
     seeds = [r.split(",")[3] for r in (tmp_path / "oracle" / "policy.csv").read_text().splitlines()[1:]]
     assert seeds == ["5", "6"]
     # a scenario TOML file as the env: Braking-v0's scene with the structure channel, its own grid

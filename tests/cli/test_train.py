@@ -203,7 +203,7 @@ def test_a_model_moved_out_of_its_run_keeps_the_env_and_set_it_was_fitted_on(tmp
     evaluation = ["eval", "policy", str(bare), "--seeds", "1", "--filter", "off", "--no-progress"]
     assert main(["-q", *evaluation, "--source", "oracle", "--out", str(tmp_path / "eval_bare")]) == 0
     printed = capsys.readouterr()
-    assert printed.out.startswith("negobs_gym/Braking-v0/nofilter success=")
+    assert printed.out.startswith("negobs_gym/Braking-v0[observation.source=oracle]/nofilter success=")
     assert "has no record of the env it was fitted on: evaluating on negobs_gym/Braking-v0" in printed.err
 
 
