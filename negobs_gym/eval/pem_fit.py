@@ -50,8 +50,18 @@ __all__ = [
 
 #: Size bins of a pit's rim cells: below paper N Table 7's smallest, its rows paired, above its largest.
 SIZE_EDGES_CELLS: tuple[float, ...] = (0.0, 15.0, 25.0, 35.0, 45.0, 56.0, 10_000.0)
-#: Levels of the offset and false-alarm-size quantiles.
-QUANTILE_LEVELS: tuple[float, ...] = tuple(float(q) for q in np.linspace(0.0, 1.0, 21))
+#: Levels of every quantile table: 5 % steps, finer in the tails, where a first confirmation's
+#: "never" (-1) is a point mass of ~0.5 % that a draw between two levels must not spread over 5 %.
+QUANTILE_LEVELS: tuple[float, ...] = tuple(
+    float(q)
+    for q in np.concatenate(
+        [
+            [0.0, 0.0025, 0.005, 0.01, 0.02, 0.03],
+            np.linspace(0.05, 0.95, 19),
+            [0.97, 0.98, 0.99, 0.995, 0.9975, 1.0],
+        ]
+    )
+)
 #: Pseudo-sightings a chain entry is shrunk toward its distance bin's share by (not a paper value).
 PRIOR_SIGHTINGS = 4.0
 #: Fewest drawn sightings a distance bin's offset quantiles are taken from, else all bins'.
