@@ -76,6 +76,7 @@ FIGURES = {
         "physics_steps_per_s",
         "course_build_s",
         "ppo_steps_per_s",
+        "ppo_pem_steps_per_s",
         *(f"stage_{stage}_ms" for stage in ("physics", "scan", "paper_n", "paper_t", "other")),
     },
     "detector": {
