@@ -51,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "pem",
         help="perception-error model of the detector grid: fit it from the detectors, check it on "
         "fresh courses",
-        description="A perception-error model (PEM) of the detector grid's negative channel: the "
+        description="A perception-error model (PEM) of the detector grid's obstacle channels: the "
         "grid source 'pem' (observation.source=pem) draws it from the ground truth at the "
         "oracle's cost. docs/pem.md.",
     )
