@@ -573,13 +573,6 @@ def channel_outlines(terrain: Terrain, channel: str) -> list[np.ndarray]:
     return [np.asarray(o.footprint_xy_m, dtype=np.float64) for o in terrain.positive_obstacles]
 
 
-def rasterise_pits(
-    terrain: Terrain, pose: Pose, grid: GridSpec, boxes: np.ndarray
-) -> list[tuple[int, np.ndarray, slice, slice]]:
-    """Each true pit with cells on ``grid`` around ``pose`` (:func:`rasterise_outlines`)."""
-    return rasterise_outlines(channel_outlines(terrain, "negative"), pose, grid, boxes)
-
-
 def rasterise_outlines(
     outlines: Sequence[np.ndarray], pose: Pose, grid: GridSpec, boxes: np.ndarray
 ) -> list[tuple[int, np.ndarray, slice, slice]]:
@@ -621,11 +614,6 @@ def pit_centre_distance_m(grid: GridSpec, mask: np.ndarray, rows: slice, cols: s
 
 def _vehicle_to_world(points: np.ndarray, pose: Pose) -> np.ndarray:
     return vehicle_to_world_xy(points, (pose.x, pose.y), pose.yaw)
-
-
-def obstacle_boxes(terrain: Terrain) -> np.ndarray:
-    """(M, 4) world bounding boxes (xmin, ymin, xmax, ymax) of the terrain's pits."""
-    return outline_boxes(channel_outlines(terrain, "negative"))
 
 
 def outline_boxes(outlines: Sequence[np.ndarray]) -> np.ndarray:

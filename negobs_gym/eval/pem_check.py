@@ -410,6 +410,18 @@ def check_pem(
     return result
 
 
+def grid_overrides(model_path: str | Path | None) -> dict[str, tuple[str, ...]]:
+    """The ``--set`` assignments of each grid a closed loop compares: the detector's and the PEM
+    ``model_path``'s (None: the shipped one), by mode."""
+    from negobs_gym.envs.pem import DEFAULT_PEM_PATH
+
+    model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
+    return {
+        "detector": ("observation.source=detector",),
+        "pem": ("observation.source=pem", f"observation.pem_model={model}"),
+    }
+
+
 @dataclass(frozen=True, kw_only=True)
 class BrakingCheckConfig:
     """The closed-loop check: the braking campaign's ``scenarios`` on seeds 0..``seeds``-1, the
@@ -440,7 +452,6 @@ class BrakingCheckConfig:
 
     def campaign(self, model_path: str | Path | None) -> dict[str, Any]:
         """The two :class:`~negobs_gym.eval.braking_campaign.BrakingCampaignConfig` s, by grid."""
-        from negobs_gym.envs.pem import DEFAULT_PEM_PATH
         from negobs_gym.eval.braking_campaign import BrakingCampaignConfig
 
         base = BrakingCampaignConfig(
@@ -450,9 +461,8 @@ class BrakingCheckConfig:
             filters=(True,),
             overrides=self.overrides,
         )
-        model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
-        pem = ("observation.source=pem", f"observation.pem_model={model}")
-        return {"detector": base, "pem": replace(base, overrides=(*self.overrides, *pem))}
+        grids = grid_overrides(model_path)
+        return {m: replace(base, overrides=(*self.overrides, *grids[m])) for m in MODES}
 
 
 def compare_braking(summaries: dict[str, list[Any]], config: BrakingCheckConfig) -> PemCheckResult:
@@ -540,8 +550,8 @@ class PolicyCheckConfig:
     def campaigns(self, model_path: str | Path | None) -> dict[str, Any]:
         """The two :class:`~negobs_gym.eval.policy_campaign.PolicyCampaignConfig` s, by grid."""
         from negobs_gym.drivers.zoo import recorded_env
-        from negobs_gym.envs.pem import DEFAULT_PEM_PATH
         from negobs_gym.eval.policy_campaign import PolicyCampaignConfig
+        from negobs_gym.spec import combine_overrides
 
         env_id, recorded = self.env_id, ()
         if env_id is None:
@@ -552,11 +562,7 @@ class PolicyCheckConfig:
                 f"{self.policy!r} has no record of its env: give the env to run it on (--policy-env)",
             )
             env_id, recorded = found[0], tuple(found[1])
-        model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
-        grids = {
-            "detector": ("observation.source=detector",),
-            "pem": ("observation.source=pem", f"observation.pem_model={model}"),
-        }
+        grids = grid_overrides(model_path)
         return {
             m: PolicyCampaignConfig(
                 model_path=self.policy,
@@ -564,7 +570,7 @@ class PolicyCheckConfig:
                 seeds=self.seeds,
                 first_seed=self.first_seed,
                 filters=(self.filtered,),
-                overrides=(*recorded, *self.overrides, *grid),
+                overrides=tuple(combine_overrides(recorded, (*self.overrides, *grid))),
             )
             for m, grid in grids.items()
         }

@@ -381,7 +381,8 @@ def run_episode(episode: Episode) -> Rows:
         "negative": [o.depth_m for o in terrain.negative_obstacles],
         "positive": [2.0 * float(o.half_extents_m[2]) for o in terrain.positive_obstacles],
     }
-    raster = class_raster(terrain, cfg.border_band_m, cfg.clutter_band_m, cfg.rough_relief_m)
+    cache: dict = {}  # the terrain's class raster, built once for the judges and both PEM channels
+    raster = class_raster(terrain, cfg.border_band_m, cfg.clutter_band_m, cfg.rough_relief_m, cache)
     width = terrain.track.width_m
     bins = len(DISTANCE_EDGES_M) - 1
     dist_bin = np.clip(np.digitize(range_m, DISTANCE_EDGES_M) - 1, 0, bins - 1).ravel()
@@ -397,7 +398,7 @@ def run_episode(episode: Episode) -> Rows:
             pem_rng = np.random.default_rng([seed, 6])
             pems = {
                 c: PemGrid(
-                    model, grid, terrain, pem_rng if c == "negative" else pem_rng.spawn(1)[0], channel=c
+                    model, grid, terrain, pem_rng if c == "negative" else pem_rng.spawn(1)[0], cache, c
                 )
                 for c in model.channels
             }

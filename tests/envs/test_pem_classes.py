@@ -108,7 +108,7 @@ def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
     PEM still draws it as the detector's hits are, one blob sharing cells with the rim."""
     from scipy import ndimage
 
-    from negobs_gym.envs.pem import rasterise_pits
+    from negobs_gym.envs.pem import channel_outlines, rasterise_outlines
     from negobs_gym.sim.carving import NegativeObstacleSpec
 
     pit = NegativeObstacleSpec(
@@ -121,7 +121,9 @@ def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
         pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
         model = constant_model(1.0, near=near, far=near)
         layer = PemGrid(model, grid, terrain, np.random.default_rng(0)).layer(pose)
-        (_, mask, rows, cols), *_ = rasterise_pits(terrain, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]]))
+        (_, mask, rows, cols), *_ = rasterise_outlines(
+            channel_outlines(terrain, "negative"), pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
+        )
         truth = np.zeros(grid.shape, dtype=bool)
         truth[rows, cols] = mask
         _, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
@@ -132,7 +134,7 @@ def test_a_drawn_pit_is_one_blob_on_its_rim_even_beside_the_car():
 def test_a_never_drawn_share_is_not_smeared_into_near_first_drawings():
     """First-confirmation quantiles (-1 = never, then 9 m): a pit is first drawn at 9 m or never,
     not at the distances a linear read between the two would give."""
-    from negobs_gym.envs.pem import pit_centre_distance_m, rasterise_pits
+    from negobs_gym.envs.pem import channel_outlines, pit_centre_distance_m, rasterise_outlines
     from negobs_gym.sim.carving import NegativeObstacleSpec
 
     pit = NegativeObstacleSpec(
@@ -152,8 +154,8 @@ def test_a_never_drawn_share_is_not_smeared_into_near_first_drawings():
             xy, yaw = terrain.track.pose_at(np.array(station), np.array(0.0))
             pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
             if pem.layer(pose).any() and first is None:
-                (_, mask, rows, cols), *_ = rasterise_pits(
-                    terrain, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
+                (_, mask, rows, cols), *_ = rasterise_outlines(
+                    channel_outlines(terrain, "negative"), pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
                 )
                 first = pit_centre_distance_m(grid, mask, rows, cols)
         firsts.append(first)

@@ -52,7 +52,8 @@ def test_braking_check_runs_the_same_campaign_on_both_grids(capsys):
     assert (
         detector.seeds == pem.seeds == 3 and detector.filters == (True,) and detector.drivers == ("reckless",)
     )
-    assert detector.overrides == ("observation.rig=reduced",)
+    # each grid named, so a --set of another source cannot turn the detector's run into something else
+    assert detector.overrides == ("observation.rig=reduced", "observation.source=detector")
     assert pem.overrides == (
         "observation.rig=reduced",
         "observation.source=pem",
