@@ -63,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "writes the fitted PEM to --model (atomically); the per-frame rows stay in --work.",
     )
     fit.add_argument(
-        "--model", default="outputs/pem/pem_negative.json", help="PEM file to write (default: %(default)s)"
+        "--model", default="outputs/pem/pem.json", help="PEM file to write (default: %(default)s)"
     )
     fit.add_argument(
         "--work", default="outputs/pem/fit", help="folder of the drives' rows (default: %(default)s)"

@@ -9,16 +9,20 @@ rasterised like the oracle's and then, by parametric tables fitted on the detect
 (:mod:`negobs_gym.eval.pem_fit`),
 
 - is drawn or missed: P(drawn) by its size (cells) and centre distance (2 m bins) and by its state,
-  a three-state Markov chain: never drawn yet (the first confirmation), drawn last frame
+  a three-state Markov chain: never drawn yet (the first confirmation: a distance for one that
+  comes from beyond the detector's reach, a latency for one first seen within it), drawn last frame
   (persistence; 1 - it is the dropout, the close-range one in the HDL-64's ring-free disc too) and
-  drawn before but not last frame (re-acquisition);
+  drawn before but not last frame (re-acquisition); where the tables hold a loss distance (paper
+  T's LUX: its four layers pass over an obstacle at a distance set by its height), an obstacle
+  nearer than its own is never drawn again;
 - when drawn, its cells are those of the true rim inside its bearing span between the true near
   edge plus a near-edge offset and the far edge plus a far-edge offset (the extent error), both
   drawn from the fitted quantiles of their distance bin;
 - false alarms: spurious blobs, fixed in the world, born at a rate per m² by terrain class
   (:data:`TERRAIN_CLASSES`: the track, the verge band beside it, the bank, drop-off or rough
   ground beyond, and clutter: the ground near a positive obstacle) and distance, kept from one
-  frame to the next with a fitted probability, of a fitted size.
+  frame to the next with a fitted probability, of a fitted size, and clear of the channel's true
+  obstacles (a blob touching one is a drawing of it, and the fit counted none of those).
 
 The parameters are a :class:`PemParameters`; a :class:`PerceptionErrorModel` adds the detector,
 rig and observation settings it was fitted on (:func:`pem_settings`) and is saved as a versioned
@@ -75,7 +79,7 @@ __all__ = [
 
 PEM_FORMAT = "negobs_gym.pem"
 #: Version of the file layout; a file of another version is refused.
-PEM_VERSION = 4
+PEM_VERSION = 5
 #: The detector grid's channels a PEM models: ``negative`` (paper N's detector) and ``positive``
 #: (paper T's LUX obstacles, ``ObservationConfig.positive_detector = "traversable"``).
 PEM_CHANNELS: tuple[str, ...] = ("negative", "positive")
@@ -124,8 +128,8 @@ def fallback_chain(name: str) -> tuple[str, ...]:
 
 #: cell of the terrain-class raster [m]
 CLASS_RASTER_M = 0.4
-#: States of a pit in the PEM's chain.
-NEVER, DRAWN, LOST = 0, 1, 2
+#: States of a pit in the PEM's chain (``GONE``: nearer than its loss distance, never drawn again).
+NEVER, DRAWN, LOST, GONE = 0, 1, 2, 3
 _STATE_NAMES = ("p_keep", "p_return")
 #: spacing of the centre-line samples the terrain classes are measured to [m]
 _TRACK_SPACING_M = 0.1
@@ -133,6 +137,8 @@ _TRACK_SPACING_M = 0.1
 _MAX_GROW_CELLS = 10
 #: false alarms are placed on blocks of this many cells a side (their class and distance per block)
 _BLOCK_CELLS = 4
+#: a new false alarm that touches a true obstacle is moved up to this many times (else dropped)
+_PLACE_TRIES = 8
 #: 8-connectivity, as the detectors' clusters and the check's blobs
 _EIGHT = np.ones((3, 3), dtype=bool)
 
@@ -154,9 +160,15 @@ class PemParameters:
             drawn [m]; -1 stands for a pit passed undrawn. Each pit draws one at its first
             sighting.
         confirm_latency_frames: Quantiles of the frames from a pit's first sighting to its first
-            drawing, of pits first seen within reach (an episode's start: the fusion needs hits
-            from several frames). A pit is first drawn when it is within its drawn distance and
-            has been seen for its drawn latency.
+            drawing, of pits first seen within ``approach_m`` (an episode's start: the fusion needs
+            hits from several frames). A pit first seen beyond ``approach_m`` is first drawn within
+            its drawn distance, one first seen nearer once it is also seen for its drawn latency.
+        approach_m: A pit first seen (its centre) at least this far came from beyond the
+            detector's reach [m].
+        loss_distance_m: Quantiles per size bin (the whole outline's cells) of the centre distance
+            at which an obstacle passed on its approach was last drawn [m]; nearer than its own
+            draw, an obstacle is never drawn again. Empty: obstacles are not lost by distance
+            (the pits: paper N's fusion keeps a pit drawn to the car).
         p_keep: P(drawn) of a pit drawn in the frame before.
         p_return: P(drawn) of a pit drawn before, but not in the frame before.
         sightings: Frames behind each ``[size][distance]`` entry of the chain (all states).
@@ -166,7 +178,8 @@ class PemParameters:
         fa_density_per_m2: Mean false alarms per frame per m² of the class and distance bin.
         fa_area_m2: The grid area per class the fit saw, summed over its frames [m²]; a class
             with none takes its :data:`FALLBACK_CLASS`'s rates (not fitted, shown by the 0).
-        fa_keep: P(a false alarm is still there the next frame), per class.
+        fa_keep: P(a false alarm is still there the next frame), per class and the distance bin
+            it is in then.
         fa_blobs: The detector's false alarms a new one copies, each ``(class, distance bin,
             edge_m, rows, cols, cells)``: ``edge_m`` is its centre's distance from the nearer
             track edge (< 0 on the track), ``rows`` x ``cols`` its box (along x across the
@@ -175,6 +188,8 @@ class PemParameters:
         clutter_band_m: Reach of the ``clutter`` and ``mound`` classes around a positive
             obstacle's footprint [m].
         rough_relief_m: Ground relief from which off-track ground is ``rough`` [m].
+        match_cells: A blob within this many cells of a true obstacle counted as drawing it in
+            the fit, not as a false alarm; the model's false alarms keep that far from them.
     """
 
     distance_edges_m: tuple[float, ...]
@@ -182,6 +197,8 @@ class PemParameters:
     quantile_levels: tuple[float, ...]
     confirm_distance_m: tuple[tuple[float, ...], ...]
     confirm_latency_frames: tuple[float, ...]
+    approach_m: float
+    loss_distance_m: tuple[tuple[float, ...], ...]
     p_keep: tuple[tuple[float, ...], ...]
     p_return: tuple[tuple[float, ...], ...]
     sightings: tuple[tuple[int, ...], ...]
@@ -189,11 +206,12 @@ class PemParameters:
     far_offset_m: tuple[tuple[float, ...], ...]
     fa_density_per_m2: tuple[tuple[float, ...], ...]
     fa_area_m2: tuple[float, ...]
-    fa_keep: tuple[float, ...]
+    fa_keep: tuple[tuple[float, ...], ...]
     fa_blobs: tuple[tuple[float, ...], ...]
     border_band_m: float
     clutter_band_m: float
     rough_relief_m: float
+    match_cells: int
 
     def __post_init__(self) -> None:
         nd, ns = len(self.distance_edges_m) - 1, len(self.size_edges_cells) - 1
@@ -221,15 +239,31 @@ class PemParameters:
             require(table.shape == shape, name, f"must have shape {shape}, got {table.shape}")
             require(bool(np.all(np.diff(table, axis=-1) >= 0)), name, "quantiles must not decrease")
         require(min(self.confirm_latency_frames) >= 0, "confirm_latency_frames", "must be >= 0")
+        loss = np.asarray(self.loss_distance_m, dtype=np.float64)
+        if loss.size:
+            require(
+                loss.shape == (ns, nq), "loss_distance_m", f"must be empty or {(ns, nq)}, got {loss.shape}"
+            )
+            require(
+                bool(np.all(np.diff(loss, axis=-1) >= 0)), "loss_distance_m", "quantiles must not decrease"
+            )
+            require(bool(np.all(loss >= 0)), "loss_distance_m", "distances must be >= 0")
+        require(
+            isinstance(self.match_cells, int)
+            and not isinstance(self.match_cells, bool)
+            and self.match_cells >= 0,
+            "match_cells",
+            f"must be a whole number of cells >= 0, got {self.match_cells!r}",
+        )
         density = np.asarray(self.fa_density_per_m2, dtype=np.float64)
         nc = len(TERRAIN_CLASSES)
         require(density.shape == (nc, nd), "fa_density_per_m2", f"must be {nc} x {nd}, got {density.shape}")
         require(bool(np.all(density >= 0)), "fa_density_per_m2", "must be >= 0")
         keep = np.asarray(self.fa_keep, dtype=np.float64)
         require(
-            keep.shape == (nc,) and bool(np.all((keep >= 0) & (keep < 1))),
+            keep.shape == (nc, nd) and bool(np.all((keep >= 0) & (keep < 1))),
             "fa_keep",
-            f"must be {nc} values in [0, 1)",
+            f"must be {nc} x {nd} values in [0, 1)",
         )
         area = np.asarray(self.fa_area_m2, dtype=np.float64)
         require(area.shape == (nc,) and bool(np.all(area >= 0)), "fa_area_m2", f"must be {nc} values >= 0")
@@ -245,7 +279,7 @@ class PemParameters:
             "fa_blobs",
             "must hold at least one blob when false alarms occur",
         )
-        for name in ("border_band_m", "clutter_band_m", "rough_relief_m"):
+        for name in ("approach_m", "border_band_m", "clutter_band_m", "rough_relief_m"):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be >= 0, got {value!r}")
 
@@ -670,12 +704,14 @@ class PemGrid:
         self._levels = np.asarray(p.quantile_levels, dtype=np.float64)
         self._confirm = np.asarray(p.confirm_distance_m, dtype=np.float64)
         self._latency = np.asarray(p.confirm_latency_frames, dtype=np.float64)
+        self._approach_m = float(p.approach_m)
+        self._loss = np.asarray(p.loss_distance_m, dtype=np.float64)
+        self._match_cells = int(p.match_cells)
         self._near = np.asarray(p.near_offset_m, dtype=np.float64)
         self._far = np.asarray(p.far_offset_m, dtype=np.float64)
         keep = np.asarray(p.fa_keep, dtype=np.float64)
         self._fa_keep = keep
         density = np.asarray(p.fa_density_per_m2, dtype=np.float64)
-        self._fa_birth = density * (1.0 - keep)[:, None]  # births keep the fitted mean per frame
         self._fa_density = density
         self._blobs = np.asarray(p.fa_blobs, dtype=np.float64).reshape(-1, 6)
         centres = grid.cell_centres()
@@ -689,41 +725,65 @@ class PemGrid:
         self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
         self._outlines = channel_outlines(terrain, channel)
         self._boxes = outline_boxes(self._outlines)
-        self._rim_cells = np.array([_polygon_area(o) / grid.cell_m**2 for o in self._outlines])
+        # rounded: a 1 x 1 m box's 24.999999999999996 cells must size it as the fit's 25 rasterised ones
+        self._rim_cells = np.round([_polygon_area(o) / grid.cell_m**2 for o in self._outlines], 6)
         self._tree = centreline_tree(terrain)
         self._classes = class_raster(terrain, p.border_band_m, p.clutter_band_m, p.rough_relief_m, cache)
         n = len(self._outlines)
         self._state = np.zeros(n, dtype=np.int8)
         self._seen = np.zeros(n, dtype=np.int64)  # frames each pit was on the grid before its first drawing
         self._confirm_at = np.full(n, np.nan)  # each pit's drawn first-confirmation distance ...
-        self._latency_at = np.zeros(n)  # ... and latency, drawn at its first sighting
+        self._latency_at = np.zeros(n)  # ... or latency (first seen within reach) ...
+        self._lost_at = np.zeros(n)  # ... and loss distance, drawn at its first sighting
+        self._near_first = np.zeros(n, dtype=bool)  # first seen within ``approach_m``
         self._fa_xy = np.zeros((0, 2))  # world centres of the live false alarms
         self._fa_blob = np.zeros(0, dtype=np.int64)  # the library blob each copies
         self._fa_class = np.zeros(0, dtype=np.int64)  # the terrain class each was born on
-        self._frames = 0
+        self._last_pose: Pose | None = None  # the pose of the frame before (which ground was in view)
 
     def layer(self, pose: Pose) -> np.ndarray:
         """This frame's layer of the channel (rows, cols) bool around the true ``pose``."""
         layer = np.zeros(self.grid.shape, dtype=bool)
-        for k, mask, rows, cols in rasterise_outlines(self._outlines, pose, self.grid, self._boxes):
+        truths = rasterise_outlines(self._outlines, pose, self.grid, self._boxes)
+        for k, mask, rows, cols in truths:
             cells = int(mask.sum())
             centre = pit_centre_distance_m(self.grid, mask, rows, cols)
             s, d = int(_bin(cells, self._s_edges)), int(_bin(centre, self._d_edges))
+            if np.isnan(self._confirm_at[k]):
+                self._first_sighting(k, centre)
+            lost = centre < self._lost_at[k] and (self._state[k] != NEVER or self._near_first[k])
+            if lost and self._state[k] != GONE:
+                self._state[k] = GONE
+            if self._state[k] == GONE:
+                continue
             if self._state[k] == NEVER:
-                if np.isnan(self._confirm_at[k]):
-                    whole = int(_bin(self._rim_cells[k], self._s_edges))  # its size, not the part in view
-                    self._confirm_at[k] = self._confirm_distance(self._confirm[whole])
-                    self._latency_at[k] = self._quantile(self._latency)
                 self._seen[k] += 1
-                drawn = centre <= self._confirm_at[k] and self._seen[k] > self._latency_at[k]
+                drawn = centre <= self._confirm_at[k]
+                if self._near_first[k]:
+                    drawn = drawn and self._seen[k] > self._latency_at[k]
             else:
                 drawn = bool(self._rng.random() < self._chain[self._state[k] - 1, s, d])
             self._state[k] = DRAWN if drawn else (NEVER if self._state[k] == NEVER else LOST)
             if drawn:
                 self._draw_pit(layer, mask, rows, cols, d)
-        self._false_alarms(layer, pose)
-        self._frames += 1
+        self._false_alarms(layer, pose, truths)
         return layer
+
+    def _first_sighting(self, k: int, centre: float) -> None:
+        """Draw obstacle ``k``'s first confirmation distance (-1: never drawn), its latency when it
+        is first seen within ``approach_m`` (an episode's cold start: it is drawn once within its
+        distance and seen that long), and its loss distance. The loss holds once the obstacle was
+        drawn (one confirmed nearer than its loss is drawn in that frame only: the detector's late
+        confirmations are lost within a frame or two), and for one first seen within
+        ``approach_m`` from the start (one already nearer than its loss is never drawn: the LUX's
+        layers pass over it)."""
+        whole = int(_bin(self._rim_cells[k], self._s_edges))  # its size, not the part in view
+        self._confirm_at[k] = self._confirm_distance(self._confirm[whole])
+        self._near_first[k] = centre < self._approach_m
+        if self._near_first[k]:
+            self._latency_at[k] = self._quantile(self._latency)
+        if self._loss.size:
+            self._lost_at[k] = self._quantile(self._loss[whole])
 
     def _quantile(self, table: np.ndarray) -> float:
         return float(np.interp(self._rng.random(), self._levels, table))
@@ -796,38 +856,103 @@ class PemGrid:
         lateral = side * (0.5 * self.terrain.track.width_m + edge_m)
         return samples[index] + along[:, None] * tangent + lateral[:, None] * normal
 
-    def _false_alarms(self, layer: np.ndarray, pose: Pose) -> None:
-        """Keep, age and add the world-fixed false alarms; draw those on the grid into ``layer``."""
+    def _false_alarms(self, layer: np.ndarray, pose: Pose, truths: list) -> None:
+        """Keep, age and add the world-fixed false alarms; draw those on the grid into ``layer``.
+        They keep clear of ``truths`` (this frame's rasterised true obstacles) by the fit's
+        ``match_cells``: a new one is moved to a block of its class and distance bin until it is
+        (the fit divided the class's alarms by all its area, the obstacles' cells included), a live
+        one that the grid's rounding brings nearer is not drawn that frame."""
         blocks_world = _vehicle_to_world(self._block_centres, pose)
         classes = self._classes.at(blocks_world)
-        if len(self._fa_xy):  # the live ones: kept with the class's probability while on the grid
+        if len(self._fa_xy):  # the live ones: kept with their class's and bin's probability on the grid
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             _, _, inside = self.grid.cell_of(local)
-            keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[self._fa_class])
+            bins = _bin(np.hypot(local[:, 0], local[:, 1]), self._d_edges)
+            keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[self._fa_class, bins])
             self._fa_xy, self._fa_blob, self._fa_class = (
                 self._fa_xy[keep],
                 self._fa_blob[keep],
                 self._fa_class[keep],
             )
-        # the first frame starts with the mean population, later frames add the births
-        rate = (self._fa_density if self._frames == 0 else self._fa_birth)[classes, self._block_bins]
+        forbidden = self._forbidden(truths) if truths else None
+        # births bring each block's ground to its class's and bin's mean: that mean less what
+        # survives of the mean where the ground was the frame before (the farther bin as the car
+        # advances; none for ground that comes into view, all of the mean in the first frame)
+        mean = self._fa_density[classes, self._block_bins]
+        inflow = np.zeros(len(classes))
+        if self._last_pose is not None:
+            before = world_to_vehicle_xy(
+                blocks_world, (self._last_pose.x, self._last_pose.y), self._last_pose.yaw
+            )
+            seen = self.grid.cell_of(before)[2]
+            was = _bin(np.hypot(before[:, 0], before[:, 1]), self._d_edges)
+            inflow = np.where(seen, self._fa_density[classes, was], 0.0)
+        self._last_pose = pose
+        rate = np.maximum(mean - self._fa_keep[classes, self._block_bins] * inflow, 0.0)
         counts = self._rng.poisson(rate * self._block_m**2)
         if counts.any() and len(self._blobs):
             at = np.repeat(np.arange(len(counts)), counts)
-            offsets = (self._rng.random((len(at), 2)) - 0.5) * self._block_m
             picks = self._pick_blobs(classes[at], self._block_bins[at])
-            born = _vehicle_to_world(self._block_centres[at] + offsets, pose)
-            moved = _PLACED_BY_EDGE[classes[at]]
-            if moved.any():
-                born[moved] = self._place(born[moved], self._blobs[picks[moved], 2])
-            self._fa_xy = np.concatenate([self._fa_xy, born])
-            self._fa_blob = np.concatenate([self._fa_blob, picks])
-            self._fa_class = np.concatenate([self._fa_class, classes[at]])
+            born = self._born(at, picks, classes[at], pose)
+            clear = np.ones(len(at), dtype=bool)
+            if forbidden is not None:
+                clear = self._clear(born, picks, pose, forbidden)
+                for _ in range(_PLACE_TRIES):
+                    if clear.all():
+                        break
+                    again = np.flatnonzero(~clear)
+                    at[again] = self._same_kind_block(at[again], classes)
+                    born[again] = self._born(at[again], picks[again], classes[at[again]], pose)
+                    clear[again] = self._clear(born[again], picks[again], pose, forbidden)
+            self._fa_xy = np.concatenate([self._fa_xy, born[clear]])
+            self._fa_blob = np.concatenate([self._fa_blob, picks[clear]])
+            self._fa_class = np.concatenate([self._fa_class, classes[at][clear]])
         if len(self._fa_xy):
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             rows, cols, _ = self.grid.cell_of(local)
             for row, col, blob in zip(rows.tolist(), cols.tolist(), self._fa_blob.tolist(), strict=True):
-                length, across, cells = (int(v) for v in self._blobs[blob, 3:])
-                width = max(1, min(across, math.ceil(cells / length)))
-                ra, ca = row - length // 2, col - width // 2
-                layer[max(ra, 0) : max(ra + length, 0), max(ca, 0) : max(ca + width, 0)] = True
+                (r0, r1), (c0, c1) = self._blob_window(row, col, blob)
+                if forbidden is None or not forbidden[r0:r1, c0:c1].any():
+                    layer[r0:r1, c0:c1] = True
+
+    def _born(self, at: np.ndarray, picks: np.ndarray, classes: np.ndarray, pose: Pose) -> np.ndarray:
+        """World centres of new false alarms in blocks ``at`` (uniform in the block; the track-bound
+        classes moved across the track to their blob's distance from the edge)."""
+        offsets = (self._rng.random((len(at), 2)) - 0.5) * self._block_m
+        born = _vehicle_to_world(self._block_centres[at] + offsets, pose)
+        moved = _PLACED_BY_EDGE[classes]
+        if moved.any():
+            born[moved] = self._place(born[moved], self._blobs[picks[moved], 2])
+        return born
+
+    def _same_kind_block(self, at: np.ndarray, classes: np.ndarray) -> np.ndarray:
+        """A random block of the same terrain class and distance bin as each of blocks ``at``."""
+        out = at.copy()
+        for i, block in enumerate(at.tolist()):
+            pool = np.flatnonzero((classes == classes[block]) & (self._block_bins == self._block_bins[block]))
+            out[i] = pool[int(self._rng.integers(pool.size))]
+        return out
+
+    def _blob_window(self, row: int, col: int, blob: int) -> tuple[tuple[int, int], tuple[int, int]]:
+        """The grid rows and columns a library blob centred on (row, col) covers."""
+        length, across, cells = (int(v) for v in self._blobs[blob, 3:])
+        width = max(1, min(across, math.ceil(cells / length)))
+        ra, ca = row - length // 2, col - width // 2
+        return (max(ra, 0), max(ra + length, 0)), (max(ca, 0), max(ca + width, 0))
+
+    def _forbidden(self, truths: list) -> np.ndarray:
+        """The cells a false alarm must not touch: the true obstacles' grown by ``match_cells``."""
+        full = np.zeros(self.grid.shape, dtype=bool)
+        for _, mask, rows, cols in truths:
+            full[rows, cols] |= mask
+        return ndimage.binary_dilation(full, iterations=self._match_cells) if self._match_cells else full
+
+    def _clear(self, born: np.ndarray, picks: np.ndarray, pose: Pose, forbidden: np.ndarray) -> np.ndarray:
+        """Whether each new false alarm's blob keeps off ``forbidden`` (one off the grid does)."""
+        local = world_to_vehicle_xy(born, (pose.x, pose.y), pose.yaw)
+        rows, cols, inside = self.grid.cell_of(local)
+        out = np.ones(len(born), dtype=bool)
+        for i in np.flatnonzero(inside):
+            (r0, r1), (c0, c1) = self._blob_window(int(rows[i]), int(cols[i]), int(picks[i]))
+            out[i] = not forbidden[r0:r1, c0:c1].any()
+        return out

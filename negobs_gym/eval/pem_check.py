@@ -27,6 +27,7 @@ exit non-zero. The thresholds are :class:`PemCheckConfig`'s.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import math
@@ -204,13 +205,13 @@ def _course_spread(
     highest rate and the 90 % interval of the pooled rate resampling whole courses (a cluster
     bootstrap: one course's frames share its clutter), and the interval of PEM / detector - 1."""
     key = f"false_alarms_per_km_{side}_track"
-    courses = sorted({r["episode"] for r in frames_by["detector"]})
+    courses = sorted({r["seed"] for r in frames_by["detector"]})  # a course's grids are episodes of its seed
     counts = np.zeros((len(MODES), len(courses)))
     km = np.zeros_like(counts)
     index = {c: i for i, c in enumerate(courses)}
     for j, m in enumerate(MODES):
         for r in frames_by[m]:
-            i = index.get(r["episode"])
+            i = index.get(r["seed"])
             if i is not None:
                 counts[j, i] += int(r[f"false_alarms_{side}"])
                 km[j, i] += float(r["travelled_m"]) / 1000.0
@@ -410,6 +411,23 @@ def check_pem(
     return result
 
 
+def _mode_options(
+    out_dir: Path, mode: str, model_path: str | Path | None, options: RunOptions | None
+) -> RunOptions | None:
+    """``options`` for one grid's closed-loop campaign in ``out_dir``: the PEM's resumes only the
+    episodes of the same model file (its digest is kept beside them), as its path may hold a refit."""
+    from negobs_gym.envs.pem import DEFAULT_PEM_PATH
+
+    if mode != "pem" or options is None or not options.resume:
+        return options
+    digest = hashlib.sha256(Path(model_path or DEFAULT_PEM_PATH).read_bytes()).hexdigest()
+    marker = out_dir / "pem_digest.txt"
+    same = marker.is_file() and marker.read_text(encoding="utf-8").strip() == digest
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(marker, digest + "\n")
+    return options if same else replace(options, resume=False)
+
+
 def grid_overrides(model_path: str | Path | None) -> dict[str, tuple[str, ...]]:
     """The ``--set`` assignments of each grid a closed loop compares: the detector's and the PEM
     ``model_path``'s (None: the shipped one), by mode."""
@@ -510,7 +528,9 @@ def check_braking(
 
     out = Path(out_dir)
     summaries = {
-        m: run_braking_campaign(campaign, out / f"braking_{m}", options).summaries
+        m: run_braking_campaign(
+            campaign, out / f"braking_{m}", _mode_options(out / f"braking_{m}", m, model_path, options)
+        ).summaries
         for m, campaign in config.campaign(model_path).items()
     }
     result = compare_braking(summaries, config)
@@ -604,7 +624,9 @@ def check_policy(
 
     out = Path(out_dir)
     summaries = {
-        m: run_policy_campaign(campaign, out / f"policy_{m}", options)[2]
+        m: run_policy_campaign(
+            campaign, out / f"policy_{m}", _mode_options(out / f"policy_{m}", m, model_path, options)
+        )[2]
         for m, campaign in config.campaigns(model_path).items()
     }
     result = compare_policy(summaries, config)

@@ -5,10 +5,13 @@ detection_course`: paper N's pit mix beside the wheel tracks, verge clutter, 10-
 P-controller on the centre line) with rocks and boxes added on the track beside the car's path
 (:attr:`PemCampaignConfig.track_obstacles_per_100m`). Every 10 Hz frame the env's
 :class:`~negobs_gym.envs.perception.DetectorGrid` (the observation settings the PEM is for)
-observes, and, when a PEM is given, a :class:`~negobs_gym.envs.pem.PemGrid` per channel beside it
-on the same true poses. Each grid's ``negative`` layer is judged against the true pits rasterised
-on the same grid, its ``positive`` layer (paper T's LUX obstacles) against the positive obstacles'
-footprints, into one set of tables per channel (the ``positive`` ones prefixed ``positive_``):
+observes; when a PEM is given, a second episode per seed drives the same course again (the same
+true poses: the vehicle's generator is its own) with a :class:`~negobs_gym.envs.pem.PemGrid` per
+channel instead, so a check of a new model after ``--resume`` keeps the detector's drives and
+reruns only the PEM's (its episodes are keyed by the model's digest). Each grid's ``negative``
+layer is judged against the true pits rasterised on the same grid, its ``positive`` layer (paper
+T's LUX obstacles) against the positive obstacles' footprints, into one set of tables per channel
+(the ``positive`` ones prefixed ``positive_``):
 
 - ``sightings``: per frame, grid and obstacle on the grid, whether it is drawn (a connected blob
   of the layer shares a cell with it, or for ``positive`` with it grown by
@@ -30,6 +33,7 @@ kill, ``--workers``/``--ray``, byte-identical CSVs).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -233,14 +237,25 @@ class PemCampaignConfig:
 
 
 def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> list[Episode]:
-    """One episode per seed; the PEM (its JSON text) rides along so a resume checks it too."""
-    pem = model.to_json() if model is not None else None
-    return [
+    """Per seed a detector episode, and with ``model`` a PEM episode keyed by the model's digest
+    (its JSON text rides along, so a resume checks it too)."""
+    out = [
         Episode(
-            f"seed{seed:07d}", {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": pem}
+            f"seed{seed:07d}", {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": None}
         )
         for i, seed in enumerate(config.seed_list)
     ]
+    if model is not None:
+        text = model.to_json()
+        digest = hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
+        out += [
+            Episode(
+                f"seed{seed:07d}-pem-{digest}",
+                {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": text},
+            )
+            for i, seed in enumerate(config.seed_list)
+        ]
+    return out
 
 
 @dataclass
@@ -353,7 +368,8 @@ class _Frame:
 
 
 def run_episode(episode: Episode) -> Rows:
-    """Drive one course; its ``sightings``, ``spurious`` and ``frames`` rows (module docstring)."""
+    """Drive one course through the detector grid, or with a PEM (``pem`` given) through its grids;
+    its ``sightings``, ``spurious`` and ``frames`` rows (module docstring)."""
     from negobs_gym.envs.perception import DetectorGrid
     from negobs_gym.sim.vehicle import Vehicle
     from negobs_gym.sim.world import World
@@ -386,13 +402,15 @@ def run_episode(episode: Episode) -> Rows:
     width = terrain.track.width_m
     bins = len(DISTANCE_EDGES_M) - 1
     dist_bin = np.clip(np.digitize(range_m, DISTANCE_EDGES_M) - 1, 0, bins - 1).ravel()
-    modes = MODES if model is not None else MODES[:1]
+    modes = ("pem",) if model is not None else ("detector",)
     match = {"negative": 0, "positive": cfg.positive_match_cells}
     judges = {(c, m): _Judge(m, c, match[c]) for c in PEM_CHANNELS for m in modes}
     rows: Rows = {name: [] for tables in CHANNEL_TABLES.values() for name in tables.values()}
     with World(terrain) as world:
         vehicle = Vehicle(world, rng=np.random.default_rng([seed, 3]))
-        detector = DetectorGrid(observation, world, vehicle, np.random.default_rng([seed, 5]))
+        detector = None
+        if model is None:
+            detector = DetectorGrid(observation, world, vehicle, np.random.default_rng([seed, 5]))
         pems = {}
         if model is not None:
             pem_rng = np.random.default_rng([seed, 6])
@@ -411,8 +429,10 @@ def run_episode(episode: Episode) -> Rows:
             vehicle.set_speed(speed)
             world.step(steps)
             pose = vehicle.true_pose()
-            observed = detector.observe(world.sim_time_s)
-            layers = {(c, "detector"): observed[c] for c in PEM_CHANNELS}
+            layers = {}
+            if detector is not None:
+                observed = detector.observe(world.sim_time_s)
+                layers = {(c, "detector"): observed[c] for c in PEM_CHANNELS}
             for c, pem in pems.items():
                 layers[(c, "pem")] = pem.layer(pose)
             travelled = math.hypot(pose.x - last.x, pose.y - last.y)

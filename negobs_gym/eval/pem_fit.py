@@ -8,18 +8,22 @@ its rows (:func:`fit_parameters`, from the CSVs alone, the same for both channel
   came onto the grid from beyond the detector's reach were first drawn (a pit passed undrawn counts as
   never), and of the frames the pits first seen within reach took to be drawn (the fusion's
   latency at an episode's start);
-- after that, per state (drawn the frame before, drawn earlier), size bin and 2 m distance bin,
+- for the positive channel, the loss: quantiles per size bin of the distance at which an
+  obstacle passed on its approach was last drawn (the LUX's layers pass over it there);
+- after the first drawing (and up to the loss), per state (drawn the frame before, drawn
+  earlier), size bin and 2 m distance bin,
   the share of sightings drawn, shrunk toward the distance bin's share over all sizes by
   :data:`PRIOR_SIGHTINGS` pseudo-sightings (that toward the bin's recall over all states, that
   toward the state's share), so a bin seen a few times keeps its neighbours' value;
 - the near- and far-edge offsets: quantiles per distance bin of the drawn sightings (all of a
   bin's sightings pooled over sizes; a bin with fewer than :data:`MIN_OFFSETS` takes all bins');
 - false alarms: spurious blobs per frame per m² of each terrain class (track, verge, bank,
-  drop-off, smooth and rough ground, clutter, mound) and distance bin, a bin's rate shrunk
-  toward its class's by :data:`PRIOR_AREA_M2` of pseudo-area; the share of them seen the frame before (their
-  persistence), and up to :data:`MAX_BLOBS` of them (their distance from the track edge, box and
-  cells) for new ones to copy. A class the drives never showed takes the rates of the first class of
-  its :func:`~negobs_gym.envs.pem.fallback_chain` they did (its ``fa_area_m2`` stays 0).
+  drop-off, smooth and rough ground, clutter, mound) and distance bin, a bin's rate shrunk toward
+  its class's by :data:`PRIOR_AREA_M2` of pseudo-area; the share of them seen the frame before
+  (their persistence, per class and distance bin: paper T's LUX keeps none within 8 m), and up to
+  :data:`MAX_BLOBS` of them (their distance from the track edge, box and cells) for new ones to
+  copy. A class the drives never showed takes the rates of the first class of its
+  :func:`~negobs_gym.envs.pem.fallback_chain` they did (its ``fa_area_m2`` stays 0).
 """
 
 from __future__ import annotations
@@ -87,6 +91,11 @@ def _float(text: str) -> float:
     return float(text)
 
 
+def _bin(value: float, edges: np.ndarray) -> int:
+    """Bin index of ``value`` (below the first edge: 0, beyond the last: the last bin)."""
+    return int(np.clip(np.digitize(value, edges) - 1, 0, len(edges) - 2))
+
+
 def _pits(rows: list[dict[str, str]]) -> dict[tuple[str, str], list[dict[str, str]]]:
     """Each pit's sightings (by course and obstacle), in frame order."""
     out: dict[tuple[str, str], list[dict[str, str]]] = {}
@@ -95,23 +104,38 @@ def _pits(rows: list[dict[str, str]]) -> dict[tuple[str, str], list[dict[str, st
     return out
 
 
+def _approach(rows: list[dict[str, str]]) -> int:
+    """Index of an obstacle's nearest sighting: the frames up to it are its approach."""
+    return int(np.argmin([float(r["centre_m"]) for r in rows]))
+
+
+def _last_drawn(rows: list[dict[str, str]]) -> int | None:
+    """Index of an obstacle's last drawing on its approach (None: never drawn on it)."""
+    hits = [i for i, r in enumerate(rows[: _approach(rows) + 1]) if r["detected"] == "1"]
+    return hits[-1] if hits else None
+
+
 def _chain(
-    pits: dict, s_edges: np.ndarray, d_edges: np.ndarray
+    pits: dict, s_edges: np.ndarray, d_edges: np.ndarray, until_lost: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(2, S, D) drawn and seen counts after a pit's first drawing, by state (drawn the frame
     before, drawn earlier), size and distance; and all sightings and the drawn ones per (size,
-    distance)."""
+    distance). ``until_lost``: the chain's counts stop at the last drawing on the approach (the
+    loss distance models what follows)."""
     ns, nd = len(s_edges) - 1, len(d_edges) - 1
     seen, drawn, every = np.zeros((2, ns, nd)), np.zeros((2, ns, nd)), np.zeros((ns, nd))
     every_drawn = np.zeros((ns, nd))
     for rows in pits.values():
         state = None  # before the first drawing
-        for r in rows:
+        last = _last_drawn(rows) if until_lost else len(rows) - 1
+        for i, r in enumerate(rows):
             s = int(np.clip(np.digitize(float(r["cells"]), s_edges) - 1, 0, ns - 1))
             d = int(np.clip(np.digitize(float(r["centre_m"]), d_edges) - 1, 0, nd - 1))
             hit = r["detected"] == "1"
             every[s, d] += 1
             every_drawn[s, d] += hit
+            if last is None or i > last:
+                continue
             if state is not None:
                 seen[state, s, d] += 1
                 drawn[state, s, d] += hit
@@ -120,6 +144,23 @@ def _chain(
             elif state is not None:
                 state = 1
     return seen, drawn, every, every_drawn
+
+
+def _losses(pits: dict, s_edges: np.ndarray) -> list[list[float]]:
+    """Per size bin (a pit's most cells on the grid), the loss distances of the obstacles that
+    came from beyond :data:`APPROACH_M`, were drawn on their approach and passed within
+    :data:`PASSED_M`: the midpoint of the centre distances of the last drawing and the frame after."""
+    ns = len(s_edges) - 1
+    out: list[list[float]] = [[] for _ in range(ns)]
+    for rows in pits.values():
+        centre = [float(r["centre_m"]) for r in rows]
+        nearest, last = _approach(rows), _last_drawn(rows)
+        if centre[0] < APPROACH_M or centre[nearest] > PASSED_M or last is None:
+            continue
+        cells = max(int(r["cells"]) for r in rows)
+        s = int(np.clip(np.digitize(cells, s_edges) - 1, 0, ns - 1))
+        out[s].append(0.5 * (centre[last] + centre[min(last + 1, nearest)]))
+    return out
 
 
 def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], list[float]]:
@@ -173,6 +214,8 @@ def fit_parameters(
     clutter_band_m: float,
     rough_relief_m: float,
     confirm_by_size: bool = False,
+    loss_by_distance: bool = False,
+    match_cells: int = 0,
 ) -> PemParameters:
     """The PEM's tables from the detector rows of a drive (:mod:`negobs_gym.eval.pem_data`).
 
@@ -180,6 +223,11 @@ def fit_parameters(
     :data:`MIN_CONFIRMATIONS`, else pooled): the positive obstacles, whole on the grid from far
     out, are found at distances that depend on their kind (a box's face ~12 m out, a rock's ~10 m).
     Pooled (default) for the pits, a far one shows part of its rim.
+
+    ``loss_by_distance``: loss distances per size bin (as the first confirmations), and the chain
+    fitted up to each obstacle's last drawing on its approach: the LUX loses an obstacle for good
+    where its layers pass over it. ``match_cells``: the judge's (the fit's rows counted a blob
+    within that many cells of an obstacle as drawing it).
 
     Raises:
         ConfigError: the rows hold no frame of the detector.
@@ -192,7 +240,7 @@ def fit_parameters(
     d_edges, s_edges = np.asarray(DISTANCE_EDGES_M), np.asarray(SIZE_EDGES_CELLS)
     nd, levels = len(d_edges) - 1, np.asarray(QUANTILE_LEVELS)
     pits = _pits(sightings)
-    seen, drawn, every, every_drawn = _chain(pits, s_edges, d_edges)
+    seen, drawn, every, every_drawn = _chain(pits, s_edges, d_edges, until_lost=loss_by_distance)
     p_keep, p_return = _shrunk(seen, drawn, every, every_drawn)
     by_size, latencies = _confirmations(pits, s_edges)
     # pooled over sizes: the rows hold the cells in view, and a pit far out shows part of its rim,
@@ -205,6 +253,16 @@ def fit_parameters(
         for v in by_size
     ]
     latency = _quantiles(np.asarray(latencies), levels)
+    loss: list[list[float]] = []
+    if loss_by_distance:
+        losses = _losses(pits, s_edges)
+        pooled_loss = np.concatenate([np.asarray(v) for v in losses])
+        loss = [
+            _quantiles(np.asarray(v), levels)
+            if len(v) >= MIN_CONFIRMATIONS
+            else _quantiles(pooled_loss, levels)
+            for v in losses
+        ]
 
     hits = [r for r in sightings if r["detected"] == "1"]
     d_hit = np.clip(np.digitize([float(r["centre_m"]) for r in hits], d_edges) - 1, 0, nd - 1)
@@ -227,16 +285,24 @@ def fit_parameters(
         counts[klass[r["terrain_class"]], d] += 1
     class_rate = counts.sum(axis=1) / np.maximum(area.sum(axis=1), 1e-9)
     density = (counts + PRIOR_AREA_M2 * class_rate[:, None]) / (area + PRIOR_AREA_M2)
-    # persistence: blobs seen again / blobs of the frame before (per class, frames in a row only)
-    frames_of = {(r["episode"], int(r["frame"])) for r in frames}
-    before = np.zeros(nc)
-    again = np.zeros(nc)
+    # persistence per class and distance bin where a blob would be the next frame (its distance
+    # less the car's advance): the blobs seen again there / those of the frame before headed
+    # there (frames in a row only), shrunk toward the class's share by PRIOR_SIGHTINGS blobs
+    travelled = {(r["episode"], int(r["frame"])): float(r["travelled_m"]) for r in frames}
+    before, again = np.zeros((nc, nd)), np.zeros((nc, nd))
     for r in spurious:
-        c = klass[r["terrain_class"]]
-        if (r["episode"], int(r["frame"]) + 1) in frames_of:
-            before[c] += 1
-        again[c] += r["seen_before"] == "1"
-    keep = np.clip(np.where(before > 0, again / np.maximum(before, 1), 0.0), 0.0, MAX_FA_KEEP)
+        c, ahead = klass[r["terrain_class"]], travelled.get((r["episode"], int(r["frame"]) + 1))
+        if ahead is not None:
+            before[c, _bin(float(r["distance_m"]) - ahead, d_edges)] += 1
+        again[c, _bin(float(r["distance_m"]), d_edges)] += r["seen_before"] == "1"
+    by_class = np.where(before.sum(axis=1) > 0, again.sum(axis=1) / np.maximum(before.sum(axis=1), 1), 0.0)
+    keep = (again + PRIOR_SIGHTINGS * by_class[:, None]) / (before + PRIOR_SIGHTINGS)
+    keep = np.clip(keep, 0.0, MAX_FA_KEEP)
+    # a kept blob moves one bin nearer as the car advances: no more may be kept into a bin than
+    # its rate holds (paper T's LUX draws none within 8 m; a rare one headed there says little)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.where(density[:, 1:] > 0, density[:, :-1] / density[:, 1:], 1.0)
+    keep[:, :-1] = np.minimum(keep[:, :-1], cap)
     for name in TERRAIN_CLASSES:  # a class never driven: the rates of the first in its chain that was
         c = klass[name]
         donors = [klass[f] for f in fallback_chain(name) if area[klass[f]].sum() > 0]
@@ -255,6 +321,8 @@ def fit_parameters(
         quantile_levels=QUANTILE_LEVELS,
         confirm_distance_m=_table(np.asarray(confirm)),
         confirm_latency_frames=tuple(round(float(v), 6) for v in latency),
+        approach_m=APPROACH_M,
+        loss_distance_m=_table(np.asarray(loss)) if loss else (),
         p_keep=_table(p_keep),
         p_return=_table(p_return),
         sightings=tuple(tuple(int(v) for v in row) for row in every),
@@ -262,11 +330,12 @@ def fit_parameters(
         far_offset_m=_table(np.asarray(far)),
         fa_density_per_m2=_table(density),
         fa_area_m2=tuple(round(float(a), 3) for a in area.sum(axis=1)),
-        fa_keep=tuple(float(k) for k in keep),
+        fa_keep=_table(keep),
         fa_blobs=tuple(tuple(float(v) for v in blob) for blob in blobs),
         border_band_m=float(border_band_m),
         clutter_band_m=float(clutter_band_m),
         rough_relief_m=float(rough_relief_m),
+        match_cells=int(match_cells),
     )
 
 
@@ -292,6 +361,8 @@ def fit_pem(
             config.clutter_band_m,
             config.rough_relief_m,
             confirm_by_size=channel == "positive",
+            loss_by_distance=channel == "positive",
+            match_cells=config.positive_match_cells if channel == "positive" else 0,
         )
         for channel, tables in CHANNEL_TABLES.items()
     }

@@ -143,9 +143,9 @@ def test_a_never_drawn_share_is_not_smeared_into_near_first_drawings():
     terrain = generate_terrain(TerrainConfig(length_m=40.0, negative_obstacles=(pit,)), 0)
     grid = ObservationConfig().grid
     base = constant_model(1.0)
-    model = dataclasses.replace(
-        base, parameters=dataclasses.replace(base.parameters, confirm_distance_m=((-1.0, 9.0),))
-    )
+    # the pit comes onto the grid ~21 m out: beyond approach_m, so its first drawing is by distance
+    confirm = dataclasses.replace(base.parameters, confirm_distance_m=((-1.0, 9.0),), approach_m=15.0)
+    model = dataclasses.replace(base, parameters=confirm)
     firsts = []
     for seed in range(30):
         pem = PemGrid(model, grid, terrain, np.random.default_rng(seed))
@@ -162,3 +162,110 @@ def test_a_never_drawn_share_is_not_smeared_into_near_first_drawings():
     drawn = [f for f in firsts if f is not None]
     assert 0 < len(drawn) < len(firsts)  # both outcomes occur
     assert all(8.4 <= f <= 9.0 for f in drawn), drawn
+
+
+def _drive(model, terrain, channel, stations, seed=0, obstacle=0):
+    """The PEM's layers along the centre line at ``stations`` [m], with the truth of the channel's
+    ``obstacle`` (the rock of :func:`terrain`'s positive ones)."""
+    from negobs_gym.envs.pem import channel_outlines, outline_boxes, rasterise_outlines
+
+    grid = ObservationConfig().grid
+    pem = PemGrid(model, grid, terrain, np.random.default_rng(seed), channel=channel)
+    outlines = channel_outlines(terrain, channel)[obstacle : obstacle + 1]
+    out = []
+    for station in stations:
+        xy, yaw = terrain.track.pose_at(np.array(station), np.array(0.0))
+        pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
+        truth = np.zeros(grid.shape, dtype=bool)
+        for _, mask, rows, cols in rasterise_outlines(outlines, pose, grid, outline_boxes(outlines)):
+            truth[rows, cols] |= mask
+        out.append((pem.layer(pose), truth))
+    return out
+
+
+def test_an_obstacle_nearer_than_its_loss_distance_is_never_drawn_again(terrain):
+    """Loss distance 6 m on the positive channel: the rock (15 m down the track) is drawn on the
+    approach until it is 6 m away, then never, though the chain would keep it (p = 1)."""
+    base = constant_model(1.0, positive=1.0)
+    lossy = dataclasses.replace(base.positive, loss_distance_m=((6.0, 6.0),))
+    model = dataclasses.replace(base, positive=lossy)
+    stations = np.arange(0.0, 14.0, 0.5)
+    frames = _drive(model, terrain, "positive", stations)
+    distance = np.hypot(ROCK_STATION_M - stations, ROCK_LATERAL_M)
+    drawn = np.array([(layer & truth).any() for layer, truth in frames])
+    seen = np.array([truth.any() for _, truth in frames])
+    assert drawn[seen & (distance > 6.3)].all()
+    assert not drawn[distance < 5.7].any()
+    plain = _drive(base, terrain, "positive", stations)  # without a loss table: drawn to the end
+    assert all((layer & truth).any() for layer, truth in plain if truth.any())
+
+
+def test_an_obstacle_first_seen_within_reach_waits_its_latency_and_its_loss_holds(terrain):
+    """The episode starts ~11 m from the rock (within approach_m): it is drawn after the latency
+    (3 frames); a "never" confirmation holds, and so does a loss distance beyond where it stands
+    (the LUX's layers already pass over it; one coming from afar would be drawn once)."""
+    base = constant_model(1.0, positive=1.0)
+    params = dataclasses.replace(base.positive, confirm_latency_frames=(3.0, 3.0))
+    stations = np.full(6, 5.0)
+    frames = _drive(dataclasses.replace(base, positive=params), terrain, "positive", stations)
+    assert [bool((layer & truth).any()) for layer, truth in frames] == [False] * 3 + [True] * 3
+    for changed in ({"confirm_distance_m": ((-1.0, -1.0),)}, {"loss_distance_m": ((12.0, 12.0),)}):
+        model = dataclasses.replace(base, positive=dataclasses.replace(params, **changed))
+        assert not any((layer & truth).any() for layer, truth in _drive(model, terrain, "positive", stations))
+
+
+def test_false_alarms_keep_clear_of_the_obstacles_by_the_fits_match_cells(terrain):
+    """Clutter false alarms dense around the rock, the rock itself never drawn: none of them lands
+    within match_cells (2) of the rock's cells, where the judge would count it as the rock drawn."""
+    base = constant_model(0.0, positive=0.0)
+    density = np.zeros((len(TERRAIN_CLASSES), 2))
+    density[TERRAIN_CLASSES.index("clutter")] = 2.0
+    blob = (float(TERRAIN_CLASSES.index("clutter")), 0.0, 1.0, 1.0, 1.0, 1.0)
+    dense = dataclasses.replace(base.positive, fa_density_per_m2=tuple(map(tuple, density)), fa_blobs=(blob,))
+    for cells, touching in ((2, False), (0, True)):
+        model = dataclasses.replace(base, positive=dataclasses.replace(dense, match_cells=cells))
+        frames = _drive(model, terrain, "positive", np.arange(5.0, 9.0, 0.5))
+        from scipy import ndimage
+
+        near = [layer & ndimage.binary_dilation(truth, iterations=2) for layer, truth in frames]
+        assert sum(layer.sum() for layer, _ in frames) > 0
+        assert any(n.any() for n in near) == touching
+
+
+def test_an_obstacle_is_sized_by_its_whole_outline_in_cells_without_float_error():
+    """A box's 1 x 1 m footprint is 25 cells (the fit's rasterised count), not 24.999...: with the
+    tables' sizes split at 25 cells, it takes the row of 25 and up (drawn), not the one below (never)."""
+    box = PositiveObstacleSpec(kind="box", station_m=15.0, lateral_m=2.0)
+    terrain = generate_terrain(TerrainConfig(length_m=30.0, positive_obstacles=(box,)), 0)
+    base = constant_model(1.0, positive=1.0)
+    split = dataclasses.replace(
+        base.positive,
+        size_edges_cells=(0.0, 25.0, 10_000.0),
+        confirm_distance_m=((-1.0, -1.0), (100.0, 100.0)),
+        p_keep=((1.0, 1.0), (1.0, 1.0)),
+        p_return=((1.0, 1.0), (1.0, 1.0)),
+        sightings=((1, 1), (1, 1)),
+    )
+    frames = _drive(dataclasses.replace(base, positive=split), terrain, "positive", np.arange(0.0, 8.0, 0.5))
+    assert frames[0][1].sum() == 25
+    assert all((layer & truth).any() for layer, truth in frames)
+
+
+def test_ground_coming_into_view_starts_with_the_mean_false_alarm_population(terrain):
+    """0.02 false alarms per m² on every class, each surviving a frame with p 0.9: the band the
+    car's advance (0.5 m a frame) brings into view holds the mean from its first frame on (with
+    births at 1 - 0.9 of it alone, the 2 m band at the grid's far edge would hold a quarter)."""
+    base = constant_model(0.0)
+    density = tuple((0.02, 0.02) for _ in TERRAIN_CLASSES)
+    params = dataclasses.replace(
+        base.parameters, fa_density_per_m2=density, fa_keep=((0.9, 0.9),) * len(TERRAIN_CLASSES)
+    )
+    model = dataclasses.replace(base, parameters=params)
+    grid = ObservationConfig().grid
+    band = slice(grid.rows - round(2.0 / grid.cell_m), grid.rows)  # the far 2 m, across the grid
+    counts = []
+    for seed in range(4):
+        frames = _drive(model, terrain, "negative", np.arange(0.0, 4.0, 0.5), seed=seed)
+        counts += [layer[band].sum() / 4.0 for layer, _ in frames[1:]]  # 2 x 2-cell blobs
+    expected = 0.02 * 2.0 * (2 * grid.side_m)
+    assert np.mean(counts) == pytest.approx(expected, rel=0.35)

@@ -30,6 +30,8 @@ def constant_parameters(p: float, near: float = 0.0, far: float = 0.0, density: 
         quantile_levels=levels,
         confirm_distance_m=((confirm, confirm),),
         confirm_latency_frames=(0.0, 0.0),
+        approach_m=22.0,
+        loss_distance_m=(),
         p_keep=((p, p),),
         p_return=((p, p),),
         sightings=((1, 1),),
@@ -37,11 +39,12 @@ def constant_parameters(p: float, near: float = 0.0, far: float = 0.0, density: 
         far_offset_m=((far, far), (far, far)),
         fa_density_per_m2=tuple((density, density) for _ in TERRAIN_CLASSES),
         fa_area_m2=tuple(1.0 for _ in TERRAIN_CLASSES),
-        fa_keep=tuple(0.5 for _ in TERRAIN_CLASSES),
+        fa_keep=tuple((0.5, 0.5) for _ in TERRAIN_CLASSES),
         fa_blobs=((1.0, 0.0, 0.5, 2.0, 2.0, 4.0),),
         border_band_m=1.0,
         clutter_band_m=2.0,
         rough_relief_m=0.2,
+        match_cells=0,
     )
 
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from negobs_gym.cli import main
 from negobs_gym.envs.pem import TERRAIN_CLASSES, load_pem
 from negobs_gym.errors import ConfigError
-from negobs_gym.eval.campaign import format_row
+from negobs_gym.eval.campaign import RunOptions, format_row, read_csv
 from negobs_gym.eval.pem_check import PemCheckConfig, check_pem, compare
 from negobs_gym.eval.pem_data import (
     AREA_COLUMNS,
@@ -65,7 +67,7 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     # 200 blobs in 200 frames over 100 m² of the verge class at 8-10 m: 0.01 per frame per m²
     assert params.fa_density_per_m2[1][4] == pytest.approx(0.01, rel=0.01)
     assert params.fa_density_per_m2[0][4] == 0.0
-    assert params.fa_keep[1] == pytest.approx(0.75, abs=0.01)
+    assert params.fa_keep[1][4] == pytest.approx(0.75, abs=0.02)  # kept 3 frames in 4 at 8-10 m
     assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
 
 
@@ -122,7 +124,9 @@ def test_false_alarm_rates_are_fitted_per_terrain_class_and_unseen_classes_borro
     assert params.fa_area_m2[k["bank"]] == 0.0 and params.fa_area_m2[k["clutter"]] == pytest.approx(
         4.0 * 14 * 300
     )
-    assert params.fa_keep[k["clutter"]] > 0.0 and params.fa_keep[k["bank"]] == params.fa_keep[k["smooth"]]
+    assert (
+        max(params.fa_keep[k["clutter"]]) > 0.0 and params.fa_keep[k["bank"]] == params.fa_keep[k["smooth"]]
+    )
     assert params.clutter_band_m == 2.0 and params.rough_relief_m == 0.2
     assert {blob[0] for blob in params.fa_blobs} == {k["smooth"], k["clutter"]}
 
@@ -196,6 +200,23 @@ def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
     written = {p.name for p in out.iterdir()}
     assert {"tables.md", "summary.json", "pem_check.png", "sightings.csv"} <= written
     assert {"pem_check_positive.png", "positive_sightings.csv", "positive_frames.csv"} <= written
+    # the PEM's drive is its own episode on the detector's true poses
+    frames = read_csv(out / "frames.csv")
+    travelled = {m: [r["travelled_m"] for r in frames if r["mode"] == m] for m in ("detector", "pem")}
+    assert travelled["detector"] == travelled["pem"] and len(travelled["pem"]) == 6
+    # a check of another model resumed into the same folder keeps the detector's drive
+    parts = out / "parts"
+    detector_part = parts / "seed0000500.json"
+    kept = detector_part.stat().st_mtime_ns
+    other = dataclasses.replace(model, positive=dataclasses.replace(model.positive, match_cells=0))
+    check_pem(
+        other,
+        PemCampaignConfig(seeds=1, frames=6, first_seed=500),
+        out,
+        options=RunOptions(resume=True, progress=False),
+    )
+    assert detector_part.stat().st_mtime_ns == kept
+    assert len(list(parts.glob("seed0000500-pem-*.json"))) == 2
 
 
 def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
@@ -212,3 +233,19 @@ def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
     assert PemCampaignConfig(track_obstacles_per_100m=0.0).track_obstacles(3, 200.0, ()) == []
     with pytest.raises(ConfigError, match="track_obstacle_lateral_m"):
         PemCampaignConfig(track_obstacle_lateral_m=(2.0, 1.0))
+
+
+def test_no_more_false_alarms_are_kept_into_a_bin_than_its_rate_holds(tmp_path):
+    """A blob at 8.5 m every frame, always seen the frame before, none nearer: at 1 m a frame the
+    survivors head into the 6-8 m bin, which holds none, so nothing is kept into it (the LUX's
+    alarms end at ~8 m), while the 8-10 m bin keeps them."""
+    frames = [_frame("detector", f, area=100.0) for f in range(200)]
+    spurious = [
+        format_row(["seed0", 0, f, "detector", "verge", 0.3, 8.5, 6, 3, 2, False, True, "", 0.0, 8.5])
+        for f in range(200)
+    ]
+    sightings = [_sighting("detector", f, 0, 24.0 - 0.5 * f, f > 4) for f in range(20)]
+    params = _fit(tmp_path, sightings, spurious, frames)
+    verge = TERRAIN_CLASSES.index("verge")
+    assert params.fa_keep[verge][3] < 0.01  # 6-8 m
+    assert params.fa_density_per_m2[verge][4] == pytest.approx(0.01, rel=0.01)
