@@ -27,7 +27,6 @@ exit non-zero. The thresholds are :class:`PemCheckConfig`'s.
 
 from __future__ import annotations
 
-import hashlib
 import itertools
 import json
 import math
@@ -41,7 +40,7 @@ from negobs_gym.core.files import write_text_atomic
 from negobs_gym.envs.pem import PerceptionErrorModel
 from negobs_gym.errors import ConfigError, require
 from negobs_gym.eval.campaign import RunOptions, read_csv
-from negobs_gym.eval.pem_data import CHANNEL_TABLES, MODES, PemCampaignConfig, run_pem_campaign
+from negobs_gym.eval.pem_data import CHANNEL_TABLES, MODES, PemCampaignConfig, pem_digest, run_pem_campaign
 
 __all__ = [
     "BrakingCheckConfig",
@@ -415,12 +414,13 @@ def _mode_options(
     out_dir: Path, mode: str, model_path: str | Path | None, options: RunOptions | None
 ) -> RunOptions | None:
     """``options`` for one grid's closed-loop campaign in ``out_dir``: the PEM's resumes only the
-    episodes of the same model file (its digest is kept beside them), as its path may hold a refit."""
+    episodes of the same model file and PEM code (:func:`~negobs_gym.eval.pem_data.pem_digest`, kept
+    beside them), as its path may hold a refit."""
     from negobs_gym.envs.pem import DEFAULT_PEM_PATH
 
     if mode != "pem" or options is None or not options.resume:
         return options
-    digest = hashlib.sha256(Path(model_path or DEFAULT_PEM_PATH).read_bytes()).hexdigest()
+    digest = pem_digest(Path(model_path or DEFAULT_PEM_PATH).read_text(encoding="utf-8"))
     marker = out_dir / "pem_digest.txt"
     same = marker.is_file() and marker.read_text(encoding="utf-8").strip() == digest
     out_dir.mkdir(parents=True, exist_ok=True)

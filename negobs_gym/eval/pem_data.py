@@ -8,7 +8,7 @@ P-controller on the centre line) with rocks and boxes added on the track beside 
 observes; when a PEM is given, a second episode per seed drives the same course again (the same
 true poses: the vehicle's generator is its own) with a :class:`~negobs_gym.envs.pem.PemGrid` per
 channel instead, so a check of a new model after ``--resume`` keeps the detector's drives and
-reruns only the PEM's (its episodes are keyed by the model's digest). Each grid's ``negative``
+reruns only the PEM's (keyed by the model's and the PEM code's digest). Each grid's ``negative``
 layer is judged against the true pits rasterised on the same grid, its ``positive`` layer (paper
 T's LUX obstacles) against the positive obstacles' footprints, into one set of tables per channel
 (the ``positive`` ones prefixed ``positive_``):
@@ -67,6 +67,7 @@ __all__ = [
     "SIGHTING_COLUMNS",
     "SPURIOUS_COLUMNS",
     "PemCampaignConfig",
+    "pem_digest",
     "run_pem_campaign",
 ]
 
@@ -236,9 +237,21 @@ class PemCampaignConfig:
         return out
 
 
+def pem_digest(model_text: str) -> str:
+    """SHA-256 of a PEM file's text and of the code that draws and judges its grids
+    (:mod:`negobs_gym.envs.pem`, this module): a resumed check reruns the PEM's drives after either
+    changes, and keeps the detector's."""
+    from negobs_gym.envs import pem
+
+    digest = hashlib.sha256(model_text.encode("utf-8"))
+    for module in (pem.__file__, __file__):
+        digest.update(Path(module).read_bytes())
+    return digest.hexdigest()
+
+
 def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> list[Episode]:
-    """Per seed a detector episode, and with ``model`` a PEM episode keyed by the model's digest
-    (its JSON text rides along, so a resume checks it too)."""
+    """Per seed a detector episode, and with ``model`` a PEM episode keyed by :func:`pem_digest`
+    (the model's JSON text rides along, so a resume checks it too)."""
     out = [
         Episode(
             f"seed{seed:07d}", {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": None}
@@ -247,7 +260,7 @@ def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> l
     ]
     if model is not None:
         text = model.to_json()
-        digest = hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
+        digest = pem_digest(text)[:12]
         out += [
             Episode(
                 f"seed{seed:07d}-pem-{digest}",

@@ -249,3 +249,16 @@ def test_no_more_false_alarms_are_kept_into_a_bin_than_its_rate_holds(tmp_path):
     verge = TERRAIN_CLASSES.index("verge")
     assert params.fa_keep[verge][3] < 0.01  # 6-8 m
     assert params.fa_density_per_m2[verge][4] == pytest.approx(0.01, rel=0.01)
+
+
+def test_the_pem_episodes_key_names_the_model_and_the_pem_code(monkeypatch, tmp_path):
+    """A resumed check reruns the PEM's drives after a refit or a change of the PEM's code."""
+    from negobs_gym.envs import pem
+    from negobs_gym.eval.pem_data import pem_digest
+
+    assert pem_digest("model a") == pem_digest("model a") != pem_digest("model b")
+    other = tmp_path / "pem.py"
+    other.write_text("# another version of the PEM's code\n")
+    before = pem_digest("model a")
+    monkeypatch.setattr(pem, "__file__", str(other))
+    assert pem_digest("model a") != before
