@@ -68,6 +68,7 @@ __all__ = [
     "PemGrid",
     "PemParameters",
     "PerceptionErrorModel",
+    "bin_index",
     "class_raster",
     "clutter_distance_m",
     "fallback_chain",
@@ -663,7 +664,7 @@ def _polygon_area(xy: np.ndarray) -> float:
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
-def _bin(value: float | np.ndarray, edges: np.ndarray) -> Any:
+def bin_index(value: float | np.ndarray, edges: np.ndarray) -> Any:
     """Bin index of ``value``: below the first edge -> 0, beyond the last -> the last bin."""
     return np.clip(np.digitize(value, edges) - 1, 0, len(edges) - 2)
 
@@ -722,7 +723,7 @@ class PemGrid:
         blocks = centres[:rows, :cols].reshape(rows // b, b, cols // b, b, 2).mean(axis=(1, 3))
         self._block_centres = blocks.reshape(-1, 2)
         self._block_m = b * grid.cell_m
-        self._block_bins = _bin(np.hypot(*self._block_centres.T), self._d_edges)
+        self._block_bins = bin_index(np.hypot(*self._block_centres.T), self._d_edges)
         self._outlines = channel_outlines(terrain, channel)
         self._boxes = outline_boxes(self._outlines)
         # rounded: a 1 x 1 m box's 24.999999999999996 cells must size it as the fit's 25 rasterised ones
@@ -748,11 +749,10 @@ class PemGrid:
         for k, mask, rows, cols in truths:
             cells = int(mask.sum())
             centre = pit_centre_distance_m(self.grid, mask, rows, cols)
-            s, d = int(_bin(cells, self._s_edges)), int(_bin(centre, self._d_edges))
+            s, d = int(bin_index(cells, self._s_edges)), int(bin_index(centre, self._d_edges))
             if np.isnan(self._confirm_at[k]):
                 self._first_sighting(k, centre)
-            lost = centre < self._lost_at[k] and (self._state[k] != NEVER or self._near_first[k])
-            if lost and self._state[k] != GONE:
+            if centre < self._lost_at[k] and (self._state[k] != NEVER or self._near_first[k]):
                 self._state[k] = GONE
             if self._state[k] == GONE:
                 continue
@@ -777,7 +777,7 @@ class PemGrid:
         confirmations are lost within a frame or two), and for one first seen within
         ``approach_m`` from the start (one already nearer than its loss is never drawn: the LUX's
         layers pass over it)."""
-        whole = int(_bin(self._rim_cells[k], self._s_edges))  # its size, not the part in view
+        whole = int(bin_index(self._rim_cells[k], self._s_edges))  # its size, not the part in view
         self._confirm_at[k] = self._confirm_distance(self._confirm[whole])
         self._near_first[k] = centre < self._approach_m
         if self._near_first[k]:
@@ -867,14 +867,13 @@ class PemGrid:
         if len(self._fa_xy):  # the live ones: kept with their class's and bin's probability on the grid
             local = world_to_vehicle_xy(self._fa_xy, (pose.x, pose.y), pose.yaw)
             _, _, inside = self.grid.cell_of(local)
-            bins = _bin(np.hypot(local[:, 0], local[:, 1]), self._d_edges)
+            bins = bin_index(np.hypot(local[:, 0], local[:, 1]), self._d_edges)
             keep = inside & (self._rng.random(len(self._fa_xy)) < self._fa_keep[self._fa_class, bins])
             self._fa_xy, self._fa_blob, self._fa_class = (
                 self._fa_xy[keep],
                 self._fa_blob[keep],
                 self._fa_class[keep],
             )
-        forbidden = self._forbidden(truths) if truths else None
         # births bring each block's ground to its class's and bin's mean: that mean less what
         # survives of the mean where the ground was the frame before (the farther bin as the car
         # advances; none for ground that comes into view, all of the mean in the first frame)
@@ -885,11 +884,14 @@ class PemGrid:
                 blocks_world, (self._last_pose.x, self._last_pose.y), self._last_pose.yaw
             )
             seen = self.grid.cell_of(before)[2]
-            was = _bin(np.hypot(before[:, 0], before[:, 1]), self._d_edges)
+            was = bin_index(np.hypot(before[:, 0], before[:, 1]), self._d_edges)
             inflow = np.where(seen, self._fa_density[classes, was], 0.0)
         self._last_pose = pose
         rate = np.maximum(mean - self._fa_keep[classes, self._block_bins] * inflow, 0.0)
         counts = self._rng.poisson(rate * self._block_m**2)
+        forbidden = None  # built only when an alarm is to be placed or drawn near a true obstacle
+        if truths and ((counts.any() and len(self._blobs)) or len(self._fa_xy)):
+            forbidden = self._forbidden(truths)
         if counts.any() and len(self._blobs):
             at = np.repeat(np.arange(len(counts)), counts)
             picks = self._pick_blobs(classes[at], self._block_bins[at])

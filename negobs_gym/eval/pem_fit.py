@@ -36,6 +36,7 @@ from negobs_gym.envs.pem import (
     TERRAIN_CLASSES,
     PemParameters,
     PerceptionErrorModel,
+    bin_index,
     fallback_chain,
     pem_settings,
 )
@@ -91,11 +92,6 @@ def _float(text: str) -> float:
     return float(text)
 
 
-def _bin(value: float, edges: np.ndarray) -> int:
-    """Bin index of ``value`` (below the first edge: 0, beyond the last: the last bin)."""
-    return int(np.clip(np.digitize(value, edges) - 1, 0, len(edges) - 2))
-
-
 def _pits(rows: list[dict[str, str]]) -> dict[tuple[str, str], list[dict[str, str]]]:
     """Each pit's sightings (by course and obstacle), in frame order."""
     out: dict[tuple[str, str], list[dict[str, str]]] = {}
@@ -129,8 +125,8 @@ def _chain(
         state = None  # before the first drawing
         last = _last_drawn(rows) if until_lost else len(rows) - 1
         for i, r in enumerate(rows):
-            s = int(np.clip(np.digitize(float(r["cells"]), s_edges) - 1, 0, ns - 1))
-            d = int(np.clip(np.digitize(float(r["centre_m"]), d_edges) - 1, 0, nd - 1))
+            s = int(bin_index(float(r["cells"]), s_edges))
+            d = int(bin_index(float(r["centre_m"]), d_edges))
             hit = r["detected"] == "1"
             every[s, d] += 1
             every_drawn[s, d] += hit
@@ -158,7 +154,7 @@ def _losses(pits: dict, s_edges: np.ndarray) -> list[list[float]]:
         if centre[0] < APPROACH_M or centre[nearest] > PASSED_M or last is None:
             continue
         cells = max(int(r["cells"]) for r in rows)
-        s = int(np.clip(np.digitize(cells, s_edges) - 1, 0, ns - 1))
+        s = int(bin_index(cells, s_edges))
         out[s].append(0.5 * (centre[last] + centre[min(last + 1, nearest)]))
     return out
 
@@ -175,7 +171,7 @@ def _confirmations(pits: dict, s_edges: np.ndarray) -> tuple[list[list[float]], 
         centre = [float(r["centre_m"]) for r in rows]
         hits = [i for i, r in enumerate(rows) if r["detected"] == "1"]
         cells = max(int(r["cells"]) for r in rows)  # the whole rim's, as the PEM sizes a pit
-        s = int(np.clip(np.digitize(cells, s_edges) - 1, 0, ns - 1))
+        s = int(bin_index(cells, s_edges))
         if centre[0] >= APPROACH_M:
             if hits:
                 i = hits[0]
@@ -265,7 +261,7 @@ def fit_parameters(
         ]
 
     hits = [r for r in sightings if r["detected"] == "1"]
-    d_hit = np.clip(np.digitize([float(r["centre_m"]) for r in hits], d_edges) - 1, 0, nd - 1)
+    d_hit = bin_index(np.array([float(r["centre_m"]) for r in hits]), d_edges)
     near_all = np.array([_float(r["near_offset_m"]) for r in hits])
     far_all = np.array([_float(r["far_offset_m"]) for r in hits])
     near, far = [], []
@@ -281,7 +277,7 @@ def fit_parameters(
     counts = np.zeros((nc, nd))
     klass = {c: i for i, c in enumerate(TERRAIN_CLASSES)}
     for r in spurious:
-        d = int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1))
+        d = int(bin_index(float(r["distance_m"]), d_edges))
         counts[klass[r["terrain_class"]], d] += 1
     class_rate = counts.sum(axis=1) / np.maximum(area.sum(axis=1), 1e-9)
     density = (counts + PRIOR_AREA_M2 * class_rate[:, None]) / (area + PRIOR_AREA_M2)
@@ -293,8 +289,8 @@ def fit_parameters(
     for r in spurious:
         c, ahead = klass[r["terrain_class"]], travelled.get((r["episode"], int(r["frame"]) + 1))
         if ahead is not None:
-            before[c, _bin(float(r["distance_m"]) - ahead, d_edges)] += 1
-        again[c, _bin(float(r["distance_m"]), d_edges)] += r["seen_before"] == "1"
+            before[c, bin_index(float(r["distance_m"]) - ahead, d_edges)] += 1
+        again[c, bin_index(float(r["distance_m"]), d_edges)] += r["seen_before"] == "1"
     by_class = np.where(before.sum(axis=1) > 0, again.sum(axis=1) / np.maximum(before.sum(axis=1), 1), 0.0)
     keep = (again + PRIOR_SIGHTINGS * by_class[:, None]) / (before + PRIOR_SIGHTINGS)
     keep = np.clip(keep, 0.0, MAX_FA_KEEP)
@@ -309,7 +305,7 @@ def fit_parameters(
         if area[c].sum() <= 0 and donors:
             density[c], keep[c] = density[donors[0]], keep[donors[0]]
     blobs = [
-        (klass[r["terrain_class"]], int(np.clip(np.digitize(float(r["distance_m"]), d_edges) - 1, 0, nd - 1)),
+        (klass[r["terrain_class"]], int(bin_index(float(r["distance_m"]), d_edges)),
          round(float(r["edge_m"]), 3), int(r["rows"]), int(r["cols"]), int(r["cells"]))
         for r in spurious
     ]  # fmt: skip
