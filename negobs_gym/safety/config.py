@@ -65,6 +65,15 @@ class SafetyFilterConfig:
     # filter reads each frame alone: its detector can drop a pit whose rim enters the HDL-64's
     # blind disc (docs/safety.md, "Hazard memory").
     hazard_memory: bool = False
+    # Largest change of the steering command (action units, 1 = full lock) the filter may make
+    # before it brakes: when the proposed steering's corridor fails Eq. 18, it takes the nearest
+    # steering within this change, in steps of steer_search_step, whose corridor passes (the
+    # smaller change first; at equal change the longer hazard distance), and brakes only when none
+    # does. Not in paper N, whose filter only brakes (0: never steers). A minimal-intervention
+    # shield: passing a pit in a bend, the arc of a steering a little tighter than needed sweeps
+    # its drawn rim, and a veto stops the car beside it (docs/safety.md, "Steering search").
+    steer_search: float = 0.0
+    steer_search_step: float = 0.05  # spacing of the steering commands tried [action units]
 
     def __post_init__(self) -> None:
         require(
@@ -91,6 +100,18 @@ class SafetyFilterConfig:
         for name in ("stop_for_positive", "unobserved_blocks", "hazard_memory"):
             value = getattr(self, name)
             require(isinstance(value, bool), name, f"must be a bool, got {value!r}")
+        require(
+            isinstance(self.steer_search, (int, float)) and 0.0 <= self.steer_search <= 2.0,
+            "steer_search",
+            f"must be within [0, 2] (action units), got {self.steer_search!r}",
+        )
+        require(
+            isinstance(self.steer_search_step, (int, float))
+            and np.isfinite(self.steer_search_step)
+            and self.steer_search_step > 0,
+            "steer_search_step",
+            f"must be finite and > 0, got {self.steer_search_step!r}",
+        )
         for name in ("governor_margin_m", "creep_speed_mps", "creep_clearance_m", "coverage_memory_s"):
             value = getattr(self, name)
             require(

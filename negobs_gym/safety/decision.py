@@ -10,9 +10,10 @@ import numpy as np
 from negobs_gym.safety.corridor import Corridor
 
 #: Why the filter changed an action: a detected hazard inside R(v) (Eq. 18), missing or old
-#: hazard data, or the governor's speed cap with the observed clear distance ending at an
-#: unobserved cell ("unobserved") or at the grid's range or a hazard beyond R(v) ("governor").
-Reason = Literal["hazard", "stale_data", "unobserved", "governor"]
+#: hazard data, the governor's speed cap with the observed clear distance ending at an
+#: unobserved cell ("unobserved") or at the grid's range or a hazard beyond R(v) ("governor"),
+#: or a steering nearby whose corridor passes Eq. 18 where the proposed one failed ("steered").
+Reason = Literal["hazard", "stale_data", "unobserved", "governor", "steered"]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -37,6 +38,9 @@ class SafetyDecision:
         reason: Why the action was changed (:data:`Reason`), None when it passed unchanged.
         governed: The governor capped the speed (``mode="governed"``); ``vetoed`` stays False
             for a cap alone: it is no Eq. 18 veto.
+        steered: The proposed steering failed Eq. 18 and the filter applied a steering within
+            ``steer_search`` whose corridor passes instead of braking; ``vetoed`` is False, and
+            ``hazard_distance_m`` and ``corridor`` are the applied steering's.
         clear_distance_m: The observed clear distance along the corridor [m] (governed mode;
             NaN otherwise).
         clear_end: What ended it: ``"hazard"``, ``"unobserved"`` or ``"range"`` (None outside
@@ -60,6 +64,7 @@ class SafetyDecision:
     corridor: Corridor | None = None
     reason: Reason | None = None
     governed: bool = False
+    steered: bool = False
     clear_distance_m: float = float("nan")
     clear_end: Literal["hazard", "unobserved", "range"] | None = None
     speed_limit_mps: float = float("inf")
@@ -85,6 +90,7 @@ class SafetyDecision:
             "corridor": self.corridor,
             "reason": self.reason,
             "governed": self.governed,
+            "steered": self.steered,
             "clear_distance_m": self.clear_distance_m,
             "clear_end": self.clear_end,
             "speed_limit_mps": self.speed_limit_mps,

@@ -32,8 +32,10 @@ class BrakingSafetyFilter(gym.Wrapper):
     meanwhile, and vetoes the action when ``d - travelled < R(v')``; after a veto, until an action
     passes again, the test is ``d - travelled < R(v') + release_margin_m`` (hysteresis against
     stop-and-go at the boundary; cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
-    ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is never
-    changed; safe actions pass bit-identical.
+    ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is not
+    changed unless ``steer_search`` > 0: then a failing action first gets the nearest steering
+    within that change whose corridor passes (``reason="steered"``, no veto), and is vetoed only
+    when none does. Safe actions pass bit-identical.
 
     Fail-safe: when the env has no perception yet, or its hazard data is older than
     ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``) beyond
@@ -59,7 +61,7 @@ class BrakingSafetyFilter(gym.Wrapper):
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
     ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``,
-    ``hazard_memory``) over the defaults;
+    ``hazard_memory``, ``steer_search``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -67,8 +69,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     safe_speed_mps (largest v with R(v) <= d),
     original_action, applied_action, perception_age_s, perception_stale, hazard_channel,
     corridor: the :class:`~negobs_gym.safety.Corridor` searched, a frozen value; reason:
-    ``"hazard"``, ``"stale_data"``, ``"unobserved"``, ``"governor"`` or None; governed,
-    clear_distance_m, clear_end, speed_limit_mps: the governor's cap, see
+    ``"hazard"``, ``"stale_data"``, ``"unobserved"``, ``"governor"``, ``"steered"`` or None;
+    governed, steered, clear_distance_m, clear_end, speed_limit_mps: the governor's cap, see
     :class:`~negobs_gym.safety.SafetyDecision`).
     ``info["cost"]``: 1.0 when the action was vetoed or the vehicle already violates d < R(v)
     at the decision time, else 0.0 (a constraint cost for safe RL). The typed record of the last
@@ -96,6 +98,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         unobserved_blocks: bool | None = None,
         coverage_memory_s: float | None = None,
         hazard_memory: bool | None = None,
+        steer_search: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -120,6 +123,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "unobserved_blocks": unobserved_blocks,
             "coverage_memory_s": coverage_memory_s,
             "hazard_memory": hazard_memory,
+            "steer_search": steer_search,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -164,6 +168,43 @@ class BrakingSafetyFilter(gym.Wrapper):
             )
             state = dataclasses.replace(state, negative_obstacles_xy_m=remembered)
         return state
+
+    def _corridor_hazard(self, state: HazardState, steer: float) -> tuple[Corridor, float, str | None]:
+        """The corridor of steering command ``steer``, the arc length to its nearest hazard (inf:
+        clear) and that hazard's channel."""
+        corridor = Corridor(
+            steer_rad=steer * state.max_steer_rad,
+            wheelbase_m=state.wheelbase_m,
+            half_width_m=0.5 * (state.vehicle_width_m + self.config.margin_m),
+            front_length_m=state.front_length_m,
+        )
+        d = corridor.hazard_distance_m(state.negative_obstacles_xy_m)
+        channel = "negative" if np.isfinite(d) else None
+        if self.config.stop_for_positive:
+            d_positive = corridor.hazard_distance_m(state.positive_obstacles_xy_m)
+            if d_positive < d:
+                d, channel = d_positive, "positive"
+        return corridor, d, channel
+
+    def _clear_steering(
+        self, state: HazardState, steer: float, longitudinal: float
+    ) -> tuple[float, Corridor, float, str | None] | None:
+        """The steering command nearest ``steer`` within ``steer_search`` whose corridor passes
+        Eq. 18 with ``longitudinal``, with its corridor, hazard distance and channel (None: none
+        does). At equal change, the one with the longer hazard distance."""
+        step = self.config.steer_search_step
+        n = math.floor(self.config.steer_search / step + 1e-9)
+        for k in range(1, n + 1):
+            passing = []
+            for candidate in (steer - k * step, steer + k * step):
+                if abs(candidate) > 1.0:
+                    continue
+                corridor, d, channel = self._corridor_hazard(state, candidate)
+                if self._is_safe(state, d, longitudinal):
+                    passing.append((candidate, corridor, d, channel))
+            if passing:
+                return max(passing, key=lambda found: found[2])
+        return None
 
     def _r(self, v: Any) -> np.ndarray:
         return braking_distance_m(v, self.config.braking)
@@ -258,24 +299,21 @@ class BrakingSafetyFilter(gym.Wrapper):
         if not np.all(np.isfinite(original)):
             raise ActionError(f"action must be finite, got {original.tolist()}")
         state = self._hazard_state()
-        corridor = Corridor(
-            steer_rad=float(np.clip(original[1], -1.0, 1.0)) * state.max_steer_rad,
-            wheelbase_m=state.wheelbase_m,
-            half_width_m=0.5 * (state.vehicle_width_m + self.config.margin_m),
-            front_length_m=state.front_length_m,
-        )
-        d = corridor.hazard_distance_m(state.negative_obstacles_xy_m)
-        channel = "negative" if np.isfinite(d) else None
-        if self.config.stop_for_positive:
-            d_positive = corridor.hazard_distance_m(state.positive_obstacles_xy_m)
-            if d_positive < d:
-                d, channel = d_positive, "positive"
+        corridor, d, channel = self._corridor_hazard(state, float(np.clip(original[1], -1.0, 1.0)))
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s + self.frame_age_s
         vetoed = stale or not self._is_safe(state, d, proposed)
         reason = ("stale_data" if stale else "hazard") if vetoed else None
         applied = original
+        steered = False
+        if vetoed and not stale and self.config.steer_search > 0:
+            found = self._clear_steering(state, float(np.clip(original[1], -1.0, 1.0)), proposed)
+            if found is not None:
+                steer, corridor, d, channel = found
+                vetoed, steered, reason = False, True, "steered"
+                applied = original.copy()
+                applied[1] = np.float32(steer)
         if vetoed:
             if self.config.mode == "cap_speed" and not stale:
                 cmd = self._capped_longitudinal(state, d, proposed)
@@ -299,7 +337,7 @@ class BrakingSafetyFilter(gym.Wrapper):
                 if not vetoed and state.predicted_speed_mps(proposed) > limit:
                     governed = True
                     reason = "unobserved" if clear.end == "unobserved" else "governor"
-                    applied = original.copy()
+                    applied = applied.copy()
                     applied[0] = self._command_for(state, limit, proposed)
         decision = SafetyDecision(
             vetoed=vetoed,
@@ -315,6 +353,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             corridor=corridor,
             reason=reason,
             governed=governed,
+            steered=steered,
             clear_distance_m=clear.distance_m if clear is not None else float("nan"),
             clear_end=clear.end if clear is not None else None,
             speed_limit_mps=limit,
