@@ -14,8 +14,9 @@ T's LUX obstacles) against the positive obstacles' footprints, into one set of t
 (the ``positive`` ones prefixed ``positive_``):
 
 - ``sightings``: per frame, grid and obstacle on the grid, whether it is drawn (a connected blob
-  of the layer shares a cell with it, or for ``positive`` with it grown by
-  :attr:`PemCampaignConfig.positive_match_cells`: the LUX draws a face on the footprint's edge),
+  of the layer is given to it: each blob goes to the one obstacle it overlaps most, the
+  ``positive`` footprints grown by :attr:`PemCampaignConfig.positive_match_cells` for this since
+  the LUX draws a face on the footprint's edge; so a rock's blob on a mound is not the mound's),
   the drawn blobs' cells and their near- and far-edge offsets (range from the vehicle origin,
   drawn minus true);
 - ``spurious``: per blob touching no obstacle, its terrain class (:class:`~negobs_gym.envs.pem.
@@ -237,6 +238,12 @@ class PemCampaignConfig:
         return out
 
 
+#: Version of the judge's rules (:func:`blob_owners`, :class:`_Judge`). Every drive's part file
+#: records it, so resuming into drives judged by other rules is an error naming it, never a silent
+#: mix of the two (2: each blob counts for the one obstacle it overlaps most).
+JUDGE_VERSION = 2
+
+
 def pem_digest(model_text: str) -> str:
     """SHA-256 of a PEM file's text and of the code that draws and judges its grids
     (:mod:`negobs_gym.envs.pem`, this module): a resumed check reruns the PEM's drives after either
@@ -251,24 +258,46 @@ def pem_digest(model_text: str) -> str:
 
 def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> list[Episode]:
     """Per seed a detector episode, and with ``model`` a PEM episode keyed by :func:`pem_digest`
-    (the model's JSON text rides along, so a resume checks it too)."""
-    out = [
-        Episode(
-            f"seed{seed:07d}", {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": None}
-        )
-        for i, seed in enumerate(config.seed_list)
-    ]
+    (the model's JSON text and :data:`JUDGE_VERSION` ride along, so a resume checks them too)."""
+
+    def args(i: int, seed: int, pem: str | None) -> dict:
+        frames = config.frames_of(i)
+        return {"config": config, "seed": seed, "frames": frames, "pem": pem, "judge": JUDGE_VERSION}
+
+    out = [Episode(f"seed{seed:07d}", args(i, seed, None)) for i, seed in enumerate(config.seed_list)]
     if model is not None:
         text = model.to_json()
         digest = pem_digest(text)[:12]
         out += [
-            Episode(
-                f"seed{seed:07d}-pem-{digest}",
-                {"config": config, "seed": seed, "frames": config.frames_of(i), "pem": text},
-            )
+            Episode(f"seed{seed:07d}-pem-{digest}", args(i, seed, text))
             for i, seed in enumerate(config.seed_list)
         ]
     return out
+
+
+def blob_owners(labels: np.ndarray, count: int, truths: list[np.ndarray], match_cells: int) -> np.ndarray:
+    """Per blob label (0 = background), the index into ``truths`` of the one obstacle it is given
+    to, or -1 when it touches none: the one it overlaps most once grown by ``match_cells``, ties
+    going to the larger overlap of the ungrown masks, then to the smaller obstacle (a blob inside
+    both a rock's and the mound's it lies on is the rock's), then the first. One blob counts for
+    one obstacle, so a rock lying on a mound is not counted as drawing the mound too."""
+    owner = np.full(count + 1, -1, dtype=np.int64)
+    if not truths or not count:
+        return owner
+    grown_overlap = np.zeros((len(truths), count + 1), dtype=np.int64)
+    own_overlap = np.zeros_like(grown_overlap)
+    for i, truth in enumerate(truths):
+        grown = ndimage.binary_dilation(truth, iterations=match_cells) if match_cells else truth
+        grown_overlap[i] = np.bincount(labels[grown], minlength=count + 1)
+        own_overlap[i] = np.bincount(labels[truth], minlength=count + 1)
+    area = np.array([int(t.sum()) for t in truths], dtype=np.int64)[:, None]
+    base = labels.size + 1
+    score = (grown_overlap * base + own_overlap) * base - area  # lexicographic
+    best = np.argmax(score, axis=0)
+    touched = grown_overlap.max(axis=0) > 0
+    owner[touched] = best[touched]
+    owner[0] = -1
+    return owner
 
 
 @dataclass
@@ -285,12 +314,11 @@ class _Judge:
     def frame(self, layer, ctx) -> tuple[list[str], list[str], tuple[int, int]]:
         labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
         sightings, spurious = [], []
-        on_truth = np.zeros(count + 1, dtype=bool)
-        for k, truth in ctx.truths[self.channel]:
-            grown = ndimage.binary_dilation(truth, iterations=self.match_cells) if self.match_cells else truth
-            hit = np.unique(labels[grown])
-            hit = hit[hit > 0]
-            on_truth[hit] = True
+        truths = ctx.truths[self.channel]
+        owner = blob_owners(labels, count, [truth for _, truth in truths], self.match_cells)
+        on_truth = np.concatenate([[False], owner[1:] >= 0])
+        for index, (k, truth) in enumerate(truths):
+            hit = np.flatnonzero(owner == index)
             size = ctx.depths[self.channel][k]
             row = [
                 ctx.key,

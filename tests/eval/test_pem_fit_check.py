@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from negobs_gym.eval.pem_check import PemCheckConfig, check_pem, compare
 from negobs_gym.eval.pem_data import (
     AREA_COLUMNS,
     FRAME_COLUMNS,
+    JUDGE_VERSION,
     SIGHTING_COLUMNS,
     SPURIOUS_COLUMNS,
     PemCampaignConfig,
@@ -217,6 +219,15 @@ def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
     )
     assert detector_part.stat().st_mtime_ns == kept
     assert len(list(parts.glob("seed0000500-pem-*.json"))) == 2
+    # a drive judged by other rules is refused on resume, naming the judge's version
+    record = json.loads(detector_part.read_text())
+    record["args"]["judge"] = JUDGE_VERSION - 1
+    detector_part.write_text(json.dumps(record))
+    with pytest.raises(ConfigError, match="judge"):
+        check_pem(
+            other, PemCampaignConfig(seeds=1, frames=6, first_seed=500), out,
+            options=RunOptions(resume=True, progress=False),
+        )  # fmt: skip
 
 
 def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
