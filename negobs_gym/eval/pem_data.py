@@ -14,9 +14,9 @@ T's LUX obstacles) against the positive obstacles' footprints, into one set of t
 (the ``positive`` ones prefixed ``positive_``):
 
 - ``sightings``: per frame, grid and obstacle on the grid, whether it is drawn (a connected blob
-  of the layer is given to it: each blob goes to the one obstacle it overlaps most, the
-  ``positive`` footprints grown by :attr:`PemCampaignConfig.positive_match_cells` for this since
-  the LUX draws a face on the footprint's edge; so a rock's blob on a mound is not the mound's),
+  of the layer owns one of its cells: :func:`blob_counts`, the ``positive`` footprints grown by
+  :attr:`PemCampaignConfig.positive_match_cells` since the LUX draws a face on the footprint's
+  edge; a rock's blob on a mound is the rock's alone),
   the drawn blobs' cells and their near- and far-edge offsets (range from the vehicle origin,
   drawn minus true);
 - ``spurious``: per blob touching no obstacle, its terrain class (:class:`~negobs_gym.envs.pem.
@@ -238,10 +238,11 @@ class PemCampaignConfig:
         return out
 
 
-#: Version of the judge's rules (:func:`blob_owners`, :class:`_Judge`). Every drive's part file
+#: Version of the judge's rules (:func:`blob_counts`, :class:`_Judge`). Every drive's part file
 #: records it, so resuming into drives judged by other rules is an error naming it, never a silent
-#: mix of the two (2: each blob counts for the one obstacle it overlaps most).
-JUDGE_VERSION = 2
+#: mix of the two (1: a blob counts for every obstacle it touches; 3: for the obstacles that own
+#: one of its cells).
+JUDGE_VERSION = 3
 
 
 def pem_digest(model_text: str) -> str:
@@ -275,29 +276,25 @@ def episodes(config: PemCampaignConfig, model: PerceptionErrorModel | None) -> l
     return out
 
 
-def blob_owners(labels: np.ndarray, count: int, truths: list[np.ndarray], match_cells: int) -> np.ndarray:
-    """Per blob label (0 = background), the index into ``truths`` of the one obstacle it is given
-    to, or -1 when it touches none: the one it overlaps most once grown by ``match_cells``, ties
-    going to the larger overlap of the ungrown masks, then to the smaller obstacle (a blob inside
-    both a rock's and the mound's it lies on is the rock's), then the first. One blob counts for
-    one obstacle, so a rock lying on a mound is not counted as drawing the mound too."""
-    owner = np.full(count + 1, -1, dtype=np.int64)
+def blob_counts(labels: np.ndarray, count: int, truths: list[np.ndarray], match_cells: int) -> np.ndarray:
+    """(len(truths), count + 1) bool: whether blob label b (0 = background, never) counts as drawing
+    obstacle i. Each cell inside some obstacle's mask grown by ``match_cells`` belongs to one
+    obstacle: the smallest whose own mask holds it, else the smallest whose grown mask does; a
+    blob counts for every obstacle that owns one of its cells. So a rock's face drawn on the mound
+    it lies on is the rock's alone, while a blob that spans a rock and the mound beside it, or two
+    pits, counts for both, as each obstacle's own drawing would."""
+    counts = np.zeros((len(truths), count + 1), dtype=bool)
     if not truths or not count:
-        return owner
-    grown_overlap = np.zeros((len(truths), count + 1), dtype=np.int64)
-    own_overlap = np.zeros_like(grown_overlap)
-    for i, truth in enumerate(truths):
-        grown = ndimage.binary_dilation(truth, iterations=match_cells) if match_cells else truth
-        grown_overlap[i] = np.bincount(labels[grown], minlength=count + 1)
-        own_overlap[i] = np.bincount(labels[truth], minlength=count + 1)
-    area = np.array([int(t.sum()) for t in truths], dtype=np.int64)[:, None]
-    base = labels.size + 1
-    score = (grown_overlap * base + own_overlap) * base - area  # lexicographic
-    best = np.argmax(score, axis=0)
-    touched = grown_overlap.max(axis=0) > 0
-    owner[touched] = best[touched]
-    owner[0] = -1
-    return owner
+        return counts
+    owner = np.full(labels.shape, -1, dtype=np.int64)
+    by_size = sorted(range(len(truths)), key=lambda i: -int(truths[i].sum()))  # smaller ones last
+    grown = [ndimage.binary_dilation(t, iterations=match_cells) if match_cells else t for t in truths]
+    for masks in (grown, truths):  # an own mask beats a grown one
+        for i in by_size:
+            owner[masks[i]] = i
+    cells = (owner >= 0) & (labels > 0)
+    counts[owner[cells], labels[cells]] = True
+    return counts
 
 
 @dataclass
@@ -315,10 +312,10 @@ class _Judge:
         labels, count = ndimage.label(layer, structure=np.ones((3, 3), dtype=bool))
         sightings, spurious = [], []
         truths = ctx.truths[self.channel]
-        owner = blob_owners(labels, count, [truth for _, truth in truths], self.match_cells)
-        on_truth = np.concatenate([[False], owner[1:] >= 0])
+        counts = blob_counts(labels, count, [truth for _, truth in truths], self.match_cells)
+        on_truth = counts.any(axis=0)
         for index, (k, truth) in enumerate(truths):
-            hit = np.flatnonzero(owner == index)
+            hit = np.flatnonzero(counts[index])
             size = ctx.depths[self.channel][k]
             row = [
                 ctx.key,
