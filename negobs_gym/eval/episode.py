@@ -138,6 +138,8 @@ class EpisodeResult:
             loop's :class:`EpisodeStop`).
         truncated: Ended by the env's time limit.
         failures: Names of the spec's criteria this run failed (empty: passed).
+        steered_steps: Steps whose steering the filter changed instead of braking (its
+            ``steer_search``; 0 without it).
         path: The car at the reset and after every step (:class:`PathPoint`).
         veto_judgements: Each veto and missed veto in step order, with the speed, R(v), the
             distance the filter acted on, the true one and the actions
@@ -176,6 +178,7 @@ class EpisodeResult:
     termination: tuple[str, ...]
     truncated: bool
     failures: tuple[str, ...] = ()
+    steered_steps: int = 0
     path: tuple[PathPoint, ...] = ()
     veto_judgements: tuple[VetoJudgement, ...] = ()
 
@@ -285,7 +288,8 @@ class EpisodeResult:
             f"entered={int(self.entered_negative_obstacle)} stopped_before={int(self.stopped_before)} "
             f"margin_m={margin} collision={int(self.collision)} positive_gap_m={positive_gap} "
             f"goal={int(self.goal_reached)} "
-            f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} false_vetoes={self.false_vetoes} "
+            f"max_decel={self.max_decel_mps2:.2f} vetoes={self.vetoes} steered={self.steered_steps} "
+            f"false_vetoes={self.false_vetoes} "
             f"missed_vetoes={self.missed_vetoes} veto_error_m={format_veto_error(self.max_veto_error_m)} "
             f"time_s={self.time_s:.1f} end={end} {verdict}"
         )
@@ -386,6 +390,7 @@ def _drive(
     tally = VetoTally(positive=guard is not None and guard.stop_for_positive)
     first_veto: float | None = None
     goal, steps, off_track_steps, distance, cost, max_decel, still_s = False, 0, 0, 0.0, 0.0, 0.0, 0.0
+    steered = 0
     terminated = truncated = standstill = False
     last_xy = np.asarray(info["pose"][:2], dtype=np.float64)
     path = [_point(info)]
@@ -405,6 +410,7 @@ def _drive(
             first_veto = gap
         path.append(_point(info))
         cost += float(info.get("cost", 0.0))
+        steered += bool((info.get("safety") or {}).get("steered", False))
         max_decel = max(max_decel, (speed_before - info["speed_mps"]) / dt)
         still_s = still_s + dt if info["speed_mps"] < stop.standstill_mps else 0.0
         standstill = stop.standstill_s is not None and still_s >= stop.standstill_s
@@ -445,6 +451,7 @@ def _drive(
         final_speed_mps=float(info["speed_mps"]),
         max_decel_mps2=float(max_decel),
         cost=cost,
+        steered_steps=steered,
         termination=tuple(info.get("termination", ())),
         truncated=bool(truncated and not terminated),
         path=tuple(path),

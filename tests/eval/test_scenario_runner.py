@@ -94,6 +94,20 @@ def test_vetoes_are_judged_along_the_corridor_the_filter_searched() -> None:
     assert r.max_veto_error_m is not None and abs(r.max_veto_error_m) < 0.5
 
 
+def test_with_a_steering_search_the_filter_steers_the_turn_off_the_pit_instead_of_stopping() -> None:
+    """The same turn behind a filter that may change the steering by half a lock: arcs a little
+    less to the left clear the pit, so it steers there and drives on past it (~31 m in the 8 s),
+    never entering, where without the search it stands before the pit after ~9 m."""
+    spec = spec_from_toml(TURN_SCENE)
+    braking = run_scenario(spec, _SteadyLeftTurn(), filter=spec.filter, seed=0)
+    search = dataclasses.replace(spec.filter, steer_search=0.5)
+    r = run_scenario(spec, _SteadyLeftTurn(), filter=search, seed=0)
+    assert braking.steered_steps == 0 and braking.termination == ("stopped",) and braking.progress_m < 12.0
+    assert r.steered_steps > 0 and f" steered={r.steered_steps} " in r.line()
+    assert not r.entered_negative_obstacle and r.truncated and r.progress_m > 20.0
+    assert r.vetoes < braking.vetoes and r.false_vetoes == 0
+
+
 def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
     """The same turn as paper N's filter reads it, each frame alone: creeping on after its stop,
     the pit's cells leave the grid as its rim nears the front bumper, the corridor looks clear, and
