@@ -345,7 +345,9 @@ def _plots(
         title=f"{what}s: recall, all sizes",
     )
     axes[1].set(
-        xlabel="first-confirmation distance [m]", ylabel="share of pits", title="first confirmation (ECDF)"
+        xlabel="first-confirmation distance [m]",
+        ylabel=f"share of {what}s",
+        title="first confirmation (ECDF)",
     )
     axes[2].set(xlabel="drawn minus true near edge [m]", ylabel="density", title="near-edge offset")
     for ax in axes:
