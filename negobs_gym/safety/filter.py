@@ -61,7 +61,7 @@ class BrakingSafetyFilter(gym.Wrapper):
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
     ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``,
-    ``hazard_memory``, ``steer_search``) over the defaults;
+    ``hazard_memory``, ``steer_search``, ``steer_search_step``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -99,6 +99,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         coverage_memory_s: float | None = None,
         hazard_memory: bool | None = None,
         steer_search: float | None = None,
+        steer_search_step: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -124,6 +125,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "coverage_memory_s": coverage_memory_s,
             "hazard_memory": hazard_memory,
             "steer_search": steer_search,
+            "steer_search_step": steer_search_step,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -196,7 +198,8 @@ class BrakingSafetyFilter(gym.Wrapper):
         n = math.floor(self.config.steer_search / step + 1e-9)
         for k in range(1, n + 1):
             passing = []
-            for candidate in (steer - k * step, steer + k * step):
+            for offset in (-k * step, k * step):
+                candidate = float(np.float32(steer + offset))  # the command the env will receive
                 if abs(candidate) > 1.0:
                     continue
                 corridor, d, channel = self._corridor_hazard(state, candidate)
@@ -299,7 +302,8 @@ class BrakingSafetyFilter(gym.Wrapper):
         if not np.all(np.isfinite(original)):
             raise ActionError(f"action must be finite, got {original.tolist()}")
         state = self._hazard_state()
-        corridor, d, channel = self._corridor_hazard(state, float(np.clip(original[1], -1.0, 1.0)))
+        steer = float(np.clip(original[1], -1.0, 1.0))
+        corridor, d, channel = self._corridor_hazard(state, steer)
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s + self.frame_age_s
@@ -308,12 +312,12 @@ class BrakingSafetyFilter(gym.Wrapper):
         applied = original
         steered = False
         if vetoed and not stale and self.config.steer_search > 0:
-            found = self._clear_steering(state, float(np.clip(original[1], -1.0, 1.0)), proposed)
+            found = self._clear_steering(state, steer, proposed)
             if found is not None:
                 steer, corridor, d, channel = found
                 vetoed, steered, reason = False, True, "steered"
                 applied = original.copy()
-                applied[1] = np.float32(steer)
+                applied[1] = steer  # a float32 value: the corridor was searched for this command
         if vetoed:
             if self.config.mode == "cap_speed" and not stale:
                 cmd = self._capped_longitudinal(state, d, proposed)

@@ -132,6 +132,7 @@ def test_init_fine_tunes_a_trained_model_and_a_critic_warmup_moves_only_its_valu
     """One 64-step :data:`SHORT_PPO` run (one rollout, one update), trained once: the model both
     halves start from, which they only read."""
     first = train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path / "short_ppo_64")
+    assert first.steps == 64 and first.model_path.is_file()
     _check_init_fine_tunes_a_trained_model_on_another_source(tmp_path, first)
     _check_critic_warmup_moves_only_the_value_function_then_everything(tmp_path, first)
 
