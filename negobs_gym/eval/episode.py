@@ -273,6 +273,7 @@ class EpisodeResult:
             "missed_vetoes": self.missed_vetoes,
             "max_veto_error_m": nan_if_none(self.max_veto_error_m),
             "cost": self.cost,
+            "steered_steps": self.steered_steps,
         }
 
     def line(self) -> str:

@@ -11,7 +11,9 @@ steps it let through with a true hazard well inside R(v) (missed vetoes,
 (``info["cost"]``), the largest error of a veto's hazard distance (the distance it acted on
 minus the true one, :func:`~negobs_gym.eval.vetoes.veto_error_m`; NaN: no veto to judge) and the
 steps that ended off the track (farther from the centre line than half the track width: the
-obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none). Each
+obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none), whether
+a standstill ended it (``stopped``: 1 s at rest, e.g. held by the filter) and the steps whose
+steering the filter changed instead of braking (``steered_steps``, its ``steer_search``). Each
 veto and missed veto, judged on the ground truth, is a row of ``vetoes.csv``
 (:data:`~negobs_gym.eval.vetoes.VETO_COLUMNS`), each step of each episode one of
 ``paths.csv``.
@@ -79,6 +81,8 @@ COLUMNS = (
     "max_veto_error_m",
     "cost",
     "off_track_steps",
+    "stopped",
+    "steered_steps",
 )
 
 
@@ -99,6 +103,8 @@ SUMMED = (
     "cost",
     "steps",
     "off_track_steps",
+    "stopped",
+    "steered_steps",
 )
 
 
@@ -245,6 +251,8 @@ def summarize(csv_path: str | Path, vetoes_csv: str | Path | None = None) -> dic
         s["cost"] += float(r["cost"])
         s["steps"] += int(r["steps"])
         s["off_track_steps"] += int(r["off_track_steps"])
+        s["stopped"] += r["stopped"] == "1"
+        s["steered_steps"] += int(r["steered_steps"])
     for s in out.values():
         n = int(s["episodes"])
         for count, rate in (

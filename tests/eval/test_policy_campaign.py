@@ -58,6 +58,7 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
         values.update(episode=f"{flt}.{seed}", env="e", filter=flt, seed=seed, success=1 - left, goal=goal)
         values.update(left_track=left, veto_events=seed + 1)
         values.update(progress_m=10.0, distance_m=20.0, steps=steps, off_track_steps=off)
+        values.update(stopped=int(not goal and not left), steered_steps=seed + 2)
         return format_row([values[c] for c in COLUMNS])
 
     rows = [row("filter", 0, 1, 100, 30), row("filter", 1, 0, 50, 0), row("nofilter", 0, 0, 10, 10)]
@@ -68,7 +69,8 @@ def test_summary_shares_off_track_steps_over_all_steps(tmp_path: Path) -> None:
     assert s["filter"]["goals"] == 1 and s["filter"]["steps"] == 150
     assert s["filter"]["left_track"] == 0 and s["filter"]["successes"] == 2
     assert s["filter"]["veto_events"] == 3 and s["filter"]["veto_events_per_km"] == pytest.approx(3 / 0.04)
-    assert s["nofilter"]["off_track_share"] == 1.0
+    assert s["filter"]["stopped"] == 1 and s["filter"]["steered_steps"] == 2 + 3
+    assert s["nofilter"]["off_track_share"] == 1.0 and s["nofilter"]["stopped"] == 0
     assert s["nofilter"]["left_track"] == 1 and s["nofilter"]["success_rate"] == 0.0
     assert s["filter"]["median_veto_error_m"] is None  # no vetoes.csv given
     vetoes = tmp_path / "vetoes.csv"  # the median of every judged veto's error, per filter setting

@@ -104,6 +104,7 @@ def test_with_a_steering_search_the_filter_steers_the_turn_off_the_pit_instead_o
     r = run_scenario(spec, _SteadyLeftTurn(), filter=search, seed=0)
     assert braking.steered_steps == 0 and braking.termination == ("stopped",) and braking.progress_m < 12.0
     assert r.steered_steps > 0 and f" steered={r.steered_steps} " in r.line()
+    assert r.metrics()["steered_steps"] == r.steered_steps  # a policy campaign's column
     assert not r.entered_negative_obstacle and r.truncated and r.progress_m > 20.0
     assert r.vetoes < braking.vetoes and r.false_vetoes == 0
 
