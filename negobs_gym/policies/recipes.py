@@ -57,6 +57,8 @@ RECIPE_DIR = Path(__file__).with_name("recipes")
 POLICY_FILES: tuple[str, ...] = ("model.zip", "warm_start.zip")
 #: ``negobs eval policy --filter``.
 FILTER_MODES: tuple[str, ...] = ("off", "on", "both")
+#: ``negobs eval policy --source``; "" judges on the grid the policy's record names.
+JUDGE_SOURCES: tuple[str, ...] = ("", "detector", "oracle", "pem")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,11 +70,15 @@ class RecipeEvaluation:
             was measured (its training and warm-start seeds are small integers).
         seeds: Number of courses.
         filter: ``off``, ``on`` or ``both``: without and/or behind the Eq. 18 safety filter.
+        source: The grid it is judged on (``--source``): "" the one it was fitted on, as its record
+            names it; ``detector`` for a policy trained on the PEM or oracle grid and judged on
+            what the detectors see.
     """
 
     first_seed: int = 1_000_000
     seeds: int = 20
     filter: str = "both"
+    source: str = ""
 
     def __post_init__(self) -> None:
         require(
@@ -86,6 +92,7 @@ class RecipeEvaluation:
             f"must be an int >= 1, got {self.seeds!r}",
         )
         require(self.filter in FILTER_MODES, "filter", f"must be one of {FILTER_MODES}, got {self.filter!r}")
+        require(self.source in JUDGE_SOURCES, "source", f"must be one of {JUDGE_SOURCES}, got {self.source!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -123,8 +130,9 @@ class Recipe:
     def eval_command(self, out: str | Path) -> str:
         """The ``negobs eval policy`` command that judges the run's policy under ``out``."""
         e = self.evaluation
+        source = f" --source {e.source}" if e.source else ""
         return (
-            f"negobs eval policy {Path(out) / self.policy_file} --first-seed {e.first_seed} "
+            f"negobs eval policy {Path(out) / self.policy_file}{source} --first-seed {e.first_seed} "
             f"--seeds {e.seeds} --filter {e.filter} --workers 2"
         )
 

@@ -65,6 +65,12 @@ def test_a_recipe_file_holds_the_whole_run(tmp_path: Path) -> None:
     # written out with every setting, it reads back to itself
     (tmp_path / "again.toml").write_text(recipe_to_toml(recipe))
     assert load_recipe(tmp_path / "again.toml") == dataclasses.replace(recipe, name="again")
+    # a policy fitted on one grid and judged on another: the judge names the grid
+    path.write_text(GOOD.replace('filter = "on"', 'filter = "on"\nsource = "detector"'))
+    assert load_recipe(path).eval_command("out") == (
+        f"negobs eval policy {Path('out') / 'warm_start.zip'} --source detector "
+        "--first-seed 2000000 --seeds 5 --filter on --workers 2"
+    )
 
 
 @pytest.mark.parametrize(
@@ -78,6 +84,7 @@ def test_a_recipe_file_holds_the_whole_run(tmp_path: Path) -> None:
         (('algo = "PPO"', ""), None),  # not in GOOD: no change, loads
         (('filter = "on"', 'filter = "sometimes"'), "evaluation.filter"),
         (("seeds = 5", "seeds = 0"), "evaluation.seeds"),
+        (('filter = "on"', 'filter = "on"\nsource = "radar"'), "evaluation.source"),
         (('policy_file = "warm_start.zip"', 'policy_file = "best.zip"'), "recipe.policy_file"),
         (('description = "a short clone"', 'author = "me"'), "recipe.author"),
         (("steps = 40\nmirror = true", "mirror = true"), "recipe.policy_file"),  # no clone to ship
