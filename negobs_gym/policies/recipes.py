@@ -39,7 +39,7 @@ from typing import Any
 import tomllib
 
 from negobs_gym.errors import ConfigError, require
-from negobs_gym.policies.config import TrainConfig, _from_dict
+from negobs_gym.policies.config import SOURCES, TrainConfig, _from_dict
 
 __all__ = [
     "FILTER_MODES",
@@ -57,8 +57,9 @@ RECIPE_DIR = Path(__file__).with_name("recipes")
 POLICY_FILES: tuple[str, ...] = ("model.zip", "warm_start.zip")
 #: ``negobs eval policy --filter``.
 FILTER_MODES: tuple[str, ...] = ("off", "on", "both")
-#: ``negobs eval policy --source``; "" judges on the grid the policy's record names.
-JUDGE_SOURCES: tuple[str, ...] = ("", "detector", "oracle", "pem")
+#: ``negobs eval policy --source``: the grid sources ("state" has no grid to judge on); "" judges
+#: on the grid the policy's record names.
+JUDGE_SOURCES: tuple[str, ...] = ("", *(s for s in SOURCES if s != "state"))
 
 
 @dataclass(frozen=True, kw_only=True)
