@@ -68,6 +68,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument(
         "--work", default="outputs/pem/fit", help="folder of the drives' rows (default: %(default)s)"
     )
+    fit.add_argument(
+        "--calibrate",
+        type=non_negative_int,
+        default=1,
+        metavar="PASSES",
+        help="then drive the same courses with the PEM this many times, each time scaling its "
+        "recall per 2 m bin to the detector's there (0: the tables alone; default: %(default)s)",
+    )
     _campaign_options(fit, seeds=8, frames=400, first_seed=0)
     fit.set_defaults(handler=run_fit)
     check = commands.add_parser(
@@ -163,11 +171,12 @@ def run_fit(args: argparse.Namespace) -> int:
         config.frames,
         args.model,
     )
-    model = fit_pem(config, args.model, args.work, options)
+    model = fit_pem(config, args.model, args.work, options, calibration_passes=args.calibrate)
     sightings = sum(map(sum, model.parameters.sightings))
     print(f"pem_model={args.model}")
     print(f"fit_frames={model.fit['frames']}")
     print(f"fit_sightings={sightings}")
+    print(f"calibration_passes={model.fit.get('calibration_passes', 0)}")
     return 0
 
 

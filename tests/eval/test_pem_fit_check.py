@@ -21,7 +21,7 @@ from negobs_gym.eval.pem_data import (
     SPURIOUS_COLUMNS,
     PemCampaignConfig,
 )
-from negobs_gym.eval.pem_fit import fit_parameters, fit_pem
+from negobs_gym.eval.pem_fit import calibrate, calibration_factors, fit_parameters, fit_pem
 from negobs_gym.spec import ObservationConfig
 
 
@@ -133,6 +133,32 @@ def test_false_alarm_rates_are_fitted_per_terrain_class_and_unseen_classes_borro
     assert {blob[0] for blob in params.fa_blobs} == {k["smooth"], k["clutter"]}
 
 
+def test_calibration_factors_bring_the_recall_per_bin_to_the_detectors(tmp_path):
+    """At 8-10 m the detector draws 20 of 40 sightings and the PEM 32: that bin's chain is scaled
+    by 0.625; 10-12 m, seen 10 times, too few to say, keeps 1, as does a bin seen by neither."""
+    sightings = [_sighting("detector", f, 0, 9.0, f < 20) for f in range(40)]
+    sightings += [_sighting("pem", f, 0, 9.0, f < 32) for f in range(40)]
+    sightings += [_sighting(m, 50 + f, 1, 11.0, f < 5) for m in ("detector", "pem") for f in range(10)]
+    s_csv = _write(tmp_path / "s.csv", SIGHTING_COLUMNS, sightings)
+    edges = tuple(float(e) for e in range(0, 30, 2))
+    by_bin = calibration_factors(s_csv, edges)
+    assert by_bin[4] == pytest.approx(20 / 32) and by_bin[5] == 1.0 and by_bin[0] == 1.0
+    with pytest.raises(ConfigError, match="no pem sighting"):
+        calibration_factors(_write(tmp_path / "d.csv", SIGHTING_COLUMNS, sightings[:40]), edges)
+
+
+def test_calibrate_scales_the_chain_per_bin_and_nothing_else():
+    params = load_pem(None, ObservationConfig()).positive
+    by_bin = np.ones(len(params.distance_edges_m) - 1)
+    by_bin[3], by_bin[4] = 0.5, 3.0
+    out = calibrate(params, by_bin)
+    keep, new_keep = np.asarray(params.p_keep), np.asarray(out.p_keep)
+    assert np.allclose(new_keep[:, 3], keep[:, 3] * 0.5, atol=1e-6)
+    assert np.allclose(new_keep[:, 4], np.minimum(keep[:, 4] * 3.0, 1.0), atol=1e-6)  # a share stays <= 1
+    assert np.array_equal(new_keep[:, 5:], keep[:, 5:]) and out.p_return != params.p_return
+    assert dataclasses.replace(out, p_keep=params.p_keep, p_return=params.p_return) == params
+
+
 def test_compare_passes_equal_grids_and_fails_each_kind_of_difference(tmp_path):
     rng = np.random.default_rng(0)
     centres = rng.uniform(6.0, 20.0, 400)
@@ -228,6 +254,24 @@ def test_fit_then_check_round_trip_on_a_few_frames(tmp_path, capsys):
             other, PemCampaignConfig(seeds=1, frames=6, first_seed=500), out,
             options=RunOptions(resume=True, progress=False),
         )  # fmt: skip
+
+
+def test_a_calibrated_fit_drives_its_own_courses_with_the_pem_and_records_the_passes(tmp_path):
+    fit = PemCampaignConfig(seeds=1, frames=6)
+    work = tmp_path / "fit"
+    plain = fit_pem(fit, tmp_path / "plain.json", work)
+    with pytest.raises(ConfigError, match="calibration_passes"):
+        fit_pem(fit, tmp_path / "bad.json", work, calibration_passes=-1)
+    resume = RunOptions(resume=True, progress=False)
+    model = fit_pem(fit, tmp_path / "pem.json", work, resume, calibration_passes=1)
+    assert model.fit["calibration_passes"] == 1 and "calibration_passes" not in plain.fit
+    assert len(list((work / "parts").glob("seed0000000-pem-*.json"))) == 1  # the pass's drive, resumable
+    assert {r["mode"] for r in read_csv(work / "positive_sightings.csv")} == {"detector", "pem"}
+    # what the pass changes is the chain and the rates, nothing the tables alone set
+    for channel in model.channels:
+        a, b = plain.channel_parameters(channel), model.channel_parameters(channel)
+        assert a.confirm_distance_m == b.confirm_distance_m and a.near_offset_m == b.near_offset_m
+    assert load_pem(tmp_path / "pem.json", ObservationConfig()) == model
 
 
 def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
