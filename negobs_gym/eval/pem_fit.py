@@ -388,7 +388,9 @@ def calibrate(parameters: PemParameters, by_bin: np.ndarray) -> PemParameters:
     def chain(table: tuple[tuple[float, ...], ...]) -> tuple[tuple[float, ...], ...]:
         return _table(np.clip(np.asarray(table) * np.asarray(by_bin)[None, :], 0.0, 1.0))
 
-    return dataclasses.replace(parameters, p_keep=chain(parameters.p_keep), p_return=chain(parameters.p_return))
+    return dataclasses.replace(
+        parameters, p_keep=chain(parameters.p_keep), p_return=chain(parameters.p_return)
+    )
 
 
 def fit_pem(
@@ -406,7 +408,11 @@ def fit_pem(
     Raises:
         ConfigError: ``calibration_passes`` is not a whole number >= 0.
     """
-    if isinstance(calibration_passes, bool) or not isinstance(calibration_passes, int) or calibration_passes < 0:
+    if (
+        isinstance(calibration_passes, bool)
+        or not isinstance(calibration_passes, int)
+        or calibration_passes < 0
+    ):
         raise ConfigError("calibration_passes", f"must be a whole number >= 0, got {calibration_passes!r}")
     csvs = run_pem_campaign(config, work_dir, None, options, "PEM fit courses")
     parameters = {
@@ -434,15 +440,17 @@ def fit_pem(
     }
     settings = pem_settings(config.observation)
     model = PerceptionErrorModel(
-            parameters=parameters["negative"], positive=parameters["positive"], fitted_on=settings, fit=fit
-        )
+        parameters=parameters["negative"], positive=parameters["positive"], fitted_on=settings, fit=fit
+    )
     # the PEM's drives join the detector's in work_dir (keyed by the model), so a pass resumes too
     again = dataclasses.replace(options or RunOptions(), resume=True)
     for k in range(calibration_passes):
         csvs = run_pem_campaign(config, work_dir, model, again, f"PEM calibration pass {k + 1}")
         for channel, tables in CHANNEL_TABLES.items():
             p = model.channel_parameters(channel)
-            parameters[channel] = calibrate(p, calibration_factors(csvs[tables["sightings"]], p.distance_edges_m))
+            parameters[channel] = calibrate(
+                p, calibration_factors(csvs[tables["sightings"]], p.distance_edges_m)
+            )
         fit = {**fit, "calibration_passes": k + 1}
         model = PerceptionErrorModel(
             parameters=parameters["negative"], positive=parameters["positive"], fitted_on=settings, fit=fit
