@@ -398,7 +398,7 @@ def fit_pem(
     model_path: str | Path,
     work_dir: str | Path,
     options: RunOptions | None = None,
-    calibration_passes: int = 0,
+    calibration_passes: int = 1,
 ) -> PerceptionErrorModel:
     """Drive ``config``'s courses through the detector grid (rows kept in ``work_dir``, resumable),
     fit the PEM of both channels, calibrate it ``calibration_passes`` times on the same courses
@@ -430,17 +430,18 @@ def fit_pem(
         for channel, tables in CHANNEL_TABLES.items()
     }
     frames = sum(config.frames_of(i) for i in range(config.seeds))
-    fit = {
-        "course": "detection_course",
-        "first_seed": config.first_seed,
-        "seeds": config.seeds,
-        "frames": frames,
-        "track_obstacles_per_100m": config.track_obstacles_per_100m,
-        "positive_match_cells": config.positive_match_cells,
-    }
-    settings = pem_settings(config.observation)
     model = PerceptionErrorModel(
-        parameters=parameters["negative"], positive=parameters["positive"], fitted_on=settings, fit=fit
+        parameters=parameters["negative"],
+        positive=parameters["positive"],
+        fitted_on=pem_settings(config.observation),
+        fit={
+            "course": "detection_course",
+            "first_seed": config.first_seed,
+            "seeds": config.seeds,
+            "frames": frames,
+            "track_obstacles_per_100m": config.track_obstacles_per_100m,
+            "positive_match_cells": config.positive_match_cells,
+        },
     )
     # the PEM's drives join the detector's in work_dir (keyed by the model), so a pass resumes too
     again = dataclasses.replace(options or RunOptions(), resume=True)
@@ -451,9 +452,11 @@ def fit_pem(
             parameters[channel] = calibrate(
                 p, calibration_factors(csvs[tables["sightings"]], p.distance_edges_m)
             )
-        fit = {**fit, "calibration_passes": k + 1}
-        model = PerceptionErrorModel(
-            parameters=parameters["negative"], positive=parameters["positive"], fitted_on=settings, fit=fit
+        model = dataclasses.replace(
+            model,
+            parameters=parameters["negative"],
+            positive=parameters["positive"],
+            fit={**model.fit, "calibration_passes": k + 1},
         )
     model.save(model_path)
     return model
