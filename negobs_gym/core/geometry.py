@@ -18,6 +18,7 @@ __all__ = [
     "PolygonsAhead",
     "distance_to_polyline",
     "heading_axes",
+    "lattice_in_polygon",
     "pad_polygons",
     "points_in_polygon",
     "points_in_polygons",
@@ -125,6 +126,21 @@ def points_in_polygons(points_xy: np.ndarray, polygons: np.ndarray) -> np.ndarra
     x_cross = a[..., 0] + (py - a[..., 1]) * (b[..., 0] - a[..., 0]) / safe_dy
     inside = (np.count_nonzero(straddle & (px < x_cross), axis=-1) % 2) == 1
     return inside.reshape(*pts.shape[:-1], polys.shape[0])
+
+
+def lattice_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon_xy: np.ndarray) -> np.ndarray:
+    """Bool mask (len(ys), len(xs)) of the lattice points (xs[j], ys[i]) inside one simple polygon
+    (N>=3, 2): :func:`points_in_polygon` of the lattice, with each row's edge crossings computed
+    once for all of its points (a grid window's cells)."""
+    poly = _polygon(polygon_xy, "polygon_xy")
+    a, b = poly, np.roll(poly, -1, axis=0)
+    py = np.asarray(ys, dtype=np.float64)[:, None]  # (R, 1) against the N edges
+    straddle = (a[:, 1] > py) != (b[:, 1] > py)
+    dy = b[:, 1] - a[:, 1]
+    safe_dy = np.where(dy == 0, 1.0, dy)  # horizontal edges never straddle
+    x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / safe_dy
+    px = np.asarray(xs, dtype=np.float64)[None, :, None]  # (1, C, 1)
+    return (np.count_nonzero(straddle[:, None, :] & (px < x_cross[:, None, :]), axis=-1) % 2) == 1
 
 
 def points_in_polygon(points_xy: np.ndarray, polygon_xy: np.ndarray) -> np.ndarray:

@@ -65,6 +65,11 @@ class GridSpec:
             inside,
         )
 
+    def contains(self, xy: np.ndarray) -> np.ndarray:
+        """Whether each vehicle-frame point (..., 2) lies in a cell of the grid (NaN does not):
+        :meth:`cell_of`'s mask alone."""
+        return self._cells(np.asarray(xy, dtype=np.float64))[2]
+
     def occupied(self, xy: np.ndarray) -> np.ndarray:
         """(rows, cols) bool: the cells holding at least one of the vehicle-frame points (..., 2);
         NaN points (no return) hold none. One compiled pass over the points, with the cell

@@ -11,6 +11,7 @@ from negobs_gym.core.geometry import (
     PolygonsAhead,
     distance_to_polyline,
     heading_axes,
+    lattice_in_polygon,
     pad_polygons,
     points_in_polygon,
     points_in_polygons,
@@ -90,6 +91,26 @@ def test_points_in_polygon_single():
     assert points_in_polygon(pts, SQUARE).tolist() == [True, False, False, True]
     assert points_in_polygon(pts.reshape(2, 2, 2), SQUARE).shape == (2, 2)
     assert points_in_polygon(np.zeros((0, 2)), SQUARE).shape == (0,)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(3, 12))
+def test_lattice_in_polygon_equals_points_in_polygon_of_the_lattice(seed, vertices):
+    """A star-shaped polygon of random radii (concave in general) against a lattice whose points
+    fall on its vertices' coordinates and beside them: the row-wise crossings give the same mask."""
+    rng = np.random.default_rng(seed)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, vertices))
+    radii = rng.uniform(0.3, 2.0, vertices)
+    polygon = np.round(np.column_stack([radii * np.cos(angles), radii * np.sin(angles)]), 1)
+    xs, ys = np.arange(-2.1, 2.2, 0.1), np.arange(-2.05, 2.1, 0.1)
+    if len(np.unique(polygon, axis=0)) < 3:
+        return
+    xx, yy = np.meshgrid(xs, ys)
+    expected = points_in_polygon(np.stack([xx, yy], axis=-1), polygon)
+    got = lattice_in_polygon(xs, ys, polygon)
+    assert got.shape == (len(ys), len(xs))
+    np.testing.assert_array_equal(got, expected)
+    assert lattice_in_polygon(xs[:0], ys, polygon).shape == (len(ys), 0)
 
 
 @settings(max_examples=200, deadline=None)

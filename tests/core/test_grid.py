@@ -27,6 +27,14 @@ def test_cell_of_and_cell_centres_agree():
     assert not out.any()
 
 
+def test_contains_is_cell_of_mask_with_nan_outside():
+    g = GridSpec(ahead_m=4.0, back_m=1.0, side_m=2.0)
+    pts = np.random.default_rng(1).uniform(-3.0, 5.0, (200, 2))
+    pts[:6] = [[-2.0, -1.0], [2.0, 0.0], [0.0, 4.0], [0.0, -1.0], [1.99, 3.99], [np.nan, 0.0]]
+    np.testing.assert_array_equal(g.contains(pts), g.cell_of(pts)[2])
+    assert g.contains(pts[:6]).tolist() == [True, False, False, True, True, False]
+
+
 @pytest.mark.parametrize("field", ["cell_m", "ahead_m", "side_m", "back_m"])
 def test_invalid_grid_raises_config_error_naming_field(field):
     with pytest.raises(ConfigError, match=field):

@@ -78,6 +78,12 @@ def test_classes_follow_the_track_the_border_kinds_and_the_clutter(terrain):
     assert d[0] == 0.0 and d[1] == pytest.approx(1.0, abs=0.05)
     raster = ClassRaster.build(terrain, tree, 1.0, 0.6, 10.0)
     assert np.array_equal(raster.at(points[[0, 3, 5, 8]]), got[[0, 3, 5, 8]])
+    # beyond the raster, just before its first cell, and NaN: smooth ground
+    (x0, y0), ny, nx = raster.origin_m, *raster.classes.shape
+    outside = np.array([[x0 - 1e-9, y0 + 1.0], [x0 + 1.0, y0 + ny * raster.resolution_m], [np.nan, y0 + 1.0]])
+    assert raster.at(outside).tolist() == [TERRAIN_CLASSES.index("smooth")] * 3
+    corner = np.array([[x0 + 1e-9, y0 + 1e-9], [x0 + (nx - 1e-6) * raster.resolution_m, y0]])
+    assert raster.at(corner).tolist() == [raster.classes[0, 0], raster.classes[0, -1]]
 
 
 def test_false_alarms_of_the_clutter_class_are_born_near_the_clutter(terrain):
