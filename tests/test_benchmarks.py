@@ -38,6 +38,8 @@ from negobs_gym.errors import ConfigError
 TINY = {
     "env": EnvSize(
         steps=3,
+        rounds=2,
+        round_steps=2,
         vec_steps=2,
         resets=1,
         pool=1,
@@ -68,6 +70,7 @@ FIGURES = {
         "reduced_rig_steps_per_s",
         "oracle_steps_per_s",
         "pem_steps_per_s",
+        "pem_over_oracle",
         "scan_every_4_steps_per_s",
         "scan_every_3_far_8_steps_per_s",
         "reset_new_terrain_s",

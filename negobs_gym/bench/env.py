@@ -55,6 +55,8 @@ class EnvSize:
     """How much the env suite drives."""
 
     steps: int  # control steps of each one-process rate
+    rounds: int  # alternating rounds of the oracle and PEM rates ...
+    round_steps: int  # ... of this many steps each
     vec_steps: int  # lockstep steps of the 2-process run
     resets: int  # resets timed with a new terrain each
     pool: int  # terrain_pool_size of the pooled resets
@@ -70,19 +72,30 @@ class EnvSize:
         positive_counts(self)
 
 
+class Drive:
+    """Half-throttle steps of one env, timed in parts: one untimed reset and step first, and a
+    finished episode reset (untimed) with the next seed."""
+
+    def __init__(self, env: gym.Env) -> None:
+        self.env, self.seed = env, 0
+        env.reset(seed=0)
+        env.step(ACTION)
+
+    def steps(self, count: int) -> Clock:
+        """The clock of the next ``count`` steps."""
+        clock = Clock()
+        for _ in range(count):
+            with clock:
+                _, _, terminated, truncated, _ = self.env.step(ACTION)
+            if terminated or truncated:
+                self.seed += 1
+                self.env.reset(seed=self.seed)
+        return clock
+
+
 def drive(env: gym.Env, steps: int) -> Clock:
-    """The clock of ``steps`` half-throttle steps after one untimed reset and step; a finished
-    episode is reset (untimed) with the next seed."""
-    env.reset(seed=0)
-    env.step(ACTION)
-    clock, seed = Clock(), 0
-    for _ in range(steps):
-        with clock:
-            _, _, terminated, truncated, _ = env.step(ACTION)
-        if terminated or truncated:
-            seed += 1
-            env.reset(seed=seed)
-    return clock
+    """The clock of ``steps`` half-throttle steps (:class:`Drive`)."""
+    return Drive(env).steps(steps)
 
 
 def _rate(env_id: str, overrides: Sequence[str], steps: int) -> Clock:
@@ -219,21 +232,47 @@ def default_observation(size: EnvSize) -> Figures:
     return figures | stages
 
 
+def oracle_and_pem(size: EnvSize) -> Figures:
+    """OffroadNav-v1 on the oracle grid and on the PEM grid, one process each, in short alternating
+    rounds (each env driving on where its last round stopped, both on the same courses and steps):
+    the medians over the rounds, and the median of the rounds' ratios, which a machine whose
+    speed drifts within a minute leaves alone, as two runs one after the other are not."""
+    rounds: dict[str, list[float]] = {"oracle": [], "pem": []}
+    envs = {source: make_env(ORACLE_ENV, (f"observation.source={source}",)) for source in rounds}
+    try:
+        drives = {source: Drive(env) for source, env in envs.items()}
+        for _ in range(size.rounds):
+            for source, rates in rounds.items():
+                rates.append(drives[source].steps(size.round_steps).rate(size.round_steps))
+    finally:
+        for env in envs.values():
+            env.close()
+    ratios = np.divide(rounds["pem"], rounds["oracle"])
+    what = f"median of {size.rounds} alternating rounds of {size.round_steps} steps"
+    return {
+        "oracle_steps_per_s": Figure(
+            float(np.median(rounds["oracle"])),
+            "steps/s",
+            f"oracle grid, OffroadNav-v1 (the training env); {what}",
+        ),
+        "pem_steps_per_s": Figure(
+            float(np.median(rounds["pem"])),
+            "steps/s",
+            f"PEM grid (the shipped model), OffroadNav-v1, beside the oracle's; {what}",
+        ),
+        "pem_over_oracle": Figure(
+            float(np.median(ratios)),
+            "x",
+            f"PEM grid over oracle grid, median of the {size.rounds} rounds' ratios",
+        ),
+    }
+
+
 def other_observations(size: EnvSize) -> Figures:
-    """One process with another rig, the oracle grid, the PEM grid, or a LiDAR frame every k-th step."""
+    """One process with another rig or a LiDAR frame every k-th step."""
     runs = {
         "native_rig_steps_per_s": (DETECTOR_ENV, ("observation.rig=native",), "full 360° native rig"),
         "reduced_rig_steps_per_s": (DETECTOR_ENV, ("observation.rig=reduced",), "half-resolution rig"),
-        "oracle_steps_per_s": (
-            ORACLE_ENV,
-            ("observation.source=oracle",),
-            "oracle grid, OffroadNav-v1 (the training env)",
-        ),
-        "pem_steps_per_s": (
-            ORACLE_ENV,
-            ("observation.source=pem",),
-            "PEM grid (the shipped model), OffroadNav-v1, beside the oracle's",
-        ),
         "scan_every_4_steps_per_s": (
             DETECTOR_ENV,
             ("observation.scan_every=4",),
@@ -357,6 +396,8 @@ SUITE = Suite(
     what="env throughput",
     full=EnvSize(
         steps=200,
+        rounds=40,
+        round_steps=50,
         vec_steps=100,
         resets=10,
         pool=8,
@@ -370,6 +411,8 @@ SUITE = Suite(
     ),
     quick=EnvSize(
         steps=20,
+        rounds=2,
+        round_steps=10,
         vec_steps=15,
         resets=2,
         pool=2,
@@ -381,5 +424,13 @@ SUITE = Suite(
         train_steps=256,
         n_steps=64,
     ),
-    measurements=(default_observation, other_observations, reset_costs, memory, physics, training),
+    measurements=(
+        default_observation,
+        other_observations,
+        oracle_and_pem,
+        reset_costs,
+        memory,
+        physics,
+        training,
+    ),
 )
