@@ -48,9 +48,7 @@ def source_overrides(source: str | None) -> list[str]:
     return [f"observation.source={'oracle' if source == 'state' else source}"]
 
 
-def make_env(
-    env: str | ScenarioSpec, overrides: Overrides = (), render_mode: str | None = None
-) -> gym.Env:
+def make_env(env: str | ScenarioSpec, overrides: Overrides = (), render_mode: str | None = None) -> gym.Env:
     """The env named by ``env`` with its scenario changed by ``overrides``, rendering in ``render_mode``.
 
     ``env`` is a registered id (built through ``gymnasium.make``, with its wrappers), a shipped

@@ -93,7 +93,9 @@ class RecipeEvaluation:
             f"must be an int >= 1, got {self.seeds!r}",
         )
         require(self.filter in FILTER_MODES, "filter", f"must be one of {FILTER_MODES}, got {self.filter!r}")
-        require(self.source in JUDGE_SOURCES, "source", f"must be one of {JUDGE_SOURCES}, got {self.source!r}")
+        require(
+            self.source in JUDGE_SOURCES, "source", f"must be one of {JUDGE_SOURCES}, got {self.source!r}"
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
