@@ -29,9 +29,10 @@ from negobs_gym.bench import (
 )
 from negobs_gym.bench.detection import DetectionSize
 from negobs_gym.bench.detector import DetectorSize
-from negobs_gym.bench.env import EnvSize
+from negobs_gym.bench.env import ORACLE_ENV, Drive, EnvSize, oracle_and_pem
 from negobs_gym.bench.safety import SafetySize
 from negobs_gym.cli import main
+from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
 
 #: Sizes for the tests alone: each measurement runs once on the least input it takes.
@@ -151,6 +152,25 @@ def test_each_suite_writes_its_results_file(suite: str, tmp_path: Path) -> None:
     assert path == tmp_path / f"{suite}.quick.json"
     assert check_results(path, suite) == results
     assert results["quick"] is True
+
+
+def test_oracle_and_pem_rates_come_from_alternating_rounds_on_the_same_steps() -> None:
+    """The two envs drive the same courses step for step (a constant action, the same seeds), so
+    each round of one is paired with the other's; the ratio is the rounds' median, not the rates'."""
+    size = dataclasses.replace(TINY["env"], rounds=3, round_steps=2)
+    figures = oracle_and_pem(size)
+    assert set(figures) == {"oracle_steps_per_s", "pem_steps_per_s", "pem_over_oracle"}
+    assert figures["pem_over_oracle"].unit == "x" and "3 rounds" in figures["pem_over_oracle"].what
+    assert all(f.value > 0 for f in figures.values())
+    envs = [make_env(ORACLE_ENV, (f"observation.source={s}",)) for s in ("oracle", "pem")]
+    drives = [Drive(env) for env in envs]
+    for _ in range(2):
+        clocks = [d.steps(3) for d in drives]
+        assert [c.blocks for c in clocks] == [3, 3]
+    poses = [env.unwrapped._vehicle.true_pose() for env in envs]
+    assert poses[0] == poses[1] and drives[0].seed == drives[1].seed
+    for env in envs:
+        env.close()
 
 
 def test_a_suite_takes_only_its_own_size() -> None:
