@@ -116,16 +116,20 @@ def points_in_polygons(points_xy: np.ndarray, polygons: np.ndarray) -> np.ndarra
     flat = pts.reshape(-1, 2)
     if polys.shape[0] == 0:
         return np.zeros((*pts.shape[:-1], 0), dtype=bool)
-    a = polys[None]  # (1, M, N, 2)
-    b = np.roll(polys, -1, axis=1)[None]
-    px = flat[:, None, None, 0]
-    py = flat[:, None, None, 1]
-    straddle = (a[..., 1] > py) != (b[..., 1] > py)
+    straddle, x_cross = _edge_crossings(polys[None], flat[:, None, None, 1])  # (P, M, N)
+    inside = (np.count_nonzero(straddle & (flat[:, None, None, 0] < x_cross), axis=-1) % 2) == 1
+    return inside.reshape(*pts.shape[:-1], polys.shape[0])
+
+
+def _edge_crossings(polygons: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which edges of closed ``polygons`` (..., N, 2) the horizontal lines at ``y`` (broadcast
+    against the edges) straddle, and the x where each line meets each edge's line: the even-odd
+    rule's crossings (a point is inside when an odd number of them lie to its right)."""
+    a, b = polygons, np.roll(polygons, -1, axis=-2)
+    straddle = (a[..., 1] > y) != (b[..., 1] > y)
     dy = b[..., 1] - a[..., 1]
     safe_dy = np.where(dy == 0, 1.0, dy)  # horizontal edges never straddle
-    x_cross = a[..., 0] + (py - a[..., 1]) * (b[..., 0] - a[..., 0]) / safe_dy
-    inside = (np.count_nonzero(straddle & (px < x_cross), axis=-1) % 2) == 1
-    return inside.reshape(*pts.shape[:-1], polys.shape[0])
+    return straddle, a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / safe_dy
 
 
 def lattice_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon_xy: np.ndarray) -> np.ndarray:
@@ -133,12 +137,7 @@ def lattice_in_polygon(xs: np.ndarray, ys: np.ndarray, polygon_xy: np.ndarray) -
     (N>=3, 2): :func:`points_in_polygon` of the lattice, with each row's edge crossings computed
     once for all of its points (a grid window's cells)."""
     poly = _polygon(polygon_xy, "polygon_xy")
-    a, b = poly, np.roll(poly, -1, axis=0)
-    py = np.asarray(ys, dtype=np.float64)[:, None]  # (R, 1) against the N edges
-    straddle = (a[:, 1] > py) != (b[:, 1] > py)
-    dy = b[:, 1] - a[:, 1]
-    safe_dy = np.where(dy == 0, 1.0, dy)  # horizontal edges never straddle
-    x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / safe_dy
+    straddle, x_cross = _edge_crossings(poly, np.asarray(ys, dtype=np.float64)[:, None])  # (R, N)
     px = np.asarray(xs, dtype=np.float64)[None, :, None]  # (1, C, 1)
     return (np.count_nonzero(straddle[:, None, :] & (px < x_cross[:, None, :]), axis=-1) % 2) == 1
 

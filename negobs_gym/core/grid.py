@@ -65,6 +65,21 @@ class GridSpec:
             inside,
         )
 
+    def window(self, lo_xy: np.ndarray, hi_xy: np.ndarray) -> tuple[slice, slice]:
+        """Row and column slices of the cells that hold the vehicle-frame box from ``lo_xy`` to
+        ``hi_xy`` (finite (x, y) corners), clipped to the grid: empty where the box misses it.
+        :meth:`cell_of`'s floors, on two points without arrays (an obstacle's window per frame)."""
+        (x_lo, y_lo), (x_hi, y_hi) = (float(v) for v in lo_xy), (float(v) for v in hi_xy)
+        rows = slice(
+            max(math.floor((y_lo + self.back_m) / self.cell_m), 0),
+            min(math.floor((y_hi + self.back_m) / self.cell_m) + 1, self.rows),
+        )
+        cols = slice(
+            max(math.floor((x_lo + self.side_m) / self.cell_m), 0),
+            min(math.floor((x_hi + self.side_m) / self.cell_m) + 1, self.cols),
+        )
+        return rows, cols
+
     def contains(self, xy: np.ndarray) -> np.ndarray:
         """Whether each vehicle-frame point (..., 2) lies in a cell of the grid (NaN does not):
         :meth:`cell_of`'s mask alone."""

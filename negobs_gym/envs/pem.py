@@ -628,17 +628,12 @@ def rasterise_outlines(
     ys = -grid.back_m + (np.arange(grid.rows) + 0.5) * grid.cell_m
     for k in near.tolist():
         outline = world_to_vehicle_xy(outlines[k], (pose.x, pose.y), pose.yaw)
-        (x_lo, y_lo), (x_hi, y_hi) = outline.min(axis=0).tolist(), outline.max(axis=0).tolist()
-        # the cells of the outline's box (GridSpec.cell_of's floors), clipped to the grid
-        r0 = max(math.floor((y_lo + grid.back_m) / grid.cell_m), 0)
-        r1 = min(math.floor((y_hi + grid.back_m) / grid.cell_m) + 1, grid.rows)
-        c0 = max(math.floor((x_lo + grid.side_m) / grid.cell_m), 0)
-        c1 = min(math.floor((x_hi + grid.side_m) / grid.cell_m) + 1, grid.cols)
-        if r0 >= r1 or c0 >= c1:
+        rows, cols = grid.window(outline.min(axis=0), outline.max(axis=0))
+        if rows.start >= rows.stop or cols.start >= cols.stop:
             continue
-        mask = lattice_in_polygon(xs[c0:c1], ys[r0:r1], outline)
+        mask = lattice_in_polygon(xs[cols], ys[rows], outline)
         if mask.any():
-            out.append((k, mask, slice(r0, r1), slice(c0, c1)))
+            out.append((k, mask, rows, cols))
     return out
 
 

@@ -110,15 +110,9 @@ def rasterize_outline(outline_xy_m: np.ndarray, grid: GridSpec) -> np.ndarray:
     poly = _as_polygon(outline_xy_m, "outline_xy_m")
     mask = np.zeros(grid.shape, dtype=bool)
     if len(poly) >= 3:
-        lo = poly.min(axis=0)
-        hi = poly.max(axis=0)
-        centres = grid.cell_centres()
-        r0, c0, _ = grid.cell_of(lo)
-        r1, c1, _ = grid.cell_of(hi)
-        r0, r1 = int(np.clip(r0, 0, grid.rows - 1)), int(np.clip(r1, 0, grid.rows - 1))
-        c0, c1 = int(np.clip(c0, 0, grid.cols - 1)), int(np.clip(c1, 0, grid.cols - 1))
-        inside = points_in_polygon(centres[r0 : r1 + 1, c0 : c1 + 1], poly)
-        mask[r0 : r1 + 1, c0 : c1 + 1] |= inside
+        rows, cols = grid.window(poly.min(axis=0), poly.max(axis=0))
+        if rows.start < rows.stop and cols.start < cols.stop:
+            mask[rows, cols] |= points_in_polygon(grid.cell_centres()[rows, cols], poly)
     if not mask.any():
         row, col, ok = grid.cell_of(poly)
         mask[row[ok], col[ok]] = True

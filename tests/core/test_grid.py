@@ -27,6 +27,19 @@ def test_cell_of_and_cell_centres_agree():
     assert not out.any()
 
 
+def test_window_holds_the_cells_of_a_box_clipped_to_the_grid():
+    g = GridSpec(ahead_m=4.0, back_m=1.0, side_m=2.0)
+    rng = np.random.default_rng(2)
+    for lo, size in zip(rng.uniform(-4.0, 5.0, (100, 2)), rng.uniform(0.0, 2.0, (100, 2)), strict=True):
+        rows, cols = g.window(lo, lo + size)
+        (r0, r1), (c0, c1), _ = g.cell_of(np.stack([lo, lo + size]))
+        assert (rows.start, rows.stop) == (max(r0, 0), min(r1 + 1, g.rows))
+        assert (cols.start, cols.stop) == (max(c0, 0), min(c1 + 1, g.cols))
+    assert g.window(np.array([-0.9, 0.1]), np.array([0.9, 0.3])) == (slice(5, 7), slice(5, 15))
+    rows, cols = g.window(np.array([3.0, 0.0]), np.array([4.0, 1.0]))  # beside the grid: no column
+    assert cols.start >= cols.stop
+
+
 def test_contains_is_cell_of_mask_with_nan_outside():
     g = GridSpec(ahead_m=4.0, back_m=1.0, side_m=2.0)
     pts = np.random.default_rng(1).uniform(-3.0, 5.0, (200, 2))
