@@ -86,7 +86,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "offset and the first-confirmation distance; writes check.txt, summary.json, tables.md and "
         "pem_check.png to --out.",
     )
-    check.add_argument("--model", default=None, help="PEM file (default: the one shipped with the package)")
+    check.add_argument(
+        "--model",
+        default=None,
+        help="PEM file (default: the one shipped with the package for the observation's positive channel)",
+    )
     check.add_argument("--out", default="outputs/pem/check", help="output folder (default: %(default)s)")
     _campaign_options(check, seeds=4, frames=400, first_seed=CHECK_FIRST_SEED)
     loop = check.add_argument_group("closed loop (the braking campaign, detector vs PEM)")
@@ -182,7 +186,7 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     """Check a PEM; prints its key=value lines, returns 1 when a check fails."""
-    from negobs_gym.envs.pem import load_pem
+    from negobs_gym.envs.pem import load_pem, shipped_pem_path
     from negobs_gym.errors import UsageError
     from negobs_gym.eval.pem_check import (
         BrakingCheckConfig,
@@ -195,7 +199,8 @@ def run_check(args: argparse.Namespace) -> int:
     if args.no_courses and not (args.braking_seeds or args.policy):
         raise UsageError("--no-courses needs --braking-seeds N or --policy MODEL (nothing would be checked)")
     config, options = _config(args)
-    model = load_pem(args.model, config.observation)
+    model_path = args.model if args.model is not None else shipped_pem_path(config.observation)
+    model = load_pem(model_path, config.observation)
     results = []
     if not args.no_courses:
         log.info(
@@ -214,7 +219,7 @@ def run_check(args: argparse.Namespace) -> int:
             overrides=tuple(args.overrides or ()),
         )
         log.info("PEM closed-loop check: braking campaign on %d seeds, detector and PEM", braking.seeds)
-        results.append(check_braking(args.model, braking, args.out, options))
+        results.append(check_braking(model_path, braking, args.out, options))
         log.info("wrote %s/braking_check.txt, braking_detector/, braking_pem/", args.out)
     if args.policy:
         policy = PolicyCheckConfig(
@@ -225,7 +230,7 @@ def run_check(args: argparse.Namespace) -> int:
             overrides=tuple(args.overrides or ()),
         )
         log.info("PEM closed-loop check: %s on %d seeds, detector and PEM", args.policy, policy.seeds)
-        results.append(check_policy(args.model, policy, args.out, options))
+        results.append(check_policy(model_path, policy, args.out, options))
         log.info("wrote %s/policy_check.txt, policy_detector/, policy_pem/", args.out)
     passed = True
     for result in results:

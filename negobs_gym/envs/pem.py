@@ -27,8 +27,8 @@ rasterised like the oracle's and then, by parametric tables fitted on the detect
 The parameters are a :class:`PemParameters`; a :class:`PerceptionErrorModel` adds the detector,
 rig and observation settings it was fitted on (:func:`pem_settings`) and is saved as a versioned
 JSON file. :func:`load_pem` refuses a file whose settings differ from the observation's, naming
-each difference. The default model, fitted on the envs' default detector grid, ships as
-:data:`DEFAULT_PEM_PATH` (docs/pem.md).
+each difference. A model for each ``positive`` channel ships (:data:`SHIPPED_PEM_PATHS`), the
+default fitted on the envs' default detector grid (docs/pem.md).
 """
 
 from __future__ import annotations
@@ -69,6 +69,7 @@ __all__ = [
     "PemGrid",
     "PemParameters",
     "PerceptionErrorModel",
+    "SHIPPED_PEM_PATHS",
     "bin_index",
     "class_raster",
     "clutter_distance_m",
@@ -76,6 +77,7 @@ __all__ = [
     "ground_relief_m",
     "load_pem",
     "pem_settings",
+    "shipped_pem_path",
     "terrain_classes",
 ]
 
@@ -83,10 +85,19 @@ PEM_FORMAT = "negobs_gym.pem"
 #: Version of the file layout; a file of another version is refused.
 PEM_VERSION = 5
 #: The detector grid's channels a PEM models: ``negative`` (paper N's detector) and ``positive``
-#: (paper T's LUX obstacles, ``ObservationConfig.positive_detector = "traversable"``).
+#: (what ``ObservationConfig.positive_detector`` names: paper T's LUX obstacles or the structure
+#: channel; a file models the one it was fitted on).
 PEM_CHANNELS: tuple[str, ...] = ("negative", "positive")
-#: The PEM fitted on the envs' default detector grid (``ObservationConfig()``), shipped.
-DEFAULT_PEM_PATH = Path(__file__).with_name("data") / "pem_default.json"
+_DATA = Path(__file__).with_name("data")
+#: The shipped PEMs by the ``positive`` channel they model (``ObservationConfig.positive_detector``):
+#: ``traversable``, fitted on the envs' default detector grid (``ObservationConfig()``), and
+#: ``structure``, fitted on the scenario ``offroad_nav_v2_structure``'s (the structure channel held 2 s).
+SHIPPED_PEM_PATHS: dict[str, Path] = {
+    "traversable": _DATA / "pem_default.json",
+    "structure": _DATA / "pem_structure.json",
+}
+#: The PEM fitted on the envs' default detector grid, shipped.
+DEFAULT_PEM_PATH = SHIPPED_PEM_PATHS["traversable"]
 #: Terrain classes the false-alarm rates are kept for (:class:`ClassRaster`): ``track`` (within half
 #: its width of the centre line); off the track, ``clutter`` (within ``clutter_band_m`` of a
 #: standing positive obstacle's footprint: rocks, boxes, vehicles) and ``mound`` (of one raised
@@ -443,14 +454,20 @@ def settings_mismatch(
     ]
 
 
+def shipped_pem_path(config: ObservationConfig) -> Path:
+    """The shipped PEM for ``config``'s ``positive`` channel (:data:`SHIPPED_PEM_PATHS`)."""
+    return SHIPPED_PEM_PATHS[config.positive_detector]
+
+
 def load_pem(path: str | Path | None, config: ObservationConfig) -> PerceptionErrorModel:
-    """The PEM in ``path`` (None: :data:`DEFAULT_PEM_PATH`), checked against ``config``.
+    """The PEM in ``path`` (None: the shipped one for ``config``, :func:`shipped_pem_path`), checked
+    against ``config``.
 
     Raises:
         ConfigError: a missing or bad file, or settings that differ from those it was fitted on
             (field ``observation.pem_model``, each difference named).
     """
-    file = Path(path) if path is not None else DEFAULT_PEM_PATH
+    file = Path(path) if path is not None else shipped_pem_path(config)
     if not file.is_file():
         raise ConfigError("observation.pem_model", f"no PEM file {str(file)!r} (fit one: negobs pem fit)")
     model = PerceptionErrorModel.from_json(file.read_text(encoding="utf-8"), f"observation.pem_model {file}")

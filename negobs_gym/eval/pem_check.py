@@ -432,7 +432,7 @@ def _mode_options(
 
 def grid_overrides(model_path: str | Path | None) -> dict[str, tuple[str, ...]]:
     """The ``--set`` assignments of each grid a closed loop compares: the detector's and the PEM
-    ``model_path``'s (None: the shipped one), by mode."""
+    ``model_path``'s (None: the default one, :data:`~negobs_gym.envs.pem.DEFAULT_PEM_PATH`), by mode."""
     from negobs_gym.envs.pem import DEFAULT_PEM_PATH
 
     model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
@@ -524,7 +524,7 @@ def check_braking(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Run the braking campaign on the detector grid and on the PEM ``model_path`` (None: the
-    shipped one) into ``out_dir``/``braking_detector`` and ``braking_pem`` (each resumable), compare
+    default one) into ``out_dir``/``braking_detector`` and ``braking_pem`` (each resumable), compare
     (:func:`compare_braking`) and write ``braking_check.txt``."""
     from negobs_gym.eval.braking_campaign import run_braking_campaign
 
@@ -620,7 +620,7 @@ def check_policy(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Run the policy campaign on the detector grid and on the PEM ``model_path`` (None: the
-    shipped one) into ``out_dir``/``policy_detector`` and ``policy_pem`` (each resumable), compare
+    default one) into ``out_dir``/``policy_detector`` and ``policy_pem`` (each resumable), compare
     (:func:`compare_policy`) and write ``policy_check.txt``."""
     from negobs_gym.eval.policy_campaign import run_policy_campaign
 

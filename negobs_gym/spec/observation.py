@@ -233,7 +233,7 @@ class ObservationConfig:
         phantoms: With ``source="oracle"``, false ``negative`` clusters beside the track
             (:class:`PhantomConfig`; none by default). Ignored by the detector source.
         pem_model: With ``source="pem"``, the PEM's JSON file (``negobs pem fit`` writes one); None
-            (default): the one shipped with the package, fitted on the default detector grid. A
+            (default): the one shipped with the package for ``positive_detector`` (docs/pem.md). A
             file fitted on other detector, rig or observation settings than these is refused.
     """
 

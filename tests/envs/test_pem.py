@@ -158,3 +158,21 @@ def test_pem_is_selected_like_the_other_sources():
         assert env.unwrapped.scenario.observation.source == "pem"
     finally:
         env.close()
+
+
+def test_the_structure_channels_scenario_draws_from_its_own_shipped_model():
+    from negobs_gym.envs.pem import DEFAULT_PEM_PATH, load_pem, shipped_pem_path
+    from negobs_gym.envs.sources import make_grid_source
+
+    env = make_env("offroad_nav_v2_structure", ["observation.source=pem"])
+    try:
+        observation = env.unwrapped.scenario.observation
+        obs, _ = env.reset(seed=3)
+        for _ in range(3):
+            obs, *_ = env.step(np.array([0.5, 0.0], np.float32))
+        assert env.observation_space.contains(obs)
+    finally:
+        env.close()
+    model = make_grid_source(observation).model
+    assert model == load_pem(shipped_pem_path(observation), observation)
+    assert model.positive != PerceptionErrorModel.from_json(DEFAULT_PEM_PATH.read_text()).positive

@@ -9,14 +9,17 @@ import pytest
 
 from negobs_gym.envs.pem import (
     DEFAULT_PEM_PATH,
+    SHIPPED_PEM_PATHS,
     TERRAIN_CLASSES,
     PemParameters,
     PerceptionErrorModel,
     load_pem,
     pem_settings,
+    shipped_pem_path,
 )
 from negobs_gym.errors import ConfigError
-from negobs_gym.spec import ObservationConfig
+from negobs_gym.spec import ObservationConfig, load_scenario
+from negobs_gym.spec.observation import POSITIVE_DETECTORS
 
 
 def constant_parameters(p: float, near: float = 0.0, far: float = 0.0, density: float = 0.0) -> PemParameters:
@@ -69,6 +72,18 @@ def test_shipped_pem_loads_for_the_default_observation():
     assert model.fit["frames"] >= 100
     assert model.channels == ("negative", "positive")
     assert PerceptionErrorModel.from_json(model.to_json()) == model
+
+
+def test_a_model_ships_for_each_positive_channel_and_is_picked_by_it():
+    assert set(SHIPPED_PEM_PATHS) == set(POSITIVE_DETECTORS)
+    structure = load_scenario("offroad_nav_v2_structure").observation
+    assert structure.positive_detector == "structure"
+    assert shipped_pem_path(structure) != shipped_pem_path(ObservationConfig()) == DEFAULT_PEM_PATH
+    model = load_pem(None, structure)  # the structure channel's file, not the default's
+    assert model.fitted_on == pem_settings(structure)
+    assert model.channels == ("negative", "positive")
+    with pytest.raises(ConfigError, match="positive_detector"):
+        load_pem(DEFAULT_PEM_PATH, structure)
 
 
 def test_a_positive_model_is_refused_for_other_lux_settings_a_negative_one_is_not(tmp_path):
