@@ -177,6 +177,7 @@ class NegObsEnv(gym.Env):
         self._stop_rewarded = False
         pose = self._vehicle.true_pose()
         self._station, _ = self._track_position(pose)
+        self._goal_gap_m = self._capped_goal_distance(pose)
         self._path = [(pose.x, pose.y)]
         self._last_grid = None
         obs = self._observe()
@@ -337,6 +338,8 @@ class NegObsEnv(gym.Env):
             else 0.0
         )
         stopped = self._still_s >= task.stop_hold_s and not self._entered
+        goal_gap = self._capped_goal_distance(pose)
+        approach, self._goal_gap_m = self._goal_gap_m - goal_gap, goal_gap
         return StepOutcome(
             events=events,
             progress_m=progress,
@@ -344,7 +347,13 @@ class NegObsEnv(gym.Env):
             stopped=stopped,
             stopped_before_hazard=stopped and self._distance_to_negative_ahead(pose) <= task.stop_window_m,
             off_track=lateral > 0.5 * self.terrain.track.width_m,
+            goal_approach_m=approach,
         )
+
+    def _capped_goal_distance(self, pose: Pose) -> float:
+        """The straight-line distance to the goal, capped at ``goal_approach_radius_m`` [m]."""
+        radius = self.scenario.reward.goal_approach_radius_m
+        return min(math.dist((pose.x, pose.y), self.terrain.goal_xy_m), radius)
 
     @property
     def vehicle(self) -> Vehicle | None:

@@ -22,6 +22,8 @@ class StepOutcome:
         stopped_before_hazard: ``stopped`` with a negative obstacle at most the task's stop window
             ahead of the bumper.
         off_track: The rear-axle centre is beyond the track's half width from the centre line.
+        goal_approach_m: How much the straight-line distance to the goal, capped at the reward's
+            ``goal_approach_radius_m``, shrank this step [m] (negative when it grew).
     """
 
     events: StepEvents
@@ -30,6 +32,7 @@ class StepOutcome:
     stopped: bool = False
     stopped_before_hazard: bool = False
     off_track: bool = False
+    goal_approach_m: float = 0.0
 
 
 def termination_conditions(outcome: StepOutcome) -> dict[str, bool]:

@@ -23,4 +23,5 @@ def reward_terms(config: RewardConfig, outcome: StepOutcome, stop_rewarded: bool
         "stopped": config.stopped * float(outcome.stopped_before_hazard and not stop_rewarded),
         "trapped": config.trapped * float(bool(ev.trapped)),
         "off_track": config.off_track * float(outcome.off_track),
+        "goal_approach": config.goal_approach * outcome.goal_approach_m,
     }

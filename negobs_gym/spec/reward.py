@@ -30,6 +30,14 @@ class RewardConfig:
             once on OffroadTrack-v0, where that ends the episode). Default 0: then leaving the track
             costs only the progress not made, and PPO on v2 learns to leave it rather than risk
             an entry (docs/notebook/training_studies.md).
+        goal_approach: Per metre the car's straight-line distance to the goal shrinks within
+            ``goal_approach_radius_m`` of it (negative when it grows): a potential-based shaping
+            term (Ng et al. 1999), so it pays nothing for circling and does not change which
+            policy is best. Default 0. The progress term pays for metres along the centre line
+            wherever across the track they are driven, so a learner that passes beside the
+            goal circle earns all of it but the goal; this term points the last metres at the
+            goal (docs/training.md).
+        goal_approach_radius_m: Where ``goal_approach`` starts paying [m from the goal].
     """
 
     progress: float = 1.0
@@ -40,9 +48,27 @@ class RewardConfig:
     stopped: float = 0.0
     trapped: float = 0.0
     off_track: float = 0.0
+    goal_approach: float = 0.0
+    goal_approach_radius_m: float = 15.0
 
     def __post_init__(self) -> None:
-        terms = ("progress", "negative_entry", "collision", "time", "goal", "stopped", "trapped", "off_track")
+        terms = (
+            "progress",
+            "negative_entry",
+            "collision",
+            "time",
+            "goal",
+            "stopped",
+            "trapped",
+            "off_track",
+            "goal_approach",
+        )
         for name in terms:
             v = getattr(self, name)
             require(isinstance(v, (int, float)) and math.isfinite(v), name, f"must be finite, got {v!r}")
+        r = self.goal_approach_radius_m
+        require(
+            isinstance(r, (int, float)) and math.isfinite(r) and r > 0,
+            "goal_approach_radius_m",
+            f"must be finite and > 0, got {r!r}",
+        )

@@ -95,3 +95,28 @@ def test_state_bounds_cover_the_route_and_bad_routes_are_refused() -> None:
             ObservationConfig(oracle_range_m=bad)
     with pytest.raises(ConfigError, match="trapped"):
         RewardConfig(trapped=float("inf"))
+
+
+def test_goal_approach_pays_the_capped_distance_to_the_goal_it_gains() -> None:
+    overrides = {**SHORT_ORACLE, "reward.goal_approach": 2.0, "reward.goal_approach_radius_m": 1000.0}
+    env = gym.make("negobs_gym/OffroadNav-v1", overrides=overrides)
+    _, info = env.reset(seed=3)
+    goal = np.asarray(env.unwrapped.terrain.goal_xy_m)
+    gap = float(np.hypot(*(info["pose"][:2] - goal)))
+    paid = []
+    for _ in range(15):
+        _, reward, _, _, info = env.step(np.array([0.6, 0.0], np.float32))
+        now = float(np.hypot(*(info["pose"][:2] - goal)))
+        assert info["rewards"]["goal_approach"] == pytest.approx(2.0 * (gap - now))
+        assert reward == pytest.approx(sum(info["rewards"].values()))
+        paid.append(info["rewards"]["goal_approach"])
+        gap = now
+    assert sum(paid) > 0  # driving down the course closes on its goal
+    env.close()
+    far = gym.make("negobs_gym/OffroadNav-v1", overrides={**SHORT_ORACLE, "reward.goal_approach": 2.0})
+    far.reset(seed=3)  # the start lies beyond the default 15 m radius: nothing is paid there
+    _, _, _, _, info = far.step(np.array([0.6, 0.0], np.float32))
+    assert info["rewards"]["goal_approach"] == 0.0
+    far.close()
+    with pytest.raises(ConfigError, match="goal_approach_radius_m"):
+        RewardConfig(goal_approach_radius_m=0.0)
