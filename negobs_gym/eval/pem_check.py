@@ -417,12 +417,13 @@ def _mode_options(
 ) -> RunOptions | None:
     """``options`` for one grid's closed-loop campaign in ``out_dir``: the PEM's resumes only the
     episodes of the same model file and PEM code (:func:`~negobs_gym.eval.pem_data.pem_digest`, kept
-    beside them), as its path may hold a refit."""
-    from negobs_gym.envs.pem import DEFAULT_PEM_PATH
+    beside them), as its path may hold a refit. ``model_path`` None: every shipped file counts."""
+    from negobs_gym.envs.pem import SHIPPED_PEM_PATHS
 
     if mode != "pem" or options is None or not options.resume:
         return options
-    digest = pem_digest(Path(model_path or DEFAULT_PEM_PATH).read_text(encoding="utf-8"))
+    files = [Path(model_path)] if model_path is not None else sorted(set(SHIPPED_PEM_PATHS.values()))
+    digest = pem_digest("".join(f.read_text(encoding="utf-8") for f in files))
     marker = out_dir / "pem_digest.txt"
     same = marker.is_file() and marker.read_text(encoding="utf-8").strip() == digest
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -431,15 +432,13 @@ def _mode_options(
 
 
 def grid_overrides(model_path: str | Path | None) -> dict[str, tuple[str, ...]]:
-    """The ``--set`` assignments of each grid a closed loop compares: the detector's and the PEM
-    ``model_path``'s (None: the default one, :data:`~negobs_gym.envs.pem.DEFAULT_PEM_PATH`), by mode."""
-    from negobs_gym.envs.pem import DEFAULT_PEM_PATH
-
-    model = Path(model_path if model_path is not None else DEFAULT_PEM_PATH).resolve()
-    return {
-        "detector": ("observation.source=detector",),
-        "pem": ("observation.source=pem", f"observation.pem_model={model}"),
-    }
+    """The ``--set`` assignments of each grid a closed loop compares, by mode: the detector's and
+    the PEM ``model_path``'s (None: ``observation.pem_model`` stays unset, so each run draws from
+    the shipped model of its own ``positive`` channel, :func:`~negobs_gym.envs.pem.shipped_pem_path`)."""
+    pem = ("observation.source=pem",)
+    if model_path is not None:
+        pem += (f"observation.pem_model={Path(model_path).resolve()}",)
+    return {"detector": ("observation.source=detector",), "pem": pem}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -524,8 +523,9 @@ def check_braking(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Run the braking campaign on the detector grid and on the PEM ``model_path`` (None: the
-    default one) into ``out_dir``/``braking_detector`` and ``braking_pem`` (each resumable), compare
-    (:func:`compare_braking`) and write ``braking_check.txt``."""
+    shipped one of the run's positive channel) into ``out_dir``/``braking_detector`` and
+    ``braking_pem`` (each resumable), compare (:func:`compare_braking`) and write
+    ``braking_check.txt``."""
     from negobs_gym.eval.braking_campaign import run_braking_campaign
 
     out = Path(out_dir)
@@ -620,8 +620,9 @@ def check_policy(
     options: RunOptions | None = None,
 ) -> PemCheckResult:
     """Run the policy campaign on the detector grid and on the PEM ``model_path`` (None: the
-    default one) into ``out_dir``/``policy_detector`` and ``policy_pem`` (each resumable), compare
-    (:func:`compare_policy`) and write ``policy_check.txt``."""
+    shipped one of the run's positive channel) into ``out_dir``/``policy_detector`` and
+    ``policy_pem`` (each resumable), compare (:func:`compare_policy`) and write
+    ``policy_check.txt``."""
     from negobs_gym.eval.policy_campaign import run_policy_campaign
 
     out = Path(out_dir)

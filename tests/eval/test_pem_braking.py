@@ -7,7 +7,6 @@ import math
 import pytest
 
 from negobs_gym.cli import main
-from negobs_gym.envs.pem import DEFAULT_PEM_PATH
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.braking_campaign import ConfigurationSummary
 from negobs_gym.eval.pem_check import BrakingCheckConfig, compare_braking
@@ -54,11 +53,8 @@ def test_braking_check_runs_the_same_campaign_on_both_grids(capsys):
     )
     # each grid named, so a --set of another source cannot turn the detector's run into something else
     assert detector.overrides == ("observation.rig=reduced", "observation.source=detector")
-    assert pem.overrides == (
-        "observation.rig=reduced",
-        "observation.source=pem",
-        f"observation.pem_model={DEFAULT_PEM_PATH.resolve()}",
-    )
+    # no model named: the env draws from the shipped model of its own positive channel
+    assert pem.overrides == ("observation.rig=reduced", "observation.source=pem")
     with pytest.raises(ConfigError, match="braking_seeds"):
         BrakingCheckConfig(seeds=0)
     assert main(["pem", "check", "--no-courses"]) != 0

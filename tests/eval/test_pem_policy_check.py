@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from negobs_gym.envs.pem import DEFAULT_PEM_PATH
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.pem_check import PolicyCheckConfig, compare_policy
 
@@ -37,9 +38,9 @@ def test_both_campaigns_run_the_records_env_and_settings_on_each_grid():
     assert runs["detector"].seeds == 3 and runs["detector"].filters == (True,)
     assert "observation.lux_forward_m=2.0" in runs["pem"].overrides  # the record's --set first
     assert runs["detector"].overrides[-2:] == ("episode.time_limit_s=30", "observation.source=detector")
-    assert runs["pem"].overrides[-2:] == (
-        "observation.source=pem",
-        f"observation.pem_model={DEFAULT_PEM_PATH.resolve()}",
-    )
+    # no model named: the env draws from the shipped model of its own positive channel
+    assert runs["pem"].overrides[-2:] == ("episode.time_limit_s=30", "observation.source=pem")
+    named = config.campaigns("some/pem.json")["pem"].overrides
+    assert named[-1] == f"observation.pem_model={Path('some/pem.json').resolve()}"
     with pytest.raises(ConfigError, match="policy_seeds"):
         PolicyCheckConfig(policy="ppo_offroad_nav_v1", seeds=0)
