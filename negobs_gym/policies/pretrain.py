@@ -63,7 +63,7 @@ __all__ = [
 ]
 
 #: Demonstration episodes use seeds ``seed + DEMO_SEED_OFFSET + k`` (training envs use ``seed + i``,
-#: evaluations 1,000,000 on).
+#: evaluations 900,000 on by default).
 DEMO_SEED_OFFSET = 500_000
 #: Sign of (throttle, steering) in a mirror image: steering changes side.
 MIRROR_ACTION_SIGNS = np.array([1.0, -1.0], np.float32)
