@@ -275,3 +275,29 @@ def test_ground_coming_into_view_starts_with_the_mean_false_alarm_population(ter
         counts += [layer[band].sum() / 4.0 for layer, _ in frames[1:]]  # 2 x 2-cell blobs
     expected = 0.02 * 2.0 * (2 * grid.side_m)
     assert np.mean(counts) == pytest.approx(expected, rel=0.35)
+
+
+def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():
+    """The fit measures the detector's near edge between cell centres; the PEM rounds a drawn offset
+    to the nearest cell, so one of -0.15 m draws the row in front and one of -0.05 m does not."""
+    from negobs_gym.envs.pem import channel_outlines, rasterise_outlines
+    from negobs_gym.sim.carving import NegativeObstacleSpec
+
+    pit = NegativeObstacleSpec(kind="pit", length_m=1.0, width_m=1.0, depth_m=0.5, station_m=12.0, lateral_m=0.0)
+    terrain = generate_terrain(TerrainConfig(length_m=30.0, negative_obstacles=(pit,)), 0)
+    grid = ObservationConfig().grid
+    xy, yaw = terrain.track.pose_at(np.array(2.0), np.array(0.0))
+    pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
+    (_, mask, rows, cols), *_ = rasterise_outlines(
+        channel_outlines(terrain, "negative"), pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
+    )
+    truth = np.zeros(grid.shape, dtype=bool)
+    truth[rows, cols] = mask
+    offsets = {}
+    for near in (-0.15, -0.05, 0.0, 0.35):
+        pem = PemGrid(constant_model(1.0, near=near, far=0.0), grid, terrain, np.random.default_rng(0))
+        layer = pem.layer(pose)
+        offsets[near] = float(pem._range[layer].min() - pem._range[truth].min())
+    assert offsets[-0.15] == pytest.approx(-grid.cell_m, abs=0.05)  # the row in front
+    assert offsets[-0.05] == pytest.approx(0.0, abs=0.05) and offsets[0.0] == pytest.approx(0.0, abs=1e-9)
+    assert offsets[0.35] == pytest.approx(2 * grid.cell_m, abs=0.05)  # two rows behind, not 0.35's floor
