@@ -283,7 +283,9 @@ def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():
     from negobs_gym.envs.pem import channel_outlines, rasterise_outlines
     from negobs_gym.sim.carving import NegativeObstacleSpec
 
-    pit = NegativeObstacleSpec(kind="pit", length_m=1.0, width_m=1.0, depth_m=0.5, station_m=12.0, lateral_m=0.0)
+    pit = NegativeObstacleSpec(
+        kind="pit", length_m=1.0, width_m=1.0, depth_m=0.5, station_m=12.0, lateral_m=0.0
+    )
     terrain = generate_terrain(TerrainConfig(length_m=30.0, negative_obstacles=(pit,)), 0)
     grid = ObservationConfig().grid
     xy, yaw = terrain.track.pose_at(np.array(2.0), np.array(0.0))
