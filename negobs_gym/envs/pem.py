@@ -16,8 +16,8 @@ rasterised like the oracle's and then, by parametric tables fitted on the detect
   T's LUX: its four layers pass over an obstacle at a distance set by its height), an obstacle
   nearer than its own is never drawn again;
 - when drawn, its cells are those of the true rim inside its bearing span between the true near
-  edge plus a near-edge offset and the far edge plus a far-edge offset (the extent error), both
-  drawn from the fitted quantiles of their distance bin;
+  edge plus a near-edge offset (rounded to the nearest cell's range) and the far edge plus a
+  far-edge offset (the extent error), both drawn from the fitted quantiles of their distance bin;
 - false alarms: spurious blobs, fixed in the world, born at a rate per m² by terrain class
   (:data:`TERRAIN_CLASSES`: the track, the verge band beside it, the bank, drop-off or rough
   ground beyond, and clutter: the ground near a positive obstacle) and distance, kept from one
