@@ -185,8 +185,10 @@ class PemParameters:
         p_keep: P(drawn) of a pit drawn in the frame before.
         p_return: P(drawn) of a pit drawn before, but not in the frame before.
         sightings: Frames behind each ``[size][distance]`` entry of the chain (all states).
-        near_offset_m: Quantiles of the drawn near edge minus the true one (range from the
-            vehicle origin) [m]: > 0 drawn farther than it is.
+        near_offset_m: Quantiles per size bin (the cells in view) and distance bin of the drawn
+            near edge minus the true one (range from the vehicle origin) [m]: > 0 drawn farther
+            than it is. A table per distance bin only (a file fitted before the size axis)
+            serves every size.
         far_offset_m: The same of the far edge [m].
         fa_density_per_m2: Mean false alarms per frame per m² of the class and distance bin.
         fa_area_m2: The grid area per class the fit saw, summed over its frames [m²]; a class
@@ -215,8 +217,8 @@ class PemParameters:
     p_keep: tuple[tuple[float, ...], ...]
     p_return: tuple[tuple[float, ...], ...]
     sightings: tuple[tuple[int, ...], ...]
-    near_offset_m: tuple[tuple[float, ...], ...]
-    far_offset_m: tuple[tuple[float, ...], ...]
+    near_offset_m: tuple[tuple[tuple[float, ...], ...], ...] | tuple[tuple[float, ...], ...]
+    far_offset_m: tuple[tuple[tuple[float, ...], ...], ...] | tuple[tuple[float, ...], ...]
     fa_density_per_m2: tuple[tuple[float, ...], ...]
     fa_area_m2: tuple[float, ...]
     fa_keep: tuple[tuple[float, ...], ...]
@@ -244,12 +246,13 @@ class PemParameters:
         shapes = {
             "confirm_distance_m": (ns, nq),
             "confirm_latency_frames": (nq,),
-            "near_offset_m": (nd, nq),
-            "far_offset_m": (nd, nq),
+            "near_offset_m": (ns, nd, nq),
+            "far_offset_m": (ns, nd, nq),
         }
         for name, shape in shapes.items():
             table = np.asarray(getattr(self, name), dtype=np.float64)
-            require(table.shape == shape, name, f"must have shape {shape}, got {table.shape}")
+            ok = table.shape == shape or (name.endswith("_offset_m") and table.shape == shape[1:])
+            require(ok, name, f"must have shape {shape}, got {table.shape}")
             require(bool(np.all(np.diff(table, axis=-1) >= 0)), name, "quantiles must not decrease")
         require(min(self.confirm_latency_frames) >= 0, "confirm_latency_frames", "must be >= 0")
         loss = np.asarray(self.loss_distance_m, dtype=np.float64)
@@ -724,8 +727,14 @@ class PemGrid:
         self._approach_m = float(p.approach_m)
         self._loss = np.asarray(p.loss_distance_m, dtype=np.float64)
         self._match_cells = int(p.match_cells)
-        self._near = np.asarray(p.near_offset_m, dtype=np.float64)
-        self._far = np.asarray(p.far_offset_m, dtype=np.float64)
+        ns = len(p.size_edges_cells) - 1
+        self._near, self._far = (
+            np.broadcast_to(t, (ns, *t.shape[-2:]))
+            for t in (
+                np.asarray(p.near_offset_m, dtype=np.float64),
+                np.asarray(p.far_offset_m, dtype=np.float64),
+            )
+        )
         keep = np.asarray(p.fa_keep, dtype=np.float64)
         self._fa_keep = keep
         density = np.asarray(p.fa_density_per_m2, dtype=np.float64)
@@ -781,7 +790,7 @@ class PemGrid:
                 drawn = bool(self._rng.random() < self._chain[self._state[k] - 1, s, d])
             self._state[k] = DRAWN if drawn else (NEVER if self._state[k] == NEVER else LOST)
             if drawn:
-                self._draw_pit(layer, mask, rows, cols, d)
+                self._draw_pit(layer, mask, rows, cols, s, d)
         self._false_alarms(layer, pose, truths)
         return layer
 
@@ -814,10 +823,12 @@ class PemGrid:
             value = -1.0 if value < 0.5 * (reached[0] - 1.0) else float(reached[0])
         return value
 
-    def _draw_pit(self, layer: np.ndarray, mask: np.ndarray, rows: slice, cols: slice, d: int) -> None:
+    def _draw_pit(
+        self, layer: np.ndarray, mask: np.ndarray, rows: slice, cols: slice, s: int, d: int
+    ) -> None:
         """The drawn cells of a pit: its rim's cells (grown where the far offset says) in its bearing
         span, between its near edge + the near offset and its far edge + the far offset."""
-        near, far = self._quantile(self._near[d]), self._quantile(self._far[d])
+        near, far = self._quantile(self._near[s, d]), self._quantile(self._far[s, d])
         grow = min(_MAX_GROW_CELLS, math.ceil(max(0.0, -near, far) / self.grid.cell_m))
         r0, r1 = max(rows.start - grow, 0), min(rows.stop + grow, self.grid.rows)
         c0, c1 = max(cols.start - grow, 0), min(cols.stop + grow, self.grid.cols)

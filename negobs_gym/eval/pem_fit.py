@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -222,6 +223,31 @@ def _quantiles(values: np.ndarray, levels: np.ndarray) -> list[float]:
     return [float(v) for v in np.quantile(values, levels)] if values.size else [0.0] * len(levels)
 
 
+def _offsets(
+    sightings: list[dict], s_edges: np.ndarray, d_edges: np.ndarray, levels: np.ndarray
+) -> tuple[list[list[list[float]]], list[list[list[float]]]]:
+    """Quantiles of the drawn near- and far-edge offsets per size bin (the cells in view, as the
+    chain's) and distance bin: a bin with fewer than :data:`MIN_OFFSETS` hits takes its size's
+    over all distances, then its distance's over all sizes, then all. The size matters most: the
+    structure channel draws a rock or box a cell before its face and a mound's far side only."""
+    hits = [r for r in sightings if r["detected"] == "1"]
+    d_hit = bin_index(np.array([float(r["centre_m"]) for r in hits]), d_edges)
+    s_hit = bin_index(np.array([float(r["cells"]) for r in hits]), s_edges)
+    near_all = np.array([_float(r["near_offset_m"]) for r in hits])
+    far_all = np.array([_float(r["far_offset_m"]) for r in hits])
+    near: list[list[list[float]]] = []
+    far: list[list[list[float]]] = []
+    for s in range(len(s_edges) - 1):
+        near.append([])
+        far.append([])
+        for d in range(len(d_edges) - 1):
+            pools = ((s_hit == s) & (d_hit == d), s_hit == s, d_hit == d, np.ones(len(hits), dtype=bool))
+            use = next(pool for pool in pools if pool.sum() >= MIN_OFFSETS or pool.all())
+            near[s].append(_quantiles(near_all[use], levels))
+            far[s].append(_quantiles(far_all[use], levels))
+    return near, far
+
+
 def fit_parameters(
     sightings_csv: str | Path,
     spurious_csv: str | Path,
@@ -280,16 +306,7 @@ def fit_parameters(
             for v in losses
         ]
 
-    hits = [r for r in sightings if r["detected"] == "1"]
-    d_hit = bin_index(np.array([float(r["centre_m"]) for r in hits]), d_edges)
-    near_all = np.array([_float(r["near_offset_m"]) for r in hits])
-    far_all = np.array([_float(r["far_offset_m"]) for r in hits])
-    near, far = [], []
-    for d in range(nd):
-        here = d_hit == d
-        use = here if here.sum() >= MIN_OFFSETS else np.ones_like(here)
-        near.append(_quantiles(near_all[use], levels))
-        far.append(_quantiles(far_all[use], levels))
+    near, far = _offsets(sightings, s_edges, d_edges, levels)
 
     nc = len(TERRAIN_CLASSES)
     area = np.array([[float(r[f"area_{c}_{k}"]) for c in TERRAIN_CLASSES for k in range(nd)] for r in frames])
@@ -355,8 +372,12 @@ def fit_parameters(
     )
 
 
-def _table(values: np.ndarray) -> tuple[tuple[float, ...], ...]:
-    return tuple(tuple(round(float(v), 6) for v in row) for row in np.asarray(values))
+def _table(values: Any) -> Any:
+    """A (nested) table of floats, rounded to 6 decimals, as nested tuples."""
+    values = np.asarray(values)
+    if values.ndim == 1:
+        return tuple(round(float(v), 6) for v in values)
+    return tuple(_table(row) for row in values)
 
 
 def calibration_factors(sightings_csv: str | Path, distance_edges_m: tuple[float, ...]) -> np.ndarray:

@@ -21,7 +21,7 @@ from negobs_gym.envs.pem import (
 from negobs_gym.sim.carving import PositiveObstacleSpec
 from negobs_gym.sim.terrain import BorderConfig, TerrainConfig, generate_terrain
 from negobs_gym.spec import ObservationConfig
-from tests.envs.test_pem_model import constant_model
+from tests.envs.test_pem_model import constant_model, constant_parameters
 
 ROCK_STATION_M, ROCK_LATERAL_M = 15.0, 4.5  # the rock's centre: 1.5 m beyond the right edge
 MOUND_STATION_M = 22.0  # a 4 x 3 m mound, its centre 3 m beyond the left edge
@@ -277,10 +277,9 @@ def test_ground_coming_into_view_starts_with_the_mean_false_alarm_population(ter
     assert np.mean(counts) == pytest.approx(expected, rel=0.35)
 
 
-def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():
-    """The fit measures the detector's near edge between cell centres; the PEM rounds a drawn offset
-    to the nearest cell, so one of -0.15 m draws the row in front and one of -0.05 m does not."""
-    from negobs_gym.envs.pem import channel_outlines, rasterise_outlines
+def _near_edge_offset_m(parameters) -> float:
+    """The drawn near edge minus the true one [m] of a 1 m x 1 m pit (25 cells) 10 m ahead."""
+    from negobs_gym.envs.pem import PerceptionErrorModel, channel_outlines, pem_settings, rasterise_outlines
     from negobs_gym.sim.carving import NegativeObstacleSpec
 
     pit = NegativeObstacleSpec(
@@ -295,11 +294,39 @@ def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():
     )
     truth = np.zeros(grid.shape, dtype=bool)
     truth[rows, cols] = mask
-    offsets = {}
-    for near in (-0.15, -0.05, 0.0, 0.35):
-        pem = PemGrid(constant_model(1.0, near=near, far=0.0), grid, terrain, np.random.default_rng(0))
-        layer = pem.layer(pose)
-        offsets[near] = float(pem._range[layer].min() - pem._range[truth].min())
-    assert offsets[-0.15] == pytest.approx(-grid.cell_m, abs=0.05)  # the row in front
+    model = PerceptionErrorModel(
+        parameters=parameters, fitted_on=pem_settings(ObservationConfig(), ("negative",))
+    )
+    pem = PemGrid(model, grid, terrain, np.random.default_rng(0))
+    layer = pem.layer(pose)
+    return float(pem._range[layer].min() - pem._range[truth].min())
+
+
+def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():
+    """The fit measures the detector's near edge between cell centres; the PEM rounds a drawn offset
+    to the nearest cell, so one of -0.15 m draws the row in front and one of -0.05 m does not."""
+    cell = ObservationConfig().grid.cell_m
+    offsets = {
+        near: _near_edge_offset_m(constant_parameters(1.0, near=near)) for near in (-0.15, -0.05, 0.0, 0.35)
+    }
+    assert offsets[-0.15] == pytest.approx(-cell, abs=0.05)  # the row in front
     assert offsets[-0.05] == pytest.approx(0.0, abs=0.05) and offsets[0.0] == pytest.approx(0.0, abs=1e-9)
-    assert offsets[0.35] == pytest.approx(2 * grid.cell_m, abs=0.05)  # two rows behind, not 0.35's floor
+    assert offsets[0.35] == pytest.approx(2 * cell, abs=0.05)  # two rows behind, not 0.35's floor
+
+
+def test_edge_offsets_are_drawn_from_the_obstacles_size_bin():
+    """Per-size tables: the 25-cell pit draws its own size bin's offset, not another's."""
+    base = constant_parameters(1.0)
+    row = lambda v: ((v, v), (v, v))  # noqa: E731 - two distance bins of two quantiles
+    for small, large, expected in ((0.4, -0.2, -0.2), (-0.2, 0.4, 0.4)):
+        parameters = dataclasses.replace(
+            base,
+            size_edges_cells=(0.0, 10.0, 10_000.0),
+            confirm_distance_m=base.confirm_distance_m * 2,
+            p_keep=base.p_keep * 2,
+            p_return=base.p_return * 2,
+            sightings=base.sightings * 2,
+            near_offset_m=(row(small), row(large)),
+            far_offset_m=(row(0.0), row(0.0)),
+        )
+        assert _near_edge_offset_m(parameters) == pytest.approx(expected, abs=0.05)

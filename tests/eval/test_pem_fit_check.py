@@ -30,10 +30,10 @@ def _write(path, header, rows):
     return path
 
 
-def _sighting(mode, frame, obstacle, centre_m, detected, near=0.0, episode="seed0"):
+def _sighting(mode, frame, obstacle, centre_m, detected, near=0.0, episode="seed0", cells=25):
     drawn = 30 if detected else 0
     offsets = (near, 0.1) if detected else (np.nan, np.nan)
-    return format_row([episode, 0, frame, mode, obstacle, 25, 0.8, centre_m, detected, drawn, *offsets])
+    return format_row([episode, 0, frame, mode, obstacle, cells, 0.8, centre_m, detected, drawn, *offsets])
 
 
 def _frame(mode, frame, fa_on=0, fa_off=0, area=1.0, episode="seed0"):
@@ -65,12 +65,44 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     assert params.confirm_latency_frames[10] == 2.0
     assert params.p_keep[s][7] < 0.1  # never twice in a row (14-16 m)
     assert params.p_return[s][7] > 0.9  # always back after a miss
-    assert params.near_offset_m[7][10] == pytest.approx(-0.4)
+    assert params.near_offset_m[s][7][10] == pytest.approx(-0.4)
     # 200 blobs in 200 frames over 100 m² of the verge class at 8-10 m: 0.01 per frame per m²
     assert params.fa_density_per_m2[1][4] == pytest.approx(0.01, rel=0.01)
     assert params.fa_density_per_m2[0][4] == 0.0
     assert params.fa_keep[1][4] == pytest.approx(0.75, abs=0.02)  # kept 3 frames in 4 at 8-10 m
     assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
+
+
+def test_edge_offsets_are_fitted_per_size_and_thin_bins_borrow_their_sizes(tmp_path):
+    """Small obstacles drawn a cell before their face, large ones only from their far side (the
+    structure channel's rocks and mounds): each size bin keeps its own offsets at every distance."""
+    sightings = [
+        _sighting(
+            "detector", f, k, 6.0 + 0.5 * (f % 28), True, near=near, episode=f"{cells}_{k}", cells=cells
+        )
+        for cells, near in ((12, -0.2), (300, 1.2))
+        for k in range(4)
+        for f in range(30)
+    ]
+    sightings += [_sighting("detector", 0, 9, 19.0, True, near=5.0, episode="lone", cells=40)]
+    params = _fit(tmp_path, sightings, [], [_frame("detector", f, area=100.0) for f in range(10)])
+    small, lone, large = 0, 3, 5  # the size bins of 12, 40 and 300 cells
+    assert np.asarray(params.near_offset_m).shape[:2] == (6, len(params.distance_edges_m) - 1)
+    median = len(params.quantile_levels) // 2
+    edges = np.asarray(params.distance_edges_m)
+    for at_m in (6.5, 12.5, 18.5, 25.0):  # the last: no hit that far, its size's over all distances
+        d = int(np.searchsorted(edges, at_m, side="right") - 1)
+        assert params.near_offset_m[small][d][median] == pytest.approx(-0.2)
+        assert params.near_offset_m[large][d][median] == pytest.approx(1.2)
+    # one hit of its size: too few, so its distance bin's hits of all sizes
+    d = int(np.searchsorted(edges, 19.0, side="right") - 1)
+    lo, hi = edges[d], edges[d + 1]
+    there = [float(r.split(",")[10]) for r in sightings if lo <= float(r.split(",")[7]) < hi]
+    assert len(set(there)) == 3  # small, large and the lone one
+    assert params.near_offset_m[lone][d] == pytest.approx(np.quantile(there, params.quantile_levels))
+    # a model with one table per distance bin (no size axis) still loads and serves every size
+    flat = dataclasses.replace(params, near_offset_m=params.near_offset_m[small])
+    assert np.asarray(flat.near_offset_m).ndim == 2
 
 
 def _fit(tmp_path, sightings, spurious, frames):
