@@ -276,7 +276,8 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             raise ConfigError(
                 "steps", f"nothing to train: the checkpoint has {start_step} >= {config.steps} steps"
             )
-        _write_record(out, config, model.num_timesteps, start_step, warm_start=warm)
+        code = _code_version()  # the code the run starts on, kept though the checkout may move on
+        _write_record(out, config, model.num_timesteps, start_step, code, warm_start=warm)
         model.set_logger(configure(str(out / "logs" / str(start_step)), logger_formats()))
         every = config.eval_every if config.eval_every > 0 else config.steps
         evaluation = EvalCallback(
@@ -306,6 +307,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
         config,
         model.num_timesteps,
         start_step,
+        code,
         wall_s=wall_s,
         last_eval=evaluation.last,
         warm_start=warm,
@@ -467,15 +469,21 @@ def _previous_warm_start(out: Path) -> dict[str, Any]:
     return json.loads(record.read_text(encoding="utf-8")).get("warm_start", {}) if record.exists() else {}
 
 
-def _write_record(out: Path, config: TrainConfig, steps: int, start_step: int, **session: Any) -> None:
-    """``train.json``: the config, the code it ran on and progress (written at the start too,
-    for ``--resume``)."""
-    wall_s = session.get("wall_s")
+def _code_version() -> str:
     from negobs_gym.core.provenance import code_version
 
+    return code_version()
+
+
+def _write_record(
+    out: Path, config: TrainConfig, steps: int, start_step: int, code: str, **session: Any
+) -> None:
+    """``train.json``: the config, the code the session started on and progress (written at the
+    start too, for ``--resume``)."""
+    wall_s = session.get("wall_s")
     record = {
         "config": dataclasses.asdict(config),
-        "code": code_version(),  # what a shipped policy's record names as its fitted_on code
+        "code": code,  # what a shipped policy's record names as its fitted_on code
         "steps": steps,
         "session_start_step": start_step,
         "session_wall_s": wall_s,

@@ -123,6 +123,16 @@ def test_same_seed_same_model_and_evaluation(tmp_path: Path) -> None:
     assert rows[0] == rows[1]
 
 
+def test_the_record_names_the_code_the_run_started_on(tmp_path: Path, monkeypatch) -> None:
+    """A checkout that moves on during a long run does not relabel the policy's code."""
+    from negobs_gym.core import provenance
+
+    versions = iter(f"0.1.0+commit{k}" for k in range(100))
+    monkeypatch.setattr(provenance, "code_version", lambda: next(versions))
+    train(dataclasses.replace(SHORT_PPO, steps=64), tmp_path)
+    assert json.loads((tmp_path / "train.json").read_text())["code"] == "0.1.0+commit0"
+
+
 # slow (end to end): two trainings from a trained model; a training run and its record are checked
 # by the other default tests
 @pytest.mark.slow
