@@ -43,18 +43,24 @@ FITTED_ON = "negobs_fitted_on"
 #: one release.
 RENAMED: dict[str, str] = {"ppo_offroad_nav_v2_detector_clone_lux_bumper": "bc_offroad_nav_v2_detector"}
 #: Policies no longer shipped -> what to use instead. Their records and figures are in
-#: docs/notebook/training.md; each is a behaviour clone whose recipe was superseded.
+#: docs/notebook/training.md: behaviour clones whose recipe was superseded, and a fine-tuning on a
+#: detector grid whose defaults have since changed.
 RETIRED: dict[str, str] = {
-    name: f"its recipe on today's default grid is bc_offroad_nav_v2_detector; {what}"
-    for name, what in {
-        "ppo_offroad_nav_v2_clone": "it was cloned on the oracle grid",
-        "ppo_offroad_nav_v2_clone_160k": "it was cloned on the oracle grid",
-        "ppo_offroad_nav_v2_detector_clone": "it was cloned on an older detector grid (paper N's "
-        "fusion history, LUX 2.0 m ahead of the axle)",
-        "ppo_offroad_nav_v2_detector_clone_tight": "it was cloned with the LUX 2.0 m ahead of the axle",
-        "ppo_offroad_nav_v2_structure_clone": "it was cloned on offroad_nav_v2_structure's grid",
-        "ppo_offroad_nav_v2_structure_clone_tight": "it was cloned on offroad_nav_v2_structure's grid",
-    }.items()
+    "ppo_offroad_nav_v1_detector_filter": "use ppo_offroad_nav_v1_pem, trained on the PEM of today's "
+    "default detector grid behind the filter; this one was fine-tuned on an older detector grid "
+    "(paper N's fusion history, LUX 2.0 m ahead of the axle)",
+    **{
+        name: f"its recipe on today's default grid is bc_offroad_nav_v2_detector; {what}"
+        for name, what in {
+            "ppo_offroad_nav_v2_clone": "it was cloned on the oracle grid",
+            "ppo_offroad_nav_v2_clone_160k": "it was cloned on the oracle grid",
+            "ppo_offroad_nav_v2_detector_clone": "it was cloned on an older detector grid (paper N's "
+            "fusion history, LUX 2.0 m ahead of the axle)",
+            "ppo_offroad_nav_v2_detector_clone_tight": "it was cloned with the LUX 2.0 m ahead of the axle",
+            "ppo_offroad_nav_v2_structure_clone": "it was cloned on offroad_nav_v2_structure's grid",
+            "ppo_offroad_nav_v2_structure_clone_tight": "it was cloned on offroad_nav_v2_structure's grid",
+        }.items()
+    },
 }
 
 
@@ -118,7 +124,8 @@ def resolve_model(model: str, field: str = "model_path") -> str:
 def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
     """The env a model was fitted on and the ``--set`` assignments it was fitted with, from its
     record: a shipped baseline's ``NAME.json`` (``env``, ``set``; also when the model is named by
-    its file under :data:`BASELINE_DIR`); the record ``negobs train``
+    its file under :data:`BASELINE_DIR`, before the record inside it: ``set`` leaves out the
+    training grid of a policy judged on the detector grid); the record ``negobs train``
     saved inside the zip (:data:`FITTED_ON`: the env as the command named it and its ``--set``,
     so a model moved out of its run folder keeps it); or, for a model saved before that record
     existed, the ``train.json`` of the ``negobs train`` folder the model file lies in
@@ -136,11 +143,11 @@ def recorded_env(model: str) -> tuple[str, tuple[str, ...]] | None:
         if not (BASELINE_DIR / f"{RENAMED.get(model, model)}.zip").exists():
             return None
         return _baseline_env(model)
+    if path.suffix == ".zip" and path.resolve().parent == BASELINE_DIR.resolve():
+        return _baseline_env(path.stem)  # a shipped baseline named by its file: its NAME.json
     inside = _zip_record(path)
     if inside is not None:
         return inside
-    if path.suffix == ".zip" and path.resolve().parent == BASELINE_DIR.resolve():
-        return _baseline_env(path.stem)  # a shipped baseline named by its file: its NAME.json
     for folder in (path.parent, path.parent.parent):
         run = folder / "train.json"
         if run.is_file():

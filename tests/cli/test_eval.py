@@ -192,28 +192,23 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     label = "negobs_gym/Braking-v0[episode.time_limit_s=0.5]"  # the id and its settings
     assert capsys.readouterr().out.startswith(f"{label}/nofilter success=")
     assert spec_from_toml(written.read_text()).episode.time_limit_s == 0.5
-    # a shipped policy without --env: its record's env and settings (paper N's fusion history and
-    # paper T's LUX 2.0 m ahead of the axle with its filters held still for this clone), then the
-    # command's --set, which replaces the
-    # record's assignment to that key
-    shipped = ["eval", "policy", "ppo_offroad_nav_v1_detector_filter", "--seeds", "1", "--filter", "off"]
-    shipped += ["--set", "observation.tighten_pairs=true", "--set", "episode.time_limit_s=0.3"]
+    # a shipped policy without --env: its record's env and settings (the goal-approach reward of
+    # this PEM-trained policy), then the command's --set, which replaces the record's assignment
+    # to that key
+    shipped = ["eval", "policy", "ppo_offroad_nav_v1_pem", "--seeds", "1", "--filter", "off"]
+    shipped += ["--set", "reward.goal_approach=0.5", "--set", "episode.time_limit_s=0.3"]
     shipped += ["--out", str(tmp_path / "shipped"), "--no-progress"]
     assert main(["-q", *shipped]) == 0
-    label = (
-        "negobs_gym/OffroadNav-v1"
-        "[observation.lux_forward_m=2.0,observation.lux_ego_motion=false,"
-        "observation.tighten_pairs=true,episode.time_limit_s=0.3]"
-    )
+    label = "negobs_gym/OffroadNav-v1[reward.goal_approach=0.5,episode.time_limit_s=0.3]"
     line = capsys.readouterr().out
     assert line.startswith(f"{label}/nofilter success=") and " goal=0/1 " in line
     spec = spec_from_toml((tmp_path / "shipped" / "scenario.toml").read_text())
-    assert spec.observation.tighten_pairs and spec.episode.time_limit_s == 0.3
-    assert spec.observation.lux_forward_m == 2.0 and not spec.observation.lux_ego_motion
+    assert spec.reward.goal_approach == 0.5 and spec.episode.time_limit_s == 0.3
+    assert spec.observation.source == "detector"  # judged on the default grid, not the PEM it trained on
     # the episode's record keeps the shipped policy's name, not this install's path to it, so the
     # folder replays wherever the package is installed
     (part,) = (tmp_path / "shipped" / "parts").glob("*.json")
-    assert json.loads(part.read_text())["args"]["model_path"] == "ppo_offroad_nav_v1_detector_filter"
+    assert json.loads(part.read_text())["args"]["model_path"] == "ppo_offroad_nav_v1_pem"
     (row,) = (tmp_path / "set" / "policy.csv").read_text().splitlines()[1:]
     assert int(dict(zip(rows[0].split(","), row.split(","), strict=True))["steps"]) <= 5
     # the same model as a driver of the braking campaign, filter on only (set from a TOML file)

@@ -30,10 +30,10 @@ def test_list_gives_each_shipped_policy_its_settings_recipe_and_default_grid_fig
     clone = next(line for line in heads if line.startswith("bc_offroad_nav_v2_detector "))
     assert "observation.lux_forward_m=3.7" in clone and "cloned, no RL step" in clone
     assert "PPO 100,000 steps" in next(line for line in heads if line.startswith("ppo_offroad_nav_v1 "))
-    # 12 goals of 20 for the fine-tuned v1 policy on today's grid, either way
+    # the PEM-trained v1 policy on 100 courses of today's grid, either way
     assert (
-        "no filter: goal 12/20 (0.39-0.78), entries 0, collisions 0, vetoes 0; behind the filter: goal 12/20"
-        in out
+        "no filter: goal 94/100 (0.88-0.97), entries 0, collisions 3; "
+        "behind the filter: goal 94/100 (0.88-0.97), entries 0, collisions 2, vetoes 83" in out
     )
 
 
@@ -48,8 +48,8 @@ def test_a_figure_the_record_lacks_is_a_dash() -> None:
 
 
 def test_show_prints_the_record_and_an_unknown_name_exits_naming_the_shipped(capsys) -> None:
-    assert main(["policy", "show", "ppo_offroad_nav_v1_detector_filter"]) == 0
-    assert json.loads(capsys.readouterr().out) == baseline_record("ppo_offroad_nav_v1_detector_filter")
+    assert main(["policy", "show", "ppo_offroad_nav_v1_pem"]) == 0
+    assert json.loads(capsys.readouterr().out) == baseline_record("ppo_offroad_nav_v1_pem")
     assert main(["policy", "show", "ppo_nothing"]) == 2
     err = capsys.readouterr().err
     assert "no shipped baseline 'ppo_nothing'" in err and "ppo_offroad_nav_v1" in err

@@ -166,11 +166,11 @@ def test_run_policy_drives_and_is_recorded_in_the_spec(tmp_path, capsys):
 def test_run_policy_warns_when_the_scenario_lacks_its_fitted_settings(capsys):
     """A model fitted with --set settings (its record) on a scenario without them: a warning that
     names them; with them, none."""
-    fitted = "observation.tighten_pairs=false observation.lux_forward_m=2.0 observation.lux_ego_motion=false"
-    run = ["scenario", "run", "offroad_nav_v1", "--policy", "ppo_offroad_nav_v1_detector_filter"]
+    fitted = "reward.goal_approach=2.0"
+    run = ["scenario", "run", "offroad_nav_v1", "--policy", "ppo_offroad_nav_v1_pem"]
     run += ["--set", "episode.time_limit_s=0.1"]
     assert main(run) == 0
-    warning = "ppo_offroad_nav_v1_detector_filter was fitted with --set " + " --set ".join(fitted.split())
+    warning = "ppo_offroad_nav_v1_pem was fitted with --set " + " --set ".join(fitted.split())
     assert f"{warning}, which offroad_nav_v1 lacks" in capsys.readouterr().err
     assert main([*run, *(f"--set={s}" for s in fitted.split())]) == 0
     assert "was fitted with" not in capsys.readouterr().err

@@ -46,7 +46,7 @@ def _config(*args: str) -> TrainConfig:
     return config_from_args(build_parser().parse_args(["train", *args]))
 
 
-def test_a_recipe_is_its_run_and_the_options_beside_it_replace_its_settings() -> None:
+def test_a_recipe_is_its_run_and_the_options_beside_it_replace_its_settings(tmp_path: Path) -> None:
     recipe = load_recipe("bc_offroad_nav_v2_detector")
     assert _config("--recipe", "bc_offroad_nav_v2_detector") == recipe.train
     changed = _config(
@@ -64,10 +64,9 @@ def test_a_recipe_is_its_run_and_the_options_beside_it_replace_its_settings() ->
     state = _config("--recipe", "bc_offroad_nav_v2_detector", "--source", "state")
     assert not state.grid_input
     # --action-std with a recipe that starts from a trained model sets that model's std
-    assert (
-        _config("--recipe", "ppo_offroad_nav_v1_detector_filter", "--action-std", "0.2").init_action_std
-        == 0.2
-    )
+    fine_tune = tmp_path / "fine_tune.toml"
+    fine_tune.write_text('[train]\nenv = "negobs_gym/OffroadNav-v1"\ninit_model = "ppo_offroad_nav_v1"\n')
+    assert _config("--recipe", str(fine_tune), "--action-std", "0.2").init_action_std == 0.2
     # without a recipe nothing changed: the defaults
     assert _config() == TrainConfig()
 

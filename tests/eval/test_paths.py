@@ -151,7 +151,7 @@ def test_eval_video_finds_a_moved_model_with_model(campaign: Path, tmp_path: Pat
     shutil.copy(shipped, model)
     assert main(["-q", *args, "--model", str(model)]) == 0
     assert capsys.readouterr().out.split() == [str(tmp_path / "v" / f"{key}.mp4")]
-    other = resolve_model("ppo_offroad_nav_v1_detector_filter")  # the same spaces, other weights
+    other = resolve_model("ppo_offroad_nav_v1_pem")  # the same spaces, other weights
     with pytest.raises(ReplayMismatch):
         replay_videos(moved, [key], out_dir=tmp_path / "v2", model=other)
     assert main([*args, "--model", str(tmp_path / "nothing.zip")]) == 2

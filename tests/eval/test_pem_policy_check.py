@@ -31,12 +31,12 @@ def test_the_goal_gap_is_checked_against_ten_points():
 
 def test_both_campaigns_run_the_records_env_and_settings_on_each_grid():
     config = PolicyCheckConfig(
-        policy="ppo_offroad_nav_v1_detector_filter", seeds=3, overrides=("episode.time_limit_s=30",)
+        policy="ppo_offroad_nav_v1_pem", seeds=3, overrides=("episode.time_limit_s=30",)
     )
     runs = config.campaigns(None)
     assert runs["detector"].env_id == runs["pem"].env_id == "negobs_gym/OffroadNav-v1"
     assert runs["detector"].seeds == 3 and runs["detector"].filters == (True,)
-    assert "observation.lux_forward_m=2.0" in runs["pem"].overrides  # the record's --set first
+    assert runs["pem"].overrides[0] == "reward.goal_approach=2.0"  # the record's --set first
     assert runs["detector"].overrides[-2:] == ("episode.time_limit_s=30", "observation.source=detector")
     # no model named: the env draws from the shipped model of its own positive channel
     assert runs["pem"].overrides[-2:] == ("episode.time_limit_s=30", "observation.source=pem")

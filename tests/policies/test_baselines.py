@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -40,8 +41,8 @@ def test_each_shipped_baseline_has_its_record_and_runs_on_its_env(name: str) -> 
     for key in ("command", "seed", "steps", "wall_s", "env", "evaluation"):
         assert key in record, f"{name}.json lacks {key!r}"
     assert record["command"].startswith("negobs train ")
-    settings = record.get("set", [])  # the --set its commands carry
-    assert all(f"--set {s}" in record["command"] for s in settings)
+    settings = record.get("set", [])  # the --set its commands carry, or its recipe's
+    assert "--recipe " in record["command"] or all(f"--set {s}" in record["command"] for s in settings)
     model = PPO.load(resolve_model(name), device="cpu")
     assert recorded_env(name) == (record["env"], tuple(settings))  # eval policy's default --env
     assert recorded_env(resolve_model(name)) == recorded_env(name)  # named by its shipped file
@@ -59,6 +60,7 @@ def test_each_shipped_baselines_training_command_still_parses_to_its_env_and_set
 
     from negobs_gym.cli import build_parser
     from negobs_gym.cli.train import config_from_args
+    from negobs_gym.policies.recipes import load_recipe
 
     record = baseline_record(name)
     words = shlex.split(record["command"])
@@ -67,7 +69,11 @@ def test_each_shipped_baselines_training_command_still_parses_to_its_env_and_set
     source = words[words.index("--source") + 1] if "--source" in words else None
     if source is not None:
         assert f"observation.source={source}" in config.overrides
-    assert ("run.filter=true" in config.overrides) == ("--filter" in words)
+    recipe = load_recipe(words[words.index("--recipe") + 1]) if "--recipe" in words else None
+    filtered = "--filter" in words or (recipe is not None and "run.filter=true" in recipe.train.overrides)
+    assert ("run.filter=true" in config.overrides) == filtered
+    if recipe is not None:  # the command is the recipe's run with its output options
+        assert dataclasses.replace(config, progress=True) == dataclasses.replace(recipe.train, progress=True)
 
 
 def test_at_least_one_baseline_is_shipped() -> None:
