@@ -123,7 +123,8 @@ def _digest(detection) -> dict:
 
 def test_paper_preset_is_the_detector_before_the_checks_on_a_simulated_course():
     """Frames 0-41 of the detection campaign's course 3 (rough ground, many shadow false alarms):
-    the paper preset gives exactly what the detector gave before the checks existed (recorded in
+    the paper preset gives the pairs, confirmed pairs, cells and obstacle centres (to 1e-5 m) the
+    detector gave before the checks existed (recorded in
     tests/detector/data/paper_preset_course3.json), the default fewer confirmed pairs."""
     from negobs_gym.detector import NegativeObstacleDetector
     from negobs_gym.eval.detection_campaign import DetectionCampaignConfig, drive_course
@@ -136,7 +137,15 @@ def test_paper_preset_is_the_detector_before_the_checks_on_a_simulated_course():
     for _, frame in drive_course(cfg, 3, cfg.frames_of(3), NegativeDetectorConfig.paper(), modes=("fused",)):
         pose = frame.ins_poses["fused"]
         want = reference[frame.frame]
-        assert {"frame": frame.frame, **_digest(paper.update(frame.scans, pose))} == want
+        got = {"frame": frame.frame, **_digest(paper.update(frame.scans, pose))}
+        # counts exactly; centres to 1e-5 m: the recorded ones were rounded to 6 decimals on one
+        # CPU, and another's SIMD sums can land a centre on the other side of a rounding boundary
+        assert {k: v for k, v in got.items() if k != "centres"} == {
+            k: v for k, v in want.items() if k != "centres"
+        }
+        assert len(got["centres"]) == len(want["centres"])
+        for mine, recorded in zip(got["centres"], want["centres"], strict=True):
+            assert mine == pytest.approx(recorded, abs=1e-5)
         confirmed_default += int(default.update(frame.scans, pose).pairs.confirmed.sum())
         if frame.frame == len(reference) - 1:
             break
