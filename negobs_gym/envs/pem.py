@@ -841,11 +841,12 @@ class PemGrid:
         lo, hi = rng_m[truth].min() + near, rng_m[truth].max() + far
         region = ndimage.binary_dilation(truth, iterations=grow) if grow > 0 else truth
         span = (rel >= rel[truth].min() - slack) & (rel <= rel[truth].max() + slack)
+        reach = region & span
         # the near edge is the cell range nearest the drawn one (the fit measured the detector's
         # between cell centres): cutting at ``lo`` drew no cell in front for an offset in (-1, 0) cells
-        candidates = rng_m[region & span]
+        candidates = rng_m[reach]
         lo = float(candidates[np.argmin(np.abs(candidates - lo))]) if candidates.size else lo
-        drawn = region & span & (rng_m >= lo) & (rng_m <= max(hi, lo))
+        drawn = reach & (rng_m >= lo) & (rng_m <= max(hi, lo))
         # a drawn pit is one blob on its rim, as the detector's hits: the range band beside the car
         # can leave slivers of the grown rim, or nothing on it
         labels, count = ndimage.label(drawn, structure=_EIGHT)

@@ -235,16 +235,14 @@ def _offsets(
     s_hit = bin_index(np.array([float(r["cells"]) for r in hits]), s_edges)
     near_all = np.array([_float(r["near_offset_m"]) for r in hits])
     far_all = np.array([_float(r["far_offset_m"]) for r in hits])
-    near: list[list[list[float]]] = []
-    far: list[list[list[float]]] = []
-    for s in range(len(s_edges) - 1):
-        near.append([])
-        far.append([])
-        for d in range(len(d_edges) - 1):
-            pools = ((s_hit == s) & (d_hit == d), s_hit == s, d_hit == d, np.ones(len(hits), dtype=bool))
-            use = next(pool for pool in pools if pool.sum() >= MIN_OFFSETS or pool.all())
-            near[s].append(_quantiles(near_all[use], levels))
-            far[s].append(_quantiles(far_all[use], levels))
+
+    def pool(s: int, d: int) -> np.ndarray:
+        pools = ((s_hit == s) & (d_hit == d), s_hit == s, d_hit == d, np.ones(len(hits), dtype=bool))
+        return next(p for p in pools if p.sum() >= MIN_OFFSETS or p.all())
+
+    bins = [[pool(s, d) for d in range(len(d_edges) - 1)] for s in range(len(s_edges) - 1)]
+    near = [[_quantiles(near_all[use], levels) for use in row] for row in bins]
+    far = [[_quantiles(far_all[use], levels) for use in row] for row in bins]
     return near, far
 
 
