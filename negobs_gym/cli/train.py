@@ -129,6 +129,13 @@ OPTIONS: tuple[Option, ...] = (
         kwargs={"type": float, "nargs": "+", "metavar": "EDGE"},
     ),
     Option(
+        "--route-offset-m",
+        "head.route_offset_m",
+        "PPO: the policy chooses a lateral offset from the route, up to this many metres either "
+        "way, and steers towards it by pure pursuit (0: it outputs the steering itself)",
+        kwargs={"type": float, "metavar": "M"},
+    ),
+    Option(
         "--source",
         f"{SET}observation.source",
         "the grid: the detectors', the ground truth's, the detectors' error model's (pem, "

@@ -109,12 +109,21 @@ class SteeringHeadConfig:
             in the fit (the rest is the nearest one's; Rupprecht et al. 2017, relaxed
             winner-takes-all), so that a candidate no label is nearest to still moves towards
             the data instead of dying.
+        route_offset_m: > 0: the policy outputs a lateral offset from the centre line, up to this
+            many metres either way, and steers towards it by pure pursuit
+            (:mod:`negobs_gym.policies.route_offset`); 0: it outputs the steering itself. 3 m is
+            half the winding course's 6 m track: every target lies on the track.
+        route_point_m: With ``route_offset_m``: the route point (one of
+            ``observation.route_points_m``, with one beyond it for the route's direction) that the
+            offset shifts; 5 m, the first point beyond pure pursuit's 4 m look-ahead.
     """
 
     modes: int = 1
     bin_edges: tuple[float, ...] = ()
     choice_weight: float = 0.1
     other_modes_weight: float = 0.05
+    route_offset_m: float = 0.0
+    route_point_m: float = 5.0
 
     def __post_init__(self) -> None:
         modes = self.modes
@@ -139,6 +148,21 @@ class SteeringHeadConfig:
             math.isfinite(self.other_modes_weight) and 0 <= self.other_modes_weight < 1,
             "other_modes_weight",
             f"must be in [0, 1), got {self.other_modes_weight!r}",
+        )
+        require(
+            math.isfinite(self.route_offset_m) and self.route_offset_m >= 0,
+            "route_offset_m",
+            f"must be finite and >= 0, got {self.route_offset_m!r}",
+        )
+        require(
+            math.isfinite(self.route_point_m) and self.route_point_m > 0,
+            "route_point_m",
+            f"must be finite and > 0, got {self.route_point_m!r}",
+        )
+        require(
+            self.route_offset_m == 0 or modes == 1,
+            "route_offset_m",
+            "steers by one offset: leave modes at 1 with it",
         )
 
 
@@ -445,9 +469,9 @@ class TrainConfig:
         require(isinstance(self.extractor, GridCnnConfig), "extractor", "must be a GridCnnConfig")
         require(isinstance(self.head, SteeringHeadConfig), "head", "must be a SteeringHeadConfig")
         require(
-            self.head.modes == 1 or self.algo == "PPO",
+            (self.head.modes == 1 and self.head.route_offset_m == 0) or self.algo == "PPO",
             "head",
-            "steering candidates replace a Gaussian policy's mean: PPO only",
+            "steering candidates and route offsets replace a Gaussian policy's mean: PPO only",
         )
         require(isinstance(self.warm_start, WarmStartConfig), "warm_start", "must be a WarmStartConfig")
         require(
@@ -456,9 +480,9 @@ class TrainConfig:
             "behaviour cloning sets a Gaussian policy's log_std: PPO only",
         )
         require(
-            not (self.init_model and self.head.modes > 1),
+            not (self.init_model and (self.head.modes > 1 or self.head.route_offset_m > 0)),
             "head",
-            "init_model brings its own head: leave modes at 1 with it",
+            "init_model brings its own head: leave modes at 1 and route_offset_m at 0 with it",
         )
         require(
             not (self.init_model and self.warm_start.enabled),

@@ -42,6 +42,7 @@ import negobs_gym  # noqa: F401 - registers the env ids (also in vector-env work
 from negobs_gym.core.files import write_text_atomic
 from negobs_gym.drivers.zoo import FITTED_ON, fitted_on_record
 from negobs_gym.envs import make_env
+from negobs_gym.envs.observation import state_fields
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
 from negobs_gym.policies.config import TRAINING_DEFAULTS, TrainConfig, config_from_record
@@ -180,12 +181,21 @@ def _vec_env(config: TrainConfig):
     return venv
 
 
-def _policy(config: TrainConfig, grid_shape: tuple[int, int, int]) -> tuple[Any, dict[str, Any]]:
-    """SB3's policy (class or name) and its keyword arguments: the grid CNN, and the steering head."""
+def _policy(
+    config: TrainConfig, grid_shape: tuple[int, int, int], state: tuple[str, ...] = ()
+) -> tuple[Any, dict[str, Any]]:
+    """SB3's policy (class or name) and its keyword arguments: the grid CNN, and the steering head
+    (``state``: the names of the state observation's values, where a route-offset head finds its
+    route point)."""
     kwargs: dict[str, Any] = {
         "features_extractor_class": GridStateExtractor,
         "features_extractor_kwargs": {"grid_shape": grid_shape, "config": config.extractor},
     }
+    if config.head.route_offset_m > 0:
+        from negobs_gym.policies.route_offset import RouteOffsetPolicy, route_columns
+
+        columns = route_columns(state, config.head.route_point_m)
+        return RouteOffsetPolicy, {**kwargs, "head": config.head, "state_columns": columns}
     if config.head.modes == 1:
         return "MultiInputPolicy", kwargs
     from negobs_gym.policies.modes import SteeringModesPolicy
@@ -193,13 +203,15 @@ def _policy(config: TrainConfig, grid_shape: tuple[int, int, int]) -> tuple[Any,
     return SteeringModesPolicy, {**kwargs, "head": config.head}
 
 
-def _new_model(config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int]) -> Any:
+def _new_model(
+    config: TrainConfig, venv: Any, grid_shape: tuple[int, int, int], state: tuple[str, ...] = ()
+) -> Any:
     """A fresh model of ``config``'s algorithm, its weights drawn on ``config.torch_threads``
     threads: torch's orthogonal initialisation (a QR decomposition) gives other weights from the
     same seed on another thread count."""
     import stable_baselines3
 
-    policy, policy_kwargs = _policy(config, grid_shape)
+    policy, policy_kwargs = _policy(config, grid_shape, state)
     common = {
         "policy_kwargs": policy_kwargs,
         "learning_rate": config.learning_rate,
@@ -266,7 +278,7 @@ def train(config: TrainConfig, out_dir: str | Path, *, resume: bool = False) -> 
             model = _init_model(config, venv)
             warm = {}
         else:
-            model = _new_model(config, venv, grid_shape)
+            model = _new_model(config, venv, grid_shape, state_fields(spec.observation))
             warm = _warm_start(model, config, out)
         setattr(model, FITTED_ON, fitted_on_record(config.env, config.overrides))
         if warm and checkpoint is None:  # the cloned policy before any PPO update, for eval

@@ -118,6 +118,7 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
         (["--strong-steer-repeats", "0"], "--strong-steer-repeats: must be >= 1"),
         (["--steering-modes", "0"], "--steering-modes: must be >= 1"),
         (["--steering-bins", "x"], "--steering-bins: invalid float value: 'x'"),
+        (["--route-offset-m", "x"], "--route-offset-m: invalid float value: 'x'"),
     ],
 )
 def test_bad_arguments_exit_2_with_the_reason(args: list[str], message: str, capsys) -> None:
@@ -140,7 +141,12 @@ def test_unknown_env_and_resume_without_checkpoint_exit_2(tmp_path: Path, capsys
     assert main(["train", "--env", ENV, "--strong-steer", "nan"]) == 2
     assert "strong_steer: must be finite and >= 0, got nan" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--algo", "sac", "--steering-modes", "2"]) == 2
-    assert "head: steering candidates replace a Gaussian policy's mean: PPO only" in capsys.readouterr().err
+    assert (
+        "head: steering candidates and route offsets replace a Gaussian policy's mean: PPO only"
+        in capsys.readouterr().err
+    )
+    assert main(["train", "--env", ENV, "--route-offset-m", "3", "--steering-modes", "2"]) == 2
+    assert "route_offset_m: steers by one offset: leave modes at 1 with it" in capsys.readouterr().err
     assert main(["train", "--env", ENV, "--steering-modes", "3", "--steering-bins", "0"]) == 2
     assert "bin_edges: needs one edge between each two of the 3 candidates" in capsys.readouterr().err
 
