@@ -14,6 +14,7 @@ from negobs_gym.cli import main
 from negobs_gym.policies.callbacks import EVAL_COLUMNS
 from negobs_gym.policies.config import WarmStartConfig
 from negobs_gym.policies.modes import SteeringModesPolicy
+from negobs_gym.policies.route_offset import RouteOffsetPolicy
 
 ENV = "negobs_gym/Braking-v1"
 SHORT = ["--source", "oracle", "--n-steps", "64", "--eval-episodes", "1", "--no-progress"]
@@ -104,6 +105,16 @@ def test_track_planner_warm_start_with_dagger_is_recorded_and_evaluated(tmp_path
     assert again["strong_steer_repeats"] == 3 and again["strong_steer"] == 0.2
     assert again["demonstration_steps"] == 80 and again["episodes"] == warm["episodes"]
     assert len(again["held_out_losses"]) == WarmStartConfig().epochs  # the clone's episode, scored
+    # the same steps fitted by a route-offset head: the clone and the PPO model keep it
+    offset = tmp_path / "offset"
+    args = ["train", "--env", "negobs_gym/OffroadTrack-v0", "--steps", "32", "--demonstrations", str(saved)]
+    args += ["--route-offset-m", "2.5", *SHORT, "--n-steps", "32", "--batch-size", "32", *SHORT_COURSE]
+    assert main(["-q", *args, "--out", str(offset)]) == 0
+    capsys.readouterr()
+    assert json.loads((offset / "train.json").read_text())["config"]["head"]["route_offset_m"] == 2.5
+    for name in ("warm_start.zip", "model.zip"):
+        policy = PPO.load(offset / name, device="cpu").policy
+        assert isinstance(policy, RouteOffsetPolicy) and policy.head.route_offset_m == 2.5
 
 
 @pytest.mark.parametrize(
