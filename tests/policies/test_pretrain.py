@@ -28,15 +28,7 @@ from negobs_gym.policies.training import _check_layout, _new_model, _vec_env, ma
 
 ENV = "negobs_gym/OffroadNav-v1"
 ORACLE = ("observation.source=oracle",)
-
-
-@pytest.fixture(scope="module")
-def demos():
-    env = make_training_env(ENV, ORACLE)
-    try:
-        yield collect_demonstrations(env, 160, noise_std=0.3, seed=7)
-    finally:
-        env.close()
+DEMO_STEPS, DEMO_SEED = 160, 7  # the demos fixture's (conftest.py)
 
 
 def test_demonstrations_label_the_drivers_clean_actions(demos) -> None:
