@@ -19,7 +19,6 @@ it.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import torch
@@ -27,17 +26,16 @@ from stable_baselines3.common.distributions import DiagGaussianDistribution, Dis
 from stable_baselines3.common.policies import BasePolicy, MultiInputActorCriticPolicy
 from stable_baselines3.common.type_aliases import PyTorchObs
 
+from negobs_gym.drivers.pure_pursuit import PurePursuitConfig
 from negobs_gym.errors import ConfigError
 from negobs_gym.policies.config import STEERING, SteeringHeadConfig
 
 __all__ = ["RouteOffsetPolicy", "pursuit_steering", "route_columns"]
 
-#: The car's wheelbase and full steering, as the pure-pursuit driver's defaults
-#: (:class:`~negobs_gym.drivers.pure_pursuit.PurePursuitConfig`; the envs' car) [m], [rad].
-WHEELBASE_M = 2.8
-MAX_STEER_RAD = math.radians(35.0)
-#: Below this the route's two points coincide (beyond the track's end) and the target's
-#: distance is floored, so the steering stays finite at the goal [m].
+#: The car's wheelbase and full steering: the pure-pursuit driver's (the envs' car).
+_PURSUIT = PurePursuitConfig()
+#: The target's distance is floored at this, so the steering stays finite where the route's
+#: points come near the car (at the track's end, where they also coincide) [m].
 _SHORT_M = 0.5
 
 
@@ -83,7 +81,7 @@ def pursuit_steering(route: torch.Tensor, offset_m: torch.Tensor) -> torch.Tenso
     target = point + offset_m[:, None] * left
     squared = (target**2).sum(dim=1).clamp_min(_SHORT_M**2)
     curvature = -2.0 * target[:, 0] / squared
-    return torch.atan(WHEELBASE_M * curvature) / MAX_STEER_RAD
+    return torch.atan(_PURSUIT.wheelbase_m * curvature) / _PURSUIT.max_steer_rad
 
 
 class RouteOffsetPolicy(MultiInputActorCriticPolicy):
