@@ -75,9 +75,8 @@ def pursuit_steering(route: torch.Tensor, offset_m: torch.Tensor) -> torch.Tenso
     length = heading.norm(dim=1, keepdim=True)
     forward = torch.tensor([0.0, 1.0], dtype=route.dtype).expand_as(heading)
     heading = torch.where(length > 1e-6, heading / length.clamp_min(1e-6), forward)
-    left = torch.stack(
-        [-heading[:, 1], heading[:, 0]], dim=1
-    )  # x right, y forward: left of (0, 1) is (-1, 0)
+    # x right, y forward: left of (0, 1) is (-1, 0)
+    left = torch.stack([-heading[:, 1], heading[:, 0]], dim=1)
     target = point + offset_m[:, None] * left
     squared = (target**2).sum(dim=1).clamp_min(_SHORT_M**2)
     curvature = -2.0 * target[:, 0] / squared
@@ -134,15 +133,16 @@ class RouteOffsetPolicy(MultiInputActorCriticPolicy):
 
     def offset_m(self, obs: PyTorchObs) -> torch.Tensor:
         """(B,) the lateral offset from the route the policy drives towards [m]."""
-        self._remember_route(obs)
         features = BasePolicy.extract_features(self, obs, self.pi_features_extractor)
-        latent = self.mlp_extractor.forward_actor(features)
-        return self.head.route_offset_m * torch.tanh(self.action_net(latent)[:, STEERING])
+        return self._offset(self.action_net(self.mlp_extractor.forward_actor(features)))
+
+    def _offset(self, out: torch.Tensor) -> torch.Tensor:
+        return self.head.route_offset_m * torch.tanh(out[:, STEERING])
 
     def _get_action_dist_from_latent(self, latent_pi: torch.Tensor) -> Distribution:
         if self._route is None or self._route.shape[0] != latent_pi.shape[0]:
             raise RuntimeError("RouteOffsetPolicy: a distribution asked for without its observation")
         out = self.action_net(latent_pi)
-        steering = pursuit_steering(self._route, self.head.route_offset_m * torch.tanh(out[:, STEERING]))
+        steering = pursuit_steering(self._route, self._offset(out))
         mean = torch.cat([out[:, :STEERING], steering[:, None], out[:, STEERING + 1 :]], dim=1)
         return self.action_dist.proba_distribution(mean, self.log_std)
