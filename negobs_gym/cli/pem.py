@@ -40,6 +40,13 @@ def _campaign_options(parser: argparse.ArgumentParser, seeds: int, frames: int, 
         help="take the detector grid's settings from this env's [observation] (id, scene or TOML; "
         "default: the envs' default observation)",
     )
+    group.add_argument(
+        "--path-offset-m",
+        type=float,
+        default=0.0,
+        help="drive the courses this far beside the centre line, + right, as a driver passing a pit "
+        "closely does (default: %(default)s, the centre line)",
+    )
     add_set_option(parser)
     add_runner_options(group, "courses")
     group.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -112,8 +119,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--policy",
         default=None,
         metavar="MODEL",
-        help="also run this policy (a shipped name or a saved model) on the same unseen seeds on both "
-        "grids behind the filter, and check the gap in goal rate (<= 10 points)",
+        help="also run this policy (a shipped name, a saved model, or a scripted driver's name such as "
+        "track_planner, with --policy-env) on the same unseen seeds on both grids behind the filter, "
+        "and check the gap in goal rate (<= 10 points)",
     )
     loop.add_argument(
         "--policy-seeds", type=positive_int, default=20, help="the policy's episodes (default: %(default)s)"
@@ -158,7 +166,11 @@ def _config(args: argparse.Namespace):
         import_ray()
     options = RunOptions(Backend(workers=args.workers, ray=args.ray), args.resume, not args.no_progress)
     config = PemCampaignConfig(
-        seeds=args.seeds, first_seed=args.first_seed, frames=args.frames, observation=_observation(args)
+        seeds=args.seeds,
+        first_seed=args.first_seed,
+        frames=args.frames,
+        observation=_observation(args),
+        path_offset_m=args.path_offset_m,
     )
     return config, options
 

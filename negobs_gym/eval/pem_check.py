@@ -542,7 +542,8 @@ def check_braking(
 
 @dataclass(frozen=True, kw_only=True)
 class PolicyCheckConfig:
-    """The closed loop on a policy: ``policy`` (a shipped name or a saved model) on seeds
+    """The closed loop on a policy: ``policy`` (a shipped name, a saved model or a scripted driver's
+    name, e.g. the privileged ``track_planner``, which passes pits closely) on seeds
     ``first_seed``.. of ``env_id`` (None: the env and ``--set`` of the policy's record), once on
     the detector grid and once on the PEM's, behind the safety filter or not (issue 76's transfer
     gap; not a paper value).
@@ -606,7 +607,10 @@ def compare_policy(summaries: dict[str, dict[str, Any]], config: PolicyCheckConf
     for m in MODES:
         s = summaries[m][label]
         figures[f"policy_episodes_{m}"] = float(s["episodes"])
-        for name in ("goals", "entries", "collisions", "left_track", "vetoes_per_km", "mean_progress_m"):
+        for name in (
+            "goals", "entries", "collisions", "left_track", "stopped", "vetoes_per_km", "false_vetoes_per_km",
+            "mean_progress_m",
+        ):  # fmt: skip
             figures[f"policy_{name}_{m}"] = float(s[name])
     gap = (figures["policy_goals_pem"] - figures["policy_goals_detector"]) / config.seeds
     figures["policy_goal_rate_gap"] = gap

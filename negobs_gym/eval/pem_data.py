@@ -43,6 +43,7 @@ import numpy as np
 from scipy import ndimage
 
 from negobs_gym.core.geometry import distance_to_polyline, vehicle_to_world_xy
+from negobs_gym.core.pose import Pose
 from negobs_gym.envs.pem import (
     PEM_CHANNELS,
     TERRAIN_CLASSES,
@@ -68,6 +69,7 @@ __all__ = [
     "SIGHTING_COLUMNS",
     "SPURIOUS_COLUMNS",
     "PemCampaignConfig",
+    "path_steering",
     "pem_digest",
     "run_pem_campaign",
 ]
@@ -165,6 +167,8 @@ class PemCampaignConfig:
         positive_match_cells: Cells the positive obstacles' footprints are grown by when matching
             the ``positive`` layer's blobs (the LUX's returns lie on a face, on the footprint's
             edge, a cell centre often just outside it).
+        path_offset_m: The car's path's signed offset from the centre line [m] (> 0 towards +x of
+            the course); 0, the centre line, is what the fit and check drive.
     """
 
     seeds: int = 8
@@ -180,6 +184,7 @@ class PemCampaignConfig:
     track_obstacle_lateral_m: tuple[float, float] = (1.9, 2.6)
     track_obstacle_gap_m: float = 3.0
     positive_match_cells: int = 2
+    path_offset_m: float = 0.0
 
     def __post_init__(self) -> None:
         require(
@@ -204,6 +209,7 @@ class PemCampaignConfig:
             "track_obstacle_lateral_m",
             f"must be (low, high), 0 <= low <= high, got {(lo, hi)}",
         )
+        require(math.isfinite(self.path_offset_m), "path_offset_m", f"must be finite, got {self.path_offset_m!r}")
         require(len(self.track_obstacle_kinds) > 0, "track_obstacle_kinds", "must name at least one kind")
         require(
             type(self.positive_match_cells) is int and self.positive_match_cells >= 0,
@@ -405,6 +411,13 @@ class _Frame:
     width_m: float
 
 
+def path_steering(pose: Pose, line: np.ndarray, offset_m: float = 0.0) -> float:
+    """The courses' P-controller: the steering command [-1, 1] back to the centre line ``line``
+    (N, 2), shifted by ``offset_m`` along +x (the detection courses run along +y), and to its heading."""
+    lateral = pose.x - float(np.interp(pose.y, line[:, 1], line[:, 0])) - offset_m
+    return float(np.clip(0.5 * lateral - 2.0 * pose.yaw, -1.0, 1.0))
+
+
 def run_episode(episode: Episode) -> Rows:
     """Drive one course through the detector grid, or with a PEM (``pem`` given) through its grids;
     its ``sightings``, ``spurious`` and ``frames`` rows (module docstring)."""
@@ -462,8 +475,7 @@ def run_episode(episode: Episode) -> Rows:
         world.step(round(SETTLE_S / world.config.time_step_s))
         last = vehicle.true_pose()
         for frame in range(n_frames):
-            lateral = last.x - float(np.interp(last.y, line[:, 1], line[:, 0]))
-            vehicle.apply(0.0, 0.0, float(np.clip(0.5 * lateral - 2.0 * last.yaw, -1.0, 1.0)))
+            vehicle.apply(0.0, 0.0, path_steering(last, line, cfg.path_offset_m))
             vehicle.set_speed(speed)
             world.step(steps)
             pose = vehicle.true_pose()

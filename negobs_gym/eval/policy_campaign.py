@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from negobs_gym.core.files import write_text_atomic
-from negobs_gym.drivers.model import ModelDriver
+from negobs_gym.drivers import DRIVER_NAMES, ModelDriver
 from negobs_gym.drivers.zoo import resolve_model
 from negobs_gym.envs import make_env, source_overrides
 from negobs_gym.errors import require
@@ -48,7 +48,8 @@ from negobs_gym.eval.campaign import (
     run_campaign,
     scene_assignments,
 )
-from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
+from negobs_gym.eval.episode import STANDSTILL_S, DriverSource, EpisodeStop, drive_episode
+from negobs_gym.eval.scenario_runner import make_driver
 from negobs_gym.eval.stats import rate_interval
 from negobs_gym.eval.vetoes import VETO_COLUMNS, largest_veto_error_m, veto_rows
 from negobs_gym.spec import apply_overrides, spec_for_env
@@ -119,7 +120,11 @@ class PolicyCampaignConfig:
     stops for the grid's positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`);
     their rows say ``filter_positive`` instead of ``filter``. ``model_path``: a saved model, or
     the name of a shipped policy, which the episodes' records keep as a name (resolved where each
-    runs), so a campaign folder replays on another install (``negobs eval video``).
+    runs), so a campaign folder replays on another install (``negobs eval video``); or a scripted
+    driver's name (:data:`~negobs_gym.drivers.DRIVER_NAMES`), built on each course at its scene's
+    ``run.target_speed_mps`` and ``run.lane_offset_m`` (``algo`` unused): the same campaign,
+    filter and judges for a scripted driver, e.g. the privileged track planner on both grids
+    (``negobs pem check --policy track_planner``).
     """
 
     model_path: str
@@ -156,7 +161,8 @@ class PolicyCampaignConfig:
             "stop_for_positive",
             f"must be a bool, got {self.stop_for_positive!r}",
         )
-        resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
+        if self.model_path not in DRIVER_NAMES:
+            resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
 
 
 def filter_label(filtered: bool, stop_for_positive: bool) -> str:
@@ -185,6 +191,14 @@ def episodes(config: PolicyCampaignConfig) -> list[Episode]:
     ]
 
 
+def _driver(model_path: str, algo: str) -> DriverSource:
+    """The episode's driver: the scripted driver of that name, built on the reset env's course at its
+    scene's speed and lane offset, else the saved model."""
+    if model_path in DRIVER_NAMES:
+        return lambda env: make_driver(model_path, env.scenario, env.terrain)
+    return ModelDriver(model_path, algo)
+
+
 def run_episode(episode: Episode) -> Rows:
     """One episode of the model on ``env_id`` (a registered id, a shipped scenario or a TOML
     file) with the campaign's overrides. An arg ``video_to`` (not set by :func:`episodes`; see
@@ -198,7 +212,7 @@ def run_episode(episode: Episode) -> Rows:
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     own = env.unwrapped.scenario.filter  # the scene's [filter] settings, the campaign's switch on top
     guard = dataclasses.replace(own, stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
-    driver = ModelDriver(a["model_path"], a["algo"])
+    driver = _driver(a["model_path"], a["algo"])
     stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
     with contextlib.closing(env):
         result = drive_episode(env, driver, seed=a["seed"], filter=guard, stop=stop, video_to=video_to)

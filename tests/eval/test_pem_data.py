@@ -1,6 +1,7 @@
-"""The PEM drives' judge: which obstacles a drawn blob counts for."""
+"""The PEM drives: the judge (which obstacles a drawn blob counts for) and the courses' controller."""
 
 import numpy as np
+import pytest
 from scipy import ndimage
 
 from negobs_gym.eval.pem_data import blob_counts
@@ -43,3 +44,26 @@ def test_a_blob_over_two_obstacles_counts_for_both_and_one_beside_by_the_grown_m
     assert counts[0, labels[9, 5]] and not counts[1, labels[9, 5]]
     assert not blob_counts(labels, count, [mound, rock], match_cells=1)[:, labels[9, 5]].any()
     assert blob_counts(labels, count, [], match_cells=0).shape == (0, count + 1)
+
+
+def test_the_courses_controller_steers_to_the_line_shifted_by_the_path_offset() -> None:
+    from negobs_gym.core.pose import Pose
+    from negobs_gym.eval.pem_data import path_steering
+
+    line = np.array([[0.0, 0.0], [0.0, 100.0]])  # a course along +y
+    assert path_steering(Pose(x=0.0, y=10.0), line) == 0.0
+    assert path_steering(Pose(x=1.2, y=10.0), line, 1.2) == 0.0  # on its shifted line
+    assert path_steering(Pose(x=1.2, y=10.0), line) == pytest.approx(0.6)  # back towards x = 0
+    assert path_steering(Pose(x=0.0, y=10.0), line, 1.2) == pytest.approx(-0.6)
+    assert path_steering(Pose(x=1.2, y=10.0, yaw=0.1), line, 1.2) == pytest.approx(-0.2)  # and to its heading
+    assert path_steering(Pose(x=9.0, y=10.0), line) == 1.0  # full lock at most
+
+
+@pytest.mark.parametrize("offset", [float("nan"), float("inf")])
+def test_a_path_offset_that_is_not_finite_is_refused(offset: float) -> None:
+    from negobs_gym.errors import ConfigError
+    from negobs_gym.eval.pem_data import PemCampaignConfig
+
+    with pytest.raises(ConfigError, match="path_offset_m"):
+        PemCampaignConfig(path_offset_m=offset)
+    assert PemCampaignConfig(path_offset_m=-1.2).path_offset_m == -1.2

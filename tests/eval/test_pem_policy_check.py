@@ -14,7 +14,7 @@ def _summary(goals: int, episodes: int = 20) -> dict:
     return {
         "filter": {
             "episodes": episodes, "goals": goals, "entries": 0, "collisions": 1, "left_track": 2,
-            "vetoes_per_km": 3.0, "mean_progress_m": 90.0,
+            "stopped": 1, "vetoes_per_km": 3.0, "false_vetoes_per_km": 0.5, "mean_progress_m": 90.0,
         }
     }  # fmt: skip
 
@@ -44,3 +44,12 @@ def test_both_campaigns_run_the_records_env_and_settings_on_each_grid():
     assert named[-1] == f"observation.pem_model={Path('some/pem.json').resolve()}"
     with pytest.raises(ConfigError, match="policy_seeds"):
         PolicyCheckConfig(policy="ppo_offroad_nav_v1", seeds=0)
+
+
+def test_a_scripted_driver_runs_on_the_env_given_and_needs_one():
+    config = PolicyCheckConfig(policy="track_planner", env_id="offroad_nav_v2", seeds=2)
+    runs = config.campaigns(None)
+    assert runs["detector"].model_path == runs["pem"].model_path == "track_planner"
+    assert runs["pem"].overrides[-1] == "observation.source=pem"
+    with pytest.raises(ConfigError, match="--policy-env"):
+        PolicyCheckConfig(policy="track_planner").campaigns(None)

@@ -124,3 +124,21 @@ def test_the_old_episode_function_warns_and_gives_the_loops_metrics() -> None:
     env.close()
     assert {k: m[k] for k in r.metrics()} == r.metrics() and m["steps"] == 5
     assert [p[:4] for p in m["path"]] == list(r.path) and m["judgements"] == []
+
+
+@pytest.mark.parametrize(("filtered", "entered"), [(False, True), (True, False)])
+def test_a_scripted_driver_named_as_the_model_runs_the_same_campaign(filtered: bool, entered: bool) -> None:
+    from negobs_gym.eval.campaign import Episode
+    from negobs_gym.eval.policy_campaign import run_episode
+
+    config = PolicyCampaignConfig(model_path="reckless", env_id="negobs_gym/Braking-v1", overrides=tuple(ORACLE))
+    args = {**episodes(config)[0].args, "filtered": filtered, "seed": 3}
+    row = dict(zip(COLUMNS, run_episode(Episode("x", args))["policy"][0].split(","), strict=True))
+    assert row["entered"] == str(int(entered))  # the reckless driver: into the ditch unless vetoed
+    assert (int(row["vetoes"]) > 0) == filtered
+
+
+def test_a_scripted_driver_is_not_looked_up_as_a_saved_model() -> None:
+    assert PolicyCampaignConfig(model_path="track_planner").model_path == "track_planner"
+    with pytest.raises(ConfigError, match="model_path"):
+        PolicyCampaignConfig(model_path="track_planer")
