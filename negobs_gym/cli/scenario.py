@@ -26,6 +26,7 @@ DRIVER_CHOICES = (
     "pure_pursuit",
     "track_planner",
     "creeping",
+    "grid_planner",
 )  # negobs_gym.eval.scenario_runner.DRIVERS, spelt here so that --help imports no simulator
 
 

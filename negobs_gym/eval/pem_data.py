@@ -209,7 +209,9 @@ class PemCampaignConfig:
             "track_obstacle_lateral_m",
             f"must be (low, high), 0 <= low <= high, got {(lo, hi)}",
         )
-        require(math.isfinite(self.path_offset_m), "path_offset_m", f"must be finite, got {self.path_offset_m!r}")
+        require(
+            math.isfinite(self.path_offset_m), "path_offset_m", f"must be finite, got {self.path_offset_m!r}"
+        )
         require(len(self.track_obstacle_kinds) > 0, "track_obstacle_kinds", "must name at least one kind")
         require(
             type(self.positive_match_cells) is int and self.positive_match_cells >= 0,

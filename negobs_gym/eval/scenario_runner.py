@@ -47,7 +47,11 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
     """The scripted driver ``name`` at the spec's target speed and lane offset
     (:func:`negobs_gym.drivers.make_driver`)."""
     return make_named_driver(
-        name, terrain, target_speed_mps=spec.run.target_speed_mps, lane_offset_m=spec.run.lane_offset_m
+        name,
+        terrain,
+        target_speed_mps=spec.run.target_speed_mps,
+        lane_offset_m=spec.run.lane_offset_m,
+        observation=spec.observation,
     )
 
 

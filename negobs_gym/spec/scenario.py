@@ -61,7 +61,9 @@ TerminationRule = Literal[
 ]
 #: Names a spec's ``terminations`` may list (see :mod:`negobs_gym.envs.hooks`).
 TERMINATION_RULES: tuple[str, ...] = get_args(TerminationRule)
-DriverName = Literal["reckless", "constant_speed", "pure_pursuit", "track_planner", "creeping"]
+DriverName = Literal[
+    "reckless", "constant_speed", "pure_pursuit", "track_planner", "creeping", "grid_planner"
+]
 PolicyAlgo = Literal["PPO", "SAC"]  # negobs_gym.policies.config.ALGORITHMS
 
 

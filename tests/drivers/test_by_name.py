@@ -7,6 +7,7 @@ from negobs_gym.drivers import (
     DRIVER_NAMES,
     ConstantSpeedDriver,
     CreepingDriver,
+    GridPlannerDriver,
     PurePursuitDriver,
     RecklessDriver,
     TrackPlannerDriver,
@@ -14,6 +15,7 @@ from negobs_gym.drivers import (
 )
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.presets import braking_track
+from negobs_gym.spec.observation import ObservationConfig
 
 CLASSES = {
     "reckless": RecklessDriver,
@@ -21,6 +23,7 @@ CLASSES = {
     "pure_pursuit": PurePursuitDriver,
     "track_planner": TrackPlannerDriver,
     "creeping": CreepingDriver,
+    "grid_planner": GridPlannerDriver,
 }
 
 
@@ -32,11 +35,18 @@ def terrain():
 @pytest.mark.parametrize("name", DRIVER_NAMES)
 def test_each_name_builds_its_driver_at_the_target_speed(terrain, name: str) -> None:
     assert set(CLASSES) == set(DRIVER_NAMES)
-    default = make_driver(name, terrain)
-    driver = make_driver(name, terrain, target_speed_mps=3.0)
+    observation = ObservationConfig()  # the grid planner's grid layout; the others ignore it
+    default = make_driver(name, terrain, observation=observation)
+    driver = make_driver(name, terrain, target_speed_mps=3.0, observation=observation)
     assert type(driver) is CLASSES[name]
-    config = driver.config.pursuit if name == "track_planner" else driver.config
-    default_config = default.config.pursuit if name == "track_planner" else default.config
+
+    def speed_config(d):
+        return {
+            "track_planner": lambda: d.config.pursuit,
+            "grid_planner": lambda: d.config.planner.pursuit,
+        }.get(name, lambda: d.config)()
+
+    config, default_config = speed_config(driver), speed_config(default)
     assert config.target_speed_mps == 3.0 != default_config.target_speed_mps
 
 

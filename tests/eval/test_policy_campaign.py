@@ -131,7 +131,9 @@ def test_a_scripted_driver_named_as_the_model_runs_the_same_campaign(filtered: b
     from negobs_gym.eval.campaign import Episode
     from negobs_gym.eval.policy_campaign import run_episode
 
-    config = PolicyCampaignConfig(model_path="reckless", env_id="negobs_gym/Braking-v1", overrides=tuple(ORACLE))
+    config = PolicyCampaignConfig(
+        model_path="reckless", env_id="negobs_gym/Braking-v1", overrides=tuple(ORACLE)
+    )
     args = {**episodes(config)[0].args, "filtered": filtered, "seed": 3}
     row = dict(zip(COLUMNS, run_episode(Episode("x", args))["policy"][0].split(","), strict=True))
     assert row["entered"] == str(int(entered))  # the reckless driver: into the ditch unless vetoed
