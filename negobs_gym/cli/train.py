@@ -220,7 +220,7 @@ OPTIONS: tuple[Option, ...] = (
         "--warm-start-driver",
         "warm_start.driver",
         "the demonstrator: pure_pursuit follows the centre line; track_planner passes the "
-        "ground-truth obstacles on the track (OffroadTrack-v0)",
+        "ground-truth obstacles on the track (OffroadTrack-v0); grid_planner the obstacles the grid shows",
         WARM,
         kwargs={"choices": DEMONSTRATORS},
     ),

@@ -12,6 +12,7 @@ is a perception-driven baseline for the policies: what an agent that sees only t
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,6 +56,9 @@ class GridPlannerConfig:
     # rise in the ground (the winding course's mounds are 4 x 3 m; a rock or box, at most 1 x 1 m,
     # spans two cells' centres at most), driven over at TrackPlannerConfig.mound_cost [m]
     mound_span_m: float = 2.0
+    # a body blob's band reaches this far beyond its farthest cell along the track: paper T's LUX
+    # returns a rock's or box's near face only, and they are up to 1 m long [m]
+    body_depth_m: float = 0.0
     # > 0: also plan around the obstacle cells of the last N grids (N steps at the env's control
     # rate; 30 = 3 s at 10 Hz), moved into the car's frame by its motion since: a hazard memory,
     # since paper T's LUX loses a rock within ~4 m and paper N's rings leave a pit's rim up close
@@ -67,7 +71,7 @@ class GridPlannerConfig:
         )
         steps = self.memory_steps
         require(isinstance(steps, int) and steps >= 0, "memory_steps", f"must be an int >= 0, got {steps!r}")
-        for name in ("pad_m", "mound_span_m"):
+        for name in ("pad_m", "mound_span_m", "body_depth_m"):
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
 
@@ -106,9 +110,13 @@ def observed_cells(observation: ObservationConfig) -> GridSpec:
 
 
 def _checked(grid: Any, observation: ObservationConfig) -> np.ndarray:
-    """``grid`` as an array of the observation's (channels, rows, cols), or a clear error."""
+    """``grid`` as an array of the observation's (channels, rows, cols), or a clear error. A flat
+    grid of that many cells (what :class:`~negobs_gym.policies.PolicyObservation` hands SB3) is
+    folded back."""
     array = np.asarray(grid)
     expected = (len(observation.channels), *observed_cells(observation).shape)
+    if array.ndim == 1 and array.size == math.prod(expected):
+        array = array.reshape(expected)
     if array.shape != expected:
         raise ActionError(f"grid observation: must have shape {expected}, got {array.shape}")
     return array
@@ -140,11 +148,11 @@ def grid_bands(
     body = planner.half_width_m + planner.clearance_m + config.pad_m
     lead = planner.lead_m + config.pad_m
 
-    def widened(extent: np.ndarray, widen_m: float) -> np.ndarray:
-        return extent + np.array([-lead, 0.0, -widen_m, widen_m])
+    def widened(extent: np.ndarray, widen_m: float, deepen_m: float = 0.0) -> np.ndarray:
+        return extent + np.array([-lead, deepen_m, -widen_m, widen_m])
 
     return ObstacleBands(
-        bodies=widened(positive[~rise], body),
+        bodies=widened(positive[~rise], body, config.body_depth_m),
         pits=widened(extents["negative"], wheel),
         mounds=widened(positive[rise], wheel),
         lead_m=planner.lead_m,
@@ -213,7 +221,11 @@ class GridPlannerDriver:
             planner = self.config.planner
             self._follow(
                 *planned_lateral_m(
-                    self.terrain, planner, (station, lateral), bands=bands, horizon_m=planner.plan_horizon_m
+                    self.terrain,
+                    planner,
+                    (station, lateral),
+                    bands=bands,
+                    horizon_m=planner.plan_horizon_m,
                 )
             )
         return self._pursuit.act(obs, info)

@@ -44,7 +44,7 @@ TRAINING_DEFAULTS: tuple[str, ...] = ("run.filter=false", "filter.stop_for_posit
 #: Vector envs for ``envs > 1`` (``TrainConfig.vec_env``).
 VEC_ENVS: tuple[str, ...] = ("build_ahead", "subproc", "prefetch", "ray")
 #: Scripted drivers the warm start can clone (``WarmStartConfig.driver``).
-DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner")
+DEMONSTRATORS: tuple[str, ...] = ("pure_pursuit", "track_planner", "grid_planner")
 #: Column of the steering command in an env action (throttle/brake, steering).
 STEERING = 1
 
@@ -182,7 +182,9 @@ class WarmStartConfig:
         steps: Demonstration env steps (0: no warm start).
         driver: The demonstrator: ``"pure_pursuit"`` follows the centre line (and drives into the
             first obstacle); ``"track_planner"`` (:mod:`negobs_gym.drivers.track_planner`) passes
-            the ground-truth obstacles on the track, which OffroadTrack-v0 needs.
+            the ground-truth obstacles on the track, which OffroadTrack-v0 needs;
+            ``"grid_planner"`` (:mod:`negobs_gym.drivers.grid_planner`) passes the obstacles the
+            env's grid shows, so its labels depend on what the policy sees (and 3 s of it).
         dagger_rounds: Rounds of DAgger after the first fit (Ross et al. 2011): the cloned policy
             drives ``steps`` more steps (with the same noise), the driver labels the states it
             visits, and the policy is refitted on everything so far. Cloning alone drifts into

@@ -50,6 +50,7 @@ from negobs_gym.policies.config import DEMONSTRATORS, STEERING, WarmStartConfig
 from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.policies.threads import torch_threads
 from negobs_gym.sim.types import Terrain
+from negobs_gym.spec.observation import ObservationConfig
 
 __all__ = [
     "DEMO_SEED_OFFSET",
@@ -194,15 +195,26 @@ class FitResult:
 
 
 def demonstrator(
-    name: str, terrain: Terrain, planner_sight_m: float = 0.0, planner_horizon_m: float = 0.0
+    name: str,
+    terrain: Terrain,
+    planner_sight_m: float = 0.0,
+    planner_horizon_m: float = 0.0,
+    observation: ObservationConfig | None = None,
 ) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
     one course, with the driver's own defaults (pure pursuit on the centre line; the track planner
     sees ``planner_sight_m`` ahead, 0: the whole course; with ``planner_horizon_m`` > 0 it plans
-    again at every step that far ahead)."""
+    again at every step that far ahead; the grid planner plans on the env's grid, laid out as
+    ``observation`` says)."""
     if name not in DEMONSTRATORS:
         raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
-    return make_driver(name, terrain, planner_sight_m=planner_sight_m, planner_horizon_m=planner_horizon_m)
+    return make_driver(
+        name,
+        terrain,
+        planner_sight_m=planner_sight_m,
+        planner_horizon_m=planner_horizon_m,
+        observation=observation,
+    )
 
 
 def collect_demonstrations(
@@ -297,7 +309,7 @@ def _demonstrate_episode(
     # the noise draws a stream of its own: gymnasium seeds the env's np_random from course_seed
     rng = np.random.default_rng([course_seed, NOISE_STREAM])
     obs, info = env.reset(seed=course_seed)
-    driver = expert(env.unwrapped.terrain)
+    driver = expert(env.unwrapped.terrain, observation=env.unwrapped.scenario.observation)
     observations: dict[str, list[np.ndarray]] = {key: [] for key in obs}
     actions: list[np.ndarray] = []
     while len(actions) < max_steps:

@@ -111,3 +111,11 @@ def test_on_the_oracle_grid_it_reaches_an_offroad_nav_v2_goal_that_pure_pursuit_
         env.close()
     assert planner["termination"] == ["goal"]
     assert pursuit["termination"] != ["goal"] and pursuit["station_m"] < 60.0
+
+
+def test_a_body_band_reaches_body_depth_beyond_its_farthest_cell() -> None:
+    rock = {"positive": [(-1.5, 15.3)]}
+    deep = grid_bands(_grid(rock), POSE, TERRAIN, OBSERVATION, GridPlannerConfig(body_depth_m=1.0))
+    flat = grid_bands(_grid(rock), POSE, TERRAIN, OBSERVATION, CONFIG)
+    np.testing.assert_allclose(deep.bodies[:, 1] - flat.bodies[:, 1], [1.0])
+    np.testing.assert_allclose(deep.bodies[:, [0, 2, 3]], flat.bodies[:, [0, 2, 3]])

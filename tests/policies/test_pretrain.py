@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 
+from negobs_gym.drivers.grid_planner import GridPlannerDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.errors import ConfigError
@@ -95,6 +96,22 @@ def test_track_planner_demonstrations_pass_the_first_obstacle_on_offroad_nav_v2(
     # it (tests/drivers/test_track_planner.py): 120 steps of the planner drive past it in one episode
     assert demos.episodes == 1
     assert np.abs(demos.actions[:, 1]).max() > 0.1  # it steered around
+
+
+def test_grid_planner_demonstrations_label_with_the_grid_the_policy_sees() -> None:
+    # the training env hands the grid flat (PolicyObservation); the planner folds it back
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
+    try:
+        demos = collect_demonstrations(env, 120, noise_std=0.0, seed=0, driver="grid_planner")
+        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+        scene = env.unwrapped.scenario
+        first = GridPlannerDriver(env.unwrapped.terrain, scene.observation).act(obs, info)
+    finally:
+        env.close()
+    assert obs["grid"].ndim == 1
+    np.testing.assert_array_equal(demos.actions[0], first)
+    assert demos.episodes == 1
+    assert np.abs(demos.actions[:, 1]).max() > 0.1  # it steered around the first obstacle
 
 
 def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:
