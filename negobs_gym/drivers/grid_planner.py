@@ -38,8 +38,8 @@ _CONNECTIVITY = np.ones((3, 3), dtype=bool)
 @dataclass(frozen=True, kw_only=True)
 class GridPlannerConfig:
     """The lattice planner's car, clearances and horizon, how blobs become bands, and the memory
-    (papers silent; the defaults are the ones measured best on OffroadNav-v2, docs/notebook/training.md,
-    "A planner on the grid").
+    (papers silent; the defaults are the ones measured best on OffroadNav-v2:
+    docs/notebook/training_studies.md, "A planner on the grid").
 
     ``planner.plan_horizon_m`` must be > 0: the path is planned again at every step. The
     planner's ``wheel_clearance_m`` is 0 here: the detector's pit outlines are up to a cell wider
@@ -163,9 +163,10 @@ class GridPlannerDriver:
     """Pure pursuit along a path planned at every step around the grid's obstacle blobs.
 
     Reads ``obs["grid"]`` and ``info["pose"]`` (and ``info["speed_mps"]``, as pure pursuit); the
-    terrain gives only the track's centre line, the route a navigation system would give. A step
-    without a finite pose follows the last path. With ``memory_steps`` > 0 its action depends on
-    the last grids too, as a policy's with stacked frames would.
+    terrain gives only the track's centre line, the route a navigation system would give. Without
+    a finite pose it plans nothing and pure pursuit raises its :class:`ActionError`. With
+    ``memory_steps`` > 0 its action depends on the last grids too, as a policy's with stacked
+    frames would.
     """
 
     def __init__(

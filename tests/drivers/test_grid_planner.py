@@ -119,3 +119,11 @@ def test_a_body_band_reaches_body_depth_beyond_its_farthest_cell() -> None:
     flat = grid_bands(_grid(rock), POSE, TERRAIN, OBSERVATION, CONFIG)
     np.testing.assert_allclose(deep.bodies[:, 1] - flat.bodies[:, 1], [1.0])
     np.testing.assert_allclose(deep.bodies[:, [0, 2, 3]], flat.bodies[:, [0, 2, 3]])
+
+
+def test_without_a_finite_pose_it_raises_pure_pursuits_error() -> None:
+    driver = GridPlannerDriver(TERRAIN, OBSERVATION)
+    with pytest.raises(ActionError, match="pose"):
+        driver.act({"grid": _grid({})}, {"pose": np.full(6, np.nan), "speed_mps": 1.0})
+    with pytest.raises(ActionError, match="pose"):
+        driver.act({"grid": _grid({})}, {"speed_mps": 1.0})
