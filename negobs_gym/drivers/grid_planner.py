@@ -133,10 +133,20 @@ def grid_bands(
     (x, y, z, roll, pitch, yaw of the rear axle): ``negative`` blobs as pits (widened for a
     wheel), ``positive`` blobs as bodies (widened for the car's side), or as mounds (driven over
     at a cost) where they span more than ``mound_span_m``; channels the grid lacks give none."""
+    return _mask_bands(_checked(grid, observation) > 0, pose, terrain, observation, config)
+
+
+def _mask_bands(
+    mask: np.ndarray,
+    pose: np.ndarray,
+    terrain: Terrain,
+    observation: ObservationConfig,
+    config: GridPlannerConfig,
+) -> ObstacleBands:
+    """:func:`grid_bands` of a boolean (channels, rows, cols) mask of obstacle cells."""
     cells = observed_cells(observation)
-    grid = _checked(grid, observation)
     extents = {
-        name: _blob_extents(grid[observation.channels.index(name)] > 0, cells, pose, terrain)
+        name: _blob_extents(mask[observation.channels.index(name)], cells, pose, terrain)
         if name in observation.channels
         else np.empty((0, 4))
         for name in ("negative", "positive")
@@ -183,9 +193,15 @@ class GridPlannerDriver:
         """The path it follows now: stations and lateral offsets of the rear axle [m]."""
         return self._stations, self._lateral
 
+    @property
+    def bands(self) -> ObstacleBands:
+        """The obstacle bands it planned the path around: the last grid's and the memory's."""
+        return self._bands
+
     def reset(self, seed: int | None = None) -> None:
         """Start on the centre line with nothing seen."""
         self._memory: list[tuple[Pose, np.ndarray]] = []
+        self._bands = self._nothing
         planner = self.config.planner
         self._follow(
             *planned_lateral_m(
@@ -198,26 +214,27 @@ class GridPlannerDriver:
         route_xy_m, _ = self.terrain.track.pose_at(stations, lateral)
         self._pursuit = PurePursuitDriver(route_xy_m, self.config.planner.pursuit)
 
-    def _remembered(self, grid: np.ndarray, pose: np.ndarray) -> np.ndarray:
-        """``grid`` with the cells of the last ``memory_steps`` grids carried into it."""
+    def _remembered(self, mask: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """The obstacle ``mask`` with those of the last ``memory_steps`` grids carried into it."""
         steps = self.config.memory_steps
         if steps == 0:
-            return grid
+            return mask
         now = Pose(x=pose[0], y=pose[1], yaw=pose[5])
         cells = observed_cells(self.observation)
-        merged = np.asarray(grid) > 0
+        merged = mask
         for seen_at, earlier in self._memory:
             index = cells.carry_index(seen_at, now)
             merged = merged | np.stack([carry_layer(layer, index) for layer in earlier])
-        self._memory = [*self._memory, (now, np.asarray(grid) > 0)][-steps:]
-        return merged.astype(np.uint8)
+        self._memory = [*self._memory, (now, mask)][-steps:]
+        return merged
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         """Pure pursuit's ``[longitudinal, steering]`` towards the path planned on this step's grid."""
         pose = np.asarray(info.get("pose", np.full(6, np.nan)), dtype=np.float64)
         if pose.shape == (6,) and np.all(np.isfinite(pose)):
-            grid = self._remembered(_checked(obs["grid"], self.observation), pose)
-            bands = grid_bands(grid, pose, self.terrain, self.observation, self.config)
+            obstacles = _checked(obs["grid"], self.observation) > 0
+            mask = self._remembered(obstacles, pose)
+            bands = self._bands = _mask_bands(mask, pose, self.terrain, self.observation, self.config)
             station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, pose[None, :2]))
             planner = self.config.planner
             self._follow(

@@ -23,7 +23,7 @@ from negobs_gym.errors import require
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
 
-__all__ = ["ObstacleBands", "TrackPlannerConfig", "TrackPlannerDriver", "planned_lateral_m"]
+__all__ = ["ObstacleBands", "TrackPlannerConfig", "TrackPlannerDriver", "blocked_moves", "planned_lateral_m"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,6 +142,57 @@ class ObstacleBands:
         return ObstacleBands(kept(self.bodies), kept(self.pits), kept(self.mounds), self.lead_m)
 
 
+def _add_band_penalty(
+    total: np.ndarray,
+    points_s: np.ndarray,
+    points_lat: np.ndarray,
+    obstacle_bands: np.ndarray,
+    inside_cost: float,
+    soft_cost: float,
+    soft_margin_m: float,
+) -> None:
+    """Add to ``total`` (shape ...) the cost of the car's points (stations (P,), lateral offsets
+    (..., P)) against the bands: ``inside_cost`` per point inside one, up to ``soft_cost`` per
+    point within ``soft_margin_m`` of one."""
+    for s0, s1, l0, l1 in obstacle_bands:
+        along = (points_s >= s0) & (points_s <= s1)
+        if along.any():
+            outside = np.maximum(l0 - points_lat, points_lat - l1)  # < 0 inside the band
+            near = np.clip(1.0 - outside / max(soft_margin_m, 1e-9), 0.0, 1.0) ** 2
+            total += np.sum(along * np.where(outside <= 0.0, inside_cost, soft_cost * near), axis=-1)
+
+
+def _car_points(config: TrackPlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Stations relative to the rear axle of the body's centre line (every 0.25 m) and of the axles."""
+    body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
+    return body, np.array([0.0, config.wheelbase_m])
+
+
+def blocked_moves(
+    stations: np.ndarray, lateral: np.ndarray, bands: ObstacleBands, config: TrackPlannerConfig
+) -> int:
+    """How many moves of a path (stations and lateral offsets of the rear axle, as
+    :func:`planned_lateral_m` returns) put the body's centre line in a body band or an axle in a
+    pit band: the hits the planner prices at 1e6 each, so 0 means the path is free of ``bands``."""
+    body, axles = _car_points(config)
+    count = 0
+    for i in range(1, len(stations)):
+        slope = (lateral[i] - lateral[i - 1]) / (stations[i] - stations[i - 1])
+        for points, obstacle_bands in ((body, bands.bodies), (axles, bands.pits)):
+            inside = np.zeros(1)
+            _add_band_penalty(
+                inside,
+                stations[i] + points,
+                lateral[i] + slope * points[None, :],
+                obstacle_bands,
+                1.0,
+                0.0,
+                1.0,
+            )
+            count += int(inside[0] > 0)
+    return count
+
+
 def planned_lateral_m(
     terrain: Terrain,
     config: TrackPlannerConfig,
@@ -174,8 +225,7 @@ def planned_lateral_m(
     stations = np.arange(first, last + config.station_step_m, config.station_step_m)
     n_lat = int(np.floor(edge / config.lateral_step_m + 1e-9))
     laterals = np.arange(-n_lat, n_lat + 1) * config.lateral_step_m
-    body = np.arange(-config.rear_overhang_m, config.length_m - config.rear_overhang_m + 1e-9, 0.25)
-    axles = np.array([0.0, config.wheelbase_m])
+    body, axles = _car_points(config)
     seen = (bands or ObstacleBands.of(terrain, config)).seen(sight_until_m)
     # (points along the car, their bands, the cost of a point inside one)
     checks = [(body, seen.bodies, 1e6), (axles, seen.pits, 1e6), (axles, seen.mounds, config.mound_cost)]
@@ -193,14 +243,15 @@ def planned_lateral_m(
     for i in range(1, stations.size):
         hits = np.zeros(slope.shape)
         for points, points_lat, obstacle_bands, inside_cost in checks:
-            points_s = stations[i] + points
-            for s0, s1, l0, l1 in obstacle_bands:
-                along = (points_s >= s0) & (points_s <= s1)
-                if along.any():
-                    outside = np.maximum(l0 - points_lat, points_lat - l1)  # < 0 inside the band
-                    near = np.clip(1.0 - outside / max(config.soft_margin_m, 1e-9), 0.0, 1.0) ** 2
-                    penalty = np.where(outside <= 0.0, inside_cost, config.soft_cost * near)
-                    hits += np.sum(along * penalty, axis=-1)
+            _add_band_penalty(
+                hits,
+                stations[i] + points,
+                points_lat,
+                obstacle_bands,
+                inside_cost,
+                config.soft_cost,
+                config.soft_margin_m,
+            )
         total = cost[:, None] + move + hits
         back[i] = np.argmin(total, axis=0)
         cost = total[back[i], np.arange(laterals.size)] + config.centring * laterals**2

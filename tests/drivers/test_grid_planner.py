@@ -6,6 +6,7 @@ import pytest
 from negobs_gym.core.geometry import world_to_vehicle_xy
 from negobs_gym.drivers import Driver, GridPlannerConfig, GridPlannerDriver, PurePursuitDriver, make_driver
 from negobs_gym.drivers.grid_planner import grid_bands, observed_cells
+from negobs_gym.drivers.track_planner import blocked_moves
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ActionError, ConfigError
 from negobs_gym.sim.presets import braking_track
@@ -62,7 +63,12 @@ def test_a_grid_of_the_wrong_shape_or_no_layout_is_refused() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("memory_steps", -1), ("memory_steps", 1.5), ("mound_span_m", np.nan), ("pad_m", -0.1)],
+    [
+        ("memory_steps", -1),
+        ("memory_steps", 1.5),
+        ("mound_span_m", np.nan),
+        ("pad_m", -0.1),
+    ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
     with pytest.raises(ConfigError, match=field):
@@ -78,6 +84,11 @@ def test_it_steers_around_a_pit_on_the_centre_line_and_remembers_it_once_out_of_
         assert isinstance(driver, Driver)
         assert abs(driver.act({"grid": _grid(pit)}, info)[1]) > 0.1  # steers off the centre line
         assert np.abs(driver.path_m[1]).max() > 1.0
+        # what it planned around: the pit's band, which its path keeps out of
+        assert len(driver.bands.pits) == 1 and len(driver.bands.bodies) == 0
+        stations, _ = driver.path_m
+        assert blocked_moves(*driver.path_m, driver.bands, driver.config.planner) == 0
+        assert blocked_moves(stations, np.zeros_like(stations), driver.bands, driver.config.planner) > 0
     # the pit is gone from the next grid (lost up close): only the memory still passes it
     empty = {"grid": _grid({})}
     remembering.act(empty, info)

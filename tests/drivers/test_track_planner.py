@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from negobs_gym.drivers import Driver, PurePursuitDriver, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.drivers.track_planner import planned_lateral_m
+from negobs_gym.drivers.track_planner import ObstacleBands, blocked_moves, planned_lateral_m
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import PositiveObstacleSpec
@@ -211,3 +211,20 @@ def test_planning_at_every_step_makes_the_label_a_function_of_where_the_car_is()
     beside.act(None, at(5.0, -1.2))  # 1.2 m off its first path: it plans again from here
     assert beside.replans == 1 and along.replans == 0
     assert not np.array_equal(along.path_m[1], beside.path_m[1])
+
+
+def test_blocked_moves_counts_the_moves_a_path_puts_in_a_band() -> None:
+    # a 1 m pit across the centre line at 20-21 m: the planned path is free of it, the centre line
+    # is not, and a path whose axles pass just beside the pit's band is free too
+    terrain = braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0)
+    bands = ObstacleBands.of(terrain, CONFIG)
+    stations, lateral = planned_lateral_m(terrain, CONFIG)
+    assert blocked_moves(stations, lateral, bands, CONFIG) == 0
+    straight = np.zeros_like(stations)
+    s0, s1 = bands.pits[0, :2]
+    # a move counts when either axle (rear, front at the wheelbase) lies within the pit's stations
+    axles_s = stations[1:, None] + np.array([0.0, CONFIG.wheelbase_m])
+    expected = int(np.sum(np.any((axles_s >= s0) & (axles_s <= s1), axis=1)))
+    assert blocked_moves(stations, straight, bands, CONFIG) == expected > 0
+    beside = np.full_like(stations, bands.pits[0, 3] + 0.05)  # the rear axle's centre just outside
+    assert blocked_moves(stations, beside, bands, CONFIG) == 0

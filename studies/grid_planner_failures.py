@@ -1,0 +1,123 @@
+"""Why the grid planner fails on a grid: the grid closed a gap, hid an obstacle, or neither.
+
+Drives ``grid_planner`` (:mod:`negobs_gym.drivers.grid_planner`: the track planner's lattice
+around the blobs of the env's ``grid`` observation) without a filter through seeds 1,000,000 on
+(``negobs eval policy``'s evaluation seeds) at 15 km/h, and at every step compares its picture
+with the ground truth over the same 20 m horizon (:func:`~negobs_gym.drivers.track_planner.blocked_moves`):
+
+- ``picture_free``: the path it planned is free of the bands it planned around;
+- ``truth_free``: the ground-truth planner, with the grid planner's clearances, finds a free path
+  from where the car is, around the obstacles that begin within 20 m;
+- ``hits_truth``: the path it planned runs into a ground-truth band.
+
+Each drive that misses the goal is put down to its last ``--window`` steps (4 s at 10 Hz):
+``closed`` when the picture had no free path in at least half of them while the truth had one
+(the grid drew a gap shut: outlines wider than the obstacles, false alarms), ``hidden`` when
+otherwise its path ran into the truth while the picture showed it free (an obstacle missed,
+drawn late or misplaced), ``no_gap`` when the truth had no free path in half of them, else
+``other`` (tracking, the lattice, a trap). Prints one line per drive and
+``failures=<n> closed=<k> hidden=<k> no_gap=<k> other=<k> goal=<k>/<n>``.
+
+Run: python studies/grid_planner_failures.py [--env offroad_nav_v2] [--source detector]
+[--downsample 4] [--seeds 20] [--first-seed 1000000] [--workers 2] [--set KEY=VALUE ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import functools
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from negobs_gym.drivers import make_driver
+from negobs_gym.drivers.track_planner import ObstacleBands, blocked_moves, planned_lateral_m
+from negobs_gym.envs import make_env
+from negobs_gym.sim.terrain import track_coordinates
+
+SPEED_MPS = 4.17  # 15 km/h, as the docs' grid-planner evaluations set run.target_speed_mps
+
+
+def drive(seed: int, env_name: str, overrides: list[str], window: int) -> dict:
+    """One drive of the grid planner on ``seed`` and the cause of its end."""
+    env = make_env(env_name, [*overrides, f"run.target_speed_mps={SPEED_MPS}"])
+    obs, info = env.reset(seed=seed)
+    terrain = env.unwrapped.terrain
+    driver = make_driver(
+        "grid_planner", terrain, target_speed_mps=SPEED_MPS, observation=env.unwrapped.scenario.observation
+    )
+    planner = driver.config.planner
+    truth = ObstacleBands.of(terrain, planner)
+    horizon = planner.plan_horizon_m
+    steps: list[tuple[bool, bool, bool]] = []
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action = driver.act(obs, info)
+        station, lateral = (
+            float(v[0]) for v in track_coordinates(terrain.track, np.asarray(info["pose"])[None, :2])
+        )
+        seen = truth.seen(station + horizon)
+        path = driver.path_m
+        ideal = planned_lateral_m(terrain, planner, (station, lateral), bands=seen, horizon_m=horizon)
+        steps.append(
+            (
+                blocked_moves(*path, driver.bands, planner) == 0,
+                blocked_moves(*ideal, seen, planner) == 0,
+                blocked_moves(*path, seen, planner) > 0,
+            )
+        )
+        obs, _, terminated, truncated, info = env.step(action)
+    end = "+".join(info["termination"]) or "time_limit"
+    last = np.array(steps[-window:])
+    picture_free, truth_free, hits_truth = last.T
+    if "goal" in info["termination"]:
+        cause = "-"
+    elif np.mean(~truth_free) >= 0.5:
+        cause = "no_gap"
+    elif np.mean(~picture_free & truth_free) >= 0.5:
+        cause = "closed"
+    elif np.any(picture_free & hits_truth):
+        cause = "hidden"
+    else:
+        cause = "other"
+    return {
+        "seed": seed,
+        "end": end,
+        "cause": cause,
+        "picture_closed_steps": int(np.sum(~picture_free & truth_free)),
+        "hidden_steps": int(np.sum(picture_free & hits_truth)),
+        "no_gap_steps": int(np.sum(~truth_free)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="offroad_nav_v2")
+    parser.add_argument("--source", default="detector")
+    parser.add_argument("--downsample", type=int, default=4, help="grid cells of 0.2 m x this")
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--first-seed", type=int, default=1_000_000)
+    parser.add_argument("--window", type=int, default=40, help="last steps a failure is judged on")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scenario override")
+    args = parser.parse_args()
+    overrides = [f"observation.source={args.source}", f"observation.downsample={args.downsample}", *args.set]
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    with ProcessPoolExecutor(args.workers) as pool:
+        drives = list(
+            pool.map(
+                functools.partial(drive, env_name=args.env, overrides=overrides, window=args.window), seeds
+            )
+        )
+    for row in drives:
+        print(" ".join(f"{key}={value}" for key, value in row.items()))
+    causes = collections.Counter(row["cause"] for row in drives)
+    goals = sum("goal" in row["end"].split("+") for row in drives)
+    failures = len(drives) - goals
+    summary = " ".join(f"{cause}={causes[cause]}" for cause in ("closed", "hidden", "no_gap", "other"))
+    print(f"failures={failures} {summary} goal={goals}/{len(drives)}")
+
+
+if __name__ == "__main__":
+    main()
