@@ -20,8 +20,9 @@ the obstacles, false alarms); else, where its path ran into the truth while the 
 it free, ``narrow`` when the obstacle it ran into was drawn (too small or misplaced to keep the
 car off it) and ``unseen`` when it was not drawn (missed, or drawn too late), whichever held in
 more steps; else ``other``: the path it followed was clear of what it met next, yet the car
-ran in (it left the path: a swerve sharper than the car turns at speed, which the lattice's
-0.7 m per metre allows, or pure pursuit's error with no clearance to spare) or was trapped. Prints one line per drive and
+ran in or was trapped (it left the path: the lattice plans from the car's place, not its
+heading, so mid-swerve its plan flips sides from one step to the next; studies/heading_lattice.py
+plans from the heading). Prints one line per drive and
 ``failures=<n> closed=<k> unseen=<k> narrow=<k> no_gap=<k> other=<k> goal=<k>/<n>``.
 
 Run: python studies/grid_planner_failures.py [--env offroad_nav_v2] [--source detector]
