@@ -11,16 +11,21 @@ relative to the track. Band costs, smoothness and centring are the planner's own
 planner with it, no filter, seeds 1,000,000 on at 15 km/h, and prints one line per drive and
 ``goal=<k>/<n> ends=<counts>``.
 
+``--filter`` drives behind the scene's filter with the steering search of the docs' grid-planner
+evaluations (``filter.steer_search=0.3``, ``filter.margin_m=0``).
+
 Run: python studies/heading_lattice.py [--source oracle] [--downsample 2] [--bend 1] [--seeds 20]
-[--workers 2]
+[--workers 2] [--filter]
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import contextlib
 import functools
 from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +34,7 @@ from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.drivers import make_driver
 from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, _add_band_penalty, _car_points
 from negobs_gym.envs import make_env
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop, drive_episode
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
 
@@ -107,29 +113,47 @@ def heading_lattice_m(
     return stations, laterals[path]
 
 
-def drive(seed: int, env_name: str, overrides: list[str], bend: int) -> str:
-    """The end of one drive of the grid planner on the heading lattice."""
+def drive(seed: int, env_name: str, overrides: list[str], bend: int, filtered: bool) -> str:
+    """The end of one drive of the grid planner on the heading lattice (behind the scene's filter
+    when ``filtered``, stopped as ``negobs eval policy`` stops its drives)."""
     env = make_env(env_name, [*overrides, f"run.target_speed_mps={SPEED_MPS}"])
-    obs, info = env.reset(seed=seed)
-    terrain = env.unwrapped.terrain
-    driver = make_driver(
-        "grid_planner", terrain, target_speed_mps=SPEED_MPS, observation=env.unwrapped.scenario.observation
-    )
-    pose_box: dict[str, np.ndarray] = {}
+    pose_box: dict[str, Any] = {}
 
     def planned(terrain, config, start_m, bands, horizon_m):  # the grid planner's call
-        pose = pose_box["pose"]
-        ahead = vehicle_to_world_xy(np.array([[0.0, 0.0], [0.0, 1.0]]), pose[:2], float(pose[5]))
-        s, lat = track_coordinates(terrain.track, ahead)
-        start_slope = float((lat[1] - lat[0]) / max(s[1] - s[0], 1e-3))
+        pose = pose_box.get("pose")  # none yet at the driver's reset: the start faces the track
+        start_slope = 0.0
+        if pose is not None:
+            ahead = vehicle_to_world_xy(np.array([[0.0, 0.0], [0.0, 1.0]]), pose[:2], float(pose[5]))
+            s, lat = track_coordinates(terrain.track, ahead)
+            start_slope = float((lat[1] - lat[0]) / max(s[1] - s[0], 1e-3))
         return heading_lattice_m(terrain, config, start_m, start_slope, bands, horizon_m, bend)
 
+    def driver_for(unwrapped: Any) -> Any:
+        driver = make_driver(
+            "grid_planner",
+            unwrapped.terrain,
+            target_speed_mps=SPEED_MPS,
+            observation=unwrapped.scenario.observation,
+        )
+        act = driver.act
+
+        def act_with_pose(obs: Any, info: dict[str, Any]) -> np.ndarray:
+            pose_box["pose"] = np.asarray(info["pose"], dtype=np.float64)
+            return act(obs, info)
+
+        driver.act = act_with_pose
+        return driver
+
     grid_planner_module.planned_lateral_m = planned  # this process drives only this planner
-    terminated = truncated = False
-    while not (terminated or truncated):
-        pose_box["pose"] = np.asarray(info["pose"], dtype=np.float64)
-        obs, _, terminated, truncated, info = env.step(driver.act(obs, info))
-    return "+".join(info["termination"]) or "time_limit"
+    max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else None
+    guard = env.unwrapped.scenario.filter if filtered else False
+    stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
+    with contextlib.closing(env):
+        metrics = drive_episode(env, driver_for, seed=seed, filter=guard, stop=stop).metrics()
+    ends = [
+        name for name in ("goal", "entered", "collision", "trapped", "left_track", "stopped") if metrics[name]
+    ]
+    return "+".join(ends) or "time_limit"
 
 
 def main() -> None:
@@ -141,12 +165,21 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--first-seed", type=int, default=1_000_000)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--filter", action="store_true", help="behind the steering filter of the docs' evaluations"
+    )
     args = parser.parse_args()
     overrides = [f"observation.source={args.source}", f"observation.downsample={args.downsample}"]
+    overrides += ["filter.steer_search=0.3", "filter.margin_m=0"]
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     with ProcessPoolExecutor(args.workers) as pool:
         ends = list(
-            pool.map(functools.partial(drive, env_name=args.env, overrides=overrides, bend=args.bend), seeds)
+            pool.map(
+                functools.partial(
+                    drive, env_name=args.env, overrides=overrides, bend=args.bend, filtered=args.filter
+                ),
+                seeds,
+            )
         )
     for seed, end in zip(seeds, ends, strict=True):
         print(f"seed={seed} end={end}")

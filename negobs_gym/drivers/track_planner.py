@@ -171,23 +171,37 @@ def _car_points(config: TrackPlannerConfig) -> tuple[np.ndarray, np.ndarray]:
 def blocked_moves(
     stations: np.ndarray, lateral: np.ndarray, bands: ObstacleBands, config: TrackPlannerConfig
 ) -> int:
-    """How many moves of a path (stations and lateral offsets of the rear axle, as
+    """How many moves of a path (increasing stations and lateral offsets of the rear axle, as
     :func:`planned_lateral_m` returns) put the body's centre line in a body band or an axle in a
-    pit band: the hits the planner prices at 1e6 each, so 0 means the path is free of ``bands``."""
+    pit band: the hits the planner prices at 1e6 each, so 0 means the path is free of ``bands``
+    (mounds, which it drives over at a cost, are not counted).
+
+    Raises:
+        ValueError: ``stations`` and ``lateral`` are not 1-D arrays of one length, or the
+            stations do not increase.
+    """
+    stations, lateral = np.asarray(stations, dtype=np.float64), np.asarray(lateral, dtype=np.float64)
+    if stations.ndim != 1 or stations.shape != lateral.shape:
+        raise ValueError(
+            f"stations and lateral: must be 1-D arrays of one length, got {stations.shape}, {lateral.shape}"
+        )
+    if np.any(np.diff(stations) <= 0):
+        raise ValueError("stations: must increase")
     body, axles = _car_points(config)
     count = 0
     for i in range(1, len(stations)):
         slope = (lateral[i] - lateral[i - 1]) / (stations[i] - stations[i - 1])
         for points, obstacle_bands in ((body, bands.bodies), (axles, bands.pits)):
             inside = np.zeros(1)
+            points_lat = lateral[i] + slope * points[None, :]
             _add_band_penalty(
                 inside,
                 stations[i] + points,
-                lateral[i] + slope * points[None, :],
+                points_lat,
                 obstacle_bands,
-                1.0,
-                0.0,
-                1.0,
+                inside_cost=1.0,
+                soft_cost=0.0,
+                soft_margin_m=1.0,
             )
             count += int(inside[0] > 0)
     return count

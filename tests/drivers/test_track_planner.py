@@ -228,3 +228,11 @@ def test_blocked_moves_counts_the_moves_a_path_puts_in_a_band() -> None:
     assert blocked_moves(stations, straight, bands, CONFIG) == expected > 0
     beside = np.full_like(stations, bands.pits[0, 3] + 0.05)  # the rear axle's centre just outside
     assert blocked_moves(stations, beside, bands, CONFIG) == 0
+
+
+def test_blocked_moves_refuses_paths_it_cannot_read() -> None:
+    bands = ObstacleBands.of(braking_track(20.0, rough=False, length_m=50.0), CONFIG)
+    with pytest.raises(ValueError, match="one length"):
+        blocked_moves(np.arange(4.0), np.zeros(3), bands, CONFIG)
+    with pytest.raises(ValueError, match="increase"):
+        blocked_moves(np.array([0.0, 1.0, 1.0]), np.zeros(3), bands, CONFIG)
