@@ -8,14 +8,14 @@ on between them (docs/notebook/training_studies.md, "Why it fails"). This study 
 whose state is (lateral offset, last move): a move may change the lateral step by at most
 ``--bend`` lattice steps from the last one, and the first move starts from the car's heading
 relative to the track. Band costs, smoothness and centring are the planner's own. Drives the grid
-planner with it, no filter, seeds 1,000,000 on at 15 km/h, and prints one line per drive and
-``goal=<k>/<n> ends=<counts>``.
+planner with it through seeds 1,000,000 on (``--first-seed``) at 15 km/h, and prints one line per
+drive and ``goal=<k>/<n> ends=<counts>``.
 
 ``--filter`` drives behind the scene's filter with the steering search of the docs' grid-planner
 evaluations (``filter.steer_search=0.3``, ``filter.margin_m=0``).
 
 Run: python studies/heading_lattice.py [--source oracle] [--downsample 2] [--bend 1] [--seeds 20]
-[--workers 2] [--filter]
+[--first-seed 1000000] [--workers 2] [--filter]
 """
 
 from __future__ import annotations
