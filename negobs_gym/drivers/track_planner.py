@@ -151,8 +151,8 @@ def _add_band_penalty(
     soft_cost: float,
     soft_margin_m: float,
 ) -> None:
-    """Add to ``total`` (shape ...) the cost of the car's points (stations (P,), lateral offsets
-    (..., P)) against the bands: ``inside_cost`` per point inside one, up to ``soft_cost`` per
+    """Add to ``total`` (shape ...) the cost of the car's points (stations (P,) or (..., P),
+    lateral offsets (..., P)) against the bands: ``inside_cost`` per point inside one, up to ``soft_cost`` per
     point within ``soft_margin_m`` of one."""
     for s0, s1, l0, l1 in obstacle_bands:
         along = (points_s >= s0) & (points_s <= s1)
@@ -188,23 +188,14 @@ def blocked_moves(
     if np.any(np.diff(stations) <= 0):
         raise ValueError("stations: must increase")
     body, axles = _car_points(config)
-    count = 0
-    for i in range(1, len(stations)):
-        slope = (lateral[i] - lateral[i - 1]) / (stations[i] - stations[i - 1])
-        for points, obstacle_bands in ((body, bands.bodies), (axles, bands.pits)):
-            inside = np.zeros(1)
-            points_lat = lateral[i] + slope * points[None, :]
-            _add_band_penalty(
-                inside,
-                stations[i] + points,
-                points_lat,
-                obstacle_bands,
-                inside_cost=1.0,
-                soft_cost=0.0,
-                soft_margin_m=1.0,
-            )
-            count += int(inside[0] > 0)
-    return count
+    slope = np.diff(lateral) / np.diff(stations)
+    hit = np.zeros(stations.size - 1)
+    for points, obstacle_bands in ((body, bands.bodies), (axles, bands.pits)):
+        # every move's points at once: (moves, points), placed along the move's heading
+        points_s = stations[1:, None] + points
+        points_lat = lateral[1:, None] + slope[:, None] * points
+        _add_band_penalty(hit, points_s, points_lat, obstacle_bands, 1.0, soft_cost=0.0, soft_margin_m=1.0)
+    return int(np.count_nonzero(hit))
 
 
 def planned_lateral_m(

@@ -228,6 +228,15 @@ def test_blocked_moves_counts_the_moves_a_path_puts_in_a_band() -> None:
     assert blocked_moves(stations, straight, bands, CONFIG) == expected > 0
     beside = np.full_like(stations, bands.pits[0, 3] + 0.05)  # the rear axle's centre just outside
     assert blocked_moves(stations, beside, bands, CONFIG) == 0
+    # a move in a body band and a pit band at once counts once
+    both = ObstacleBands(bodies=bands.pits, pits=bands.pits, mounds=bands.mounds, lead_m=bands.lead_m)
+    body_s = stations[1:, None] + np.arange(
+        -CONFIG.rear_overhang_m, CONFIG.length_m - CONFIG.rear_overhang_m + 1e-9, 0.25
+    )
+    either = np.any((body_s >= s0) & (body_s <= s1), axis=1) | np.any(
+        (axles_s >= s0) & (axles_s <= s1), axis=1
+    )
+    assert blocked_moves(stations, straight, both, CONFIG) == int(np.sum(either)) > expected
 
 
 def test_blocked_moves_refuses_paths_it_cannot_read() -> None:
