@@ -23,7 +23,7 @@ from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.core.grid import GridSpec, carry_layer
 from negobs_gym.core.pose import Pose
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
-from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, planned_lateral_m
+from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, planned_lateral_m, track_state
 from negobs_gym.errors import ActionError, require
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
@@ -235,7 +235,7 @@ class GridPlannerDriver:
             obstacles = _checked(obs["grid"], self.observation) > 0
             mask = self._remembered(obstacles, pose)
             bands = self._bands = _mask_bands(mask, pose, self.terrain, self.observation, self.config)
-            station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, pose[None, :2]))
+            station, lateral, slope = track_state(self.terrain.track, pose)
             planner = self.config.planner
             self._follow(
                 *planned_lateral_m(
@@ -244,6 +244,7 @@ class GridPlannerDriver:
                     (station, lateral),
                     bands=bands,
                     horizon_m=planner.plan_horizon_m,
+                    start_slope=slope,
                 )
             )
         return self._pursuit.act(obs, info)

@@ -18,12 +18,20 @@ from typing import Any
 
 import numpy as np
 
+from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.errors import require
 from negobs_gym.sim.terrain import track_coordinates
-from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.types import Terrain, Track
 
-__all__ = ["ObstacleBands", "TrackPlannerConfig", "TrackPlannerDriver", "blocked_moves", "planned_lateral_m"]
+__all__ = [
+    "ObstacleBands",
+    "TrackPlannerConfig",
+    "TrackPlannerDriver",
+    "blocked_moves",
+    "planned_lateral_m",
+    "track_state",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,6 +71,12 @@ class TrackPlannerConfig:
     # where the car is and what is in sight, which is all a clone can learn (DAgger's expert);
     # a whole-course path remembers the state it was planned from [m]
     plan_horizon_m: float = 0.0
+    # > 0: the lattice's state holds the last move as well as the offset, and each move's
+    # sideways step may differ from the last one's by at most this many lateral steps (bounded
+    # curvature), the first move's from the car's heading; a plan made mid-swerve then carries the
+    # swerve on instead of flipping sides (docs/notebook/training_studies.md, "Why it fails"). 0: the
+    # state is the offset only, and any move up to max_slope may follow any other
+    bend_steps: int = 0
     pursuit: PurePursuitConfig = field(default_factory=PurePursuitConfig)
 
     def __post_init__(self) -> None:
@@ -85,6 +99,12 @@ class TrackPlannerConfig:
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
         require(self.rear_overhang_m < self.length_m, "rear_overhang_m", "must be < length_m")
+        bend = self.bend_steps
+        require(
+            isinstance(bend, int) and not isinstance(bend, bool) and bend >= 0,
+            "bend_steps",
+            f"must be an int >= 0, got {bend!r}",
+        )
 
 
 def _track_band(terrain: Terrain, outline_xy_m: np.ndarray, widen_m: float, lead_m: float) -> np.ndarray:
@@ -205,6 +225,7 @@ def planned_lateral_m(
     sight_until_m: float = np.inf,
     bands: ObstacleBands | None = None,
     horizon_m: float = np.inf,
+    start_slope: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Stations and the planned lateral offset (+ right) of the rear axle's centre, both (M,), from
     ``start_m`` = (station, lateral offset) to the end of the track or ``horizon_m`` beyond the
@@ -221,6 +242,10 @@ def planned_lateral_m(
     pit; the body may overhang it). A course without a free path gets the least blocked one. The
     path starts at the lattice point nearest ``start_m`` (the station rounded down). ``bands``:
     ``ObstacleBands.of(terrain, config)``, passed in when one course is planned many times.
+
+    With ``bend_steps`` > 0 each move's sideways step stays within ``bend_steps`` lateral steps of
+    the one before, and the move before the first is the one nearest ``start_slope`` (the car's
+    heading relative to the track, lateral metres per metre of station: :func:`track_state`).
     """
     track = terrain.track
     edge = track.width_m / 2.0 - config.edge_margin_m
@@ -234,37 +259,122 @@ def planned_lateral_m(
     seen = (bands or ObstacleBands.of(terrain, config)).seen(sight_until_m)
     # (points along the car, their bands, the cost of a point inside one)
     checks = [(body, seen.bodies, 1e6), (axles, seen.pits, 1e6), (axles, seen.mounds, config.mound_cost)]
+    start = int(np.argmin(np.abs(laterals - np.clip(start_m[1], -edge, edge))))
+    if config.bend_steps > 0:
+        path = _heading_lattice_path(stations, laterals, checks, start, start_slope, config)
+    else:
+        path = _offset_lattice_path(stations, laterals, checks, start, config)
+    return stations, laterals[path]
+
+
+_Check = tuple[np.ndarray, np.ndarray, float]  # points along the car, their bands, cost inside one
+
+
+def _move_hits(
+    station_m: float,
+    moves_lat: list[np.ndarray],
+    checks: list[_Check],
+    shape: tuple[int, ...],
+    config: TrackPlannerConfig,
+) -> np.ndarray:
+    """The band costs of every move ending at ``station_m``: ``moves_lat[k]`` holds the lateral
+    offsets (shape + (points,)) of ``checks[k]``'s points for each move."""
+    hits = np.zeros(shape)
+    for (points, obstacle_bands, inside_cost), points_lat in zip(checks, moves_lat, strict=True):
+        _add_band_penalty(
+            hits,
+            station_m + points,
+            points_lat,
+            obstacle_bands,
+            inside_cost,
+            config.soft_cost,
+            config.soft_margin_m,
+        )
+    return hits
+
+
+def _offset_lattice_path(
+    stations: np.ndarray, laterals: np.ndarray, checks: list[_Check], start: int, config: TrackPlannerConfig
+) -> np.ndarray:
+    """Lattice indices of the cheapest path whose state is the lateral offset alone."""
     change = laterals[None, :] - laterals[:, None]  # [from, to]
     slope = change / config.station_step_m
     move = np.where(np.abs(slope) <= config.max_slope + 1e-9, config.smoothness * change**2, np.inf)
     # each check's points across the track for every move: [from, to, point]
-    checks = [
-        (points, laterals[None, :, None] + slope[:, :, None] * points, obstacle_bands, c)
-        for points, obstacle_bands, c in checks
-    ]
-    start = int(np.argmin(np.abs(laterals - np.clip(start_m[1], -edge, edge))))
+    moves_lat = [laterals[None, :, None] + slope[:, :, None] * points for points, _, _ in checks]
     cost = np.where(np.arange(laterals.size) == start, 0.0, np.inf)
     back = np.zeros((stations.size, laterals.size), dtype=np.intp)
     for i in range(1, stations.size):
-        hits = np.zeros(slope.shape)
-        for points, points_lat, obstacle_bands, inside_cost in checks:
-            _add_band_penalty(
-                hits,
-                stations[i] + points,
-                points_lat,
-                obstacle_bands,
-                inside_cost,
-                config.soft_cost,
-                config.soft_margin_m,
-            )
-        total = cost[:, None] + move + hits
+        total = cost[:, None] + move + _move_hits(stations[i], moves_lat, checks, slope.shape, config)
         back[i] = np.argmin(total, axis=0)
         cost = total[back[i], np.arange(laterals.size)] + config.centring * laterals**2
     path = np.empty(stations.size, dtype=np.intp)
     path[-1] = int(np.argmin(cost))
     for i in range(stations.size - 1, 0, -1):
         path[i - 1] = back[i, path[i]]
-    return stations, laterals[path]
+    return path
+
+
+def _heading_lattice_path(
+    stations: np.ndarray,
+    laterals: np.ndarray,
+    checks: list[_Check],
+    start: int,
+    start_slope: float,
+    config: TrackPlannerConfig,
+) -> np.ndarray:
+    """Lattice indices of the cheapest path whose state is (lateral offset, last move), with
+    bends of at most ``bend_steps`` lateral steps between moves (:func:`planned_lateral_m`)."""
+    step = config.station_step_m
+    n = laterals.size
+    reach = int(np.floor(config.max_slope * step / config.lateral_step_m + 1e-9))
+    n_moves = 2 * reach + 1  # sideways steps -reach..reach lattice points per station
+    to = np.arange(n)[:, None] + np.arange(-reach, reach + 1)[None, :]  # [from, move]
+    valid = (to >= 0) & (to < n)
+    to = np.clip(to, 0, n - 1)
+    change = laterals[to] - laterals[:, None]
+    slope = change / step
+    move_cost = np.where(valid, config.smoothness * change**2, np.inf)
+    moves_lat = [laterals[to][:, :, None] + slope[:, :, None] * points for points, _, _ in checks]
+    # the last moves each move may follow: [move, k], out of range masked
+    follows = np.arange(n_moves)[:, None] + np.arange(-config.bend_steps, config.bend_steps + 1)[None, :]
+    in_range = (follows >= 0) & (follows < n_moves)
+    follows = np.clip(follows, 0, n_moves - 1)
+    origin, move = np.nonzero(valid)  # every move that stays on the lattice
+    target = to[origin, move]
+    heading = int(np.clip(np.round(start_slope * step / config.lateral_step_m), -reach, reach))
+    cost = np.full((n, n_moves), np.inf)  # [lateral, last move]
+    cost[start, heading + reach] = 0.0
+    back_lateral = np.zeros((stations.size, n, n_moves), dtype=np.intp)
+    back_move = np.zeros((stations.size, n, n_moves), dtype=np.intp)
+    for i in range(1, stations.size):
+        hits = _move_hits(stations[i], moves_lat, checks, slope.shape, config)
+        before = np.where(in_range, cost[:, follows], np.inf)  # [from, move, k]
+        pick = np.argmin(before, axis=2)  # the first of equal costs: the lowest last move
+        best = np.take_along_axis(before, pick[:, :, None], axis=2)[:, :, 0]
+        total = best + move_cost + hits
+        new = np.full((n, n_moves), np.inf)
+        new[target, move] = total[origin, move]
+        back_lateral[i, target, move] = origin
+        back_move[i, target, move] = follows[move, pick[origin, move]]
+        cost = new + config.centring * laterals[:, None] ** 2
+    path = np.empty(stations.size, dtype=np.intp)
+    k, m = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    path[-1] = k
+    for i in range(stations.size - 1, 0, -1):
+        k, m = back_lateral[i, k, m], back_move[i, k, m]
+        path[i - 1] = k
+    return path
+
+
+def track_state(track: Track, pose: np.ndarray) -> tuple[float, float, float]:
+    """The car's station and lateral offset (+ right) [m] on ``track`` and its heading relative to
+    the track as the lateral change per metre of station (the ``start_slope`` of
+    :func:`planned_lateral_m`), from ``pose`` (x, y, z, roll, pitch, yaw of the rear axle)."""
+    pose = np.asarray(pose, dtype=np.float64)
+    ahead = vehicle_to_world_xy(np.array([[0.0, 0.0], [0.0, 1.0]]), pose[:2], float(pose[5]))
+    s, lat = track_coordinates(track, ahead)
+    return float(s[0]), float(lat[0]), float((lat[1] - lat[0]) / max(s[1] - s[0], 1e-3))
 
 
 class TrackPlannerDriver:
@@ -318,9 +428,9 @@ class TrackPlannerDriver:
         config = self.config
         replanning = config.replan_deviation_m > 0 or config.sight_m > 0 or config.plan_horizon_m > 0
         if replanning and "pose" in info:
-            xy = np.asarray(info["pose"], dtype=np.float64)[:2]
-            if np.all(np.isfinite(xy)):
-                station, lateral = (float(v[0]) for v in track_coordinates(self.terrain.track, xy[None]))
+            pose = np.asarray(info["pose"], dtype=np.float64)
+            if pose.shape == (6,) and np.all(np.isfinite(pose)):
+                station, lateral, slope = track_state(self.terrain.track, pose)
                 sighted = self._in_sight(station)
                 off_path = abs(lateral - float(np.interp(station, self._stations, self._lateral)))
                 deviation = config.replan_deviation_m
@@ -330,7 +440,9 @@ class TrackPlannerDriver:
                     or (deviation > 0 and off_path > deviation)
                 ):
                     start, until = (station, lateral), self._sight_until(station)
-                    path = planned_lateral_m(self.terrain, config, start, until, self._bands, self._horizon_m)
+                    path = planned_lateral_m(
+                        self.terrain, config, start, until, self._bands, self._horizon_m, slope
+                    )
                     self._follow(*path)
                     self._sighted = max(sighted, self._sighted)
                     self.replans += 1

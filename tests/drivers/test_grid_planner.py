@@ -1,5 +1,7 @@
 """The grid planner: the track planner's lattice around the obstacles the grid observation shows."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -138,3 +140,19 @@ def test_without_a_finite_pose_it_raises_pure_pursuits_error() -> None:
         driver.act({"grid": _grid({})}, {"pose": np.full(6, np.nan), "speed_mps": 1.0})
     with pytest.raises(ActionError, match="pose"):
         driver.act({"grid": _grid({})}, {"speed_mps": 1.0})
+
+
+def test_on_the_heading_lattice_it_plans_from_the_cars_heading() -> None:
+    planner = dataclasses.replace(CONFIG.planner, bend_steps=1)
+    driver = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(planner=planner))
+    # on the straight track, a yaw of -atan(0.4) points the car 0.4 m right per metre (yaw + left)
+    turned = POSE.copy()
+    turned[5] = -np.arctan(0.4)
+    driver.act({"grid": _grid({}, turned)}, {"pose": turned, "speed_mps": 4.0})
+    steps = np.round(np.diff(driver.path_m[1]) / planner.lateral_step_m).astype(int)
+    assert steps[0] == 1  # the move before it is the heading's 0.2 m per 0.5 m station
+    assert np.all(np.abs(np.diff(steps)) <= 1)
+    # the offset lattice plans from the car's place alone
+    offset = GridPlannerDriver(TERRAIN, OBSERVATION)
+    offset.act({"grid": _grid({}, turned)}, {"pose": turned, "speed_mps": 4.0})
+    assert np.all(offset.path_m[1] == 0.0)

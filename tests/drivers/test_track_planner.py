@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
+from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.drivers import Driver, PurePursuitDriver, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.drivers.track_planner import ObstacleBands, blocked_moves, planned_lateral_m
+from negobs_gym.drivers.track_planner import ObstacleBands, blocked_moves, planned_lateral_m, track_state
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import PositiveObstacleSpec
@@ -129,6 +130,9 @@ def test_a_course_without_a_free_path_still_gets_a_path_on_the_track() -> None:
         ("replan_deviation_m", -0.1),
         ("sight_m", float("inf")),
         ("plan_horizon_m", -1.0),
+        ("bend_steps", -1),
+        ("bend_steps", 1.0),
+        ("bend_steps", True),
     ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
@@ -245,3 +249,57 @@ def test_blocked_moves_refuses_paths_it_cannot_read() -> None:
         blocked_moves(np.arange(4.0), np.zeros(3), bands, CONFIG)
     with pytest.raises(ValueError, match="increase"):
         blocked_moves(np.array([0.0, 1.0, 1.0]), np.zeros(3), bands, CONFIG)
+
+
+HEADING = TrackPlannerConfig(bend_steps=1)
+
+
+def test_heading_lattice_starts_along_the_cars_heading_and_bends_gradually() -> None:
+    terrain = braking_track(40.0, ditch_width_m=1.0, rough=False, length_m=60.0)
+    # the car points 0.6 m sideways per metre to the right: the lattice's nearest move is 0.3 m
+    # per 0.5 m station, and every move, the first included, differs from the one before by at
+    # most one 0.1 m step
+    _, lateral = planned_lateral_m(terrain, HEADING, (0.0, 0.0), horizon_m=20.0, start_slope=0.6)
+    steps = np.round(np.diff(lateral) / HEADING.lateral_step_m).astype(int)
+    assert steps[0] == 2 and steps[1] == 1 and np.all(steps[2:] == 0)  # straightened out, 0.3 m right
+    assert np.all(np.abs(np.diff(steps)) <= HEADING.bend_steps)
+    # the offset lattice ignores the heading: it stays on the centre line
+    assert np.all(planned_lateral_m(terrain, CONFIG, (0.0, 0.0), horizon_m=20.0, start_slope=0.6)[1] == 0)
+
+
+@pytest.mark.parametrize("bend_steps", [0, 1, 2])
+def test_heading_lattice_keeps_its_paths_free_of_the_obstacles(bend_steps) -> None:
+    config = TrackPlannerConfig(bend_steps=bend_steps)
+    for terrain in (
+        braking_track(20.0, ditch_width_m=3.0, lateral_offset_m=1.5, rough=False, length_m=50.0),
+        braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0),
+    ):
+        bands = ObstacleBands.of(terrain, config)
+        stations, lateral = planned_lateral_m(terrain, config, bands=bands)
+        assert lateral[0] == 0.0 and blocked_moves(stations, lateral, bands, config) == 0
+        if bend_steps:
+            steps = np.round(np.diff(lateral) / config.lateral_step_m).astype(int)
+            assert np.all(np.abs(np.diff(steps)) <= bend_steps)
+
+
+def test_track_state_gives_the_cars_place_and_heading_on_the_track() -> None:
+    terrain = generate_terrain(TerrainConfig(length_m=60.0), seed=3)
+    track = terrain.track
+    xy, yaw = track.pose_at(np.array([25.0]), 0.5)
+    # 0.3 m sideways per metre of station, to the right: turned by atan(0.3) clockwise
+    pose = np.array([xy[0, 0], xy[0, 1], 0.0, 0.0, 0.0, yaw[0] - np.arctan(0.3)])
+    station, lateral, slope = track_state(track, pose)
+    assert station == pytest.approx(25.0, abs=0.01) and lateral == pytest.approx(0.5, abs=0.01)
+    assert slope == pytest.approx(0.3, abs=0.02)
+    ahead = vehicle_to_world_xy(np.array([[0.0, 1.0]]), pose[:2], float(pose[5]))
+    assert track_coordinates(track, ahead)[1][0] > lateral  # + right, as the lateral offset
+
+
+def test_track_planner_driver_on_the_heading_lattice_reaches_an_offroad_nav_v2_goal() -> None:
+    env = make_env("offroad_nav_v2", ["observation.source=oracle"])
+    config = TrackPlannerConfig(bend_steps=1, plan_horizon_m=20.0)
+    try:
+        info = _drive(env, lambda terrain: TrackPlannerDriver(terrain, config), 1_000_001)
+    finally:
+        env.close()
+    assert info["termination"] == ["goal"]
