@@ -21,8 +21,9 @@ it free, ``narrow`` when the obstacle it ran into was drawn (too small or mispla
 car off it) and ``unseen`` when it was not drawn (missed, or drawn too late), whichever held in
 more steps; else ``other``: the path it followed was clear of what it met next, yet the car
 ran in or was trapped (it left the path: the lattice plans from the car's place, not its
-heading, so mid-swerve its plan flips sides from one step to the next; studies/heading_lattice.py
-plans from the heading). Prints one line per drive and
+heading, so mid-swerve its plan flips sides from one step to the next; with ``--set
+run.driver_settings.planner.bend_steps=1`` it plans from the heading, and so does the ground-truth
+planner it is compared with). Prints one line per drive and
 ``failures=<n> closed=<k> unseen=<k> narrow=<k> no_gap=<k> other=<k> goal=<k>/<n>``.
 
 Run: python studies/grid_planner_failures.py [--env offroad_nav_v2] [--source detector]
@@ -38,15 +39,15 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from negobs_gym.drivers import make_driver
 from negobs_gym.drivers.track_planner import (
     ObstacleBands,
     TrackPlannerConfig,
     blocked_moves,
     planned_lateral_m,
+    track_state,
 )
 from negobs_gym.envs import make_env
-from negobs_gym.sim.terrain import track_coordinates
+from negobs_gym.eval.scenario_runner import make_driver
 
 SPEED_MPS = 4.17  # 15 km/h, as the docs' grid-planner evaluations set run.target_speed_mps
 
@@ -56,9 +57,7 @@ def drive(seed: int, env_name: str, overrides: list[str], window: int, near_m: f
     env = make_env(env_name, [*overrides, f"run.target_speed_mps={SPEED_MPS}"])
     obs, info = env.reset(seed=seed)
     terrain = env.unwrapped.terrain
-    driver = make_driver(
-        "grid_planner", terrain, target_speed_mps=SPEED_MPS, observation=env.unwrapped.scenario.observation
-    )
+    driver = make_driver("grid_planner", env.unwrapped.scenario, terrain)  # with run.driver_settings
     planner = driver.config.planner
     truth = ObstacleBands.of(terrain, planner)
     horizon = planner.plan_horizon_m
@@ -66,12 +65,12 @@ def drive(seed: int, env_name: str, overrides: list[str], window: int, near_m: f
     terminated = truncated = False
     while not (terminated or truncated):
         action = driver.act(obs, info)
-        station, lateral = (
-            float(v[0]) for v in track_coordinates(terrain.track, np.asarray(info["pose"])[None, :2])
-        )
+        station, lateral, slope = track_state(terrain.track, np.asarray(info["pose"]))
         seen = truth.seen(station + horizon)
         path = driver.path_m
-        ideal = planned_lateral_m(terrain, planner, (station, lateral), bands=seen, horizon_m=horizon)
+        ideal = planned_lateral_m(
+            terrain, planner, (station, lateral), bands=seen, horizon_m=horizon, start_slope=slope
+        )
         hit = _hit_bands(path, truth.seen(station + near_m), planner)
         steps.append(
             (

@@ -4,7 +4,10 @@ the warm start's demonstrator name."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
+from typing import Any, TypeVar
 
+from negobs_gym.core.settings import replace_setting
 from negobs_gym.drivers.base import Driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
 from negobs_gym.drivers.creeping import CreepingConfig, CreepingDriver
@@ -38,6 +41,7 @@ def make_driver(
     planner_sight_m: float = 0.0,
     planner_horizon_m: float = 0.0,
     observation: ObservationConfig | None = None,
+    settings: Mapping[str, Any] | None = None,
 ) -> Driver:
     """The scripted driver ``name`` for one course.
 
@@ -48,29 +52,31 @@ def make_driver(
     with ``planner_horizon_m`` > 0 planning again at every step that far ahead
     (``TrackPlannerConfig.plan_horizon_m``). The grid planner plans on the env's ``grid``
     observation instead, laid out as ``observation`` says (the scenario's ``[observation]``).
+    ``settings`` (a scenario's ``run.driver_settings``) then changes fields of the driver's
+    config, nested as the config nests them: ``{"planner": {"bend_steps": 1}}`` for the grid
+    planner's :class:`GridPlannerConfig`, ``{"lookahead_m": 3.0}`` for pure pursuit's.
 
     Raises:
-        ConfigError: unknown ``name`` (field ``driver``), or the grid planner without
-            ``observation`` (field ``observation``).
+        ConfigError: unknown ``name`` (field ``driver``), the grid planner without
+            ``observation`` (field ``observation``), or a setting the driver's config does not
+            have or refuses (field ``driver_settings``, the message names its path).
     """
     speed = {} if target_speed_mps is None else {"target_speed_mps": target_speed_mps}
     if name == "reckless":
-        return RecklessDriver(RecklessConfig(**speed))
+        return RecklessDriver(_configured(RecklessConfig(**speed), settings))
     if name == "constant_speed":
-        return ConstantSpeedDriver(ConstantSpeedConfig(**speed))
+        return ConstantSpeedDriver(_configured(ConstantSpeedConfig(**speed), settings))
     if name == "creeping":
-        return CreepingDriver(CreepingConfig(**speed))
+        return CreepingDriver(_configured(CreepingConfig(**speed), settings))
     if name == "pure_pursuit":
         track = terrain.track
         route = track.pose_at(track.stations_m, lane_offset_m)[0] if lane_offset_m else track.centreline_xy_m
-        return PurePursuitDriver(route, PurePursuitConfig(**speed))
+        return PurePursuitDriver(route, _configured(PurePursuitConfig(**speed), settings))
     if name == "track_planner":
-        return TrackPlannerDriver(
-            terrain,
-            TrackPlannerConfig(
-                sight_m=planner_sight_m, plan_horizon_m=planner_horizon_m, pursuit=PurePursuitConfig(**speed)
-            ),
+        config = TrackPlannerConfig(
+            sight_m=planner_sight_m, plan_horizon_m=planner_horizon_m, pursuit=PurePursuitConfig(**speed)
         )
+        return TrackPlannerDriver(terrain, _configured(config, settings))
     if name == "grid_planner":
         if observation is None:
             raise ConfigError(
@@ -78,5 +84,31 @@ def make_driver(
             )
         config = GridPlannerConfig()
         planner = dataclasses.replace(config.planner, pursuit=PurePursuitConfig(**speed))
-        return GridPlannerDriver(terrain, observation, dataclasses.replace(config, planner=planner))
+        config = dataclasses.replace(config, planner=planner)
+        return GridPlannerDriver(terrain, observation, _configured(config, settings))
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVER_NAMES)}")
+
+
+Config = TypeVar("Config")
+
+
+def _configured(config: Config, settings: Mapping[str, Any] | None) -> Config:
+    """``config`` with each leaf of the nested ``settings`` set (:func:`replace_setting`)."""
+
+    def leaves(table: Mapping[str, Any], keys: tuple[str, ...]) -> list[tuple[tuple[str, ...], Any]]:
+        found = []
+        for key, value in table.items():
+            if isinstance(value, Mapping):
+                found += leaves(value, (*keys, str(key)))
+            else:
+                found.append(((*keys, str(key)), value))
+        return found
+
+    if settings is not None and not isinstance(settings, Mapping):
+        raise ConfigError("driver_settings", f"must be a table of the driver's settings, got {settings!r}")
+    for keys, value in leaves(settings or {}, ()):
+        try:
+            config = replace_setting(config, keys, value)
+        except ConfigError as exc:
+            raise ConfigError("driver_settings", exc.message) from None
+    return config

@@ -44,15 +44,26 @@ ScenarioResult = EpisodeResult
 
 
 def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
-    """The scripted driver ``name`` at the spec's target speed and lane offset
-    (:func:`negobs_gym.drivers.make_driver`)."""
-    return make_named_driver(
-        name,
-        terrain,
-        target_speed_mps=spec.run.target_speed_mps,
-        lane_offset_m=spec.run.lane_offset_m,
-        observation=spec.observation,
-    )
+    """The scripted driver ``name`` at the spec's target speed and lane offset, with its
+    ``run.driver_settings`` (:func:`negobs_gym.drivers.make_driver`).
+
+    Raises:
+        ConfigError: as :func:`negobs_gym.drivers.make_driver`; a bad driver setting names
+            ``run.driver_settings``.
+    """
+    try:
+        return make_named_driver(
+            name,
+            terrain,
+            target_speed_mps=spec.run.target_speed_mps,
+            lane_offset_m=spec.run.lane_offset_m,
+            observation=spec.observation,
+            settings=spec.run.driver_settings,
+        )
+    except ConfigError as exc:
+        if exc.field != "driver_settings":
+            raise
+        raise ConfigError("run.driver_settings", exc.message) from None
 
 
 def _pilot(spec: ScenarioSpec, driver: Driver | str | None) -> tuple[DriverSource, str]:

@@ -319,6 +319,11 @@ class RunSpec:
     filter: bool = True  # the safety filter guards the run, as the spec's [filter] table sets it
     target_speed_mps: float = 25.0 / 3.6  # paper N §4: 25 km/h
     lane_offset_m: float = 0.0  # pure pursuit follows the centre line shifted this far right [m]
+    # settings of the scripted driver's config, nested as its fields are (the grid planner's
+    # heading lattice: `[run.driver_settings.planner] bend_steps = 1`, or `--set
+    # run.driver_settings.planner.bend_steps=1`); checked when the driver is built, as
+    # negobs_gym.drivers.make_driver applies them. Empty: the driver's defaults
+    driver_settings: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         require(

@@ -62,3 +62,35 @@ def test_pure_pursuit_follows_the_centre_line_or_a_lane_beside_it(terrain) -> No
 def test_an_unknown_name_names_the_field() -> None:
     with pytest.raises(ConfigError, match=r"driver.*unknown driver 'sunday'"):
         make_driver("sunday", braking_track(ditch_distance_m=20.0, seed=0, rough=False))
+
+
+def test_settings_change_the_drivers_config_after_its_target_speed(terrain) -> None:
+    observation = ObservationConfig()
+    grid = make_driver(
+        "grid_planner",
+        terrain,
+        target_speed_mps=3.0,
+        observation=observation,
+        settings={"planner": {"bend_steps": 1, "pursuit": {"lookahead_m": 3}}, "memory_steps": 0},
+    )
+    assert grid.config.planner.bend_steps == 1 and grid.config.memory_steps == 0
+    assert (
+        grid.config.planner.pursuit.lookahead_m == 3.0 and grid.config.planner.pursuit.target_speed_mps == 3.0
+    )
+    pursuit = make_driver("pure_pursuit", terrain, target_speed_mps=3.0, settings={"target_speed_mps": 2.0})
+    assert pursuit.config.target_speed_mps == 2.0
+    assert make_driver("reckless", terrain, settings={}).config == make_driver("reckless", terrain).config
+
+
+@pytest.mark.parametrize(
+    ("settings", "message"),
+    [
+        ({"planner": {"bend_stepz": 1}}, r"driver_settings: planner\.bend_stepz: no such setting"),
+        ({"planner": {"bend_steps": -1}}, r"driver_settings: .*bend_steps.*must be an int >= 0"),
+        ({"planner": 1}, r"driver_settings: planner: is a group of settings"),
+        (["planner.bend_steps=1"], r"driver_settings: must be a table"),
+    ],
+)
+def test_a_bad_setting_names_the_field_and_its_path(terrain, settings, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        make_driver("grid_planner", terrain, observation=ObservationConfig(), settings=settings)

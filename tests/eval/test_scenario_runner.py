@@ -13,7 +13,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.scenario_runner import ScenarioResult, check_criteria, run_scenario, run_scenario_seeds
 from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M, VetoJudgement
 from negobs_gym.safety import SafetyFilterConfig
-from negobs_gym.spec import spec_from_toml
+from negobs_gym.spec import spec_from_toml, spec_to_toml
 from negobs_gym.spec.scenario import CriteriaSpec
 from tests.helpers import PIT_SCENE
 
@@ -279,3 +279,19 @@ def _check_a_video_of_the_episode_leaves_the_episode_as_it_was(seed_0: ScenarioR
     assert vetoed.sum() == result.vetoes  # a red border for every vetoed step, green otherwise
     with pytest.raises(ConfigError, match="render_mode"):
         run_scenario(spec_from_toml(PIT_SCENE), render_mode="human", video_to=path)
+
+
+def test_a_specs_driver_settings_reach_its_scripted_driver_and_a_bad_one_names_run() -> None:
+    from negobs_gym.eval.scenario_runner import make_driver
+    from negobs_gym.sim.presets import braking_track
+    from negobs_gym.spec.library import load_scenario
+    from negobs_gym.spec.overrides import apply_overrides
+
+    spec = apply_overrides(load_scenario("offroad_nav_v2"), ["run.driver_settings.planner.bend_steps=1"])
+    assert spec_from_toml(spec_to_toml(spec)) == spec  # kept in the run's scenario.toml
+    driver = make_driver("grid_planner", spec, braking_track(20.0, rough=False))
+    assert driver.config.planner.bend_steps == 1
+    assert driver.config.planner.pursuit.target_speed_mps == spec.run.target_speed_mps
+    bad = apply_overrides(spec, ["run.driver_settings.planner.bend_steps=-1"])
+    with pytest.raises(ConfigError, match=r"^run\.driver_settings: .*bend_steps"):
+        make_driver("grid_planner", bad, braking_track(20.0, rough=False))
