@@ -65,6 +65,12 @@ class SafetyFilterConfig:
     # filter reads each frame alone: its detector can drop a pit whose rim enters the HDL-64's
     # blind disc (docs/safety.md, "Hazard memory").
     hazard_memory: bool = False
+    # With hazard_memory: a remembered point within this distance of the rear axle is kept even
+    # where its cell is observed clear [m]. Not in paper N: its detector needs a pit's near rim and
+    # far wall in the rings, so closing in it loses the pairs (a 3 m pit: 195 pit points 8 m ahead,
+    # 37 at 6 m) while the pit's cells still return, and memory would release them as the car
+    # drives up (docs/safety.md, "Hazard memory"). 0: every cell seen clear releases its points
+    hazard_memory_hold_m: float = 0.0
     # Largest change of the steering command (action units, 1 = full lock) the filter may make
     # before it brakes: when the proposed steering's corridor fails Eq. 18, it takes the nearest
     # steering within this change, in steps of steer_search_step, whose corridor passes (the
@@ -112,7 +118,13 @@ class SafetyFilterConfig:
             "steer_search_step",
             f"must be finite and > 0, got {self.steer_search_step!r}",
         )
-        for name in ("governor_margin_m", "creep_speed_mps", "creep_clearance_m", "coverage_memory_s"):
+        for name in (
+            "governor_margin_m",
+            "creep_speed_mps",
+            "creep_clearance_m",
+            "coverage_memory_s",
+            "hazard_memory_hold_m",
+        ):
             value = getattr(self, name)
             require(
                 isinstance(value, (int, float)) and np.isfinite(value) and value >= 0,

@@ -55,13 +55,15 @@ class BrakingSafetyFilter(gym.Wrapper):
     and only Eq. 18 applies.
 
     ``hazard_memory=True`` (any mode) keeps the negative-obstacle points read in the world frame
-    of the INS pose until their cell is observed clear again (:mod:`negobs_gym.safety.memory`).
+    of the INS pose until their cell is observed clear again, beyond ``hazard_memory_hold_m`` of
+    the rear axle (:mod:`negobs_gym.safety.memory`).
 
     Settings come as ``config=SafetyFilterConfig(...)`` or, as a convenience, as keywords
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
     ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``,
-    ``hazard_memory``, ``steer_search``, ``steer_search_step``) over the defaults;
+    ``hazard_memory``, ``hazard_memory_hold_m``, ``steer_search``, ``steer_search_step``) over the
+    defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -98,6 +100,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         unobserved_blocks: bool | None = None,
         coverage_memory_s: float | None = None,
         hazard_memory: bool | None = None,
+        hazard_memory_hold_m: float | None = None,
         steer_search: float | None = None,
         steer_search_step: float | None = None,
     ) -> None:
@@ -124,6 +127,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "unobserved_blocks": unobserved_blocks,
             "coverage_memory_s": coverage_memory_s,
             "hazard_memory": hazard_memory,
+            "hazard_memory_hold_m": hazard_memory_hold_m,
             "steer_search": steer_search,
             "steer_search_step": steer_search_step,
         }
@@ -145,7 +149,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         self.last_decision: SafetyDecision | None = None
         self._holding = False  # the last decision was a veto: the release margin applies
         self._coverage = CoverageMemory(self.config.coverage_memory_s)  # governed mode only
-        self._hazards = HazardMemory()  # with config.hazard_memory only
+        self._hazards = HazardMemory(self.config.hazard_memory_hold_m)  # with config.hazard_memory only
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

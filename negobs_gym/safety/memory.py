@@ -15,12 +15,19 @@ import numpy as np
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
+from negobs_gym.errors import require
 
 
 class HazardMemory:
     """World-frame hazard points, released when the current frame sees their cell clear."""
 
-    def __init__(self) -> None:
+    def __init__(self, hold_m: float = 0.0) -> None:
+        require(
+            isinstance(hold_m, (int, float)) and np.isfinite(hold_m) and hold_m >= 0,
+            "hold_m",
+            f"must be finite and >= 0, got {hold_m!r}",
+        )
+        self.hold_m = float(hold_m)  # points this close to the vehicle origin are never released [m]
         self._world = np.zeros((0, 3))  # remembered points, world frame (z = 0 in the vehicle frame)
 
     def reset(self) -> None:
@@ -37,8 +44,9 @@ class HazardMemory:
         remembered points not seen clear, (N, 2) in the vehicle frame at ``pose``.
 
         A remembered point is released when its cell on ``grid`` is ``observed`` (a return this
-        frame) and holds none of ``hazards_xy_m``; points outside the grid are kept as they are
-        (nothing sees them). Without an ``observed`` layer nothing is released.
+        frame) and holds none of ``hazards_xy_m``, unless it lies within ``hold_m`` of the vehicle
+        origin; points outside the grid are kept as they are (nothing sees them). Without an
+        ``observed`` layer nothing is released.
         """
         current = np.asarray(hazards_xy_m, dtype=float).reshape(-1, 2)
         held = pose.to_vehicle(self._world)[:, :2] if len(self._world) else np.zeros((0, 2))
@@ -46,7 +54,8 @@ class HazardMemory:
             hazard_cells = grid.occupied(current)
             row, col, inside = grid.cell_of(held)
             r, c = np.where(inside, row, 0), np.where(inside, col, 0)
-            clear = inside & observed[r, c] & ~hazard_cells[r, c]
+            far = np.hypot(held[:, 0], held[:, 1]) >= self.hold_m
+            clear = inside & observed[r, c] & ~hazard_cells[r, c] & far
             held = held[~clear]
         merged = np.concatenate([current, held])
         if len(merged):  # one point per cell (of the unbounded grid): the memory stays small

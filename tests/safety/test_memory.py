@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,7 +10,7 @@ import pytest
 
 from negobs_gym.core.grid import GridSpec
 from negobs_gym.core.pose import Pose
-from negobs_gym.errors import InterfaceError
+from negobs_gym.errors import ConfigError, InterfaceError
 from negobs_gym.eval.scenario_runner import run_scenario_seeds
 from negobs_gym.safety import BrakingSafetyFilter, HazardMemory, HazardState, SafetyFilterConfig
 from negobs_gym.spec import load_scenario
@@ -64,6 +65,27 @@ def test_memory_releases_a_hazard_when_its_cell_is_seen_clear_only():
     assert len(memory.update(np.zeros((0, 2)), pose, GRID, seen)) == 1
 
 
+def test_within_the_hold_distance_a_point_seen_clear_is_kept():
+    """Closing in, the detector loses a pit whose cells still return: within ``hold_m`` of the
+    rear axle the memory keeps its points, beyond it releases them."""
+    pose = Pose(x=0.0, y=0.0, yaw=0.0)
+    seen = np.ones(GRID.shape, dtype=bool)
+    near, far = np.array([[0.5, 6.1]]), np.array([[0.5, 9.1]])
+    holding = HazardMemory(hold_m=8.0)
+    holding.update(np.concatenate([near, far]), pose, GRID, seen)
+    held = holding.update(np.zeros((0, 2)), pose, GRID, seen)
+    np.testing.assert_allclose(held, near)
+    plain = HazardMemory()
+    plain.update(np.concatenate([near, far]), pose, GRID, seen)
+    assert len(plain.update(np.zeros((0, 2)), pose, GRID, seen)) == 0
+    # the filter builds its memory with the config's distance, which must be finite and >= 0
+    assert SafetyFilterConfig(hazard_memory=True, hazard_memory_hold_m=8.0).hazard_memory_hold_m == 8.0
+    with pytest.raises(ConfigError, match="hazard_memory_hold_m"):
+        SafetyFilterConfig(hazard_memory_hold_m=-1.0)
+    with pytest.raises(ConfigError, match="hold_m"):
+        HazardMemory(hold_m=float("nan"))
+
+
 def _state(hazards: np.ndarray, speed: float = 0.0) -> HazardState:
     return HazardState(
         speed_mps=speed,
@@ -95,6 +117,21 @@ def test_a_pit_that_drops_out_of_the_detection_still_stops_the_car(memory, vetoe
     _, _, _, _, info = guard.step(np.array([1.0, 0.0], np.float32))
     assert info["safety"]["vetoed"] is vetoed
     assert (info["safety"]["hazard_distance_m"] == pytest.approx(5.05)) is vetoed
+
+
+@pytest.mark.parametrize(("hold_m", "vetoed"), [(0.0, False), (8.0, True)])
+def test_a_pit_lost_while_its_cells_still_return_stops_the_car_within_the_hold(hold_m, vetoed):
+    """As above, but the pit's cells hold returns when the detector loses it (paper N's pairs
+    gone, the floor in view): only a hold distance keeps the memory from releasing it."""
+    env = FixedHazardEnv(_state(PIT - [0.0, 7.05]))
+    config = SafetyFilterConfig(release_margin_m=0.0, hazard_memory=True, hazard_memory_hold_m=hold_m)
+    guard = BrakingSafetyFilter(env, config)
+    guard.reset(seed=0)
+    guard.step(np.array([-1.0, 0.0], np.float32))
+    everywhere = np.ones(GRID.shape, dtype=bool)
+    env.state = dataclasses.replace(_state(np.zeros((0, 2))), observed=everywhere)
+    _, _, _, _, info = guard.step(np.array([1.0, 0.0], np.float32))
+    assert info["safety"]["vetoed"] is vetoed
 
 
 def test_memory_needs_the_pose_and_grid():
