@@ -1,8 +1,10 @@
 """Why the grid planner fails on a grid: a gap drawn shut, an obstacle not drawn or too small, or neither.
 
 Drives ``grid_planner`` (:mod:`negobs_gym.drivers.grid_planner`: the track planner's lattice
-around the blobs of the env's ``grid`` observation) without a filter through seeds 1,000,000 on
-(``negobs eval policy``'s evaluation seeds) at 15 km/h, and at every step compares its picture
+around the blobs of the env's ``grid`` observation) without a filter (``--filter``: behind the
+scene's, a drive ending ``stopped`` once the car stands still for 1 s, as the eval's drives do)
+through seeds 1,000,000 on (``negobs eval policy``'s evaluation seeds) at 15 km/h, and at every
+step compares its picture
 with the ground truth over the same 20 m horizon (:func:`~negobs_gym.drivers.track_planner.blocked_moves`):
 
 - ``picture_free``: the path it planned is free of the bands it planned around;
@@ -27,7 +29,8 @@ planner it is compared with). Prints one line per drive and
 ``failures=<n> closed=<k> unseen=<k> narrow=<k> no_gap=<k> other=<k> goal=<k>/<n>``.
 
 Run: python studies/grid_planner_failures.py [--env offroad_nav_v2] [--source detector]
-[--downsample 4] [--seeds 20] [--first-seed 1000000] [--near-m 8] [--workers 2] [--set KEY=VALUE ...]
+[--downsample 4] [--seeds 20] [--first-seed 1000000] [--near-m 8] [--workers 2] [--filter]
+[--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -47,14 +50,22 @@ from negobs_gym.drivers.track_planner import (
     track_state,
 )
 from negobs_gym.envs import make_env
+from negobs_gym.eval.episode import STANDSTILL_S, EpisodeStop
 from negobs_gym.eval.scenario_runner import make_driver
+from negobs_gym.safety import BrakingSafetyFilter
 
 SPEED_MPS = 4.17  # 15 km/h, as the docs' grid-planner evaluations set run.target_speed_mps
 
 
-def drive(seed: int, env_name: str, overrides: list[str], window: int, near_m: float) -> dict:
-    """One drive of the grid planner on ``seed`` and the cause of its end."""
+def drive(seed: int, env_name: str, overrides: list[str], window: int, near_m: float, filtered: bool) -> dict:
+    """One drive of the grid planner on ``seed`` and the cause of its end (behind the scene's
+    filter when ``filtered``, ended as ``stopped`` once the car stands still for
+    ``STANDSTILL_S``, as ``negobs eval policy`` ends its drives)."""
     env = make_env(env_name, [*overrides, f"run.target_speed_mps={SPEED_MPS}"])
+    if filtered:
+        env = BrakingSafetyFilter(env, config=env.unwrapped.scenario.filter)
+    stop = EpisodeStop(standstill_s=STANDSTILL_S)
+    still_s, dt = 0.0, 1.0 / env.unwrapped.scenario.episode.control_hz
     obs, info = env.reset(seed=seed)
     terrain = env.unwrapped.terrain
     driver = make_driver("grid_planner", env.unwrapped.scenario, terrain)  # with run.driver_settings
@@ -81,7 +92,10 @@ def drive(seed: int, env_name: str, overrides: list[str], window: int, near_m: f
             )
         )
         obs, _, terminated, truncated, info = env.step(action)
-    end = "+".join(info["termination"]) or "time_limit"
+        still_s = still_s + dt if info["speed_mps"] < stop.standstill_mps else 0.0
+        if still_s >= stop.standstill_s:
+            break
+    end = "+".join(info["termination"]) or ("stopped" if still_s >= stop.standstill_s else "time_limit")
     picture_free, truth_free, hits_truth, hit_drawn = np.array(steps[-window:]).T
     hidden = picture_free & hits_truth
     if "goal" in info["termination"]:
@@ -143,6 +157,11 @@ def main() -> None:
     )
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scenario override")
+    parser.add_argument(
+        "--filter",
+        action="store_true",
+        help="behind the scene's filter (--set filter.KEY=VALUE to change it)",
+    )
     args = parser.parse_args()
     overrides = [f"observation.source={args.source}", f"observation.downsample={args.downsample}", *args.set]
     seeds = range(args.first_seed, args.first_seed + args.seeds)
@@ -150,7 +169,12 @@ def main() -> None:
         drives = list(
             pool.map(
                 functools.partial(
-                    drive, env_name=args.env, overrides=overrides, window=args.window, near_m=args.near_m
+                    drive,
+                    env_name=args.env,
+                    overrides=overrides,
+                    window=args.window,
+                    near_m=args.near_m,
+                    filtered=args.filter,
                 ),
                 seeds,
             )
