@@ -6,7 +6,8 @@ laser can see any more. :class:`HazardMemory` keeps every hazard point the filte
 world frame of the INS pose it was read at (so it carries the INS noise, as the detector's own
 history does), and hands it back in the current vehicle frame until its cell is observed clear
 again: the cell holds a return in the current frame and no current hazard point. A remembered
-hazard outside every sensor's view (the blind disc, behind the car) stays. No simulator here.
+hazard outside every sensor's view (the blind disc, behind the car) stays, and so does one within
+``hold_m`` of the car, where the detector loses a pit whose floor still returns. No simulator here.
 """
 
 from __future__ import annotations
