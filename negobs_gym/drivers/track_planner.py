@@ -370,8 +370,14 @@ def _heading_lattice_path(
 def track_state(track: Track, pose: np.ndarray) -> tuple[float, float, float]:
     """The car's station and lateral offset (+ right) [m] on ``track`` and its heading relative to
     the track as the lateral change per metre of station (the ``start_slope`` of
-    :func:`planned_lateral_m`), from ``pose`` (x, y, z, roll, pitch, yaw of the rear axle)."""
+    :func:`planned_lateral_m`), from ``pose`` (x, y, z, roll, pitch, yaw of the rear axle).
+
+    Raises:
+        ValueError: ``pose`` is not 6 finite numbers.
+    """
     pose = np.asarray(pose, dtype=np.float64)
+    if pose.shape != (6,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"pose: must be 6 finite numbers (x, y, z, roll, pitch, yaw), got {pose.tolist()}")
     ahead = vehicle_to_world_xy(np.array([[0.0, 0.0], [0.0, 1.0]]), pose[:2], float(pose[5]))
     s, lat = track_coordinates(track, ahead)
     return float(s[0]), float(lat[0]), float((lat[1] - lat[0]) / max(s[1] - s[0], 1e-3))

@@ -293,6 +293,9 @@ def test_track_state_gives_the_cars_place_and_heading_on_the_track() -> None:
     assert slope == pytest.approx(0.3, abs=0.02)
     ahead = vehicle_to_world_xy(np.array([[0.0, 1.0]]), pose[:2], float(pose[5]))
     assert track_coordinates(track, ahead)[1][0] > lateral  # + right, as the lateral offset
+    for bad in (pose[:3], np.where(np.arange(6) == 5, np.nan, pose)):
+        with pytest.raises(ValueError, match="pose: must be 6 finite numbers"):
+            track_state(track, bad)
 
 
 def test_track_planner_driver_on_the_heading_lattice_reaches_an_offroad_nav_v2_goal() -> None:
