@@ -331,17 +331,17 @@ def _heading_lattice_path(
     n_moves = 2 * reach + 1  # sideways steps -reach..reach lattice points per station
     to = np.arange(n)[:, None] + np.arange(-reach, reach + 1)[None, :]  # [from, move]
     valid = (to >= 0) & (to < n)
-    to = np.clip(to, 0, n - 1)
-    change = laterals[to] - laterals[:, None]
+    landing = laterals[np.clip(to, 0, n - 1)]  # [from, move]: the offset a move lands on
+    change = landing - laterals[:, None]
     slope = change / step
     move_cost = np.where(valid, config.smoothness * change**2, np.inf)
-    moves_lat = [laterals[to][:, :, None] + slope[:, :, None] * points for points, _, _ in checks]
+    moves_lat = [landing[:, :, None] + slope[:, :, None] * points for points, _, _ in checks]
     # the last moves each move may follow: [move, k], out of range masked
     follows = np.arange(n_moves)[:, None] + np.arange(-config.bend_steps, config.bend_steps + 1)[None, :]
     in_range = (follows >= 0) & (follows < n_moves)
     follows = np.clip(follows, 0, n_moves - 1)
     origin, move = np.nonzero(valid)  # every move that stays on the lattice
-    target = to[origin, move]
+    target = to[origin, move]  # valid moves only: no clipping needed
     heading = int(np.clip(np.round(start_slope * step / config.lateral_step_m), -reach, reach))
     cost = np.full((n, n_moves), np.inf)  # [lateral, last move]
     cost[start, heading + reach] = 0.0
