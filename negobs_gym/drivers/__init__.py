@@ -8,7 +8,7 @@ baseline). :class:`GridPlannerDriver` plans the same way around what the ``grid`
 """
 
 from negobs_gym.drivers.base import Driver
-from negobs_gym.drivers.by_name import DRIVER_NAMES, make_driver
+from negobs_gym.drivers.by_name import DRIVER_NAMES, driver_config, make_driver
 from negobs_gym.drivers.constant_speed import ConstantSpeedConfig, ConstantSpeedDriver
 from negobs_gym.drivers.creeping import CreepingConfig, CreepingDriver
 from negobs_gym.drivers.grid_planner import GridPlannerConfig, GridPlannerDriver
@@ -34,6 +34,7 @@ __all__ = [
     "RecklessDriver",
     "TrackPlannerConfig",
     "TrackPlannerDriver",
+    "driver_config",
     "make_driver",
     "match_observation",
 ]

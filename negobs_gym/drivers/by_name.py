@@ -19,7 +19,7 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.sim.types import Terrain
 from negobs_gym.spec.observation import ObservationConfig
 
-__all__ = ["DRIVER_NAMES", "make_driver"]
+__all__ = ["DRIVER_NAMES", "driver_config", "make_driver"]
 
 #: Names :func:`make_driver` knows.
 DRIVER_NAMES: tuple[str, ...] = (
@@ -61,31 +61,65 @@ def make_driver(
             ``observation`` (field ``observation``), or a setting the driver's config does not
             have or refuses (field ``driver_settings``, the message names its path).
     """
-    speed = {} if target_speed_mps is None else {"target_speed_mps": target_speed_mps}
+    config = driver_config(
+        name,
+        target_speed_mps=target_speed_mps,
+        planner_sight_m=planner_sight_m,
+        planner_horizon_m=planner_horizon_m,
+        settings=settings,
+    )
     if name == "reckless":
-        return RecklessDriver(_configured(RecklessConfig(**speed), settings))
+        return RecklessDriver(config)
     if name == "constant_speed":
-        return ConstantSpeedDriver(_configured(ConstantSpeedConfig(**speed), settings))
+        return ConstantSpeedDriver(config)
     if name == "creeping":
-        return CreepingDriver(_configured(CreepingConfig(**speed), settings))
+        return CreepingDriver(config)
     if name == "pure_pursuit":
         track = terrain.track
         route = track.pose_at(track.stations_m, lane_offset_m)[0] if lane_offset_m else track.centreline_xy_m
-        return PurePursuitDriver(route, _configured(PurePursuitConfig(**speed), settings))
+        return PurePursuitDriver(route, config)
+    if name == "track_planner":
+        return TrackPlannerDriver(terrain, config)
+    if observation is None:
+        raise ConfigError(
+            "observation", "the grid planner needs the grid's layout (the scenario's [observation])"
+        )
+    return GridPlannerDriver(terrain, observation, config)
+
+
+def driver_config(
+    name: str,
+    *,
+    target_speed_mps: float | None = None,
+    planner_sight_m: float = 0.0,
+    planner_horizon_m: float = 0.0,
+    settings: Mapping[str, Any] | None = None,
+) -> Any:
+    """The config :func:`make_driver` builds driver ``name`` with, from the same arguments; it needs
+    no course, so a caller can check ``settings`` before any episode runs.
+
+    Raises:
+        ConfigError: unknown ``name`` (field ``driver``) or a setting the driver's config does not
+            have or refuses (field ``driver_settings``, the message names its path).
+    """
+    speed = {} if target_speed_mps is None else {"target_speed_mps": target_speed_mps}
+    if name == "reckless":
+        return _configured(RecklessConfig(**speed), settings)
+    if name == "constant_speed":
+        return _configured(ConstantSpeedConfig(**speed), settings)
+    if name == "creeping":
+        return _configured(CreepingConfig(**speed), settings)
+    if name == "pure_pursuit":
+        return _configured(PurePursuitConfig(**speed), settings)
     if name == "track_planner":
         config = TrackPlannerConfig(
             sight_m=planner_sight_m, plan_horizon_m=planner_horizon_m, pursuit=PurePursuitConfig(**speed)
         )
-        return TrackPlannerDriver(terrain, _configured(config, settings))
+        return _configured(config, settings)
     if name == "grid_planner":
-        if observation is None:
-            raise ConfigError(
-                "observation", "the grid planner needs the grid's layout (the scenario's [observation])"
-            )
         config = GridPlannerConfig()
         planner = dataclasses.replace(config.planner, pursuit=PurePursuitConfig(**speed))
-        config = dataclasses.replace(config, planner=planner)
-        return GridPlannerDriver(terrain, observation, _configured(config, settings))
+        return _configured(dataclasses.replace(config, planner=planner), settings)
     raise ConfigError("driver", f"unknown driver {name!r}; one of {list(DRIVER_NAMES)}")
 
 

@@ -197,6 +197,11 @@ class WarmStartConfig:
             depends only on the car's state and the obstacles in sight, as the policy's action
             must; 0: one path, planned again only when the car strays or an obstacle comes into
             sight (its labels also depend on where the path was planned from).
+        driver_settings: Fields of the demonstrator's config, nested as the config nests them,
+            as a scenario's ``run.driver_settings`` sets them for its driver: ``{"planner":
+            {"bend_steps": 1}}`` demonstrates the grid planner's heading lattice
+            (docs/training.md). A field the config lacks or refuses is an error when this config
+            is built, before any episode runs.
         mirror: Also fit every demonstrated step's mirror image (grid columns reversed, lateral
             state and steering negated; :meth:`~negobs_gym.policies.pretrain.Demonstrations.mirrored`):
             the car and the rules are left-right symmetric, so this doubles the data for free and
@@ -233,6 +238,7 @@ class WarmStartConfig:
     dagger_rounds: int = 0
     planner_sight_m: float = 0.0
     planner_horizon_m: float = 0.0
+    driver_settings: Mapping[str, Any] = field(default_factory=dict)
     mirror: bool = False
     hold_out_every: int = 0
     demonstrations: str = ""
@@ -293,6 +299,13 @@ class WarmStartConfig:
             "driver",
             f"unknown demonstrator {self.driver!r}; expected one of {DEMONSTRATORS}",
         )
+        if self.driver_settings:
+            from negobs_gym.drivers import driver_config  # imports the simulator: only when needed
+
+            try:
+                driver_config(self.driver, settings=self.driver_settings)
+            except ConfigError as exc:
+                raise ConfigError("driver_settings", exc.message) from None
 
 
 @dataclass(frozen=True, kw_only=True)

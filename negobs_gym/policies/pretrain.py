@@ -33,7 +33,7 @@ import multiprocessing
 import multiprocessing.util
 import pickle
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -200,12 +200,14 @@ def demonstrator(
     planner_sight_m: float = 0.0,
     planner_horizon_m: float = 0.0,
     observation: ObservationConfig | None = None,
+    settings: Mapping[str, Any] | None = None,
 ) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
     one course, with the driver's own defaults (pure pursuit on the centre line; the track planner
     sees ``planner_sight_m`` ahead, 0: the whole course; with ``planner_horizon_m`` > 0 it plans
     again at every step that far ahead; the grid planner plans on the env's grid, laid out as
-    ``observation`` says)."""
+    ``observation`` says), its config then changed by ``settings``
+    (:attr:`~negobs_gym.policies.config.WarmStartConfig.driver_settings`)."""
     if name not in DEMONSTRATORS:
         raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
     return make_driver(
@@ -214,6 +216,7 @@ def demonstrator(
         planner_sight_m=planner_sight_m,
         planner_horizon_m=planner_horizon_m,
         observation=observation,
+        settings=settings,
     )
 
 
@@ -228,6 +231,7 @@ def collect_demonstrations(
     planner_sight_m: float = 0.0,
     planner_horizon_m: float = 0.0,
     *,
+    driver_settings: Mapping[str, Any] | None = None,
     pool: DemonstrationPool | None = None,
 ) -> Demonstrations:
     """``steps`` steps on ``env`` (a negobs env, possibly wrapped), labelled by the scripted ``driver``.
@@ -246,7 +250,11 @@ def collect_demonstrations(
     """
     require(isinstance(steps, int) and steps >= 1, "steps", f"must be an int >= 1, got {steps!r}")
     expert = functools.partial(
-        demonstrator, driver, planner_sight_m=planner_sight_m, planner_horizon_m=planner_horizon_m
+        demonstrator,
+        driver,
+        planner_sight_m=planner_sight_m,
+        planner_horizon_m=planner_horizon_m,
+        settings=driver_settings,
     )
     if pool is not None:
         parts = pool.episodes(expert, policy, first_episode, steps, noise_std, seed)

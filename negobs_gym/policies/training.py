@@ -385,6 +385,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
         collect_demonstrations,
         planner_sight_m=ws.planner_sight_m,
         planner_horizon_m=ws.planner_horizon_m,
+        driver_settings=ws.driver_settings,
         pool=pool,
     )
     try:
@@ -419,6 +420,7 @@ def _warm_start(model: Any, config: TrainConfig, out: Path) -> dict[str, Any]:
         "dagger_rounds": ws.dagger_rounds,
         "planner_sight_m": ws.planner_sight_m,
         "planner_horizon_m": ws.planner_horizon_m,
+        "driver_settings": dict(ws.driver_settings),
         "mirror": ws.mirror,
         "hold_out_every": ws.hold_out_every,
         "demonstrations": ws.demonstrations,

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 
+from negobs_gym.drivers import make_driver
 from negobs_gym.drivers.grid_planner import GridPlannerDriver
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
@@ -112,6 +113,39 @@ def test_grid_planner_demonstrations_label_with_the_grid_the_policy_sees() -> No
     np.testing.assert_array_equal(demos.actions[0], first)
     assert demos.episodes == 1
     assert np.abs(demos.actions[:, 1]).max() > 0.1  # it steered around the first obstacle
+
+
+def test_driver_settings_configure_the_demonstrator() -> None:
+    # the grid planner's heading lattice, slower than its own cruise speed
+    heading = {"planner": {"bend_steps": 1, "pursuit": {"target_speed_mps": 3.0}}}
+    env = make_training_env("negobs_gym/OffroadTrack-v0", ORACLE)
+    try:
+        demos = collect_demonstrations(env, 60, 0.0, 0, "grid_planner", driver_settings=heading)
+        plain = collect_demonstrations(env, 60, 0.0, 0, "grid_planner")
+        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+        scene = env.unwrapped.scenario
+        terrain = env.unwrapped.terrain
+        driver = make_driver("grid_planner", terrain, observation=scene.observation, settings=heading)
+        labels = []
+        for _ in range(60):
+            labels.append(driver.act(obs, info))
+            obs, _, _, _, info = env.step(labels[-1])
+    finally:
+        env.close()
+    assert driver.config.planner.bend_steps == 1
+    np.testing.assert_array_equal(demos.actions, np.stack(labels))
+    assert demos.actions[-20:, 0].mean() < plain.actions[-20:, 0].mean()  # it eased off earlier
+
+
+def test_driver_settings_are_checked_when_the_config_is_built() -> None:
+    ws = WarmStartConfig(driver="grid_planner", driver_settings={"planner": {"bend_steps": 2}})
+    assert ws.driver_settings["planner"]["bend_steps"] == 2
+    with pytest.raises(ConfigError, match=r"driver_settings.*bend_stepz"):
+        WarmStartConfig(driver="grid_planner", driver_settings={"planner": {"bend_stepz": 1}})
+    with pytest.raises(ConfigError, match="driver_settings"):
+        WarmStartConfig(driver="grid_planner", driver_settings={"planner": {"bend_steps": -1}})
+    with pytest.raises(ConfigError, match="driver_settings"):
+        WarmStartConfig(driver="pure_pursuit", driver_settings={"planner": {"bend_steps": 1}})
 
 
 def test_dagger_rollouts_execute_the_policy_and_label_with_the_driver() -> None:

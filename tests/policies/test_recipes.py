@@ -73,6 +73,18 @@ def test_a_recipe_file_holds_the_whole_run(tmp_path: Path) -> None:
     )
 
 
+def test_a_recipe_configures_its_demonstrator(tmp_path: Path) -> None:
+    path = tmp_path / "heading.toml"
+    path.write_text(
+        GOOD.replace("mirror = true", 'mirror = true\ndriver = "grid_planner"')
+        + "\n[train.warm_start.driver_settings.planner]\nbend_steps = 1\n"
+    )
+    recipe = load_recipe(path)
+    assert recipe.train.warm_start.driver_settings == {"planner": {"bend_steps": 1}}
+    (tmp_path / "again.toml").write_text(recipe_to_toml(recipe))
+    assert load_recipe(tmp_path / "again.toml") == dataclasses.replace(recipe, name="again")
+
+
 @pytest.mark.parametrize(
     ("edit", "field"),
     [
@@ -90,6 +102,7 @@ def test_a_recipe_file_holds_the_whole_run(tmp_path: Path) -> None:
         (("steps = 40\nmirror = true", "mirror = true"), "recipe.policy_file"),  # no clone to ship
         (('env = "negobs_gym/Braking-v1"', 'env = ""'), "train.env"),
         (("[train]", "[train]\noverrides = 3"), "recipe"),  # a key twice: bad TOML
+        (("mirror = true", "mirror = true\ndriver_settings = {a = 3}"), "train.warm_start.driver_settings"),
     ],
 )
 def test_a_bad_recipe_names_its_field(tmp_path: Path, edit: tuple[str, str], field: str | None) -> None:
