@@ -191,7 +191,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--stop-for-positive",
         action="store_true",
         default=None,
-        help="the filter also stops for the grid's positive-obstacle cells (rows say filter_positive)",
+        help="the filter also stops for the grid's positive-obstacle cells (rows say filter_positive; "
+        "default: as the scene's filter.stop_for_positive says)",
     )
     pol.add_argument(
         "--first-seed",

@@ -116,12 +116,14 @@ class PolicyCampaignConfig:
     ``overrides``: ``KEY.PATH=VALUE`` assignments to the env's scenario (the ``--set`` paths;
     ``("observation.source=oracle",)`` gives the oracle grid instead of the detector grid every
     registered id observes, e.g. to evaluate a policy on what it was trained on).
-    ``stop_for_positive``: the filtered episodes' filter also
-    stops for the grid's positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`);
-    their rows say ``filter_positive`` instead of ``filter``. ``model_path``: a saved model, or
-    the name of a shipped policy, which the episodes' records keep as a name (resolved where each
-    runs), so a campaign folder replays on another install (``negobs eval video``); or a scripted
-    driver's name (:data:`~negobs_gym.drivers.DRIVER_NAMES`), built on each course at its scene's
+    ``stop_for_positive``: True, the filtered episodes' filter also stops for the grid's
+    positive-obstacle cells (:class:`~negobs_gym.safety.SafetyFilterConfig`); False, it does
+    not; None, as the scene's ``filter.stop_for_positive`` says (after the overrides). The rows of
+    a filter that stops for them say ``filter_positive`` instead of ``filter``.
+    ``model_path``: a saved model, or the name of a shipped policy, which the episodes' records
+    keep as a name (resolved where each runs), so a campaign folder replays on another install
+    (``negobs eval video``); or a scripted driver's name
+    (:data:`~negobs_gym.drivers.DRIVER_NAMES`), built on each course at its scene's
     ``run.target_speed_mps`` and ``run.lane_offset_m`` (``algo`` unused): the same campaign,
     filter and judges for a scripted driver, e.g. the privileged track planner on both grids
     (``negobs pem check --policy track_planner``).
@@ -134,7 +136,7 @@ class PolicyCampaignConfig:
     first_seed: int = 1_000_000
     filters: tuple[bool, ...] = (False, True)
     overrides: tuple[str, ...] = ()
-    stop_for_positive: bool = False
+    stop_for_positive: bool | None = None
     source: dataclasses.InitVar[str | None] = None  # deprecated, one release: observation.source
 
     def __post_init__(self, source: str | None) -> None:
@@ -157,9 +159,9 @@ class PolicyCampaignConfig:
             apply_overrides(spec_for_env(self.env_id), self.overrides)
         require(bool(self.filters), "filters", "needs at least one of off / on")
         require(
-            isinstance(self.stop_for_positive, bool),
+            self.stop_for_positive is None or isinstance(self.stop_for_positive, bool),
             "stop_for_positive",
-            f"must be a bool, got {self.stop_for_positive!r}",
+            f"must be a bool or None (the scene's), got {self.stop_for_positive!r}",
         )
         if self.model_path not in DRIVER_NAMES:
             resolve_model(self.model_path)  # a saved model or a shipped one's name, kept as given
@@ -211,14 +213,15 @@ def run_episode(episode: Episode) -> Rows:
     env = make_env(a["env_id"], overrides, render_mode=render_mode)
     max_steps = env.spec.max_episode_steps if env.spec and env.spec.max_episode_steps else DEFAULT_MAX_STEPS
     own = env.unwrapped.scenario.filter  # the scene's [filter] settings, the campaign's switch on top
-    guard = dataclasses.replace(own, stop_for_positive=a["stop_for_positive"]) if a["filtered"] else False
+    positive = own.stop_for_positive if a["stop_for_positive"] is None else a["stop_for_positive"]
+    guard = dataclasses.replace(own, stop_for_positive=positive) if a["filtered"] else False
     driver = _driver(a["model_path"], a["algo"])
     stop = EpisodeStop(max_steps=max_steps, standstill_s=STANDSTILL_S)
     with contextlib.closing(env):
         result = drive_episode(env, driver, seed=a["seed"], filter=guard, stop=stop, video_to=video_to)
     m = result.metrics()
     success = not (m["entered"] or m["collision"] or m["rollover"] or m["trapped"] or m["left_track"])
-    label = filter_label(a["filtered"], a["stop_for_positive"])
+    label = filter_label(a["filtered"], positive)
     row: list[Any] = [episode.key, a["env_id"], label, a["seed"], success]
     row += [m[c] for c in COLUMNS[5:]]
     return {

@@ -183,6 +183,13 @@ def test_policy_evaluates_a_saved_model(tmp_path: Path, capsys) -> None:
     assert [line.split()[0] for line in lines] == [f"{label}/nofilter", f"{label}/filter_positive"]
     labels = [r.split(",")[2] for r in (tmp_path / "toml" / "policy.csv").read_text().splitlines()[1:]]
     assert sorted(labels) == ["filter_positive", "nofilter"]
+    # the scene's own filter.stop_for_positive, set with --set, is the filter's without the flag
+    scene_says = ["eval", "policy", str(path), "--seeds", "1", "--filter", "on"]
+    scene_says += ["--set", "episode.time_limit_s=1", "--set", "filter.stop_for_positive=true"]
+    assert main(["-q", *scene_says, "--out", str(tmp_path / "scene_says"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.split()[0].endswith("/filter_positive")
+    told = (tmp_path / "scene_says" / "policy.csv").read_text().splitlines()[1:]
+    assert [r.split(",")[2] for r in told] == ["filter_positive"]
     assert main(["eval", "policy", str(tmp_path / "none.zip"), "--out", str(out)]) == 2
     # --set: the env's scenario with one setting changed, recorded as OUT/scenario.toml
     short = ["eval", "policy", str(path), "--seeds", "1", "--filter", "off"]
