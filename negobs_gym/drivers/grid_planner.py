@@ -23,7 +23,13 @@ from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.core.grid import GridSpec, carry_layer
 from negobs_gym.core.pose import Pose
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
-from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, planned_lateral_m, track_state
+from negobs_gym.drivers.track_planner import (
+    ObstacleBands,
+    TrackPlannerConfig,
+    first_blocked_station_m,
+    planned_lateral_m,
+    track_state,
+)
 from negobs_gym.errors import ActionError, require
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
@@ -63,6 +69,10 @@ class GridPlannerConfig:
     # rate; 30 = 3 s at 10 Hz), moved into the car's frame by its motion since: a hazard memory,
     # since paper T's LUX loses a rock within ~4 m and paper N's rings leave a pit's rim up close
     memory_steps: int = 30
+    # > 0: when the grid leaves no free path (the least-cost path runs into a band) and the first
+    # blocked move ends within this far ahead of the rear axle, brake to a stop instead of driving
+    # that path into the obstacle; 0: always drive the least-cost path [m]
+    blocked_stop_m: float = 0.0
 
     def __post_init__(self) -> None:
         horizon = self.planner.plan_horizon_m
@@ -71,7 +81,7 @@ class GridPlannerConfig:
         )
         steps = self.memory_steps
         require(isinstance(steps, int) and steps >= 0, "memory_steps", f"must be an int >= 0, got {steps!r}")
-        for name in ("pad_m", "mound_span_m", "body_depth_m"):
+        for name in ("pad_m", "mound_span_m", "body_depth_m", "blocked_stop_m"):
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
 
@@ -202,6 +212,7 @@ class GridPlannerDriver:
         """Start on the centre line with nothing seen."""
         self._memory: list[tuple[Pose, np.ndarray]] = []
         self._bands = self._nothing
+        self._blocked = False
         planner = self.config.planner
         self._follow(
             *planned_lateral_m(
@@ -247,4 +258,10 @@ class GridPlannerDriver:
                     start_slope=slope,
                 )
             )
-        return self._pursuit.act(obs, info)
+            if self.config.blocked_stop_m > 0:
+                blocked_at = first_blocked_station_m(self._stations, self._lateral, bands, planner)
+                self._blocked = blocked_at - station <= self.config.blocked_stop_m
+        action = self._pursuit.act(obs, info)
+        if self._blocked:
+            action = np.array([-1.0, action[1]], dtype=action.dtype)
+        return action
