@@ -13,7 +13,7 @@ is a perception-driven baseline for the policies: what an agent that sees only t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -69,10 +69,11 @@ class GridPlannerConfig:
     # rate; 30 = 3 s at 10 Hz), moved into the car's frame by its motion since: a hazard memory,
     # since paper T's LUX loses a rock within ~4 m and paper N's rings leave a pit's rim up close
     memory_steps: int = 30
-    # > 0: when the grid leaves no free path (the least-cost path runs into a band) and the first
-    # blocked move ends within this far ahead of the rear axle, brake to a stop instead of driving
-    # that path into the obstacle; 0: always drive the least-cost path [m]
-    blocked_stop_m: float = 0.0
+    # > 0: when the least-cost path runs into a body band (a rock's or box's: the grid leaves no
+    # free path past it) within this far ahead of the rear axle, brake to a stop instead of
+    # driving into it; the pits are the safety filter's, which guards them alone by default
+    # (SafetyFilterConfig.stop_for_positive); 0: always drive the least-cost path [m]
+    body_stop_m: float = 0.0
 
     def __post_init__(self) -> None:
         horizon = self.planner.plan_horizon_m
@@ -81,7 +82,7 @@ class GridPlannerConfig:
         )
         steps = self.memory_steps
         require(isinstance(steps, int) and steps >= 0, "memory_steps", f"must be an int >= 0, got {steps!r}")
-        for name in ("pad_m", "mound_span_m", "body_depth_m", "blocked_stop_m"):
+        for name in ("pad_m", "mound_span_m", "body_depth_m", "body_stop_m"):
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
 
@@ -258,9 +259,10 @@ class GridPlannerDriver:
                     start_slope=slope,
                 )
             )
-            if self.config.blocked_stop_m > 0:
-                blocked_at = first_blocked_station_m(self._stations, self._lateral, bands, planner)
-                self._blocked = blocked_at - station <= self.config.blocked_stop_m
+            if self.config.body_stop_m > 0:
+                bodies = replace(self._nothing, bodies=bands.bodies)
+                blocked_at = first_blocked_station_m(self._stations, self._lateral, bodies, planner)
+                self._blocked = blocked_at - station <= self.config.body_stop_m
         action = self._pursuit.act(obs, info)
         if self._blocked:
             action = np.array([-1.0, action[1]], dtype=action.dtype)

@@ -70,7 +70,7 @@ def test_a_grid_of_the_wrong_shape_or_no_layout_is_refused() -> None:
         ("memory_steps", 1.5),
         ("mound_span_m", np.nan),
         ("pad_m", -0.1),
-        ("blocked_stop_m", -1.0),
+        ("body_stop_m", -1.0),
     ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
@@ -103,25 +103,30 @@ def test_it_steers_around_a_pit_on_the_centre_line_and_remembers_it_once_out_of_
     assert np.abs(remembering.path_m[1]).max() == 0.0
 
 
-def test_with_no_free_path_it_stops_short_of_the_first_blocked_move_if_asked() -> None:
+def test_with_no_free_path_past_a_rock_it_stops_short_of_it_if_asked() -> None:
     info = {"pose": POSE, "speed_mps": 4.0}
-    # a pit across the whole track 8 m ahead: every path runs into it
-    across = {"negative": [(-4.3 + 0.8 * k, y) for k in range(11) for y in (8.1, 8.9)]}
-    obs = {"grid": _grid(across)}
+    # one-cell rocks every 1.6 m across the whole track 8 m ahead: every path runs into one
+    rocks = [(-4.3 + 1.6 * k, 8.1) for k in range(6)]
+    obs = {"grid": _grid({"positive": rocks})}
     planner = CONFIG.planner
     through = GridPlannerDriver(TERRAIN, OBSERVATION)
     assert through.act(obs, info)[0] > -1.0  # the least-cost path, driven on
+    assert len(through.bands.bodies) == 6 and len(through.bands.mounds) == 0
     blocked_at = first_blocked_station_m(*through.path_m, through.bands, planner)
-    assert 0.0 < blocked_at < 8.0  # the front axle reaches the pit's band first
-    assert blocked_moves(*through.path_m, through.bands, planner) > 0
-    far = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(blocked_stop_m=blocked_at - 0.1))
-    near_config = GridPlannerConfig(blocked_stop_m=blocked_at + 0.1, memory_steps=0)
+    assert 0.0 < blocked_at < 8.0  # the car's front reaches the band first
+    far = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(body_stop_m=blocked_at - 0.1))
+    near_config = GridPlannerConfig(body_stop_m=blocked_at + 0.1, memory_steps=0)
     near = GridPlannerDriver(TERRAIN, OBSERVATION, near_config)
     assert far.act(obs, info)[0] > -1.0  # the blocked move is beyond its reach: still driving
     stop = near.act(obs, info)
     assert stop[0] == -1.0 and stop[1] == through.act(obs, info)[1]  # brakes, steering as planned
     # a grid with a free path again (and no memory of the last): it drives on
-    assert near.act({"grid": _grid({"negative": [(2.5, 8.1)]})}, info)[0] > -1.0
+    assert near.act({"grid": _grid({"positive": [(2.5, 8.1)]})}, info)[0] > -1.0
+    # a pit across the track is the filter's: however near, it drives the least-cost path on
+    pit = {"grid": _grid({"negative": [(-4.3 + 0.8 * k, y) for k in range(11) for y in (8.1, 8.9)]})}
+    anywhere = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(body_stop_m=50.0))
+    assert anywhere.act(pit, info)[0] > -1.0
+    assert blocked_moves(*anywhere.path_m, anywhere.bands, planner) > 0
 
 
 def _drive(env, driver_for, seed):
