@@ -13,7 +13,7 @@ is a perception-driven baseline for the policies: what an agent that sees only t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -23,13 +23,7 @@ from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.core.grid import GridSpec, carry_layer
 from negobs_gym.core.pose import Pose
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
-from negobs_gym.drivers.track_planner import (
-    ObstacleBands,
-    TrackPlannerConfig,
-    first_blocked_station_m,
-    planned_lateral_m,
-    track_state,
-)
+from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, planned_lateral_m, track_state
 from negobs_gym.errors import ActionError, require
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
@@ -69,11 +63,6 @@ class GridPlannerConfig:
     # rate; 30 = 3 s at 10 Hz), moved into the car's frame by its motion since: a hazard memory,
     # since paper T's LUX loses a rock within ~4 m and paper N's rings leave a pit's rim up close
     memory_steps: int = 30
-    # > 0: when the least-cost path runs into a body band (a rock's or box's: the grid leaves no
-    # free path past it) within this far ahead of the rear axle, brake to a stop instead of
-    # driving into it; the pits are the safety filter's, which guards them alone by default
-    # (SafetyFilterConfig.stop_for_positive); 0: always drive the least-cost path [m]
-    body_stop_m: float = 0.0
 
     def __post_init__(self) -> None:
         horizon = self.planner.plan_horizon_m
@@ -82,7 +71,7 @@ class GridPlannerConfig:
         )
         steps = self.memory_steps
         require(isinstance(steps, int) and steps >= 0, "memory_steps", f"must be an int >= 0, got {steps!r}")
-        for name in ("pad_m", "mound_span_m", "body_depth_m", "body_stop_m"):
+        for name in ("pad_m", "mound_span_m", "body_depth_m"):
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
 
@@ -213,7 +202,6 @@ class GridPlannerDriver:
         """Start on the centre line with nothing seen."""
         self._memory: list[tuple[Pose, np.ndarray]] = []
         self._bands = self._nothing
-        self._blocked = False
         planner = self.config.planner
         self._follow(
             *planned_lateral_m(
@@ -259,11 +247,4 @@ class GridPlannerDriver:
                     start_slope=slope,
                 )
             )
-            if self.config.body_stop_m > 0:
-                bodies = replace(self._nothing, bodies=bands.bodies)
-                blocked_at = first_blocked_station_m(self._stations, self._lateral, bodies, planner)
-                self._blocked = blocked_at - station <= self.config.body_stop_m
-        action = self._pursuit.act(obs, info)
-        if self._blocked:
-            action = np.array([-1.0, action[1]], dtype=action.dtype)
-        return action
+        return self._pursuit.act(obs, info)

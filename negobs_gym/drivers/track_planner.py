@@ -29,7 +29,6 @@ __all__ = [
     "TrackPlannerConfig",
     "TrackPlannerDriver",
     "blocked_moves",
-    "first_blocked_station_m",
     "planned_lateral_m",
     "track_state",
 ]
@@ -201,27 +200,6 @@ def blocked_moves(
         ValueError: ``stations`` and ``lateral`` are not 1-D arrays of one length, or the
             stations do not increase.
     """
-    return int(np.count_nonzero(_blocked(stations, lateral, bands, config)))
-
-
-def first_blocked_station_m(
-    stations: np.ndarray, lateral: np.ndarray, bands: ObstacleBands, config: TrackPlannerConfig
-) -> float:
-    """The rear axle's station at the end of the path's first blocked move (as
-    :func:`blocked_moves` counts them; inf: the path is free): where the car, driving the path,
-    first meets a band.
-
-    Raises:
-        ValueError: as :func:`blocked_moves`.
-    """
-    blocked = _blocked(stations, lateral, bands, config)
-    return float(stations[1:][blocked][0]) if blocked.any() else np.inf
-
-
-def _blocked(
-    stations: np.ndarray, lateral: np.ndarray, bands: ObstacleBands, config: TrackPlannerConfig
-) -> np.ndarray:
-    """Whether each move of the path is blocked (:func:`blocked_moves`), shape (moves,)."""
     stations, lateral = np.asarray(stations, dtype=np.float64), np.asarray(lateral, dtype=np.float64)
     if stations.ndim != 1 or stations.shape != lateral.shape:
         raise ValueError(
@@ -237,7 +215,7 @@ def _blocked(
         points_s = stations[1:, None] + points
         points_lat = lateral[1:, None] + slope[:, None] * points
         _add_band_penalty(hit, points_s, points_lat, obstacle_bands, 1.0, soft_cost=0.0, soft_margin_m=1.0)
-    return hit > 0
+    return int(np.count_nonzero(hit))
 
 
 def planned_lateral_m(

@@ -8,7 +8,7 @@ import pytest
 from negobs_gym.core.geometry import world_to_vehicle_xy
 from negobs_gym.drivers import Driver, GridPlannerConfig, GridPlannerDriver, PurePursuitDriver, make_driver
 from negobs_gym.drivers.grid_planner import grid_bands, observed_cells
-from negobs_gym.drivers.track_planner import blocked_moves, first_blocked_station_m
+from negobs_gym.drivers.track_planner import blocked_moves
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ActionError, ConfigError
 from negobs_gym.sim.presets import braking_track
@@ -70,7 +70,6 @@ def test_a_grid_of_the_wrong_shape_or_no_layout_is_refused() -> None:
         ("memory_steps", 1.5),
         ("mound_span_m", np.nan),
         ("pad_m", -0.1),
-        ("body_stop_m", -1.0),
     ],
 )
 def test_config_rejects_bad_values(field, value) -> None:
@@ -101,32 +100,6 @@ def test_it_steers_around_a_pit_on_the_centre_line_and_remembers_it_once_out_of_
     remembering.reset()
     remembering.act(empty, info)
     assert np.abs(remembering.path_m[1]).max() == 0.0
-
-
-def test_with_no_free_path_past_a_rock_it_stops_short_of_it_if_asked() -> None:
-    info = {"pose": POSE, "speed_mps": 4.0}
-    # one-cell rocks every 1.6 m across the whole track 8 m ahead: every path runs into one
-    rocks = [(-4.3 + 1.6 * k, 8.1) for k in range(6)]
-    obs = {"grid": _grid({"positive": rocks})}
-    planner = CONFIG.planner
-    through = GridPlannerDriver(TERRAIN, OBSERVATION)
-    assert through.act(obs, info)[0] > -1.0  # the least-cost path, driven on
-    assert len(through.bands.bodies) == 6 and len(through.bands.mounds) == 0
-    blocked_at = first_blocked_station_m(*through.path_m, through.bands, planner)
-    assert 0.0 < blocked_at < 8.0  # the car's front reaches the band first
-    far = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(body_stop_m=blocked_at - 0.1))
-    near_config = GridPlannerConfig(body_stop_m=blocked_at + 0.1, memory_steps=0)
-    near = GridPlannerDriver(TERRAIN, OBSERVATION, near_config)
-    assert far.act(obs, info)[0] > -1.0  # the blocked move is beyond its reach: still driving
-    stop = near.act(obs, info)
-    assert stop[0] == -1.0 and stop[1] == through.act(obs, info)[1]  # brakes, steering as planned
-    # a grid with a free path again (and no memory of the last): it drives on
-    assert near.act({"grid": _grid({"positive": [(2.5, 8.1)]})}, info)[0] > -1.0
-    # a pit across the track is the filter's: however near, it drives the least-cost path on
-    pit = {"grid": _grid({"negative": [(-4.3 + 0.8 * k, y) for k in range(11) for y in (8.1, 8.9)]})}
-    anywhere = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(body_stop_m=50.0))
-    assert anywhere.act(pit, info)[0] > -1.0
-    assert blocked_moves(*anywhere.path_m, anywhere.bands, planner) > 0
 
 
 def _drive(env, driver_for, seed):

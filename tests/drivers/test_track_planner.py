@@ -5,13 +5,7 @@ import pytest
 
 from negobs_gym.core.geometry import vehicle_to_world_xy
 from negobs_gym.drivers import Driver, PurePursuitDriver, TrackPlannerConfig, TrackPlannerDriver
-from negobs_gym.drivers.track_planner import (
-    ObstacleBands,
-    blocked_moves,
-    first_blocked_station_m,
-    planned_lateral_m,
-    track_state,
-)
+from negobs_gym.drivers.track_planner import ObstacleBands, blocked_moves, planned_lateral_m, track_state
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ConfigError
 from negobs_gym.sim.carving import PositiveObstacleSpec
@@ -247,22 +241,6 @@ def test_blocked_moves_counts_the_moves_a_path_puts_in_a_band() -> None:
         (axles_s >= s0) & (axles_s <= s1), axis=1
     )
     assert blocked_moves(stations, straight, both, CONFIG) == int(np.sum(either)) > expected
-
-
-def test_first_blocked_station_is_where_the_path_first_meets_a_band() -> None:
-    terrain = braking_track(20.0, ditch_width_m=1.0, lateral_offset_m=0.0, rough=False, length_m=50.0)
-    bands = ObstacleBands.of(terrain, CONFIG)
-    stations, lateral = planned_lateral_m(terrain, CONFIG)
-    assert first_blocked_station_m(stations, lateral, bands, CONFIG) == np.inf  # a free path
-    straight = np.zeros_like(stations)
-    first = first_blocked_station_m(stations, straight, bands, CONFIG)
-    # the front axle (a wheelbase ahead of the rear) reaches the pit's band first
-    assert first == stations[np.argmax(stations + CONFIG.wheelbase_m >= bands.pits[0, 0])]
-    # every move before it is free
-    before = stations <= first - 1e-9
-    assert blocked_moves(stations[before], straight[before], bands, CONFIG) == 0
-    with pytest.raises(ValueError, match="increase"):
-        first_blocked_station_m(np.array([0.0, 1.0, 1.0]), np.zeros(3), bands, CONFIG)
 
 
 def test_blocked_moves_refuses_paths_it_cannot_read() -> None:
