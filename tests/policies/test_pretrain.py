@@ -115,6 +115,17 @@ def test_grid_planner_demonstrations_label_with_the_grid_the_policy_sees() -> No
     assert np.abs(demos.actions[:, 1]).max() > 0.1  # it steered around the first obstacle
 
 
+def _drive_first_episode(env: Any, driver: Any, steps: int) -> np.ndarray:
+    """``driver``'s actions over ``steps`` steps of the first demonstration episode (seed 0's),
+    each one executed: the labels a noiseless collection gives."""
+    obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+    labels = []
+    for _ in range(steps):
+        labels.append(driver.act(obs, info))
+        obs, _, _, _, info = env.step(labels[-1])
+    return np.stack(labels)
+
+
 def test_driver_settings_configure_the_demonstrator() -> None:
     # the grid planner's heading lattice, slower than its own cruise speed
     heading = {"planner": {"bend_steps": 1, "pursuit": {"target_speed_mps": 3.0}}}
@@ -122,18 +133,14 @@ def test_driver_settings_configure_the_demonstrator() -> None:
     try:
         demos = collect_demonstrations(env, 60, 0.0, 0, "grid_planner", driver_settings=heading)
         plain = collect_demonstrations(env, 60, 0.0, 0, "grid_planner")
-        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
-        scene = env.unwrapped.scenario
-        terrain = env.unwrapped.terrain
+        env.reset(seed=DEMO_SEED_OFFSET)  # the first episode's course, for the driver
+        scene, terrain = env.unwrapped.scenario, env.unwrapped.terrain
         driver = make_driver("grid_planner", terrain, observation=scene.observation, settings=heading)
-        labels = []
-        for _ in range(60):
-            labels.append(driver.act(obs, info))
-            obs, _, _, _, info = env.step(labels[-1])
+        labels = _drive_first_episode(env, driver, 60)
     finally:
         env.close()
     assert driver.config.planner.bend_steps == 1
-    np.testing.assert_array_equal(demos.actions, np.stack(labels))
+    np.testing.assert_array_equal(demos.actions, labels)
     assert demos.actions[-20:, 0].mean() < plain.actions[-20:, 0].mean()  # it eased off earlier
 
 
@@ -175,15 +182,12 @@ def test_a_sight_limited_planner_labels_what_it_sees() -> None:
     try:
         full = collect_demonstrations(env, 80, noise_std=0.0, seed=0, driver="track_planner")
         near = collect_demonstrations(env, 80, 0.0, 0, "track_planner", planner_sight_m=14.0)
-        obs, info = env.reset(seed=DEMO_SEED_OFFSET)
+        env.reset(seed=DEMO_SEED_OFFSET)
         driver = TrackPlannerDriver(env.unwrapped.terrain, TrackPlannerConfig(sight_m=14.0))
-        labels = []
-        for _ in range(80):
-            labels.append(driver.act(obs, info))
-            obs, _, _, _, info = env.step(labels[-1])
+        labels = _drive_first_episode(env, driver, 80)
     finally:
         env.close()
-    np.testing.assert_array_equal(near.actions, np.stack(labels))
+    np.testing.assert_array_equal(near.actions, labels)
     assert driver.replans >= 1  # the first obstacle came into sight on the way
     assert not np.array_equal(near.actions, full.actions)  # the whole course's path starts earlier
 
