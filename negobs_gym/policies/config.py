@@ -302,10 +302,7 @@ class WarmStartConfig:
         if self.driver_settings:
             from negobs_gym.drivers import driver_config  # imports the simulator: only when needed
 
-            try:
-                driver_config(self.driver, settings=self.driver_settings)
-            except ConfigError as exc:
-                raise ConfigError("driver_settings", exc.message) from None
+            driver_config(self.driver, settings=self.driver_settings)  # ConfigError: driver_settings
 
 
 @dataclass(frozen=True, kw_only=True)
