@@ -54,6 +54,33 @@ def _join(path: str, name: str) -> str:
     return f"{path}.{name}" if path else name
 
 
+
+class FrozenTable(Mapping[str, Any]):
+    """A read-only table of a frozen config (a TOML table such as ``run.driver_settings``).
+
+    Unlike :class:`types.MappingProxyType` it pickles, so a spec travels to worker processes.
+    """
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data: Mapping[str, Any] | None = None) -> None:
+        self._data = dict(data or {})
+
+    def __getitem__(self, key: str) -> Any:
+        return self._data[key]
+
+    def __iter__(self) -> typing.Iterator[str]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return repr(self._data)
+
+    def __reduce__(self) -> tuple[type, tuple[dict[str, Any]]]:
+        return (FrozenTable, (self._data,))
+
 def _convert(hint: Any, value: Any, path: str) -> Any:
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
@@ -92,7 +119,7 @@ def _convert(hint: Any, value: Any, path: str) -> Any:
     if origin in (dict, Mapping) or hint in (dict, Mapping):
         if not isinstance(value, Mapping):
             raise ConfigError(path, f"must be a table, got {value!r}")
-        return types.MappingProxyType(dict(value))
+        return FrozenTable(value)
     if dataclasses.is_dataclass(hint):
         if isinstance(value, hint):
             return value

@@ -89,3 +89,18 @@ def test_combined_overrides_let_the_later_assignment_to_a_key_replace_the_earlie
     assert combine_overrides(record, []) == record
     with pytest.raises(ConfigError, match=r"KEY\.PATH=VALUE"):
         combine_overrides(record, ["tighten"])
+
+
+def test_an_overridden_spec_pickles_with_its_tables_read_only() -> None:
+    """Worker processes receive the spec pickled: its tables (``run.driver_settings``) must pickle
+    after ``--set`` rebuilt them, and stay read-only."""
+    import pickle
+
+    spec = apply_overrides(
+        load_scenario("braking_v0"),
+        ["filter.steer_search=0.3", "run.driver_settings.planner.bend_steps=1"],
+    )
+    again = pickle.loads(pickle.dumps(spec))
+    assert again == spec and again.run.driver_settings == {"planner": {"bend_steps": 1}}
+    with pytest.raises(TypeError):
+        spec.run.driver_settings["planner"] = {}  # type: ignore[index]
