@@ -54,7 +54,6 @@ def _join(path: str, name: str) -> str:
     return f"{path}.{name}" if path else name
 
 
-
 class FrozenTable(Mapping[str, Any]):
     """A read-only table of a frozen config (a TOML table such as ``run.driver_settings``).
 
@@ -80,6 +79,7 @@ class FrozenTable(Mapping[str, Any]):
 
     def __reduce__(self) -> tuple[type, tuple[dict[str, Any]]]:
         return (FrozenTable, (self._data,))
+
 
 def _convert(hint: Any, value: Any, path: str) -> Any:
     origin = typing.get_origin(hint)
