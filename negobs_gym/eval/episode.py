@@ -138,7 +138,7 @@ class EpisodeResult:
             loop's :class:`EpisodeStop`).
         truncated: Ended by the env's time limit.
         failures: Names of the spec's criteria this run failed (empty: passed).
-        steered_steps: Steps whose steering the filter changed instead of braking (its
+        steered_steps: Steps whose steering the filter changed ahead of a veto (its
             ``steer_search``; 0 without it).
         path: The car at the reset and after every step (:class:`PathPoint`).
         veto_judgements: Each veto and missed veto in step order, with the speed, R(v), the

@@ -13,7 +13,7 @@ minus the true one, :func:`~negobs_gym.eval.vetoes.veto_error_m`; NaN: no veto t
 steps that ended off the track (farther from the centre line than half the track width: the
 obstacles of OffroadNav lie on the track, so a policy that drives beside it meets none), whether
 a standstill ended it (``stopped``: 1 s at rest, e.g. held by the filter) and the steps whose
-steering the filter changed instead of braking (``steered_steps``, its ``steer_search``). Each
+steering the filter changed ahead of a veto (``steered_steps``, its ``steer_search``). Each
 veto and missed veto, judged on the ground truth, is a row of ``vetoes.csv``
 (:data:`~negobs_gym.eval.vetoes.VETO_COLUMNS`), each step of each episode one of
 ``paths.csv``.

@@ -72,14 +72,21 @@ class SafetyFilterConfig:
     # drives up (docs/safety.md, "Hazard memory"). 0: every cell seen clear releases its points
     hazard_memory_hold_m: float = 0.0
     # Largest change of the steering command (action units, 1 = full lock) the filter may make
-    # before it brakes: when the proposed steering's corridor fails Eq. 18, it takes the nearest
-    # steering within this change, in steps of steer_search_step, whose corridor passes (the
-    # smaller change first; at equal change the longer hazard distance), and brakes only when none
-    # does. Not in paper N, whose filter only brakes (0: never steers). A minimal-intervention
-    # shield: passing a pit in a bend, the arc of a steering a little tighter than needed sweeps
-    # its drawn rim, and a veto stops the car beside it (docs/safety.md, "Steering search").
+    # ahead of a veto: when the proposed steering's corridor passes Eq. 18 but not with
+    # steer_lead_s of travel to spare, it takes the nearest steering within this change, in steps
+    # of steer_search_step, whose corridor passes with that lead (the smaller change first; at
+    # equal change the longer hazard distance); an action failing Eq. 18 itself is vetoed as
+    # paper N's filter does. Not in paper N, whose filter only brakes (0: never steers). A
+    # minimal-intervention shield: passing a pit in a bend, the arc of a steering a little tighter
+    # than needed sweeps its drawn rim, and a veto stops the car beside it (docs/safety.md,
+    # "Steering search").
     steer_search: float = 0.0
     steer_search_step: float = 0.05  # spacing of the steering commands tried [action units]
+    # How far ahead of Eq. 18's boundary the search steers, as travel time at v' [s]: the car's
+    # yaw rate builds up over 0.1-0.7 s at 25 km/h (more for more steering), so a steering found
+    # at the boundary itself is not driven before the pit is inside the stopping distance
+    # (docs/safety.md, "Steering search").
+    steer_lead_s: float = 1.0
 
     def __post_init__(self) -> None:
         require(
@@ -117,6 +124,13 @@ class SafetyFilterConfig:
             and self.steer_search_step > 0,
             "steer_search_step",
             f"must be finite and > 0, got {self.steer_search_step!r}",
+        )
+        require(
+            isinstance(self.steer_lead_s, (int, float))
+            and np.isfinite(self.steer_lead_s)
+            and self.steer_lead_s > 0,
+            "steer_lead_s",
+            f"must be finite and > 0 (0 would leave the search nothing to do), got {self.steer_lead_s!r}",
         )
         for name in (
             "governor_margin_m",

@@ -38,9 +38,10 @@ class SafetyDecision:
         reason: Why the action was changed (:data:`Reason`), None when it passed unchanged.
         governed: The governor capped the speed (``mode="governed"``); ``vetoed`` stays False
             for a cap alone: it is no Eq. 18 veto.
-        steered: The proposed steering failed Eq. 18 and the filter applied a steering within
-            ``steer_search`` whose corridor passes instead of braking; ``vetoed`` is False, and
-            ``hazard_distance_m`` and ``corridor`` are the applied steering's.
+        steered: The proposed steering passed Eq. 18 but not with ``steer_lead_s`` to spare, and
+            the filter applied a steering within ``steer_search`` whose corridor passes with it;
+            ``vetoed`` is False, and ``hazard_distance_m`` and ``corridor`` are the applied
+            steering's.
         clear_distance_m: The observed clear distance along the corridor [m] (governed mode;
             NaN otherwise).
         clear_end: What ended it: ``"hazard"``, ``"unobserved"`` or ``"range"`` (None outside

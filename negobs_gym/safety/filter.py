@@ -33,9 +33,10 @@ class BrakingSafetyFilter(gym.Wrapper):
     passes again, the test is ``d - travelled < R(v') + release_margin_m`` (hysteresis against
     stop-and-go at the boundary; cleared by ``reset``). ``mode="brake"`` replaces ``action[0]`` by -1;
     ``mode="cap_speed"`` uses the largest command whose v' is safe, else -1. Steering is not
-    changed unless ``steer_search`` > 0: then a failing action first gets the nearest steering
-    within that change whose corridor passes (``reason="steered"``, no veto), and is vetoed only
-    when none does. Safe actions pass bit-identical.
+    changed unless ``steer_search`` > 0: then an action that passes the check but would fail it
+    with ``steer_lead_s`` of travel to spare gets the nearest steering within that change whose
+    corridor passes with that lead (``reason="steered"``, no veto); an action that fails the check
+    itself is vetoed as without the search. Safe actions pass bit-identical.
 
     Fail-safe: when the env has no perception yet, or its hazard data is older than
     ``config.perception_timeout_s`` (``HazardState.perception_time_s`` against ``time_s``) beyond
@@ -62,8 +63,8 @@ class BrakingSafetyFilter(gym.Wrapper):
     (``mu``, ``reaction_time_s``, ``buffer_m``, ``g``, ``margin_m``, ``mode``,
     ``perception_timeout_s``, ``release_margin_m``, ``stop_for_positive``, ``governor_margin_m``,
     ``creep_speed_mps``, ``creep_clearance_m``, ``unobserved_blocks``, ``coverage_memory_s``,
-    ``hazard_memory``, ``hazard_memory_hold_m``, ``steer_search``, ``steer_search_step``) over the
-    defaults;
+    ``hazard_memory``, ``hazard_memory_hold_m``, ``steer_search``, ``steer_search_step``,
+    ``steer_lead_s``) over the defaults;
     passing both is a :class:`ConfigError`.
 
     ``info["safety"]``: :meth:`SafetyDecision.as_dict` (vetoed, hazard_distance_m,
@@ -103,6 +104,7 @@ class BrakingSafetyFilter(gym.Wrapper):
         hazard_memory_hold_m: float | None = None,
         steer_search: float | None = None,
         steer_search_step: float | None = None,
+        steer_lead_s: float | None = None,
     ) -> None:
         super().__init__(env)
         if not isinstance(env.unwrapped, HazardSource) and not isinstance(env, HazardSource):
@@ -130,6 +132,7 @@ class BrakingSafetyFilter(gym.Wrapper):
             "hazard_memory_hold_m": hazard_memory_hold_m,
             "steer_search": steer_search,
             "steer_search_step": steer_search_step,
+            "steer_lead_s": steer_lead_s,
         }
         filter_kw = {k: v for k, v in filter_kw.items() if v is not None}
         if config is not None:
@@ -196,8 +199,8 @@ class BrakingSafetyFilter(gym.Wrapper):
         self, state: HazardState, steer: float, longitudinal: float
     ) -> tuple[float, Corridor, float, str | None] | None:
         """The steering command nearest ``steer`` within ``steer_search`` whose corridor passes
-        Eq. 18 with ``longitudinal``, with its corridor, hazard distance and channel (None: none
-        does). At equal change, the one with the longer hazard distance."""
+        Eq. 18 with ``longitudinal`` and ``steer_lead_s`` to spare, with its corridor, hazard
+        distance and channel (None: none does). At equal change, the longer hazard distance."""
         step = self.config.steer_search_step
         n = math.floor(self.config.steer_search / step + 1e-9)
         for k in range(1, n + 1):
@@ -207,7 +210,7 @@ class BrakingSafetyFilter(gym.Wrapper):
                 if abs(candidate) > 1.0:
                     continue
                 corridor, d, channel = self._corridor_hazard(state, candidate)
-                if self._is_safe(state, d, longitudinal):
+                if self._is_safe(state, d, longitudinal, self.config.steer_lead_s):
                     passing.append((candidate, corridor, d, channel))
             if passing:
                 return max(passing, key=lambda found: found[2])
@@ -216,10 +219,12 @@ class BrakingSafetyFilter(gym.Wrapper):
     def _r(self, v: Any) -> np.ndarray:
         return braking_distance_m(v, self.config.braking)
 
-    def _is_safe(self, state: HazardState, d: float, longitudinal: float) -> bool:
+    def _is_safe(self, state: HazardState, d: float, longitudinal: float, lead_s: float = 0.0) -> bool:
+        """Eq. 18 after one control period (plus the release margin while holding), with
+        ``lead_s`` of travel at v' more to spare."""
         v_next = state.predicted_speed_mps(longitudinal)
         margin = self.config.release_margin_m if self._holding else 0.0
-        return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin)
+        return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin + v_next * lead_s)
 
     def _fitting_speed(
         self, state: HazardState, d: float, margin: float, buffer_m: float | None = None
@@ -315,11 +320,12 @@ class BrakingSafetyFilter(gym.Wrapper):
         reason = ("stale_data" if stale else "hazard") if vetoed else None
         applied = original
         steered = False
-        if vetoed and not stale and self.config.steer_search > 0:
+        searching = not vetoed and self.config.steer_search > 0
+        if searching and not self._is_safe(state, d, proposed, self.config.steer_lead_s):
             found = self._clear_steering(state, steer, proposed)
             if found is not None:
                 steer, corridor, d, channel = found
-                vetoed, steered, reason = False, True, "steered"
+                steered, reason = True, "steered"
                 applied = original.copy()
                 applied[1] = steer  # a float32 value: the corridor was searched for this command
         if vetoed:

@@ -13,7 +13,8 @@ from negobs_gym.errors import ConfigError
 from negobs_gym.eval.scenario_runner import ScenarioResult, check_criteria, run_scenario, run_scenario_seeds
 from negobs_gym.eval.vetoes import FALSE_VETO_TOLERANCE_M, VetoJudgement
 from negobs_gym.safety import SafetyFilterConfig
-from negobs_gym.spec import spec_from_toml, spec_to_toml
+from negobs_gym.spec import load_scenario, spec_from_toml, spec_to_toml
+from negobs_gym.spec.overrides import apply_overrides
 from negobs_gym.spec.scenario import CriteriaSpec
 from tests.helpers import PIT_SCENE
 
@@ -94,19 +95,39 @@ def test_vetoes_are_judged_along_the_corridor_the_filter_searched() -> None:
     assert r.max_veto_error_m is not None and abs(r.max_veto_error_m) < 0.5
 
 
-def test_with_a_steering_search_the_filter_steers_the_turn_off_the_pit_instead_of_stopping() -> None:
-    """The same turn behind a filter that may change the steering by half a lock: arcs a little
-    less to the left clear the pit, so it steers there and drives on past it (~31 m in the 8 s),
-    never entering, where without the search it stands before the pit after ~9 m."""
-    spec = spec_from_toml(TURN_SCENE)
-    braking = run_scenario(spec, _SteadyLeftTurn(), filter=spec.filter, seed=0)
-    search = dataclasses.replace(spec.filter, steer_search=0.5)
-    r = run_scenario(spec, _SteadyLeftTurn(), filter=search, seed=0)
-    assert braking.steered_steps == 0 and braking.termination == ("stopped",) and braking.progress_m < 12.0
+PIT_BESIDE_THE_LINE = """
+name = "pit_beside_the_line"
+terminations = ["entered_negative_obstacle", "trapped", "collision", "rollover", "stopped"]
+[terrain.course]
+length_m = 45.0
+[[obstacles]]
+kind = "pit"
+length_m = 2.0
+width_m = 2.0
+depth_m = 0.6
+station_m = 20.0
+lateral_m = 1.8
+[start]
+speed_mps = 5.0
+[episode]
+time_limit_s = 7.0
+"""
+
+
+def test_with_a_steering_search_the_filter_steers_off_a_pit_beside_the_line_instead_of_stopping() -> None:
+    """The reckless driver at 25 km/h on a line whose corridor clips a pit's edge: the braking
+    filter stops it ~13 m in; a filter that may change the steering by 0.3 steers it off the
+    pit while the pit is still beyond the stopping distance (the steering lead), and it drives
+    the whole course without a veto or an entry."""
+    spec = spec_from_toml(PIT_BESIDE_THE_LINE)
+    braking = run_scenario(spec, "reckless", filter=spec.filter, seed=0)
+    search = dataclasses.replace(spec.filter, steer_search=0.3)
+    r = run_scenario(spec, "reckless", filter=search, seed=0)
+    assert braking.steered_steps == 0 and braking.termination == ("stopped",) and braking.progress_m < 15.0
     assert r.steered_steps > 0 and f" steered={r.steered_steps} " in r.line()
     assert r.metrics()["steered_steps"] == r.steered_steps  # a policy campaign's column
-    assert not r.entered_negative_obstacle and r.truncated and r.progress_m > 20.0
-    assert r.vetoes < braking.vetoes and r.false_vetoes == 0
+    assert not r.entered_negative_obstacle and r.truncated and r.progress_m > 40.0
+    assert r.vetoes == 0 and braking.vetoes > 0
 
 
 def test_missed_vetoes_count_the_steps_the_filter_let_into_a_hazard() -> None:
@@ -295,3 +316,15 @@ def test_a_specs_driver_settings_reach_its_scripted_driver_and_a_bad_one_names_r
     bad = apply_overrides(spec, ["run.driver_settings.planner.bend_steps=-1"])
     with pytest.raises(ConfigError, match=r"^run\.driver_settings: .*bend_steps"):
         make_driver("grid_planner", bad, braking_track(20.0, rough=False))
+
+
+def test_the_steering_search_never_steers_the_car_into_the_ditch_it_would_have_braked_for() -> None:
+    """The reckless driver at 25 km/h at a ditch across the track, behind a filter that may steer
+    by 0.3 with no margin: a search that steered in place of the veto drove this seed into the
+    ditch (the car's yaw rate builds over 0.1-0.7 s, so the arc it found at the boundary was not
+    driven); steering only ahead of the boundary, it stops before the ditch."""
+    settings = ["filter.steer_search=0.3", "filter.margin_m=0", "episode.time_limit_s=8"]
+    spec = apply_overrides(load_scenario("braking_v0"), settings)
+    r = run_scenario(spec, "reckless", filter=spec.filter, seed=1)
+    assert r.steered_steps > 0 and r.vetoes > 0
+    assert not r.entered_negative_obstacle and r.stopped_before and r.stop_margin_m > 0.5
