@@ -180,3 +180,25 @@ def test_tilt_is_the_larger_of_the_true_poses_roll_and_pitch_bit_for_bit():
             tilts.append(vehicle.tilt_rad())
             assert tilts[-1] == max(abs(pose.roll), abs(pose.pitch))
         assert tilts[0] > 0.1 > 0.05 > tilts[-1]  # dropped tilted, settled on the flat ground
+
+
+def test_the_yaw_rate_lags_the_steering_at_25_kmh():
+    """The car's yaw rate builds over tenths of a second after a steering step (the reason the
+    safety filter's steering search keeps SafetyFilterConfig.steer_lead_s of travel to spare):
+    half a lock from straight at 25 km/h turns at under half the kinematic rate v tan(phi) / l
+    after 0.1 s and reaches it within 1 s."""
+    steer = 0.5
+    with World(flat_terrain(80, 40)) as world:
+        vehicle = Vehicle(world)
+        world.step(120)
+        vehicle.set_speed(SPEED_25_KMH)
+        ratios = []
+        for k in range(240):
+            throttle = float(np.clip(0.5 * (SPEED_25_KMH - vehicle.speed_mps()), 0.0, 1.0))
+            vehicle.apply(throttle, 0.0, steer)
+            world.step()
+            if (k + 1) % 24 == 0:
+                kinematic = vehicle.speed_mps() * math.tan(steer * math.radians(35)) / 2.8
+                ratios.append(vehicle.yaw_rate() / kinematic)
+    assert ratios[0] < 0.5  # 0.1 s
+    assert ratios[-1] == pytest.approx(1.0, abs=0.05)  # 1.0 s
