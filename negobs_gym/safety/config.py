@@ -118,20 +118,10 @@ class SafetyFilterConfig:
             "steer_search",
             f"must be within [0, 2] (action units), got {self.steer_search!r}",
         )
-        require(
-            isinstance(self.steer_search_step, (int, float))
-            and np.isfinite(self.steer_search_step)
-            and self.steer_search_step > 0,
-            "steer_search_step",
-            f"must be finite and > 0, got {self.steer_search_step!r}",
-        )
-        require(
-            isinstance(self.steer_lead_s, (int, float))
-            and np.isfinite(self.steer_lead_s)
-            and self.steer_lead_s > 0,
-            "steer_lead_s",
-            f"must be finite and > 0 (0 would leave the search nothing to do), got {self.steer_lead_s!r}",
-        )
+        for name in ("steer_search_step", "steer_lead_s"):  # steer_lead_s 0 would leave the search idle
+            value = getattr(self, name)
+            ok = isinstance(value, (int, float)) and np.isfinite(value) and value > 0
+            require(ok, name, f"must be finite and > 0, got {value!r}")
         for name in (
             "governor_margin_m",
             "creep_speed_mps",
