@@ -382,10 +382,12 @@ class CriteriaSpec:
 
 #: The filter a scene runs behind unless its ``[filter]`` says otherwise: paper N's Eq. 18 plus
 #: hazard memory, which keeps a pit whose rim drops out of the detection in the HDL-64's
-#: ring-free disc while the car stands before it (docs/safety.md, "Hazard memory"); the negobs
-#: envs hand the filter the pose and grid it needs. ``[filter] hazard_memory = false`` gives paper
-#: N's stateless filter, the default of :class:`SafetyFilterConfig` for any other env.
-SCENE_FILTER = SafetyFilterConfig(hazard_memory=True)
+#: ring-free disc while the car stands before it, and holds what it remembers within 8 m of the
+#: rear axle, where closing in loses a pit's pairs while its floor still returns (docs/safety.md,
+#: "Hazard memory"); the negobs envs hand the filter the pose and grid it needs. ``[filter]
+#: hazard_memory = false`` gives paper N's stateless filter, the default of
+#: :class:`SafetyFilterConfig` for any other env.
+SCENE_FILTER = SafetyFilterConfig(hazard_memory=True, hazard_memory_hold_m=8.0)
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,8 @@ def test_the_filter_follows_the_spec_unless_given() -> None:
     assert rock.run.filter and rock.filter.stop_for_positive
     assert filter_settings(None, rock) == dataclasses.replace(SCENE_FILTER, stop_for_positive=True)
     assert filter_settings(True, load_scenario("braking_v0")) == SCENE_FILTER
-    assert SCENE_FILTER == SafetyFilterConfig(hazard_memory=True)  # Eq. 18 plus hazard memory
+    # Eq. 18 plus hazard memory, holding what lies within 8 m
+    assert SCENE_FILTER == SafetyFilterConfig(hazard_memory=True, hazard_memory_hold_m=8.0)
     assert filter_settings(False, rock) is None
     own = SafetyFilterConfig(margin_m=0.5)
     assert filter_settings(own, rock) is own

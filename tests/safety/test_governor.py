@@ -226,8 +226,11 @@ def test_a_scenario_holds_the_filter_settings():
     toml = 'name = "m"\n[terrain]\npreset = "braking_track"\n[filter]\nhazard_memory = true\n'
     toml += "governor_margin_m = 2.0\n[filter.braking]\nbuffer_m = 6.0\n"
     spec = spec_from_toml(toml)
-    assert spec.filter == SafetyFilterConfig(
-        hazard_memory=True, governor_margin_m=2.0, braking=BrakingConfig(buffer_m=6.0)
+    assert spec.filter == SafetyFilterConfig(  # laid over the scenes' defaults (the 8 m hold)
+        hazard_memory=True,
+        hazard_memory_hold_m=8.0,
+        governor_margin_m=2.0,
+        braking=BrakingConfig(buffer_m=6.0),
     )
     assert spec_from_toml(spec_to_toml(spec)) == spec
     # the keys [run] held before, for one release
