@@ -16,6 +16,7 @@ from negobs_gym.drivers.pure_pursuit import PurePursuitConfig, PurePursuitDriver
 from negobs_gym.drivers.reckless import RecklessConfig, RecklessDriver
 from negobs_gym.drivers.track_planner import TrackPlannerConfig, TrackPlannerDriver
 from negobs_gym.errors import ConfigError
+from negobs_gym.safety import SafetyFilterConfig
 from negobs_gym.sim.types import Terrain
 from negobs_gym.spec.observation import ObservationConfig
 
@@ -42,6 +43,8 @@ def make_driver(
     planner_horizon_m: float = 0.0,
     observation: ObservationConfig | None = None,
     settings: Mapping[str, Any] | None = None,
+    safety_filter: SafetyFilterConfig | None = None,
+    control_period_s: float = 0.1,
 ) -> Driver:
     """The scripted driver ``name`` for one course.
 
@@ -54,7 +57,9 @@ def make_driver(
     observation instead, laid out as ``observation`` says (the scenario's ``[observation]``).
     ``settings`` (a scenario's ``run.driver_settings``) then changes fields of the driver's
     config, nested as the config nests them: ``{"planner": {"bend_steps": 1}}`` for the grid
-    planner's :class:`GridPlannerConfig`, ``{"lookahead_m": 3.0}`` for pure pursuit's.
+    planner's :class:`GridPlannerConfig`, ``{"lookahead_m": 3.0}`` for pure pursuit's. The grid
+    planner's ``filter_lead_s`` keeps to the Eq. 18 of ``safety_filter`` (the scenario's
+    ``[filter]``; default :class:`SafetyFilterConfig`) at ``control_period_s``.
 
     Raises:
         ConfigError: unknown ``name`` (field ``driver``), the grid planner without
@@ -84,7 +89,9 @@ def make_driver(
         raise ConfigError(
             "observation", "the grid planner needs the grid's layout (the scenario's [observation])"
         )
-    return GridPlannerDriver(terrain, observation, config)
+    return GridPlannerDriver(
+        terrain, observation, config, safety_filter=safety_filter, control_period_s=control_period_s
+    )
 
 
 def driver_config(

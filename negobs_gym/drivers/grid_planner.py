@@ -25,8 +25,11 @@ from negobs_gym.core.pose import Pose
 from negobs_gym.drivers.pure_pursuit import PurePursuitDriver
 from negobs_gym.drivers.track_planner import ObstacleBands, TrackPlannerConfig, planned_lateral_m, track_state
 from negobs_gym.errors import ActionError, require
+from negobs_gym.safety import BrakingConfig, HazardState, SafetyFilterConfig
+from negobs_gym.safety.steering import check_steering, nearest_clear_steering, passes_eq18
 from negobs_gym.sim.terrain import track_coordinates
 from negobs_gym.sim.types import Terrain
+from negobs_gym.sim.vehicle import VehicleConfig
 from negobs_gym.spec.observation import ObservationConfig
 
 __all__ = ["GridPlannerConfig", "GridPlannerDriver", "grid_bands", "observed_cells"]
@@ -63,6 +66,13 @@ class GridPlannerConfig:
     # rate; 30 = 3 s at 10 Hz), moved into the car's frame by its motion since: a hazard memory,
     # since paper T's LUX loses a rock within ~4 m and paper N's rings leave a pit's rim up close
     memory_steps: int = 30
+    # > 0: keep the steering to arcs the braking filter passes. When pure pursuit's steering
+    # fails Eq. 18 on the grid's negative cells (the memory's included) with this much travel at
+    # v' to spare, it takes the nearest steering that passes with it (none: it keeps its own, and
+    # the filter decides). The filter checks the arc of a constant steering, so a swerve's full
+    # lock meets the pit it swerves round; the filter then brakes, and the car stands beside the
+    # pit (docs/notebook/training_studies.md, "The grid planner keeps to the filter's arcs") [s]
+    filter_lead_s: float = 0.0
 
     def __post_init__(self) -> None:
         horizon = self.planner.plan_horizon_m
@@ -71,7 +81,7 @@ class GridPlannerConfig:
         )
         steps = self.memory_steps
         require(isinstance(steps, int) and steps >= 0, "memory_steps", f"must be an int >= 0, got {steps!r}")
-        for name in ("pad_m", "mound_span_m", "body_depth_m"):
+        for name in ("pad_m", "mound_span_m", "body_depth_m", "filter_lead_s"):
             value = getattr(self, name)
             require(np.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value!r}")
 
@@ -180,11 +190,27 @@ class GridPlannerDriver:
     """
 
     def __init__(
-        self, terrain: Terrain, observation: ObservationConfig, config: GridPlannerConfig | None = None
+        self,
+        terrain: Terrain,
+        observation: ObservationConfig,
+        config: GridPlannerConfig | None = None,
+        *,
+        safety_filter: SafetyFilterConfig | None = None,
+        vehicle: VehicleConfig | None = None,
+        control_period_s: float = 0.1,
     ) -> None:
         self.config = config or GridPlannerConfig()
         self.terrain = terrain
         self.observation = observation
+        #: the filter, car and control period whose Eq. 18 ``filter_lead_s`` keeps to
+        self.safety_filter = safety_filter or SafetyFilterConfig()
+        self.vehicle = vehicle or VehicleConfig()
+        require(
+            np.isfinite(control_period_s) and control_period_s > 0,
+            "control_period_s",
+            f"must be finite and > 0, got {control_period_s!r}",
+        )
+        self.control_period_s = float(control_period_s)
         self._nothing = ObstacleBands(*(np.empty((0, 4)),) * 3, lead_m=self.config.planner.lead_m)
         self.reset()
 
@@ -228,9 +254,55 @@ class GridPlannerDriver:
         self._memory = [*self._memory, (now, mask)][-steps:]
         return merged
 
+    def _hazard_state(self, mask: np.ndarray, speed_mps: float) -> HazardState:
+        """What the filter would know, read from the obstacle ``mask`` (channels, rows, cols)."""
+        cells, channels, car = observed_cells(self.observation), self.observation.channels, self.vehicle
+
+        def points(name: str) -> np.ndarray:
+            return cells.centres_of(mask[channels.index(name)]) if name in channels else np.empty((0, 2))
+
+        return HazardState(
+            speed_mps=max(0.0, speed_mps),
+            negative_obstacles_xy_m=points("negative"),
+            positive_obstacles_xy_m=points("positive"),
+            vehicle_width_m=car.width_m,
+            wheelbase_m=car.wheelbase_m,
+            front_length_m=car.front_length_m,
+            max_steer_rad=car.max_steer_rad,
+            dt_s=self.control_period_s,
+            max_accel_mps2=car.max_accel_mps2,
+            max_brake_decel_mps2=car.tyre_mu * BrakingConfig().g_mps2,  # locked wheels, as the env's
+            time_s=0.0,
+            perception_time_s=0.0,
+        )
+
+    def _within_filter(self, action: np.ndarray, mask: np.ndarray, info: dict[str, Any]) -> np.ndarray:
+        """``action`` with its steering moved, where it must, to the nearest one whose arc passes
+        Eq. 18 with ``filter_lead_s`` to spare (:attr:`GridPlannerConfig.filter_lead_s`)."""
+        speed = float(info.get("speed_mps", np.nan))
+        if not np.isfinite(speed):
+            return action
+        state = self._hazard_state(mask, speed)
+        rules, lead = self.safety_filter, self.config.filter_lead_s
+        holding = bool((info.get("safety") or {}).get("vetoed", False))  # the release margin applies
+        longitudinal, steer = float(action[0]), float(np.clip(action[1], -1.0, 1.0))
+        d = check_steering(state, rules, steer).hazard_distance_m
+        if passes_eq18(state, rules, d, longitudinal, holding=holding, lead_s=lead):
+            return action
+        found = nearest_clear_steering(
+            state, rules, steer, longitudinal, search=2.0, lead_s=lead, holding=holding
+        )
+        if found is None:
+            return action
+        kept = np.array(action, copy=True)
+        kept[1] = found.steer
+        return kept
+
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
-        """Pure pursuit's ``[longitudinal, steering]`` towards the path planned on this step's grid."""
+        """Pure pursuit's ``[longitudinal, steering]`` towards the path planned on this step's grid
+        (with ``filter_lead_s``, its steering kept to the arcs the filter passes)."""
         pose = np.asarray(info.get("pose", np.full(6, np.nan)), dtype=np.float64)
+        mask = None
         if pose.shape == (6,) and np.all(np.isfinite(pose)):
             obstacles = _checked(obs["grid"], self.observation) > 0
             mask = self._remembered(obstacles, pose)
@@ -247,4 +319,7 @@ class GridPlannerDriver:
                     start_slope=slope,
                 )
             )
-        return self._pursuit.act(obs, info)
+        action = self._pursuit.act(obs, info)
+        if mask is not None and self.config.filter_lead_s > 0:
+            action = self._within_filter(action, mask, info)
+        return action

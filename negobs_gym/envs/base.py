@@ -466,10 +466,10 @@ class NegObsEnv(gym.Env):
             positive_obstacles_xy_m=seen.positive_cells_xy_m(),
             vehicle_width_m=cfg.width_m,
             wheelbase_m=cfg.wheelbase_m,
-            front_length_m=cfg.length_m - cfg.rear_overhang_m,
-            max_steer_rad=math.radians(cfg.max_steer_deg),
+            front_length_m=cfg.front_length_m,
+            max_steer_rad=cfg.max_steer_rad,
             dt_s=1.0 / self.scenario.episode.control_hz,
-            max_accel_mps2=cfg.max_drive_force_n / cfg.mass_kg,
+            max_accel_mps2=cfg.max_accel_mps2,
             max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
             perception_time_s=seen.stamp_s,

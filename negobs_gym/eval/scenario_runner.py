@@ -59,6 +59,8 @@ def make_driver(name: str, spec: ScenarioSpec, terrain: Terrain) -> Driver:
             lane_offset_m=spec.run.lane_offset_m,
             observation=spec.observation,
             settings=spec.run.driver_settings,
+            safety_filter=spec.filter,
+            control_period_s=1.0 / spec.episode.control_hz,
         )
     except ConfigError as exc:
         if exc.field != "driver_settings":

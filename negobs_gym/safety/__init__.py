@@ -9,6 +9,7 @@ from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.filter import BrakingSafetyFilter
 from negobs_gym.safety.memory import HazardMemory
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
+from negobs_gym.safety.steering import SteeringCheck, check_steering, nearest_clear_steering, passes_eq18
 
 __all__ = [
     "FILTER_MODES",
@@ -23,10 +24,14 @@ __all__ = [
     "HazardState",
     "SafetyDecision",
     "SafetyFilterConfig",
+    "SteeringCheck",
     "braking_distance_m",
+    "check_steering",
     "corridor_arcs_m",
     "filter_config",
     "hazard_distance_m",
     "max_safe_speed_mps",
+    "nearest_clear_steering",
     "observed_clear_distance",
+    "passes_eq18",
 ]

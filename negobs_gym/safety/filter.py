@@ -18,6 +18,7 @@ from negobs_gym.safety.coverage import ClearDistance, CoverageMemory, observed_c
 from negobs_gym.safety.decision import SafetyDecision
 from negobs_gym.safety.memory import HazardMemory
 from negobs_gym.safety.protocol import DecisionSink, HazardSource, HazardState
+from negobs_gym.safety.steering import check_steering, nearest_clear_steering, passes_eq18
 
 logger = logging.getLogger(__name__)
 
@@ -178,53 +179,13 @@ class BrakingSafetyFilter(gym.Wrapper):
             state = dataclasses.replace(state, negative_obstacles_xy_m=remembered)
         return state
 
-    def _corridor_hazard(self, state: HazardState, steer: float) -> tuple[Corridor, float, str | None]:
-        """The corridor of steering command ``steer``, the arc length to its nearest hazard (inf:
-        clear) and that hazard's channel."""
-        corridor = Corridor(
-            steer_rad=steer * state.max_steer_rad,
-            wheelbase_m=state.wheelbase_m,
-            half_width_m=0.5 * (state.vehicle_width_m + self.config.margin_m),
-            front_length_m=state.front_length_m,
-        )
-        d = corridor.hazard_distance_m(state.negative_obstacles_xy_m)
-        channel = "negative" if np.isfinite(d) else None
-        if self.config.stop_for_positive:
-            d_positive = corridor.hazard_distance_m(state.positive_obstacles_xy_m)
-            if d_positive < d:
-                d, channel = d_positive, "positive"
-        return corridor, d, channel
-
-    def _clear_steering(
-        self, state: HazardState, steer: float, longitudinal: float
-    ) -> tuple[float, Corridor, float, str | None] | None:
-        """The steering command nearest ``steer`` within ``steer_search`` whose corridor passes
-        Eq. 18 with ``longitudinal`` and ``steer_lead_s`` to spare, with its corridor, hazard
-        distance and channel (None: none does). At equal change, the longer hazard distance."""
-        step = self.config.steer_search_step
-        n = math.floor(self.config.steer_search / step + 1e-9)
-        for k in range(1, n + 1):
-            passing = []
-            for offset in (-k * step, k * step):
-                candidate = float(np.float32(steer + offset))  # the command the env will receive
-                if abs(candidate) > 1.0:
-                    continue
-                corridor, d, channel = self._corridor_hazard(state, candidate)
-                if self._is_safe(state, d, longitudinal, self.config.steer_lead_s):
-                    passing.append((candidate, corridor, d, channel))
-            if passing:
-                return max(passing, key=lambda found: found[2])
-        return None
-
     def _r(self, v: Any) -> np.ndarray:
         return braking_distance_m(v, self.config.braking)
 
     def _is_safe(self, state: HazardState, d: float, longitudinal: float, lead_s: float = 0.0) -> bool:
         """Eq. 18 after one control period (plus the release margin while holding), with
         ``lead_s`` of travel at v' more to spare."""
-        v_next = state.predicted_speed_mps(longitudinal)
-        margin = self.config.release_margin_m if self._holding else 0.0
-        return bool(d - state.travelled_m(v_next) >= self._r(v_next) + margin + v_next * lead_s)
+        return passes_eq18(state, self.config, d, longitudinal, holding=self._holding, lead_s=lead_s)
 
     def _fitting_speed(
         self, state: HazardState, d: float, margin: float, buffer_m: float | None = None
@@ -312,7 +273,8 @@ class BrakingSafetyFilter(gym.Wrapper):
             raise ActionError(f"action must be finite, got {original.tolist()}")
         state = self._hazard_state()
         steer = float(np.clip(original[1], -1.0, 1.0))
-        corridor, d, channel = self._corridor_hazard(state, steer)
+        check = check_steering(state, self.config, steer)
+        corridor, d, channel = check.corridor, check.hazard_distance_m, check.channel
         proposed = float(np.clip(original[0], -1.0, 1.0))
         age = state.perception_age_s
         stale = not age <= self.config.perception_timeout_s + self.frame_age_s
@@ -322,9 +284,18 @@ class BrakingSafetyFilter(gym.Wrapper):
         steered = False
         searching = not vetoed and self.config.steer_search > 0
         if searching and not self._is_safe(state, d, proposed, self.config.steer_lead_s):
-            found = self._clear_steering(state, steer, proposed)
+            found = nearest_clear_steering(
+                state,
+                self.config,
+                steer,
+                proposed,
+                search=self.config.steer_search,
+                lead_s=self.config.steer_lead_s,
+                holding=self._holding,
+            )
             if found is not None:
-                steer, corridor, d, channel = found
+                steer, corridor, channel = found.steer, found.corridor, found.channel
+                d = found.hazard_distance_m
                 steered, reason = True, "steered"
                 applied = original.copy()
                 applied[1] = steer  # a float32 value: the corridor was searched for this command

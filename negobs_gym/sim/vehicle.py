@@ -62,6 +62,16 @@ class VehicleConfig:
     ins_position_noise_m: float = 0.0  # INS (GPS/INS, paper N) 1-sigma position noise
     ins_angle_noise_deg: float = 0.0  # INS 1-sigma roll/pitch/yaw noise
 
+    @property
+    def front_length_m(self) -> float:
+        """Rear axle to front bumper [m]."""
+        return self.length_m - self.rear_overhang_m
+
+    @property
+    def max_accel_mps2(self) -> float:
+        """Acceleration at full throttle on the flat, the wheels' masses aside [m/s^2]."""
+        return self.max_drive_force_n / self.mass_kg
+
     def __post_init__(self) -> None:
         positive = (
             "length_m",

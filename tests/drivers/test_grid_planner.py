@@ -11,7 +11,9 @@ from negobs_gym.drivers.grid_planner import grid_bands, observed_cells
 from negobs_gym.drivers.track_planner import blocked_moves
 from negobs_gym.envs import make_env
 from negobs_gym.errors import ActionError, ConfigError
+from negobs_gym.safety import SafetyFilterConfig, braking_distance_m, hazard_distance_m
 from negobs_gym.sim.presets import braking_track
+from negobs_gym.sim.vehicle import VehicleConfig
 from negobs_gym.spec.observation import ObservationConfig
 
 OBSERVATION = ObservationConfig(channels=("negative", "positive"))  # 0.8 m cells, 36 x 16
@@ -156,3 +158,57 @@ def test_on_the_heading_lattice_it_plans_from_the_cars_heading() -> None:
     offset = GridPlannerDriver(TERRAIN, OBSERVATION)
     offset.act({"grid": _grid({}, turned)}, {"pose": turned, "speed_mps": 4.0})
     assert np.all(offset.path_m[1] == 0.0)
+
+
+def _passes_with_lead(action: np.ndarray, grid: np.ndarray, speed: float, lead_s: float) -> bool:
+    """Eq. 18 with ``lead_s`` to spare, worked out here from the corridor and R(v), on the grid's
+    negative cells, for the envs' car at the default filter and 10 Hz."""
+    car, rules = VehicleConfig(), SafetyFilterConfig()
+    points = observed_cells(OBSERVATION).centres_of(grid[OBSERVATION.channels.index("negative")] > 0)
+    d = hazard_distance_m(
+        points,
+        float(action[1]) * car.max_steer_rad,
+        car.wheelbase_m,
+        0.5 * (car.width_m + rules.margin_m),
+        car.length_m - car.rear_overhang_m,
+    )
+    accel = action[0] * (car.max_accel_mps2 if action[0] >= 0 else car.tyre_mu * 9.81)
+    v_next = max(0.0, speed + 0.1 * accel)
+    travelled = 0.05 * (speed + v_next)
+    return bool(d - travelled >= braking_distance_m(v_next) + v_next * lead_s)
+
+
+def test_with_filter_lead_s_its_steering_keeps_to_arcs_that_pass_eq18_with_the_lead() -> None:
+    rng = np.random.default_rng(7)
+    branches = {"kept": 0, "moved": 0, "left to the filter": 0}
+    for _ in range(60):
+        # a 2.4 x 1.6 m pit 5-12 m ahead in the car's frame, the car up to 23 deg off the track
+        x0, y0 = rng.uniform(-3.0, 2.0), rng.uniform(5.0, 12.0)
+        pit = {"negative": [(x, y) for x in x0 + np.arange(3) * 0.8 for y in y0 + np.arange(2) * 0.8]}
+        pose = POSE.copy()
+        pose[5] = rng.uniform(-0.4, 0.4)
+        obs, info = {"grid": _grid(pit)}, {"pose": pose, "speed_mps": float(rng.uniform(1.0, 5.0))}
+        plain = GridPlannerDriver(TERRAIN, OBSERVATION).act(obs, info)
+        within = GridPlannerDriver(TERRAIN, OBSERVATION, GridPlannerConfig(filter_lead_s=1.0)).act(obs, info)
+        assert within[0] == plain[0]  # it steers only
+        if _passes_with_lead(plain, obs["grid"], info["speed_mps"], 1.0):
+            np.testing.assert_array_equal(within, plain)
+            branches["kept"] += 1
+        elif _passes_with_lead(within, obs["grid"], info["speed_mps"], 1.0):
+            branches["moved"] += 1
+        else:  # no steering passes: its own is left to the filter
+            np.testing.assert_array_equal(within, plain)
+            assert not any(
+                _passes_with_lead(np.array([plain[0], s]), obs["grid"], info["speed_mps"], 1.0)
+                for s in np.arange(-1.0, 1.0001, 0.05)
+            )
+            branches["left to the filter"] += 1
+    assert branches["moved"] >= 3 and branches["kept"] >= 10, branches
+
+
+def test_filter_lead_s_must_be_finite_and_not_negative() -> None:
+    for bad in (-0.5, np.nan):
+        with pytest.raises(ConfigError, match="filter_lead_s"):
+            GridPlannerConfig(filter_lead_s=bad)
+    with pytest.raises(ConfigError, match="control_period_s"):
+        GridPlannerDriver(TERRAIN, OBSERVATION, control_period_s=0.0)
