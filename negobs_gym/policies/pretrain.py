@@ -49,6 +49,7 @@ from negobs_gym.errors import ConfigError, require
 from negobs_gym.policies.config import DEMONSTRATORS, STEERING, WarmStartConfig
 from negobs_gym.policies.modes import SteeringModesPolicy
 from negobs_gym.policies.threads import torch_threads
+from negobs_gym.safety import SafetyFilterConfig
 from negobs_gym.sim.types import Terrain
 from negobs_gym.spec.observation import ObservationConfig
 
@@ -201,12 +202,15 @@ def demonstrator(
     planner_horizon_m: float = 0.0,
     observation: ObservationConfig | None = None,
     settings: Mapping[str, Any] | None = None,
+    safety_filter: SafetyFilterConfig | None = None,
+    control_period_s: float = 0.1,
 ) -> Driver:
     """The scripted driver ``name`` (one of :data:`~negobs_gym.policies.config.DEMONSTRATORS`) for
     one course, with the driver's own defaults (pure pursuit on the centre line; the track planner
     sees ``planner_sight_m`` ahead, 0: the whole course; with ``planner_horizon_m`` > 0 it plans
     again at every step that far ahead; the grid planner plans on the env's grid, laid out as
-    ``observation`` says), its config then changed by ``settings``
+    ``observation`` says, and with ``filter_lead_s`` keeps to the Eq. 18 of ``safety_filter`` at
+    ``control_period_s``), its config then changed by ``settings``
     (:attr:`~negobs_gym.policies.config.WarmStartConfig.driver_settings`)."""
     if name not in DEMONSTRATORS:
         raise ConfigError("driver", f"unknown demonstrator {name!r}; expected one of {DEMONSTRATORS}")
@@ -217,6 +221,8 @@ def demonstrator(
         planner_horizon_m=planner_horizon_m,
         observation=observation,
         settings=settings,
+        safety_filter=safety_filter,
+        control_period_s=control_period_s,
     )
 
 
@@ -317,7 +323,13 @@ def _demonstrate_episode(
     # the noise draws a stream of its own: gymnasium seeds the env's np_random from course_seed
     rng = np.random.default_rng([course_seed, NOISE_STREAM])
     obs, info = env.reset(seed=course_seed)
-    driver = expert(env.unwrapped.terrain, observation=env.unwrapped.scenario.observation)
+    spec = env.unwrapped.scenario
+    driver = expert(
+        env.unwrapped.terrain,
+        observation=spec.observation,
+        safety_filter=spec.filter,
+        control_period_s=1.0 / spec.episode.control_hz,
+    )
     observations: dict[str, list[np.ndarray]] = {key: [] for key in obs}
     actions: list[np.ndarray] = []
     while len(actions) < max_steps:
