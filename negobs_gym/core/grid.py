@@ -119,14 +119,20 @@ class GridSpec:
         y = -self.back_m + (row + 0.5) * self.cell_m
         return np.stack([x, y], axis=1).astype(float)
 
-    def carry_index(self, seen_at: Pose, now: Pose) -> np.ndarray:
+    def world_centres(self, now: Pose) -> np.ndarray:
+        """World (x, y, z) of every cell centre of the grid laid at pose ``now``, on its ground
+        plane, shape (rows, cols, 3): :meth:`carry_index`'s first half, which one pose ``now``
+        shares between all the grids carried into it."""
+        ground = np.concatenate([self.cell_centres(), np.zeros((*self.shape, 1))], axis=-1)
+        return now.to_world(ground)
+
+    def carry_index(self, seen_at: Pose, now: Pose | np.ndarray) -> np.ndarray:
         """(rows, cols) flat index, into a grid laid at pose ``seen_at``, of the cell under each
         cell centre of the grid at pose ``now`` (-1 where it falls outside): moves a layer seen
-        at ``seen_at`` into the grid at ``now`` (ego-motion, nearest cell; :func:`carry_layer`)."""
-        centres = self.cell_centres()
-        ground = np.concatenate([centres, np.zeros((*self.shape, 1))], axis=-1)
-        earlier = seen_at.to_vehicle(now.to_world(ground))[..., :2]
-        row, col, inside = self.cell_of(earlier)
+        at ``seen_at`` into the grid at ``now`` (ego-motion, nearest cell; :func:`carry_layer`).
+        ``now`` may be given as its :meth:`world_centres`, to carry many grids into one pose."""
+        world = self.world_centres(now) if isinstance(now, Pose) else now
+        row, col, inside = self.cell_of(seen_at.to_vehicle(world)[..., :2])
         return np.where(inside, row * self.cols + col, -1)
 
 

@@ -248,8 +248,9 @@ class GridPlannerDriver:
         now = Pose(x=pose[0], y=pose[1], yaw=pose[5])
         cells = observed_cells(self.observation)
         merged = mask
+        world = cells.world_centres(now)
         for seen_at, earlier in self._memory:
-            index = cells.carry_index(seen_at, now)
+            index = cells.carry_index(seen_at, world)
             merged = merged | np.stack([carry_layer(layer, index) for layer in earlier])
         self._memory = [*self._memory, (now, mask)][-steps:]
         return merged

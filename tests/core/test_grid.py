@@ -124,6 +124,12 @@ def test_carry_index_moves_a_layer_by_the_vehicles_motion():
     assert np.argwhere(moved).tolist() == [[12, 2]]
     assert not moved[-3:].any()  # the rows ahead that the earlier grid did not cover
     np.testing.assert_array_equal(carry_layer(layer, grid.carry_index(seen_at, seen_at)), layer)
+    # the pose given as its cell centres in the world (shared by many grids carried into it)
+    tilted = Pose(x=5.3, y=-1.1, z=0.2, roll=0.03, pitch=-0.02, yaw=0.4)
+    for into in (now, tilted):
+        np.testing.assert_array_equal(
+            grid.carry_index(seen_at, grid.world_centres(into)), grid.carry_index(seen_at, into)
+        )
 
 
 def test_carry_follows_a_turn_and_agrees_with_carried_points():
