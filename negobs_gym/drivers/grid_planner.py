@@ -47,7 +47,10 @@ class GridPlannerConfig:
     ``planner.plan_horizon_m`` must be > 0: the path is planned again at every step. The
     planner's ``wheel_clearance_m`` is 0 here: the detector's pit outlines are up to a cell wider
     than the pits, and OffroadNav-v2's gaps leave the 2 m car 0.1-0.5 m of slack, so the ground-truth
-    planner's 0.4 m would close them (4/10 goals at 0.1 m, 8/10 at 0).
+    planner's 0.4 m would close them (4/10 goals at 0.1 m, 8/10 at 0). Behind the filter its best
+    configuration also sets ``planner.bend_steps = 1`` and ``filter_lead_s = 1.0`` (docs/training.md,
+    "Keeping to the filter's arcs"); both stay 0 here so that the figures measured at the
+    defaults stand.
     """
 
     planner: TrackPlannerConfig = field(
