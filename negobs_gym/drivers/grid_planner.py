@@ -260,7 +260,7 @@ class GridPlannerDriver:
 
     def _hazard_state(self, mask: np.ndarray, speed_mps: float) -> HazardState:
         """What the filter would know, read from the obstacle ``mask`` (channels, rows, cols)."""
-        cells, channels, car = observed_cells(self.observation), self.observation.channels, self.vehicle
+        cells, channels = observed_cells(self.observation), self.observation.channels
 
         def points(name: str) -> np.ndarray:
             return cells.centres_of(mask[channels.index(name)]) if name in channels else np.empty((0, 2))
@@ -269,13 +269,8 @@ class GridPlannerDriver:
             speed_mps=max(0.0, speed_mps),
             negative_obstacles_xy_m=points("negative"),
             positive_obstacles_xy_m=points("positive"),
-            vehicle_width_m=car.width_m,
-            wheelbase_m=car.wheelbase_m,
-            front_length_m=car.front_length_m,
-            max_steer_rad=car.max_steer_rad,
+            **self.vehicle.hazard_geometry(BrakingConfig().g_mps2),  # as the env reports it
             dt_s=self.control_period_s,
-            max_accel_mps2=car.max_accel_mps2,
-            max_brake_decel_mps2=car.tyre_mu * BrakingConfig().g_mps2,  # locked wheels, as the env's
             time_s=0.0,
             perception_time_s=0.0,
         )

@@ -464,13 +464,8 @@ class NegObsEnv(gym.Env):
             speed_mps=max(0.0, self._vehicle.speed_mps()),
             negative_obstacles_xy_m=seen.negative_cells_xy_m(),
             positive_obstacles_xy_m=seen.positive_cells_xy_m(),
-            vehicle_width_m=cfg.width_m,
-            wheelbase_m=cfg.wheelbase_m,
-            front_length_m=cfg.front_length_m,
-            max_steer_rad=cfg.max_steer_rad,
+            **cfg.hazard_geometry(BrakingConfig().g_mps2),
             dt_s=1.0 / self.scenario.episode.control_hz,
-            max_accel_mps2=cfg.max_accel_mps2,
-            max_brake_decel_mps2=cfg.tyre_mu * BrakingConfig().g_mps2,  # locked wheels: mu g (Eq. 18)
             time_s=self._world.sim_time_s,
             perception_time_s=seen.stamp_s,
             observed=seen.observed,  # coverage, for the governed filter

@@ -72,6 +72,19 @@ class VehicleConfig:
         """Acceleration at full throttle on the flat, the wheels' masses aside [m/s^2]."""
         return self.max_drive_force_n / self.mass_kg
 
+    def hazard_geometry(self, g_mps2: float) -> dict[str, float]:
+        """The car's fields of the safety filter's ``HazardState`` (width, wheelbase, front
+        length, full lock, full throttle, and locked wheels' deceleration mu g under gravity
+        ``g_mps2``, Eq. 18): what the env reports and a driver asking Eq. 18 itself assumes."""
+        return {
+            "vehicle_width_m": self.width_m,
+            "wheelbase_m": self.wheelbase_m,
+            "front_length_m": self.front_length_m,
+            "max_steer_rad": self.max_steer_rad,
+            "max_accel_mps2": self.max_accel_mps2,
+            "max_brake_decel_mps2": self.tyre_mu * g_mps2,
+        }
+
     def __post_init__(self) -> None:
         positive = (
             "length_m",
