@@ -497,9 +497,15 @@ def clutter_distance_m(
 ) -> np.ndarray:
     """Distance of world points (N, 2) from the nearest footprint of ``obstacles`` [m] (0 inside
     one); ``inf`` farther than ``reach_m`` from all."""
+    return outline_distance_m(world_xy, [o.footprint_xy_m for o in obstacles], reach_m)
+
+
+def outline_distance_m(world_xy: np.ndarray, outlines: Sequence[Any], reach_m: float) -> np.ndarray:
+    """Distance of world points (N, 2) from the nearest of the polygons ``outlines`` [m] (0 inside
+    one); ``inf`` farther than ``reach_m`` from all."""
     out = np.full(len(world_xy), np.inf)
-    for obstacle in obstacles:
-        poly = np.asarray(obstacle.footprint_xy_m, dtype=np.float64)
+    for outline in outlines:
+        poly = np.asarray(outline, dtype=np.float64)
         lo, hi = poly.min(axis=0) - reach_m, poly.max(axis=0) + reach_m
         near = np.flatnonzero(np.all((world_xy >= lo) & (world_xy <= hi), axis=1))
         if near.size == 0:
@@ -741,8 +747,7 @@ class PemGrid:
         self._fa_density = density
         self._blobs = np.asarray(p.fa_blobs, dtype=np.float64).reshape(-1, 6)
         centres = grid.cell_centres()
-        self._range = np.hypot(centres[..., 0], centres[..., 1])
-        self._bearing = np.arctan2(centres[..., 0], centres[..., 1])
+        self._centres = centres  # vehicle frame (rows, cols, 2)
         b = _BLOCK_CELLS
         rows, cols = grid.rows // b * b, grid.cols // b * b
         blocks = centres[:rows, :cols].reshape(rows // b, b, cols // b, b, 2).mean(axis=(1, 3))
@@ -762,6 +767,7 @@ class PemGrid:
         self._latency_at = np.zeros(n)  # ... or latency (first seen within reach) ...
         self._lost_at = np.zeros(n)  # ... and loss distance, drawn at its first sighting
         self._near_first = np.zeros(n, dtype=bool)  # first seen within ``approach_m``
+        self._view_xy = np.full((n, 2), np.nan)  # the world point each was first drawn from
         self._fa_xy = np.zeros((0, 2))  # world centres of the live false alarms
         self._fa_blob = np.zeros(0, dtype=np.int64)  # the library blob each copies
         self._fa_class = np.zeros(0, dtype=np.int64)  # the terrain class each was born on
@@ -790,7 +796,9 @@ class PemGrid:
                 drawn = bool(self._rng.random() < self._chain[self._state[k] - 1, s, d])
             self._state[k] = DRAWN if drawn else (NEVER if self._state[k] == NEVER else LOST)
             if drawn:
-                self._draw_pit(layer, mask, rows, cols, s, d)
+                if np.isnan(self._view_xy[k, 0]):
+                    self._view_xy[k] = (pose.x, pose.y)
+                self._draw_pit(layer, mask, rows, cols, s, d, pose, self._view_xy[k])
         self._false_alarms(layer, pose, truths)
         return layer
 
@@ -824,17 +832,35 @@ class PemGrid:
         return value
 
     def _draw_pit(
-        self, layer: np.ndarray, mask: np.ndarray, rows: slice, cols: slice, s: int, d: int
+        self,
+        layer: np.ndarray,
+        mask: np.ndarray,
+        rows: slice,
+        cols: slice,
+        s: int,
+        d: int,
+        pose: Pose,
+        view_xy: np.ndarray,
     ) -> None:
         """The drawn cells of a pit: its rim's cells (grown where the far offset says) in its bearing
-        span, between its near edge + the near offset and its far edge + the far offset."""
+        span, between its near edge + the near offset and its far edge + the far offset.
+
+        Range and bearing are measured from ``view_xy``, the world point the pit was first drawn
+        from, not from where the car is now: the detector's fusion keeps a pit's cells in the
+        world, so its outline errors lie along the view it was found from. From the car's place,
+        a pit beside it would grow sideways towards the car by the near offset (the PEM drew the
+        inner edge of pits beside the car 0.26 m nearer than the rim on average, the detector
+        0.08 m; docs/notebook/pem.md, "Close passes")."""
         near, far = self._quantile(self._near[s, d]), self._quantile(self._far[s, d])
         grow = min(_MAX_GROW_CELLS, math.ceil(max(0.0, -near, far) / self.grid.cell_m))
         r0, r1 = max(rows.start - grow, 0), min(rows.stop + grow, self.grid.rows)
         c0, c1 = max(cols.start - grow, 0), min(cols.stop + grow, self.grid.cols)
         truth = np.zeros((r1 - r0, c1 - c0), dtype=bool)
         truth[rows.start - r0 : rows.stop - r0, cols.start - c0 : cols.stop - c0] = mask
-        rng_m, bearing = self._range[r0:r1, c0:c1], self._bearing[r0:r1, c0:c1]
+        window = self._centres[r0:r1, c0:c1]
+        rel_xy = _vehicle_to_world(window.reshape(-1, 2), pose).reshape(window.shape) - view_xy
+        rng_m = np.hypot(rel_xy[..., 0], rel_xy[..., 1])
+        bearing = np.arctan2(rel_xy[..., 0], rel_xy[..., 1])
         centre_bearing = float(np.arctan2(np.sin(bearing[truth]).mean(), np.cos(bearing[truth]).mean()))
         rel = np.angle(np.exp(1j * (bearing - centre_bearing)))
         slack = 0.5 * self.grid.cell_m / np.maximum(rng_m, self.grid.cell_m)

@@ -256,6 +256,7 @@ def fit_parameters(
     confirm_by_size: bool = False,
     loss_by_distance: bool = False,
     match_cells: int = 0,
+    fragment_m: float = 0.0,
 ) -> PemParameters:
     """The PEM's tables from the detector rows of a drive (:mod:`negobs_gym.eval.pem_data`).
 
@@ -267,13 +268,20 @@ def fit_parameters(
     ``loss_by_distance``: loss distances per size bin (as the first confirmations), and the chain
     fitted up to each obstacle's last drawing on its approach: the LUX loses an obstacle for good
     where its layers pass over it. ``match_cells``: the judge's (the fit's rows counted a blob
-    within that many cells of an obstacle as drawing it).
+    within that many cells of an obstacle as drawing it). ``fragment_m`` > 0: the spurious blobs
+    whose centre lies within that distance of a pit's rim (``pit_m``) are fragments of the pit's
+    drawing and stay out of the false-alarm tables (:attr:`PemCampaignConfig.pit_fragment_m`).
 
     Raises:
-        ConfigError: the rows hold no frame of the detector.
+        ConfigError: the rows hold no frame of the detector, or ``fragment_m`` > 0 and the rows
+            predate ``pit_m`` (drive them again).
     """
     sightings = [r for r in read_csv(sightings_csv) if r["mode"] == "detector"]
     spurious = [r for r in read_csv(spurious_csv) if r["mode"] == "detector"]
+    if fragment_m > 0 and spurious:
+        if "pit_m" not in spurious[0]:
+            raise ConfigError("spurious", f"{spurious_csv} has no pit_m column: drive the courses again")
+        spurious = [r for r in spurious if r["pit_m"] == "" or float(r["pit_m"]) > fragment_m]
     frames = [r for r in read_csv(frames_csv) if r["mode"] == "detector"]
     if not frames:
         raise ConfigError("frames", f"{frames_csv} holds no detector frame to fit on")
@@ -445,6 +453,7 @@ def fit_pem(
             confirm_by_size=channel == "positive",
             loss_by_distance=channel == "positive",
             match_cells=config.positive_match_cells if channel == "positive" else 0,
+            fragment_m=config.pit_fragment_m if channel == "negative" else 0.0,
         )
         for channel, tables in CHANNEL_TABLES.items()
     }
@@ -460,6 +469,7 @@ def fit_pem(
             "frames": frames,
             "track_obstacles_per_100m": config.track_obstacles_per_100m,
             "positive_match_cells": config.positive_match_cells,
+            "pit_fragment_m": config.pit_fragment_m,
         },
     )
     # the PEM's drives join the detector's in work_dir (keyed by the model), so a pass resumes too

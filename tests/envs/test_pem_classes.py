@@ -16,6 +16,7 @@ from negobs_gym.envs.pem import (
     centreline_tree,
     clutter_distance_m,
     ground_relief_m,
+    outline_distance_m,
     terrain_classes,
 )
 from negobs_gym.sim.carving import PositiveObstacleSpec
@@ -84,6 +85,17 @@ def test_classes_follow_the_track_the_border_kinds_and_the_clutter(terrain):
     assert raster.at(outside).tolist() == [TERRAIN_CLASSES.index("smooth")] * 3
     corner = np.array([[x0 + 1e-9, y0 + 1e-9], [x0 + (nx - 1e-6) * raster.resolution_m, y0]])
     assert raster.at(corner).tolist() == [raster.classes[0, 0], raster.classes[0, -1]]
+
+
+def test_outline_distance_is_zero_inside_the_edge_distance_beside_and_inf_beyond_reach():
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
+    far_square = square + 10.0
+    points = np.array([[1.0, 0.5], [2.5, 0.5], [1.0, -0.3], [3.0, 2.0], [5.0, 0.5]])
+    d = outline_distance_m(points, [square, far_square], 2.0)
+    assert d[:3] == pytest.approx([0.0, 0.5, 0.3])
+    assert d[3] == pytest.approx(np.hypot(1.0, 1.0))
+    assert d[4] == np.inf  # 3 m from the nearest edge, beyond the 2 m reach
+    assert outline_distance_m(points, [], 2.0).tolist() == [np.inf] * 5
 
 
 def test_false_alarms_of_the_clutter_class_are_born_near_the_clutter(terrain):
@@ -299,7 +311,47 @@ def _near_edge_offset_m(parameters) -> float:
     )
     pem = PemGrid(model, grid, terrain, np.random.default_rng(0))
     layer = pem.layer(pose)
-    return float(pem._range[layer].min() - pem._range[truth].min())
+    range_m = np.hypot(*grid.cell_centres().transpose(2, 0, 1))
+    return float(range_m[layer].min() - range_m[truth].min())
+
+
+def test_a_pit_beside_the_car_keeps_the_outline_it_was_drawn_with_from_afar():
+    """Edge offsets lie along the view a pit was first drawn from (the detector's fusion keeps its
+    cells in the world): a 1 m pit 2 m right of the path, near offset -0.4 m, is drawn 0.4 m long
+    in front from 12 m out, and beside the car its inner side stays on the rim, where an offset
+    measured from the car's place would move it 0.4 m towards the car."""
+    from negobs_gym.envs.pem import PerceptionErrorModel, channel_outlines, pem_settings, rasterise_outlines
+    from negobs_gym.sim.carving import NegativeObstacleSpec
+
+    pit = NegativeObstacleSpec(
+        kind="pit", length_m=1.0, width_m=1.0, depth_m=0.5, station_m=16.0, lateral_m=2.0
+    )
+    terrain = generate_terrain(TerrainConfig(length_m=40.0, negative_obstacles=(pit,)), 0)
+    grid = ObservationConfig().grid
+    model = PerceptionErrorModel(
+        parameters=constant_parameters(1.0, near=-0.4),
+        fitted_on=pem_settings(ObservationConfig(), ("negative",)),
+    )
+    pem = PemGrid(model, grid, terrain, np.random.default_rng(0))
+    x, y = grid.cell_centres().transpose(2, 0, 1)
+    outlines = channel_outlines(terrain, "negative")
+    seen = []
+    for station in np.arange(4.0, 15.01, 0.5):  # from 12 m before the pit to beside the car's front
+        xy, yaw = terrain.track.pose_at(np.array(station), np.array(0.0))
+        pose = Pose(float(xy[0]), float(xy[1]), 0.0, 0.0, 0.0, float(yaw))
+        (_, mask, rows, cols), *_ = rasterise_outlines(
+            outlines, pose, grid, np.array([[-1e9, -1e9, 1e9, 1e9]])
+        )
+        truth = np.zeros(grid.shape, dtype=bool)
+        truth[rows, cols] = mask
+        seen.append((pem.layer(pose), truth))
+    far_layer, far_truth = seen[0]
+    assert y[far_layer].min() - y[far_truth].min() == pytest.approx(-0.4, abs=0.11)  # longer in front
+    far_inner = np.abs(x[far_layer]).min()  # a cell beside the rim: the span's slack
+    assert far_inner - np.abs(x[far_truth]).min() == pytest.approx(-grid.cell_m)
+    for layer, _ in seen:
+        assert np.abs(x[layer]).min() == far_inner  # not 0.4 m nearer the car as it comes alongside
+    assert y[seen[-1][1]].min() < 1.0  # the last pose: the pit lies beside the car's front
 
 
 def test_a_drawn_near_edge_is_the_cell_range_nearest_the_drawn_offset():

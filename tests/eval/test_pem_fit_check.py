@@ -56,7 +56,9 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     ]
     frames = [_frame("detector", f, area=100.0) for f in range(200)]
     spurious = [
-        format_row(["seed0", 0, f, "detector", "verge", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0, "", 0.0, 9.0])
+        format_row(
+            ["seed0", 0, f, "detector", "verge", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0, "", "", 0.0, 9.0]
+        )
         for f in range(200)
     ]
     params = _fit(tmp_path, sightings, spurious, frames)
@@ -71,6 +73,38 @@ def test_fit_reads_the_chain_confirmations_offsets_and_false_alarm_rates(tmp_pat
     assert params.fa_density_per_m2[0][4] == 0.0
     assert params.fa_keep[1][4] == pytest.approx(0.75, abs=0.02)  # kept 3 frames in 4 at 8-10 m
     assert params.fa_blobs[0] == (1.0, 4.0, 0.3, 3.0, 2.0, 6.0)
+
+
+def test_blobs_beside_a_pits_rim_are_its_fragments_not_false_alarms(tmp_path):
+    """With ``fragment_m``, a blob touching no pit but centred within that distance of a rim is
+    left out of the false-alarm tables (density, persistence and the blob library); without it,
+    or farther out, it is a false alarm. Rows without ``pit_m`` are refused, naming it."""
+    frames = [_frame("detector", f, area=100.0) for f in range(200)]
+
+    def blob(f, pit_m):  # the verge class at 8-10 m, kept 3 frames in 4
+        return format_row(
+            ["seed0", 0, f, "detector", "verge", 0.3, 9.0, 6, 3, 2, True, f % 4 != 0, "", pit_m, 0.0, 9.0]
+        )
+
+    spurious = [blob(f, 0.4 if f % 2 else "") for f in range(200)]  # every other one a fragment
+    sightings = [_sighting("detector", 0, 0, 10.0, True)]
+    every = _fit(tmp_path, sightings, spurious, frames)
+    paths = [
+        _write(tmp_path / n, h, r)
+        for n, h, r in (("s.csv", SIGHTING_COLUMNS, sightings), ("sp.csv", SPURIOUS_COLUMNS, spurious),
+                        ("f.csv", FRAME_COLUMNS, frames))
+    ]  # fmt: skip
+    cut = fit_parameters(*paths, 1.0, 2.0, 0.2, fragment_m=1.0)
+    assert every.fa_density_per_m2[1][4] == pytest.approx(0.01, rel=0.01)
+    assert cut.fa_density_per_m2[1][4] == pytest.approx(0.005, rel=0.02)  # the 100 beyond 1 m of a pit
+    assert len(cut.fa_blobs) == 100 and len(every.fa_blobs) == 200
+    assert fit_parameters(*paths, 1.0, 2.0, 0.2, fragment_m=0.3).fa_blobs == every.fa_blobs  # 0.4 m out
+    old = [",".join(r.split(",")[:13] + r.split(",")[14:]) for r in spurious]  # no pit_m column
+    header = [c for c in SPURIOUS_COLUMNS if c != "pit_m"]
+    with pytest.raises(ConfigError, match="pit_m"):
+        fit_parameters(
+            paths[0], _write(tmp_path / "old.csv", header, old), paths[2], 1.0, 2.0, 0.2, fragment_m=1.0
+        )
 
 
 def test_edge_offsets_are_fitted_per_size_and_thin_bins_borrow_their_sizes(tmp_path):
@@ -134,13 +168,30 @@ def test_false_alarm_rates_are_fitted_per_terrain_class_and_unseen_classes_borro
         if f % 5 == 0:
             spurious.append(
                 format_row(
-                    ["seed0", 0, f, "detector", "smooth", 3.0, 9.0, 4, 2, 2, False, False, "", 6.0, 9.0]
+                    ["seed0", 0, f, "detector", "smooth", 3.0, 9.0, 4, 2, 2, False, False, "", "", 6.0, 9.0]
                 )
             )
         if f % 5 == 1:
             spurious.append(
                 format_row(
-                    ["seed0", 0, f, "detector", "clutter", 1.2, 9.0, 6, 3, 2, False, f > 100, 0.7, 4.2, 9.0]
+                    [
+                        "seed0",
+                        0,
+                        f,
+                        "detector",
+                        "clutter",
+                        1.2,
+                        9.0,
+                        6,
+                        3,
+                        2,
+                        False,
+                        f > 100,
+                        0.7,
+                        "",
+                        4.2,
+                        9.0,
+                    ]
                 )
             )
     sightings = [_sighting("detector", 0, 0, 10.0, True)]
@@ -328,7 +379,7 @@ def test_no_more_false_alarms_are_kept_into_a_bin_than_its_rate_holds(tmp_path):
     alarms end at ~8 m), while the 8-10 m bin keeps them."""
     frames = [_frame("detector", f, area=100.0) for f in range(200)]
     spurious = [
-        format_row(["seed0", 0, f, "detector", "verge", 0.3, 8.5, 6, 3, 2, False, True, "", 0.0, 8.5])
+        format_row(["seed0", 0, f, "detector", "verge", 0.3, 8.5, 6, 3, 2, False, True, "", "", 0.0, 8.5])
         for f in range(200)
     ]
     sightings = [_sighting("detector", f, 0, 24.0 - 0.5 * f, f > 4) for f in range(20)]
