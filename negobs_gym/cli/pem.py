@@ -83,6 +83,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="then drive the same courses with the PEM this many times, each time scaling its "
         "recall per 2 m bin to the detector's there (0: the tables alone; default: %(default)s)",
     )
+    fit.add_argument(
+        "--false-alarms-into",
+        metavar="BASE",
+        default=None,
+        help="write BASE (a PEM file of the same settings) with only its false-alarm tables "
+        "replaced by this fit's, its other tables and calibration kept (implies --calibrate 0)",
+    )
     _campaign_options(fit, seeds=8, frames=400, first_seed=0)
     fit.set_defaults(handler=run_fit)
     check = commands.add_parser(
@@ -177,6 +184,7 @@ def _config(args: argparse.Namespace):
 
 def run_fit(args: argparse.Namespace) -> int:
     """Fit and write the PEM; logs where it is."""
+    from negobs_gym.envs.pem import load_pem
     from negobs_gym.eval.pem_fit import fit_pem
 
     config, options = _config(args)
@@ -187,7 +195,11 @@ def run_fit(args: argparse.Namespace) -> int:
         config.frames,
         args.model,
     )
-    model = fit_pem(config, args.model, args.work, options, calibration_passes=args.calibrate)
+    base = None
+    if args.false_alarms_into is not None:
+        base = load_pem(args.false_alarms_into, config.observation)
+    passes = 0 if base is not None else args.calibrate
+    model = fit_pem(config, args.model, args.work, options, calibration_passes=passes, false_alarms_into=base)
     sightings = sum(map(sum, model.parameters.sightings))
     print(f"pem_model={args.model}")
     print(f"fit_frames={model.fit['frames']}")

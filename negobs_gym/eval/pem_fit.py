@@ -420,20 +420,68 @@ def calibrate(parameters: PemParameters, by_bin: np.ndarray) -> PemParameters:
     )
 
 
+#: The tables of a channel that describe its false alarms (and the terrain classes they are per).
+FALSE_ALARM_FIELDS: tuple[str, ...] = (
+    "fa_density_per_m2",
+    "fa_keep",
+    "fa_area_m2",
+    "fa_blobs",
+    "border_band_m",
+    "clutter_band_m",
+    "rough_relief_m",
+)
+
+
+def with_false_alarms(base: PerceptionErrorModel, fitted: PerceptionErrorModel) -> PerceptionErrorModel:
+    """``base`` with the false-alarm tables (:data:`FALSE_ALARM_FIELDS`) of ``fitted`` in each
+    channel both model; everything else, and its calibration, stays ``base``'s. Its ``fit`` record
+    gains ``false_alarms``, the courses the new tables were fitted on.
+
+    Raises:
+        ConfigError: the two were fitted on other detector settings, or on other channels.
+    """
+    if base.fitted_on != fitted.fitted_on or base.channels != fitted.channels:
+        differ = sorted(k for k in set(base.fitted_on) | set(fitted.fitted_on)
+                        if base.fitted_on.get(k) != fitted.fitted_on.get(k))  # fmt: skip
+        raise ConfigError(
+            "false_alarms_into",
+            "the base model was fitted on other settings or channels: "
+            + (", ".join(differ[:6]) or f"{base.channels} vs {fitted.channels}"),
+        )
+
+    def merged(channel: str) -> PemParameters:
+        new = fitted.channel_parameters(channel)
+        return dataclasses.replace(
+            base.channel_parameters(channel), **{f: getattr(new, f) for f in FALSE_ALARM_FIELDS}
+        )
+
+    positive = merged("positive") if "positive" in base.channels else None
+    return dataclasses.replace(
+        base,
+        parameters=merged("negative"),
+        positive=positive,
+        fit={**base.fit, "false_alarms": {k: v for k, v in fitted.fit.items() if k != "calibration_passes"}},
+    )
+
+
 def fit_pem(
     config: PemCampaignConfig,
     model_path: str | Path,
     work_dir: str | Path,
     options: RunOptions | None = None,
     calibration_passes: int = 1,
+    false_alarms_into: PerceptionErrorModel | None = None,
 ) -> PerceptionErrorModel:
     """Drive ``config``'s courses through the detector grid (rows kept in ``work_dir``, resumable),
     fit the PEM of both channels, calibrate it ``calibration_passes`` times on the same courses
     (module docstring; each pass drives them with the PEM, resumable too) and write it to
-    ``model_path`` atomically.
+    ``model_path`` atomically. With ``false_alarms_into``, write that model with only its
+    false-alarm tables replaced by this fit's (:func:`with_false_alarms`; no calibration: the
+    false alarms do not enter it).
 
     Raises:
-        ConfigError: ``calibration_passes`` is not a whole number >= 0.
+        ConfigError: ``calibration_passes`` is not a whole number >= 0, or > 0 beside
+            ``false_alarms_into``; a base model of other settings.
     """
     if (
         isinstance(calibration_passes, bool)
@@ -441,6 +489,8 @@ def fit_pem(
         or calibration_passes < 0
     ):
         raise ConfigError("calibration_passes", f"must be a whole number >= 0, got {calibration_passes!r}")
+    if false_alarms_into is not None and calibration_passes:
+        raise ConfigError("calibration_passes", "must be 0 with false_alarms_into (the base keeps its chain)")
     csvs = run_pem_campaign(config, work_dir, None, options, "PEM fit courses")
     parameters = {
         channel: fit_parameters(
@@ -472,6 +522,8 @@ def fit_pem(
             "pit_fragment_m": config.pit_fragment_m,
         },
     )
+    if false_alarms_into is not None:
+        model = with_false_alarms(false_alarms_into, model)
     # the PEM's drives join the detector's in work_dir (keyed by the model), so a pass resumes too
     again = dataclasses.replace(options or RunOptions(), resume=True)
     for k in range(calibration_passes):

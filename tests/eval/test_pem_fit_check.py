@@ -357,6 +357,41 @@ def test_a_calibrated_fit_drives_its_own_courses_with_the_pem_and_records_the_pa
     assert load_pem(tmp_path / "pem.json", ObservationConfig()) == model
 
 
+ONE_BLOB = (0.0, 0.0, 0.5, 1.0, 1.0, 1.0)  # class, distance bin, edge_m, rows, cols, cells
+
+
+def test_a_fit_into_a_base_model_replaces_only_its_false_alarm_tables(tmp_path, capsys):
+    """``--false-alarms-into BASE``: BASE's chain, offsets and calibration stay; the false-alarm
+    tables of both channels are the fit's; the record names both fits; other settings are refused."""
+    fit = PemCampaignConfig(seeds=1, frames=6)
+    work = tmp_path / "fit"
+    plain = fit_pem(fit, tmp_path / "plain.json", work, calibration_passes=0)
+    assert plain.parameters.fa_blobs != (ONE_BLOB,)
+    base = dataclasses.replace(
+        plain,
+        parameters=dataclasses.replace(plain.parameters, fa_blobs=(ONE_BLOB,), p_keep=((0.5,) * 14,) * 6),
+        positive=dataclasses.replace(plain.positive, fa_blobs=(ONE_BLOB,)),
+        fit={**plain.fit, "calibration_passes": 3},
+    )
+    base_path = base.save(tmp_path / "base.json")
+    code = main(
+        ["pem", "fit", "--model", str(tmp_path / "merged.json"), "--work", str(work), "--seeds", "1",
+         "--frames", "6", "--false-alarms-into", str(base_path), "--resume", "--no-progress"]
+    )  # fmt: skip
+    assert code == 0 and "calibration_passes=3" in capsys.readouterr().out
+    merged = load_pem(tmp_path / "merged.json", ObservationConfig())
+    for channel in ("negative", "positive"):
+        got, want = merged.channel_parameters(channel), plain.channel_parameters(channel)
+        assert got.fa_blobs == want.fa_blobs and got.fa_density_per_m2 == want.fa_density_per_m2
+        assert got.p_keep == base.channel_parameters(channel).p_keep
+    assert merged.fit["calibration_passes"] == 3 and merged.fit["false_alarms"]["frames"] == 6
+    other = dataclasses.replace(base, fitted_on={**base.fitted_on, "observation.scan_every": 2})
+    with pytest.raises(ConfigError, match="scan_every"):
+        fit_pem(fit, tmp_path / "x.json", work, RunOptions(resume=True, progress=False), 0, other)
+    with pytest.raises(ConfigError, match="calibration_passes"):
+        fit_pem(fit, tmp_path / "x.json", work, RunOptions(resume=True, progress=False), 1, base)
+
+
 def test_the_courses_put_rocks_and_boxes_on_the_track_clear_of_the_pits():
     from negobs_gym.eval.detection_campaign import detection_course_obstacles
 
