@@ -767,7 +767,9 @@ class PemGrid:
         self._latency_at = np.zeros(n)  # ... or latency (first seen within reach) ...
         self._lost_at = np.zeros(n)  # ... and loss distance, drawn at its first sighting
         self._near_first = np.zeros(n, dtype=bool)  # first seen within ``approach_m``
-        self._view_xy = np.full((n, 2), np.nan)  # the world point each was first drawn from
+        # the world point each pit was first drawn from (paper N's fusion keeps a pit's cells in
+        # the world); the positive channel's obstacles are drawn from where the car is
+        self._view_xy = np.full((n, 2), np.nan)
         self._fa_xy = np.zeros((0, 2))  # world centres of the live false alarms
         self._fa_blob = np.zeros(0, dtype=np.int64)  # the library blob each copies
         self._fa_class = np.zeros(0, dtype=np.int64)  # the terrain class each was born on
@@ -777,6 +779,7 @@ class PemGrid:
         """This frame's layer of the channel (rows, cols) bool around the true ``pose``."""
         layer = np.zeros(self.grid.shape, dtype=bool)
         truths = rasterise_outlines(self._outlines, pose, self.grid, self._boxes)
+        channel_is_positive = self.channel == "positive"
         for k, mask, rows, cols in truths:
             cells = int(mask.sum())
             centre = pit_centre_distance_m(self.grid, mask, rows, cols)
@@ -796,7 +799,7 @@ class PemGrid:
                 drawn = bool(self._rng.random() < self._chain[self._state[k] - 1, s, d])
             self._state[k] = DRAWN if drawn else (NEVER if self._state[k] == NEVER else LOST)
             if drawn:
-                if np.isnan(self._view_xy[k, 0]):
+                if np.isnan(self._view_xy[k, 0]) or channel_is_positive:
                     self._view_xy[k] = (pose.x, pose.y)
                 self._draw_pit(layer, mask, rows, cols, s, d, pose, self._view_xy[k])
         self._false_alarms(layer, pose, truths)
@@ -845,9 +848,10 @@ class PemGrid:
         """The drawn cells of a pit: its rim's cells (grown where the far offset says) in its bearing
         span, between its near edge + the near offset and its far edge + the far offset.
 
-        Range and bearing are measured from ``view_xy``, the world point the pit was first drawn
-        from, not from where the car is now: the detector's fusion keeps a pit's cells in the
-        world, so its outline errors lie along the view it was found from. From the car's place,
+        Range and bearing are measured from ``view_xy``: for a pit the world point it was first
+        drawn from, not where the car is now (paper N's fusion keeps a pit's cells in the world,
+        so its outline errors lie along the view it was found from); for the ``positive``
+        channel's obstacles the car's place, as paper T's LUX draws the face it sees. From the car's place,
         a pit beside it would grow sideways towards the car by the near offset (the PEM drew the
         inner edge of pits beside the car 0.26 m nearer than the rim on average, the detector
         0.08 m; docs/notebook/pem.md, "Close passes")."""
