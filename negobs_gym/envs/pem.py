@@ -851,10 +851,10 @@ class PemGrid:
         Range and bearing are measured from ``view_xy``: for a pit the world point it was first
         drawn from, not where the car is now (paper N's fusion keeps a pit's cells in the world,
         so its outline errors lie along the view it was found from); for the ``positive``
-        channel's obstacles the car's place, as paper T's LUX draws the face it sees. From the car's place,
-        a pit beside it would grow sideways towards the car by the near offset (the PEM drew the
-        inner edge of pits beside the car 0.26 m nearer than the rim on average, the detector
-        0.08 m; docs/notebook/pem.md, "Close passes")."""
+        channel's obstacles the car's place, as paper T's LUX draws the face it sees. Measured
+        from the car's place, a pit beside it grew sideways towards the car by the near offset
+        (its inner side 0.26 m nearer than the rim on average, the detector's 0.08 m;
+        docs/notebook/pem.md, "Close passes on OffroadNav-v2")."""
         near, far = self._quantile(self._near[s, d]), self._quantile(self._far[s, d])
         grow = min(_MAX_GROW_CELLS, math.ceil(max(0.0, -near, far) / self.grid.cell_m))
         r0, r1 = max(rows.start - grow, 0), min(rows.stop + grow, self.grid.rows)

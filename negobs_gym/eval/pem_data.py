@@ -225,6 +225,11 @@ class PemCampaignConfig:
         require(
             math.isfinite(self.path_offset_m), "path_offset_m", f"must be finite, got {self.path_offset_m!r}"
         )
+        require(
+            self.pit_fragment_m <= PIT_REACH_M,
+            "pit_fragment_m",
+            f"must be <= {PIT_REACH_M} m (how far the rows record pit_m), got {self.pit_fragment_m!r}",
+        )
         require(len(self.track_obstacle_kinds) > 0, "track_obstacle_kinds", "must name at least one kind")
         require(
             type(self.positive_match_cells) is int and self.positive_match_cells >= 0,

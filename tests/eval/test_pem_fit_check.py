@@ -101,6 +101,8 @@ def test_blobs_beside_a_pits_rim_are_its_fragments_not_false_alarms(tmp_path):
     assert fit_parameters(*paths, 1.0, 2.0, 0.2, fragment_m=0.3).fa_blobs == every.fa_blobs  # 0.4 m out
     old = [",".join(r.split(",")[:13] + r.split(",")[14:]) for r in spurious]  # no pit_m column
     header = [c for c in SPURIOUS_COLUMNS if c != "pit_m"]
+    with pytest.raises(ConfigError, match="pit_fragment_m"):
+        PemCampaignConfig(pit_fragment_m=5.0)  # beyond the 3 m the rows record pit_m within
     with pytest.raises(ConfigError, match="pit_m"):
         fit_parameters(
             paths[0], _write(tmp_path / "old.csv", header, old), paths[2], 1.0, 2.0, 0.2, fragment_m=1.0
