@@ -448,7 +448,12 @@ def settings_mismatch(
     fitted_on: dict[str, Any], config: ObservationConfig, channels: Sequence[str] = PEM_CHANNELS
 ) -> list[str]:
     """The settings of ``config`` that differ from those a PEM of ``channels`` was fitted on, as texts."""
-    now = pem_settings(config, channels)
+    return settings_diff(fitted_on, pem_settings(config, channels))
+
+
+def settings_diff(fitted_on: dict[str, Any], now: dict[str, Any]) -> list[str]:
+    """The flat settings (:func:`pem_settings`) that differ between ``fitted_on`` and ``now``, as
+    texts naming both values."""
     keys = sorted(set(fitted_on) | set(now))
     return [
         f"{k} (fitted on {fitted_on.get(k, '<absent>')!r}, now {now.get(k, '<absent>')!r})"

@@ -368,14 +368,17 @@ class _Judge:
             ys = ndimage.mean(ctx.centres[..., 1], labels, index)
             border = ndimage.maximum(ctx.border.astype(np.uint8), labels, index).astype(bool)
             boxes = ndimage.find_objects(labels)
-            for j in np.flatnonzero(~on_truth[1:]):
+            blobs = np.flatnonzero(~on_truth[1:])
+            worlds = vehicle_to_world_xy(
+                np.column_stack([xs[blobs], ys[blobs]]).reshape(-1, 2), (ctx.pose.x, ctx.pose.y), ctx.pose.yaw
+            )
+            klasses = ctx.classes.at(worlds)
+            clutters = clutter_distance_m(worlds, ctx.terrain.positive_obstacles, CLUTTER_REACH_M)
+            pits = outline_distance_m(worlds, ctx.outlines["negative"], PIT_REACH_M)
+            for i, j in enumerate(blobs.tolist()):
                 local = np.array([[xs[j], ys[j]]])
-                world = vehicle_to_world_xy(local, (ctx.pose.x, ctx.pose.y), ctx.pose.yaw)[0]
-                klass = int(ctx.classes.at(world[None])[0])
-                clutter = float(
-                    clutter_distance_m(world[None], ctx.terrain.positive_obstacles, CLUTTER_REACH_M)[0]
-                )
-                pit = float(outline_distance_m(world[None], ctx.outlines["negative"], PIT_REACH_M)[0])
+                world = worlds[i]
+                klass, clutter, pit = int(klasses[i]), float(clutters[i]), float(pits[i])
                 seen = (
                     bool(len(self.previous))
                     and float(np.min(np.hypot(*(self.previous - world).T))) <= SAME_ALARM_M

@@ -48,6 +48,7 @@ from negobs_gym.envs.pem import (
     bin_index,
     fallback_chain,
     pem_settings,
+    settings_diff,
 )
 from negobs_gym.errors import ConfigError
 from negobs_gym.eval.campaign import RunOptions, read_csv
@@ -440,13 +441,12 @@ def with_false_alarms(base: PerceptionErrorModel, fitted: PerceptionErrorModel) 
     Raises:
         ConfigError: the two were fitted on other detector settings, or on other channels.
     """
-    if base.fitted_on != fitted.fitted_on or base.channels != fitted.channels:
-        differ = sorted(k for k in set(base.fitted_on) | set(fitted.fitted_on)
-                        if base.fitted_on.get(k) != fitted.fitted_on.get(k))  # fmt: skip
+    differ = settings_diff(base.fitted_on, fitted.fitted_on)
+    if differ or base.channels != fitted.channels:
         raise ConfigError(
             "false_alarms_into",
             "the base model was fitted on other settings or channels: "
-            + (", ".join(differ[:6]) or f"{base.channels} vs {fitted.channels}"),
+            + ("; ".join(differ[:6]) or f"{base.channels} vs {fitted.channels}"),
         )
 
     def merged(channel: str) -> PemParameters:
